@@ -1,0 +1,56 @@
+"""Design rules for the FOC loops, as functions of the motor parameters (BOOK.md chapter 3).
+
+- Current loop, internal-model design with decoupling feed-forward: ``Kp_d = a_c L_d``,
+  ``Kp_q = a_c L_q``, ``Ki = a_c R``. The PI zero cancels the winding pole ``R/L``, leaving the closed
+  loop ``a_c/(s + a_c)``: 10-90 % rise time ``ln 9 / a_c``.
+- Speed loop with active damping: ``i_q* = (Kp_w + Ki_w/s)(w* - w) - B_a w`` with
+  ``Kp_w = beta J / K_t``, ``Ki_w = beta Kp_w``, ``B_a = (beta J - B)/K_t``, ``K_t = 1.5 p_n psi_f``.
+  With an ideal current loop the speed closed loop is ``beta/(s + beta)``.
+"""
+
+import math
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from .._types import Array
+from ..machines.motor import PMSMParameters
+from ..validation import check_positive
+
+
+class CurrentLoopGains(eqx.Module):
+    """dq current PI gains: proportional (V/A) and integral (V/(A s)) per axis."""
+
+    kp_d: Array
+    kp_q: Array
+    ki_d: Array
+    ki_q: Array
+
+
+class SpeedLoopGains(eqx.Module):
+    """Speed PI gains: ``kp`` A/(rad/s), ``ki`` A/rad, active damping ``B_a`` A/(rad/s)."""
+
+    kp: Array
+    ki: Array
+    active_damping: Array
+
+
+def current_loop_imc(motor: PMSMParameters, bandwidth_rad_s=1100.0) -> CurrentLoopGains:
+    """Internal-model current PI gains for closed-loop bandwidth ``a_c`` (rad/s)."""
+    check_positive("current-loop bandwidth a_c", bandwidth_rad_s, "rad/s")
+    a_c = jnp.asarray(bandwidth_rad_s, motor.R.dtype)
+    return CurrentLoopGains(a_c * motor.L_d, a_c * motor.L_q, a_c * motor.R, a_c * motor.R)
+
+
+def speed_loop_active_damping(motor: PMSMParameters, bandwidth_rad_s=50.0) -> SpeedLoopGains:
+    """Speed PI with active damping for closed-loop bandwidth ``beta`` (rad/s)."""
+    check_positive("speed-loop bandwidth beta", bandwidth_rad_s, "rad/s")
+    beta = jnp.asarray(bandwidth_rad_s, motor.R.dtype)
+    k_t = motor.torque_constant
+    kp = beta * motor.J / k_t
+    return SpeedLoopGains(kp, beta * kp, (beta * motor.J - motor.B) / k_t)
+
+
+def first_order_rise_time(bandwidth_rad_s) -> float:
+    """10-90 % rise time (s) of ``a/(s + a)``: ``ln 9 / a``."""
+    return math.log(9.0) / float(bandwidth_rad_s)

@@ -1,0 +1,40 @@
+"""Averaged two-level bridge: each period the machine sees the period-average phase voltage.
+
+Phase-to-neutral voltages of a star-connected, isolated-neutral machine fed by legs with duty ``d``:
+``u_xN = U_dc (d_x - (d_a + d_b + d_c)/3)`` (the common-mode part does not reach the windings). The
+voltage is held in the stator frame over the period, as the real inverter holds it.
+"""
+
+import jax.numpy as jnp
+
+from .._types import Array
+from ..frames import abc_to_alpha_beta
+from ..machines.base import MachineInput
+from ..machines.integrate import advance
+from ..machines.motor import as_float
+from ..validation import check_positive
+from .base import AbstractBridge
+
+
+def phase_voltages(duties: Array, u_dc: Array) -> Array:
+    """Period-average phase-to-neutral voltages ``(3,)`` V from leg duties ``(3,)``."""
+    return u_dc * (duties - jnp.mean(duties, axis=-1, keepdims=True))
+
+
+class AveragedBridge(AbstractBridge):
+    """Ideal averaged inverter. `u_dc`: DC-link voltage, V (array leaf: vmappable, differentiable)."""
+
+    u_dc: Array
+
+    def __init__(self, u_dc=311.0):
+        self.u_dc = as_float(u_dc)
+
+    def __check_init__(self):
+        check_positive("u_dc (DC-link voltage)", self.u_dc, "V")
+
+    def advance(self, machine, state, duties, load_torque, Ts, n_substeps):
+        u_ab = abc_to_alpha_beta(phase_voltages(duties, self.u_dc))
+        new_state = advance(
+            machine, state, MachineInput(u_ab, load_torque, "stator"), Ts, n_substeps
+        )
+        return new_state, u_ab

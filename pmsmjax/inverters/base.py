@@ -1,0 +1,44 @@
+"""Interfaces of modulators (voltage reference -> duty cycles) and bridges (duties -> machine voltage)."""
+
+import equinox as eqx
+
+from .._types import Array
+from ..machines.base import AbstractMachine, MachineState
+
+
+class AbstractModulator(eqx.Module):
+    """Turns a stator-frame voltage reference into three leg duty cycles.
+
+    ``duties(u_ab_ref, u_dc)``: ``u_ab_ref: (2,)`` V, ``u_dc`` V -> ``(3,)`` duty cycles in [0, 1]
+    (fraction of the period each upper switch conducts, centre-aligned).
+    """
+
+    def duties(self, u_ab_ref: Array, u_dc: Array) -> Array:
+        raise NotImplementedError
+
+    def linear_limit(self, u_dc) -> Array:
+        """Largest phase-voltage amplitude (peak, V) reproduced without distortion."""
+        raise NotImplementedError
+
+
+class AbstractBridge(eqx.Module):
+    """A two-level voltage-source inverter fed from a DC link, coupled to the machine for one period.
+
+    ``advance`` integrates the machine over one PWM period ``Ts`` (s) under the bridge's output voltage
+    for the given duties and returns the new state and the period-average stator-frame voltage ``(2,)``
+    V. The averaged bridge applies the period-average voltage throughout; a switching-resolved bridge
+    integrates segment by segment and must return the same average.
+    """
+
+    u_dc: eqx.AbstractVar[Array]
+
+    def advance(
+        self,
+        machine: AbstractMachine,
+        state: MachineState,
+        duties: Array,
+        load_torque: Array,
+        Ts: float,
+        n_substeps: int,
+    ) -> tuple[MachineState, Array]:
+        raise NotImplementedError

@@ -1,0 +1,18 @@
+"""Plant models: the three-phase PMSM in its three frames, its parameters and integrators."""
+
+from .base import AbstractMachine, MachineInput, MachineState
+from .integrate import advance, rk4_step
+from .motor import PMSMParameters
+from .pmsm3 import PMSMabc, PMSMAlphaBeta, PMSMdq
+
+__all__ = [
+    "AbstractMachine",
+    "MachineInput",
+    "MachineState",
+    "PMSMParameters",
+    "PMSMabc",
+    "PMSMAlphaBeta",
+    "PMSMdq",
+    "advance",
+    "rk4_step",
+]

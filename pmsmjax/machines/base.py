@@ -1,0 +1,111 @@
+"""The machine interface shared by every plant model.
+
+A machine is a continuous-time system ``dx/dt = f(t, x, inputs)`` whose state is a
+:class:`MachineState` (frame-specific currents, mechanical speed, electrical angle). The same vector field
+serves the fixed-step scan (:func:`pmsmjax.machines.integrate.rk4`), diffrax adaptive solves and
+linearisation (``jax.jacfwd`` of :meth:`AbstractMachine.vector_field`).
+"""
+
+from typing import Literal
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from .._types import Array
+from ..frames import inverse_park, park
+from .motor import PMSMParameters
+
+Mechanics = Literal["dynamic", "imposed"]
+HoldFrame = Literal["stator", "rotor"]
+
+
+class MachineState(eqx.Module):
+    """State of a machine model.
+
+    - `currents`: ``(n,)`` stator currents in the model's own frame (dq, alpha-beta or abc), A.
+    - `omega_m`: mechanical speed, rad/s.
+    - `theta_e`: electrical rotor angle (d axis from the A axis), rad; wrapped once per control period.
+    """
+
+    currents: Array
+    omega_m: Array
+    theta_e: Array
+
+
+class MachineInput(eqx.Module):
+    """What drives the machine over an interval: a held voltage and a load torque.
+
+    - `u`: ``(2,)`` held voltage, V; alpha-beta if ``frame == "stator"``, dq if ``frame == "rotor"``.
+      A real inverter holds its voltage in the stator frame; a log replayed from another simulator's dq
+      model usually held it in the rotor frame.
+    - `load_torque`: load torque opposing motion, N m.
+    - `frame`: which frame the voltage is held in (static).
+    """
+
+    u: Array
+    load_torque: Array
+    frame: HoldFrame = eqx.field(static=True, default="stator")
+
+    def alpha_beta(self, theta_e: Array) -> Array:
+        """The held voltage seen in the stator frame at rotor angle ``theta_e`` (rad)."""
+        return self.u if self.frame == "stator" else inverse_park(self.u, theta_e)
+
+    def dq(self, theta_e: Array) -> Array:
+        """The held voltage seen in the rotor frame at rotor angle ``theta_e`` (rad)."""
+        return park(self.u, theta_e) if self.frame == "stator" else self.u
+
+
+class AbstractMachine(eqx.Module):
+    """A three-phase PMSM model in one reference frame.
+
+    Subclasses implement the electrical part in their frame; the mechanics are shared:
+    ``J dw_m/dt = T_e - T_L - B w_m`` (``mechanics="dynamic"``) or ``dw_m/dt = 0`` with the speed set from
+    outside each period (``mechanics="imposed"``, a dynamometer); ``dth_e/dt = p_n w_m``.
+    """
+
+    motor: eqx.AbstractVar[PMSMParameters]
+    mechanics: eqx.AbstractVar[Mechanics]
+
+    # --- frame-specific part -------------------------------------------------------------------
+    def current_derivative(self, currents: Array, theta_e: Array, omega_e: Array, u: MachineInput):
+        """d(currents)/dt in the model's frame, A/s."""
+        raise NotImplementedError
+
+    def torque(self, currents: Array, theta_e: Array) -> Array:
+        """Electromagnetic torque, N m."""
+        raise NotImplementedError
+
+    def currents_to_dq(self, currents: Array, theta_e: Array) -> Array:
+        """Model-frame currents -> ``(2,)`` dq currents, A."""
+        raise NotImplementedError
+
+    def currents_from_dq(self, i_dq: Array, theta_e: Array) -> Array:
+        """``(2,)`` dq currents -> model-frame currents (zero sequence 0), A."""
+        raise NotImplementedError
+
+    # --- shared ----------------------------------------------------------------------------------
+    def initial_state(self, i_dq=(0.0, 0.0), omega_m=0.0, theta_e=0.0) -> MachineState:
+        """State with the given dq currents (A), mechanical speed (rad/s) and electrical angle (rad)."""
+        dtype = self.motor.R.dtype
+        theta = jnp.asarray(theta_e, dtype)
+        i_dq = jnp.asarray(i_dq, dtype)
+        return MachineState(self.currents_from_dq(i_dq, theta), jnp.asarray(omega_m, dtype), theta)
+
+    def vector_field(self, t, state: MachineState, inputs: MachineInput) -> MachineState:
+        """Continuous-time dynamics ``dx/dt`` (diffrax signature ``f(t, y, args)``)."""
+        del t
+        m = self.motor
+        omega_e = m.pole_pairs * state.omega_m
+        di = self.current_derivative(state.currents, state.theta_e, omega_e, inputs)
+        if self.mechanics == "dynamic":
+            torque = self.torque(state.currents, state.theta_e)
+            domega = (torque - inputs.load_torque - m.B * state.omega_m) / m.J
+        else:
+            domega = jnp.zeros_like(state.omega_m)
+        return MachineState(di, domega, omega_e)
+
+    def currents_dq(self, state: MachineState) -> Array:
+        return self.currents_to_dq(state.currents, state.theta_e)
+
+    def electromagnetic_torque(self, state: MachineState) -> Array:
+        return self.torque(state.currents, state.theta_e)

@@ -1,0 +1,63 @@
+"""Parameters of a three-phase permanent-magnet synchronous motor (SI units)."""
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from .._types import Array
+from ..validation import ParameterError, check_nonnegative, check_positive
+
+
+def as_float(x) -> Array:
+    """Convert a number or array to a JAX float array of the default precision."""
+    return jnp.asarray(x, dtype=jnp.result_type(float))
+
+
+class PMSMParameters(eqx.Module):
+    """Electrical and mechanical parameters of a three-phase PMSM.
+
+    Every field but ``pole_pairs`` is an array leaf: tunable, vmappable and differentiable. Values may
+    carry leading batch axes (one motor per row) when used under ``jax.vmap``.
+
+    **Arguments:**
+
+    - `R`: stator phase resistance, ohm.
+    - `L_d`, `L_q`: d- and q-axis inductances, H (equal for a surface-mounted machine).
+    - `psi_f`: permanent-magnet flux linkage amplitude (phase, peak), Wb.
+    - `J`: total inertia on the shaft, kg m^2.
+    - `B`: viscous friction coefficient, N m s/rad.
+    - `pole_pairs`: number of pole pairs (static: it is an integer, not a tunable parameter).
+    """
+
+    R: Array = eqx.field(converter=as_float)
+    L_d: Array = eqx.field(converter=as_float)
+    L_q: Array = eqx.field(converter=as_float)
+    psi_f: Array = eqx.field(converter=as_float)
+    J: Array = eqx.field(converter=as_float)
+    B: Array = eqx.field(converter=as_float)
+    pole_pairs: int = eqx.field(static=True, default=4)
+
+    def __check_init__(self):
+        if not isinstance(self.pole_pairs, int) or self.pole_pairs < 1:
+            raise ParameterError(
+                f"pole_pairs must be a positive integer, got {self.pole_pairs!r}: give the number of "
+                "pole pairs (poles/2) as an int."
+            )
+        check_positive("R (stator resistance)", self.R, "ohm")
+        check_positive(
+            "L_d (d-axis inductance)", self.L_d, "H", "give inductances in henry (mH * 1e-3)"
+        )
+        check_positive(
+            "L_q (q-axis inductance)", self.L_q, "H", "give inductances in henry (mH * 1e-3)"
+        )
+        check_nonnegative("psi_f (PM flux linkage)", self.psi_f, "Wb")
+        check_positive("J (inertia)", self.J, "kg m^2")
+        check_nonnegative("B (viscous friction)", self.B, "N m s/rad")
+
+    @property
+    def torque_constant(self) -> Array:
+        """1.5 p_n psi_f, N m/A (q-axis current to torque, amplitude-invariant frames)."""
+        return 1.5 * self.pole_pairs * self.psi_f
+
+    @property
+    def is_salient(self) -> Array:
+        return self.L_d != self.L_q

@@ -1,0 +1,163 @@
+"""Three-phase PMSM in the rotor (dq), stationary (alpha-beta) and natural (abc) frames.
+
+Each model is written from its own frame's equations (BOOK.md chapter 1) so that comparing them is an
+independent check of each:
+
+- :class:`PMSMdq`: ``u_d = R i_d + L_d di_d/dt - w_e L_q i_q``,
+  ``u_q = R i_q + L_q di_q/dt + w_e (L_d i_d + psi_f)``; ``T_e = 1.5 p_n [psi_f i_q + (L_d - L_q) i_d i_q]``.
+- :class:`PMSMAlphaBeta`: flux ``psi = L_ab(th) i + psi_f [cos th, sin th]`` with
+  ``L_ab = [[L0 + L2 cos 2th, L2 sin 2th], [L2 sin 2th, L0 - L2 cos 2th]]``, ``u = R i + dpsi/dt``,
+  ``T_e = 1.5 p_n (psi_a i_b - psi_b i_a)``.
+- :class:`PMSMabc`: flux ``psi = L_abc(th) i + psi_PM,abc(th)`` with self/mutual inductances
+  ``L_xy = L_l delta_xy + L_0m cos(phi_x - phi_y) + L_2m cos(2 th - phi_x - phi_y)``
+  (phase axes phi = 0, 2pi/3, -2pi/3), ``u = R i + dpsi/dt``; torque from the co-energy
+  ``T_e = p_n dW'/dth_e``, ``W' = 1/2 i^T L i + i^T psi_PM``, taken by automatic differentiation.
+  ``L_d = L_l + 1.5 (L_0m + L_2m)``, ``L_q = L_l + 1.5 (L_0m - L_2m)``.
+
+In the flux-based models ``dpsi/dt = L(th) di/dt + w_e dpsi/dth``; the angle derivative of the flux is
+taken with ``jax.jvp`` so the EMF and reluctance terms cannot be mis-derived by hand.
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from .._types import Array
+from ..frames import abc_to_alpha_beta, alpha_beta_to_abc, inverse_park, park
+from .base import AbstractMachine, MachineInput, Mechanics
+from .motor import PMSMParameters, as_float
+
+_PHASE_AXES = jnp.array([0.0, 2.0 * jnp.pi / 3.0, -2.0 * jnp.pi / 3.0])
+
+
+def _solve2(L: Array, b: Array) -> Array:
+    """Solve a 2x2 linear system in closed form (cheaper than LAPACK inside a scan)."""
+    det = L[0, 0] * L[1, 1] - L[0, 1] * L[1, 0]
+    return jnp.stack([L[1, 1] * b[0] - L[0, 1] * b[1], L[0, 0] * b[1] - L[1, 0] * b[0]]) / det
+
+
+class PMSMdq(AbstractMachine):
+    """PMSM in the rotor frame; state currents ``(2,)`` = [i_d, i_q], A. Surface or salient."""
+
+    motor: PMSMParameters
+    mechanics: Mechanics = eqx.field(static=True, default="dynamic")
+
+    def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
+        m = self.motor
+        i_d, i_q = currents[0], currents[1]
+        u_dq = u.dq(theta_e)
+        did = (u_dq[0] - m.R * i_d + omega_e * m.L_q * i_q) / m.L_d
+        diq = (u_dq[1] - m.R * i_q - omega_e * (m.L_d * i_d + m.psi_f)) / m.L_q
+        return jnp.stack([did, diq])
+
+    def torque(self, currents, theta_e):
+        m = self.motor
+        i_d, i_q = currents[0], currents[1]
+        return 1.5 * m.pole_pairs * (m.psi_f * i_q + (m.L_d - m.L_q) * i_d * i_q)
+
+    def currents_to_dq(self, currents, theta_e):
+        return currents
+
+    def currents_from_dq(self, i_dq, theta_e):
+        return i_dq
+
+
+class PMSMAlphaBeta(AbstractMachine):
+    """PMSM in the stationary frame; state currents ``(2,)`` = [i_alpha, i_beta], A."""
+
+    motor: PMSMParameters
+    mechanics: Mechanics = eqx.field(static=True, default="dynamic")
+
+    def inductance(self, theta_e) -> Array:
+        """``(2, 2)`` alpha-beta inductance matrix at electrical angle ``theta_e``, H."""
+        m = self.motor
+        L0, L2 = 0.5 * (m.L_d + m.L_q), 0.5 * (m.L_d - m.L_q)
+        c2, s2 = jnp.cos(2.0 * theta_e), jnp.sin(2.0 * theta_e)
+        return jnp.stack([jnp.stack([L0 + L2 * c2, L2 * s2]), jnp.stack([L2 * s2, L0 - L2 * c2])])
+
+    def flux(self, currents, theta_e) -> Array:
+        """``(2,)`` stator flux linkage, Wb."""
+        pm = self.motor.psi_f * jnp.stack([jnp.cos(theta_e), jnp.sin(theta_e)])
+        return self.inductance(theta_e) @ currents + pm
+
+    def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
+        _, dflux_dtheta = jax.jvp(
+            lambda th: self.flux(currents, th), (theta_e,), (jnp.ones_like(theta_e),)
+        )
+        rhs = u.alpha_beta(theta_e) - self.motor.R * currents - omega_e * dflux_dtheta
+        return _solve2(self.inductance(theta_e), rhs)
+
+    def torque(self, currents, theta_e):
+        psi = self.flux(currents, theta_e)
+        return 1.5 * self.motor.pole_pairs * (psi[0] * currents[1] - psi[1] * currents[0])
+
+    def currents_to_dq(self, currents, theta_e):
+        return park(currents, theta_e)
+
+    def currents_from_dq(self, i_dq, theta_e):
+        return inverse_park(i_dq, theta_e)
+
+
+class PMSMabc(AbstractMachine):
+    """PMSM in the natural frame; state currents ``(3,)`` = [i_a, i_b, i_c], A (star, isolated neutral).
+
+    **Arguments:**
+
+    - `motor`: :class:`PMSMParameters`.
+    - `leakage_inductance`: per-phase leakage ``L_l``, H; it is also the zero-sequence inductance. It does
+      not affect balanced operation; the default is a tenth of ``min(L_d, L_q)``.
+    - `mechanics`: ``"dynamic"`` or ``"imposed"`` speed.
+    """
+
+    motor: PMSMParameters
+    leakage_inductance: Array
+    mechanics: Mechanics = eqx.field(static=True, default="dynamic")
+
+    def __init__(
+        self, motor: PMSMParameters, leakage_inductance=None, mechanics: Mechanics = "dynamic"
+    ):
+        self.motor = motor
+        if leakage_inductance is None:
+            leakage_inductance = 0.1 * jnp.minimum(motor.L_d, motor.L_q)
+        self.leakage_inductance = as_float(leakage_inductance)
+        self.mechanics = mechanics
+
+    def inductance(self, theta_e) -> Array:
+        """``(3, 3)`` phase inductance matrix ``L_abc(theta_e)``, H."""
+        m = self.motor
+        L_l = self.leakage_inductance
+        L_0m = (m.L_d + m.L_q - 2.0 * L_l) / 3.0
+        L_2m = (m.L_d - m.L_q) / 3.0
+        phi_x, phi_y = _PHASE_AXES[:, None], _PHASE_AXES[None, :]
+        return (
+            L_l * jnp.eye(3)
+            + L_0m * jnp.cos(phi_x - phi_y)
+            + L_2m * jnp.cos(2.0 * theta_e - phi_x - phi_y)
+        )
+
+    def magnet_flux(self, theta_e) -> Array:
+        """``(3,)`` PM flux linked by each phase, Wb."""
+        return self.motor.psi_f * jnp.cos(theta_e - _PHASE_AXES)
+
+    def flux(self, currents, theta_e) -> Array:
+        return self.inductance(theta_e) @ currents + self.magnet_flux(theta_e)
+
+    def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
+        _, dflux_dtheta = jax.jvp(
+            lambda th: self.flux(currents, th), (theta_e,), (jnp.ones_like(theta_e),)
+        )
+        u_abc = alpha_beta_to_abc(u.alpha_beta(theta_e))
+        rhs = u_abc - self.motor.R * currents - omega_e * dflux_dtheta
+        return jnp.linalg.solve(self.inductance(theta_e), rhs)
+
+    def torque(self, currents, theta_e):
+        def coenergy(th):
+            return 0.5 * currents @ self.inductance(th) @ currents + currents @ self.magnet_flux(th)
+
+        return self.motor.pole_pairs * jax.grad(coenergy)(theta_e)
+
+    def currents_to_dq(self, currents, theta_e):
+        return park(abc_to_alpha_beta(currents), theta_e)
+
+    def currents_from_dq(self, i_dq, theta_e):
+        return alpha_beta_to_abc(inverse_park(i_dq, theta_e))

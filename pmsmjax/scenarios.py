@@ -1,0 +1,148 @@
+"""Reference and load profiles as array pytrees (vmappable, differentiable in their values and times).
+
+A :class:`Profile` is piecewise: breakpoints ``times (K,)`` s with ``values (K,)``; on
+``[times[k], times[k+1])`` the value is held (``linear[k] = 0``) or interpolated linearly towards
+``values[k+1]`` (``linear[k] = 1``). Before ``times[0]`` the first value holds, after the last breakpoint
+the last value. Steps, ramps, reversals and arbitrary staircases are all of this form, so a batch of
+different scenarios is one stacked pytree (pad with :func:`stack_scenarios`).
+"""
+
+from collections.abc import Sequence
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._types import Array
+from .machines.motor import as_float
+from .validation import ParameterError, check_finite, check_positive, is_concrete
+
+
+class Profile(eqx.Module):
+    """Piecewise hold/linear profile. ``times``, ``values``, ``linear``: ``(K,)`` (or ``(batch, K)``)."""
+
+    times: Array = eqx.field(converter=as_float)
+    values: Array = eqx.field(converter=as_float)
+    linear: Array = eqx.field(converter=as_float)
+
+    def __check_init__(self):
+        if not all(is_concrete(x) for x in (self.times, self.values, self.linear)):
+            return
+        if not (self.times.shape == self.values.shape == self.linear.shape) or self.times.ndim < 1:
+            raise ParameterError(
+                "Profile times, values and linear must have the same shape (K,), got "
+                f"{self.times.shape}, {self.values.shape}, {self.linear.shape}."
+            )
+        check_finite("Profile.times", self.times, "s")
+        check_finite("Profile.values", self.values)
+        if np.any(np.diff(np.asarray(self.times), axis=-1) < 0):
+            raise ParameterError(
+                "Profile.times must be non-decreasing: sort the breakpoints by time."
+            )
+
+    @staticmethod
+    def constant(value) -> "Profile":
+        return Profile([0.0], [value], [0.0])
+
+    @staticmethod
+    def step(time_s, before, after) -> "Profile":
+        """``before`` until ``time_s`` (s), then ``after``."""
+        return Profile([0.0, time_s], [before, after], [0.0, 0.0])
+
+    @staticmethod
+    def ramp(start_s, end_s, start_value, end_value) -> "Profile":
+        """``start_value`` until ``start_s``, linear to ``end_value`` at ``end_s``, then held."""
+        return Profile(
+            [0.0, start_s, end_s], [start_value, start_value, end_value], [0.0, 1.0, 0.0]
+        )
+
+    @staticmethod
+    def piecewise(times, values, interpolation: str = "hold") -> "Profile":
+        """Breakpoints with one interpolation for all segments: ``"hold"`` or ``"linear"``."""
+        if interpolation not in ("hold", "linear"):
+            raise ParameterError(
+                f"interpolation must be 'hold' or 'linear', got {interpolation!r}."
+            )
+        times = np.asarray(times, dtype=float)
+        flag = 1.0 if interpolation == "linear" else 0.0
+        return Profile(times, values, np.full(times.shape, flag))
+
+    def __call__(self, t) -> Array:
+        """Value at time ``t`` (s, scalar)."""
+        K = self.times.shape[-1]
+        k = jnp.clip(jnp.searchsorted(self.times, t, side="right") - 1, 0, K - 1)
+        k1 = jnp.minimum(k + 1, K - 1)
+        t0, t1 = self.times[k], self.times[k1]
+        span = t1 - t0
+        has_span = span > 0
+        frac = jnp.where(has_span, (t - t0) / jnp.where(has_span, span, 1.0), 0.0)
+        frac = jnp.clip(frac, 0.0, 1.0)
+        return self.values[k] + self.linear[k] * frac * (self.values[k1] - self.values[k])
+
+    def sample(self, t: Array) -> Array:
+        """Values at the times ``t (N,)`` s -> ``(N,)``."""
+        return jax.vmap(self)(t)
+
+    def padded(self, K: int) -> "Profile":
+        """The same profile with ``K`` breakpoints (the last one repeated, held)."""
+        n = self.times.shape[-1]
+        if n > K:
+            raise ParameterError(f"cannot pad a profile of {n} breakpoints to {K}.")
+        pad = lambda x, fill: jnp.concatenate([x, jnp.full((K - n,), fill, x.dtype)])
+        return Profile(
+            pad(self.times, self.times[-1]),
+            pad(self.values, self.values[-1]),
+            pad(self.linear, 0.0),
+        )
+
+
+def _zero() -> Profile:
+    return Profile.constant(0.0)
+
+
+class Scenario(eqx.Module):
+    """What the drive is asked to do over ``duration_s``.
+
+    **Arguments:**
+
+    - `duration_s`: simulated time, s (static: it sets the number of control periods).
+    - `speed_ref`: speed reference, mechanical rad/s; with ``mechanics="imposed"`` it is the speed a
+      dynamometer imposes on the shaft.
+    - `load_torque`: load torque, N m (opposes positive speed when positive).
+    - `id_ref`: d-axis current reference, A (0 for i_d = 0 control).
+    - `iq_ref`: q-axis current reference, A (used by controllers in current mode).
+    """
+
+    duration_s: float = eqx.field(static=True)
+    speed_ref: Profile = eqx.field(default_factory=_zero)
+    load_torque: Profile = eqx.field(default_factory=_zero)
+    id_ref: Profile = eqx.field(default_factory=_zero)
+    iq_ref: Profile = eqx.field(default_factory=_zero)
+
+    def __check_init__(self):
+        check_positive("Scenario.duration_s", self.duration_s, "s")
+
+    def n_periods(self, Ts: float) -> int:
+        """Number of control periods of length ``Ts`` (s) in the scenario (rounded to nearest)."""
+        return int(round(self.duration_s / Ts))
+
+
+def stack_scenarios(scenarios: Sequence[Scenario]) -> Scenario:
+    """Stack scenarios of equal duration into one batched Scenario (leading axis = scenario)."""
+    if len(scenarios) == 0:
+        raise ParameterError("stack_scenarios needs at least one scenario.")
+    durations = {s.duration_s for s in scenarios}
+    if len(durations) != 1:
+        raise ParameterError(
+            f"scenarios in one batch must share duration_s (it fixes the scan length), got {durations}."
+        )
+    padded = []
+    for field in ("speed_ref", "load_torque", "id_ref", "iq_ref"):
+        K = max(getattr(s, field).times.shape[-1] for s in scenarios)
+        padded.append([getattr(s, field).padded(K) for s in scenarios])
+    rows = [
+        Scenario(scenarios[0].duration_s, *(padded[f][i] for f in range(4)))
+        for i in range(len(scenarios))
+    ]
+    return jax.tree.map(lambda *xs: jnp.stack(xs), *rows)

@@ -1,0 +1,80 @@
+"""The simulation result: every signal an engineer plots, one row per recorded control period."""
+
+import equinox as eqx
+import numpy as np
+
+from ._types import Array
+from .units import rad_s_to_rpm
+
+# Column name -> (Trace attribute, index into the last axis or None), for CSV/NPZ export.
+_COLUMNS = {
+    "time": ("t", None),
+    "omega_m": ("omega_m", None),
+    "speed_rpm": ("speed_rpm", None),
+    "speed_ref": ("speed_ref", None),
+    "theta_e": ("theta_e", None),
+    "i_d": ("i_dq", 0),
+    "i_q": ("i_dq", 1),
+    "i_d_ref": ("i_dq_ref", 0),
+    "i_q_ref": ("i_dq_ref", 1),
+    "i_a": ("i_abc", 0),
+    "i_b": ("i_abc", 1),
+    "i_c": ("i_abc", 2),
+    "u_d_ref": ("u_dq_ref", 0),
+    "u_q_ref": ("u_dq_ref", 1),
+    "u_a": ("u_abc", 0),
+    "u_b": ("u_abc", 1),
+    "u_c": ("u_abc", 2),
+    "duty_a": ("duties", 0),
+    "duty_b": ("duties", 1),
+    "duty_c": ("duties", 2),
+    "torque": ("torque", None),
+    "load_torque": ("load_torque", None),
+}
+
+
+class Trace(eqx.Module):
+    """Recorded signals; the leading axis is time (after any batch axes from ``vmap``).
+
+    - `t`: ``(N,)`` period start times, s.
+    - `omega_m`, `speed_ref`: mechanical speed and its reference, rad/s. `theta_e`: electrical angle, rad.
+    - `i_dq`, `i_dq_ref`: ``(N, 2)`` measured and reference dq currents, A. `i_abc`: ``(N, 3)`` A.
+    - `u_dq_ref`: ``(N, 2)`` controller voltage command, V. `u_abc`: ``(N, 3)`` period-average applied
+      phase voltages, V. `duties`: ``(N, 3)`` applied leg duty cycles.
+    - `torque`: electromagnetic torque, N m. `load_torque`: load torque, N m.
+    """
+
+    t: Array
+    omega_m: Array
+    speed_ref: Array
+    theta_e: Array
+    i_dq: Array
+    i_dq_ref: Array
+    i_abc: Array
+    u_dq_ref: Array
+    u_abc: Array
+    duties: Array
+    torque: Array
+    load_torque: Array
+
+    @property
+    def speed_rpm(self) -> Array:
+        return rad_s_to_rpm(self.omega_m)
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """Flat named columns (NumPy) for a single (unbatched) trace."""
+        if np.ndim(self.t) != 1:
+            raise ValueError(
+                "columns() needs a single trace; index the batch first, e.g. trace[i]."
+            )
+        out = {}
+        for name, (attr, idx) in _COLUMNS.items():
+            x = np.asarray(getattr(self, attr))
+            out[name] = x if idx is None else x[..., idx]
+        return out
+
+    def __getitem__(self, index) -> "Trace":
+        """Select along the leading (batch) axis."""
+        import jax
+
+        return jax.tree.map(lambda x: x[index], self)

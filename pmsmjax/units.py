@@ -1,0 +1,15 @@
+"""Unit conversions for the user interface (the library itself works in SI units)."""
+
+import math
+
+RAD_S_PER_RPM = 2.0 * math.pi / 60.0
+
+
+def rpm_to_rad_s(speed_rpm):
+    """Mechanical speed, r/min -> rad/s."""
+    return speed_rpm * RAD_S_PER_RPM
+
+
+def rad_s_to_rpm(speed_rad_s):
+    """Mechanical speed, rad/s -> r/min."""
+    return speed_rad_s / RAD_S_PER_RPM
