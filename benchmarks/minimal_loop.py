@@ -40,9 +40,7 @@ def make_minimal_loop(
     if runtime_parameters:
 
         def run_with(speed_ref, load, params):
-            loop = _build(
-                p=p, u_dc=u_dc, Ts=Ts, n_sub=n_sub, a_c=a_c, beta=beta, i_max=i_max, **params
-            )
+            loop = _build(p=p, u_dc=u_dc, Ts=Ts, n_sub=n_sub, a_c=a_c, beta=beta, i_max=i_max, **params)
             return loop(speed_ref, load)
 
         return jax.jit(run_with)
@@ -87,9 +85,7 @@ def _build(R, L, psi, p, J, B, u_dc, Ts, n_sub, a_c, beta, i_max):
         xi_d = xi_d + Ts * ki_i * (0.0 - i_d) + (ud - vd)
         xi_q = xi_q + Ts * ki_i * (iq_ref - i_q) + (uq - vq)
         th_c = th + we * 1.5 * Ts
-        u_new = jnp.stack(
-            [ud * jnp.cos(th_c) - uq * jnp.sin(th_c), ud * jnp.sin(th_c) + uq * jnp.cos(th_c)]
-        )
+        u_new = jnp.stack([ud * jnp.cos(th_c) - uq * jnp.sin(th_c), ud * jnp.sin(th_c) + uq * jnp.cos(th_c)])
         u_a, u_b = u_prev[0], u_prev[1]
 
         def rk4(_, x):

@@ -98,8 +98,6 @@ class Drive(eqx.Module):
         )
         new_duties = self.modulator.duties(out.u_ab_ref, self.bridge.u_dc)
         duties = state.pending_duties if self.computation_delay else new_duties
-        ms_next, _ = self.bridge.advance(
-            self.machine, ms, duties, x.load_torque, self.Ts, self.n_substeps
-        )
+        ms_next, _ = self.bridge.advance(self.machine, ms, duties, x.load_torque, self.Ts, self.n_substeps)
         record = PeriodRecord(ms, duties, out.u_dq_ref, out.i_dq_ref)
         return DriveState(ms_next, ctrl_state, new_duties), record

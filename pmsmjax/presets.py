@@ -150,9 +150,7 @@ def load_motor(name_or_path: str | Path) -> PMSMParameters:
     for f in MOTOR_FIELDS:
         if f == "pole_pairs":
             if not isinstance(data[f], int):
-                raise ParameterError(
-                    f"motor file {path}: pole_pairs must be an integer, got {data[f]!r}."
-                )
+                raise ParameterError(f"motor file {path}: pole_pairs must be an integer, got {data[f]!r}.")
             values[f] = data[f]
         else:
             if not isinstance(data[f], (int, float)):

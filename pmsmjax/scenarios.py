@@ -37,9 +37,7 @@ class Profile(eqx.Module):
         check_finite("Profile.times", self.times, "s")
         check_finite("Profile.values", self.values)
         if np.any(np.diff(np.asarray(self.times), axis=-1) < 0):
-            raise ParameterError(
-                "Profile.times must be non-decreasing: sort the breakpoints by time."
-            )
+            raise ParameterError("Profile.times must be non-decreasing: sort the breakpoints by time.")
 
     @staticmethod
     def constant(value) -> "Profile":
@@ -53,17 +51,13 @@ class Profile(eqx.Module):
     @staticmethod
     def ramp(start_s, end_s, start_value, end_value) -> "Profile":
         """``start_value`` until ``start_s``, linear to ``end_value`` at ``end_s``, then held."""
-        return Profile(
-            [0.0, start_s, end_s], [start_value, start_value, end_value], [0.0, 1.0, 0.0]
-        )
+        return Profile([0.0, start_s, end_s], [start_value, start_value, end_value], [0.0, 1.0, 0.0])
 
     @staticmethod
     def piecewise(times, values, interpolation: str = "hold") -> "Profile":
         """Breakpoints with one interpolation for all segments: ``"hold"`` or ``"linear"``."""
         if interpolation not in ("hold", "linear"):
-            raise ParameterError(
-                f"interpolation must be 'hold' or 'linear', got {interpolation!r}."
-            )
+            raise ParameterError(f"interpolation must be 'hold' or 'linear', got {interpolation!r}.")
         times = np.asarray(times, dtype=float)
         flag = 1.0 if interpolation == "linear" else 0.0
         return Profile(times, values, np.full(times.shape, flag))
@@ -142,7 +136,6 @@ def stack_scenarios(scenarios: Sequence[Scenario]) -> Scenario:
         K = max(getattr(s, field).times.shape[-1] for s in scenarios)
         padded.append([getattr(s, field).padded(K) for s in scenarios])
     rows = [
-        Scenario(scenarios[0].duration_s, *(padded[f][i] for f in range(4)))
-        for i in range(len(scenarios))
+        Scenario(scenarios[0].duration_s, *(padded[f][i] for f in range(4))) for i in range(len(scenarios))
     ]
     return jax.tree.map(lambda *xs: jnp.stack(xs), *rows)

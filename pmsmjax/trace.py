@@ -64,9 +64,7 @@ class Trace(eqx.Module):
     def columns(self) -> dict[str, np.ndarray]:
         """Flat named columns (NumPy) for a single (unbatched) trace."""
         if np.ndim(self.t) != 1:
-            raise ValueError(
-                "columns() needs a single trace; index the batch first, e.g. trace[i]."
-            )
+            raise ValueError("columns() needs a single trace; index the batch first, e.g. trace[i].")
         out = {}
         for name, (attr, idx) in _COLUMNS.items():
             x = np.asarray(getattr(self, attr))

@@ -27,9 +27,7 @@ def check_finite(name: str, x, unit: str = "") -> None:
         return
     v = _values(x)
     if not np.all(np.isfinite(v)):
-        raise ParameterError(
-            f"{name} must be finite, got {v}{' ' + unit if unit else ''}: replace NaN/inf."
-        )
+        raise ParameterError(f"{name} must be finite, got {v}{' ' + unit if unit else ''}: replace NaN/inf.")
 
 
 def check_positive(name: str, x, unit: str = "", hint: str = "") -> None:
@@ -40,9 +38,7 @@ def check_positive(name: str, x, unit: str = "", hint: str = "") -> None:
     v = _values(x)
     if np.any(v <= 0):
         fix = hint or f"give a strictly positive value in {unit or 'SI units'}"
-        raise ParameterError(
-            f"{name} must be > 0, got {v.min():g}{' ' + unit if unit else ''}: {fix}."
-        )
+        raise ParameterError(f"{name} must be > 0, got {v.min():g}{' ' + unit if unit else ''}: {fix}.")
 
 
 def check_nonnegative(name: str, x, unit: str = "", hint: str = "") -> None:
@@ -53,6 +49,4 @@ def check_nonnegative(name: str, x, unit: str = "", hint: str = "") -> None:
     v = _values(x)
     if np.any(v < 0):
         fix = hint or f"give a value >= 0 in {unit or 'SI units'}"
-        raise ParameterError(
-            f"{name} must be >= 0, got {v.min():g}{' ' + unit if unit else ''}: {fix}."
-        )
+        raise ParameterError(f"{name} must be >= 0, got {v.min():g}{' ' + unit if unit else ''}: {fix}.")

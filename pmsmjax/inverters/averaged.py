@@ -34,7 +34,5 @@ class AveragedBridge(AbstractBridge):
 
     def advance(self, machine, state, duties, load_torque, Ts, n_substeps):
         u_ab = abc_to_alpha_beta(phase_voltages(duties, self.u_dc))
-        new_state = advance(
-            machine, state, MachineInput(u_ab, load_torque, "stator"), Ts, n_substeps
-        )
+        new_state = advance(machine, state, MachineInput(u_ab, load_torque, "stator"), Ts, n_substeps)
         return new_state, u_ab

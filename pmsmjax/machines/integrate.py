@@ -7,9 +7,7 @@ from ..frames import wrap_angle
 from .base import AbstractMachine, MachineInput, MachineState
 
 
-def rk4_step(
-    machine: AbstractMachine, state: MachineState, inputs: MachineInput, h
-) -> MachineState:
+def rk4_step(machine: AbstractMachine, state: MachineState, inputs: MachineInput, h) -> MachineState:
     """One classical Runge-Kutta step of length ``h`` (s)."""
     f = lambda x: machine.vector_field(None, x, inputs)
     add = lambda x, k, a: jax.tree.map(lambda xi, ki: xi + a * ki, x, k)

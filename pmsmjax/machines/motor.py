@@ -43,12 +43,8 @@ class PMSMParameters(eqx.Module):
                 "pole pairs (poles/2) as an int."
             )
         check_positive("R (stator resistance)", self.R, "ohm")
-        check_positive(
-            "L_d (d-axis inductance)", self.L_d, "H", "give inductances in henry (mH * 1e-3)"
-        )
-        check_positive(
-            "L_q (q-axis inductance)", self.L_q, "H", "give inductances in henry (mH * 1e-3)"
-        )
+        check_positive("L_d (d-axis inductance)", self.L_d, "H", "give inductances in henry (mH * 1e-3)")
+        check_positive("L_q (q-axis inductance)", self.L_q, "H", "give inductances in henry (mH * 1e-3)")
         check_nonnegative("psi_f (PM flux linkage)", self.psi_f, "Wb")
         check_positive("J (inertia)", self.J, "kg m^2")
         check_nonnegative("B (viscous friction)", self.B, "N m s/rad")

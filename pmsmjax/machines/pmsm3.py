@@ -81,9 +81,7 @@ class PMSMAlphaBeta(AbstractMachine):
         return self.inductance(theta_e) @ currents + pm
 
     def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
-        _, dflux_dtheta = jax.jvp(
-            lambda th: self.flux(currents, th), (theta_e,), (jnp.ones_like(theta_e),)
-        )
+        _, dflux_dtheta = jax.jvp(lambda th: self.flux(currents, th), (theta_e,), (jnp.ones_like(theta_e),))
         rhs = u.alpha_beta(theta_e) - self.motor.R * currents - omega_e * dflux_dtheta
         return _solve2(self.inductance(theta_e), rhs)
 
@@ -113,9 +111,7 @@ class PMSMabc(AbstractMachine):
     leakage_inductance: Array
     mechanics: Mechanics = eqx.field(static=True, default="dynamic")
 
-    def __init__(
-        self, motor: PMSMParameters, leakage_inductance=None, mechanics: Mechanics = "dynamic"
-    ):
+    def __init__(self, motor: PMSMParameters, leakage_inductance=None, mechanics: Mechanics = "dynamic"):
         self.motor = motor
         if leakage_inductance is None:
             leakage_inductance = 0.1 * jnp.minimum(motor.L_d, motor.L_q)
@@ -130,9 +126,7 @@ class PMSMabc(AbstractMachine):
         L_2m = (m.L_d - m.L_q) / 3.0
         phi_x, phi_y = _PHASE_AXES[:, None], _PHASE_AXES[None, :]
         return (
-            L_l * jnp.eye(3)
-            + L_0m * jnp.cos(phi_x - phi_y)
-            + L_2m * jnp.cos(2.0 * theta_e - phi_x - phi_y)
+            L_l * jnp.eye(3) + L_0m * jnp.cos(phi_x - phi_y) + L_2m * jnp.cos(2.0 * theta_e - phi_x - phi_y)
         )
 
     def magnet_flux(self, theta_e) -> Array:
@@ -143,9 +137,7 @@ class PMSMabc(AbstractMachine):
         return self.inductance(theta_e) @ currents + self.magnet_flux(theta_e)
 
     def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
-        _, dflux_dtheta = jax.jvp(
-            lambda th: self.flux(currents, th), (theta_e,), (jnp.ones_like(theta_e),)
-        )
+        _, dflux_dtheta = jax.jvp(lambda th: self.flux(currents, th), (theta_e,), (jnp.ones_like(theta_e),))
         u_abc = alpha_beta_to_abc(u.alpha_beta(theta_e))
         rhs = u_abc - self.motor.R * currents - omega_e * dflux_dtheta
         return jnp.linalg.solve(self.inductance(theta_e), rhs)
