@@ -55,10 +55,11 @@ def check_simulation(drive: Drive, scenario: Scenario, decimate: int = 1) -> Non
             f"decimate = {decimate!r} must be a positive int dividing the {n} periods of the scenario."
         )
     values = scenario.speed_ref.values
-    if is_concrete(values) and is_concrete(drive.machine.motor.R):
+    motor = drive.machine.motor
+    if all(is_concrete(x) for x in (values, motor.R, motor.L_d, motor.L_q)):
         # Allow 50 % overshoot above the largest reference when judging the fastest electrical rate.
         max_speed = 1.5 * float(np.max(np.abs(np.asarray(values)))) + 1.0
-        h_max = float(np.min(np.asarray(max_stable_substep(drive.machine, max_speed))))
+        h_max = max_stable_substep(motor, max_speed)
         h = drive.Ts / drive.n_substeps
         if h > h_max:
             need = math.ceil(drive.Ts / h_max)

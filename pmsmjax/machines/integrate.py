@@ -1,7 +1,7 @@
 """Fixed-step integration of a machine over an interval with a held input."""
 
 import jax
-import jax.numpy as jnp
+import numpy as np
 
 from ..frames import wrap_angle
 from .base import AbstractMachine, MachineInput, MachineState
@@ -36,12 +36,14 @@ def advance(
     return MachineState(state.currents, state.omega_m, wrap_angle(state.theta_e))
 
 
-def max_stable_substep(machine: AbstractMachine, max_speed_m) -> jnp.ndarray:
-    """Longest RK4 sub-step (s) we accept: 0.5 / (fastest electrical rate).
+def max_stable_substep(motor_or_machine, max_speed_m) -> float:
+    """Longest RK4 sub-step (s) we accept: 0.5 / (fastest electrical rate), from concrete values.
 
     The electrical rates are ``R/L`` (the current's own pole) and ``omega_e`` (rotation of the flux); RK4
-    is stable to about 2.8 on both axes and accurate to 1e-4 per period at 0.5. Used by the input checks.
+    is stable to about 2.8 on both axes and accurate to 1e-4 per period at 0.5. Used by the input checks,
+    so it works on NumPy values (it must not create JAX tracers inside a jit).
     """
-    m = machine.motor
-    rate = jnp.maximum(m.R / jnp.minimum(m.L_d, m.L_q), m.pole_pairs * jnp.abs(max_speed_m))
-    return 0.5 / rate
+    motor = getattr(motor_or_machine, "motor", motor_or_machine)
+    R, L_d, L_q = (np.asarray(jax.device_get(x), dtype=float) for x in (motor.R, motor.L_d, motor.L_q))
+    rate = np.maximum(R / np.minimum(L_d, L_q), motor.pole_pairs * np.abs(max_speed_m))
+    return float(np.min(0.5 / rate))
