@@ -1,6 +1,7 @@
 """Plant models: the three-phase PMSM in its three frames, its parameters and integrators."""
 
 from .base import AbstractMachine, MachineInput, MachineState
+from .continuous import linearise, solve_adaptive
 from .integrate import advance, rk4_step
 from .motor import PMSMParameters
 from .pmsm3 import PMSMabc, PMSMAlphaBeta, PMSMdq
@@ -14,5 +15,7 @@ __all__ = [
     "PMSMAlphaBeta",
     "PMSMdq",
     "advance",
+    "linearise",
+    "solve_adaptive",
     "rk4_step",
 ]

@@ -1,0 +1,57 @@
+"""The machine's continuous-time vector field used outside the fixed-step scan.
+
+- :func:`solve_adaptive`: a diffrax adaptive solve over an interval with a held input (reference
+  accuracy, identification), using the same ``vector_field`` the scan integrates with RK4.
+- :func:`linearise`: the Jacobians ``A = df/dx``, ``B = df/du`` at an operating point, for small-signal
+  analysis and controller design. State order ``[currents..., omega_m, theta_e]``, input order
+  ``[u_1, u_2, load_torque]`` (the held voltage in its hold frame, then the load).
+"""
+
+import diffrax
+import jax
+import jax.numpy as jnp
+from jax.flatten_util import ravel_pytree
+
+from .._types import Array
+from .base import AbstractMachine, MachineInput, MachineState
+
+
+def solve_adaptive(
+    machine: AbstractMachine,
+    state: MachineState,
+    inputs: MachineInput,
+    duration,
+    *,
+    rtol: float = 1e-10,
+    atol: float = 1e-12,
+    max_steps: int = 100_000,
+) -> MachineState:
+    """Integrate ``machine`` over ``duration`` (s) with diffrax's Dopri8 and a PID step controller."""
+    term = diffrax.ODETerm(machine.vector_field)
+    sol = diffrax.diffeqsolve(
+        term,
+        diffrax.Dopri8(),
+        t0=0.0,
+        t1=duration,
+        dt0=None,
+        y0=state,
+        args=inputs,
+        stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol),
+        max_steps=max_steps,
+    )
+    return jax.tree.map(lambda x: x[-1], sol.ys)
+
+
+def linearise(machine: AbstractMachine, state: MachineState, inputs: MachineInput) -> tuple[Array, Array]:
+    """``(A, B)``: Jacobians of the vector field at ``(state, inputs)``.
+
+    ``A: (n, n)`` with ``n = len(currents) + 2``; ``B: (n, 3)`` for ``[u_1, u_2, load_torque]``.
+    """
+    x0, unravel_x = ravel_pytree(state)
+    u0 = jnp.concatenate([inputs.u, jnp.atleast_1d(inputs.load_torque)])
+
+    def f(x, u):
+        dx = machine.vector_field(None, unravel_x(x), MachineInput(u[:2], u[2], inputs.frame))
+        return ravel_pytree(dx)[0]
+
+    return jax.jacfwd(f, 0)(x0, u0), jax.jacfwd(f, 1)(x0, u0)
