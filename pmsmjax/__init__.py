@@ -8,7 +8,7 @@ Quick start::
     trace = pmsmjax.simulate(drive, scenario)
 """
 
-from . import controllers, frames, inverters, machines, metrics, presets, scenarios
+from . import controllers, frames, inverters, logs, machines, metrics, presets, replay, scenarios
 from .drive import Drive, DriveState, PeriodInputs
 from .scenarios import Profile, Scenario, stack_scenarios
 from .simulate import simulate
@@ -28,9 +28,11 @@ __all__ = [
     "controllers",
     "frames",
     "inverters",
+    "logs",
     "machines",
     "metrics",
     "presets",
+    "replay",
     "scenarios",
     "simulate",
     "stack_scenarios",
