@@ -2,8 +2,8 @@
 
 Same physics and numerics as the book drive (dq machine held in the stator frame over each period,
 RK4 sub-steps, SVPWM limit as a circular voltage limit, speed PI with active damping, dq current PIs
-with decoupling, one-period computational delay) written as one flat function with no library
-abstractions. It records speed and dq currents per period.
+with decoupling, one-period computational delay compensated by predicting the current one period ahead)
+written as one flat function with no library abstractions. It records speed and dq currents per period.
 """
 
 import jax
@@ -69,14 +69,17 @@ def _build(R, L, psi, p, J, B, u_dc, Ts, n_sub, a_c, beta, i_max):
         )
 
     def period(carry, inp):
-        x, xi_w, xi_d, xi_q, u_prev = carry
+        x, xi_w, xi_d, xi_q, u_prev, u_dq_prev = carry
         w_ref, t_l = inp
-        i_d, i_q, w, th = x
+        i_d0, i_q0, w, th = x
         e = w_ref - w
         v = kp_w * e + xi_w - b_a * w
         iq_ref = jnp.clip(v, -i_max, i_max)
         xi_w = xi_w + Ts * ki_w * e + (iq_ref - v)
         we = p * w
+        # Delay compensation: the current one period ahead under the voltage already committed.
+        i_d = i_d0 + Ts * (u_dq_prev[0] - R * i_d0 + we * L * i_q0) / L
+        i_q = i_q0 + Ts * (u_dq_prev[1] - R * i_q0 - we * (L * i_d0 + psi)) / L
         vd = kp_i * (0.0 - i_d) + xi_d - we * L * i_q
         vq = kp_i * (iq_ref - i_q) + xi_q + we * (L * i_d + psi)
         mag = jnp.sqrt(vd * vd + vq * vq)
@@ -98,12 +101,12 @@ def _build(R, L, psi, p, J, B, u_dc, Ts, n_sub, a_c, beta, i_max):
         # fori_loop, not a Python loop: XLA:CPU compiles an unrolled RK4 chain into far slower code.
         x = jax.lax.fori_loop(0, n_sub, rk4, x)
         x = x.at[3].set(jnp.mod(x[3] + jnp.pi, 2 * jnp.pi) - jnp.pi)
-        return (x, xi_w, xi_d, xi_q, u_new), (w, jnp.stack([i_d, i_q]))
+        return (x, xi_w, xi_d, xi_q, u_new, jnp.stack([ud, uq])), (w, jnp.stack([i_d0, i_q0]))
 
     def run(speed_ref, load):
         dtype = speed_ref.dtype
         z = jnp.zeros((), dtype)
-        carry = (jnp.zeros(4, dtype), z, z, z, jnp.zeros(2, dtype))
+        carry = (jnp.zeros(4, dtype), z, z, z, jnp.zeros(2, dtype), jnp.zeros(2, dtype))
         _, (w, i_dq) = jax.lax.scan(period, carry, (speed_ref, load))
         return w, i_dq
 

@@ -7,7 +7,7 @@ One step is one control (PWM) period ``Ts``:
 3. The controller computes a stator-frame voltage command; the modulator turns it into duties.
 4. With ``computation_delay`` the duties computed now are applied in the *next* period (as on a DSP
    that updates its compare registers at the period boundary); the controller's inverse Park then
-   leads by 1.5 periods instead of 0.5.
+   leads by 1.5 periods instead of 0.5, and it compensates the delay in its current loop.
 5. The bridge integrates the machine over the period with ``n_substeps`` RK4 steps.
 """
 
@@ -74,11 +74,6 @@ class Drive(eqx.Module):
         if not isinstance(self.n_substeps, int) or self.n_substeps < 1:
             raise ParameterError(f"Drive.n_substeps must be an int >= 1, got {self.n_substeps!r}.")
 
-    @property
-    def angle_lead_s(self) -> float:
-        """Time (s) from sampling to the middle of the period in which the command is applied."""
-        return (1.5 if self.computation_delay else 0.5) * self.Ts
-
     def init(self, speed_m=0.0, theta_e=0.0) -> DriveState:
         """State at rest (or at the given speed, rad/s, and angle, rad) with zero currents."""
         machine_state = self.machine.initial_state((0.0, 0.0), speed_m, theta_e)
@@ -94,7 +89,7 @@ class Drive(eqx.Module):
         refs = References(x.speed_ref, x.id_ref, x.iq_ref)
         u_max = self.modulator.linear_limit(self.bridge.u_dc)
         ctrl_state, out = self.controller.step(
-            state.controller, meas, refs, self.Ts, u_max, self.angle_lead_s
+            state.controller, meas, refs, self.Ts, u_max, self.computation_delay
         )
         new_duties = self.modulator.duties(out.u_ab_ref, self.bridge.u_dc)
         duties = state.pending_duties if self.computation_delay else new_duties
