@@ -12,6 +12,7 @@ value), so gradients through it are exact away from over-modulation.
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 
 from .._types import Array
 from .base import AbstractModulator
@@ -21,11 +22,12 @@ SQRT3 = 3.0**0.5
 # Rows indexed by N = 0..7. N = 0 occurs only for a zero reference (then X = Y = Z = 0 and any row
 # gives zero dwell times); N = 7 cannot occur (U1 + U2 + U3 = 0). Entries index into (X, Y, Z, -X, -Y, -Z).
 _X, _Y, _Z, _mX, _mY, _mZ = range(6)
-_DWELL_TABLE = jnp.array(
-    [[_X, _Y], [_Z, _Y], [_Y, _mX], [_mZ, _X], [_mX, _Z], [_X, _mY], [_mY, _mZ], [_X, _Y]]
+# NumPy int32 tables: built at import, they must not depend on the JAX precision mode of that moment.
+_DWELL_TABLE = np.array(
+    [[_X, _Y], [_Z, _Y], [_Y, _mX], [_mZ, _X], [_mX, _Z], [_X, _mY], [_mY, _mZ], [_X, _Y]], dtype=np.int32
 )
 # Which of (Ta, Tb, Tc) each leg's comparison value takes, by N.
-_LEG_TABLE = jnp.array(
+_LEG_TABLE = np.array(
     [[0, 1, 2], [1, 0, 2], [0, 2, 1], [0, 1, 2], [2, 1, 0], [2, 0, 1], [1, 2, 0], [0, 1, 2]]
 )
 _ROMAN = {3: "I", 1: "II", 5: "III", 4: "IV", 6: "V", 2: "VI"}
@@ -56,7 +58,8 @@ def switching_times(u_ab: Array, u_dc: Array, Ts) -> tuple[Array, Array, Array]:
     Z = k * (-0.5 * SQRT3 * u_a + 0.5 * u_b)
     candidates = jnp.stack([X, Y, Z, -X, -Y, -Z])
     N = sector_code(u_ab)
-    T1, T2 = candidates[_DWELL_TABLE[N, 0]], candidates[_DWELL_TABLE[N, 1]]
+    dwell = jnp.asarray(_DWELL_TABLE)[N]
+    T1, T2 = candidates[dwell[0]], candidates[dwell[1]]
     total = T1 + T2
     over = total > Ts
     # Double-where: the ratio is only evaluated where it is used, so its gradient stays finite at zero.
@@ -65,7 +68,7 @@ def switching_times(u_ab: Array, u_dc: Array, Ts) -> tuple[Array, Array, Array]:
     Ta = 0.25 * (Ts - T1 - T2)
     Tb = Ta + 0.5 * T1
     Tc = Tb + 0.5 * T2
-    T_cm = jnp.stack([Ta, Tb, Tc])[_LEG_TABLE[N]]
+    T_cm = jnp.stack([Ta, Tb, Tc])[jnp.asarray(_LEG_TABLE)[N]]
     return T_cm, T1, T2
 
 

@@ -21,13 +21,15 @@ taken with ``jax.jvp`` so the EMF and reluctance terms cannot be mis-derived by 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .._types import Array
 from ..frames import abc_to_alpha_beta, alpha_beta_to_abc, inverse_park, park
 from .base import AbstractMachine, MachineInput, Mechanics
 from .motor import PMSMParameters, as_float
 
-_PHASE_AXES = jnp.array([0.0, 2.0 * jnp.pi / 3.0, -2.0 * jnp.pi / 3.0])
+# NumPy float64 at import; converted where used so the JAX precision mode of that moment applies.
+_PHASE_AXES = np.array([0.0, 2.0 * np.pi / 3.0, -2.0 * np.pi / 3.0])
 
 
 def _solve2(L: Array, b: Array) -> Array:
