@@ -30,6 +30,10 @@ _DWELL_TABLE = np.array(
 _LEG_TABLE = np.array(
     [[0, 1, 2], [1, 0, 2], [0, 2, 1], [0, 1, 2], [2, 1, 0], [2, 0, 1], [1, 2, 0], [0, 1, 2]]
 )
+# The same tables as one-hot selection matrices: selecting by a product instead of a gather keeps the
+# reverse-mode derivative a product too (the VJP of a gather is a scatter, slow inside a loop on CPU).
+_DWELL_ONE_HOT = np.eye(6)[_DWELL_TABLE]  # (8, 2, 6)
+_LEG_ONE_HOT = np.eye(3)[_LEG_TABLE]  # (8, 3, 3)
 _ROMAN = {3: "I", 1: "II", 5: "III", 4: "IV", 6: "V", 2: "VI"}
 
 
@@ -58,8 +62,8 @@ def switching_times(u_ab: Array, u_dc: Array, Ts) -> tuple[Array, Array, Array]:
     Z = k * (-0.5 * SQRT3 * u_a + 0.5 * u_b)
     candidates = jnp.stack([X, Y, Z, -X, -Y, -Z])
     N = sector_code(u_ab)
-    dwell = jnp.asarray(_DWELL_TABLE)[N]
-    T1, T2 = candidates[dwell[0]], candidates[dwell[1]]
+    dtype = candidates.dtype
+    T1, T2 = jnp.asarray(_DWELL_ONE_HOT, dtype)[N] @ candidates
     total = T1 + T2
     over = total > Ts
     # Double-where: the ratio is only evaluated where it is used, so its gradient stays finite at zero.
@@ -68,7 +72,7 @@ def switching_times(u_ab: Array, u_dc: Array, Ts) -> tuple[Array, Array, Array]:
     Ta = 0.25 * (Ts - T1 - T2)
     Tb = Ta + 0.5 * T1
     Tc = Tb + 0.5 * T2
-    T_cm = jnp.stack([Ta, Tb, Tc])[jnp.asarray(_LEG_TABLE)[N]]
+    T_cm = jnp.asarray(_LEG_ONE_HOT, dtype)[N] @ jnp.stack([Ta, Tb, Tc])
     return T_cm, T1, T2
 
 
