@@ -389,6 +389,20 @@ def run(quick: bool = False) -> dict:
         measure_modes(parameter_batch_itae, drive, grad_scenarios, n, sizes.batch_mode_reps)
         for n in sizes.n_params_batch
     ]
+    # The sub-step loop dominates the reverse pass (its transposed scan costs ~7x its forward per
+    # iteration on XLA:CPU), so the ratio is also measured at the sub-step counts RK4 needs for accuracy
+    # at 10 kHz (1 sub-step: 4e-7 of peak current against scipy, tests/test_machines.py).
+    by_substeps = []
+    for n_sub in (1, 2):
+        g = measure_batch_gradient(book_drive(n_substeps=n_sub), grad_scenarios, sizes.slow_reps)
+        by_substeps.append(
+            {
+                "n_substeps": n_sub,
+                "forward_s": g["forward_batch64_s"],
+                "grad_s": g["grad_batch64_s"],
+                "ratio": g["grad_over_forward_ratio"],
+            }
+        )
     crossover = mode_crossover(modes)
     return {
         "quick": quick,
@@ -398,6 +412,7 @@ def run(quick: bool = False) -> dict:
         **single,
         **batch,
         **grad,
+        "grad_over_forward_by_substeps": by_substeps,
         "forward_vs_reverse": modes,
         "mode_crossover_n_params": crossover,
         "crossover_bracketed": crossover < max(sizes.n_params),
@@ -459,6 +474,14 @@ def format_table(r: dict) -> str:
         ),
         _row("  gradient compile time", f"{r['grad_compile_time_s']:.2f} s"),
     ]
+    for row in r["grad_over_forward_by_substeps"]:
+        lines.append(
+            _row(
+                f"  same with {row['n_substeps']} sub-step(s) per period",
+                f"{row['grad_s']:.3f} s",
+                f"gradient / forward = {row['ratio']:.2f}",
+            )
+        )
     lines += _mode_table("single-scenario ITAE gradient", r["forward_vs_reverse"])
     if r["forward_vs_reverse_batch64"]:
         title = f"batch-{r['grad_batch_size']} mean ITAE gradient w.r.t. controller gains"
