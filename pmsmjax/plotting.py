@@ -22,67 +22,47 @@ def _save(fig, path: Path) -> Path:
     return path
 
 
-def plot_speed(trace: Trace, ax=None):
-    """Speed and its reference, r/min."""
+def _panel(ax, trace: Trace, title: str, ylabel: str, lines, legend_loc: str = "upper right"):
+    """Draw ``lines`` = [(values (N,), matplotlib format, label), ...] against time on ``ax``."""
     ax = ax or plt.subplots(figsize=(7, 3))[1]
     t = np.asarray(trace.t)
-    ax.plot(t, rad_s_to_rpm(np.asarray(trace.speed_ref)), "k--", lw=1, label="reference")
-    ax.plot(t, rad_s_to_rpm(np.asarray(trace.omega_m)), lw=1.5, label="speed")
-    ax.set(xlabel="t / s", ylabel="n / (r/min)", title="Speed")
+    for values, fmt, label in lines:
+        ax.plot(t, np.asarray(values), fmt, lw=1.2 if fmt == "-" else 0.9, label=label)
+    ax.set(xlabel="t / s", ylabel=ylabel, title=title)
     ax.grid(alpha=0.3)
-    ax.legend(loc="lower right")
+    ax.legend(loc=legend_loc)
     return ax
+
+
+def plot_speed(trace: Trace, ax=None):
+    """Speed and its reference, r/min."""
+    lines = [(rad_s_to_rpm(trace.speed_ref), "k--", "reference"), (trace.speed_rpm, "-", "speed")]
+    return _panel(ax, trace, "Speed", "n / (r/min)", lines, "lower right")
 
 
 def plot_dq_currents(trace: Trace, ax=None):
-    """dq currents and references, A."""
-    ax = ax or plt.subplots(figsize=(7, 3))[1]
-    t = np.asarray(trace.t)
-    i_dq, ref = np.asarray(trace.i_dq), np.asarray(trace.i_dq_ref)
-    ax.plot(t, i_dq[:, 0], lw=1, label="$i_d$")
-    ax.plot(t, i_dq[:, 1], lw=1, label="$i_q$")
-    ax.plot(t, ref[:, 1], "k--", lw=0.8, label="$i_q^*$")
-    ax.set(xlabel="t / s", ylabel="i / A", title="dq currents")
-    ax.grid(alpha=0.3)
-    ax.legend(loc="upper right")
-    return ax
+    """dq currents and the q reference, A."""
+    lines = [(trace.i_dq[:, 0], "-", "$i_d$"), (trace.i_dq[:, 1], "-", "$i_q$")]
+    lines.append((trace.i_dq_ref[:, 1], "k--", "$i_q^*$"))
+    return _panel(ax, trace, "dq currents", "i / A", lines)
 
 
 def plot_phase_currents(trace: Trace, ax=None):
     """Phase currents, A."""
-    ax = ax or plt.subplots(figsize=(7, 3))[1]
-    t = np.asarray(trace.t)
-    for k, name in enumerate("abc"):
-        ax.plot(t, np.asarray(trace.i_abc)[:, k], lw=0.8, label=f"$i_{name}$")
-    ax.set(xlabel="t / s", ylabel="i / A", title="Phase currents")
-    ax.grid(alpha=0.3)
-    ax.legend(loc="upper right")
-    return ax
+    lines = [(trace.i_abc[:, k], "-", f"$i_{name}$") for k, name in enumerate("abc")]
+    return _panel(ax, trace, "Phase currents", "i / A", lines)
 
 
 def plot_torque(trace: Trace, ax=None):
     """Electromagnetic and load torque, N m."""
-    ax = ax or plt.subplots(figsize=(7, 3))[1]
-    t = np.asarray(trace.t)
-    ax.plot(t, np.asarray(trace.torque), lw=1, label="$T_e$")
-    ax.plot(t, np.asarray(trace.load_torque), "k--", lw=0.8, label="$T_L$")
-    ax.set(xlabel="t / s", ylabel="T / (N m)", title="Torque")
-    ax.grid(alpha=0.3)
-    ax.legend(loc="upper right")
-    return ax
+    lines = [(trace.torque, "-", "$T_e$"), (trace.load_torque, "k--", "$T_L$")]
+    return _panel(ax, trace, "Torque", "T / (N m)", lines)
 
 
 def plot_voltages(trace: Trace, ax=None):
     """dq voltage commands, V."""
-    ax = ax or plt.subplots(figsize=(7, 3))[1]
-    t = np.asarray(trace.t)
-    u = np.asarray(trace.u_dq_ref)
-    ax.plot(t, u[:, 0], lw=1, label="$u_d^*$")
-    ax.plot(t, u[:, 1], lw=1, label="$u_q^*$")
-    ax.set(xlabel="t / s", ylabel="u / V", title="dq voltage commands")
-    ax.grid(alpha=0.3)
-    ax.legend(loc="upper right")
-    return ax
+    lines = [(trace.u_dq_ref[:, 0], "-", "$u_d^*$"), (trace.u_dq_ref[:, 1], "-", "$u_q^*$")]
+    return _panel(ax, trace, "dq voltage commands", "u / V", lines)
 
 
 def overview_figure(trace: Trace, title: str = ""):
