@@ -1,0 +1,241 @@
+"""Gradient auto-tuning of drive gains over a batch of scenarios.
+
+The cost (:mod:`tuning.objectives`) of the whole batch is differentiated through every closed-loop
+simulation with reverse-mode AD; Adam with a cosine-decayed step moves ``theta = log(p/p0)`` from the
+design-rule gains. The best iterate is kept; tuning stops at ``max_iterations``, when the cost has not
+improved by ``min_rel_improvement`` for ``patience`` iterations, or when the time budget is spent.
+
+Checkpoints (``checkpoint_path``, NumPy ``.npz``, written atomically every ``checkpoint_every``
+iterations and at the end) hold theta, the optimiser state, the best iterate and the history, plus a
+fingerprint of the problem; running the same tuning again resumes from it and, because every step is
+deterministic, ends exactly where an uninterrupted run would.
+"""
+
+import dataclasses
+import hashlib
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+from tqdm.auto import tqdm
+
+from pmsmjax.drive import Drive
+from pmsmjax.logs import atomic_write
+from pmsmjax.validation import ParameterError
+
+from .objectives import ObjectiveWeights, batch_cost
+from .parameters import LogParameterisation
+from .scenario_batches import ScenarioBatch
+
+
+@dataclasses.dataclass(frozen=True)
+class TuneConfig:
+    """Settings of a tuning run.
+
+    - `names`: gains to tune (dotted names or the aliases ``speed``, ``current``).
+    - `learning_rate`: Adam step in log-space (0.05 = about 5 % change per step at most).
+    - `max_iterations`, `patience`, `min_rel_improvement`: stopping rules.
+    - `bounds`: factors on the starting gains, ``(lower <= 1, upper >= 1)``.
+    - `time_budget_s`: stop after this much wall time (compile included), None for no limit.
+    - `checkpoint_every`: iterations between checkpoints.
+    """
+
+    names: tuple[str, ...] = ("speed", "current")
+    learning_rate: float = 0.08
+    max_iterations: int = 120
+    patience: int = 25
+    min_rel_improvement: float = 1e-4
+    bounds: tuple[float, float] = (0.05, 20.0)
+    time_budget_s: float | None = None
+    checkpoint_every: int = 5
+
+    def __post_init__(self):
+        if not (self.learning_rate > 0 and np.isfinite(self.learning_rate)):
+            raise ParameterError(f"learning_rate must be > 0, got {self.learning_rate}.")
+        for f in ("max_iterations", "patience", "checkpoint_every"):
+            v = getattr(self, f)
+            if not isinstance(v, int) or v < 1:
+                raise ParameterError(f"{f} must be an int >= 1, got {v!r}.")
+        if self.time_budget_s is not None and not self.time_budget_s > 0:
+            raise ParameterError(f"time_budget_s must be > 0 or None, got {self.time_budget_s}.")
+
+
+@dataclasses.dataclass
+class TuneResult:
+    """Outcome of :func:`tune`.
+
+    `drive`: the drive with the best gains; `gains`: name -> value; `history`: cost per iteration;
+    `best_cost`, `initial_cost`; `iterations` done in total; `stopped`: why it stopped;
+    `wall_time_s` and `compile_time_s` of this call (the first gradient evaluation minus a steady one);
+    `resumed_from`: the iteration a checkpoint was resumed from (0 when starting fresh).
+    """
+
+    drive: Drive
+    gains: dict
+    history: list
+    best_cost: float
+    initial_cost: float
+    iterations: int
+    stopped: str
+    wall_time_s: float
+    compile_time_s: float
+    resumed_from: int
+
+
+def _fingerprint(param: LogParameterisation, batch: ScenarioBatch, weights, config: TuneConfig) -> str:
+    """A hash of everything that determines the tuning path (to refuse resuming a different problem)."""
+    h = hashlib.sha256()
+    h.update(repr((param.names, weights, dataclasses.replace(config, time_budget_s=None))).encode())
+    for leaf in jax.tree.leaves((param.p0, batch)):
+        h.update(np.asarray(leaf).tobytes())
+    return h.hexdigest()[:16]
+
+
+def _nan_report(drive, batch, weights) -> str:
+    _, costs, _ = batch_cost(drive, batch, weights)
+    bad = np.flatnonzero(~np.isfinite(np.asarray(costs)))
+    if bad.size == 0:
+        return "the batch cost is not finite although every scenario's cost is"
+    k = int(bad[0])
+    return (
+        f"scenario {k} ({batch.kind[k]}) has a non-finite cost"
+        + (f" (and {bad.size - 1} more)" if bad.size > 1 else "")
+        + ": the gains left the stable region; lower learning_rate or tighten bounds."
+    )
+
+
+def tune(
+    drive: Drive,
+    batch: ScenarioBatch,
+    weights: ObjectiveWeights | None = None,
+    config: TuneConfig | None = None,
+    *,
+    checkpoint_path: str | Path | None = None,
+    progress: bool = True,
+    callback: Callable[[int, float], None] | None = None,
+) -> TuneResult:
+    """Tune ``config.names`` of ``drive`` to minimise the batch cost; see the module docstring.
+
+    `weights` and `config` default to :class:`ObjectiveWeights` and :class:`TuneConfig` defaults.
+    `callback(iteration, cost)` is called after every iteration (e.g. to log or to interrupt).
+    """
+    weights = ObjectiveWeights() if weights is None else weights
+    config = TuneConfig() if config is None else config
+    if batch.size < 1:
+        raise ParameterError("the scenario batch is empty: tune needs at least one scenario.")
+    start = time.perf_counter()
+    param = LogParameterisation(drive, config.names, config.bounds)
+    schedule = optax.cosine_decay_schedule(config.learning_rate, config.max_iterations, alpha=0.1)
+    optimiser = optax.adam(schedule)
+
+    @eqx.filter_jit
+    def value_and_grad(theta):
+        return jax.value_and_grad(lambda th: batch_cost(param.apply(drive, th), batch, weights)[0])(theta)
+
+    @eqx.filter_jit
+    def update(theta, grad, opt_state):
+        updates, opt_state = optimiser.update(grad, opt_state, theta)
+        return param.project(optax.apply_updates(theta, updates)), opt_state
+
+    theta = param.initial_theta()
+    opt_state = optimiser.init(theta)
+    best_theta, best_cost, history, it0 = theta, np.inf, [], 0
+    fingerprint = _fingerprint(param, batch, weights, config)
+    path = Path(checkpoint_path) if checkpoint_path is not None else None
+    if path is not None and path.is_file():
+        theta, opt_state, best_theta, best_cost, history, it0 = _load_checkpoint(path, fingerprint, opt_state)
+
+    t_first = time.perf_counter()
+    cost, grad = value_and_grad(theta)
+    cost = float(cost)
+    first_s = time.perf_counter() - t_first
+    steady_s, stopped, since_best = None, "max_iterations", 0
+    bar = tqdm(
+        total=config.max_iterations, initial=it0, disable=not progress, desc="tune", unit="it", leave=False
+    )
+    it = it0
+    try:
+        while it < config.max_iterations:
+            if not np.isfinite(cost):
+                report = _nan_report(param.apply(drive, theta), batch, weights)
+                raise ParameterError(f"tuning cost is NaN at iteration {it}: {report}")
+            history.append(cost)
+            if cost < best_cost * (1.0 - config.min_rel_improvement):
+                best_theta, best_cost, since_best = theta, cost, 0
+            else:
+                since_best += 1
+            theta, opt_state = update(theta, grad, opt_state)
+            it += 1
+            bar.update(1)
+            bar.set_postfix(cost=f"{cost:.5g}", best=f"{best_cost:.5g}")
+            if callback is not None:
+                callback(it, cost)
+            if path is not None and (it % config.checkpoint_every == 0):
+                _save_checkpoint(path, fingerprint, theta, opt_state, best_theta, best_cost, history, it)
+            if since_best >= config.patience:
+                stopped = "no improvement"
+                break
+            if config.time_budget_s is not None and time.perf_counter() - start > config.time_budget_s:
+                stopped = "time budget"
+                break
+            t_step = time.perf_counter()
+            cost, grad = value_and_grad(theta)
+            cost = float(cost)
+            step_s = time.perf_counter() - t_step
+            steady_s = step_s if steady_s is None else min(steady_s, step_s)
+    finally:
+        bar.close()
+    if path is not None:
+        _save_checkpoint(path, fingerprint, theta, opt_state, best_theta, best_cost, history, it)
+    values = np.asarray(param.values(best_theta))
+    return TuneResult(
+        drive=param.apply(drive, best_theta),
+        gains={n: float(v) for n, v in zip(param.names, values, strict=True)},
+        history=[float(c) for c in history],
+        best_cost=float(best_cost),
+        initial_cost=float(history[0]) if history else float("nan"),
+        iterations=it,
+        stopped=stopped,
+        wall_time_s=time.perf_counter() - start,
+        compile_time_s=max(first_s - (steady_s or first_s), 0.0),
+        resumed_from=it0,
+    )
+
+
+def _save_checkpoint(path, fingerprint, theta, opt_state, best_theta, best_cost, history, iteration):
+    leaves = jax.tree.leaves(opt_state)
+    arrays = {f"opt_{i}": np.asarray(x) for i, x in enumerate(leaves)}
+    arrays.update(
+        theta=np.asarray(theta),
+        best_theta=np.asarray(best_theta),
+        best_cost=np.asarray(best_cost),
+        history=np.asarray(history, dtype=np.float64),
+        iteration=np.asarray(iteration),
+        fingerprint=np.asarray(fingerprint),
+    )
+    atomic_write(path, lambda f: np.savez(f, **arrays))
+
+
+def _load_checkpoint(path, fingerprint, opt_state_template):
+    with np.load(path) as data:
+        if str(data["fingerprint"]) != fingerprint:
+            raise ParameterError(
+                f"checkpoint {path} belongs to a different tuning problem (gains, scenarios, weights or "
+                "settings changed): delete it or choose another output folder."
+            )
+        treedef = jax.tree.structure(opt_state_template)
+        n = treedef.num_leaves
+        opt_state = jax.tree.unflatten(treedef, [jnp.asarray(data[f"opt_{i}"]) for i in range(n)])
+        return (
+            jnp.asarray(data["theta"]),
+            opt_state,
+            jnp.asarray(data["best_theta"]),
+            float(data["best_cost"]),
+            [float(c) for c in data["history"]],
+            int(data["iteration"]),
+        )

@@ -1,0 +1,139 @@
+"""Selecting a drive's tunable array leaves by name, their positive parameterisation, and gains files.
+
+Names are dotted attribute paths from the drive, e.g. ``controller.speed.kp``. Tuning works on
+``theta = log(p / p0)``: every gain stays positive, all parameters are on the same scale whatever their
+units, and theta = 0 is the starting point (the design-rule gains). Bounds are factors on ``p0``.
+"""
+
+import math
+import sys
+from pathlib import Path
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from pmsmjax.drive import Drive
+from pmsmjax.logs import atomic_write
+from pmsmjax.validation import ParameterError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+SPEED_GAINS = ("controller.speed.kp", "controller.speed.ki", "controller.speed.active_damping")
+CURRENT_GAINS = (
+    "controller.current.kp_d",
+    "controller.current.kp_q",
+    "controller.current.ki_d",
+    "controller.current.ki_q",
+)
+ALIASES = {"speed": SPEED_GAINS, "current": CURRENT_GAINS}
+
+
+def _get(drive, name: str):
+    node = drive
+    for part in name.split("."):
+        node = getattr(node, part)
+    return node
+
+
+def array_leaf_names(drive: Drive) -> list[str]:
+    """Dotted names of every scalar floating-point array leaf of ``drive``."""
+    names = []
+    for path, leaf in jax.tree_util.tree_flatten_with_path(drive)[0]:
+        if eqx.is_inexact_array(leaf) and leaf.shape == ():
+            names.append(".".join(str(getattr(k, "name", k)) for k in path))
+    return names
+
+
+def resolve_names(drive: Drive, names) -> tuple[str, ...]:
+    """Expand aliases (``speed``, ``current``) and check every name is a positive scalar leaf."""
+    if isinstance(names, str):
+        names = [names]
+    expanded = []
+    for n in names:
+        expanded.extend(ALIASES.get(n, (n,)))
+    if not expanded:
+        raise ParameterError("no gains selected: name at least one, e.g. 'speed' or 'controller.speed.kp'.")
+    available = array_leaf_names(drive)
+    for n in expanded:
+        if n not in available:
+            raise ParameterError(
+                f"unknown gain name {n!r}: choose from the aliases {sorted(ALIASES)} or the drive's array "
+                f"leaves {available}."
+            )
+        if not float(_get(drive, n)) > 0:
+            raise ParameterError(
+                f"{n} = {float(_get(drive, n))} is not positive: tuning works on log(p/p0) and needs a "
+                "positive starting value."
+            )
+    if len(set(expanded)) != len(expanded):
+        raise ParameterError(f"gain names repeat: {expanded}.")
+    return tuple(expanded)
+
+
+class LogParameterisation(eqx.Module):
+    """``p = p0 exp(theta)`` for the named leaves; ``theta`` clipped to ``[log lower, log upper]``."""
+
+    names: tuple[str, ...] = eqx.field(static=True)
+    p0: jnp.ndarray  # (n,) starting values
+    log_lower: float = eqx.field(static=True)
+    log_upper: float = eqx.field(static=True)
+
+    def __init__(self, drive: Drive, names, bounds=(0.05, 20.0)):
+        lower, upper = bounds
+        if not (np.isfinite(lower) and np.isfinite(upper) and 0 < lower <= 1 <= upper):
+            raise ParameterError(
+                f"bounds are factors on the starting gains and need 0 < lower <= 1 <= upper, got {bounds}."
+            )
+        self.names = resolve_names(drive, names)
+        self.p0 = jnp.stack([jnp.asarray(_get(drive, n)) for n in self.names])
+        self.log_lower, self.log_upper = math.log(lower), math.log(upper)
+
+    def initial_theta(self) -> jnp.ndarray:
+        return jnp.zeros_like(self.p0)
+
+    def project(self, theta):
+        return jnp.clip(theta, self.log_lower, self.log_upper)
+
+    def values(self, theta) -> jnp.ndarray:
+        return self.p0 * jnp.exp(theta)
+
+    def apply(self, drive: Drive, theta) -> Drive:
+        """``drive`` with the named leaves set to ``p0 exp(theta)``."""
+        p = self.values(theta)
+        getters = [lambda d, n=n: _get(d, n) for n in self.names]
+        return eqx.tree_at(lambda d: [g(d) for g in getters], drive, [p[i] for i in range(len(self.names))])
+
+
+def write_gains_toml(path, names, values, header: str = "") -> Path:
+    """Write ``[gains]`` with one ``"dotted.name" = value`` per line, atomically."""
+    lines = [f"# {line}" for line in header.splitlines()] + ["[gains]"]
+    lines += [f'"{n}" = {float(v)!r}' for n, v in zip(names, values, strict=True)]
+    text = "\n".join(lines) + "\n"
+    return atomic_write(path, lambda f: f.write(text.encode()))
+
+
+def read_gains_toml(path) -> dict[str, float]:
+    path = Path(path)
+    if not path.is_file():
+        raise ParameterError(f"gains file {path} does not exist.")
+    data = tomllib.loads(path.read_text())
+    if "gains" not in data or not isinstance(data["gains"], dict):
+        raise ParameterError(f"gains file {path} has no [gains] table.")
+    return {k: float(v) for k, v in data["gains"].items()}
+
+
+def apply_gains(drive: Drive, gains) -> Drive:
+    """``drive`` with gains from a dict or a gains TOML file (as written by ``pmsmjax tune``)."""
+    if not isinstance(gains, dict):
+        gains = read_gains_toml(gains)
+    names = resolve_names(drive, list(gains))
+    getters = [lambda d, n=n: _get(d, n) for n in names]
+    dtype = drive.machine.motor.R.dtype
+    return eqx.tree_at(
+        lambda d: [g(d) for g in getters], drive, [jnp.asarray(gains[n], dtype) for n in names]
+    )

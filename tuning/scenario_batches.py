@@ -1,0 +1,99 @@
+"""Reproducible batches of speed/load scenarios for tuning (a train batch and a held-out batch).
+
+Every scenario of a batch is simulated over the same horizon (the scan length is shared); each has its
+own duration inside it, and objectives ignore what comes after it (:attr:`ScenarioBatch.active`).
+"""
+
+from collections.abc import Sequence
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from pmsmjax import Profile, Scenario, stack_scenarios
+from pmsmjax.units import rpm_to_rad_s
+from pmsmjax.validation import ParameterError
+
+KINDS = ("step", "reversal", "ramp")
+
+
+class ScenarioBatch(eqx.Module):
+    """A stacked batch of scenarios with per-scenario duration and load-step time.
+
+    - `scenarios`: a batched :class:`pmsmjax.Scenario` (leading axis = scenario), horizon ``horizon_s``.
+    - `duration_s`: ``(B,)`` each scenario's own duration, s (objectives ignore later samples).
+    - `load_time_s`: ``(B,)`` time of the load change, s (the speed-step window ends there).
+    - `kind`: the kind of each scenario (``step``, ``reversal``, ``ramp``), for reports.
+    """
+
+    scenarios: Scenario
+    duration_s: jnp.ndarray
+    load_time_s: jnp.ndarray
+    kind: tuple[str, ...] = eqx.field(static=True)
+
+    @property
+    def size(self) -> int:
+        return len(self.kind)
+
+    @property
+    def horizon_s(self) -> float:
+        return self.scenarios.duration_s
+
+    def active(self, t: jnp.ndarray) -> jnp.ndarray:
+        """``(B, N)`` 1.0 where sample time ``t (N,)`` lies inside each scenario's duration, else 0.0."""
+        return (t[None, :] < self.duration_s[:, None] - 1e-12).astype(t.dtype)
+
+
+def make_batch(
+    n: int,
+    seed: int,
+    *,
+    speed_rpm: tuple[float, float] = (200.0, 1500.0),
+    load_nm: tuple[float, float] = (0.0, 10.0),
+    duration_s: tuple[float, float] = (0.3, 0.5),
+    kinds: Sequence[str] = ("step",),
+    Ts: float = 1e-4,
+) -> ScenarioBatch:
+    """``n`` scenarios drawn reproducibly from ``seed``.
+
+    Each scenario starts at rest; the speed reference goes to ``+-U(speed_rpm)`` (both directions) as a
+    step, a ramp (over 20-40 % of the pre-load window) or a reversal (step, then the opposite speed at
+    40 % of the duration); a load torque of ``U(load_nm)`` opposing the motion steps in at 55-70 % of the
+    duration. Durations are drawn from ``duration_s`` and rounded to whole periods ``Ts``.
+    """
+    if n < 1:
+        raise ParameterError(f"a scenario batch needs n >= 1 scenarios, got {n}.")
+    bad = [k for k in kinds if k not in KINDS]
+    if bad or not kinds:
+        raise ParameterError(f"kinds must be a non-empty subset of {KINDS}, got {list(kinds)}.")
+    for name, (lo, hi) in (("speed_rpm", speed_rpm), ("load_nm", load_nm), ("duration_s", duration_s)):
+        if not (np.isfinite(lo) and np.isfinite(hi) and 0 <= lo <= hi):
+            raise ParameterError(f"{name} range must be finite with 0 <= low <= high, got ({lo}, {hi}).")
+    if duration_s[0] <= 0:
+        raise ParameterError(f"duration_s must be positive, got {duration_s}.")
+    rng = np.random.default_rng(seed)
+    horizon = round(duration_s[1] / Ts) * Ts
+    rows, durations, load_times, kind_list = [], [], [], []
+    for _ in range(n):
+        kind = str(rng.choice(list(kinds)))
+        direction = rng.choice([-1.0, 1.0])
+        speed = direction * rpm_to_rad_s(rng.uniform(*speed_rpm))
+        load = direction * rng.uniform(*load_nm)
+        duration = round(rng.uniform(*duration_s) / Ts) * Ts
+        t_load = round(rng.uniform(0.55, 0.70) * duration / Ts) * Ts
+        if kind == "step":
+            speed_ref = Profile.constant(speed)
+        elif kind == "ramp":
+            t_ramp = round(rng.uniform(0.2, 0.4) * t_load / Ts) * Ts
+            speed_ref = Profile.ramp(0.0, t_ramp, 0.0, speed)
+        else:
+            t_rev = round(0.4 * duration / Ts) * Ts
+            speed_ref = Profile.step(t_rev, speed, -speed)
+            load = -load  # the load still opposes the motion after the reversal
+        rows.append(Scenario(horizon, speed_ref=speed_ref, load_torque=Profile.step(t_load, 0.0, load)))
+        durations.append(duration)
+        load_times.append(t_load)
+        kind_list.append(kind)
+    return ScenarioBatch(
+        stack_scenarios(rows), jnp.asarray(durations), jnp.asarray(load_times), tuple(kind_list)
+    )
