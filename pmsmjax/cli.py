@@ -1,4 +1,4 @@
-"""The ``pmsmjax`` command: ``demo`` (alias ``simulate``), ``replay`` and ``bench``.
+"""The ``pmsmjax`` command: ``demo`` (alias ``simulate``), ``replay``, ``tune`` and ``bench``.
 
 Every subcommand checks its input before compiling anything and writes each output file atomically
 (temporary file in the same folder, then rename), so an interrupted or failed run leaves no half file.
@@ -175,6 +175,92 @@ def _cmd_bench(args) -> int:
     return 0
 
 
+def _add_tune_parser(sub):
+    p = sub.add_parser(
+        "tune",
+        help="tune the FOC gains by gradients over a batch of speed/load scenarios",
+        description=(
+            "Gradient auto-tuning of the book drive's speed and current PI gains (Adam in log-space from the "
+            "design-rule gains) over a seeded batch of speed steps (200-1500 r/min, both directions) and "
+            "load steps (0-10 N m), checked on a held-out batch. Writes DIR/gains.toml, DIR/result.json, "
+            "DIR/cost.png, DIR/responses.png and DIR/checkpoint.npz; running it again resumes."
+        ),
+    )
+    p.add_argument("--out", default="tune_out", help="output folder (created), default: tune_out")
+    p.add_argument("--iterations", type=int, default=140, help="maximum Adam iterations (default 140)")
+    p.add_argument("--train", type=int, default=64, help="training scenarios (default 64)")
+    p.add_argument("--heldout", type=int, default=64, help="held-out scenarios (default 64)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the training batch (held-out: seed + 1)")
+    p.add_argument(
+        "--duration-s",
+        type=float,
+        nargs=2,
+        default=(0.3, 0.5),
+        metavar=("LOW", "HIGH"),
+        help="range of scenario durations, s (default 0.3 0.5)",
+    )
+    p.add_argument(
+        "--gains",
+        nargs="+",
+        default=["speed", "current"],
+        help="gains to tune: aliases speed, current or dotted names like controller.speed.kp",
+    )
+    p.add_argument("--learning-rate", type=float, default=0.08, help="Adam step in log-space (default 0.08)")
+    p.add_argument("--substeps", type=int, default=1, help="RK4 sub-steps while tuning (default 1)")
+    p.add_argument("--eval-substeps", type=int, default=10, help="RK4 sub-steps for before/after (10)")
+    p.add_argument("--time-budget-s", type=float, default=None, help="stop after this wall time, s")
+    p.add_argument("--fresh", action="store_true", help="ignore and replace an existing checkpoint")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_tune)
+
+
+def _cmd_tune(args) -> int:
+    # The command line is the one place where pmsmjax reaches up into the tuning workflows.
+    from tuning.autotune import TuneConfig
+    from tuning.job import run_tune_job
+
+    config = TuneConfig(
+        names=tuple(args.gains),
+        learning_rate=args.learning_rate,
+        max_iterations=args.iterations,
+        time_budget_s=args.time_budget_s,
+    )
+    checkpoint = Path(args.out) / "checkpoint.npz"
+    if args.fresh and checkpoint.exists():
+        checkpoint.unlink()
+    data = run_tune_job(
+        args.out,
+        n_train=args.train,
+        n_heldout=args.heldout,
+        train_seed=args.seed,
+        heldout_seed=args.seed + 1,
+        duration_s=tuple(args.duration_s),
+        tune_substeps=args.substeps,
+        eval_substeps=args.eval_substeps,
+        config=config,
+        progress=not args.no_progress,
+    )
+    tr, ho = data["train"], data["heldout"]
+    cut = lambda d: 100.0 * (1.0 - d["after"]["itae"] / d["before"]["itae"])
+    if data["resumed_from_iteration"]:
+        print(f"resumed from iteration {data['resumed_from_iteration']}")
+    print(
+        f"train ITAE {tr['before']['itae']:.4f} -> {tr['after']['itae']:.4f} ({cut(tr):.1f} % lower), "
+        f"held-out {ho['before']['itae']:.4f} -> {ho['after']['itae']:.4f} ({cut(ho):.1f} % lower)"
+    )
+    print(
+        f"overshoot {tr['before']['overshoot_pct']:.3f} -> {tr['after']['overshoot_pct']:.3f} % "
+        "(train mean), "
+        f"peak current {tr['after']['max_peak_current_a']:.2f} A, "
+        f"scenarios over the limit: {tr['after']['scenarios_over_current_limit']}"
+    )
+    print(
+        f"{data['iterations']} iterations ({data['stopped']}), wall {data['wall_time_s']:.1f} s "
+        f"(compile {data['compile_time_s']:.1f} s); wrote {args.out}/gains.toml, result.json, figures"
+    )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="pmsmjax", description="Differentiable, batched PMSM drive simulation in JAX."
@@ -183,6 +269,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_demo_parser(sub)
     _add_replay_parser(sub)
     _add_bench_parser(sub)
+    _add_tune_parser(sub)
     return parser
 
 

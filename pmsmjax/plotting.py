@@ -12,7 +12,7 @@ from .trace import Trace  # noqa: E402
 from .units import rad_s_to_rpm  # noqa: E402
 
 
-def _save(fig, path: Path) -> Path:
+def save_figure(fig, path: Path) -> Path:
     """Write a figure atomically (temporary file in the same folder, then rename)."""
     path = Path(path)
     tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
@@ -83,7 +83,7 @@ def overview_figure(trace: Trace, title: str = ""):
 def save_demo_figures(trace: Trace, out_dir: Path, title: str = "") -> list[Path]:
     """Write ``overview.png`` and one PNG per panel into ``out_dir``; returns the paths."""
     out_dir = Path(out_dir)
-    paths = [_save(overview_figure(trace, title), out_dir / "overview.png")]
+    paths = [save_figure(overview_figure(trace, title), out_dir / "overview.png")]
     for name, plot in (
         ("speed", plot_speed),
         ("currents_dq", plot_dq_currents),
@@ -94,5 +94,5 @@ def save_demo_figures(trace: Trace, out_dir: Path, title: str = "") -> list[Path
         fig, ax = plt.subplots(figsize=(7, 3))
         plot(trace, ax)
         fig.tight_layout()
-        paths.append(_save(fig, out_dir / f"{name}.png"))
+        paths.append(save_figure(fig, out_dir / f"{name}.png"))
     return paths

@@ -173,10 +173,10 @@ def tune(
             it += 1
             bar.update(1)
             bar.set_postfix(cost=f"{cost:.5g}", best=f"{best_cost:.5g}")
-            if callback is not None:
-                callback(it, cost)
             if path is not None and (it % config.checkpoint_every == 0):
                 _save_checkpoint(path, fingerprint, theta, opt_state, best_theta, best_cost, history, it)
+            if callback is not None:  # after the checkpoint: an interrupt here loses no finished step
+                callback(it, cost)
             if since_best >= config.patience:
                 stopped = "no improvement"
                 break

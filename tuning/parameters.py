@@ -33,7 +33,8 @@ CURRENT_GAINS = (
 ALIASES = {"speed": SPEED_GAINS, "current": CURRENT_GAINS}
 
 
-def _get(drive, name: str):
+def get_leaf(drive, name: str):
+    """The leaf of ``drive`` at the dotted path ``name`` (e.g. ``controller.speed.kp``)."""
     node = drive
     for part in name.split("."):
         node = getattr(node, part)
@@ -65,9 +66,9 @@ def resolve_names(drive: Drive, names) -> tuple[str, ...]:
                 f"unknown gain name {n!r}: choose from the aliases {sorted(ALIASES)} or the drive's array "
                 f"leaves {available}."
             )
-        if not float(_get(drive, n)) > 0:
+        if not float(get_leaf(drive, n)) > 0:
             raise ParameterError(
-                f"{n} = {float(_get(drive, n))} is not positive: tuning works on log(p/p0) and needs a "
+                f"{n} = {float(get_leaf(drive, n))} is not positive: tuning works on log(p/p0) and needs a "
                 "positive starting value."
             )
     if len(set(expanded)) != len(expanded):
@@ -90,7 +91,7 @@ class LogParameterisation(eqx.Module):
                 f"bounds are factors on the starting gains and need 0 < lower <= 1 <= upper, got {bounds}."
             )
         self.names = resolve_names(drive, names)
-        self.p0 = jnp.stack([jnp.asarray(_get(drive, n)) for n in self.names])
+        self.p0 = jnp.stack([jnp.asarray(get_leaf(drive, n)) for n in self.names])
         self.log_lower, self.log_upper = math.log(lower), math.log(upper)
 
     def initial_theta(self) -> jnp.ndarray:
@@ -105,7 +106,7 @@ class LogParameterisation(eqx.Module):
     def apply(self, drive: Drive, theta) -> Drive:
         """``drive`` with the named leaves set to ``p0 exp(theta)``."""
         p = self.values(theta)
-        getters = [lambda d, n=n: _get(d, n) for n in self.names]
+        getters = [lambda d, n=n: get_leaf(d, n) for n in self.names]
         return eqx.tree_at(lambda d: [g(d) for g in getters], drive, [p[i] for i in range(len(self.names))])
 
 
@@ -132,7 +133,7 @@ def apply_gains(drive: Drive, gains) -> Drive:
     if not isinstance(gains, dict):
         gains = read_gains_toml(gains)
     names = resolve_names(drive, list(gains))
-    getters = [lambda d, n=n: _get(d, n) for n in names]
+    getters = [lambda d, n=n: get_leaf(d, n) for n in names]
     dtype = drive.machine.motor.R.dtype
     return eqx.tree_at(
         lambda d: [g(d) for g in getters], drive, [jnp.asarray(gains[n], dtype) for n in names]
