@@ -183,32 +183,26 @@ def _add_tune_parser(sub):
             "Gradient auto-tuning of the book drive's speed and current PI gains (Adam in log-space from the "
             "design-rule gains) over a seeded batch of speed steps (200-1500 r/min, both directions) and "
             "load steps (0-10 N m), checked on a held-out batch. Writes DIR/gains.toml, DIR/result.json, "
-            "DIR/cost.png, DIR/responses.png and DIR/checkpoint.npz; running it again resumes."
+            "DIR/cost.png, DIR/responses.png and DIR/checkpoint.npz; running it again resumes. Settings: "
+            "flags, then --config TOML ([weights], [tune], [job] tables), then built-in defaults."
         ),
     )
     p.add_argument("--out", default="tune_out", help="output folder (created), default: tune_out")
-    p.add_argument("--iterations", type=int, default=140, help="maximum Adam iterations (default 140)")
-    p.add_argument("--train", type=int, default=64, help="training scenarios (default 64)")
-    p.add_argument("--heldout", type=int, default=64, help="held-out scenarios (default 64)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the training batch (held-out: seed + 1)")
+    p.add_argument("--config", default=None, help="TOML with [weights], [tune] and [job] tables")
+    p.add_argument("--iterations", type=int, help="maximum Adam iterations (default 140)")
+    p.add_argument("--train", type=int, help="training scenarios (default 64)")
+    p.add_argument("--heldout", type=int, help="held-out scenarios (default 64)")
+    p.add_argument("--seed", type=int, help="seed of the training batch (default 0; held-out: seed + 1)")
     p.add_argument(
-        "--duration-s",
-        type=float,
-        nargs=2,
-        default=(0.3, 0.5),
-        metavar=("LOW", "HIGH"),
-        help="range of scenario durations, s (default 0.3 0.5)",
+        "--duration-s", type=float, nargs=2, metavar=("LOW", "HIGH"), help="scenario durations, s (0.3 0.5)"
     )
     p.add_argument(
-        "--gains",
-        nargs="+",
-        default=["speed", "current"],
-        help="gains to tune: aliases speed, current or dotted names like controller.speed.kp",
+        "--gains", nargs="+", help="gains to tune: aliases speed, current or names like controller.speed.kp"
     )
-    p.add_argument("--learning-rate", type=float, default=0.08, help="Adam step in log-space (default 0.08)")
-    p.add_argument("--substeps", type=int, default=1, help="RK4 sub-steps while tuning (default 1)")
-    p.add_argument("--eval-substeps", type=int, default=10, help="RK4 sub-steps for before/after (10)")
-    p.add_argument("--time-budget-s", type=float, default=None, help="stop after this wall time, s")
+    p.add_argument("--learning-rate", type=float, help="Adam step in log-space (default 0.08)")
+    p.add_argument("--substeps", type=int, help="RK4 sub-steps while tuning (default 1)")
+    p.add_argument("--eval-substeps", type=int, help="RK4 sub-steps for before/after figures (default 10)")
+    p.add_argument("--time-budget-s", type=float, help="stop after this wall time, s")
     p.add_argument("--fresh", action="store_true", help="ignore and replace an existing checkpoint")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_tune)
@@ -216,30 +210,34 @@ def _add_tune_parser(sub):
 
 def _cmd_tune(args) -> int:
     # The command line is the one place where pmsmjax reaches up into the tuning workflows.
-    from tuning.autotune import TuneConfig
-    from tuning.job import run_tune_job
+    import dataclasses
 
-    config = TuneConfig(
-        names=tuple(args.gains),
-        learning_rate=args.learning_rate,
-        max_iterations=args.iterations,
-        time_budget_s=args.time_budget_s,
-    )
+    from tuning.job import DEFAULT_CONFIG, read_tune_toml, run_tune_job
+
+    kwargs = read_tune_toml(args.config) if args.config else {}
+    config = kwargs.pop("config", DEFAULT_CONFIG)
+    overrides = {
+        "names": tuple(args.gains) if args.gains else None,
+        "learning_rate": args.learning_rate,
+        "max_iterations": args.iterations,
+        "time_budget_s": args.time_budget_s,
+    }
+    config = dataclasses.replace(config, **{k: v for k, v in overrides.items() if v is not None})
+    for key, value in (
+        ("n_train", args.train),
+        ("n_heldout", args.heldout),
+        ("train_seed", args.seed),
+        ("heldout_seed", None if args.seed is None else args.seed + 1),
+        ("duration_s", tuple(args.duration_s) if args.duration_s else None),
+        ("tune_substeps", args.substeps),
+        ("eval_substeps", args.eval_substeps),
+    ):
+        if value is not None:
+            kwargs[key] = value
     checkpoint = Path(args.out) / "checkpoint.npz"
     if args.fresh and checkpoint.exists():
         checkpoint.unlink()
-    data = run_tune_job(
-        args.out,
-        n_train=args.train,
-        n_heldout=args.heldout,
-        train_seed=args.seed,
-        heldout_seed=args.seed + 1,
-        duration_s=tuple(args.duration_s),
-        tune_substeps=args.substeps,
-        eval_substeps=args.eval_substeps,
-        config=config,
-        progress=not args.no_progress,
-    )
+    data = run_tune_job(args.out, config=config, progress=not args.no_progress, **kwargs)
     tr, ho = data["train"], data["heldout"]
     cut = lambda d: 100.0 * (1.0 - d["after"]["itae"] / d["before"]["itae"])
     if data["resumed_from_iteration"]:
@@ -250,8 +248,7 @@ def _cmd_tune(args) -> int:
     )
     print(
         f"overshoot {tr['before']['overshoot_pct']:.3f} -> {tr['after']['overshoot_pct']:.3f} % "
-        "(train mean), "
-        f"peak current {tr['after']['max_peak_current_a']:.2f} A, "
+        f"(train mean), peak current {tr['after']['max_peak_current_a']:.2f} A, "
         f"scenarios over the limit: {tr['after']['scenarios_over_current_limit']}"
     )
     print(

@@ -212,3 +212,52 @@ def test_tune_command_writes_its_outputs(tmp_path):
     assert gains == pytest.approx(data["gains"]["after"], rel=1e-12)
     for name in ("cost.png", "responses.png", "checkpoint.npz"):
         assert (out / name).stat().st_size > 0
+
+
+def test_settling_time_matches_the_first_order_design(drive):
+    """The design-rule speed loop is beta/(s + beta): 2 % settling at ln(50)/beta (78.2 ms at 50 rad/s)."""
+    b = make_batch(3, 5, duration_s=(0.25, 0.3))
+    from tuning.objectives import batch_metrics
+
+    settling = np.asarray(batch_metrics(drive, b)["settling_time_s"])
+    beta = presets.BOOK_SPEED_BANDWIDTH
+    # Only steps small enough to stay off the current limit follow the linear design.
+    small = np.abs(np.asarray(b.scenarios.speed_ref.values[:, -1])) * float(drive.controller.speed.kp) < 14
+    assert small.any()
+    np.testing.assert_allclose(settling[small], np.log(50) / beta, rtol=0.03)
+
+
+def test_plant_spread_runs_each_scenario_on_its_own_plant(drive):
+    """Scenario k of a spread batch equals the nominal scenario run on a plant with J scaled by its factor."""
+    from tuning.objectives import batch_metrics
+
+    spread = make_batch(3, 4, plant_spread={"J": 0.5}, **SMALL)
+    nominal = make_batch(3, 4, **SMALL)
+    scale = np.asarray(spread.plant_scale["J"])
+    assert np.all(np.abs(scale - 1) <= 0.5) and np.ptp(scale) > 0
+    m = batch_metrics(drive, spread)
+    for k in range(3):
+        import equinox as eqx
+
+        heavy = eqx.tree_at(lambda d: d.machine.motor.J, drive, drive.machine.motor.J * scale[k])
+        one = jax.tree.map(lambda a, k=k: a[k : k + 1], nominal)
+        assert float(m["itae"][k]) == pytest.approx(float(batch_metrics(heavy, one)["itae"][0]), rel=1e-10)
+    with pytest.raises(ParameterError, match="plant_spread"):
+        make_batch(2, 0, plant_spread={"J": 1.5})
+
+
+def test_tune_config_file(tmp_path):
+    from tuning.job import read_tune_toml
+
+    path = tmp_path / "tune.toml"
+    path.write_text(
+        "[weights]\nitae = 2.0\naggregate = 'cvar'\n[tune]\nlearning_rate = 0.05\n"
+        "[job]\nn_train = 8\nduration_s = [0.1, 0.2]\nplant_spread = {J = 0.3}\n"
+    )
+    kw = read_tune_toml(path)
+    assert kw["weights"].itae == 2.0 and kw["weights"].aggregate == "cvar"
+    assert kw["config"].learning_rate == 0.05 and kw["n_train"] == 8 and kw["duration_s"] == (0.1, 0.2)
+    assert kw["plant_spread"] == {"J": 0.3}
+    path.write_text("[weights]\nitea = 1.0\n")
+    with pytest.raises(ParameterError, match="itea"):
+        read_tune_toml(path)

@@ -13,6 +13,7 @@ the cost on both. (The switching-resolved bridge, when it exists, is the next ex
 
 import dataclasses
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -22,6 +23,12 @@ import numpy as np
 from pmsmjax import presets
 from pmsmjax.logs import atomic_write
 from pmsmjax.units import rad_s_to_rpm
+from pmsmjax.validation import ParameterError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
 
 from .autotune import TuneConfig, tune
 from .objectives import ObjectiveWeights, aggregate, batch_metrics, scenario_cost
@@ -30,6 +37,57 @@ from .scenario_batches import ScenarioBatch, make_batch
 
 #: The must-show configuration: 64 + 64 scenarios, 0.3-0.5 s, steps of 200-1500 r/min both ways, 0-10 N m.
 DEFAULT_CONFIG = TuneConfig(max_iterations=140)
+
+#: Keys of a tuning TOML file, by table; ``[job]`` holds the keyword arguments of :func:`run_tune_job`.
+JOB_KEYS = (
+    "n_train",
+    "n_heldout",
+    "train_seed",
+    "heldout_seed",
+    "duration_s",
+    "kinds",
+    "plant_spread",
+    "tune_substeps",
+    "eval_substeps",
+)
+
+
+def read_tune_toml(path) -> dict:
+    """Read a tuning config: ``[weights]`` (ObjectiveWeights), ``[tune]`` (TuneConfig), ``[job]``.
+
+    Returns keyword arguments for :func:`run_tune_job` (``weights``, ``config`` and the job keys).
+    Unknown tables or keys are errors that name them.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ParameterError(f"tuning config {path} does not exist.")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as err:
+        raise ParameterError(f"tuning config {path}: not valid TOML ({err}).") from err
+    unknown = sorted(set(data) - {"weights", "tune", "job"})
+    if unknown:
+        raise ParameterError(f"tuning config {path}: unknown tables {unknown}; use [weights], [tune], [job].")
+    out = {}
+    for table, cls in (("weights", ObjectiveWeights), ("tune", TuneConfig)):
+        fields = {f.name for f in dataclasses.fields(cls)}
+        values = data.get(table, {})
+        bad = sorted(set(values) - fields)
+        if bad:
+            raise ParameterError(
+                f"tuning config {path}: unknown keys {bad} in [{table}]; allowed {sorted(fields)}."
+            )
+        if table == "tune":
+            values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
+            out["config"] = dataclasses.replace(DEFAULT_CONFIG, **values)
+        else:
+            out["weights"] = cls(**values)
+    job = data.get("job", {})
+    bad = sorted(set(job) - set(JOB_KEYS))
+    if bad:
+        raise ParameterError(f"tuning config {path}: unknown keys {bad} in [job]; allowed {list(JOB_KEYS)}.")
+    out.update({k: tuple(v) if isinstance(v, list) else v for k, v in job.items()})
+    return out
 
 
 def evaluate(drive, batch: ScenarioBatch, weights: ObjectiveWeights) -> dict:
@@ -58,6 +116,8 @@ def run_tune_job(
     train_seed: int = 0,
     heldout_seed: int = 1,
     duration_s: tuple[float, float] = (0.3, 0.5),
+    kinds: tuple[str, ...] = ("step",),
+    plant_spread: dict | None = None,
     tune_substeps: int = 1,
     eval_substeps: int = 10,
     weights: ObjectiveWeights | None = None,
@@ -69,8 +129,9 @@ def run_tune_job(
     weights = ObjectiveWeights() if weights is None else weights
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    train = make_batch(n_train, train_seed, duration_s=duration_s)
-    heldout = make_batch(n_heldout, heldout_seed, duration_s=duration_s)
+    batch_options = dict(duration_s=duration_s, kinds=kinds, plant_spread=plant_spread)
+    train = make_batch(n_train, train_seed, **batch_options)
+    heldout = make_batch(n_heldout, heldout_seed, **batch_options)
     surrogate = presets.book_drive(n_substeps=tune_substeps)
     exact = presets.book_drive(n_substeps=eval_substeps)
 
@@ -114,7 +175,14 @@ def run_tune_job(
         "wall_time_s": result.wall_time_s,
         "compile_time_s": result.compile_time_s,
         "weights": dataclasses.asdict(weights),
-        "config": {**dataclasses.asdict(config), "n_train": n_train, "n_heldout": n_heldout},
+        "config": {
+            **dataclasses.asdict(config),
+            "n_train": n_train,
+            "n_heldout": n_heldout,
+            "duration_s": list(duration_s),
+            "kinds": list(kinds),
+            "plant_spread": dict(plant_spread or {}),
+        },
         "seeds": {"train": train_seed, "heldout": heldout_seed},
     }
     write_gains_toml(

@@ -9,6 +9,7 @@ soft quadratic penalties beyond their thresholds, so a gradient pushes back as s
 import dataclasses
 from typing import Literal
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 
@@ -24,6 +25,7 @@ METRIC_NAMES = (
     "iae",  # rad
     "ise",  # rad^2/s
     "overshoot_pct",  # % of the step, in the window before the load change
+    "settling_time_s",  # s, 2 % band, in the window before the load change
     "peak_current_a",  # A, largest phase current
     "rms_current_a",  # A
     "current_excess_a",  # A above the current limit (0 when respected)
@@ -47,6 +49,7 @@ class ObjectiveWeights:
     iae: float = 0.0
     ise: float = 0.0
     overshoot: float = 0.1  # per % of overshoot beyond the allowance (linear)
+    settling: float = 0.0  # per s (piecewise constant in the gains: informative, hardly a gradient)
     rms_current: float = 0.0  # per A
     control_effort: float = 0.0
     torque_ripple: float = 0.0  # per N m
@@ -83,7 +86,12 @@ def scenario_metrics(
     k_end = jnp.maximum(jnp.sum(pre).astype(jnp.int32) - 1, 0)
     w_final = trace.speed_ref[k_end]
     excess = jnp.sign(w_final) * (trace.omega_m - w_final) * pre
-    overshoot = 100.0 * jnp.maximum(jnp.max(excess), 0.0) / jnp.maximum(jnp.abs(w_final), 1e-6)
+    scale = jnp.maximum(jnp.abs(w_final), 1e-6)
+    overshoot = 100.0 * jnp.maximum(jnp.max(excess), 0.0) / scale
+    # Settling: the first sample after the last one outside the 2 % band (pre-load window).
+    outside = (jnp.abs(trace.omega_m - w_final) > 0.02 * scale) & (pre > 0)
+    last_outside = jnp.max(jnp.where(outside, jnp.arange(t.shape[0]), -1))
+    settling = t[jnp.minimum(last_outside + 1, t.shape[0] - 1)]
 
     i_abs = jnp.abs(trace.i_abc) * active[:, None]
     peak = jnp.max(i_abs)
@@ -100,6 +108,7 @@ def scenario_metrics(
         "iae": jnp.sum(jnp.abs(e)) * dt,
         "ise": jnp.sum(e * e) * dt,
         "overshoot_pct": overshoot,
+        "settling_time_s": settling,
         "peak_current_a": peak,
         "rms_current_a": rms,
         "current_excess_a": jnp.maximum(peak - current_limit, 0.0),
@@ -119,6 +128,7 @@ def scenario_cost(m: dict, w: ObjectiveWeights):
         + w.rms_current * m["rms_current_a"]
         + w.control_effort * m["control_effort"]
         + w.torque_ripple * m["torque_ripple_nm"]
+        + w.settling * m["settling_time_s"]
         + w.overshoot * over
         + w.current_penalty * m["current_excess_a"]
         + w.voltage_saturation_penalty * m["voltage_saturation"]
@@ -138,11 +148,20 @@ def batch_metrics(drive: Drive, batch: ScenarioBatch) -> dict:
     limit = drive.controller.current_limit
     u_max = drive.modulator.linear_limit(drive.bridge.u_dc)
 
-    def one(scenario, duration, t_load):
-        trace = pmsmjax.simulate(drive, scenario)
+    def one(scenario, duration, t_load, scale):
+        plant = drive
+        if scale:
+            motor = drive.machine.motor
+            names = list(scale)
+            plant = eqx.tree_at(
+                lambda d: [getattr(d.machine.motor, n) for n in names],
+                drive,
+                [getattr(motor, n) * scale[n] for n in names],
+            )
+        trace = pmsmjax.simulate(plant, scenario)
         return scenario_metrics(trace, duration, t_load, limit, u_max)
 
-    return jax.vmap(one)(batch.scenarios, batch.duration_s, batch.load_time_s)
+    return jax.vmap(one)(batch.scenarios, batch.duration_s, batch.load_time_s, batch.plant_scale)
 
 
 def batch_cost(drive: Drive, batch: ScenarioBatch, weights: ObjectiveWeights):

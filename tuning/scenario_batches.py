@@ -24,12 +24,16 @@ class ScenarioBatch(eqx.Module):
     - `duration_s`: ``(B,)`` each scenario's own duration, s (objectives ignore later samples).
     - `load_time_s`: ``(B,)`` time of the load change, s (the speed-step window ends there).
     - `kind`: the kind of each scenario (``step``, ``reversal``, ``ramp``), for reports.
+    - `plant_scale`: ``{motor parameter: (B,) factor}``: each scenario runs a plant whose parameter is
+      the drive's times this factor (robust tuning over parameter spreads; empty for the nominal plant).
+      The controller's own motor model stays nominal, as it would on a real drive.
     """
 
     scenarios: Scenario
     duration_s: jnp.ndarray
     load_time_s: jnp.ndarray
     kind: tuple[str, ...] = eqx.field(static=True)
+    plant_scale: dict = eqx.field(default_factory=dict)
 
     @property
     def size(self) -> int:
@@ -52,6 +56,7 @@ def make_batch(
     load_nm: tuple[float, float] = (0.0, 10.0),
     duration_s: tuple[float, float] = (0.3, 0.5),
     kinds: Sequence[str] = ("step",),
+    plant_spread: dict | None = None,
     Ts: float = 1e-4,
 ) -> ScenarioBatch:
     """``n`` scenarios drawn reproducibly from ``seed``.
@@ -60,6 +65,9 @@ def make_batch(
     step, a ramp (over 20-40 % of the pre-load window) or a reversal (step, then the opposite speed at
     40 % of the duration); a load torque of ``U(load_nm)`` opposing the motion steps in at 55-70 % of the
     duration. Durations are drawn from ``duration_s`` and rounded to whole periods ``Ts``.
+
+    ``plant_spread = {"J": 0.5, "R": 0.2, ...}`` draws each scenario's plant parameter uniformly within
+    +-50 %, +-20 %, ... of nominal (see :attr:`ScenarioBatch.plant_scale`).
     """
     if n < 1:
         raise ParameterError(f"a scenario batch needs n >= 1 scenarios, got {n}.")
@@ -71,6 +79,15 @@ def make_batch(
             raise ParameterError(f"{name} range must be finite with 0 <= low <= high, got ({lo}, {hi}).")
     if duration_s[0] <= 0:
         raise ParameterError(f"duration_s must be positive, got {duration_s}.")
+    spread = dict(plant_spread or {})
+    allowed = ("R", "L_d", "L_q", "psi_f", "J", "B")
+    for name, frac in spread.items():
+        if name not in allowed:
+            raise ParameterError(f"plant_spread: unknown motor parameter {name!r}; choose from {allowed}.")
+        if not (np.isfinite(frac) and 0 <= frac < 1):
+            raise ParameterError(
+                f"plant_spread[{name!r}] = {frac} must be a fraction in [0, 1) (e.g. 0.2 for +-20 %)."
+            )
     rng = np.random.default_rng(seed)
     horizon = round(duration_s[1] / Ts) * Ts
     rows, durations, load_times, kind_list = [], [], [], []
@@ -94,6 +111,8 @@ def make_batch(
         durations.append(duration)
         load_times.append(t_load)
         kind_list.append(kind)
+    # Drawn after the scenarios, so adding a spread leaves the scenarios of a seed unchanged.
+    scale = {name: jnp.asarray(1.0 + rng.uniform(-frac, frac, n)) for name, frac in spread.items()}
     return ScenarioBatch(
-        stack_scenarios(rows), jnp.asarray(durations), jnp.asarray(load_times), tuple(kind_list)
+        stack_scenarios(rows), jnp.asarray(durations), jnp.asarray(load_times), tuple(kind_list), scale
     )
