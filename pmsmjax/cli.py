@@ -189,7 +189,7 @@ def _add_tune_parser(sub):
     )
     p.add_argument("--out", default="tune_out", help="output folder (created), default: tune_out")
     p.add_argument("--config", default=None, help="TOML with [weights], [tune] and [job] tables")
-    p.add_argument("--iterations", type=int, help="maximum Adam iterations (default 140)")
+    p.add_argument("--iterations", type=int, help="maximum Adam iterations (default 100)")
     p.add_argument("--train", type=int, help="training scenarios (default 64)")
     p.add_argument("--heldout", type=int, help="held-out scenarios (default 64)")
     p.add_argument("--seed", type=int, help="seed of the training batch (default 0; held-out: seed + 1)")

@@ -36,7 +36,7 @@ from .parameters import apply_gains, get_leaf, write_gains_toml
 from .scenario_batches import ScenarioBatch, make_batch
 
 #: The must-show configuration: 64 + 64 scenarios, 0.3-0.5 s, steps of 200-1500 r/min both ways, 0-10 N m.
-DEFAULT_CONFIG = TuneConfig(max_iterations=140)
+DEFAULT_CONFIG = TuneConfig(max_iterations=100)
 
 #: Keys of a tuning TOML file, by table; ``[job]`` holds the keyword arguments of :func:`run_tune_job`.
 JOB_KEYS = (
