@@ -167,7 +167,12 @@ def test_bench_tuning_quick_run_reports_every_key_with_finite_values(problem, de
     assert r["gradient"]["iterations"] == bench_tuning.QUICK.tune_iterations
     assert len(r["gradient"]["curve"]) == r["gradient"]["iterations"]
     assert r["cma_es"]["available"] is cma_available()
-    for c in r["comparison"].values():
+    lb = r["comparison"]["lbfgs_b_vs_nelder_mead"]
+    assert isinstance(lb["reached"], bool) and (lb["lbfgs_b_time_to_reach_s"] is None) != lb["reached"]
+    assert lb["lbfgs_b_best_cost"] == pytest.approx(r["lbfgs_b"]["best_cost"])
+    for name, c in r["comparison"].items():
+        if name == "lbfgs_b_vs_nelder_mead":
+            continue
         assert isinstance(c["reached"], bool)
         if c["reached"]:
             assert c["gradient_time_to_reach_s"] >= 0 and c["ratio_search_wall_over_gradient_time"] > 0
@@ -178,3 +183,17 @@ def test_bench_tuning_quick_run_reports_every_key_with_finite_values(problem, de
     # One sub-step is accurate: the 10-sub-step cost of the design rules is the same to 1e-3.
     assert r["reevaluated"]["design_rule"]["train"] == pytest.approx(design, rel=1e-3)
     assert "Nelder-Mead" in bench_tuning.format_table(r)
+
+
+def test_lbfgs_b_improves_with_gradients_and_respects_bounds():
+    """L-BFGS-B on JAX gradients lowers the cost in a few evaluations and stays inside the bounds."""
+    from tuning.baselines import lbfgs_b
+
+    drive = book_drive(n_substeps=1)
+    batch = make_batch(3, 2, duration_s=(0.08, 0.1))
+    r = lbfgs_b(drive, batch, max_evaluations=10, bounds=(0.5, 2.0))
+    assert r.method == "l-bfgs-b" and r.evaluations <= 10
+    assert np.isfinite(r.best_cost) and r.best_cost < 0.9 * r.initial_cost
+    assert np.all(np.abs(r.theta) <= np.log(2.0) + 1e-12)
+    costs = [c for _, _, c in r.trace]
+    assert all(b <= a for a, b in zip(costs, costs[1:], strict=False))
