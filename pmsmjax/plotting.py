@@ -2,14 +2,13 @@
 
 from pathlib import Path
 
-import matplotlib
+# No backend is forced: matplotlib falls back to Agg without a display (the CLI), and notebooks keep
+# their inline backend.
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")  # files only; never needs a display
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from .trace import Trace  # noqa: E402
-from .units import rad_s_to_rpm  # noqa: E402
+from .trace import Trace
+from .units import rad_s_to_rpm
 
 
 def save_figure(fig, path: Path) -> Path:

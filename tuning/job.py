@@ -197,9 +197,6 @@ def run_tune_job(
 
 
 def _figures(out: Path, before, after, batch: ScenarioBatch, history) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     import pmsmjax
