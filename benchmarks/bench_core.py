@@ -29,7 +29,6 @@ import math
 import os
 import platform
 import sys
-import tempfile
 import time
 from collections.abc import Callable
 
@@ -41,6 +40,7 @@ import numpy as np
 from benchmarks.minimal_loop import BOOK, make_minimal_loop
 from pmsmjax.drive import Drive
 from pmsmjax.gradients import value_and_grad
+from pmsmjax.logs import atomic_write
 from pmsmjax.metrics import itae
 from pmsmjax.presets import book_drive, book_scenario
 from pmsmjax.scenarios import Scenario, stack_scenarios
@@ -512,18 +512,9 @@ def _mode_table(title: str, rows: list[dict]) -> list[str]:
 
 
 def write_json_atomic(path: str, data: dict) -> None:
-    """Write ``data`` as JSON to ``path`` via a temporary file in the same folder and ``os.replace``."""
-    folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".bench_", suffix=".json", dir=folder)
-    try:
-        os.fchmod(fd, 0o644)  # mkstemp makes the file private; a report is for everyone to read
-        with os.fdopen(fd, "w") as f:
-            json.dump(data, f, indent=2)
-            f.write("\n")
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
+    """Write ``data`` as JSON to ``path`` atomically (:func:`pmsmjax.logs.atomic_write`)."""
+    text = json.dumps(data, indent=2) + "\n"
+    atomic_write(path, lambda f: f.write(text.encode()))
 
 
 def main(json_path: str | None = None, quick: bool = False) -> dict:

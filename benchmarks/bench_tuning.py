@@ -404,7 +404,7 @@ def format_table(r: dict) -> str:
         f"best gains re-evaluated at {re['n_substeps']} sub-steps: cost on the training batch / "
         f"held-out batch (seed {re['held_out_seed']})",
     ]
-    for name in ("design_rule", "nelder_mead", "cma_es", "gradient"):
+    for name in ("design_rule", "nelder_mead", "lbfgs_b", "cma_es", "gradient"):
         if name in re:
             lines.append(f"  {name:<20}{re[name]['train']:>11.5f}{re[name]['held_out']:>11.5f}")
     return "\n".join(lines)

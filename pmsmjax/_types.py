@@ -1,12 +1,5 @@
-"""Array type aliases used in signatures across pmsmjax (jaxtyping, shapes in the alias names)."""
+"""Array type aliases used in signatures across pmsmjax (one module, so the convention has one home)."""
 
-import numpy as np
-from jaxtyping import Array, ArrayLike, Float
+from jaxtyping import Array, ArrayLike
 
-Scalar = Float[Array, ""]
-ScalarLike = float | Float[ArrayLike, ""]
-Vec2 = Float[Array, "2"]
-Vec3 = Float[Array, "3"]
-RealArray = Float[Array | np.ndarray, "..."]
-
-__all__ = ["Array", "ArrayLike", "Float", "RealArray", "Scalar", "ScalarLike", "Vec2", "Vec3"]
+__all__ = ["Array", "ArrayLike"]

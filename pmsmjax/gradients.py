@@ -13,6 +13,7 @@ from typing import Literal
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+from jax.flatten_util import ravel_pytree
 
 #: Up to this many scalar parameters forward mode is used by ``mode="auto"`` (see module docstring).
 FORWARD_MODE_MAX_PARAMS = 4
@@ -42,7 +43,7 @@ def value_and_grad(
         return jax.value_and_grad(f)(dynamic)
     if mode != "forward":
         raise ValueError(f"mode must be 'auto', 'forward' or 'reverse', got {mode!r}.")
-    flat, unravel = jax.flatten_util.ravel_pytree(dynamic)
+    flat, unravel = ravel_pytree(dynamic)
     g = lambda x: f(unravel(x))
     value = g(flat)
     basis = jnp.eye(flat.size, dtype=flat.dtype)

@@ -7,18 +7,17 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
+from .logs import atomic_write
 from .trace import Trace
 from .units import rad_s_to_rpm
 
 
 def save_figure(fig, path: Path) -> Path:
-    """Write a figure atomically (temporary file in the same folder, then rename)."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    fig.savefig(tmp, dpi=120, bbox_inches="tight")
-    plt.close(fig)
-    tmp.replace(path)
-    return path
+    """Write a figure as PNG atomically (:func:`pmsmjax.logs.atomic_write`) and close it."""
+    try:
+        return atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=120, bbox_inches="tight"))
+    finally:
+        plt.close(fig)
 
 
 def _panel(ax, trace: Trace, title: str, ylabel: str, lines, legend_loc: str = "upper right"):

@@ -94,7 +94,9 @@ def _simulate(drive: Drive, scenario: Scenario, decimate: int, initial_state) ->
     xs = period_inputs(scenario, drive.Ts)
     state = drive.init() if initial_state is None else initial_state
     step = jax.checkpoint(lambda d, s, x: d.step(s, x))
-    _, unravel = ravel_pytree(drive.step(state, jax.tree.map(lambda a: a[0], xs))[1])
+    # The record's layout (to unpack the packed rows) from shapes alone: no extra traced step.
+    record_shape = jax.eval_shape(drive.step, state, jax.tree.map(lambda a: a[0], xs))[1]
+    _, unravel = ravel_pytree(jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), record_shape))
 
     def recorded_step(s, x):
         s, record = step(drive, s, x)

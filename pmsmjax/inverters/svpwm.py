@@ -34,7 +34,6 @@ _LEG_TABLE = np.array(
 # reverse-mode derivative a product too (the VJP of a gather is a scatter, slow inside a loop on CPU).
 _DWELL_ONE_HOT = np.eye(6)[_DWELL_TABLE]  # (8, 2, 6)
 _LEG_ONE_HOT = np.eye(3)[_LEG_TABLE]  # (8, 3, 3)
-_ROMAN = {3: "I", 1: "II", 5: "III", 4: "IV", 6: "V", 2: "VI"}
 
 
 def sector_code(u_ab: Array) -> Array:
@@ -74,11 +73,6 @@ def switching_times(u_ab: Array, u_dc: Array, Ts) -> tuple[Array, Array, Array]:
     Tc = Tb + 0.5 * T2
     T_cm = jnp.asarray(_LEG_ONE_HOT, dtype)[N] @ jnp.stack([Ta, Tb, Tc])
     return T_cm, T1, T2
-
-
-def sector_name(N: int) -> str:
-    """Roman sector number (I..VI) of a book sector code N."""
-    return _ROMAN.get(int(N), "zero")
 
 
 class SVPWM(AbstractModulator):

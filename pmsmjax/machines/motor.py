@@ -53,7 +53,3 @@ class PMSMParameters(eqx.Module):
     def torque_constant(self) -> Array:
         """1.5 p_n psi_f, N m/A (q-axis current to torque, amplitude-invariant frames)."""
         return 1.5 * self.pole_pairs * self.psi_f
-
-    @property
-    def is_salient(self) -> Array:
-        return self.L_d != self.L_q
