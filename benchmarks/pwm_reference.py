@@ -17,6 +17,7 @@ with each doubling of ``n_fine``.
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from pmsmjax._types import Array
 from pmsmjax.frames import abc_to_alpha_beta, dq_to_abc, wrap_angle
@@ -25,7 +26,7 @@ from pmsmjax.machines.base import MachineInput, MachineState
 from pmsmjax.machines.integrate import rk4_step
 from pmsmjax.machines.motor import as_float
 
-__all__ = ["CarrierReferenceBridge"]
+__all__ = ["CarrierReferenceBridge", "dense_phase_currents"]
 
 
 class CarrierReferenceBridge(AbstractBridge):
@@ -82,3 +83,24 @@ class CarrierReferenceBridge(AbstractBridge):
 
         _, states = jax.lax.scan(outer, state, jnp.arange(n_samples))
         return states
+
+
+def dense_phase_currents(drive, trace, n_samples: int):
+    """``(N * n_samples, 3)`` phase currents (A) at ``t = k Ts + j Ts/n_samples`` (j = 1..n_samples) of a
+    run of ``drive``: each period re-integrated from its recorded start state and duties with the bridge's
+    own ``sample_period`` (the trajectory the run followed)."""
+    m = drive.machine
+    states = MachineState(
+        jax.vmap(m.currents_from_dq)(trace.i_dq, trace.theta_e), trace.omega_m, trace.theta_e
+    )
+
+    @jax.jit
+    def run(states, duties, load):
+        def one(s, d, L):
+            out = drive.bridge.sample_period(m, s, d, L, drive.Ts, n_samples)
+            return out[0] if isinstance(out, tuple) else out
+
+        dense = jax.vmap(one)(states, duties, load)
+        return dq_to_abc(jax.vmap(jax.vmap(m.currents_dq))(dense), dense.theta_e)
+
+    return np.asarray(run(states, trace.duties, trace.load_torque)).reshape(-1, 3)

@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from benchmarks.pwm_reference import CarrierReferenceBridge
+from benchmarks.pwm_reference import CarrierReferenceBridge, dense_phase_currents
 from pmsmjax import ParameterError, Profile, Scenario, simulate
 from pmsmjax.drive import Drive
 from pmsmjax.frames import abc_to_alpha_beta, dq_to_abc
@@ -51,25 +51,6 @@ def start():
     return drive, steady_state(drive, CompareSettings())
 
 
-def dense_currents(drive, trace, n_samples):
-    """``(N * n_samples, 3)`` phase currents on a uniform grid, from each period's recorded start state."""
-    m = drive.machine
-    states = MachineState(
-        jax.vmap(m.currents_from_dq)(trace.i_dq, trace.theta_e), trace.omega_m, trace.theta_e
-    )
-
-    @jax.jit
-    def run(states, duties, load):
-        def one(s, d, L):
-            out = drive.bridge.sample_period(m, s, d, L, drive.Ts, n_samples)
-            return out[0] if isinstance(out, tuple) else out
-
-        dense = jax.vmap(one)(states, duties, load)
-        return dq_to_abc(jax.vmap(jax.vmap(m.currents_dq))(dense), dense.theta_e)
-
-    return np.asarray(run(states, trace.duties, trace.load_torque)).reshape(-1, 3)
-
-
 def steady_scenario(periods):
     return Scenario(
         duration_s=periods * TS,
@@ -94,10 +75,10 @@ def waveforms(start):
         for name, bridge in bridges.items():
             d = with_bridge(drive, bridge)
             traces[name] = simulate(d, steady_scenario(PERIODS), initial_state=state)
-            out[(dead, name)] = dense_currents(d, traces[name], SAMPLES)
+            out[(dead, name)] = dense_phase_currents(d, traces[name], SAMPLES)
         # period by period from the same start states and duties (no accumulation through the loop)
         seg = with_bridge(drive, bridges["segments"])
-        out[(dead, "segments_per_period")] = dense_currents(seg, traces["carrier4000"], SAMPLES)
+        out[(dead, "segments_per_period")] = dense_phase_currents(seg, traces["carrier4000"], SAMPLES)
     return out
 
 
