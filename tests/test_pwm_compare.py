@@ -66,8 +66,11 @@ def test_averaged_entries_do_not_depend_on_the_modulator(report):
 
 def test_variants_run_at_equal_fundamental_voltage(report):
     e = report[1]["entries"]
-    u1 = np.array([v["fundamental_phase_voltage_v"] for v in e.values()])
-    assert np.ptp(u1) < 0.005 * u1.mean()
+    ideal = np.array([v["fundamental_phase_voltage_v"] for k, v in e.items() if "deadtime" not in k])
+    assert np.ptp(ideal) < 1e-3 * ideal.mean()
+    # with dead time the current loop restores the fundamental, after a transient of its own
+    for k, v in e.items():
+        assert v["fundamental_phase_voltage_v"] == pytest.approx(ideal.mean(), rel=0.01), k
     for v in e.values():
         assert v["fundamental_line_voltage_v"] == pytest.approx(
             S3 * v["fundamental_phase_voltage_v"], rel=1e-6
