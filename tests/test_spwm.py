@@ -11,6 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from pmsmjax import ParameterError
 from pmsmjax.inverters import SVPWM, MinMaxPWM, SinusoidalPWM, ThirdHarmonicPWM, third_harmonic
 
 S3 = np.sqrt(3.0)
@@ -121,3 +122,9 @@ def test_gradients_are_finite_at_zero_and_match_differences(modulator):
         axis=1,
     )
     np.testing.assert_allclose(jac, fd, rtol=1e-7, atol=1e-10)
+
+
+@pytest.mark.parametrize("modulator", MODULATORS[:3], ids=lambda m: m.name)
+def test_reference_must_be_an_alpha_beta_pair(modulator):
+    with pytest.raises(ParameterError, match=r"shape \(2,\)"):
+        modulator.duties(jnp.zeros(3), 311.0)

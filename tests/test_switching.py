@@ -338,6 +338,28 @@ def test_gradient_with_respect_to_duties_matches_differences(bridge):
     np.testing.assert_allclose(g, fd, rtol=1e-6)
 
 
+def test_gradient_with_respect_to_bridge_parameters_matches_differences():
+    # u_dc, dead time and device drop are array leaves: tunable and differentiable (currents clear of zero)
+    s0 = MACHINE.initial_state((0.0, 9.0), 104.72, np.pi / 6)
+    d = jnp.asarray([0.62, 0.41, 0.27])
+
+    def final_current(p):
+        bridge = SwitchingBridge(p[0], dead_time=p[1], device_drop=p[2])
+        s = s0
+        for _ in range(2):
+            s, _ = bridge.advance(MACHINE, s, d, 0.0, TS, 1)
+        return s.currents @ jnp.asarray([1.0, -0.7])
+
+    p0 = jnp.asarray([311.0, 2e-6, 1.2])
+    g = np.asarray(jax.jit(jax.grad(final_current))(p0))
+    f = jax.jit(final_current)
+    steps = np.array([1e-3, 1e-9, 1e-4])
+    fd = np.array([(f(p0 + h * e) - f(p0 - h * e)) / (2 * h) for h, e in zip(steps, jnp.eye(3), strict=True)])
+    print(f"\ngradient {g}, central differences {fd}")
+    assert np.all(np.abs(g) > 0)
+    np.testing.assert_allclose(g, fd, rtol=1e-5)
+
+
 def test_smooth_sign_gives_finite_current_gradient_at_zero_current():
     bridge = SwitchingBridge(U_DC, dead_time=2e-6, current_sign="smooth", sign_smoothing=0.2)
 

@@ -23,9 +23,17 @@ import jax.numpy as jnp
 
 from .._types import Array
 from ..frames import alpha_beta_to_abc
+from ..validation import ParameterError
 from .base import AbstractModulator
 
 SQRT3 = 3.0**0.5
+
+
+def _phase_references(u_ab_ref: Array) -> Array:
+    """``(3,)`` phase references (V) of a ``(2,)`` alpha-beta reference (shape checked when traced)."""
+    if jnp.shape(u_ab_ref) != (2,):
+        raise ParameterError(f"u_ab_ref must have shape (2,) (alpha, beta), got {jnp.shape(u_ab_ref)}.")
+    return alpha_beta_to_abc(u_ab_ref)
 
 
 def _duties(u_abc: Array, u_0: Array, u_dc: Array) -> Array:
@@ -39,7 +47,7 @@ class SinusoidalPWM(AbstractModulator):
     name: str = eqx.field(static=True, default="sinusoidal")
 
     def duties(self, u_ab_ref, u_dc):
-        return _duties(alpha_beta_to_abc(u_ab_ref), 0.0, u_dc)
+        return _duties(_phase_references(u_ab_ref), 0.0, u_dc)
 
     def linear_limit(self, u_dc):
         return 0.5 * u_dc
@@ -64,7 +72,7 @@ class ThirdHarmonicPWM(AbstractModulator):
     name: str = eqx.field(static=True, default="third_harmonic")
 
     def duties(self, u_ab_ref, u_dc):
-        return _duties(alpha_beta_to_abc(u_ab_ref), third_harmonic(u_ab_ref), u_dc)
+        return _duties(_phase_references(u_ab_ref), third_harmonic(u_ab_ref), u_dc)
 
     def linear_limit(self, u_dc):
         return u_dc / SQRT3
@@ -76,7 +84,7 @@ class MinMaxPWM(AbstractModulator):
     name: str = eqx.field(static=True, default="min_max")
 
     def duties(self, u_ab_ref, u_dc):
-        u = alpha_beta_to_abc(u_ab_ref)
+        u = _phase_references(u_ab_ref)
         return _duties(u, -0.5 * (jnp.max(u) + jnp.min(u)), u_dc)
 
     def linear_limit(self, u_dc):
