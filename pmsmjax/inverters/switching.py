@@ -25,6 +25,8 @@ for a dead window that is the current at the gate edge, as in the real circuit (
 the ``t_d`` window itself is neglected). ``current_sign="exact"`` (default) uses ``sign(i)``; ``"smooth"``
 the surrogate ``tanh(i/eps)`` (``eps = sign_smoothing``, A), which blends the two diode states near zero
 current and makes the model differentiable with respect to the current there (DESIGN.md gradient policy).
+At exactly zero current the exact sign is 0 and a dead window puts the pole at ``U_dc/2`` (the real
+voltage is set by the machine then; the window lasts a few microseconds).
 
 Output voltage: phase-to-neutral of a star, isolated-neutral machine, ``u_xN = v_x - mean(v)`` from the
 pole voltages ``v``; :meth:`SwitchingBridge.advance` returns its exact period average in the stator frame.
