@@ -87,3 +87,10 @@ def test_ripple_and_dead_time_show_in_the_current_thd(report):
 def test_bad_speed_is_rejected_before_compiling(capsys):
     assert main(["pwm-compare", "--out", "unused", "--speed-rpm", "1234"]) == 2
     assert "whole" in capsys.readouterr().err
+
+
+def test_help(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["pwm-compare", "--help"])
+    assert exit_info.value.code == 0
+    assert "pwm.json" in capsys.readouterr().out
