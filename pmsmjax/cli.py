@@ -1,4 +1,4 @@
-"""The ``pmsmjax`` command: ``demo`` (alias ``simulate``), ``replay``, ``tune`` and ``bench``.
+"""The ``pmsmjax`` command: ``demo`` (``simulate``), ``replay``, ``tune``, ``bench`` and ``pwm-compare``.
 
 Every subcommand checks its input before compiling anything and writes each output file atomically
 (temporary file in the same folder, then rename), so an interrupted or failed run leaves no half file.
@@ -258,6 +258,74 @@ def _cmd_tune(args) -> int:
     return 0
 
 
+def _add_pwm_compare_parser(sub):
+    p = sub.add_parser(
+        "pwm-compare",
+        help="compare the PWM methods (spectra, THD, DC-bus utilisation) at one steady operating point",
+        description=(
+            "Book chapter 2: sinusoidal PWM, third-harmonic and min-max injection and SVPWM at one steady "
+            "operating point of the book drive (reached through the book scenario), each with the averaged "
+            "bridge, the switching-resolved bridge, and the switching bridge with dead time. Writes "
+            "DIR/pwm.json (per variant: linear_limit_v, fundamental, voltage and current THD, DC-bus "
+            "utilisation against sinusoidal PWM), DIR/waveforms.npz and PNG figures."
+        ),
+    )
+    p.add_argument("--out", default="pwm_out", help="output folder (created), default: pwm_out")
+    p.add_argument("--speed-rpm", type=float, default=1000.0, help="speed, r/min (f_sw/f_1 whole; 1000)")
+    p.add_argument("--load-nm", type=float, default=10.0, help="load torque, N m (default 10)")
+    p.add_argument("--dead-time-us", type=float, default=2.0, help="dead time of the _deadtime variants, us")
+    p.add_argument("--settle-cycles", type=int, default=2, help="fundamental periods settled (default 2)")
+    p.add_argument("--window-cycles", type=int, default=2, help="fundamental periods analysed (default 2)")
+    p.add_argument(
+        "--modulators",
+        nargs="+",
+        default=["sinusoidal", "third_harmonic", "min_max", "svpwm"],
+        help="modulators to compare (default: all four)",
+    )
+    p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+    p.set_defaults(func=_cmd_pwm_compare)
+
+
+def _cmd_pwm_compare(args) -> int:
+    import numpy as np
+
+    from .logs import atomic_write
+    from .pwm_compare import CompareSettings, compare
+
+    settings = CompareSettings(
+        speed_rpm=args.speed_rpm,
+        load_nm=args.load_nm,
+        dead_time_s=args.dead_time_us * 1e-6,
+        settle_cycles=args.settle_cycles,
+        window_cycles=args.window_cycles,
+        modulators=tuple(args.modulators),
+    )
+    t0 = time.perf_counter()
+    result = compare(settings, progress=print)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    report = {"settings": result["settings"], "entries": result["entries"]}
+    report["wall_time_s"] = time.perf_counter() - t0
+    atomic_write(out / "pwm.json", lambda f: f.write(json.dumps(report, indent=2).encode()))
+    arrays = {f"{name}/{key}": v for name, w in result["waves"].items() for key, v in w.items()}
+    atomic_write(out / "waveforms.npz", lambda f: np.savez(f, **arrays))
+    written = ["pwm.json", "waveforms.npz"]
+    if not args.no_figures:
+        from .plotting import save_figure
+        from .plotting_pwm import spectrum_figure, thd_figure, waveform_figure
+
+        shown = [m + "_switching" for m in ("sinusoidal", "svpwm") if m in settings.modulators]
+        for name, fig in (
+            ("pwm_waveforms.png", waveform_figure(result, shown)),
+            ("pwm_spectra.png", spectrum_figure(result, shown)),
+            ("pwm_thd.png", thd_figure(result)),
+        ):
+            save_figure(fig, out / name)
+            written.append(name)
+    print(f"wrote {', '.join(f'{out}/{w}' for w in written)} in {report['wall_time_s']:.1f} s")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="pmsmjax", description="Differentiable, batched PMSM drive simulation in JAX."
@@ -267,6 +335,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_replay_parser(sub)
     _add_bench_parser(sub)
     _add_tune_parser(sub)
+    _add_pwm_compare_parser(sub)
     return parser
 
 

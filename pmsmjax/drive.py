@@ -73,6 +73,7 @@ class Drive(eqx.Module):
         check_positive("Drive.Ts (control period)", self.Ts, "s")
         if not isinstance(self.n_substeps, int) or self.n_substeps < 1:
             raise ParameterError(f"Drive.n_substeps must be an int >= 1, got {self.n_substeps!r}.")
+        self.bridge.check_period(self.Ts)
 
     def init(self, speed_m=0.0, theta_e=0.0) -> DriveState:
         """State at rest (or at the given speed, rad/s, and angle, rad) with zero currents."""

@@ -32,6 +32,12 @@ class AbstractBridge(eqx.Module):
 
     u_dc: eqx.AbstractVar[Array]
 
+    def check_period(self, Ts: float) -> None:
+        """Raise :class:`pmsmjax.ParameterError` if the bridge's settings do not fit the period ``Ts`` (s).
+
+        Called by :class:`pmsmjax.drive.Drive` at construction (before compiling); nothing to check here.
+        """
+
     def advance(
         self,
         machine: AbstractMachine,
