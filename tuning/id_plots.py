@@ -28,7 +28,7 @@ def fit_figure(result, zoom_s: float = 0.05):
         n_w, W = sim.shape[:2]
         t = log.time[1 : n_w * W + 1]
         i_fit = sim.reshape(-1, 2)
-        md = me.MechanicalData.from_log(log, W, 1.0, d.pole_pairs)
+        md = me.MechanicalData.from_log(log, W, 1.0, fit.mechanical.pole_pairs)
         w_fit = np.asarray(me.simulate_speed(fit.pmap, theta, md)).reshape(-1)
     fig, axes = plt.subplots(4, 1, figsize=(9, 10))
     mid = 0.5 * (t[0] + t[-1])

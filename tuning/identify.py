@@ -209,7 +209,7 @@ def _entries(fit: FitResult, rel_tol: float, torque_rms: float) -> dict:
             ci = [v - _Z95 * stderr, v + _Z95 * stderr] if finite else [None, None]
             ref = torque_rms if name == "T_c" else max(abs(v), 1.0)
             ok = finite and stderr < rel_tol * ref
-        out[name] = {
+        entry = {
             "value": v,
             "stderr": stderr,
             "ci95": ci,
@@ -220,6 +220,14 @@ def _entries(fit: FitResult, rel_tol: float, torque_rms: float) -> dict:
             "unit": UNITS[name],
             "fixed": False,
         }
+        if not ok:
+            # A linearised interval around a value the data does not pin down is not a 95 % interval.
+            entry["ci95"] = [None, None]
+            entry["note"] = (
+                "not determined by this log: the value is where the fit stopped and the local stderr "
+                "understates the uncertainty; see identifiability.advice"
+            )
+        out[name] = entry
     for name in fit.pmap.names:
         if name not in out:
             v = fit.values[name]
