@@ -157,7 +157,7 @@ def fit(log, pole_pairs: int, *, hold, fixed, start, dead_time, dead_time_eps, w
     # Residual correlation length: a few electrical time constants (electrical group); consecutive
     # mechanical windows share a boundary sample and coloured current noise: 3 windows.
     tau = max(values["L_d"], values["L_q"]) / values["R"]
-    lags_e = int(min(np.ceil(4.0 * tau / float(np.median(np.diff(log.time)))), edata.dt.shape[1] // 2))
+    lags_e = int(min(np.ceil(10.0 * tau / float(np.median(np.diff(log.time)))), edata.dt.shape[1] // 2))
     cov, cov_white, s2, M = covariance([(je, re, edata.dt.shape, lags_e), (jm, rm, (1, rm.size), 3)])
     return FitResult(
         pmap=pmap,

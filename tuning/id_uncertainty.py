@@ -54,9 +54,11 @@ def score_covariance(scores: np.ndarray, lags: int) -> np.ndarray:
     ``S`` independent series (shooting windows) of ``T`` samples; correlation is summed up to `lags`
     samples apart within each series with weights ``1 - l / (lags + 1)``.
     """
-    out = np.einsum("stm,stn->mn", scores, scores)
+    m = scores.shape[-1]
+    flat = lambda x: x.reshape(-1, m)
+    out = flat(scores).T @ flat(scores)
     for lag in range(1, min(lags, scores.shape[1] - 1) + 1):
-        G = np.einsum("stm,stn->mn", scores[:, lag:], scores[:, :-lag])
+        G = flat(scores[:, lag:]).T @ flat(scores[:, :-lag])  # a matrix product: BLAS, not einsum
         out += (1.0 - lag / (lags + 1.0)) * (G + G.T)
     return out
 
