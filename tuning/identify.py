@@ -236,6 +236,14 @@ def _entries(fit: FitResult, rel_tol: float, torque_rms: float) -> dict:
     return out
 
 
+def _weak(fit: FitResult, rel_tol: float) -> list[dict]:
+    """Weak directions among the positive (log-parameterised, so relative) parameters; the signed ones
+    (load, dead-time voltage) have no common scale and are judged one by one in their entries."""
+    names = fit.pmap.free_names
+    keep = [j for j, n in enumerate(names) if fit.pmap.positive[fit.pmap.names.index(n)]]
+    return weak_directions(fit.cov[np.ix_(keep, keep)], [names[j] for j in keep], rel_tol)
+
+
 def _summary(log: DriveLog, opt: IdentifyOptions, fit: FitResult) -> dict:
     d, md = fit.electrical, fit.mechanical
     err_i, err_w = fit.residuals["i_dq"], fit.residuals["omega_end"]
@@ -250,7 +258,7 @@ def _summary(log: DriveLog, opt: IdentifyOptions, fit: FitResult) -> dict:
         "identifiability": {
             "relative_tolerance": opt.rel_tol,
             "not_identifiable": unidentifiable,
-            "weak_directions": weak_directions(fit.cov, fit.pmap.free_names, opt.rel_tol),
+            "weak_directions": _weak(fit, opt.rel_tol),
             "advice": {n: ADVICE[n] for n in unidentifiable},
             "condition_number": float(np.sqrt(lam.max() / lam.min())) if lam.min() > 0 else None,
         },
