@@ -4,13 +4,13 @@ Pipeline (each step in its own module):
 
 1. :mod:`tuning.id_log`: read CSV/.mat/.npz, map columns and units, turn every frame into dq, check
    everything (gaps, units, consistency) before any fitting.
-2. :mod:`tuning.id_electrical` + :mod:`tuning.id_fit`: equation-error warm start, then output-error
-   Levenberg-Marquardt (optimistix, JAX forward-mode Jacobians) over multiple-shooting windows, the
-   voltage held as the recording held it (``hold``, as in :mod:`pmsmjax.replay`). Given the measured
-   speed the electrical equations stand alone, so R, L_d, L_q, psi_f (and a dead-time voltage) are
-   fitted first.
-3. :mod:`tuning.id_mechanical`: J, B and a constant load from the speed, with the torque of the
-   identified electrical model (its uncertainty carried into J and B).
+2. :mod:`tuning.id_electrical`: current residuals over multiple-shooting windows (R, L_d, L_q, psi_f
+   and a dead-time voltage), the voltage held as the recording held it (``hold``, as in
+   :mod:`pmsmjax.replay`); given the measured speed they do not involve the mechanics.
+3. :mod:`tuning.id_mechanical`: speed residuals at window ends (J, B, a constant load, and the
+   electrical parameters through the torque).
+   :mod:`tuning.id_fit`: equation-error warm starts, then one output-error Levenberg-Marquardt solve
+   (optimistix, JAX forward-mode Jacobians) over both groups.
 4. :mod:`tuning.id_uncertainty`: standard errors, 95 % intervals (in log space for positive
    parameters, so they stay positive), identifiability, the weak directions and what excitation would
    fix them.
