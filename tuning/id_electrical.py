@@ -193,8 +193,9 @@ def warm_start(
         "psi_f": np.concatenate([zero, int_w]),
     }
     if dead_time:
-        sgn = np.sign(np.asarray(dq_to_abc(i, log.theta_e)))
-        e = np.asarray(park(abc_to_alpha_beta(sgn), log.theta_e))
+        with jax.enable_x64(True):  # jnp transforms, float64 whatever the process default is
+            sgn = np.sign(np.asarray(dq_to_abc(i, log.theta_e)))
+            e = np.asarray(park(abc_to_alpha_beta(sgn), log.theta_e))
         int_e = blocks(trap(e))
         cols["V_dt"] = -np.concatenate([int_e[:, 0], int_e[:, 1]])
     lhs = np.concatenate([int_u[:, 0], int_u[:, 1]])

@@ -31,6 +31,7 @@ import sys
 import warnings
 from pathlib import Path
 
+import jax
 import numpy as np
 
 from pmsmjax.frames import abc_to_alpha_beta, park
@@ -333,6 +334,12 @@ def _check_speed_against_angle(c: dict, pole_pairs: int, source: str) -> None:
 
 
 def _to_dq(c: dict, names, frame: str, th: np.ndarray, u_dc) -> np.ndarray:
+    # The frame transforms are jnp functions: run them in float64 whatever the process default is.
+    with jax.enable_x64(True):
+        return _to_dq64(c, names, frame, th, u_dc)
+
+
+def _to_dq64(c: dict, names, frame: str, th: np.ndarray, u_dc) -> np.ndarray:
     if frame == "dq":
         return np.stack([c[names[0]], c[names[1]]], axis=1)
     if frame == "alpha_beta":
