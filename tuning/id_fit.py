@@ -1,0 +1,177 @@
+"""The least-squares fit of identification: one optimistix Levenberg-Marquardt solve for all unknowns.
+
+The residual vector has two groups, each divided by its own noise level:
+
+- electrical (:mod:`tuning.id_electrical`): simulated minus measured dq currents over shooting
+  windows, which involve R, L_d, L_q, psi_f (and V_dt) only, because the speed is measured;
+- mechanical (:mod:`tuning.id_mechanical`): simulated minus measured speed at the end of short
+  windows, which involve J, B, T_c and, through the torque, psi_f, L_d, L_q.
+
+The equations decouple given the measured speed and currents, so the warm starts are computed per
+group (linear equation error: electrical first, the mechanical one with its torque). The output-error
+solve is joint because one compiled program is cheaper than two (compile time dominates a single fit),
+and the joint covariance then carries the electrical uncertainty into J and B by itself.
+
+Forward-mode JAX Jacobians (optimistix default), float64. After a solve the noise level of each
+signal is re-estimated from its residuals (degrees of freedom shared in proportion) and, if one moved
+by more than 2 %, the solve is repeated with the new weights, so the final weights are the noise
+estimates. One compiled program per log shape serves every log of that shape (and every repeat).
+"""
+
+import dataclasses
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+from jax.flatten_util import ravel_pytree
+
+from . import id_electrical as el
+from . import id_mechanical as me
+from .id_parameters import ParameterMap
+from .id_uncertainty import covariance
+
+__all__ = ["FitResult", "fit", "noise_level", "joint_residuals"]
+
+
+@dataclasses.dataclass
+class FitResult:
+    """Result of :func:`fit`.
+
+    - `pmap`, `theta`: parameter map and solver coordinates at the optimum; `values`: ``{name: value}``.
+    - `cov`: ``(n_free, n_free)`` covariance of ``theta`` (sandwich, robust to correlated residuals);
+      `cov_white`: the plain Gauss-Newton ``s2 M^-1``; `M`: information ``Jr^T Jr``; `s2`: variance
+      factor (about 1 with noise-level weights).
+    - `sigma`: ``{signal: noise level}`` used as weights (i_d, i_q in A; omega_end in rad/s).
+    - `electrical`, `mechanical`: the windowed data; `residuals`: simulated minus measured,
+      ``i_dq (n_w, W, 2)`` A and ``omega_end (n_m,)`` rad/s; `lags`: Newey-West lags of each group.
+    - `steps`: Levenberg-Marquardt steps (all solves); `ok`: the solver converged.
+    """
+
+    pmap: ParameterMap
+    theta: np.ndarray
+    values: dict
+    cov: np.ndarray
+    cov_white: np.ndarray
+    M: np.ndarray
+    s2: float
+    sigma: dict
+    electrical: el.ElectricalData
+    mechanical: me.MechanicalData
+    residuals: dict
+    lags: dict
+    steps: int
+    ok: bool
+
+
+def noise_level(x: np.ndarray) -> float:
+    """Robust white-noise standard deviation of a smooth signal plus noise: MAD of the second difference.
+
+    For white noise of variance s^2 the second difference has variance 6 s^2; the smooth part of a
+    current sampled at 10 kHz contributes little, and the median ignores the samples where it does.
+    """
+    d2 = np.diff(x, 2)
+    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
+
+
+def joint_residuals(theta, args):
+    """``(electrical (n_w, W, 2), mechanical (n_m,))`` weighted residuals; args ``(pmap, edata, mdata)``."""
+    pmap, edata, mdata = args
+    return el.electrical_residuals(theta, (pmap, edata)), me.mechanical_residuals(theta, (pmap, mdata))
+
+
+@eqx.filter_jit
+def _solve_and_linearise(y0, args, max_steps: int, rtol: float):
+    """Levenberg-Marquardt from ``y0``; returns the optimum, the dense Jacobian ``(n_res, n_free)`` and the
+    flat residuals there (the solver's own last linearisation, so no second Jacobian is compiled), the
+    step count and success."""
+    sol = optx.least_squares(
+        joint_residuals, optx.LevenbergMarquardt(rtol=rtol, atol=rtol), y0, args=args, max_steps=max_steps,
+        throw=False,
+    )  # fmt: skip
+    f_info = sol.state.f_info
+    resid = ravel_pytree(f_info.residual)[0]
+    return (
+        sol.value,
+        f_info.jac.as_matrix(),
+        resid,
+        sol.stats["num_steps"],
+        sol.result == optx.RESULTS.successful,
+    )
+
+
+def fit(log, pole_pairs: int, *, hold, fixed, start, dead_time, dead_time_eps, windows, n_substeps,
+        max_steps=100, rtol=1e-6) -> FitResult:  # fmt: skip
+    """Fit every free parameter to a :class:`~tuning.id_log.DriveLog`.
+
+    `fixed`: ``{name: value}`` held fixed; `start`: start values replacing the warm start;
+    `windows`: ``(electrical, mechanical)`` shooting-window lengths in log intervals;
+    `hold`, `dead_time`, `dead_time_eps`, `n_substeps`: model options (:mod:`tuning.id_electrical`).
+    """
+    e_names = el.ELECTRICAL_NAMES if dead_time else el.ELECTRICAL_NAMES[:4]
+    e_start, _ = el.warm_start(log, pole_pairs, hold, {n: fixed[n] for n in e_names if n in fixed}, dead_time)
+    e_start.update({n: start[n] for n in e_names if n in start})
+    e_vals = {n: fixed.get(n, e_start.get(n)) for n in e_names}
+    mdata = me.MechanicalData.from_log(log, windows[1], 1.0, pole_pairs)
+    m_fixed = {n: fixed[n] for n in me.MECHANICAL_NAMES if n in fixed}
+    m_start, sigma_w = me.warm_start(mdata, e_vals, m_fixed)
+    m_start.update({n: start[n] for n in me.MECHANICAL_NAMES if n in start})
+
+    names = e_names + me.MECHANICAL_NAMES
+    values = {**e_vals, **{n: fixed.get(n, m_start.get(n)) for n in me.MECHANICAL_NAMES}}
+    positive = tuple(n not in ("V_dt", "T_c") for n in names)
+    # Signed parameters move in steps of 1 V (V_dt) and 10 mN m (T_c).
+    scale = [1.0 if n == "V_dt" else 0.01 if n == "T_c" else 1.0 for n in names]
+    pmap = ParameterMap(
+        names,
+        tuple(n not in fixed for n in names),
+        positive,
+        jnp.asarray([values[n] for n in names], jnp.float64),
+        jnp.asarray(scale, jnp.float64),
+    )
+    sigma_i = np.array([noise_level(log.i_dq[:, 0]), noise_level(log.i_dq[:, 1])])
+    sigma_i = np.maximum(sigma_i, 1e-9 + 1e-6 * np.max(np.abs(log.i_dq)))
+    sigma_w = max(sigma_w, 1e-12)
+    edata = el.ElectricalData.from_log(log, windows[0], sigma_i, pole_pairs, hold, n_substeps, dead_time,
+                                       dead_time_eps)  # fmt: skip
+    y = jnp.zeros(pmap.n_free, jnp.float64)
+    steps_total, ok = 0, True
+    for _ in range(3):
+        mdata = eqx.tree_at(lambda d: d.sigma, mdata, jnp.asarray(sigma_w, jnp.float64))
+        edata = eqx.tree_at(lambda d: d.sigma, edata, jnp.asarray(sigma_i, jnp.float64))
+        y, jac, r, steps, ok = _solve_and_linearise(y, (pmap, edata, mdata), max_steps, rtol)
+        steps_total += int(steps)
+        n_e = int(np.prod(edata.i[:, 1:].shape))  # electrical rows come first
+        jac, r = np.asarray(jac), np.asarray(r)
+        je, re, jm, rm = jac[:n_e], r[:n_e], jac[n_e:], r[n_e:]
+        m = pmap.n_free
+        n = re.size + rm.size
+        r2 = re.reshape(-1, 2) ** 2
+        new_i = sigma_i * np.sqrt(r2.sum(axis=0) / (r2.shape[0] * (n - m) / n))
+        new_w = sigma_w * np.sqrt(float(rm @ rm) / (rm.size * (n - m) / n))
+        moved = np.abs(np.append(new_i / sigma_i, new_w / sigma_w) - 1.0)
+        if np.all(moved < 0.02):
+            break
+        sigma_i, sigma_w = new_i, new_w
+    values = {k: float(v) for k, v in pmap.values(y).items()}
+    # Residual correlation length: a few electrical time constants (electrical group); consecutive
+    # mechanical windows share a boundary sample and coloured current noise: 3 windows.
+    tau = max(values["L_d"], values["L_q"]) / values["R"]
+    lags_e = int(min(np.ceil(10.0 * tau / float(np.median(np.diff(log.time)))), edata.dt.shape[1] // 2))
+    cov, cov_white, s2, M = covariance([(je, re, edata.dt.shape, lags_e), (jm, rm, (1, rm.size), 3)])
+    return FitResult(
+        pmap=pmap,
+        theta=np.asarray(y),
+        values=values,
+        cov=cov,
+        cov_white=cov_white,
+        M=M,
+        s2=s2,
+        sigma={"i_d": float(sigma_i[0]), "i_q": float(sigma_i[1]), "omega_end": float(sigma_w)},
+        electrical=edata,
+        mechanical=mdata,
+        residuals={"i_dq": re.reshape(edata.i[:, 1:].shape) * sigma_i, "omega_end": rm * sigma_w},
+        lags={"electrical": lags_e, "mechanical": 3},
+        steps=steps_total,
+        ok=bool(ok),
+    )

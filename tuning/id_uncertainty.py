@@ -1,0 +1,123 @@
+"""Gauss-Newton standard errors, 95 % intervals and the identifiability check of a least-squares fit.
+
+For weighted residuals ``r(y)`` (each divided by its signal's noise level) at the optimum, with Jacobian
+``Jr`` and ``n`` residuals for ``m`` unknowns, the noise variance factor is ``s^2 = |r|^2 / (n - m)``
+(1 when the weights are the true noise levels) and ``cov(y) = s^2 (Jr^T Jr)^-1`` in solver coordinates
+(``log`` of positive parameters, so variances are relative). When residuals are correlated in time
+the sandwich form of :func:`covariance` is used instead (same estimate, honest spread).
+
+**Identifiability.** The covariance is eigen-decomposed; a direction whose standard deviation exceeds
+the tolerance is one the data does not pin down, and the parameters with a large share of it are
+reported together (one name: that parameter is not determined; several: they cannot be separated, only
+a combination of them is). A parameter is ``identifiable`` when its own relative standard error is
+below the tolerance (default 5 %). Directions with a numerically zero eigenvalue get an infinite
+standard error rather than the zero a pseudo-inverse would give: no confident value from no data.
+"""
+
+import numpy as np
+
+__all__ = ["covariance", "score_covariance", "weak_directions", "ADVICE"]
+
+#: What excitation determines each parameter (shown for parameters the data did not determine).
+ADVICE = {
+    "R": "current at low speed or standstill, or q-current steps at a constant speed (R i_q against "
+    "the back-EMF)",
+    "L_d": "d-axis current injection: steps or a PRBS on id_ref of a few A (tuning.excitation)",
+    "L_q": "q-axis current changes: speed steps or q-current steps",
+    "psi_f": "running at several speeds (the back-EMF grows with speed)",
+    "V_dt": "current through zero in every phase at low voltage (slow rotation at load)",
+    "J": "accelerations: speed steps",
+    "B": "several constant speeds (both directions)",
+    "T_c": "several constant speeds (both directions)",
+}
+
+
+def _inverse(M: np.ndarray) -> np.ndarray:
+    """Inverse of a symmetric information matrix, with infinite variance along null directions."""
+    p = M.shape[0]
+    lam, V = np.linalg.eigh(0.5 * (M + M.T))
+    tiny = max(lam.max(), 0.0) * 1e-13
+    inv_lam = np.where(lam > tiny, 1.0 / np.where(lam > tiny, lam, 1.0), np.inf)
+    with np.errstate(invalid="ignore"):
+        inv = np.einsum("ik,k,jk->ij", V, inv_lam, V)
+    # An inf direction makes every parameter touching it inf; 0 * inf from untouched ones is 0, not NaN.
+    touched = (np.abs(V) > 1e-12) & ~np.isfinite(inv_lam)[None, :]
+    bad = touched.any(axis=1)
+    inv = np.where(np.isnan(inv), 0.0, inv)
+    inv[bad, :] = np.where(np.eye(p, dtype=bool)[bad], np.inf, inv[bad, :])
+    return inv
+
+
+def score_covariance(scores: np.ndarray, lags: int) -> np.ndarray:
+    """Newey-West (Bartlett) long-run covariance ``(m, m)`` of per-sample scores ``(S, T, m)``.
+
+    ``S`` independent series (shooting windows) of ``T`` samples; correlation is summed up to `lags`
+    samples apart within each series with weights ``1 - l / (lags + 1)``.
+    """
+    m = scores.shape[-1]
+    flat = lambda x: x.reshape(-1, m)
+    out = flat(scores).T @ flat(scores)
+    for lag in range(1, min(lags, scores.shape[1] - 1) + 1):
+        G = flat(scores[:, lag:]).T @ flat(scores[:, :-lag])  # a matrix product: BLAS, not einsum
+        out += (1.0 - lag / (lags + 1.0)) * (G + G.T)
+    return out
+
+
+def covariance(groups) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """``(cov, cov_white, s2, M)``: covariances ``(m, m)`` of the unknowns, variance factor, information.
+
+    `groups`: residual groups ``(jac (n, m), resid (n,), series (S, T), lags)``: weighted Jacobian and
+    residuals at the optimum; the rows as ``S`` independent series of ``T`` samples (a sample may own
+    several rows, summed into one score); correlation length `lags`, samples.
+    ``cov_white = s2 M^-1`` with ``M = sum jac^T jac`` assumes independent residuals. ``cov`` is the
+    sandwich ``M^-1 S M^-1`` with ``S`` the Newey-West covariance of the per-sample scores
+    ``jac_k^T r_k``: it stays right when the residuals are correlated in time (noise on the logged
+    voltages reaches the currents through the machine's low-pass, so the current residuals are not
+    white).
+    """
+    m = groups[0][0].shape[1]
+    n = sum(g[1].size for g in groups)
+    s2 = float(sum(g[1] @ g[1] for g in groups)) / max(n - m, 1)
+    M = sum(g[0].T @ g[0] for g in groups)
+    inv = _inverse(M)
+    cov_white = s2 * inv
+    S = np.zeros((m, m))
+    for jac, resid, series, lags in groups:
+        scores = (jac * resid[:, None]).reshape(series[0], series[1], -1, m).sum(axis=2)
+        S += score_covariance(scores, lags)
+    finite = np.isfinite(np.diag(inv))
+    inv0 = np.where(np.isfinite(inv), inv, 0.0)
+    cov = inv0 @ S @ inv0
+    cov[~finite, :] = cov_white[~finite, :]
+    cov[:, ~finite] = cov_white[:, ~finite]
+    return cov, cov_white, s2, M
+
+
+def weak_directions(cov: np.ndarray, names, tol: float) -> list[dict]:
+    """Directions of the covariance ``cov`` (solver coordinates) with standard deviation above `tol`.
+
+    Each entry: ``{"std": float or None (infinite), "parameters": [names with a large share],
+    "weights": [their components, the largest scaled to 1]}``. A parameter with infinite variance is a
+    direction of its own.
+    """
+    out = []
+    inf = ~np.isfinite(np.diag(cov))
+    for j in np.flatnonzero(inf):
+        out.append({"std": None, "parameters": [names[j]], "weights": [1.0]})
+    keep = np.flatnonzero(~inf)
+    if keep.size:
+        lam, V = np.linalg.eigh(cov[np.ix_(keep, keep)])
+        for k in range(lam.size):
+            std = float(np.sqrt(max(lam[k], 0.0)))
+            if std <= tol:
+                continue
+            v = V[:, k] / np.max(np.abs(V[:, k]))
+            share = [j for j in np.argsort(-np.abs(v)) if abs(v[j]) >= 0.3]
+            out.append(
+                {
+                    "std": std,
+                    "parameters": [names[keep[j]] for j in share],
+                    "weights": [float(v[j]) for j in share],
+                }
+            )
+    return out
