@@ -324,6 +324,7 @@ def _cmd_pwm_compare(args) -> int:
             save_figure(fig, out / name)
             written.append(name)
     print(f"wrote {', '.join(f'{out}/{w}' for w in written)} in {report['wall_time_s']:.1f} s")
+    return 0
 
 
 def _add_identify_parser(sub):
