@@ -1,0 +1,290 @@
+"""Monte Carlo robustness studies of a drive, chunked, sharded over every device, resumable.
+
+``run_study(study, out_dir)``:
+
+1. checks the study and draws every run's parameters on the host (seeded, float64,
+   :mod:`tuning.distributions`), before anything compiles; non-physical samples are refused or clipped;
+2. splits the runs into chunks of ``chunk_size`` (rounded up to a multiple of the device count; the
+   last chunk is padded with copies of its last run, whose results are dropped);
+3. runs each chunk as one compiled call: ``vmap`` of :func:`tuning.mc_kernel.run_metrics` over the
+   chunk, the chunk's runs split over a one-axis device mesh with ``jax.sharding`` (``NamedSharding``
+   over axis ``runs``). The same code serves one CPU, several forced CPU devices
+   (``XLA_FLAGS=--xla_force_host_platform_device_count=N`` or ``jax_num_cpu_devices``), several GPUs and
+   several hosts after ``jax.distributed.initialize()`` (every process draws the same samples, feeds
+   its own devices' shards, and process 0 writes the files);
+4. writes each finished chunk to ``DIR/chunks/chunk_NNNNN.npz`` atomically, tagged with a fingerprint
+   of the study, the samples, the precision and the code's version of the metrics; a rerun of the same
+   study loads the chunks it finds and computes only the missing ones, so an interrupted study finishes
+   where it stopped with the same results;
+5. takes the derivative of every metric with respect to every varied parameter by forward-mode AD
+   (``jax.jacfwd``: one tangent per parameter, cheap with a handful of parameters) for the first
+   ``sensitivity_runs`` runs (also stored, as ``DIR/chunks/sensitivities.npz``);
+6. summarises (:mod:`tuning.mc_summary`), draws the figures (:mod:`tuning.mc_figures`) and writes
+   ``DIR/summary.json``.
+
+Run time is the time of the chunk calls made in this invocation (compile excluded: each chunk function is
+compiled ahead of time and timed separately as ``compile_time_s``).
+"""
+
+import hashlib
+import json
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
+from tqdm.auto import tqdm
+
+from pmsmjax.logs import atomic_write
+from pmsmjax.simulate import check_simulation
+from pmsmjax.validation import ParameterError
+
+from . import mc_study
+from .distributions import sample
+from .mc_kernel import METRICS, run_metrics
+from .mc_study import Study
+from .mc_summary import sensitivity_summary, summarise
+
+#: Bump when the kernel's metric definitions change: chunks written by another version are recomputed.
+KERNEL_VERSION = 1
+#: Keys of summary.json that describe how (fast) the study ran rather than its results.
+VOLATILE_KEYS = ("run_time_s", "compile_time_s", "timing", "devices", "chunks")
+
+
+def device_mesh() -> Mesh:
+    """A one-axis mesh (``runs``) over every device of every process."""
+    return Mesh(np.array(jax.devices()), ("runs",))
+
+
+def chunk_layout(n: int, chunk_size: int, n_devices: int) -> tuple[int, int]:
+    """``(chunk size rounded up to a multiple of n_devices, number of chunks)`` for ``n`` runs."""
+    size = -(-min(chunk_size, n) // n_devices) * n_devices
+    return size, -(-n // size)
+
+
+def _to_global(x: np.ndarray, sharding: NamedSharding) -> jax.Array:
+    """A host array (identical on every process) as a global array sharded along its first axis."""
+    return jax.make_array_from_callback(x.shape, sharding, lambda index: x[index])
+
+
+def _to_host(x: jax.Array) -> np.ndarray:
+    if jax.process_count() > 1:
+        from jax.experimental import multihost_utils
+
+        return np.asarray(multihost_utils.process_allgather(x, tiled=True))
+    return np.asarray(x)
+
+
+class StudyRunner:
+    """The compiled pieces of one study: the nominal drive, the sample names and the sharded functions."""
+
+    def __init__(self, study: Study, mesh: Mesh | None = None):
+        self.study = study
+        self.drive = mc_study.build_drive(study)
+        self.names = tuple(study.parameters)
+        self.mesh = device_mesh() if mesh is None else mesh
+        self.sharding = NamedSharding(self.mesh, PartitionSpec("runs"))
+        self.dtype = self.drive.machine.motor.R.dtype
+        study_, drive, names = study, self.drive, self.names
+        if study.n_periods % study.decimate:
+            raise ParameterError(
+                f"study decimate = {study.decimate} must divide the {study.n_periods} periods of the run."
+            )
+
+        def one(values):
+            d, s = mc_study.apply_sample(drive, study_, names, values)
+            return run_metrics(d, s, study_.load_time_s, decimate=study_.decimate)
+
+        def one_metrics(values):
+            m, _ = one(values)
+            return jnp.stack([m[k] for k in METRICS])
+
+        def jac(values):
+            return jax.jacfwd(one_metrics)(values), one(values)[0]["finite"]
+
+        self._forward = jax.jit(jax.vmap(one), in_shardings=self.sharding, out_shardings=self.sharding)
+        self._jacobian = jax.jit(jax.vmap(jac), in_shardings=self.sharding, out_shardings=self.sharding)
+        self._compiled = {}
+        self.compile_time_s = 0.0
+
+    def check(self) -> None:
+        """The simulation checks of the nominal drive and scenario (before compiling)."""
+        d, s = mc_study.apply_sample(self.drive, self.study, (), ())
+        check_simulation(d, s, self.study.decimate)
+
+    def compile(self, kind: str, rows: int):
+        """The compiled ``forward`` or ``jacobian`` function for ``rows`` runs (compile time is summed)."""
+        key = (kind, rows)
+        if key not in self._compiled:
+            start = time.perf_counter()
+            fn = self._forward if kind == "forward" else self._jacobian
+            spec = jax.ShapeDtypeStruct((rows, len(self.names)), self.dtype, sharding=self.sharding)
+            self._compiled[key] = fn.lower(spec).compile()
+            self.compile_time_s += time.perf_counter() - start
+        return self._compiled[key]
+
+    def _call(self, kind: str, values: np.ndarray):
+        fn = self.compile(kind, values.shape[0])
+        return fn(_to_global(values.astype(self.dtype), self.sharding))
+
+    def forward(self, values: np.ndarray) -> tuple[dict, dict]:
+        """Metrics and decimated record of every row of ``values (B, P)`` (B a multiple of the devices)."""
+        metrics, record = jax.block_until_ready(self._call("forward", values))
+        return jax.tree.map(_to_host, metrics), jax.tree.map(_to_host, record)
+
+    def jacobian(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``((B, n_metrics, P) derivatives, (B,) finite flags)`` for the rows of ``values``."""
+        jac, finite = jax.block_until_ready(self._call("jacobian", values))
+        return _to_host(jac), _to_host(finite)
+
+
+def _pad(x: np.ndarray, size: int) -> np.ndarray:
+    """Rows of ``x`` padded to ``size`` with copies of its last row (valid, physical parameters)."""
+    return np.concatenate([x, np.repeat(x[-1:], size - x.shape[0], axis=0)]) if x.shape[0] < size else x
+
+
+def fingerprint(study: Study, values: np.ndarray, dtype) -> str:
+    """A hash of everything that determines the chunks' contents (chunking and devices excluded)."""
+    h = hashlib.sha256()
+    settings = {k: v for k, v in vars(study).items() if k not in ("chunk_size", "sensitivity_runs")}
+    h.update(repr((sorted(settings.items()), str(np.dtype(dtype)), KERNEL_VERSION)).encode())
+    h.update(np.ascontiguousarray(values).tobytes())
+    return h.hexdigest()[:16]
+
+
+def _load_chunk(path: Path, key: str, rows: int):
+    """A chunk file's arrays if it exists, belongs to this study and has ``rows`` runs, else None."""
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            if str(f["fingerprint"]) != key or f["finite"].shape[0] != rows:
+                return None
+            return {k: f[k] for k in f.files if k != "fingerprint"}
+    except (OSError, ValueError, KeyError):
+        return None  # unreadable: recompute it (atomic writes make this an outside change)
+
+
+def run_study(
+    study: Study,
+    out_dir,
+    *,
+    progress: bool = True,
+    figures: bool = True,
+    after_chunk: Callable[[int], None] | None = None,
+    mesh: Mesh | None = None,
+) -> dict:
+    """Run (or finish) ``study`` into ``out_dir``; returns the summary also written to summary.json.
+
+    `after_chunk(k)` is called after chunk ``k`` has been written (to report, or to interrupt in tests).
+    """
+    out = Path(out_dir)
+    runner = StudyRunner(study, mesh)
+    runner.check()
+    dists = mc_study.distributions(study, runner.drive)
+    samples = sample(dists, study.n, study.seed, study.sampling)
+    nonphysical = mc_study.enforce_physical(
+        samples, {k: d.nominal for k, d in dists.items()}, study.nonphysical
+    )
+    values = np.stack([samples[k] for k in runner.names], axis=1)
+    key = fingerprint(study, values, runner.dtype)
+    n_dev = len(runner.mesh.devices.flat)
+    size, n_chunks = chunk_layout(study.n, study.chunk_size, n_dev)
+    writer = jax.process_index() == 0
+    chunk_dir = out / "chunks"
+    if writer:
+        chunk_dir.mkdir(parents=True, exist_ok=True)
+
+    parts, computed, runs_now, run_time = [], 0, 0, 0.0
+    bar = tqdm(total=n_chunks, disable=not progress, desc="montecarlo", unit="chunk", leave=False)
+    try:
+        for c in range(n_chunks):
+            lo, hi = c * size, min((c + 1) * size, study.n)
+            path = chunk_dir / f"chunk_{c:05d}.npz"
+            data = _load_chunk(path, key, hi - lo)
+            if data is None:
+                runner.compile("forward", size)  # outside the timed region
+                start = time.perf_counter()
+                metrics, record = runner.forward(_pad(values[lo:hi], size))
+                run_time += time.perf_counter() - start
+                runs_now += hi - lo
+                data = {k: v[: hi - lo] for k, v in {**metrics, **record}.items()}
+                if writer:
+                    atomic_write(path, lambda f, d=data: np.savez(f, fingerprint=np.asarray(key), **d))
+                computed += 1
+            parts.append(data)
+            bar.update(1)
+            if after_chunk is not None:
+                after_chunk(c)
+    finally:
+        bar.close()
+    results = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+    n_sens = min(study.sensitivity_runs, study.n)
+    sensitivities = None
+    if n_sens:
+        sens_path = chunk_dir / "sensitivities.npz"
+        data = _load_chunk(sens_path, key, n_sens)
+        if data is None:
+            s_size = -(-n_sens // n_dev) * n_dev
+            padded = _pad(values[:n_sens], s_size)
+            runner.compile("jacobian", s_size)
+            start = time.perf_counter()
+            jac, finite = runner.jacobian(padded)
+            sens_time = time.perf_counter() - start
+            data = {"jacobian": jac[:n_sens], "finite": finite[:n_sens], "time_s": np.asarray(sens_time)}
+            if writer:
+                atomic_write(sens_path, lambda f: np.savez(f, fingerprint=np.asarray(key), **data))
+        scales = {k: d.tolerance * d.nominal for k, d in dists.items()}
+        sensitivities = sensitivity_summary(data["jacobian"], data["finite"], runner.names, scales)
+        sensitivities["time_s"] = float(data["time_s"])
+
+    summary = {
+        "n_runs": study.n,
+        "run_time_s": run_time,
+        "compile_time_s": runner.compile_time_s,
+        "runs_per_s": runs_now / run_time if run_time > 0 else None,
+        "chunks": {"size": size, "count": n_chunks, "computed_now": computed, "loaded": n_chunks - computed},
+        "devices": {
+            "count": n_dev,
+            "kind": str(runner.mesh.devices.flat[0].device_kind),
+            "processes": jax.process_count(),
+        },
+        "study": {k: v for k, v in vars(study).items() if k != "parameters"},
+        "parameters": {k: d.describe() for k, d in dists.items()},
+        "nonphysical_samples": {"mode": study.nonphysical, "counts": nonphysical},
+        "precision": str(np.dtype(runner.dtype)),
+        **summarise(
+            results,
+            samples,
+            current_threshold_a=study.current_threshold,
+            tracking_threshold_rpm=study.tracking_threshold_rpm,
+        ),
+        "sensitivities": sensitivities,
+    }
+    summary = _finite_or_none(summary)
+    if writer:
+        if figures:
+            from .mc_figures import save_study_figures
+
+            t = np.arange(results["speed_rpm"].shape[1]) * study.decimate * runner.drive.Ts
+            summary["figures"] = [p.name for p in save_study_figures(results, summary, t, out)]
+        text = json.dumps(summary, indent=2, allow_nan=False) + "\n"
+        atomic_write(out / "summary.json", lambda f: f.write(text.encode()))
+    return summary
+
+
+def _finite_or_none(x):
+    """JSON-ready copy: NumPy scalars as Python numbers, NaN/inf as null."""
+    if isinstance(x, dict):
+        return {k: _finite_or_none(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite_or_none(v) for v in x]
+    if isinstance(x, np.generic):
+        x = x.item()
+    if isinstance(x, float) and not np.isfinite(x):
+        return None
+    return x
