@@ -65,6 +65,18 @@ def tornado_figure(summary: dict):
         order = sorted(row, key=lambda p: abs(row[p]))
         ax.barh(order, [row[p] for p in order], color=["C3" if row[p] > 0 else "C0" for p in order])
         ax.axvline(0.0, color="k", lw=0.8)
+        if not any(row.values()):
+            # Settling time is piecewise constant in the parameters: AD sees a zero derivative.
+            ax.text(
+                0.5,
+                0.5,
+                "zero derivative almost everywhere:\nsee the Spearman ranks",
+                ha="center",
+                va="center",
+                transform=ax.transAxes,
+                fontsize=9,
+                color="0.3",
+            )
         ax.set(title=m, xlabel=f"change / {UNITS[m]}")
         ax.grid(alpha=0.3, axis="x")
     fig.suptitle("Sensitivities (AD, population mean): metric change per +1 tolerance of each parameter")

@@ -36,7 +36,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
-from tqdm.auto import tqdm
+from tqdm import tqdm
 
 from pmsmjax.logs import atomic_write
 from pmsmjax.simulate import check_simulation
@@ -312,6 +312,21 @@ def run_study(
         text = json.dumps(summary, indent=2, allow_nan=False) + "\n"
         atomic_write(out / "summary.json", lambda f: f.write(text.encode()))
     return summary
+
+
+def load_results(out_dir) -> dict:
+    """Every run's metrics and decimated record from a study folder's chunk files, in run order:
+    ``{name: (n,) or (n, N / decimate) array}`` (for analyses beyond summary.json)."""
+    paths = sorted((Path(out_dir) / "chunks").glob("chunk_*.npz"))
+    if not paths:
+        raise ParameterError(f"no chunk files in {Path(out_dir) / 'chunks'}: run the study first.")
+    parts = []
+    for path in paths:
+        with np.load(path, allow_pickle=False) as f:
+            parts.append({k: f[k] for k in f.files})
+    if len({str(p.pop("fingerprint")) for p in parts}) != 1:
+        raise ParameterError(f"{out_dir} holds chunks of different studies: use one folder per study.")
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
 
 def _finite_or_none(x):
