@@ -282,6 +282,9 @@ def _add_montecarlo_parser(sub):
     p.add_argument("--clip", action="store_true", help="clip non-physical samples instead of refusing")
     p.add_argument("--sensitivity-runs", type=int, help="runs differentiated by forward-mode AD (256)")
     p.add_argument("--devices", type=int, help="CPU only: split the CPU into this many devices (cores)")
+    p.add_argument(
+        "--distributed", action="store_true", help="multi-host: call jax.distributed.initialize() first"
+    )
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_montecarlo)
@@ -291,7 +294,12 @@ def _cmd_montecarlo(args) -> int:
     # Split the CPU into one device per core before anything initialises JAX's backends.
     from tuning.cpu_devices import split_cpu
 
-    split_cpu(args.devices)
+    if args.distributed:
+        import jax
+
+        jax.distributed.initialize()  # cluster settings from the environment (SLURM, Cloud TPU, ...)
+    else:
+        split_cpu(args.devices)
     from tuning.mc_study import Study, read_study_toml
     from tuning.montecarlo import run_study
 
@@ -307,6 +315,8 @@ def _cmd_montecarlo(args) -> int:
         if value is not None:
             kwargs[key] = value
     s = run_study(Study(**kwargs), args.out, progress=not args.no_progress, figures=not args.no_figures)
+    if s is None:  # not process 0 of a multi-host run: it only computed its shards
+        return 0
     f, m = s["failures"], s["metrics"]
     ch = s["chunks"]
     print(

@@ -321,3 +321,12 @@ def test_command_writes_summary_and_figures_and_resumes(tmp_path, capsys):
     assert main(args + ["--chunk-size", "3"]) == 0
     again = json.loads((out / "summary.json").read_text())
     assert again["chunks"]["computed_now"] == 0 and results_of(again) == results_of(summary)
+
+
+def test_command_help(capsys):
+    from pmsmjax.cli import main
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["montecarlo", "--help"])
+    assert exit_info.value.code == 0
+    assert "--n" in capsys.readouterr().out

@@ -192,6 +192,19 @@ def fingerprint(study: Study, values: np.ndarray, dtype) -> str:
     return h.hexdigest()[:16]
 
 
+def _load_agreed(path: Path, key: str, rows: int):
+    """:func:`_load_chunk` on process 0, its decision shared with every process (they must all take part
+    in computing a missing chunk). Only process 0 reads, writes and summarises; the others get ``{}``
+    for a chunk that process 0 has."""
+    data = _load_chunk(path, key, rows) if jax.process_index() == 0 else None
+    if jax.process_count() == 1:
+        return data
+    from jax.experimental import multihost_utils
+
+    have = bool(multihost_utils.broadcast_one_to_all(np.asarray(data is not None)))
+    return (data if data is not None else {}) if have else None
+
+
 def _load_chunk(path: Path, key: str, rows: int):
     """A chunk file's arrays if it exists, belongs to this study and has ``rows`` runs, else None."""
     if not path.is_file():
@@ -214,7 +227,8 @@ def run_study(
     after_chunk: Callable[[int], None] | None = None,
     mesh: Mesh | None = None,
 ) -> dict:
-    """Run (or finish) ``study`` into ``out_dir``; returns the summary also written to summary.json.
+    """Run (or finish) ``study`` into ``out_dir``; returns the summary also written to summary.json (on
+    process 0 of a multi-process run; the other processes compute their shards and return None).
 
     `after_chunk(k)` is called after chunk ``k`` has been written (to report, or to interrupt in tests).
     """
@@ -241,7 +255,7 @@ def run_study(
         for c in range(n_chunks):
             lo, hi = c * size, min((c + 1) * size, study.n)
             path = chunk_dir / f"chunk_{c:05d}.npz"
-            data = _load_chunk(path, key, hi - lo)
+            data = _load_agreed(path, key, hi - lo)
             if data is None:
                 runner.compile("forward", size)  # outside the timed region
                 start = time.perf_counter()
@@ -252,19 +266,20 @@ def run_study(
                 if writer:
                     atomic_write(path, lambda f, d=data: np.savez(f, fingerprint=np.asarray(key), **d))
                 computed += 1
-            parts.append(data)
+            if writer:
+                parts.append(data)
             bar.update(1)
             if after_chunk is not None:
                 after_chunk(c)
     finally:
         bar.close()
-    results = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    results = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]} if writer else None
 
     n_sens = min(study.sensitivity_runs, study.n)
     sensitivities = None
     if n_sens:
         sens_path = chunk_dir / "sensitivities.npz"
-        data = _load_chunk(sens_path, key, n_sens)
+        data = _load_agreed(sens_path, key, n_sens)
         if data is None:
             s_size = -(-n_sens // n_dev) * n_dev
             padded = _pad(values[:n_sens], s_size)
@@ -275,10 +290,14 @@ def run_study(
             data = {"jacobian": jac[:n_sens], "finite": finite[:n_sens], "time_s": np.asarray(sens_time)}
             if writer:
                 atomic_write(sens_path, lambda f: np.savez(f, fingerprint=np.asarray(key), **data))
+        if not writer:
+            return None
         scales = {k: d.tolerance * d.nominal for k, d in dists.items()}
         sensitivities = sensitivity_summary(data["jacobian"], data["finite"], runner.names, scales)
         sensitivities["time_s"] = float(data["time_s"])
 
+    if not writer:
+        return None
     summary = {
         "n_runs": study.n,
         "run_time_s": run_time,
