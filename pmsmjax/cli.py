@@ -277,7 +277,7 @@ def _add_montecarlo_parser(sub):
     p.add_argument("--out", default="montecarlo_out", help="output folder (created), default: montecarlo_out")
     p.add_argument("--config", default=None, help="study TOML (see tuning/mc_study.py)")
     p.add_argument("--seed", type=int, help="sampling seed (default 0)")
-    p.add_argument("--chunk-size", type=int, help="runs per chunk (default 1024)")
+    p.add_argument("--chunk-size", type=int, help="runs per chunk (default 2048)")
     p.add_argument("--latin-hypercube", action="store_true", help="Latin hypercube sampling")
     p.add_argument("--clip", action="store_true", help="clip non-physical samples instead of refusing")
     p.add_argument("--sensitivity-runs", type=int, help="runs differentiated by forward-mode AD (256)")

@@ -74,8 +74,9 @@ class Study:
     """Settings of a Monte Carlo study (see the module docstring for the TOML layout).
 
     - `n`: number of runs; `seed`: sampling seed; `sampling`: ``random`` or ``latin_hypercube``.
-    - `chunk_size`: runs per chunk (one compiled call, one file on disk; rounded up to a multiple of the
-      device count).
+    - `chunk_size`: runs per chunk (one compiled call, one file on disk; rounded up to two runs per
+      device). 2048 was the fastest of 256-8192 on 2 CPU cores (``benchmarks/bench_montecarlo.py --sweep``);
+      on a GPU use tens of thousands.
     - `nonphysical`: what to do with samples outside a parameter's physical range: ``refuse`` (error) or
       ``clip`` (moved to the bound, counted in the summary).
     - `decimate`: keep every this many periods of speed and current for the fan chart.
@@ -91,7 +92,7 @@ class Study:
     n: int = 1000
     seed: int = 0
     sampling: str = "random"
-    chunk_size: int = 1024
+    chunk_size: int = 2048
     nonphysical: str = "refuse"
     decimate: int = 40
     sensitivity_runs: int = 256
