@@ -122,6 +122,8 @@ def test_bad_study_input_names_the_field():
         ({"parameters": {"motor.R": {"distribution": "cauchy", "tolerance": 0.1}}}, "cauchy"),
         ({"sampling": "sobol"}, "sampling"),
         ({"nonphysical": "ignore"}, "nonphysical"),
+        # Inductances down to 0.1 % of nominal: R/L too fast for 10 RK4 sub-steps, caught before compiling.
+        ({"parameters": {"motor.L_d": {"tolerance": 0.999}}}, "n_substeps >= "),
     ):
         with pytest.raises(ParameterError, match=match):
             run_study(Study(**kwargs), "unused")

@@ -28,9 +28,11 @@ compiled ahead of time and timed separately as ``compile_time_s``).
 
 import hashlib
 import json
+import math
 import time
 from collections.abc import Callable
 from pathlib import Path
+from types import SimpleNamespace
 
 import jax
 import jax.numpy as jnp
@@ -39,7 +41,9 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from tqdm import tqdm
 
 from pmsmjax.logs import atomic_write
+from pmsmjax.machines.integrate import max_stable_substep
 from pmsmjax.simulate import check_simulation
+from pmsmjax.units import rpm_to_rad_s
 from pmsmjax.validation import ParameterError
 
 from . import mc_study
@@ -107,20 +111,36 @@ class StudyRunner:
 
         def one_metrics(values):
             m, _ = one(values)
-            return jnp.stack([m[k] for k in METRICS])
+            return jnp.stack([m[k] for k in METRICS]), m["finite"]
 
         def jac(values):
-            return jax.jacfwd(one_metrics)(values), one(values)[0]["finite"]
+            return jax.jacfwd(one_metrics, has_aux=True)(values)
 
         self._forward = jax.jit(jax.vmap(one), in_shardings=self.sharding, out_shardings=self.sharding)
         self._jacobian = jax.jit(jax.vmap(jac), in_shardings=self.sharding, out_shardings=self.sharding)
         self._compiled = {}
         self.compile_time_s = 0.0
 
-    def check(self) -> None:
-        """The simulation checks of the nominal drive and scenario (before compiling)."""
+    def check(self, samples: dict | None = None) -> None:
+        """The simulation checks of the nominal run (before compiling) and, given the ``samples``, the
+        RK4 sub-step against the fastest electrical rate among the sampled motors and speeds."""
         d, s = mc_study.apply_sample(self.drive, self.study, (), ())
         check_simulation(d, s, self.study.decimate)
+        if not samples:
+            return
+        motor = self.drive.machine.motor
+        sampled = SimpleNamespace(
+            pole_pairs=motor.pole_pairs,
+            **{f: samples.get(f"motor.{f}", np.asarray(getattr(motor, f))) for f in ("R", "L_d", "L_q")},
+        )
+        speed = rpm_to_rad_s(np.max(np.abs(samples.get("scenario.speed_rpm", self.study.speed_rpm))))
+        h_max = max_stable_substep(sampled, 1.5 * speed + 1.0)  # the margin check_simulation allows
+        if self.drive.Ts / self.drive.n_substeps > h_max:
+            raise ParameterError(
+                f"the sampled motors and speeds need an RK4 sub-step <= {h_max:.3g} s (fastest R/L or "
+                f"omega_e among the samples): set [drive] n_substeps >= {math.ceil(self.drive.Ts / h_max)} "
+                "or narrow the R, L or speed spreads."
+            )
 
     def compile(self, kind: str, rows: int):
         """The compiled ``forward`` or ``jacobian`` function for ``rows`` runs (compile time is summed)."""
@@ -184,9 +204,11 @@ def _pad(x: np.ndarray, size: int) -> np.ndarray:
 
 
 def fingerprint(study: Study, values: np.ndarray, dtype) -> str:
-    """A hash of everything that determines the chunks' contents (chunking and devices excluded)."""
+    """A hash of everything that determines the runs' results (not the chunking, the devices or the
+    failure thresholds, which only enter the summary)."""
     h = hashlib.sha256()
-    settings = {k: v for k, v in vars(study).items() if k not in ("chunk_size", "sensitivity_runs")}
+    skip = ("chunk_size", "sensitivity_runs", "current_threshold_a", "tracking_threshold_rpm")
+    settings = {k: v for k, v in vars(study).items() if k not in skip}
     h.update(repr((sorted(settings.items()), str(np.dtype(dtype)), KERNEL_VERSION)).encode())
     h.update(np.ascontiguousarray(values).tobytes())
     return h.hexdigest()[:16]
@@ -206,7 +228,8 @@ def _load_agreed(path: Path, key: str, rows: int):
 
 
 def _load_chunk(path: Path, key: str, rows: int):
-    """A chunk file's arrays if it exists, belongs to this study and has ``rows`` runs, else None."""
+    """A chunk file's arrays if it exists and carries ``key`` (study fingerprint, first run and run count
+    of the chunk) and ``rows`` runs, else None."""
     if not path.is_file():
         return None
     try:
@@ -240,6 +263,7 @@ def run_study(
     nonphysical = mc_study.enforce_physical(
         samples, {k: d.nominal for k, d in dists.items()}, study.nonphysical
     )
+    runner.check(samples)
     values = np.stack([samples[k] for k in runner.names], axis=1)
     key = fingerprint(study, values, runner.dtype)
     n_dev = len(runner.mesh.devices.flat)
@@ -255,7 +279,8 @@ def run_study(
         for c in range(n_chunks):
             lo, hi = c * size, min((c + 1) * size, study.n)
             path = chunk_dir / f"chunk_{c:05d}.npz"
-            data = _load_agreed(path, key, hi - lo)
+            chunk_key = f"{key}:{lo}:{hi - lo}"
+            data = _load_agreed(path, chunk_key, hi - lo)
             if data is None:
                 runner.compile("forward", size)  # outside the timed region
                 start = time.perf_counter()
@@ -264,7 +289,8 @@ def run_study(
                 runs_now += hi - lo
                 data = {k: v[: hi - lo] for k, v in {**metrics, **record}.items()}
                 if writer:
-                    atomic_write(path, lambda f, d=data: np.savez(f, fingerprint=np.asarray(key), **d))
+                    tagged = {"fingerprint": np.asarray(chunk_key), **data}
+                    atomic_write(path, lambda f, d=tagged: np.savez(f, **d))
                 computed += 1
             if writer:
                 parts.append(data)
@@ -279,7 +305,8 @@ def run_study(
     sensitivities = None
     if n_sens:
         sens_path = chunk_dir / "sensitivities.npz"
-        data = _load_agreed(sens_path, key, n_sens)
+        sens_key = f"{key}:sensitivities:{n_sens}"
+        data = _load_agreed(sens_path, sens_key, n_sens)
         if data is None:
             s_size = -(-n_sens // n_dev) * n_dev
             padded = _pad(values[:n_sens], s_size)
@@ -289,7 +316,7 @@ def run_study(
             sens_time = time.perf_counter() - start
             data = {"jacobian": jac[:n_sens], "finite": finite[:n_sens], "time_s": np.asarray(sens_time)}
             if writer:
-                atomic_write(sens_path, lambda f: np.savez(f, fingerprint=np.asarray(key), **data))
+                atomic_write(sens_path, lambda f: np.savez(f, fingerprint=np.asarray(sens_key), **data))
         if not writer:
             return None
         scales = {k: d.tolerance * d.nominal for k, d in dists.items()}
@@ -343,7 +370,7 @@ def load_results(out_dir) -> dict:
     for path in paths:
         with np.load(path, allow_pickle=False) as f:
             parts.append({k: f[k] for k in f.files})
-    if len({str(p.pop("fingerprint")) for p in parts}) != 1:
+    if len({str(p.pop("fingerprint")).split(":")[0] for p in parts}) != 1:
         raise ParameterError(f"{out_dir} holds chunks of different studies: use one folder per study.")
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
