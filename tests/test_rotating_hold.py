@@ -18,6 +18,18 @@ def test_rotate_back_is_the_rotation_matrix(delta):
     np.testing.assert_allclose(np.asarray(rotate_back(jnp.asarray(x), delta)), expected, rtol=0, atol=1e-15)
 
 
+def test_rotate_back_in_float32_is_exact_to_float32_resolution():
+    delta = np.linspace(-0.5, 0.5, 2001)
+    x = np.array([3.0, -1.5])
+    exact = np.stack(
+        [x[0] * np.cos(delta) + x[1] * np.sin(delta), -x[0] * np.sin(delta) + x[1] * np.cos(delta)]
+    )
+    got = jax.vmap(lambda d: rotate_back(jnp.asarray(x, jnp.float32), d))(jnp.asarray(delta, jnp.float32))
+    assert got.dtype == jnp.float32
+    # |x| = 3.35: float32 rounding of the result alone is about 2e-7; the series adds under 1e-9.
+    np.testing.assert_allclose(np.asarray(got, np.float64).T, exact, rtol=0, atol=1e-6)
+
+
 @pytest.mark.parametrize("salient", [False, True])
 @pytest.mark.parametrize("speed_m", [20.0, 105.0, 600.0])  # the last: 0.24 rad per 100 us sub-step
 def test_advance_equals_stagewise_trigonometry(salient, speed_m):
