@@ -237,7 +237,7 @@ def distributions(study: Study, drive: Drive) -> dict[str, Distribution]:
     return out
 
 
-def lower_bound(name: str, nominal: float) -> tuple[float, bool]:
+def lower_bound(name: str) -> tuple[float, bool]:
     """``(bound, strict)``: the physical range of ``name`` is ``> bound`` (strict) or ``>= bound``."""
     if name.startswith("scenario."):
         return -math.inf, False
@@ -252,7 +252,7 @@ def enforce_physical(samples: dict[str, np.ndarray], nominals: dict[str, float],
     """
     counts = {}
     for name, x in samples.items():
-        bound, strict = lower_bound(name, nominals[name])
+        bound, strict = lower_bound(name)
         bad = (x <= bound) if strict else (x < bound)
         counts[name] = int(np.sum(bad))
         if counts[name] and mode == "clip":
