@@ -187,7 +187,7 @@ def _runner(study: Study, mesh: Mesh | None) -> StudyRunner:
     only in sampled values, so re-running or extending a study in one session does not recompile."""
     settings = {k: v for k, v in vars(study).items() if k not in _VALUE_SETTINGS}
     settings["parameters"] = tuple(study.parameters)
-    key = (repr(sorted(settings.items())), None if mesh is None else id(mesh), jax.config.jax_enable_x64)
+    key = (repr(sorted(settings.items())), mesh, jax.config.jax_enable_x64)
     if key not in _RUNNERS:
         if len(_RUNNERS) >= 4:
             _RUNNERS.pop(next(iter(_RUNNERS)))
@@ -203,10 +203,13 @@ def _pad(x: np.ndarray, size: int) -> np.ndarray:
     return np.concatenate([x, np.repeat(x[-1:], size - x.shape[0], axis=0)]) if x.shape[0] < size else x
 
 
-def fingerprint(study: Study, values: np.ndarray, dtype) -> str:
-    """A hash of everything that determines the runs' results (not the chunking, the devices or the
-    failure thresholds, which only enter the summary)."""
+def fingerprint(study: Study, drive, values: np.ndarray, dtype) -> str:
+    """A hash of everything that determines the runs' results: the settings, the nominal drive's values
+    (so an edited motor or gains file counts), the samples and the precision; not the chunking, the
+    devices or the failure thresholds, which only enter the summary."""
     h = hashlib.sha256()
+    for leaf in jax.tree.leaves(drive):
+        h.update(np.asarray(leaf).tobytes())
     skip = ("chunk_size", "sensitivity_runs", "current_threshold_a", "tracking_threshold_rpm")
     settings = {k: v for k, v in vars(study).items() if k not in skip}
     h.update(repr((sorted(settings.items()), str(np.dtype(dtype)), KERNEL_VERSION)).encode())
@@ -265,7 +268,7 @@ def run_study(
     )
     runner.check(samples)
     values = np.stack([samples[k] for k in runner.names], axis=1)
-    key = fingerprint(study, values, runner.dtype)
+    key = fingerprint(study, runner.drive, values, runner.dtype)
     n_dev = len(runner.mesh.devices.flat)
     size, n_chunks = chunk_layout(study.n, study.chunk_size, n_dev)
     writer = jax.process_index() == 0
