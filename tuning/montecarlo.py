@@ -55,7 +55,7 @@ from .mc_summary import sensitivity_summary, summarise
 #: Bump when the kernel's metric definitions change: chunks written by another version are recomputed.
 KERNEL_VERSION = 1
 #: Keys of summary.json that describe how (fast) the study ran rather than its results.
-VOLATILE_KEYS = ("run_time_s", "compile_time_s", "runs_per_s", "devices", "chunks")
+VOLATILE_KEYS = ("run_time_s", "compile_time_s", "runs_per_s", "sensitivity_time_s", "devices", "chunks")
 
 
 def device_mesh() -> Mesh:
@@ -305,13 +305,13 @@ def run_study(
     results = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]} if writer else None
 
     n_sens = min(study.sensitivity_runs, study.n)
-    sensitivities = None
+    sensitivities, sensitivity_time = None, None
     if n_sens:
         sens_path = chunk_dir / "sensitivities.npz"
         sens_key = f"{key}:sensitivities:{n_sens}"
         data = _load_agreed(sens_path, sens_key, n_sens)
         if data is None:
-            s_size = -(-n_sens // n_dev) * n_dev
+            s_size, _ = chunk_layout(n_sens, n_sens, n_dev)
             padded = _pad(values[:n_sens], s_size)
             runner.compile("jacobian", s_size)
             start = time.perf_counter()
@@ -320,11 +320,10 @@ def run_study(
             data = {"jacobian": jac[:n_sens], "finite": finite[:n_sens], "time_s": np.asarray(sens_time)}
             if writer:
                 atomic_write(sens_path, lambda f: np.savez(f, fingerprint=np.asarray(sens_key), **data))
-        if not writer:
-            return None
-        scales = {k: d.tolerance * d.nominal for k, d in dists.items()}
-        sensitivities = sensitivity_summary(data["jacobian"], data["finite"], runner.names, scales)
-        sensitivities["time_s"] = float(data["time_s"])
+        if writer:
+            scales = {k: d.tolerance * d.nominal for k, d in dists.items()}
+            sensitivities = sensitivity_summary(data["jacobian"], data["finite"], runner.names, scales)
+            sensitivity_time = float(data["time_s"])
 
     if not writer:
         return None
@@ -333,6 +332,7 @@ def run_study(
         "run_time_s": run_time,
         "compile_time_s": runner.compile_time_s,
         "runs_per_s": runs_now / run_time if run_time > 0 else None,
+        "sensitivity_time_s": sensitivity_time,
         "chunks": {"size": size, "count": n_chunks, "computed_now": computed, "loaded": n_chunks - computed},
         "devices": {
             "count": n_dev,
@@ -352,14 +352,13 @@ def run_study(
         "sensitivities": sensitivities,
     }
     summary = _finite_or_none(summary)
-    if writer:
-        if figures:
-            from .mc_figures import save_study_figures
+    if figures:
+        from .mc_figures import save_study_figures
 
-            t = np.arange(results["speed_rpm"].shape[1]) * study.decimate * runner.drive.Ts
-            summary["figures"] = [p.name for p in save_study_figures(results, summary, t, out)]
-        text = json.dumps(summary, indent=2, allow_nan=False) + "\n"
-        atomic_write(out / "summary.json", lambda f: f.write(text.encode()))
+        t = np.arange(results["speed_rpm"].shape[1]) * study.decimate * runner.drive.Ts
+        summary["figures"] = [p.name for p in save_study_figures(results, summary, t, out)]
+    text = json.dumps(summary, indent=2, allow_nan=False) + "\n"
+    atomic_write(out / "summary.json", lambda f: f.write(text.encode()))
     return summary
 
 
