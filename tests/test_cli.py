@@ -1,5 +1,6 @@
 """The pmsmjax command: demo outputs, help texts, errors before any file is written."""
 
+import argparse
 import csv
 import json
 import subprocess
@@ -8,12 +9,23 @@ import sys
 import numpy as np
 import pytest
 
-from pmsmjax.cli import main
+from pmsmjax.cli import build_parser, main
 
 SHORT_DEMO = ["--duration-s", "0.3", "--load-time-s", "0.15", "--speed-rpm", "600", "--load-nm", "4"]
 
 
-@pytest.mark.parametrize("command", ["demo", "simulate", "replay", "bench"])
+def _subcommands() -> list[str]:
+    """Every subcommand the parser registers (so a new one is covered without editing this test)."""
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    return sorted(sub.choices)
+
+
+def test_subcommand_list_is_complete():
+    expected = {"demo", "simulate", "replay", "bench", "tune", "pwm-compare", "identify", "montecarlo"}
+    assert set(_subcommands()) == expected
+
+
+@pytest.mark.parametrize("command", _subcommands())
 def test_every_subcommand_has_help(command, capsys):
     with pytest.raises(SystemExit) as exit_info:
         main([command, "--help"])

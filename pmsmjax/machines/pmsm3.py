@@ -18,6 +18,8 @@ In the flux-based models ``dpsi/dt = L(th) di/dt + w_e dpsi/dth``; the angle der
 taken with ``jax.jvp`` so the EMF and reluctance terms cannot be mis-derived by hand.
 """
 
+from typing import ClassVar
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -39,10 +41,16 @@ def _solve2(L: Array, b: Array) -> Array:
 
 
 class PMSMdq(AbstractMachine):
-    """PMSM in the rotor frame; state currents ``(2,)`` = [i_d, i_q], A. Surface or salient."""
+    """PMSM in the rotor frame; state currents ``(2,)`` = [i_d, i_q], A. Surface or salient.
+
+    Its equations see the rotor angle only through the voltage (a stator-frame voltage read in the rotor
+    frame), which lets :func:`pmsmjax.machines.integrate.advance` rotate that voltage by small angle
+    increments instead of evaluating trigonometry at every RK4 stage.
+    """
 
     motor: PMSMParameters
     mechanics: Mechanics = eqx.field(static=True, default="dynamic")
+    angle_only_in_voltage: ClassVar[bool] = True
 
     def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
         m = self.motor

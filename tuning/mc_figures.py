@@ -1,0 +1,96 @@
+"""Figures of a Monte Carlo study: metric histograms, fan charts of speed and current, a tornado chart."""
+
+from pathlib import Path
+
+import matplotlib.pyplot as plt
+import numpy as np
+
+from pmsmjax.plotting import save_figure
+
+from .mc_kernel import METRICS, UNITS
+
+#: Percentile bands of the fan chart, outermost first.
+BANDS = ((5, 95), (25, 75))
+
+
+def histogram_figure(results: dict, summary: dict):
+    """One histogram per metric over the finite runs, with the median and the 95th percentile marked."""
+    fig, axes = plt.subplots(2, 3, figsize=(12, 6.5))
+    finite = results["finite"] > 0.5
+    for ax, m in zip(axes.flat, METRICS, strict=True):
+        v = results[m][finite]
+        v = np.abs(v) if m == "final_error_rpm" else v
+        v = v[np.isfinite(v)]
+        ax.hist(v, bins=40, color="C0", alpha=0.8)
+        stats = summary["metrics"][m]
+        for key, style in (("p50", "k-"), ("p95", "r--")):
+            if stats.get(key) is not None:
+                ax.axvline(stats[key], color=style[0], ls=style[1:], lw=1.2, label=key)
+        label = "|final error|" if m == "final_error_rpm" else m
+        ax.set(xlabel=f"{label} / {UNITS[m]}", ylabel="runs")
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper right", fontsize=8)
+    fig.suptitle(f"Monte Carlo: {summary['n_runs']} runs")
+    fig.tight_layout()
+    return fig
+
+
+def fan_chart_figure(results: dict, t: np.ndarray):
+    """Speed and q-axis current against time: median and percentile bands over the finite runs."""
+    fig, axes = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True)
+    finite = results["finite"] > 0.5
+    for ax, (key, label) in zip(axes, (("speed_rpm", "n / (r/min)"), ("i_q_a", "$i_q$ / A")), strict=True):
+        x = results[key][finite]
+        if x.shape[0]:
+            for (lo, hi), alpha in zip(BANDS, (0.25, 0.45), strict=True):
+                ax.fill_between(
+                    t, *np.percentile(x, [lo, hi], axis=0), alpha=alpha, color="C0", label=f"{lo}-{hi} %"
+                )
+            ax.plot(t, np.median(x, axis=0), "k-", lw=1.2, label="median")
+        ax.set(ylabel=label)
+        ax.grid(alpha=0.3)
+        ax.legend(loc="lower right")
+    axes[0].set_title("Speed and q-axis current over the population")
+    axes[1].set_xlabel("t / s")
+    fig.tight_layout()
+    return fig
+
+
+def tornado_figure(summary: dict):
+    """Per metric, the mean change for each parameter moved by one tolerance half-width (from AD)."""
+    sens = summary["sensitivities"]["per_tolerance"]
+    fig, axes = plt.subplots(2, 3, figsize=(13, 6.5))
+    for ax, m in zip(axes.flat, METRICS, strict=True):
+        row = {p: v for p, v in sens[m].items() if v is not None}
+        order = sorted(row, key=lambda p: abs(row[p]))
+        ax.barh(order, [row[p] for p in order], color=["C3" if row[p] > 0 else "C0" for p in order])
+        ax.axvline(0.0, color="k", lw=0.8)
+        if not any(row.values()):
+            # Settling time is piecewise constant in the parameters: AD sees a zero derivative.
+            ax.text(
+                0.5,
+                0.5,
+                "zero derivative almost everywhere:\nsee the Spearman ranks",
+                ha="center",
+                va="center",
+                transform=ax.transAxes,
+                fontsize=9,
+                color="0.3",
+            )
+        ax.set(title=m, xlabel=f"change / {UNITS[m]}")
+        ax.grid(alpha=0.3, axis="x")
+    fig.suptitle("Sensitivities (AD, population mean): metric change per +1 tolerance of each parameter")
+    fig.tight_layout()
+    return fig
+
+
+def save_study_figures(results: dict, summary: dict, t: np.ndarray, out_dir) -> list[Path]:
+    """Write histograms.png, fan_chart.png and (with sensitivities) tornado.png; returns the paths."""
+    out_dir = Path(out_dir)
+    paths = [
+        save_figure(histogram_figure(results, summary), out_dir / "histograms.png"),
+        save_figure(fan_chart_figure(results, t), out_dir / "fan_chart.png"),
+    ]
+    if summary.get("sensitivities"):
+        paths.append(save_figure(tornado_figure(summary), out_dir / "tornado.png"))
+    return paths

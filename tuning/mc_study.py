@@ -1,0 +1,349 @@
+"""What a Monte Carlo study varies and how: the study settings, their TOML file, and applying a sample.
+
+A study runs the book scenario form (speed step from rest to ``speed_rpm`` at t = 0, load step
+0 -> ``load_nm`` at ``load_time_s``, ``duration_s`` long) on a drive built by
+:func:`pmsmjax.presets.book_drive` (optionally with tuned gains from ``pmsmjax tune``). Each varied
+parameter is named by a dotted path:
+
+- ``motor.R``, ``motor.L_d``, ``motor.L_q``, ``motor.psi_f``, ``motor.J``, ``motor.B``: the *plant's*
+  motor. The controller's own motor model (decoupling, delay compensation) stays nominal, as on a real
+  drive whose firmware holds the data-sheet values.
+- ``bridge.u_dc``: the DC-link voltage, V.
+- ``controller.<path>``: any scalar array leaf of the controller, e.g. ``controller.speed.kp``.
+- ``scenario.speed_rpm``, ``scenario.load_nm``: the speed step (r/min) and the load step (N m).
+
+The TOML file (every table and key optional; defaults below)::
+
+    [study]        n, seed, sampling ("random" | "latin_hypercube"), chunk_size, nonphysical
+                   ("refuse" | "clip"), decimate, sensitivity_runs
+    [drive]        motor (preset or TOML file), gains (gains TOML from pmsmjax tune), current_bandwidth,
+                   speed_bandwidth, current_limit, u_dc, n_substeps
+    [scenario]     speed_rpm, load_nm, load_time_s, duration_s
+    [thresholds]   current_a, tracking_rpm
+    [parameters."motor.R"]  distribution = "uniform", tolerance = 0.2, sigmas = 3.0, nominal = ...
+
+A ``[parameters]`` table replaces the default set (:data:`DEFAULT_TOLERANCES`) as a whole; a parameter's
+nominal value defaults to the drive's (or the scenario's) own.
+"""
+
+import dataclasses
+import math
+import sys
+from pathlib import Path
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from pmsmjax import presets
+from pmsmjax.drive import Drive
+from pmsmjax.scenarios import Profile, Scenario
+from pmsmjax.units import rpm_to_rad_s
+from pmsmjax.validation import ParameterError
+
+from .distributions import KINDS, SAMPLING, Distribution
+from .parameters import apply_gains, array_leaf_names, get_leaf
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+#: The default tolerances: manufacturing spread and temperature (R), inductance tolerance, magnet
+#: ageing and temperature (psi_f), unknown load inertia (J), friction and DC-link sag, all uniform.
+DEFAULT_TOLERANCES = {
+    "motor.R": 0.20,
+    "motor.L_d": 0.15,
+    "motor.L_q": 0.15,
+    "motor.psi_f": 0.10,
+    "motor.J": 0.50,
+    "motor.B": 0.50,
+    "bridge.u_dc": 0.10,
+}
+MOTOR_FIELDS = ("R", "L_d", "L_q", "psi_f", "J", "B")
+SCENARIO_FIELDS = ("speed_rpm", "load_nm")
+# Parameters that must stay > 0 (the rest of the drive's parameters must stay >= 0).
+NONNEGATIVE = ("motor.psi_f", "motor.B")
+#: Where ``nonphysical = "clip"`` puts a sample below its bound: this fraction of the nominal value
+#: for parameters that must be > 0 (a zero inductance or inertia cannot be simulated), 0 for the others.
+CLIP_FRACTION = 0.01
+
+
+@dataclasses.dataclass(frozen=True)
+class Study:
+    """Settings of a Monte Carlo study (see the module docstring for the TOML layout).
+
+    - `n`: number of runs; `seed`: sampling seed; `sampling`: ``random`` or ``latin_hypercube``.
+    - `chunk_size`: runs per chunk (one compiled call, one file on disk; rounded up to two runs per
+      device). 2048 was the fastest of 256-8192 on 2 CPU cores (``benchmarks/bench_montecarlo.py --sweep``);
+      on a GPU use tens of thousands.
+    - `nonphysical`: what to do with samples outside a parameter's physical range: ``refuse`` (error) or
+      ``clip`` (moved to the bound, counted in the summary).
+    - `decimate`: keep every this many periods of speed and current for the fan chart.
+    - `sensitivity_runs`: runs (the first ones) whose derivatives are taken by forward-mode AD.
+    - `parameters`: ``{name: {"distribution", "tolerance", "sigmas", "nominal"}}`` (nominal optional).
+    - drive: `motor`, `gains` (TOML path or None), `current_bandwidth` rad/s, `speed_bandwidth` rad/s,
+      `current_limit` A, `u_dc` V, `n_substeps`; scenario: `speed_rpm`, `load_nm`, `load_time_s`,
+      `duration_s`.
+    - thresholds: `current_threshold_a` (None: 1.05 times the current limit), `tracking_threshold_rpm`
+      (mean speed error over the last 10 % of the run).
+    """
+
+    n: int = 1000
+    seed: int = 0
+    sampling: str = "random"
+    chunk_size: int = 2048
+    nonphysical: str = "refuse"
+    decimate: int = 40
+    sensitivity_runs: int = 256
+    parameters: dict = dataclasses.field(
+        default_factory=lambda: {
+            k: {"distribution": "uniform", "tolerance": v} for k, v in DEFAULT_TOLERANCES.items()
+        }
+    )
+    motor: str = "book"
+    gains: str | None = None
+    current_bandwidth: float = presets.BOOK_CURRENT_BANDWIDTH
+    speed_bandwidth: float = presets.BOOK_SPEED_BANDWIDTH
+    current_limit: float = presets.BOOK_CURRENT_LIMIT
+    u_dc: float = presets.BOOK_DC_LINK
+    n_substeps: int = 10
+    speed_rpm: float = 1000.0
+    load_nm: float = 10.0
+    load_time_s: float = 0.2
+    duration_s: float = 0.4
+    current_threshold_a: float | None = None
+    tracking_threshold_rpm: float = 10.0
+
+    def __post_init__(self):
+        for f in ("n", "chunk_size", "decimate", "n_substeps"):
+            v = getattr(self, f)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise ParameterError(f"study {f} must be an int >= 1, got {v!r}.")
+        if isinstance(self.sensitivity_runs, bool) or not isinstance(self.sensitivity_runs, int):
+            raise ParameterError(
+                f"study sensitivity_runs must be an int >= 0, got {self.sensitivity_runs!r}."
+            )
+        if self.sensitivity_runs < 0:
+            raise ParameterError(f"study sensitivity_runs must be >= 0, got {self.sensitivity_runs}.")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise ParameterError(f"study seed must be an int >= 0, got {self.seed!r}.")
+        if self.sampling not in SAMPLING:
+            raise ParameterError(
+                f"study sampling must be one of {', '.join(SAMPLING)}, got {self.sampling!r}."
+            )
+        if self.nonphysical not in ("refuse", "clip"):
+            raise ParameterError(f"study nonphysical must be 'refuse' or 'clip', got {self.nonphysical!r}.")
+        if not self.parameters:
+            raise ParameterError("the study varies no parameter: give at least one [parameters.NAME] table.")
+        for f in ("current_bandwidth", "speed_bandwidth", "current_limit", "u_dc", "duration_s"):
+            _check_number(f, getattr(self, f), positive=True)
+        for f in ("speed_rpm", "load_nm"):
+            _check_number(f, getattr(self, f))
+        _check_number("tracking_threshold_rpm", self.tracking_threshold_rpm, positive=True)
+        if self.current_threshold_a is not None:
+            _check_number("current_threshold_a", self.current_threshold_a, positive=True)
+        if not 0 < self.load_time_s < self.duration_s:
+            raise ParameterError(
+                f"load_time_s = {self.load_time_s} s must lie inside the run "
+                f"(0, duration_s = {self.duration_s} s)."
+            )
+        for name, spec in self.parameters.items():
+            if not isinstance(spec, dict):
+                raise ParameterError(f"parameter {name}: expected a table, got {spec!r}.")
+            unknown = sorted(set(spec) - {"distribution", "tolerance", "sigmas", "nominal"})
+            if unknown:
+                raise ParameterError(
+                    f"parameter {name}: unknown keys {unknown}; "
+                    "allowed: distribution, tolerance, sigmas, nominal."
+                )
+            if spec.get("distribution", "uniform") not in KINDS:
+                raise ParameterError(
+                    f"parameter {name}: distribution {spec.get('distribution')!r} is unknown; use one of "
+                    f"{', '.join(KINDS)}."
+                )
+            if "tolerance" not in spec:
+                raise ParameterError(
+                    f"parameter {name}: give its tolerance (relative half-width, 0.2 for +-20 %)."
+                )
+
+    @property
+    def current_threshold(self) -> float:
+        """Peak phase current counted as a failure, A."""
+        return 1.05 * self.current_limit if self.current_threshold_a is None else self.current_threshold_a
+
+    @property
+    def n_periods(self) -> int:
+        return int(round(self.duration_s / presets.BOOK_TS))
+
+
+def _check_number(name, v, positive=False):
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise ParameterError(f"study {name} must be a finite number, got {v!r}.")
+    if positive and v <= 0:
+        raise ParameterError(f"study {name} must be > 0, got {v}.")
+
+
+def build_drive(study: Study) -> Drive:
+    """The nominal drive of ``study`` (book drive, the study's motor and settings, tuned gains if given)."""
+    drive = presets.book_drive(
+        presets.load_motor(study.motor),
+        current_bandwidth=study.current_bandwidth,
+        speed_bandwidth=study.speed_bandwidth,
+        current_limit=study.current_limit,
+        u_dc=study.u_dc,
+        n_substeps=study.n_substeps,
+    )
+    return drive if study.gains is None else apply_gains(drive, study.gains)
+
+
+def nominal_value(study: Study, drive: Drive, name: str) -> float:
+    """The nominal value of parameter ``name`` (see the module docstring for the names)."""
+    check_name(drive, name)
+    if name.startswith("scenario."):
+        return float(getattr(study, name.split(".", 1)[1]))
+    return float(_leaf(drive, name))
+
+
+def check_name(drive: Drive, name: str) -> None:
+    allowed = (
+        [f"motor.{f}" for f in MOTOR_FIELDS] + ["bridge.u_dc"] + [f"scenario.{f}" for f in SCENARIO_FIELDS]
+    )
+    controller = [n for n in array_leaf_names(drive) if n.startswith("controller.") and ".model." not in n]
+    if name not in allowed and name not in controller:
+        raise ParameterError(
+            f"unknown study parameter {name!r}: choose from {allowed} or a controller leaf {controller}."
+        )
+
+
+def _leaf(drive: Drive, name: str):
+    if name.startswith("motor."):
+        return getattr(drive.machine.motor, name.split(".", 1)[1])
+    return get_leaf(drive, name)
+
+
+def distributions(study: Study, drive: Drive) -> dict[str, Distribution]:
+    """The study's distributions with their nominal values filled in from the drive/scenario."""
+    out = {}
+    for name, spec in study.parameters.items():
+        nominal = spec.get("nominal", None)
+        out[name] = Distribution(
+            kind=spec.get("distribution", "uniform"),
+            nominal=nominal_value(study, drive, name) if nominal is None else nominal,
+            tolerance=spec["tolerance"],
+            sigmas=spec.get("sigmas", 3.0),
+        )
+        out[name].check(f"parameter {name}")
+    return out
+
+
+def lower_bound(name: str) -> tuple[float, bool]:
+    """``(bound, strict)``: the physical range of ``name`` is ``> bound`` (strict) or ``>= bound``."""
+    if name.startswith("scenario."):
+        return -math.inf, False
+    return 0.0, name not in NONNEGATIVE
+
+
+def enforce_physical(samples: dict[str, np.ndarray], nominals: dict[str, float], mode: str) -> dict:
+    """Count (and with ``mode="clip"`` clip) samples outside each parameter's physical range.
+
+    **Returns:** ``{name: count}`` of non-physical samples; ``samples`` is clipped in place.
+    Raises :class:`ParameterError` with ``mode="refuse"`` when any sample is non-physical.
+    """
+    counts = {}
+    for name, x in samples.items():
+        bound, strict = lower_bound(name)
+        bad = (x <= bound) if strict else (x < bound)
+        counts[name] = int(np.sum(bad))
+        if counts[name] and mode == "clip":
+            x[bad] = bound + CLIP_FRACTION * abs(nominals[name]) if strict else bound
+    if mode == "refuse" and any(counts.values()):
+        detail = ", ".join(f"{k}: {v}" for k, v in counts.items() if v)
+        raise ParameterError(
+            f"non-physical samples ({detail} of {len(next(iter(samples.values())))}) outside the "
+            "physical range "
+            "(> 0; >= 0 for psi_f and B): narrow the tolerance, use a lognormal distribution, or set "
+            "nonphysical = 'clip' (--clip) to move them to the bound."
+        )
+    return counts
+
+
+def apply_sample(drive: Drive, study: Study, names: tuple[str, ...], values) -> tuple[Drive, Scenario]:
+    """The drive and scenario of one run: ``values (P,)`` (may be traced) for the parameters ``names``."""
+    drive_names = [n for n in names if not n.startswith("scenario.")]
+    if drive_names:
+        drive = eqx.tree_at(
+            lambda d: [_leaf(d, n) for n in drive_names],
+            drive,
+            [values[names.index(n)].astype(drive.machine.motor.R.dtype) for n in drive_names],
+        )
+    scen = {f: getattr(study, f) for f in SCENARIO_FIELDS}
+    for n in names:
+        if n.startswith("scenario."):
+            scen[n.split(".", 1)[1]] = values[names.index(n)]
+    dtype = drive.machine.motor.R.dtype
+    scenario = Scenario(
+        duration_s=study.duration_s,
+        speed_ref=Profile(
+            jnp.zeros(1, dtype),
+            jnp.reshape(rpm_to_rad_s(jnp.asarray(scen["speed_rpm"], dtype)), (1,)),
+            jnp.zeros(1, dtype),
+        ),
+        load_torque=Profile(
+            jnp.asarray([0.0, study.load_time_s], dtype),
+            jnp.stack([jnp.zeros((), dtype), jnp.asarray(scen["load_nm"], dtype)]),
+            jnp.zeros(2, dtype),
+        ),
+    )
+    return drive, scenario
+
+
+_SECTIONS = {
+    "study": ("n", "seed", "sampling", "chunk_size", "nonphysical", "decimate", "sensitivity_runs"),
+    "drive": (
+        "motor",
+        "gains",
+        "current_bandwidth",
+        "speed_bandwidth",
+        "current_limit",
+        "u_dc",
+        "n_substeps",
+    ),
+    "scenario": ("speed_rpm", "load_nm", "load_time_s", "duration_s"),
+    "thresholds": ("current_a", "tracking_rpm"),
+}
+
+
+def read_study_toml(path) -> dict:
+    """Study settings from a TOML file as keyword arguments of :class:`Study` (checked by it)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ParameterError(f"study file {path} does not exist: check the path.")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as err:
+        raise ParameterError(f"study file {path}: not valid TOML ({err}).") from err
+    unknown = sorted(set(data) - set(_SECTIONS) - {"parameters"})
+    if unknown:
+        raise ParameterError(
+            f"study file {path}: unknown tables {unknown}; allowed: {sorted(_SECTIONS)} and parameters."
+        )
+    kwargs = {}
+    for section, keys in _SECTIONS.items():
+        table = data.get(section, {})
+        bad = sorted(set(table) - set(keys))
+        if bad:
+            raise ParameterError(
+                f"study file {path}: unknown keys {bad} in [{section}]; allowed: {', '.join(keys)}."
+            )
+        for k, v in table.items():
+            name = {"current_a": "current_threshold_a", "tracking_rpm": "tracking_threshold_rpm"}.get(k, k)
+            kwargs[name] = v
+    if "gains" in kwargs:
+        gains = Path(kwargs["gains"])
+        kwargs["gains"] = str(gains if gains.is_absolute() else path.parent / gains)
+    if "parameters" in data:
+        kwargs["parameters"] = {
+            k: dict(v) if isinstance(v, dict) else v for k, v in data["parameters"].items()
+        }
+    return kwargs

@@ -1,0 +1,390 @@
+"""Monte Carlo robustness studies of a drive, chunked, sharded over every device, resumable.
+
+``run_study(study, out_dir)``:
+
+1. checks the study and draws every run's parameters on the host (seeded, float64,
+   :mod:`tuning.distributions`), before anything compiles; non-physical samples are refused or clipped;
+2. splits the runs into chunks of ``chunk_size`` (rounded up to a multiple of the device count; the
+   last chunk is padded with copies of its last run, whose results are dropped);
+3. runs each chunk as one compiled call: ``vmap`` of :func:`tuning.mc_kernel.run_metrics` over the
+   chunk, the chunk's runs split over a one-axis device mesh with ``jax.sharding`` (``NamedSharding``
+   over axis ``runs``). The same code serves one CPU, several forced CPU devices
+   (``XLA_FLAGS=--xla_force_host_platform_device_count=N`` or ``jax_num_cpu_devices``), several GPUs and
+   several hosts after ``jax.distributed.initialize()`` (every process draws the same samples, feeds
+   its own devices' shards, and process 0 writes the files);
+4. writes each finished chunk to ``DIR/chunks/chunk_NNNNN.npz`` atomically, tagged with a fingerprint
+   of the study, the samples, the precision and the code's version of the metrics; a rerun of the same
+   study loads the chunks it finds and computes only the missing ones, so an interrupted study finishes
+   where it stopped with the same results;
+5. takes the derivative of every metric with respect to every varied parameter by forward-mode AD
+   (``jax.jacfwd``: one tangent per parameter, cheap with a handful of parameters) for the first
+   ``sensitivity_runs`` runs (also stored, as ``DIR/chunks/sensitivities.npz``);
+6. summarises (:mod:`tuning.mc_summary`), draws the figures (:mod:`tuning.mc_figures`) and writes
+   ``DIR/summary.json``.
+
+Run time is the time of the chunk calls made in this invocation (compile excluded: each chunk function is
+compiled ahead of time and timed separately as ``compile_time_s``).
+"""
+
+import hashlib
+import json
+import math
+import time
+from collections.abc import Callable
+from pathlib import Path
+from types import SimpleNamespace
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
+from tqdm import tqdm
+
+from pmsmjax.logs import atomic_write
+from pmsmjax.machines.integrate import max_stable_substep
+from pmsmjax.simulate import check_simulation
+from pmsmjax.units import rpm_to_rad_s
+from pmsmjax.validation import ParameterError
+
+from . import mc_study
+from .distributions import sample
+from .mc_kernel import METRICS, run_metrics
+from .mc_study import Study
+from .mc_summary import sensitivity_summary, summarise
+
+#: Bump when the kernel's metric definitions change: chunks written by another version are recomputed.
+KERNEL_VERSION = 1
+#: Keys of summary.json that describe how (fast) the study ran rather than its results.
+VOLATILE_KEYS = ("run_time_s", "compile_time_s", "runs_per_s", "sensitivity_time_s", "devices", "chunks")
+
+
+def device_mesh() -> Mesh:
+    """A one-axis mesh (``runs``) over every device of every process."""
+    return Mesh(np.array(jax.devices()), ("runs",))
+
+
+def chunk_layout(n: int, chunk_size: int, n_devices: int) -> tuple[int, int]:
+    """``(chunk size, number of chunks)`` for ``n`` runs: ``chunk_size`` (at most ``n``) rounded up to a
+    multiple of ``2 n_devices``.
+
+    At least two runs per device: with a batch of one, XLA compiles scalar code whose rounding differs in
+    the last bit from the vectorised code of larger batches (observed), and results would then depend on
+    the device count. From two runs up they are bitwise identical (tests/test_montecarlo.py).
+    """
+    unit = 2 * n_devices
+    size = -(-min(chunk_size, n) // unit) * unit
+    return size, -(-n // size)
+
+
+def _to_global(x: np.ndarray, sharding: NamedSharding) -> jax.Array:
+    """A host array (identical on every process) as a global array sharded along its first axis."""
+    return jax.make_array_from_callback(x.shape, sharding, lambda index: x[index])
+
+
+def _to_host(x: jax.Array) -> np.ndarray:
+    if jax.process_count() > 1:
+        from jax.experimental import multihost_utils
+
+        return np.asarray(multihost_utils.process_allgather(x, tiled=True))
+    return np.asarray(x)
+
+
+class StudyRunner:
+    """The compiled pieces of one study: the nominal drive, the sample names and the sharded functions."""
+
+    def __init__(self, study: Study, mesh: Mesh | None = None):
+        self.study = study
+        self.drive = mc_study.build_drive(study)
+        self.names = tuple(study.parameters)
+        self.mesh = device_mesh() if mesh is None else mesh
+        self.sharding = NamedSharding(self.mesh, PartitionSpec("runs"))
+        self.dtype = self.drive.machine.motor.R.dtype
+        study_, drive, names = study, self.drive, self.names
+        if study.n_periods % study.decimate:
+            raise ParameterError(
+                f"study decimate = {study.decimate} must divide the {study.n_periods} periods of the run."
+            )
+
+        def one(values):
+            d, s = mc_study.apply_sample(drive, study_, names, values)
+            return run_metrics(d, s, study_.load_time_s, decimate=study_.decimate)
+
+        def one_metrics(values):
+            m, _ = one(values)
+            return jnp.stack([m[k] for k in METRICS]), m["finite"]
+
+        def jac(values):
+            return jax.jacfwd(one_metrics, has_aux=True)(values)
+
+        self._forward = jax.jit(jax.vmap(one), in_shardings=self.sharding, out_shardings=self.sharding)
+        self._jacobian = jax.jit(jax.vmap(jac), in_shardings=self.sharding, out_shardings=self.sharding)
+        self._compiled = {}
+        self.compile_time_s = 0.0
+
+    def check(self, samples: dict | None = None) -> None:
+        """The simulation checks of the nominal run (before compiling) and, given the ``samples``, the
+        RK4 sub-step against the fastest electrical rate among the sampled motors and speeds."""
+        d, s = mc_study.apply_sample(self.drive, self.study, (), ())
+        check_simulation(d, s, self.study.decimate)
+        if not samples:
+            return
+        motor = self.drive.machine.motor
+        sampled = SimpleNamespace(
+            pole_pairs=motor.pole_pairs,
+            **{f: samples.get(f"motor.{f}", np.asarray(getattr(motor, f))) for f in ("R", "L_d", "L_q")},
+        )
+        speed = rpm_to_rad_s(np.max(np.abs(samples.get("scenario.speed_rpm", self.study.speed_rpm))))
+        h_max = max_stable_substep(sampled, 1.5 * speed + 1.0)  # the margin check_simulation allows
+        if self.drive.Ts / self.drive.n_substeps > h_max:
+            raise ParameterError(
+                f"the sampled motors and speeds need an RK4 sub-step <= {h_max:.3g} s (fastest R/L or "
+                f"omega_e among the samples): set [drive] n_substeps >= {math.ceil(self.drive.Ts / h_max)} "
+                "or narrow the R, L or speed spreads."
+            )
+
+    def compile(self, kind: str, rows: int):
+        """The compiled ``forward`` or ``jacobian`` function for ``rows`` runs (compile time is summed)."""
+        key = (kind, rows)
+        if key not in self._compiled:
+            start = time.perf_counter()
+            fn = self._forward if kind == "forward" else self._jacobian
+            spec = jax.ShapeDtypeStruct((rows, len(self.names)), self.dtype, sharding=self.sharding)
+            self._compiled[key] = fn.lower(spec).compile()
+            self.compile_time_s += time.perf_counter() - start
+        return self._compiled[key]
+
+    def _call(self, kind: str, values: np.ndarray):
+        fn = self.compile(kind, values.shape[0])
+        return fn(_to_global(values.astype(self.dtype), self.sharding))
+
+    def forward(self, values: np.ndarray) -> tuple[dict, dict]:
+        """Metrics and decimated record of every row of ``values (B, P)`` (B a multiple of the devices)."""
+        metrics, record = jax.block_until_ready(self._call("forward", values))
+        return jax.tree.map(_to_host, metrics), jax.tree.map(_to_host, record)
+
+    def jacobian(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``((B, n_metrics, P) derivatives, (B,) finite flags)`` for the rows of ``values``."""
+        jac, finite = jax.block_until_ready(self._call("jacobian", values))
+        return _to_host(jac), _to_host(finite)
+
+
+# Settings that do not change the compiled functions (they only change the values fed to them).
+_VALUE_SETTINGS = (
+    "n",
+    "seed",
+    "sampling",
+    "chunk_size",
+    "nonphysical",
+    "sensitivity_runs",
+    "current_threshold_a",
+    "tracking_threshold_rpm",
+)
+_RUNNERS: dict = {}
+
+
+def _runner(study: Study, mesh: Mesh | None) -> StudyRunner:
+    """A :class:`StudyRunner` for ``study``, reused (with its compiled functions) across calls that differ
+    only in sampled values, so re-running or extending a study in one session does not recompile."""
+    settings = {k: v for k, v in vars(study).items() if k not in _VALUE_SETTINGS}
+    settings["parameters"] = tuple(study.parameters)
+    key = (repr(sorted(settings.items())), mesh, jax.config.jax_enable_x64)
+    if key not in _RUNNERS:
+        if len(_RUNNERS) >= 4:
+            _RUNNERS.pop(next(iter(_RUNNERS)))
+        _RUNNERS[key] = StudyRunner(study, mesh)
+    runner = _RUNNERS[key]
+    runner.study = study
+    runner.compile_time_s = 0.0
+    return runner
+
+
+def _pad(x: np.ndarray, size: int) -> np.ndarray:
+    """Rows of ``x`` padded to ``size`` with copies of its last row (valid, physical parameters)."""
+    return np.concatenate([x, np.repeat(x[-1:], size - x.shape[0], axis=0)]) if x.shape[0] < size else x
+
+
+def fingerprint(study: Study, drive, values: np.ndarray, dtype) -> str:
+    """A hash of everything that determines the runs' results: the settings, the nominal drive's values
+    (so an edited motor or gains file counts), the samples and the precision; not the chunking, the
+    devices or the failure thresholds, which only enter the summary."""
+    h = hashlib.sha256()
+    for leaf in jax.tree.leaves(drive):
+        h.update(np.asarray(leaf).tobytes())
+    skip = ("chunk_size", "sensitivity_runs", "current_threshold_a", "tracking_threshold_rpm")
+    settings = {k: v for k, v in vars(study).items() if k not in skip}
+    h.update(repr((sorted(settings.items()), str(np.dtype(dtype)), KERNEL_VERSION)).encode())
+    h.update(np.ascontiguousarray(values).tobytes())
+    return h.hexdigest()[:16]
+
+
+def _load_agreed(path: Path, key: str, rows: int):
+    """:func:`_load_chunk` on process 0, its decision shared with every process (they must all take part
+    in computing a missing chunk). Only process 0 reads, writes and summarises; the others get ``{}``
+    for a chunk that process 0 has."""
+    data = _load_chunk(path, key, rows) if jax.process_index() == 0 else None
+    if jax.process_count() == 1:
+        return data
+    from jax.experimental import multihost_utils
+
+    have = bool(multihost_utils.broadcast_one_to_all(np.asarray(data is not None)))
+    return (data if data is not None else {}) if have else None
+
+
+def _load_chunk(path: Path, key: str, rows: int):
+    """A chunk file's arrays if it exists and carries ``key`` (study fingerprint, first run and run count
+    of the chunk) and ``rows`` runs, else None."""
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            if str(f["fingerprint"]) != key or f["finite"].shape[0] != rows:
+                return None
+            return {k: f[k] for k in f.files if k != "fingerprint"}
+    except (OSError, ValueError, KeyError):
+        return None  # unreadable: recompute it (atomic writes make this an outside change)
+
+
+def run_study(
+    study: Study,
+    out_dir,
+    *,
+    progress: bool = True,
+    figures: bool = True,
+    after_chunk: Callable[[int], None] | None = None,
+    mesh: Mesh | None = None,
+) -> dict:
+    """Run (or finish) ``study`` into ``out_dir``; returns the summary also written to summary.json (on
+    process 0 of a multi-process run; the other processes compute their shards and return None).
+
+    `after_chunk(k)` is called after chunk ``k`` has been written (to report, or to interrupt in tests).
+    """
+    out = Path(out_dir)
+    runner = _runner(study, mesh)
+    runner.check()
+    dists = mc_study.distributions(study, runner.drive)
+    samples = sample(dists, study.n, study.seed, study.sampling)
+    nonphysical = mc_study.enforce_physical(
+        samples, {k: d.nominal for k, d in dists.items()}, study.nonphysical
+    )
+    runner.check(samples)
+    values = np.stack([samples[k] for k in runner.names], axis=1)
+    key = fingerprint(study, runner.drive, values, runner.dtype)
+    n_dev = len(runner.mesh.devices.flat)
+    size, n_chunks = chunk_layout(study.n, study.chunk_size, n_dev)
+    writer = jax.process_index() == 0
+    chunk_dir = out / "chunks"
+    if writer:
+        chunk_dir.mkdir(parents=True, exist_ok=True)
+
+    parts, computed, runs_now, run_time = [], 0, 0, 0.0
+    bar = tqdm(total=n_chunks, disable=not progress, desc="montecarlo", unit="chunk", leave=False)
+    try:
+        for c in range(n_chunks):
+            lo, hi = c * size, min((c + 1) * size, study.n)
+            path = chunk_dir / f"chunk_{c:05d}.npz"
+            chunk_key = f"{key}:{lo}:{hi - lo}"
+            data = _load_agreed(path, chunk_key, hi - lo)
+            if data is None:
+                runner.compile("forward", size)  # outside the timed region
+                start = time.perf_counter()
+                metrics, record = runner.forward(_pad(values[lo:hi], size))
+                run_time += time.perf_counter() - start
+                runs_now += hi - lo
+                data = {k: v[: hi - lo] for k, v in {**metrics, **record}.items()}
+                if writer:
+                    tagged = {"fingerprint": np.asarray(chunk_key), **data}
+                    atomic_write(path, lambda f, d=tagged: np.savez(f, **d))
+                computed += 1
+            if writer:
+                parts.append(data)
+            bar.update(1)
+            if after_chunk is not None:
+                after_chunk(c)
+    finally:
+        bar.close()
+    results = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]} if writer else None
+
+    n_sens = min(study.sensitivity_runs, study.n)
+    sensitivities, sensitivity_time = None, None
+    if n_sens:
+        sens_path = chunk_dir / "sensitivities.npz"
+        sens_key = f"{key}:sensitivities:{n_sens}"
+        data = _load_agreed(sens_path, sens_key, n_sens)
+        if data is None:
+            s_size, _ = chunk_layout(n_sens, n_sens, n_dev)
+            padded = _pad(values[:n_sens], s_size)
+            runner.compile("jacobian", s_size)
+            start = time.perf_counter()
+            jac, finite = runner.jacobian(padded)
+            sens_time = time.perf_counter() - start
+            data = {"jacobian": jac[:n_sens], "finite": finite[:n_sens], "time_s": np.asarray(sens_time)}
+            if writer:
+                atomic_write(sens_path, lambda f: np.savez(f, fingerprint=np.asarray(sens_key), **data))
+        if writer:
+            scales = {k: d.tolerance * d.nominal for k, d in dists.items()}
+            sensitivities = sensitivity_summary(data["jacobian"], data["finite"], runner.names, scales)
+            sensitivity_time = float(data["time_s"])
+
+    if not writer:
+        return None
+    summary = {
+        "n_runs": study.n,
+        "run_time_s": run_time,
+        "compile_time_s": runner.compile_time_s,
+        "runs_per_s": runs_now / run_time if run_time > 0 else None,
+        "sensitivity_time_s": sensitivity_time,
+        "chunks": {"size": size, "count": n_chunks, "computed_now": computed, "loaded": n_chunks - computed},
+        "devices": {
+            "count": n_dev,
+            "kind": str(runner.mesh.devices.flat[0].device_kind),
+            "processes": jax.process_count(),
+        },
+        "study": {k: v for k, v in vars(study).items() if k != "parameters"},
+        "parameters": {k: d.describe() for k, d in dists.items()},
+        "nonphysical_samples": {"mode": study.nonphysical, "counts": nonphysical},
+        "precision": str(np.dtype(runner.dtype)),
+        **summarise(
+            results,
+            samples,
+            current_threshold_a=study.current_threshold,
+            tracking_threshold_rpm=study.tracking_threshold_rpm,
+        ),
+        "sensitivities": sensitivities,
+    }
+    summary = _finite_or_none(summary)
+    if figures:
+        from .mc_figures import save_study_figures
+
+        t = np.arange(results["speed_rpm"].shape[1]) * study.decimate * runner.drive.Ts
+        summary["figures"] = [p.name for p in save_study_figures(results, summary, t, out)]
+    text = json.dumps(summary, indent=2, allow_nan=False) + "\n"
+    atomic_write(out / "summary.json", lambda f: f.write(text.encode()))
+    return summary
+
+
+def load_results(out_dir) -> dict:
+    """Every run's metrics and decimated record from a study folder's chunk files, in run order:
+    ``{name: (n,) or (n, N / decimate) array}`` (for analyses beyond summary.json)."""
+    paths = sorted((Path(out_dir) / "chunks").glob("chunk_*.npz"))
+    if not paths:
+        raise ParameterError(f"no chunk files in {Path(out_dir) / 'chunks'}: run the study first.")
+    parts = []
+    for path in paths:
+        with np.load(path, allow_pickle=False) as f:
+            parts.append({k: f[k] for k in f.files})
+    if len({str(p.pop("fingerprint")).split(":")[0] for p in parts}) != 1:
+        raise ParameterError(f"{out_dir} holds chunks of different studies: use one folder per study.")
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
+def _finite_or_none(x):
+    """JSON-ready copy: NumPy scalars as Python numbers, NaN/inf as null."""
+    if isinstance(x, dict):
+        return {k: _finite_or_none(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite_or_none(v) for v in x]
+    if isinstance(x, np.generic):
+        x = x.item()
+    if isinstance(x, float) and not np.isfinite(x):
+        return None
+    return x
