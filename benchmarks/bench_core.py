@@ -517,14 +517,22 @@ def write_json_atomic(path: str, data: dict) -> None:
     atomic_write(path, lambda f: f.write(text.encode()))
 
 
-def main(json_path: str | None = None, quick: bool = False) -> dict:
-    """Run the benchmark, print the table, write JSON to ``json_path`` if given; returns the figures."""
-    results = run(quick=quick)
-    print(format_table(results))
+def publish(results: dict, table: str, json_path: str | None) -> dict:
+    """Print a benchmark's ``table``; write its ``results`` as JSON to ``json_path`` if given (atomically).
+
+    Every benchmark's ``main`` ends here, so they all report the same way. Returns ``results``.
+    """
+    print(table)
     if json_path is not None:
         write_json_atomic(json_path, results)
         print(f"wrote {json_path}")
     return results
+
+
+def main(json_path: str | None = None, quick: bool = False) -> dict:
+    """Run the benchmark, print the table, write JSON to ``json_path`` if given; returns the figures."""
+    results = run(quick=quick)
+    return publish(results, format_table(results), json_path)
 
 
 if __name__ == "__main__":

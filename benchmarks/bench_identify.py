@@ -26,7 +26,7 @@ import jax
 import numpy as np
 import scipy.optimize
 
-from benchmarks.bench_core import machine_info, write_json_atomic
+from benchmarks.bench_core import machine_info, publish
 from tuning.excitation import identification_scenario
 from tuning.id_fit import _solve_and_linearise
 from tuning.id_log import drive_log_from_columns
@@ -226,11 +226,7 @@ def format_table(r: dict) -> str:
 def main(json_path: str | None = None, quick: bool = False) -> dict:
     results = run(n_seeds=3 if quick else 50)
     results["quick"] = quick
-    print(format_table(results))
-    if json_path is not None:
-        write_json_atomic(json_path, results)
-        print(f"wrote {json_path}")
-    return results
+    return publish(results, format_table(results), json_path)
 
 
 if __name__ == "__main__":

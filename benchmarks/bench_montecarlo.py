@@ -182,14 +182,10 @@ def format_table(r: dict) -> str:
 def main(argv=None) -> dict:
     args = _parse(argv)
     split_cpu(args.devices)
-    from benchmarks.bench_core import write_json_atomic
+    from benchmarks.bench_core import publish
 
     results = run(args.n, args.chunk_size, args.one_by_one, args.sweep)
-    print(format_table(results))
-    if args.json:
-        write_json_atomic(args.json, results)
-        print(f"wrote {args.json}")
-    return results
+    return publish(results, format_table(results), args.json)
 
 
 if __name__ == "__main__":

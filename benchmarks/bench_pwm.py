@@ -23,7 +23,7 @@ import equinox as eqx
 import jax
 import numpy as np
 
-from benchmarks.bench_core import compile_time, machine_info, time_interleaved, write_json_atomic
+from benchmarks.bench_core import compile_time, machine_info, publish, time_interleaved
 from benchmarks.pwm_reference import CarrierReferenceBridge, dense_phase_currents
 from pmsmjax import Profile, Scenario, simulate
 from pmsmjax.inverters import SwitchingBridge
@@ -134,11 +134,7 @@ def format_table(r: dict) -> str:
 def main(json_path: str | None = None, quick: bool = False) -> dict:
     """Run, print the table, write JSON to ``json_path`` if given; returns the figures."""
     results = run(quick=quick)
-    print(format_table(results))
-    if json_path is not None:
-        write_json_atomic(json_path, results)
-        print(f"wrote {json_path}")
-    return results
+    return publish(results, format_table(results), json_path)
 
 
 if __name__ == "__main__":

@@ -31,7 +31,7 @@ import dataclasses
 import math
 import time
 
-from benchmarks.bench_core import machine_info, write_json_atomic
+from benchmarks.bench_core import machine_info, publish
 from pmsmjax.presets import book_drive
 from tuning.autotune import TuneConfig, tune
 from tuning.baselines import (
@@ -413,11 +413,7 @@ def format_table(r: dict) -> str:
 def main(json_path: str | None = None, quick: bool = False, learning_rate: float | None = None) -> dict:
     """Run the benchmark, print the table, write JSON to ``json_path`` if given; returns the figures."""
     results = run(quick=quick, learning_rate=learning_rate)
-    print(format_table(results))
-    if json_path is not None:
-        write_json_atomic(json_path, results)
-        print(f"wrote {json_path}")
-    return results
+    return publish(results, format_table(results), json_path)
 
 
 if __name__ == "__main__":
