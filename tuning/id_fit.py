@@ -29,7 +29,7 @@ from jax.flatten_util import ravel_pytree
 from . import id_electrical as el
 from . import id_mechanical as me
 from .id_parameters import ParameterMap
-from .id_uncertainty import covariance
+from .id_uncertainty import covariance, interval_dof
 
 __all__ = ["FitResult", "fit", "noise_level", "joint_residuals"]
 
@@ -45,6 +45,8 @@ class FitResult:
     - `sigma`: ``{signal: noise level}`` used as weights (i_d, i_q in A; omega_end in rad/s).
     - `electrical`, `mechanical`: the windowed data; `residuals`: simulated minus measured,
       ``i_dq (n_w, W, 2)`` A and ``omega_end (n_m,)`` rad/s; `lags`: Newey-West lags of each group.
+    - `dof`: ``(n_free,)`` effective degrees of freedom of each variance estimate (the intervals' t
+      quantile, :func:`tuning.id_uncertainty.interval_dof`).
     - `steps`: Levenberg-Marquardt steps (all solves); `ok`: the solver converged.
     """
 
@@ -60,6 +62,7 @@ class FitResult:
     mechanical: me.MechanicalData
     residuals: dict
     lags: dict
+    dof: np.ndarray
     steps: int
     ok: bool
 
@@ -158,7 +161,17 @@ def fit(log, pole_pairs: int, *, hold, fixed, start, dead_time, dead_time_eps, w
     # mechanical windows share a boundary sample and coloured current noise: 3 windows.
     tau = max(values["L_d"], values["L_q"]) / values["R"]
     lags_e = int(min(np.ceil(10.0 * tau / float(np.median(np.diff(log.time)))), edata.dt.shape[1] // 2))
-    cov, cov_white, s2, M = covariance([(je, re, edata.dt.shape, lags_e), (jm, rm, (1, rm.size), 3)])
+    lags_m = 3
+    cov, cov_white, s2, M = covariance([(je, re, edata.dt.shape, lags_e), (jm, rm, (1, rm.size), lags_m)])
+    # Independent blocks for the intervals' degrees of freedom: each electrical window (it restarts from
+    # a measurement), and runs of lags_m + 1 mechanical windows (correlated over lags_m windows).
+    info = lambda j: np.einsum("gki,gkj->gij", j, j)
+    edges = np.arange(0, rm.size, lags_m + 1)
+    blocks = np.concatenate(
+        [info(je.reshape(edata.dt.shape[0], -1, pmap.n_free))]
+        + [info(jm[None, a : a + lags_m + 1]) for a in edges]
+    )
+    dof = interval_dof(M, blocks)
     return FitResult(
         pmap=pmap,
         theta=np.asarray(y),
@@ -171,7 +184,8 @@ def fit(log, pole_pairs: int, *, hold, fixed, start, dead_time, dead_time_eps, w
         electrical=edata,
         mechanical=mdata,
         residuals={"i_dq": re.reshape(edata.i[:, 1:].shape) * sigma_i, "omega_end": rm * sigma_w},
-        lags={"electrical": lags_e, "mechanical": 3},
+        lags={"electrical": lags_e, "mechanical": lags_m},
+        dof=dof,
         steps=steps_total,
         ok=bool(ok),
     )

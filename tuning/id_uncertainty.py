@@ -12,11 +12,19 @@ reported together (one name: that parameter is not determined; several: they can
 a combination of them is). A parameter is ``identifiable`` when its own relative standard error is
 below the tolerance (default 5 %). Directions with a numerically zero eigenvalue get an infinite
 standard error rather than the zero a pseudo-inverse would give: no confident value from no data.
+
+**Interval width.** The robust variance is estimated from a limited number of independent blocks
+(shooting windows): for a parameter whose information comes from a few of them (psi_f from the
+high-speed windows, L_q from the q-current steps) that estimate is itself noisy, and a normal 1.96
+interval around it covers the truth less than 95 % of the time (measured: 88 % for psi_f over 50
+seeds). :func:`interval_dof` gives each parameter the effective degrees of freedom of its variance
+estimate (Bell-McCaffrey / Imbens-Kolesar, the standard small-sample correction for cluster-robust
+standard errors), and the interval uses the Student t quantile with those degrees of freedom.
 """
 
 import numpy as np
 
-__all__ = ["covariance", "score_covariance", "weak_directions", "ADVICE"]
+__all__ = ["covariance", "score_covariance", "interval_dof", "weak_directions", "ADVICE"]
 
 #: What excitation determines each parameter (shown for parameters the data did not determine).
 ADVICE = {
@@ -91,6 +99,34 @@ def covariance(groups) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
     cov[~finite, :] = cov_white[~finite, :]
     cov[:, ~finite] = cov_white[:, ~finite]
     return cov, cov_white, s2, M
+
+
+def interval_dof(M: np.ndarray, blocks: np.ndarray) -> np.ndarray:
+    """``(m,)`` effective degrees of freedom of each parameter's robust variance estimate.
+
+    `M`: ``(m, m)`` information ``Jr^T Jr``; `blocks`: ``(G, m, m)`` the information of each of ``G``
+    independent blocks of residuals (their sum is `M`). For parameter ``j``, with ``l = M^-1 e_j`` and
+    ``F_g = l^T M_g``, the variance estimate ``sum_g (l^T s_g)^2`` (``s_g`` a block's score) is, under a
+    working model of independent equal-variance residuals, a quadratic form whose matrix has the
+    nonzero eigenvalues of the ``(G, G)`` matrix ``Q = diag(F_g l) - F M^-1 F^T`` (the second term: the
+    fitted residuals are orthogonal to the Jacobian). Satterthwaite's match of a scaled chi-square gives
+    ``dof = tr(Q)^2 / tr(Q^2)``: ``G - 1`` when every block informs equally, fewer when a few dominate.
+    Parameters without finite variance get ``inf`` (they get no interval anyway).
+    """
+    m = M.shape[0]
+    inv = _inverse(M)
+    out = np.full(m, np.inf)
+    for j in range(m):
+        if not np.all(np.isfinite(inv[:, j])):
+            continue
+        ell = inv[:, j]
+        F = blocks @ ell  # (G, m): F_g = M_g l (M_g symmetric)
+        inv0 = np.where(np.isfinite(inv), inv, 0.0)
+        Q = np.diag(F @ ell) - F @ inv0 @ F.T
+        den = float(np.sum(Q * Q))
+        if den > 0:
+            out[j] = float(np.trace(Q)) ** 2 / den
+    return out
 
 
 def weak_directions(cov: np.ndarray, names, tol: float) -> list[dict]:

@@ -12,7 +12,8 @@ Pipeline (each step in its own module):
    :mod:`tuning.id_fit`: equation-error warm starts, then one output-error Levenberg-Marquardt solve
    (optimistix, JAX forward-mode Jacobians) over both groups.
 4. :mod:`tuning.id_uncertainty`: standard errors, 95 % intervals (in log space for positive
-   parameters, so they stay positive), identifiability, the weak directions and what excitation would
+   parameters, so they stay positive; Student t with each variance estimate's effective degrees of
+   freedom, reported as ``ci95_dof``), identifiability, the weak directions and what excitation would
    fix them.
 
 :func:`identify` works on a :class:`~tuning.id_log.DriveLog`; :func:`identify_file` reads a file and
@@ -29,6 +30,7 @@ from pathlib import Path
 
 import jax
 import numpy as np
+from scipy import stats
 
 from pmsmjax.logs import atomic_write
 from pmsmjax.validation import ParameterError
@@ -54,7 +56,6 @@ UNITS = {
     "T_c": "N m",
     "V_dt": "V",
 }
-_Z95 = 1.959963984540054
 #: A fitted model must explain at least this share of the integrated voltages (else: mislabelled).
 MIN_EXPLAINED = 0.9
 
@@ -200,19 +201,23 @@ def _entries(fit: FitResult, rel_tol: float, torque_rms: float) -> dict:
         positive = fit.pmap.positive[fit.pmap.names.index(name)]
         s = float(se_theta[k])
         finite = math.isfinite(s)
+        dof = float(fit.dof[k])
+        # Student t with the variance estimate's effective degrees of freedom (1.96 as dof -> inf).
+        t95 = float(stats.t.ppf(0.975, dof)) if math.isfinite(dof) else float(stats.norm.ppf(0.975))
         if positive:
             stderr = v * s if finite else None
-            ci = [v * math.exp(-_Z95 * s), v * math.exp(_Z95 * s)] if finite else [None, None]
+            ci = [v * math.exp(-t95 * s), v * math.exp(t95 * s)] if finite else [None, None]
             ok = finite and s < rel_tol
         else:
             stderr = float(dval[k]) * s if finite else None
-            ci = [v - _Z95 * stderr, v + _Z95 * stderr] if finite else [None, None]
+            ci = [v - t95 * stderr, v + t95 * stderr] if finite else [None, None]
             ref = torque_rms if name == "T_c" else max(abs(v), 1.0)
             ok = finite and stderr < rel_tol * ref
         entry = {
             "value": v,
             "stderr": stderr,
             "ci95": ci,
+            "ci95_dof": dof if math.isfinite(dof) else None,
             "identifiable": bool(ok),
             "stderr_white_noise": (v if positive else float(dval[k])) * float(se_white[k])
             if math.isfinite(se_white[k])
@@ -287,7 +292,8 @@ def _summary(log: DriveLog, opt: IdentifyOptions, fit: FitResult) -> dict:
             "electrical_windows": int(d.dt.shape[0]),
             "mechanical_windows": int(md.dt.shape[0]),
             "covariance": "Gauss-Newton sandwich with Newey-West lags "
-            f"{fit.lags['electrical']} samples (electrical), {fit.lags['mechanical']} windows (mechanical)",
+            f"{fit.lags['electrical']} samples (electrical), {fit.lags['mechanical']} windows (mechanical); "
+            "95 % intervals: Student t with each parameter's effective degrees of freedom (ci95_dof)",
         },
         "log": {
             "source": log.source,
