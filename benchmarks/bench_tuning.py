@@ -9,8 +9,10 @@ scipy at 10 kHz), the 7 FOC gains in log-space from the design-rule gains, bound
 2. Nelder-Mead (:func:`tuning.baselines.nelder_mead`) with 2000 evaluations, and CMA-ES with the same
    budget when the optional package ``cma`` is installed: best cost, wall time, time to its best, the
    best-so-far curve against wall time;
-3. the gradient tuner (:func:`tuning.autotune.tune`, Adam, up to 300 iterations, its default stopping
-   rules), every iteration's cost timestamped through its ``callback``;
+3. the gradient tuner (:func:`tuning.autotune.tune`) with Adam (up to 300 iterations, its default
+   stopping rules) and with ``method="bfgs"`` (up to 60 iterations; its default penalty rounding, 1 %
+   overshoot and 0.1 A, and a sweep of the rounding widths, exact included, to show how much the
+   outcome depends on them), every iteration's exact cost timestamped through its ``callback``;
 4. the wall time at which the gradient tuner first reaches (<=) Nelder-Mead's best cost, and the ratio
    Nelder-Mead wall time / that time (``reached: false`` and no ratio when it never does); the converse
    too: when Nelder-Mead first reaches the gradient tuner's best;
@@ -57,6 +59,7 @@ class Sizes:
     - `search_evaluations`: cost evaluations given to Nelder-Mead and CMA-ES.
     - `tune_iterations`: the gradient tuner's ``max_iterations``.
     - `lbfgs_evaluations`: value-and-gradient evaluations given to L-BFGS-B.
+    - `bfgs_iterations`: the BFGS tuner's ``max_iterations``; `bfgs_sweep`: its other penalty roundings.
     - `checkpoints_s`: wall times (s) at which the table compares the best costs so far.
     """
 
@@ -66,7 +69,12 @@ class Sizes:
     tune_iterations: int
     checkpoints_s: tuple[float, ...]
     lbfgs_evaluations: int = 300
+    bfgs_iterations: int = 60
+    bfgs_sweep: tuple = ()
 
+
+#: Rounding widths (overshoot %, current A) of the BFGS sweep; the default (1 %, 0.1 A) is run as "bfgs".
+BFGS_SWEEP = ((0.0, 0.0), (0.5, 0.05), (2.0, 0.2))
 
 FULL = Sizes(
     batch=64,
@@ -74,6 +82,7 @@ FULL = Sizes(
     search_evaluations=2000,
     tune_iterations=300,
     checkpoints_s=(1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0),
+    bfgs_sweep=BFGS_SWEEP,
 )
 QUICK = Sizes(
     batch=4,
@@ -82,7 +91,9 @@ QUICK = Sizes(
     tune_iterations=5,
     checkpoints_s=(0.1, 1.0),
     lbfgs_evaluations=8,
+    bfgs_iterations=4,
 )
+
 
 N_SUBSTEPS_TUNE = 1
 N_SUBSTEPS_CHECK = 10
@@ -97,6 +108,8 @@ REQUIRED_KEYS = (
     "nelder_mead",
     "cma_es",
     "gradient",
+    "bfgs",
+    "bfgs_sweep",
     "comparison",
     "cost_at_wall_time",
     "reevaluated",
@@ -170,7 +183,10 @@ def _run_gradient(drive, batch, weights, config: TuneConfig) -> tuple[dict, dict
         "compile_time_s": compile_s,
         "wall_time_incl_compile_s": result.wall_time_s,
         "seconds_per_iteration": (curve[-1]["wall_s"] - curve[0]["wall_s"]) / max(len(curve) - 1, 1),
+        "method": config.method,
         "learning_rate": config.learning_rate,
+        "overshoot_smoothing_pct": config.overshoot_smoothing_pct,
+        "current_smoothing_a": config.current_smoothing_a,
         "patience": config.patience,
         "gains": result.gains,
         "curve": curve,
@@ -237,8 +253,33 @@ def run(quick: bool = False, learning_rate: float | None = None) -> dict:
     if learning_rate is not None:
         config = dataclasses.replace(config, learning_rate=learning_rate)
     gradient, gains["gradient"] = _run_gradient(drive, batch, weights, config)
+    bfgs_config = TuneConfig(
+        method="bfgs", max_iterations=sizes.bfgs_iterations, patience=sizes.bfgs_iterations
+    )
+    bfgs, gains["bfgs"] = _run_gradient(drive, batch, weights, bfgs_config)
+    sweep = []
+    for width_pct, width_a in sizes.bfgs_sweep:  # none in the quick run: 3 more compilations
+        cfg = dataclasses.replace(bfgs_config, overshoot_smoothing_pct=width_pct, current_smoothing_a=width_a)
+        run_report, _ = _run_gradient(drive, batch, weights, cfg)
+        c = _compare(searches["nelder_mead"], run_report)
+        sweep.append(
+            {
+                "overshoot_smoothing_pct": width_pct,
+                "current_smoothing_a": width_a,
+                "best_cost": run_report["best_cost"],
+                "time_to_best_s": run_report["time_to_best_s"],
+                "reached_nelder_mead_best": c["reached"],
+                "time_to_reach_s": c["gradient_time_to_reach_s"],
+                "ratio_search_time_to_best_over_gradient_time": c[
+                    "ratio_search_time_to_best_over_gradient_time"
+                ],
+            }
+        )
 
-    comparison = {"nelder_mead": _compare(searches["nelder_mead"], gradient)}
+    comparison = {
+        "nelder_mead": _compare(searches["nelder_mead"], gradient),
+        "bfgs_vs_nelder_mead": _compare(searches["nelder_mead"], bfgs),
+    }
     lb_curve = [(row["wall_s"], row["best_cost"]) for row in searches["lbfgs_b"]["curve"]]
     nm_best, nm_wall = searches["nelder_mead"]["best_cost"], searches["nelder_mead"]["wall_time_s"]
     t_lb = time_to_reach(lb_curve, nm_best)
@@ -258,7 +299,10 @@ def run(quick: bool = False, learning_rate: float | None = None) -> dict:
     if searches["cma_es"]["available"]:
         comparison["cma_es"] = _compare(searches["cma_es"], gradient)
 
-    curves = {"gradient": [(row["wall_s"], row["cost"]) for row in gradient["curve"]]}
+    curves = {
+        "gradient": [(row["wall_s"], row["cost"]) for row in gradient["curve"]],
+        "bfgs": [(row["wall_s"], row["cost"]) for row in bfgs["curve"]],
+    }
     for name, report in searches.items():
         if report.get("available", True):
             curves[name] = [(row["wall_s"], row["best_cost"]) for row in report["curve"]]
@@ -299,6 +343,8 @@ def run(quick: bool = False, learning_rate: float | None = None) -> dict:
         "design_rule_cost": design,
         **searches,
         "gradient": gradient,
+        "bfgs": bfgs,
+        "bfgs_sweep": sweep,
         "comparison": comparison,
         "cost_at_wall_time": cost_at,
         "reevaluated": {"n_substeps": N_SUBSTEPS_CHECK, "held_out_seed": HELD_OUT_SEED, **reevaluated},
@@ -334,6 +380,7 @@ def format_table(r: dict) -> str:
         rows.append(("CMA-ES", r["cma_es"], "evaluations", "seconds_per_evaluation"))
     label = f"Adam, lr {r['gradient']['learning_rate']:g}"
     rows.append((label, r["gradient"], "iterations", "seconds_per_iteration"))
+    rows.append(("BFGS (tune)", r["bfgs"], "iterations", "seconds_per_iteration"))
     for label, s, count, per in rows:
         lines.append(
             f"{label:<22}{s[count]:>10}{s['best_cost']:>11.5f}{s['wall_time_s']:>9.1f}"
@@ -357,6 +404,32 @@ def format_table(r: dict) -> str:
             f"{c['lbfgs_b_best_cost']:.5f} ({100 * c['gap_to_target']:.1f} % above) after "
             f"{_fmt(c['lbfgs_b_time_to_best_s'], '.1f')} s; Nelder-Mead needs "
             f"{_fmt(c['nelder_mead_time_to_reach_lbfgs_b_best_s'], '.1f')} s to get that low"
+        )
+    c = r["comparison"]["bfgs_vs_nelder_mead"]
+    lines.append("")
+    if c["reached"]:
+        lines.append(
+            f"BFGS reaches Nelder-Mead's best ({c['target_cost']:.5f}) at "
+            f"{c['gradient_time_to_reach_s']:.1f} s "
+            f"(iteration {c['gradient_iterations_to_reach']}): Nelder-Mead time to its best / BFGS = "
+            f"{c['ratio_search_time_to_best_over_gradient_time']:.2f}x (NM whole run / BFGS = "
+            f"{c['ratio_search_wall_over_gradient_time']:.2f}x)"
+        )
+    else:
+        lines.append(
+            f"BFGS does NOT reach Nelder-Mead's best ({c['target_cost']:.5f}): its best is "
+            f"{c['gradient_best_cost']:.5f} ({100 * (c['gradient_best_cost'] / c['target_cost'] - 1):.2f} % "
+            f"above) at {_fmt(c['gradient_time_to_own_best_s'], '.1f')} s; Nelder-Mead needs "
+            f"{_fmt(c['search_time_to_reach_gradient_best_s'], '.1f')} s to get that low"
+        )
+    lines.append(
+        "  BFGS with other penalty roundings (overshoot %, current A): best cost, time to NM's best, ratio"
+    )
+    for row in r["bfgs_sweep"]:
+        lines.append(
+            f"    {row['overshoot_smoothing_pct']:>4g} % {row['current_smoothing_a']:>5g} A"
+            f"{row['best_cost']:>11.5f}{_fmt(row['time_to_reach_s'], '.1f', 'not reached'):>13}"
+            f"{_fmt(row['ratio_search_time_to_best_over_gradient_time'], '.2f'):>8}"
         )
     for name, label in (("nelder_mead", "Nelder-Mead"), ("cma_es", "CMA-ES")):
         c = r["comparison"].get(name)
@@ -404,7 +477,7 @@ def format_table(r: dict) -> str:
         f"best gains re-evaluated at {re['n_substeps']} sub-steps: cost on the training batch / "
         f"held-out batch (seed {re['held_out_seed']})",
     ]
-    for name in ("design_rule", "nelder_mead", "lbfgs_b", "cma_es", "gradient"):
+    for name in ("design_rule", "nelder_mead", "lbfgs_b", "cma_es", "gradient", "bfgs"):
         if name in re:
             lines.append(f"  {name:<20}{re[name]['train']:>11.5f}{re[name]['held_out']:>11.5f}")
     return "\n".join(lines)

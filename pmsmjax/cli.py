@@ -181,16 +181,17 @@ def _add_tune_parser(sub):
         "tune",
         help="tune the FOC gains by gradients over a batch of speed/load scenarios",
         description=(
-            "Gradient auto-tuning of the book drive's speed and current PI gains (Adam in log-space from the "
-            "design-rule gains) over a seeded batch of speed steps (200-1500 r/min, both directions) and "
-            "load steps (0-10 N m), checked on a held-out batch. Writes DIR/gains.toml, DIR/result.json, "
-            "DIR/cost.png, DIR/responses.png and DIR/checkpoint.npz; running it again resumes. Settings: "
-            "flags, then --config TOML ([weights], [tune], [job] tables), then built-in defaults."
+            "Gradient auto-tuning of the book drive's speed and current PI gains (Adam or BFGS in log-space "
+            "from the design-rule gains) over a seeded batch of speed steps (200-1500 r/min, both "
+            "directions) and load steps (0-10 N m), checked on a held-out batch. Writes DIR/gains.toml, "
+            "DIR/result.json, DIR/cost.png, DIR/responses.png and DIR/checkpoint.npz; running it again "
+            "resumes. Settings: flags, then --config TOML ([weights], [tune], [job] tables), then built-in "
+            "defaults."
         ),
     )
     p.add_argument("--out", default="tune_out", help="output folder (created), default: tune_out")
     p.add_argument("--config", default=None, help="TOML with [weights], [tune] and [job] tables")
-    p.add_argument("--iterations", type=int, help="maximum Adam iterations (default 100)")
+    p.add_argument("--iterations", type=int, help="maximum iterations (default 100)")
     p.add_argument("--train", type=int, help="training scenarios (default 64)")
     p.add_argument("--heldout", type=int, help="held-out scenarios (default 64)")
     p.add_argument("--seed", type=int, help="seed of the training batch (default 0; held-out: seed + 1)")
@@ -199,6 +200,12 @@ def _add_tune_parser(sub):
     )
     p.add_argument(
         "--gains", nargs="+", help="gains to tune: aliases speed, current or names like controller.speed.kp"
+    )
+    p.add_argument(
+        "--method",
+        choices=("adam", "bfgs"),
+        help="optimiser: adam (default) or bfgs (step-capped quasi-Newton on the cost with its penalty kinks "
+        "rounded; far fewer iterations for a few gains)",
     )
     p.add_argument("--learning-rate", type=float, help="Adam step in log-space (default 0.08)")
     p.add_argument("--substeps", type=int, help="RK4 sub-steps while tuning (default 1)")
@@ -219,6 +226,7 @@ def _cmd_tune(args) -> int:
     config = kwargs.pop("config", DEFAULT_CONFIG)
     overrides = {
         "names": tuple(args.gains) if args.gains else None,
+        "method": args.method,
         "learning_rate": args.learning_rate,
         "max_iterations": args.iterations,
         "time_budget_s": args.time_budget_s,

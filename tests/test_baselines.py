@@ -161,7 +161,7 @@ def test_bench_tuning_quick_run_reports_every_key_with_finite_values(problem, de
     assert r["design_rule_cost"] == pytest.approx(design, rel=1e-9)
     assert r["nelder_mead"]["evaluations"] == bench_tuning.QUICK.search_evaluations
     assert r["nelder_mead"]["best_cost"] <= nm.best_cost  # 40 evaluations include these 30
-    for key in ("nelder_mead", "gradient"):
+    for key in ("nelder_mead", "gradient", "bfgs"):
         assert 0 < r[key]["best_cost"] <= r["design_rule_cost"]
         assert r[key]["wall_time_s"] > 0 and r[key]["compile_time_s"] >= 0
     assert r["gradient"]["iterations"] == bench_tuning.QUICK.tune_iterations
@@ -178,7 +178,8 @@ def test_bench_tuning_quick_run_reports_every_key_with_finite_values(problem, de
             assert c["gradient_time_to_reach_s"] >= 0 and c["ratio_search_wall_over_gradient_time"] > 0
         else:
             assert c["gradient_time_to_reach_s"] is None and c["ratio_search_wall_over_gradient_time"] is None
-    for name in ("design_rule", "nelder_mead", "gradient"):
+    assert r["bfgs"]["method"] == "bfgs" and r["bfgs"]["iterations"] == bench_tuning.QUICK.bfgs_iterations
+    for name in ("design_rule", "nelder_mead", "gradient", "bfgs"):
         assert r["reevaluated"][name]["train"] > 0 and r["reevaluated"][name]["held_out"] > 0
     # One sub-step is accurate: the 10-sub-step cost of the design rules is the same to 1e-3.
     assert r["reevaluated"]["design_rule"]["train"] == pytest.approx(design, rel=1e-3)

@@ -14,8 +14,9 @@ from pmsmjax import ParameterError, presets
 from pmsmjax.cli import main
 from pmsmjax.units import rad_s_to_rpm
 from tuning.autotune import TuneConfig, tune
-from tuning.objectives import ObjectiveWeights, aggregate, batch_cost, scenario_metrics
+from tuning.objectives import ObjectiveWeights, aggregate, batch_cost, scenario_metrics, smoothed_penalty
 from tuning.parameters import LogParameterisation, apply_gains, read_gains_toml, write_gains_toml
+from tuning.quasi_newton import bfgs_init, bfgs_tell
 from tuning.scenario_batches import make_batch
 
 SMALL = dict(duration_s=(0.08, 0.1))
@@ -158,6 +159,66 @@ def test_interrupted_tuning_resumes_to_the_same_result(drive, batch, tmp_path):
         tune(drive, batch, config=TuneConfig(max_iterations=9), checkpoint_path=path, progress=False)
 
 
+def test_smoothed_penalty_rounds_only_the_kink():
+    x = np.linspace(-3.0, 5.0, 801)
+    w = 2.0
+    expected = np.where(x <= 0, 0.0, np.where(x < w, x**2 / (2 * w), x - w / 2))  # the Huber form
+    got = np.asarray(smoothed_penalty(jnp.asarray(x), w))
+    np.testing.assert_allclose(got, expected, atol=1e-12)
+    assert np.all(got <= np.maximum(x, 0.0) + 1e-12)  # never above the exact penalty
+    slope = jax.vmap(jax.grad(lambda v: smoothed_penalty(v, w)))(
+        jnp.asarray([-1e-9, 1e-9, w - 1e-9, w + 1e-9])
+    )
+    np.testing.assert_allclose(np.asarray(slope), [0.0, 0.0, 1.0, 1.0], atol=1e-6)  # continuous slope
+    np.testing.assert_array_equal(np.asarray(smoothed_penalty(jnp.asarray(x), 0.0)), np.maximum(x, 0.0))
+
+
+def _ask_tell(f, x0, lower, upper, evaluations, max_step=0.5):
+    grad = jax.grad(f)
+    state, x = bfgs_init(x0.size, max_step), np.asarray(x0, np.float64)
+    for _ in range(evaluations):
+        x, state = bfgs_tell(state, x, float(f(x)), np.asarray(grad(x)), lower=lower, upper=upper,
+                             max_step=max_step)  # fmt: skip
+    return state
+
+
+def test_bfgs_finds_the_rosenbrock_minimum_and_stops_at_an_active_bound():
+    rosenbrock = lambda v: (1.0 - v[0]) ** 2 + 100.0 * (v[1] - v[0] ** 2) ** 2
+    with jax.enable_x64(True):
+        state = _ask_tell(rosenbrock, np.array([-1.2, 1.0]), -3.0, 3.0, 150)
+        np.testing.assert_allclose(state.x, [1.0, 1.0], atol=1e-4)  # the known minimum
+        # A bowl centred outside the box [-1, 1]^2 at (2, 0.3): the box minimum is (1, 0.3).
+        bowl = lambda v: (v[0] - 2.0) ** 2 + 3.0 * (v[1] - 0.3) ** 2
+        state = _ask_tell(bowl, np.array([0.0, 0.0]), -1.0, 1.0, 30)
+        np.testing.assert_allclose(state.x, [1.0, 0.3], atol=1e-6)
+        # Every step is capped: the first trial from the start moves no coordinate by more than max_step.
+        x1, _ = bfgs_tell(
+            bfgs_init(2), np.zeros(2), 1.0, np.array([-50.0, 1.0]), lower=-3, upper=3, max_step=0.5
+        )
+        assert np.max(np.abs(x1)) == pytest.approx(0.5)
+
+
+def test_bfgs_tuning_lowers_the_exact_cost_and_resumes_exactly(drive, batch, tmp_path):
+    cfg = TuneConfig(method="bfgs", max_iterations=8, checkpoint_every=1)
+    reference = tune(drive, batch, config=cfg, progress=False)
+    assert reference.best_cost < 0.9 * reference.initial_cost
+    # Reported costs are exact (not the rounded cost BFGS follows): the best is the returned drive's.
+    assert float(batch_cost(reference.drive, batch, ObjectiveWeights())[0]) == pytest.approx(
+        reference.best_cost, rel=1e-9
+    )
+
+    def interrupt(iteration, cost):
+        if iteration == 4:
+            raise KeyboardInterrupt
+
+    path = tmp_path / "checkpoint.npz"
+    with pytest.raises(KeyboardInterrupt):
+        tune(drive, batch, config=cfg, checkpoint_path=path, progress=False, callback=interrupt)
+    resumed = tune(drive, batch, config=cfg, checkpoint_path=path, progress=False)
+    assert resumed.resumed_from == 4
+    assert resumed.history == reference.history and resumed.gains == reference.gains
+
+
 def test_early_stopping(drive, batch):
     cfg = TuneConfig(max_iterations=50, patience=3, min_rel_improvement=0.99)
     r = tune(drive, batch, config=cfg, progress=False)
@@ -181,6 +242,9 @@ def test_nan_cost_names_the_scenario(drive, batch):
         (dict(learning_rate=0.0), "learning_rate"),
         (dict(max_iterations=0), "max_iterations"),
         (dict(time_budget_s=-1.0), "time_budget_s"),
+        (dict(method="sgd"), "method"),
+        (dict(max_step=0.0), "max_step"),
+        (dict(current_smoothing_a=-0.1), "current_smoothing_a"),
     ],
 )
 def test_bad_config(kwargs, message):

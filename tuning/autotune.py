@@ -1,9 +1,12 @@
 """Gradient auto-tuning of drive gains over a batch of scenarios.
 
 The cost (:mod:`tuning.objectives`) of the whole batch is differentiated through every closed-loop
-simulation with reverse-mode AD; Adam with a cosine-decayed step moves ``theta = log(p/p0)`` from the
-design-rule gains. The best iterate is kept; tuning stops at ``max_iterations``, when the cost has not
-improved by ``min_rel_improvement`` for ``patience`` iterations, or when the time budget is spent.
+simulation with reverse-mode AD, and ``theta = log(p/p0)`` moves from the design-rule gains by
+``method="adam"`` (a cosine-decayed step) or ``method="bfgs"`` (:mod:`tuning.quasi_newton`: step-capped
+BFGS on the cost with its penalty kinks rounded, one gradient per iteration; far fewer iterations on
+a handful of gains). Costs reported and compared are always the exact ones. The best iterate is kept;
+tuning stops at ``max_iterations``, when the cost has not improved by ``min_rel_improvement`` for
+``patience`` iterations, or when the time budget is spent.
 
 Checkpoints (``checkpoint_path``, NumPy ``.npz``, written atomically every ``checkpoint_every``
 iterations and at the end) hold theta, the optimiser state, the best iterate and the history, plus a
@@ -28,8 +31,9 @@ from pmsmjax.drive import Drive
 from pmsmjax.logs import atomic_write
 from pmsmjax.validation import ParameterError
 
-from .objectives import ObjectiveWeights, batch_cost
+from .objectives import ObjectiveWeights, batch_cost, smoothed_batch_cost
 from .parameters import LogParameterisation
+from .quasi_newton import bfgs_init, bfgs_tell
 from .scenario_batches import ScenarioBatch
 
 
@@ -38,7 +42,12 @@ class TuneConfig:
     """Settings of a tuning run.
 
     - `names`: gains to tune (dotted names or the aliases ``speed``, ``current``).
+    - `method`: ``"adam"`` or ``"bfgs"`` (see the module docstring).
     - `learning_rate`: Adam step in log-space (0.05 = about 5 % change per step at most).
+    - `max_step`: BFGS's largest log-space change of any gain per trial (0.5: a factor 1.65).
+    - `overshoot_smoothing_pct`, `current_smoothing_a`: BFGS only: the widths over which the kinks of
+      the overshoot and current penalties are rounded (:func:`tuning.objectives.smoothed_penalty`) in
+      the cost it follows; 0 = exact.
     - `max_iterations`, `patience`, `min_rel_improvement`: stopping rules.
     - `bounds`: factors on the starting gains, ``(lower <= 1, upper >= 1)``.
     - `time_budget_s`: stop after this much wall time (compile included), None for no limit.
@@ -46,7 +55,11 @@ class TuneConfig:
     """
 
     names: tuple[str, ...] = ("speed", "current")
+    method: str = "adam"
     learning_rate: float = 0.08
+    max_step: float = 0.5
+    overshoot_smoothing_pct: float = 1.0
+    current_smoothing_a: float = 0.1
     max_iterations: int = 120
     patience: int = 25
     min_rel_improvement: float = 1e-4
@@ -55,8 +68,16 @@ class TuneConfig:
     checkpoint_every: int = 5
 
     def __post_init__(self):
+        if self.method not in ("adam", "bfgs"):
+            raise ParameterError(f"method must be 'adam' or 'bfgs', got {self.method!r}.")
         if not (self.learning_rate > 0 and np.isfinite(self.learning_rate)):
             raise ParameterError(f"learning_rate must be > 0, got {self.learning_rate}.")
+        if not (self.max_step > 0 and np.isfinite(self.max_step)):
+            raise ParameterError(f"max_step must be a positive log-factor, got {self.max_step}.")
+        for f in ("overshoot_smoothing_pct", "current_smoothing_a"):
+            v = getattr(self, f)
+            if not (np.isfinite(v) and v >= 0):
+                raise ParameterError(f"{f} must be >= 0 (0: exact penalties), got {v}.")
         for f in ("max_iterations", "patience", "checkpoint_every"):
             v = getattr(self, f)
             if not isinstance(v, int) or v < 1:
@@ -109,6 +130,14 @@ def _nan_report(drive, batch, weights) -> str:
     )
 
 
+@eqx.filter_jit
+def _value_and_grad(theta, drive, batch, follow: ObjectiveWeights, param: LogParameterisation):
+    """``(exact cost, followed cost, gradient of the followed cost)`` of the batch at ``theta``."""
+    f = lambda th: smoothed_batch_cost(param.apply(drive, th), batch, follow)
+    (followed, exact), grad = jax.value_and_grad(f, has_aux=True)(theta)
+    return exact, followed, grad
+
+
 def tune(
     drive: Drive,
     batch: ScenarioBatch,
@@ -132,18 +161,33 @@ def tune(
     param = LogParameterisation(drive, config.names, config.bounds)
     schedule = optax.cosine_decay_schedule(config.learning_rate, config.max_iterations, alpha=0.1)
     optimiser = optax.adam(schedule)
+    bfgs = config.method == "bfgs"
+    # The cost the optimiser follows: BFGS's has the penalty kinks rounded; history and best use the exact.
+    follow = weights
+    if bfgs:
+        follow = dataclasses.replace(
+            weights,
+            overshoot_smoothing_pct=config.overshoot_smoothing_pct,
+            current_smoothing_a=config.current_smoothing_a,
+        )
 
-    @eqx.filter_jit
-    def value_and_grad(theta):
-        return jax.value_and_grad(lambda th: batch_cost(param.apply(drive, th), batch, weights)[0])(theta)
+    # The drive and batch are arguments, not constants folded into the program (measured: 15 % faster).
+    value_and_grad = lambda theta: _value_and_grad(theta, drive, batch, follow, param)
 
     @eqx.filter_jit
     def update(theta, grad, opt_state):
         updates, opt_state = optimiser.update(grad, opt_state, theta)
         return param.project(optax.apply_updates(theta, updates)), opt_state
 
+    def next_point(theta, followed, grad, opt_state):
+        if not bfgs:
+            return update(theta, grad, opt_state)
+        bounds = dict(lower=float(param.log_lower), upper=float(param.log_upper), max_step=config.max_step)
+        x, opt_state = bfgs_tell(opt_state, theta, followed, grad, **bounds)
+        return jnp.asarray(x, theta.dtype), opt_state
+
     theta = param.initial_theta()
-    opt_state = optimiser.init(theta)
+    opt_state = bfgs_init(theta.size, config.max_step) if bfgs else optimiser.init(theta)
     best_theta, best_cost, history, it0 = theta, np.inf, [], 0
     fingerprint = _fingerprint(param, batch, weights, config)
     path = Path(checkpoint_path) if checkpoint_path is not None else None
@@ -151,7 +195,7 @@ def tune(
         theta, opt_state, best_theta, best_cost, history, it0 = _load_checkpoint(path, fingerprint, opt_state)
 
     t_first = time.perf_counter()
-    cost, grad = value_and_grad(theta)
+    cost, followed, grad = value_and_grad(theta)
     cost = float(cost)
     first_s = time.perf_counter() - t_first
     steady_s, stopped, since_best = None, "max_iterations", 0
@@ -161,7 +205,8 @@ def tune(
     it = it0
     try:
         while it < config.max_iterations:
-            if not np.isfinite(cost):
+            # BFGS backs off from a trial that destabilises the drive; its start, and Adam, cannot.
+            if not np.isfinite(cost) and not (bfgs and it > 0):
                 report = _nan_report(param.apply(drive, theta), batch, weights)
                 raise ParameterError(f"tuning cost is NaN at iteration {it}: {report}")
             history.append(cost)
@@ -169,7 +214,7 @@ def tune(
                 best_theta, best_cost, since_best = theta, cost, 0
             else:
                 since_best += 1
-            theta, opt_state = update(theta, grad, opt_state)
+            theta, opt_state = next_point(theta, followed, grad, opt_state)
             it += 1
             bar.update(1)
             bar.set_postfix(cost=f"{cost:.5g}", best=f"{best_cost:.5g}")
@@ -184,7 +229,7 @@ def tune(
                 stopped = "time budget"
                 break
             t_step = time.perf_counter()
-            cost, grad = value_and_grad(theta)
+            cost, followed, grad = value_and_grad(theta)
             cost = float(cost)
             step_s = time.perf_counter() - t_step
             steady_s = step_s if steady_s is None else min(steady_s, step_s)
@@ -230,7 +275,8 @@ def _load_checkpoint(path, fingerprint, opt_state_template):
             )
         treedef = jax.tree.structure(opt_state_template)
         n = treedef.num_leaves
-        opt_state = jax.tree.unflatten(treedef, [jnp.asarray(data[f"opt_{i}"]) for i in range(n)])
+        # NumPy as saved: exact dtypes (BFGS keeps float64 state; Adam's float32 state stays float32).
+        opt_state = jax.tree.unflatten(treedef, [np.asarray(data[f"opt_{i}"]) for i in range(n)])
         return (
             jnp.asarray(data["theta"]),
             opt_state,

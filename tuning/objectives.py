@@ -3,7 +3,8 @@
 Every metric is a jnp function of one scenario's trace, evaluated only over that scenario's own duration
 (:meth:`ScenarioBatch.active`), and vmapped over the batch. The costs are differentiable almost
 everywhere; the hard constraints of a drive (current limit, voltage saturation, overshoot) enter as
-soft quadratic penalties beyond their thresholds, so a gradient pushes back as soon as they are crossed.
+penalties beyond their thresholds (linear; optionally rounded at the threshold for quasi-Newton
+methods, :func:`smoothed_penalty`), so a gradient pushes back as soon as they are crossed.
 """
 
 import dataclasses
@@ -26,10 +27,12 @@ METRIC_NAMES = (
     "iae",  # rad
     "ise",  # rad^2/s
     "overshoot_pct",  # % of the step, in the window before the load change
+    "overshoot_signed_pct",  # the same before clipping at 0 (negative: the speed stays below the step)
     "settling_time_s",  # s, 2 % band, in the window before the load change
     "peak_current_a",  # A, largest phase current
     "rms_current_a",  # A
     "current_excess_a",  # A above the current limit (0 when respected)
+    "current_over_limit_a",  # peak minus limit, signed (negative: the margin left)
     "voltage_saturation",  # fraction of periods with the voltage command on its limit
     "control_effort",  # mean of (|u_dq*| / u_max)^2
     "torque_ripple_nm",  # N m, RMS torque deviation over the last 20 % of the scenario
@@ -59,6 +62,11 @@ class ObjectiveWeights:
     voltage_saturation_penalty: float = 1.0  # per unit fraction of saturated time (soft count)
     aggregate: Literal["mean", "cvar"] = "mean"
     cvar_alpha: float = 0.8  # CVaR: mean of the worst (1 - alpha) share of scenarios
+    # Widths of a quadratic zone that rounds the kink of the overshoot and current penalties, for
+    # quasi-Newton methods (:func:`smoothed_penalty`); 0 = the exact L1 penalties. The smoothed cost
+    # is what the optimiser follows; reports always use the exact one.
+    overshoot_smoothing_pct: float = 0.0
+    current_smoothing_a: float = 0.0
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
@@ -87,7 +95,8 @@ def scenario_metrics(
     w_final = trace.speed_ref[k_end]
     excess = jnp.sign(w_final) * (trace.omega_m - w_final) * pre
     scale = jnp.maximum(jnp.abs(w_final), 1e-6)
-    overshoot = 100.0 * jnp.maximum(jnp.max(excess), 0.0) / scale
+    overshoot_signed = 100.0 * jnp.max(excess) / scale
+    overshoot = jnp.maximum(overshoot_signed, 0.0)
     # Settling: the first sample after the last one outside the 2 % band (pre-load window).
     outside = (jnp.abs(trace.omega_m - w_final) > 0.02 * scale) & (pre > 0)
     last_outside = jnp.max(jnp.where(outside, jnp.arange(t.shape[0]), -1))
@@ -108,19 +117,35 @@ def scenario_metrics(
         "iae": metrics.iae(t, e),
         "ise": metrics.ise(t, e),
         "overshoot_pct": overshoot,
+        "overshoot_signed_pct": overshoot_signed,
         "settling_time_s": settling,
         "peak_current_a": peak,
         "rms_current_a": rms,
         "current_excess_a": jnp.maximum(peak - current_limit, 0.0),
+        "current_over_limit_a": peak - current_limit,
         "voltage_saturation": saturation,
         "control_effort": jnp.sum(u_norm**2 * active) / n_active,
         "torque_ripple_nm": ripple,
     }
 
 
-def scenario_cost(m: dict, w: ObjectiveWeights):
-    """Weighted cost of one scenario's metrics ``m``."""
-    over = jnp.maximum(m["overshoot_pct"] - w.overshoot_allowed_pct, 0.0)
+def smoothed_penalty(x, width: float):
+    """``max(x, 0)`` with its kink rounded over ``[0, width]``: 0 for ``x <= 0``, ``x^2 / (2 width)``
+    up to ``width``, ``x - width / 2`` beyond (continuous slope; exact on the feasible side, and never
+    above the exact penalty). ``width = 0``: the exact ``max(x, 0)``."""
+    if width == 0:
+        return jnp.maximum(x, 0.0)
+    inside = jnp.clip(x, 0.0, width)
+    return inside * inside / (2.0 * width) + jnp.maximum(x - width, 0.0)
+
+
+def scenario_cost(m: dict, w: ObjectiveWeights, smoothed: bool = False):
+    """Weighted cost of one scenario's metrics ``m``; ``smoothed``: the penalties' kinks rounded with the
+    widths of ``w`` (:func:`smoothed_penalty`)."""
+    over_x = m["overshoot_signed_pct"] - w.overshoot_allowed_pct
+    current_x = m["current_over_limit_a"]
+    over = smoothed_penalty(over_x, w.overshoot_smoothing_pct if smoothed else 0.0)
+    current = smoothed_penalty(current_x, w.current_smoothing_a if smoothed else 0.0)
     return (
         w.itae * m["itae"]
         + w.iae * m["iae"]
@@ -130,7 +155,7 @@ def scenario_cost(m: dict, w: ObjectiveWeights):
         + w.torque_ripple * m["torque_ripple_nm"]
         + w.settling * m["settling_time_s"]
         + w.overshoot * over
-        + w.current_penalty * m["current_excess_a"]
+        + w.current_penalty * current
         + w.voltage_saturation_penalty * m["voltage_saturation"]
     )
 
@@ -165,7 +190,16 @@ def batch_metrics(drive: Drive, batch: ScenarioBatch) -> dict:
 
 
 def batch_cost(drive: Drive, batch: ScenarioBatch, weights: ObjectiveWeights):
-    """``(cost, per_scenario_costs (B,), metrics)`` of ``drive`` on ``batch``."""
+    """``(cost, per_scenario_costs (B,), metrics)`` of ``drive`` on ``batch`` (exact penalties)."""
     m = batch_metrics(drive, batch)
     costs = jax.vmap(lambda mm: scenario_cost(mm, weights))(m)
     return aggregate(costs, weights), costs, m
+
+
+def smoothed_batch_cost(drive: Drive, batch: ScenarioBatch, weights: ObjectiveWeights):
+    """``(smoothed cost, exact cost)``: the cost with the penalties' kinks rounded (the widths in
+    ``weights``; the two coincide when both widths are 0) and the exact one, from one batch run."""
+    m = batch_metrics(drive, batch)
+    exact = aggregate(jax.vmap(lambda mm: scenario_cost(mm, weights))(m), weights)
+    smooth = aggregate(jax.vmap(lambda mm: scenario_cost(mm, weights, smoothed=True))(m), weights)
+    return smooth, exact
