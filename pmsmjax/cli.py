@@ -181,7 +181,7 @@ def _add_tune_parser(sub):
         "tune",
         help="tune the FOC gains by gradients over a batch of speed/load scenarios",
         description=(
-            "Gradient auto-tuning of the book drive's speed and current PI gains (Adam or BFGS in log-space "
+            "Gradient auto-tuning of the book drive's speed and current PI gains (BFGS or Adam in log-space "
             "from the design-rule gains) over a seeded batch of speed steps (200-1500 r/min, both "
             "directions) and load steps (0-10 N m), checked on a held-out batch. Writes DIR/gains.toml, "
             "DIR/result.json, DIR/cost.png, DIR/responses.png and DIR/checkpoint.npz; running it again "
@@ -204,8 +204,8 @@ def _add_tune_parser(sub):
     p.add_argument(
         "--method",
         choices=("adam", "bfgs"),
-        help="optimiser: adam (default) or bfgs (step-capped quasi-Newton on the cost with its penalty kinks "
-        "rounded; far fewer iterations for a few gains)",
+        help="optimiser: bfgs (default; step-capped quasi-Newton on the cost with its penalty kinks rounded) "
+        "or adam",
     )
     p.add_argument("--learning-rate", type=float, help="Adam step in log-space (default 0.08)")
     p.add_argument("--substeps", type=int, help="RK4 sub-steps while tuning (default 1)")

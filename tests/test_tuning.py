@@ -199,7 +199,11 @@ def test_bfgs_finds_the_rosenbrock_minimum_and_stops_at_an_active_bound():
 
 
 def test_bfgs_tuning_lowers_the_exact_cost_and_resumes_exactly(drive, batch, tmp_path):
-    cfg = TuneConfig(method="bfgs", max_iterations=8, checkpoint_every=1)
+    # Early stopping ends this run (at iteration 9; the last improvement is at 6): resumed at 7, it must
+    # stop at the same place, so the stopping counter has to survive the interruption.
+    cfg = TuneConfig(
+        method="bfgs", max_iterations=12, patience=3, min_rel_improvement=0.02, checkpoint_every=1
+    )
     reference = tune(drive, batch, config=cfg, progress=False)
     assert reference.best_cost < 0.9 * reference.initial_cost
     # Reported costs are exact (not the rounded cost BFGS follows): the best is the returned drive's.
@@ -208,15 +212,16 @@ def test_bfgs_tuning_lowers_the_exact_cost_and_resumes_exactly(drive, batch, tmp
     )
 
     def interrupt(iteration, cost):
-        if iteration == 4:
+        if iteration == 7:
             raise KeyboardInterrupt
 
     path = tmp_path / "checkpoint.npz"
     with pytest.raises(KeyboardInterrupt):
         tune(drive, batch, config=cfg, checkpoint_path=path, progress=False, callback=interrupt)
     resumed = tune(drive, batch, config=cfg, checkpoint_path=path, progress=False)
-    assert resumed.resumed_from == 4
+    assert resumed.resumed_from == 7
     assert resumed.history == reference.history and resumed.gains == reference.gains
+    assert resumed.stopped == reference.stopped and resumed.iterations == reference.iterations
 
 
 def test_early_stopping(drive, batch):

@@ -198,7 +198,8 @@ def tune(
     cost, followed, grad = value_and_grad(theta)
     cost = float(cost)
     first_s = time.perf_counter() - t_first
-    steady_s, stopped, since_best = None, "max_iterations", 0
+    steady_s, stopped = None, "max_iterations"
+    since_best = _iterations_since_best(history, config.min_rel_improvement)  # 0 unless resumed
     bar = tqdm(
         total=config.max_iterations, initial=it0, disable=not progress, desc="tune", unit="it", leave=False
     )
@@ -250,6 +251,18 @@ def tune(
         compile_time_s=max(first_s - (steady_s or first_s), 0.0),
         resumed_from=it0,
     )
+
+
+def _iterations_since_best(history, min_rel_improvement: float) -> int:
+    """The early-stopping counter after ``history``, replayed with the loop's own rule (so a resumed run
+    stops exactly where an uninterrupted one would; the counter itself is not checkpointed)."""
+    best, since = np.inf, 0
+    for cost in history:
+        if cost < best * (1.0 - min_rel_improvement):
+            best, since = cost, 0
+        else:
+            since += 1
+    return since
 
 
 def _save_checkpoint(path, fingerprint, theta, opt_state, best_theta, best_cost, history, iteration):

