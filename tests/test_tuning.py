@@ -139,19 +139,26 @@ def test_tuning_lowers_the_cost_and_is_deterministic(drive, batch):
     assert float(batch_cost(a.drive, batch, ObjectiveWeights())[0]) == pytest.approx(a.best_cost, rel=1e-9)
 
 
+def _interrupt_and_resume(drive, batch, cfg, at: int, path):
+    """Tune with checkpoints at ``path``, interrupted after iteration ``at``; return the resumed run."""
+
+    def interrupt(iteration, cost):
+        if iteration == at:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        tune(drive, batch, config=cfg, checkpoint_path=path, progress=False, callback=interrupt)
+    resumed = tune(drive, batch, config=cfg, checkpoint_path=path, progress=False)
+    assert resumed.resumed_from == at
+    return resumed
+
+
 def test_interrupted_tuning_resumes_to_the_same_result(drive, batch, tmp_path):
     cfg = TuneConfig(max_iterations=8, learning_rate=0.1, checkpoint_every=1)
     reference = tune(drive, batch, config=cfg, progress=False)
 
-    def interrupt(iteration, cost):
-        if iteration == 4:
-            raise KeyboardInterrupt
-
     path = tmp_path / "checkpoint.npz"
-    with pytest.raises(KeyboardInterrupt):
-        tune(drive, batch, config=cfg, checkpoint_path=path, progress=False, callback=interrupt)
-    resumed = tune(drive, batch, config=cfg, checkpoint_path=path, progress=False)
-    assert resumed.resumed_from == 4
+    resumed = _interrupt_and_resume(drive, batch, cfg, 4, path)
     assert resumed.history == reference.history
     assert resumed.gains == reference.gains
     # A checkpoint of another problem is refused, not silently reused.
@@ -211,15 +218,7 @@ def test_bfgs_tuning_lowers_the_exact_cost_and_resumes_exactly(drive, batch, tmp
         reference.best_cost, rel=1e-9
     )
 
-    def interrupt(iteration, cost):
-        if iteration == 7:
-            raise KeyboardInterrupt
-
-    path = tmp_path / "checkpoint.npz"
-    with pytest.raises(KeyboardInterrupt):
-        tune(drive, batch, config=cfg, checkpoint_path=path, progress=False, callback=interrupt)
-    resumed = tune(drive, batch, config=cfg, checkpoint_path=path, progress=False)
-    assert resumed.resumed_from == 7
+    resumed = _interrupt_and_resume(drive, batch, cfg, 7, tmp_path / "checkpoint.npz")
     assert resumed.history == reference.history and resumed.gains == reference.gains
     assert resumed.stopped == reference.stopped and resumed.iterations == reference.iterations
 
