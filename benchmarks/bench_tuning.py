@@ -405,25 +405,45 @@ def format_table(r: dict) -> str:
             f"{_fmt(c['lbfgs_b_time_to_best_s'], '.1f')} s; Nelder-Mead needs "
             f"{_fmt(c['nelder_mead_time_to_reach_lbfgs_b_best_s'], '.1f')} s to get that low"
         )
-    c = r["comparison"]["bfgs_vs_nelder_mead"]
+    # Each gradient tuner against each search, from the same _compare() figures.
+    pairs = (
+        ("nelder_mead", "Adam", "gradient", "Nelder-Mead"),
+        ("cma_es", "Adam", "gradient", "CMA-ES"),
+        ("bfgs_vs_nelder_mead", "BFGS", "bfgs", "Nelder-Mead"),
+    )
+    for name, tuner, key, label in pairs:
+        c = r["comparison"].get(name)
+        if c is None:
+            continue
+        lines.append("")
+        if c["reached"]:
+            lines.append(
+                f"{tuner} reaches {label}'s best ({c['target_cost']:.5f}) at "
+                f"{c['gradient_time_to_reach_s']:.1f} s (iteration {c['gradient_iterations_to_reach']})"
+            )
+            lines.append(
+                f"  {label} wall / {tuner} time to reach = "
+                f"{c['ratio_search_wall_over_gradient_time']:.2f}x; {label} time to its best / {tuner} = "
+                f"{c['ratio_search_time_to_best_over_gradient_time']:.2f}x"
+            )
+        else:
+            lines.append(
+                f"{tuner} does NOT reach {label}'s best ({c['target_cost']:.5f}): its best is "
+                f"{c['gradient_best_cost']:.5f} after {r[key]['iterations']} iterations "
+                f"(reached: false, no ratio)"
+            )
+        t_s = c["search_time_to_reach_gradient_best_s"]
+        if t_s is not None:
+            lines.append(
+                f"  {label} reaches {tuner}'s best ({c['gradient_best_cost']:.5f}) at {t_s:.1f} s; "
+                f"{tuner} at {_fmt(c['gradient_time_to_own_best_s'], '.1f')} s ({tuner} / {label} = "
+                f"{_fmt(c['ratio_gradient_over_search_time_to_gradient_best'], '.2f')}x)"
+            )
+        else:
+            lines.append(f"  {label} never reaches {tuner}'s best ({c['gradient_best_cost']:.5f})")
     lines.append("")
-    if c["reached"]:
-        lines.append(
-            f"BFGS reaches Nelder-Mead's best ({c['target_cost']:.5f}) at "
-            f"{c['gradient_time_to_reach_s']:.1f} s "
-            f"(iteration {c['gradient_iterations_to_reach']}): Nelder-Mead time to its best / BFGS = "
-            f"{c['ratio_search_time_to_best_over_gradient_time']:.2f}x (NM whole run / BFGS = "
-            f"{c['ratio_search_wall_over_gradient_time']:.2f}x)"
-        )
-    else:
-        lines.append(
-            f"BFGS does NOT reach Nelder-Mead's best ({c['target_cost']:.5f}): its best is "
-            f"{c['gradient_best_cost']:.5f} ({100 * (c['gradient_best_cost'] / c['target_cost'] - 1):.2f} % "
-            f"above) at {_fmt(c['gradient_time_to_own_best_s'], '.1f')} s; Nelder-Mead needs "
-            f"{_fmt(c['search_time_to_reach_gradient_best_s'], '.1f')} s to get that low"
-        )
     lines.append(
-        "  BFGS with other penalty roundings (overshoot %, current A): best cost, time to NM's best, ratio"
+        "BFGS with other penalty roundings (overshoot %, current A): best cost, time to NM's best, ratio"
     )
     for row in r["bfgs_sweep"]:
         lines.append(
@@ -431,36 +451,6 @@ def format_table(r: dict) -> str:
             f"{row['best_cost']:>11.5f}{_fmt(row['time_to_reach_s'], '.1f', 'not reached'):>13}"
             f"{_fmt(row['ratio_search_time_to_best_over_gradient_time'], '.2f'):>8}"
         )
-    for name, label in (("nelder_mead", "Nelder-Mead"), ("cma_es", "CMA-ES")):
-        c = r["comparison"].get(name)
-        if c is None:
-            continue
-        lines.append("")
-        if c["reached"]:
-            lines.append(
-                f"gradient reaches {label}'s best ({c['target_cost']:.5f}) at "
-                f"{c['gradient_time_to_reach_s']:.1f} s (iteration {c['gradient_iterations_to_reach']})"
-            )
-            lines.append(
-                f"  {label} wall / gradient time to reach = "
-                f"{c['ratio_search_wall_over_gradient_time']:.2f}x; {label} time to its best / gradient = "
-                f"{c['ratio_search_time_to_best_over_gradient_time']:.2f}x"
-            )
-        else:
-            lines.append(
-                f"gradient does NOT reach {label}'s best ({c['target_cost']:.5f}): its best is "
-                f"{c['gradient_best_cost']:.5f} after {r['gradient']['iterations']} iterations "
-                f"(reached: false, no ratio)"
-            )
-        t_s = c["search_time_to_reach_gradient_best_s"]
-        if t_s is not None:
-            lines.append(
-                f"  {label} reaches the gradient's best ({c['gradient_best_cost']:.5f}) at {t_s:.1f} s; "
-                f"the gradient at {_fmt(c['gradient_time_to_own_best_s'], '.1f')} s (gradient / {label} = "
-                f"{_fmt(c['ratio_gradient_over_search_time_to_gradient_best'], '.2f')}x)"
-            )
-        else:
-            lines.append(f"  {label} never reaches the gradient's best ({c['gradient_best_cost']:.5f})")
 
     names = [k for k in r["cost_at_wall_time"][0] if k != "wall_s"]
     lines += [

@@ -115,13 +115,13 @@ def interval_dof(M: np.ndarray, blocks: np.ndarray) -> np.ndarray:
     """
     m = M.shape[0]
     inv = _inverse(M)
+    inv0 = np.where(np.isfinite(inv), inv, 0.0)
     out = np.full(m, np.inf)
     for j in range(m):
         if not np.all(np.isfinite(inv[:, j])):
             continue
         ell = inv[:, j]
         F = blocks @ ell  # (G, m): F_g = M_g l (M_g symmetric)
-        inv0 = np.where(np.isfinite(inv), inv, 0.0)
         Q = np.diag(F @ ell) - F @ inv0 @ F.T
         den = float(np.sum(Q * Q))
         if den > 0:
