@@ -1,24 +1,33 @@
-"""A drive: controller, modulator, bridge and machine composed into one sampled-data step.
+"""A drive: estimator, controller, modulator, bridge and machine composed into one sampled-data step.
 
-One step is one control (PWM) period ``Ts``:
+One step is one control period ``Ts`` (DESIGN.md, "The drive, generalised"):
 
 1. With imposed speed, the shaft speed is set from the scenario (a dynamometer).
-2. Measurements are sampled at the period start (currents in the stator frame, speed, angle).
-3. The controller computes a stator-frame voltage command; the modulator turns it into duties.
-4. With ``computation_delay`` the duties computed now are applied in the *next* period (as on a DSP
-   that updates its compare registers at the period boundary); the controller's inverse Park then
-   leads by 1.5 periods instead of 0.5, and it compensates the delay in its current loop.
-5. The bridge integrates the machine over the period with ``n_substeps`` RK4 steps.
+2. **Sample** at the period start: phase currents ``(n,)`` and their alpha-beta components, the DC
+   voltage, the voltage commanded over the last period, and the ideal shaft sensor
+   (:class:`pmsmjax.signals.Sample`).
+3. **Estimator** -> angle and speed (and an injection voltage for HF-injection estimators).
+4. **Controller** -> a stator-frame voltage for the **modulator** (``command_kind == "voltage"``) or
+   leg switch states (``"switches"``, no modulator); both become ``(n,)`` leg duties (switch states are
+   duties of 0 or 1 held over the period). Which one is a class constant: no runtime branch.
+5. With ``computation_delay`` the duties computed now are applied in the *next* period (as on a DSP that
+   updates its compare registers at the period boundary).
+6. The **bridge** integrates the **machine** over the period (``n_substeps`` RK4 steps).
+
+Every block is a field of the drive, so ``simulate``, ``jax.vmap``, ``jax.grad``, tuning and Monte Carlo
+work on any combination without a second engine.
 """
 
 import equinox as eqx
 import jax.numpy as jnp
 
 from ._types import Array
-from .controllers.foc import FOC, FOCState, Measurement, References
-from .frames import inverse_park
+from .controllers.base import AbstractController
+from .estimators.base import AbstractEstimator
+from .estimators.position_sensors import ExactSensor
 from .inverters.base import AbstractBridge, AbstractModulator
 from .machines.base import AbstractMachine, MachineState
+from .signals import References, Sample
 from .validation import ParameterError, check_positive
 
 
@@ -33,21 +42,25 @@ class PeriodInputs(eqx.Module):
 
 class DriveState(eqx.Module):
     machine: MachineState
-    controller: FOCState
-    pending_duties: Array  # (3,) duties to apply this period when there is a computational delay
+    estimator: object  # the estimator's state (None for the exact sensor)
+    controller: object  # the controller's state
+    pending_duties: Array  # (n,) duties to apply this period when there is a computational delay
+    last_duties: Array  # (n,) duties applied during the last period (the controller knows them)
 
 
 class PeriodRecord(eqx.Module):
     """What the scan keeps per period; everything else in a Trace is derived from it afterwards.
 
     Kept small on purpose: each extra scan output costs XLA:CPU a separate per-period write, which was
-    measured to cost as much as the drive step itself (benchmarks/bench_core.py).
+    measured to cost as much as the drive step itself (benchmarks/bench_core.py). The estimate is kept
+    only when it can differ from the plant (not for the exact sensor).
     """
 
     machine: MachineState  # state at the period start (sampling instant)
-    duties: Array  # (3,) leg duties applied during the period
+    duties: Array  # (n,) leg duties applied during the period
     u_dq_ref: Array  # (2,) V, controller voltage command
     i_dq_ref: Array  # (2,) A, current reference
+    estimate: Array | None  # (2,) estimated electrical angle rad and mechanical speed rad/s, or None
 
 
 class Drive(eqx.Module):
@@ -55,45 +68,91 @@ class Drive(eqx.Module):
 
     **Arguments:**
 
-    - `machine`, `controller`, `modulator`, `bridge`: the blocks.
+    - `machine`, `controller`, `modulator`, `bridge`: the blocks. `modulator` may be ``None`` for a
+      controller that commands switch states.
     - `Ts`: control and PWM period, s (static).
     - `n_substeps`: RK4 steps per period for the machine (static).
     - `computation_delay`: apply each period's command one period later (static).
+    - `estimator`: angle and speed for the controller; default the exact sensor.
     """
 
     machine: AbstractMachine
-    controller: FOC
-    modulator: AbstractModulator
+    controller: AbstractController
+    modulator: AbstractModulator | None
     bridge: AbstractBridge
     Ts: float = eqx.field(static=True, default=1e-4)
     n_substeps: int = eqx.field(static=True, default=10)
     computation_delay: bool = eqx.field(static=True, default=True)
+    estimator: AbstractEstimator = eqx.field(default_factory=ExactSensor)
 
     def __check_init__(self):
         check_positive("Drive.Ts (control period)", self.Ts, "s")
         if not isinstance(self.n_substeps, int) or self.n_substeps < 1:
             raise ParameterError(f"Drive.n_substeps must be an int >= 1, got {self.n_substeps!r}.")
+        if self.controller.command_kind == "voltage" and self.modulator is None:
+            raise ParameterError(
+                f"{type(self.controller).__name__} commands a voltage: give the Drive a modulator "
+                "(e.g. pmsmjax.inverters.SVPWM())."
+            )
+        n_machine = self.machine.n_phases
+        n_modulator = n_machine if self.modulator is None else self.modulator.n_phases
+        if n_modulator != n_machine:
+            raise ParameterError(
+                f"the modulator drives {n_modulator} legs but the machine has {n_machine} phases: "
+                "choose a modulator for the machine's phase count."
+            )
         self.bridge.check_period(self.Ts)
+        self.estimator.check_period(self.Ts)
+
+    @property
+    def records_estimate(self) -> bool:
+        """Whether the trace keeps the estimator's angle and speed (they can differ from the plant's)."""
+        return not isinstance(self.estimator, ExactSensor)
+
+    def sample(self, ms: MachineState, last_duties: Array) -> Sample:
+        """What the controller's hardware measures at the start of a period in state ``ms``."""
+        i_ab = self.machine.stationary_currents(ms)
+        u_ab_last = self.bridge.commanded_voltage(last_duties)
+        return Sample(self.machine.phase_currents(ms), i_ab, self.bridge.u_dc, u_ab_last, ms.theta_e, ms.omega_m)
+
+    def voltage_limit(self) -> Array:
+        """Largest stator voltage the modulator reproduces without distortion (peak, V)."""
+        if self.modulator is None:
+            return self.bridge.u_dc / jnp.sqrt(3.0)  # the hexagon's inscribed circle
+        return self.modulator.linear_limit(self.bridge.u_dc)
 
     def init(self, speed_m=0.0, theta_e=0.0) -> DriveState:
         """State at rest (or at the given speed, rad/s, and angle, rad) with zero currents."""
         machine_state = self.machine.initial_state((0.0, 0.0), speed_m, theta_e)
         dtype = machine_state.omega_m.dtype
-        return DriveState(machine_state, self.controller.init(), jnp.full((3,), 0.5, dtype))
+        duties = jnp.full((self.machine.n_phases,), 0.5, dtype)
+        return DriveState(
+            machine_state,
+            self.estimator.init(self.sample(machine_state, duties)),
+            self.controller.init(dtype),
+            duties,
+            duties,
+        )
 
     def step(self, state: DriveState, x: PeriodInputs) -> tuple[DriveState, PeriodRecord]:
         ms = state.machine
         if self.machine.mechanics == "imposed":
             ms = MachineState(ms.currents, jnp.asarray(x.speed_ref, ms.omega_m.dtype), ms.theta_e)
-        i_ab = inverse_park(self.machine.currents_dq(ms), ms.theta_e)
-        meas = Measurement(i_ab, ms.omega_m, ms.theta_e)
+        sample = self.sample(ms, state.last_duties)
+        estimator_state, estimate = self.estimator.step(state.estimator, sample, self.Ts)
         refs = References(x.speed_ref, x.id_ref, x.iq_ref)
-        u_max = self.modulator.linear_limit(self.bridge.u_dc)
         ctrl_state, out = self.controller.step(
-            state.controller, meas, refs, self.Ts, u_max, self.computation_delay
+            state.controller, sample, estimate, refs, self.Ts, self.voltage_limit(), self.computation_delay
         )
-        new_duties = self.modulator.duties(out.u_ab_ref, self.bridge.u_dc)
+        if self.controller.command_kind == "voltage":
+            u_ab = out.command
+            if self.estimator.injects_voltage:
+                u_ab = u_ab + estimate.u_injection_ab
+            new_duties = self.modulator.duties(u_ab, self.bridge.u_dc)
+        else:
+            new_duties = out.command.astype(ms.omega_m.dtype)
         duties = state.pending_duties if self.computation_delay else new_duties
         ms_next, _ = self.bridge.advance(self.machine, ms, duties, x.load_torque, self.Ts, self.n_substeps)
-        record = PeriodRecord(ms, duties, out.u_dq_ref, out.i_dq_ref)
-        return DriveState(ms_next, ctrl_state, new_duties), record
+        recorded = jnp.stack([estimate.theta_e, estimate.omega_m]) if self.records_estimate else None
+        record = PeriodRecord(ms, duties, out.u_dq_ref, out.i_dq_ref, recorded)
+        return DriveState(ms_next, estimator_state, ctrl_state, new_duties, duties), record

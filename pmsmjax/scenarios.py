@@ -78,6 +78,21 @@ class Profile(eqx.Module):
         """Values at the times ``t (N,)`` s -> ``(N,)``."""
         return jax.vmap(self)(t)
 
+    def sample_periods(self, n: int, Ts: float) -> Array:
+        """Values at the period starts ``k Ts``, ``k = 0..n-1`` -> ``(n,)``, by integer period index.
+
+        Breakpoints are placed on the period grid as ``times / Ts`` periods, snapped to the nearest whole
+        period when within rounding (``1e-3`` period plus a few ulps), so a load step at 0.2352 s with
+        ``Ts = 1e-4`` s acts from period 2352 on in float32 too (comparing float times ``k Ts`` put it one
+        period late). The snap passes gradients straight through (``x + stop_gradient(round(x) - x)``).
+        """
+        k = jnp.arange(n, dtype=self.times.dtype)
+        position = self.times / Ts
+        nearest = jnp.round(position)
+        tol = 1e-3 + 8.0 * jnp.finfo(position.dtype).eps * jnp.abs(position)
+        snap = jnp.where(jnp.abs(position - nearest) <= tol, nearest - position, 0.0)
+        return jax.vmap(Profile(position + jax.lax.stop_gradient(snap), self.values, self.linear))(k)
+
     def padded(self, K: int) -> "Profile":
         """The same profile with ``K`` breakpoints (the last one repeated, held)."""
         n = self.times.shape[-1]

@@ -30,14 +30,17 @@ __all__ = ["simulate", "check_simulation", "period_inputs"]
 
 
 def period_inputs(scenario: Scenario, Ts: float) -> PeriodInputs:
-    """Scenario values at every period start ``k Ts``: a PeriodInputs of ``(N,)`` arrays."""
+    """Scenario values at every period start ``k Ts``: a PeriodInputs of ``(N,)`` arrays.
+
+    Sampled by integer period index (:meth:`Profile.sample_periods`), so an event at a whole number of
+    periods lands in that period in float32 as in float64.
+    """
     n = scenario.n_periods(Ts)
-    t = jnp.arange(n, dtype=scenario.speed_ref.times.dtype) * Ts
     return PeriodInputs(
-        scenario.speed_ref.sample(t),
-        scenario.load_torque.sample(t),
-        scenario.id_ref.sample(t),
-        scenario.iq_ref.sample(t),
+        scenario.speed_ref.sample_periods(n, Ts),
+        scenario.load_torque.sample_periods(n, Ts),
+        scenario.id_ref.sample_periods(n, Ts),
+        scenario.iq_ref.sample_periods(n, Ts),
     )
 
 
@@ -128,6 +131,10 @@ def trace_from_records(drive: Drive, rec: PeriodRecord, xs: PeriodInputs, dt: fl
     ms = rec.machine
     i_dq = jax.vmap(machine.currents_dq)(ms)
     n = i_dq.shape[0]
+    if rec.estimate is None:  # the exact sensor: the estimate is the plant's angle and speed
+        theta_e_est, omega_m_est = ms.theta_e, ms.omega_m
+    else:
+        theta_e_est, omega_m_est = rec.estimate[:, 0], rec.estimate[:, 1]
     return Trace(
         t=jnp.arange(n, dtype=i_dq.dtype) * dt,
         omega_m=ms.omega_m,
@@ -141,4 +148,6 @@ def trace_from_records(drive: Drive, rec: PeriodRecord, xs: PeriodInputs, dt: fl
         duties=rec.duties,
         torque=jax.vmap(machine.electromagnetic_torque)(ms),
         load_torque=xs.load_torque,
+        theta_e_est=theta_e_est,
+        omega_m_est=omega_m_est,
     )

@@ -30,6 +30,8 @@ _COLUMNS = {
     "duty_c": ("duties", 2),
     "torque": ("torque", None),
     "load_torque": ("load_torque", None),
+    "theta_e_est": ("theta_e_est", None),
+    "omega_m_est": ("omega_m_est", None),
 }
 
 
@@ -42,6 +44,8 @@ class Trace(eqx.Module):
     - `u_dq_ref`: ``(N, 2)`` controller voltage command, V. `u_abc`: ``(N, 3)`` period-average applied
       phase voltages, V. `duties`: ``(N, 3)`` applied leg duty cycles.
     - `torque`: electromagnetic torque, N m. `load_torque`: load torque, N m.
+    - `theta_e_est`, `omega_m_est`: the estimator's electrical angle (rad) and mechanical speed (rad/s)
+      that the controller used (equal to `theta_e`, `omega_m` with the exact sensor).
     """
 
     t: Array
@@ -56,6 +60,8 @@ class Trace(eqx.Module):
     duties: Array
     torque: Array
     load_torque: Array
+    theta_e_est: Array
+    omega_m_est: Array
 
     @property
     def speed_rpm(self) -> Array:

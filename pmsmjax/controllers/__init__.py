@@ -1,5 +1,12 @@
-"""Controllers: discrete PI, design rules and cascaded FOC."""
+"""Controllers: the controller interfaces, discrete PI, design rules and cascaded FOC with its blocks."""
 
+from .base import (
+    AbstractController,
+    AbstractCurrentController,
+    AbstractDAxisReference,
+    AbstractSpeedController,
+    CurrentLoopContext,
+)
 from .design import (
     CurrentLoopGains,
     SpeedLoopGains,
@@ -7,16 +14,18 @@ from .design import (
     first_order_rise_time,
     speed_loop_active_damping,
 )
-from .foc import FOC, FOCOutput, FOCState, Measurement, References
+from .foc import FOC, FOCState
 from .pi import clip_magnitude, clip_symmetric, pi_update
 
 __all__ = [
     "FOC",
-    "FOCOutput",
     "FOCState",
+    "AbstractController",
+    "AbstractCurrentController",
+    "AbstractDAxisReference",
+    "AbstractSpeedController",
+    "CurrentLoopContext",
     "CurrentLoopGains",
-    "Measurement",
-    "References",
     "SpeedLoopGains",
     "clip_magnitude",
     "clip_symmetric",

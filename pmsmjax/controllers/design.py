@@ -10,29 +10,20 @@
 
 import math
 
-import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
 from ..machines.motor import PMSMParameters
 from ..validation import check_positive
+from .current_pi import CurrentLoopGains
+from .speed_pi import SpeedLoopGains
 
-
-class CurrentLoopGains(eqx.Module):
-    """dq current PI gains: proportional (V/A) and integral (V/(A s)) per axis."""
-
-    kp_d: Array
-    kp_q: Array
-    ki_d: Array
-    ki_q: Array
-
-
-class SpeedLoopGains(eqx.Module):
-    """Speed PI gains: ``kp`` A/(rad/s), ``ki`` A/rad, active damping ``B_a`` A/(rad/s)."""
-
-    kp: Array
-    ki: Array
-    active_damping: Array
+__all__ = [
+    "CurrentLoopGains",
+    "SpeedLoopGains",
+    "current_loop_imc",
+    "first_order_rise_time",
+    "speed_loop_active_damping",
+]
 
 
 def current_loop_imc(motor: PMSMParameters, bandwidth_rad_s=1100.0) -> CurrentLoopGains:

@@ -1,8 +1,16 @@
-"""Interfaces of modulators (voltage reference -> duty cycles) and bridges (duties -> machine voltage)."""
+"""Interfaces of modulators (voltage reference -> duty cycles) and bridges (duties -> machine voltage).
+
+Both carry the number of legs they drive, ``n_phases`` (3 here; the six- and five-phase inverters
+override it); :class:`pmsmjax.drive.Drive` checks that it matches the machine's.
+"""
+
+from typing import ClassVar
 
 import equinox as eqx
+import jax.numpy as jnp
 
 from .._types import Array
+from ..frames import abc_to_alpha_beta
 from ..machines.base import AbstractMachine, MachineState
 
 
@@ -12,6 +20,8 @@ class AbstractModulator(eqx.Module):
     ``duties(u_ab_ref, u_dc)``: ``u_ab_ref: (2,)`` V, ``u_dc`` V -> ``(3,)`` duty cycles in [0, 1]
     (fraction of the period each upper switch conducts, centre-aligned).
     """
+
+    n_phases: ClassVar[int] = 3
 
     def duties(self, u_ab_ref: Array, u_dc: Array) -> Array:
         raise NotImplementedError
@@ -31,6 +41,14 @@ class AbstractBridge(eqx.Module):
     """
 
     u_dc: eqx.AbstractVar[Array]
+
+    def commanded_voltage(self, duties: Array) -> Array:
+        """``(2,)`` stator-frame period-average voltage, V, that ideal legs with ``duties (n,)`` give.
+
+        What the controller knows it applied (``duties`` times the DC voltage), without the bridge's
+        dead-time and device-drop errors.
+        """
+        return abc_to_alpha_beta(self.u_dc * (duties - jnp.mean(duties, axis=-1, keepdims=True)))
 
     def check_period(self, Ts: float) -> None:
         """Raise :class:`pmsmjax.ParameterError` if the bridge's settings do not fit the period ``Ts`` (s).

@@ -6,13 +6,13 @@ serves the fixed-step scan (:func:`pmsmjax.machines.integrate.rk4`), diffrax ada
 linearisation (``jax.jacfwd`` of :meth:`AbstractMachine.vector_field`).
 """
 
-from typing import Literal
+from typing import ClassVar, Literal
 
 import equinox as eqx
 import jax.numpy as jnp
 
 from .._types import Array
-from ..frames import inverse_park, park
+from ..frames import dq_to_abc, inverse_park, park
 from .motor import PMSMParameters
 
 Mechanics = Literal["dynamic", "imposed"]
@@ -56,8 +56,10 @@ class MachineInput(eqx.Module):
 
 
 class AbstractMachine(eqx.Module):
-    """A three-phase PMSM model in one reference frame.
+    """A PMSM model in one reference frame.
 
+    ``n_phases`` (class constant) is the number of stator phases, i.e. of inverter legs: 3 here; the
+    multi-phase machines override it and :meth:`phase_currents` / :meth:`stationary_currents`.
     Subclasses implement the electrical part in their frame; the mechanics are shared:
     ``J dw_m/dt = T_e - T_L - B w_m`` (``mechanics="dynamic"``) or ``dw_m/dt = 0`` with the speed set from
     outside each period (``mechanics="imposed"``, a dynamometer); ``dth_e/dt = p_n w_m``.
@@ -65,6 +67,7 @@ class AbstractMachine(eqx.Module):
 
     motor: eqx.AbstractVar[PMSMParameters]
     mechanics: eqx.AbstractVar[Mechanics]
+    n_phases: ClassVar[int] = 3
 
     # --- frame-specific part -------------------------------------------------------------------
     def current_derivative(self, currents: Array, theta_e: Array, omega_e: Array, u: MachineInput):
@@ -109,3 +112,11 @@ class AbstractMachine(eqx.Module):
 
     def electromagnetic_torque(self, state: MachineState) -> Array:
         return self.torque(state.currents, state.theta_e)
+
+    def phase_currents(self, state: MachineState) -> Array:
+        """``(n,)`` phase currents, A (what the drive's current sensors measure)."""
+        return dq_to_abc(self.currents_dq(state), state.theta_e)
+
+    def stationary_currents(self, state: MachineState) -> Array:
+        """``(2,)`` alpha-beta (fundamental-plane) currents, A."""
+        return inverse_park(self.currents_dq(state), state.theta_e)

@@ -1,0 +1,113 @@
+"""Controller interfaces (DESIGN.md, "The drive, generalised", step 3).
+
+A drive's controller (:class:`AbstractController`) reads only the :class:`~pmsmjax.signals.Sample`, the
+estimator's :class:`~pmsmjax.signals.Estimate` and the references, and returns a
+:class:`~pmsmjax.signals.ControlOutput`. Whether that output is a stator-frame voltage (to the modulator)
+or leg switch states (to the bridge directly) is the class constant ``command_kind``, so the drive step
+has no runtime branch.
+
+The cascaded controllers are built from smaller blocks with their own small state, so a method of the
+book is one block swapped into the same cascade:
+
+- :class:`AbstractSpeedController`: speed error -> torque-producing current ``i_q*`` (PI with active
+  damping, sliding mode);
+- :class:`AbstractCurrentController`: dq current reference -> stator-frame voltage (dq PI with
+  decoupling, proportional-resonant in alpha-beta);
+- :class:`AbstractDAxisReference`: the d-axis current reference (from the scenario, MTPA, field
+  weakening).
+"""
+
+from typing import ClassVar, NamedTuple
+
+import equinox as eqx
+
+from .._types import Array
+from ..machines.motor import PMSMParameters
+from ..signals import CommandKind, ControlOutput, Estimate, References, Sample
+
+
+class AbstractController(eqx.Module):
+    """A drive controller: ``init(dtype) -> state``; ``step(...) -> (state, ControlOutput)``.
+
+    ``step(state, sample, estimate, refs, Ts, u_max, delayed)``: `Ts` the control period, s (static);
+    `u_max` the modulator's linear voltage limit, V; `delayed` (static) whether the command is applied
+    one period after it is computed. ``current_limit`` (A, peak phase current) is read by the metrics and
+    objectives that judge a run.
+    """
+
+    command_kind: ClassVar[CommandKind] = "voltage"
+    current_limit: eqx.AbstractVar[Array]
+
+    def init(self, dtype):
+        raise NotImplementedError
+
+    def step(
+        self, state, sample: Sample, estimate: Estimate, refs: References, Ts: float, u_max, delayed: bool
+    ) -> tuple[object, ControlOutput]:
+        raise NotImplementedError
+
+
+class AbstractSpeedController(eqx.Module):
+    """Speed loop: ``step(state, speed_ref, omega_m, iq_max, Ts) -> (state, iq_ref)``.
+
+    `speed_ref`, `omega_m`: mechanical rad/s; `iq_max`: the output limit, A (the current circle less the
+    d-axis reference); `Ts`: the speed loop's own period, s. ``init(dtype)`` gives the zero state.
+    """
+
+    def init(self, dtype):
+        raise NotImplementedError
+
+    def step(self, state, speed_ref, omega_m, iq_max, Ts) -> tuple[object, Array]:
+        raise NotImplementedError
+
+
+class CurrentLoopContext(NamedTuple):
+    """What a current loop may use besides its own state (built inside the traced step).
+
+    - `model`: the controller's motor model (may differ from the plant).
+    - `Ts`: control period, s. `u_max`: voltage-vector limit, V.
+    - `delayed`: the command acts one period after it is computed (static).
+    - `u_dq_prev`: ``(2,)`` last period's voltage command in the rotor frame, V (applied during the
+      coming period when delayed).
+    - `decoupling`, `delay_compensation`: the cascade's options (static); a loop may ignore them.
+    """
+
+    model: PMSMParameters
+    Ts: float
+    u_max: Array
+    delayed: bool
+    u_dq_prev: Array
+    decoupling: bool
+    delay_compensation: bool
+
+
+class AbstractCurrentController(eqx.Module):
+    """Current loop: ``step(state, i_dq_ref, i_ab, theta_e, omega_e, ctx) -> (state, u_ab, u_dq)``.
+
+    `i_dq_ref (2,)` A; `i_ab (2,)` measured stationary-frame currents, A; `theta_e` the estimated angle,
+    rad; `omega_e` the estimated electrical speed, rad/s; `ctx` a :class:`CurrentLoopContext`. Returns the
+    stator-frame voltage command ``u_ab (2,)`` V (with the angle lead that the PWM hold and the delay need)
+    and the same command in the estimated rotor frame ``u_dq (2,)`` V.
+    """
+
+    def init(self, dtype):
+        raise NotImplementedError
+
+    def step(self, state, i_dq_ref, i_ab, theta_e, omega_e, ctx: CurrentLoopContext):
+        raise NotImplementedError
+
+
+class AbstractDAxisReference(eqx.Module):
+    """d-axis current reference, computed before the speed loop from last period's values.
+
+    ``step(state, id_ref, iq_ref_prev, omega_e, ctx, current_limit) -> (state, id_ref)``:
+    `id_ref` the scenario's reference, A; `iq_ref_prev` last period's ``i_q*``, A; `omega_e` electrical
+    speed, rad/s; `ctx` a :class:`CurrentLoopContext` (last voltage command, limit); `current_limit` A. MTPA and field weakening
+    use last period's ``i_q*``: one period of lag, far below the speed loop's bandwidth.
+    """
+
+    def init(self, dtype):
+        raise NotImplementedError
+
+    def step(self, state, id_ref, iq_ref_prev, omega_e, ctx: CurrentLoopContext, current_limit):
+        raise NotImplementedError

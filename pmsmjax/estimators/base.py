@@ -1,0 +1,38 @@
+"""The estimator interface: sampled measurements -> rotor angle and speed (DESIGN.md, "The drive,
+generalised", step 2).
+
+An estimator is the block between sampling and control. The exact sensor, an encoder and every observer of
+the later chapters (sliding-mode, MRAS, EKF, HF injection) implement it, so a sensorless drive is the same
+:class:`pmsmjax.drive.Drive` with another ``estimator``.
+
+- ``init(sample)`` gives the estimator's state from the first sample (an observer that does not know the
+  initial angle ignores the sensor fields).
+- ``step(state, sample, Ts)`` -> ``(state, Estimate)`` once per control period; the estimate is used by
+  the controller in the same period.
+- ``injects_voltage`` (class constant): the estimate carries a voltage to add to the controller's command
+  (HF injection); the drive adds it only for such estimators, so others cost nothing.
+"""
+
+from typing import ClassVar
+
+import equinox as eqx
+
+from ..signals import Estimate, Sample
+
+
+class AbstractEstimator(eqx.Module):
+    """Base of every estimator (see the module docstring)."""
+
+    injects_voltage: ClassVar[bool] = False
+
+    def init(self, sample: Sample):
+        raise NotImplementedError
+
+    def step(self, state, sample: Sample, Ts: float) -> tuple[object, Estimate]:
+        raise NotImplementedError
+
+    def check_period(self, Ts: float) -> None:
+        """Raise :class:`pmsmjax.ParameterError` if the estimator's gains are unstable at period ``Ts``, s.
+
+        Called by the drive before compiling; nothing to check here.
+        """

@@ -1,0 +1,81 @@
+"""The values that flow between the blocks of a drive in one control period (DESIGN.md, "The drive,
+generalised").
+
+``Sample`` (what the controller's hardware measures at the period start) -> estimator -> ``Estimate`` ->
+controller (with the ``References``) -> ``ControlOutput``. Controllers read only these, never the plant's
+state, so a sensorless drive is the same drive with another estimator.
+"""
+
+from typing import Literal
+
+import equinox as eqx
+
+from ._types import Array
+
+#: What a controller commands: a stationary-frame voltage for a modulator (``"voltage"``), or the leg
+#: switch states directly (``"switches"``: hysteresis current control, table DTC).
+CommandKind = Literal["voltage", "switches"]
+
+
+class Sample(eqx.Module):
+    """Measured at the start of a control period.
+
+    - `i_phase`: ``(n,)`` phase currents, A.
+    - `i_ab`: ``(2,)`` the same currents in the stationary (alpha-beta) plane, A.
+    - `u_dc`: DC-link voltage, V.
+    - `u_ab_last`: ``(2,)`` stator-frame voltage commanded over the last period (period average of the
+      duties that were applied, times ``u_dc``), V: what the controller knows it applied, without the
+      inverter's dead-time error.
+    - `sensor_theta_e`: the shaft position sensor's reading as an electrical angle, rad; an ideal sensor.
+      An encoder model quantises and delays it; sensorless estimators ignore it.
+    - `sensor_omega_m`: the ideal shaft speed, rad/s (for the exact sensor; an encoder differentiates
+      its angle instead).
+    """
+
+    i_phase: Array
+    i_ab: Array
+    u_dc: Array
+    u_ab_last: Array
+    sensor_theta_e: Array
+    sensor_omega_m: Array
+
+
+class Estimate(eqx.Module):
+    """What an estimator tells the controller.
+
+    - `theta_e`: electrical rotor angle (d axis from the A axis), rad.
+    - `omega_m`: mechanical speed, rad/s.
+    - `u_injection_ab`: ``(2,)`` stator-frame voltage to add to the controller's command, V (HF injection);
+      ``None`` for estimators that inject nothing.
+    """
+
+    theta_e: Array
+    omega_m: Array
+    u_injection_ab: Array | None = None
+
+
+class References(eqx.Module):
+    """Reference values for one period: speed (mechanical rad/s) and dq currents (A).
+
+    In speed mode the speed loop makes ``i_q*`` and ``iq_ref`` is ignored; ``id_ref`` is the d-axis
+    reference unless a flux-weakening/MTPA block sets it.
+    """
+
+    speed_ref: Array
+    id_ref: Array
+    iq_ref: Array
+
+
+class ControlOutput(eqx.Module):
+    """A controller's output for one period.
+
+    - `command`: ``(2,)`` stator-frame voltage reference, V, for ``command_kind == "voltage"``; ``(n,)``
+      leg switch states in {0, 1} held over the period for ``command_kind == "switches"``.
+    - `u_dq_ref`: ``(2,)`` the voltage command in the controller's (estimated) rotor frame, V; for switching
+      controllers the voltage of the chosen switch states.
+    - `i_dq_ref`: ``(2,)`` current reference, A.
+    """
+
+    command: Array
+    u_dq_ref: Array
+    i_dq_ref: Array
