@@ -113,7 +113,8 @@ class Drive(eqx.Module):
         """What the controller's hardware measures at the start of a period in state ``ms``."""
         i_ab = self.machine.stationary_currents(ms)
         u_ab_last = self.bridge.commanded_voltage(last_duties)
-        return Sample(self.machine.phase_currents(ms), i_ab, self.bridge.u_dc, u_ab_last, ms.theta_e, ms.omega_m)
+        i_phase = self.machine.phase_currents(ms)
+        return Sample(i_phase, i_ab, self.bridge.u_dc, u_ab_last, ms.theta_e, ms.omega_m)
 
     def voltage_limit(self) -> Array:
         """Largest stator voltage the modulator reproduces without distortion (peak, V)."""

@@ -102,8 +102,9 @@ class AbstractDAxisReference(eqx.Module):
 
     ``step(state, id_ref, iq_ref_prev, omega_e, ctx, current_limit) -> (state, id_ref)``:
     `id_ref` the scenario's reference, A; `iq_ref_prev` last period's ``i_q*``, A; `omega_e` electrical
-    speed, rad/s; `ctx` a :class:`CurrentLoopContext` (last voltage command, limit); `current_limit` A. MTPA and field weakening
-    use last period's ``i_q*``: one period of lag, far below the speed loop's bandwidth.
+    speed, rad/s; `ctx` a :class:`CurrentLoopContext` (last voltage command, limit); `current_limit` A.
+    MTPA and field weakening use last period's ``i_q*``: one period of lag, far below the speed loop's
+    bandwidth.
     """
 
     def init(self, dtype):

@@ -24,7 +24,7 @@ from .pi import clip_magnitude, pi_update
 
 
 class CurrentLoopGains(AbstractCurrentController):
-    """dq current PI gains: proportional (V/A) and integral (V/(A s)) per axis. State: ``(2,)`` integral, V."""
+    """dq current PI gains: proportional (V/A) and integral (V/(A s)) per axis; state ``(2,)`` integral, V."""
 
     kp_d: Array
     kp_q: Array
