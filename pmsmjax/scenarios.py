@@ -64,15 +64,7 @@ class Profile(eqx.Module):
 
     def __call__(self, t) -> Array:
         """Value at time ``t`` (s, scalar)."""
-        K = self.times.shape[-1]
-        k = jnp.clip(jnp.searchsorted(self.times, t, side="right") - 1, 0, K - 1)
-        k1 = jnp.minimum(k + 1, K - 1)
-        t0, t1 = self.times[k], self.times[k1]
-        span = t1 - t0
-        has_span = span > 0
-        frac = jnp.where(has_span, (t - t0) / jnp.where(has_span, span, 1.0), 0.0)
-        frac = jnp.clip(frac, 0.0, 1.0)
-        return self.values[k] + self.linear[k] * frac * (self.values[k1] - self.values[k])
+        return _evaluate(self.times, self.values, self.linear, t)
 
     def sample(self, t: Array) -> Array:
         """Values at the times ``t (N,)`` s -> ``(N,)``."""
@@ -91,7 +83,8 @@ class Profile(eqx.Module):
         nearest = jnp.round(position)
         tol = 1e-3 + 8.0 * jnp.finfo(position.dtype).eps * jnp.abs(position)
         snap = jnp.where(jnp.abs(position - nearest) <= tol, nearest - position, 0.0)
-        return jax.vmap(Profile(position + jax.lax.stop_gradient(snap), self.values, self.linear))(k)
+        grid = position + jax.lax.stop_gradient(snap)
+        return jax.vmap(lambda x: _evaluate(grid, self.values, self.linear, x))(k)
 
     def padded(self, K: int) -> "Profile":
         """The same profile with ``K`` breakpoints (the last one repeated, held)."""
@@ -104,6 +97,19 @@ class Profile(eqx.Module):
             pad(self.values, self.values[-1]),
             pad(self.linear, 0.0),
         )
+
+
+def _evaluate(times: Array, values: Array, linear: Array, t) -> Array:
+    """A profile's value at ``t`` (in the units of ``times``): held or interpolated segment by segment."""
+    K = times.shape[-1]
+    k = jnp.clip(jnp.searchsorted(times, t, side="right") - 1, 0, K - 1)
+    k1 = jnp.minimum(k + 1, K - 1)
+    t0, t1 = times[k], times[k1]
+    span = t1 - t0
+    has_span = span > 0
+    frac = jnp.where(has_span, (t - t0) / jnp.where(has_span, span, 1.0), 0.0)
+    frac = jnp.clip(frac, 0.0, 1.0)
+    return values[k] + linear[k] * frac * (values[k1] - values[k])
 
 
 def _zero() -> Profile:
