@@ -19,6 +19,7 @@ from pmsmjax import Profile, Scenario, presets
 from pmsmjax.estimators import Encoder, ExactSensor
 from pmsmjax.frames import abc_to_alpha_beta
 from pmsmjax.inverters.averaged import phase_voltages
+from pmsmjax.simulate import period_inputs
 
 TS = 1e-4
 
@@ -67,10 +68,10 @@ def test_exact_sensor_estimate_is_the_plant(book):
 def test_sample_holds_what_was_applied(book):
     """The sampled 'last voltage' is the period average the averaged bridge applied in the last period."""
     drive, scenario = book
-    xs = pmsmjax.simulate.__globals__["period_inputs"](scenario, drive.Ts)
+    xs = period_inputs(scenario, drive.Ts)
     state = drive.init()
     for k in range(5):
-        x = jax.tree.map(lambda a: a[k], xs)
+        x = jax.tree.map(lambda a, k=k: a[k], xs)
         duties_applied = state.pending_duties
         _, u_ab_bridge = drive.bridge.advance(
             drive.machine, state.machine, duties_applied, x.load_torque, drive.Ts, drive.n_substeps
