@@ -28,7 +28,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .drive import Drive
-from .frames import abc_to_alpha_beta, alpha_beta_to_abc, dq_to_abc
+from .frames import alpha_beta_to_abc, dq_to_abc
+from .intra_period import dense_window
 from .inverters import (
     SVPWM,
     AveragedBridge,
@@ -36,10 +37,7 @@ from .inverters import (
     SinusoidalPWM,
     SwitchingBridge,
     ThirdHarmonicPWM,
-    phase_voltages,
 )
-from .machines.base import MachineInput, MachineState
-from .machines.integrate import advance
 from .presets import book_drive, book_scenario
 from .scenarios import Profile, Scenario
 from .simulate import period_inputs, simulate
@@ -110,22 +108,6 @@ def steady_state(drive: Drive, settings: CompareSettings):
     return run(drive, drive.init(), xs)
 
 
-@eqx.filter_jit
-def _dense_switching(drive: Drive, states: MachineState, duties, load, n_samples: int):
-    sample = lambda s, d, L: drive.bridge.sample_period(drive.machine, s, d, L, drive.Ts, n_samples)
-    return jax.vmap(sample)(states, duties, load)
-
-
-@eqx.filter_jit
-def _dense_averaged(drive: Drive, states: MachineState, duties, load, n_samples: int):
-    def one(s, d, L):
-        u_ab = abc_to_alpha_beta(phase_voltages(d, drive.bridge.u_dc))
-        step = lambda x, _: (advance(drive.machine, x, MachineInput(u_ab, L), drive.Ts / n_samples, 1),) * 2
-        return jax.lax.scan(step, s, None, length=n_samples)[1], u_ab
-
-    return jax.vmap(one)(states, duties, load)
-
-
 def run_variant(drive: Drive, start, settings: CompareSettings, per_cycle: int) -> dict:
     """Simulate one variant from ``start`` and return its window's waveforms (NumPy).
 
@@ -142,17 +124,7 @@ def run_variant(drive: Drive, start, settings: CompareSettings, per_cycle: int) 
     trace = simulate(drive, scenario, initial_state=start)
     window = jax.tree.map(lambda x: x[n_settle:], trace)
     machine = drive.machine
-    states = MachineState(
-        jax.vmap(machine.currents_from_dq)(window.i_dq, window.theta_e), window.omega_m, window.theta_e
-    )
-    if isinstance(drive.bridge, SwitchingBridge):
-        dense, times, u_ab = _dense_switching(drive, states, window.duties, window.load_torque, M)
-        t_u = (np.arange(n_window)[:, None] * Ts + np.asarray(times)[:, :-1]).ravel()
-        u_ab = np.asarray(u_ab).reshape(-1, 2)
-    else:
-        dense, u_ab = _dense_averaged(drive, states, window.duties, window.load_torque, M)
-        t_u, u_ab = np.arange(n_window) * Ts, np.asarray(u_ab)
-    t_u = np.append(t_u, n_window * Ts)
+    dense, t_u, u_ab = dense_window(drive, window, M)
     i_abc = dq_to_abc(jax.vmap(jax.vmap(machine.currents_dq))(dense), dense.theta_e)
     return {
         "t_i": (np.arange(n_window * M) + 1) * Ts / M,

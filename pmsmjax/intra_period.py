@@ -1,0 +1,59 @@
+"""The trajectory inside control periods: uniform samples between the period starts a Trace records.
+
+A Trace holds the state at each period start only. With centre-aligned PWM those instants sit at the
+middle of the current ripple, so ripple, spectra and torque ripple need the trajectory in between. It is
+recomputed here from each period's recorded start state and applied duties (the same model, so the same
+trajectory the simulation followed): segment by segment for the switching-resolved bridge
+(:meth:`SwitchingBridge.sample_period`), in equal held-voltage steps for the averaged bridge.
+"""
+
+import equinox as eqx
+import jax
+import numpy as np
+
+from .drive import Drive
+from .frames import abc_to_alpha_beta
+from .inverters.averaged import phase_voltages
+from .inverters.switching import SwitchingBridge
+from .machines.base import MachineInput, MachineState
+from .machines.integrate import advance
+from .trace import Trace
+
+
+@eqx.filter_jit
+def _dense_switching(drive: Drive, states: MachineState, duties, load, n_samples: int):
+    sample = lambda s, d, L: drive.bridge.sample_period(drive.machine, s, d, L, drive.Ts, n_samples)
+    return jax.vmap(sample)(states, duties, load)
+
+
+@eqx.filter_jit
+def _dense_averaged(drive: Drive, states: MachineState, duties, load, n_samples: int):
+    def one(s, d, L):
+        u_ab = abc_to_alpha_beta(phase_voltages(d, drive.bridge.u_dc))
+        step = lambda x, _: (advance(drive.machine, x, MachineInput(u_ab, L), drive.Ts / n_samples, 1),) * 2
+        return jax.lax.scan(step, s, None, length=n_samples)[1], u_ab
+
+    return jax.vmap(one)(states, duties, load)
+
+
+def dense_window(drive: Drive, window: Trace, n_samples: int):
+    """Sample each recorded period of ``window`` (an undecimated slice of a trace of ``drive``) at
+    ``t_k + j Ts / n_samples``, j = 1..n_samples.
+
+    **Returns** ``(states, t_u, u_ab)``: a :class:`MachineState` of ``(N, n_samples)`` leaves; the bounds
+    ``(K+1,)`` s (from the window start) and ``(K, 2)`` stator voltages V of the piecewise-constant
+    applied voltage (one interval per period for the averaged bridge, the switching segments otherwise).
+    """
+    machine, Ts = drive.machine, drive.Ts
+    n = window.t.shape[0]
+    states = MachineState(
+        jax.vmap(machine.currents_from_dq)(window.i_dq, window.theta_e), window.omega_m, window.theta_e
+    )
+    if isinstance(drive.bridge, SwitchingBridge):
+        dense, times, u_ab = _dense_switching(drive, states, window.duties, window.load_torque, n_samples)
+        t_u = (np.arange(n)[:, None] * Ts + np.asarray(times)[:, :-1]).ravel()
+        u_ab = np.asarray(u_ab).reshape(-1, 2)
+    else:
+        dense, u_ab = _dense_averaged(drive, states, window.duties, window.load_torque, n_samples)
+        t_u, u_ab = np.arange(n) * Ts, np.asarray(u_ab)
+    return dense, np.append(t_u, n * Ts), u_ab
