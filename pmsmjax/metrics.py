@@ -96,3 +96,19 @@ def peak_phase_current(i_abc: Array) -> Array:
 def rms_phase_current(i_abc: Array) -> Array:
     """RMS phase current (A) over the record, averaged over the three phases."""
     return jnp.sqrt(jnp.mean(i_abc * i_abc, axis=(-2, -1)))
+
+
+def switching_frequency_hz(duties: Array, Ts: float) -> Array:
+    """Mean switching frequency of the legs, Hz, comparable with a PWM carrier frequency.
+
+    ``duties (N, n)`` are the legs' duties over ``N`` periods of ``Ts`` s: centre-aligned pulses (a leg
+    with ``0 < d < 1`` switches on and off once each in its period, and is low at both period ends unless
+    ``d = 1``) or switch states held over the period (0 or 1: a leg switches only where its state
+    changes between periods). Transitions per leg per second, halved: one on-off pair is one switching
+    period, so a carrier-based PWM at 10 kHz reads 10 kHz.
+    """
+    inside = 2.0 * jnp.sum((duties > 0.0) & (duties < 1.0), axis=(-2, -1))
+    high = duties >= 1.0
+    boundary = jnp.sum(high[..., 1:, :] != high[..., :-1, :], axis=(-2, -1))
+    n_periods, n_legs = duties.shape[-2], duties.shape[-1]
+    return (inside + boundary) / (2.0 * n_legs * n_periods * Ts)

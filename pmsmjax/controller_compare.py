@@ -1,0 +1,174 @@
+"""Controllers side by side on the book scenario (BOOK.md chapter 3; later chapters add their methods).
+
+Every controller drives the same motor through the same scenario (speed step from rest, load step). The
+step and load figures come from :func:`pmsmjax.summary.speed_step_summary`; the ripple figures from the
+last ``window_cycles`` whole electrical periods of the run (steady state under load):
+
+- current THD of phase a up to ``thd_max_frequency_hz`` (:mod:`pmsmjax.spectra`), from uniform samples
+  of the trajectory *inside* each period (:func:`pmsmjax.intra_period.dense_window`);
+- torque ripple: RMS and peak-to-peak of the electromagnetic torque about its window mean, same samples;
+- mean switching frequency of the legs (:func:`pmsmjax.metrics.switching_frequency_hz`).
+
+Voltage-commanding controllers run on the switching-resolved bridge by default (``bridge="switching"``):
+with the averaged bridge the PWM ripple is not in the model, and its THD and torque ripple would read
+near zero next to the hysteresis controller's, which switches in the model itself.
+"""
+
+import dataclasses
+import math
+
+import equinox as eqx
+import jax
+import numpy as np
+
+from . import metrics, presets
+from .drive import Drive
+from .intra_period import dense_window
+from .inverters.switching import SwitchingBridge
+from .machines.motor import PMSMParameters
+from .simulate import check_simulation, simulate
+from .spectra import sampled_spectrum, thd
+from .summary import speed_step_summary
+from .validation import ParameterError
+
+#: Control name -> the preset building its drive (``preset(motor) -> Drive``); later chapters add theirs.
+CONTROLS = {"pi": "book_drive"}
+
+SUMMARY_KEYS = {
+    "rise_time_s": "rise_time_s",
+    "overshoot_pct": "overshoot_pct",
+    "dip_rpm": "speed_dip_rpm",
+    "recovery_time_s": "recovery_time_s",
+    "itae": "itae_rad_s",
+    "final_speed_rpm": "final_speed_rpm",
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class ControllerCompareSettings:
+    """The scenario and the analysis.
+
+    - `speed_rpm`, `load_nm`, `load_time_s`, `duration_s`: the book scenario (speed step at 0, load step).
+    - `window_cycles`: whole electrical periods at the end of the run analysed for ripple and THD.
+    - `sample_rate_hz`: intra-period sampling rate of the ripple analysis (at least one sample a period).
+    - `thd_max_frequency_hz`: THD includes components up to this frequency (4 x the book's 10 kHz).
+    - `bridge`: ``"switching"`` (segment-exact) or ``"averaged"`` for voltage-commanding controllers.
+    """
+
+    speed_rpm: float = 1000.0
+    load_nm: float = 10.0
+    load_time_s: float = 0.2
+    duration_s: float = 0.4
+    window_cycles: int = 2
+    sample_rate_hz: float = 320e3
+    thd_max_frequency_hz: float = 40e3
+    bridge: str = "switching"
+
+    def check(self) -> None:
+        if self.bridge not in ("switching", "averaged"):
+            raise ParameterError(f"bridge must be 'switching' or 'averaged', got {self.bridge!r}.")
+        if self.speed_rpm <= 0:
+            raise ParameterError(f"speed_rpm must be > 0 for a ripple window, got {self.speed_rpm}.")
+        if not 0 < self.load_time_s < self.duration_s:
+            raise ParameterError(
+                f"load_time_s = {self.load_time_s} s must lie inside the run (0, {self.duration_s}) s."
+            )
+        if self.sample_rate_hz < 2.5 * self.thd_max_frequency_hz:
+            raise ParameterError(
+                f"sample_rate_hz = {self.sample_rate_hz:g} must exceed 2.5 x thd_max_frequency_hz "
+                f"({self.thd_max_frequency_hz:g} Hz) so the spectrum reaches it."
+            )
+
+
+def control_drive(name: str, motor: PMSMParameters | None = None, bridge: str = "averaged") -> Drive:
+    """The drive of control ``name`` (a key of :data:`CONTROLS`) for ``motor``, on ``bridge``."""
+    if name not in CONTROLS:
+        raise ParameterError(f"unknown control {name!r}: choose from {', '.join(CONTROLS)}.")
+    drive = getattr(presets, CONTROLS[name])(motor)
+    if bridge == "switching" and drive.controller.command_kind == "voltage":
+        drive = eqx.tree_at(lambda d: d.bridge, drive, SwitchingBridge(drive.bridge.u_dc))
+    return drive
+
+
+def window_periods(drive: Drive, settings: ControllerCompareSettings) -> int:
+    """Control periods in ``window_cycles`` electrical periods (must be whole)."""
+    f1 = settings.speed_rpm / 60.0 * drive.machine.motor.pole_pairs
+    periods = settings.window_cycles / (f1 * drive.Ts)
+    if abs(periods - round(periods)) > 1e-6 * periods:
+        raise ParameterError(
+            f"{settings.window_cycles} electrical periods at {settings.speed_rpm} r/min are not a whole "
+            f"number of control periods ({drive.Ts * 1e6:g} us): choose a speed whose electrical period is a "
+            "multiple of Ts (1000 r/min with 4 pole pairs: 15 ms)."
+        )
+    return int(round(periods))
+
+
+def run_control(name: str, drive: Drive, settings: ControllerCompareSettings) -> dict:
+    """Simulate one controller; returns its figures, its trace and its ripple window (NumPy)."""
+    scenario = presets.book_scenario(
+        settings.speed_rpm, settings.load_nm, settings.load_time_s, settings.duration_s
+    )
+    check_simulation(drive, scenario)
+    n_window = window_periods(drive, settings)
+    trace = jax.block_until_ready(simulate(drive, scenario))
+    limit = float(drive.controller.current_limit)
+    summary = speed_step_summary(trace, load_time_s=settings.load_time_s, current_limit_a=limit)
+
+    window = jax.tree.map(lambda x: x[-n_window:], trace)
+    per_period = max(1, math.ceil(settings.sample_rate_hz * drive.Ts))
+    dense, _, _ = dense_window(drive, window, per_period)
+    machine = drive.machine
+    flat = jax.tree.map(lambda x: x.reshape((-1,) + x.shape[2:]), dense)
+    i_abc = np.asarray(jax.vmap(machine.phase_currents)(flat))
+    torque = np.asarray(jax.vmap(machine.electromagnetic_torque)(flat))
+    window_s = n_window * drive.Ts
+    n_max = int(settings.thd_max_frequency_hz * window_s)
+    spectrum = sampled_spectrum(i_abc[:, 0], window_s, settings.window_cycles, n_max)
+    entry = {key: summary[src] for key, src in SUMMARY_KEYS.items()}
+    entry.update(
+        {
+            "peak_current_a": float(max(np.abs(i_abc).max(), np.abs(np.asarray(trace.i_abc)).max())),
+            "current_thd_pct": 100.0 * float(thd(spectrum, settings.thd_max_frequency_hz)),
+            "switching_frequency_hz": float(metrics.switching_frequency_hz(window.duties, drive.Ts)),
+            "torque_ripple_nm": float(np.std(torque)),
+            "torque_ripple_pp_nm": float(np.ptp(torque)),
+            "mean_torque_nm": float(np.mean(torque)),
+            "current_limit_a": limit,
+            "control_period_s": drive.Ts,
+            "command": drive.controller.command_kind,
+            "bridge": type(drive.bridge).__name__,
+        }
+    )
+    t_window = (np.arange(i_abc.shape[0]) + 1) * (drive.Ts / per_period)
+    return {"entry": entry, "trace": trace, "window": {"t": t_window, "i_abc": i_abc, "torque": torque}}
+
+
+def compare_controllers(
+    names, motor: PMSMParameters | None = None, settings=ControllerCompareSettings(), progress=None
+) -> dict:
+    """Run each named controller (keys of :data:`CONTROLS`) on the book scenario.
+
+    Returns ``{"settings", "controllers": name -> figures, "traces": name -> Trace, "windows": name ->
+    {t, i_abc, torque}}``; `progress`: optional callable taking a line per controller.
+    """
+    settings.check()
+    unknown = [n for n in names if n not in CONTROLS]
+    if unknown:
+        raise ParameterError(f"unknown controls {unknown}: choose from {', '.join(CONTROLS)}.")
+    drives = {name: control_drive(name, motor, settings.bridge) for name in names}
+    for drive in drives.values():  # every check before the first compile
+        window_periods(drive, settings)
+    result = {"settings": dataclasses.asdict(settings), "controllers": {}, "traces": {}, "windows": {}}
+    for name, drive in drives.items():
+        run = run_control(name, drive, settings)
+        result["controllers"][name] = run["entry"]
+        result["traces"][name] = run["trace"]
+        result["windows"][name] = run["window"]
+        if progress:
+            e = run["entry"]
+            progress(
+                f"{name:12s} rise {1e3 * e['rise_time_s']:6.1f} ms  dip {e['dip_rpm']:6.1f} r/min  "
+                f"THD {e['current_thd_pct']:5.2f} %  f_sw {1e-3 * e['switching_frequency_hz']:5.1f} kHz  "
+                f"T ripple {e['torque_ripple_nm']:.3f} N m"
+            )
+    return result
