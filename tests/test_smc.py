@@ -333,8 +333,9 @@ def random_draws(n, seed=0):
     return {k: jnp.asarray(v) for k, v in dict(c=c, eps=eps, q=q, boundary=boundary).items()}
 
 
+@pytest.mark.slow
 def test_gradients_finite_for_1000_random_draws():
-    """1000 random valid designs in one vmapped reverse pass on the shortened scenario.
+    """1000 random valid designs in one vmapped reverse pass on the shortened scenario (26 s on 2 cores).
 
     Every value and gradient (w.r.t. c, eps, q and boundary) is finite; two draws are checked against
     single unbatched runs.
@@ -352,6 +353,4 @@ def test_gradients_finite_for_1000_random_draws():
         v, g = single({k: x[i] for k, x in draws.items()})
         assert float(v) == pytest.approx(values[i], rel=1e-10)
         for k in draws:
-            assert float(g[k]) == pytest.approx(
-                float(grads[k][i]), rel=1e-8, abs=1e-12 * abs(float(g[k])) + 1e-30
-            )
+            assert float(g[k]) == pytest.approx(float(grads[k][i]), rel=1e-8), (i, k)
