@@ -9,6 +9,7 @@ Quantities that are undefined for a given signal (never rises, never settles) ar
 import jax.numpy as jnp
 
 from ._types import Array
+from .validation import ParameterError
 
 
 def _dt(t: Array) -> Array:
@@ -112,3 +113,40 @@ def switching_frequency_hz(duties: Array, Ts: float) -> Array:
     boundary = jnp.sum(high[..., 1:, :] != high[..., :-1, :], axis=(-2, -1))
     n_periods, n_legs = duties.shape[-2], duties.shape[-1]
     return (inside + boundary) / (2.0 * n_legs * n_periods * Ts)
+
+
+def ripple_about_moving_mean(y: Array, window: int) -> Array:
+    """Deviation of ``y (..., N)`` from its centred ``window``-sample moving mean: ``(..., N - window + 1)``.
+
+    ``window`` (static int, odd for exact centring) should span several periods of the ripple and be short
+    beside the slow trends it removes: a 101-sample window at 10 kHz (10 ms) spans four periods of the
+    420 Hz sign-law chattering of the book SMC drive, and leaves of a 20 ms exponential decay a residual of
+    ``sinh(W/2 tau)/(W/2 tau) - 1`` = 1 % of its local value (W = 10 ms, tau = 20 ms). The mean is a
+    difference of cumulative sums of ``y - mean(y)`` (centred first, so float32 records of large offsets
+    keep their precision).
+    """
+    n = y.shape[-1]
+    if not isinstance(window, int) or not 1 <= window <= n:
+        raise ParameterError(f"window must be an int in [1, {n}] samples, got {window!r}.")
+    z = y - jnp.mean(y, axis=-1, keepdims=True)
+    cs = jnp.cumsum(z, axis=-1)
+    cs = jnp.concatenate([jnp.zeros(cs.shape[:-1] + (1,), cs.dtype), cs], axis=-1)
+    moving_mean = (cs[..., window:] - cs[..., :-window]) / window
+    half = (window - 1) // 2
+    return z[..., half : half + n - window + 1] - moving_mean
+
+
+def current_ripple_rms_a(i: Array, window: int) -> Array:
+    """RMS (A) of a current (e.g. the speed loop's ``i_q*``) about its moving mean: the chattering metric.
+
+    `i`: ``(..., N)`` samples, A, taken in steady state (the caller slices the window); `window`: moving
+    mean length in samples (see :func:`ripple_about_moving_mean`).
+    """
+    dev = ripple_about_moving_mean(i, window)
+    return jnp.sqrt(jnp.mean(dev * dev, axis=-1))
+
+
+def current_ripple_peak_to_peak_a(i: Array, window: int) -> Array:
+    """Peak-to-peak (A) of a current about its moving mean (see :func:`current_ripple_rms_a`)."""
+    dev = ripple_about_moving_mean(i, window)
+    return jnp.max(dev, axis=-1) - jnp.min(dev, axis=-1)

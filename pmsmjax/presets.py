@@ -8,8 +8,11 @@ J = 0.003 kg m^2, B = 0.008 N m s; the salient variant for HF injection has L_q 
 import sys
 from pathlib import Path
 
+import equinox as eqx
+
 from .controllers.design import current_loop_imc, speed_loop_active_damping
 from .controllers.foc import FOC
+from .controllers.smc import smc_design
 from .drive import Drive
 from .inverters.averaged import AveragedBridge
 from .inverters.svpwm import SVPWM
@@ -100,6 +103,40 @@ def book_drive(
         n_substeps=n_substeps,
         computation_delay=computation_delay,
     )
+
+
+def smc_drive(
+    motor: PMSMParameters | None = None,
+    *,
+    switching: str = "sign",
+    time_constant_s: float = 0.02,
+    reaching_ratio: float = 5.0,
+    load_torque_rate_nm_s: float = 1000.0,
+    margin: float = 1.2,
+    **drive_kw,
+) -> Drive:
+    """The book's FOC drive (:func:`book_drive`) with the sliding-mode speed block (BOOK.md chapter 3).
+
+    ``drive_kw`` go to :func:`book_drive` (frame, Ts, current_limit, current_bandwidth, ...; the
+    ``speed_bandwidth`` there is unused). The sliding-mode gains follow
+    :func:`pmsmjax.controllers.smc.smc_design` from the same motor, current limit, current-loop bandwidth
+    and speed-loop period: defaults c = 50 1/s (20 ms surface time constant), q = 250 1/s,
+    eps = 4.2e5 rad/s^3 (10 N m in 10 ms plus friction, 20 % margin), boundary 1.39e3 rad/s^2.
+    """
+    motor = book_motor() if motor is None else motor
+    drive = book_drive(motor, **drive_kw)
+    speed = smc_design(
+        motor,
+        time_constant_s,
+        reaching_ratio=reaching_ratio,
+        load_torque_rate_nm_s=load_torque_rate_nm_s,
+        current_limit_a=drive_kw.get("current_limit", BOOK_CURRENT_LIMIT),
+        current_bandwidth_rad_s=drive_kw.get("current_bandwidth", BOOK_CURRENT_BANDWIDTH),
+        Ts=drive.Ts * drive.controller.speed_divider,
+        margin=margin,
+        switching=switching,
+    )
+    return eqx.tree_at(lambda d: d.controller.speed, drive, speed)
 
 
 def book_scenario(

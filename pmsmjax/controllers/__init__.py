@@ -1,4 +1,5 @@
-"""Controllers: the controller interfaces, discrete PI, design rules and cascaded FOC with its blocks."""
+"""Controllers: the controller interfaces, discrete PI, design rules and cascaded FOC with its blocks
+(PI and sliding-mode speed loops)."""
 
 from .base import (
     AbstractController,
@@ -16,6 +17,7 @@ from .design import (
 )
 from .foc import FOC, FOCState
 from .pi import clip_magnitude, clip_symmetric, pi_update
+from .smc import SlidingModeSpeed, SlidingModeState, smc_design, switching_function
 
 __all__ = [
     "FOC",
@@ -26,11 +28,15 @@ __all__ = [
     "AbstractSpeedController",
     "CurrentLoopContext",
     "CurrentLoopGains",
+    "SlidingModeSpeed",
+    "SlidingModeState",
     "SpeedLoopGains",
     "clip_magnitude",
     "clip_symmetric",
     "current_loop_imc",
     "first_order_rise_time",
     "pi_update",
+    "smc_design",
     "speed_loop_active_damping",
+    "switching_function",
 ]
