@@ -9,6 +9,7 @@ Quantities that are undefined for a given signal (never rises, never settles) ar
 import jax.numpy as jnp
 
 from ._types import Array
+from .frames import dq_to_abc
 
 
 def _dt(t: Array) -> Array:
@@ -96,3 +97,47 @@ def peak_phase_current(i_abc: Array) -> Array:
 def rms_phase_current(i_abc: Array) -> Array:
     """RMS phase current (A) over the record, averaged over the three phases."""
     return jnp.sqrt(jnp.mean(i_abc * i_abc, axis=(-2, -1)))
+
+
+# --- switching controllers (hysteresis current control, table DTC) ----------------------------------------
+
+
+def mean_switching_frequency_hz(t: Array, switch_states: Array) -> Array:
+    """Mean switching frequency, Hz: transitions per leg per second, divided by 2.
+
+    ``switch_states (N, n)``: the leg states applied in each period (``trace.duties`` of an undecimated
+    trace of a switching controller; a decimated trace misses transitions); ``t (N,)`` s. A transition
+    is a change of a leg's state between consecutive periods, counted as ``|s[k+1] - s[k]|`` (the total
+    variation, so a smooth surrogate's fractional states count fractionally). The halving makes it
+    comparable with a PWM carrier frequency: a PWM leg switches on and off once per carrier period,
+    i.e. two transitions per period.
+    """
+    transitions = jnp.sum(jnp.abs(jnp.diff(switch_states, axis=-2)), axis=(-2, -1))
+    n_legs = switch_states.shape[-1]
+    return transitions / (n_legs * (t[..., -1] - t[..., 0])) / 2.0
+
+
+def reference_phase_currents(i_dq_ref: Array, theta_e_est: Array) -> Array:
+    """``(N, 3)`` reference phase currents, A, from ``i_dq_ref (N, 2)`` A and the controller's
+    (estimated) electrical angle ``theta_e_est (N,)`` rad: what a hysteresis controller compares with.
+
+    From a trace: ``reference_phase_currents(trace.i_dq_ref, trace.theta_e_est)``.
+    """
+    return dq_to_abc(i_dq_ref, theta_e_est)
+
+
+def current_ripple_rms_a(i_abc: Array, i_abc_ref: Array) -> Array:
+    """RMS of the phase-current error ``i_abc - i_abc_ref`` (A) over the record and the phases.
+
+    ``i_abc, i_abc_ref (N, 3)`` A; pass a steady-state window (e.g. ``trace[k0:]``). It includes any mean
+    tracking error as well as the ripple (hysteresis control has almost none). With switch states held
+    between samples the current is nearly linear between samples, so its extremes lie on the samples
+    and sampled records resolve the ripple.
+    """
+    err = i_abc - i_abc_ref
+    return jnp.sqrt(jnp.mean(err * err, axis=(-2, -1)))
+
+
+def current_ripple_peak_a(i_abc: Array, i_abc_ref: Array) -> Array:
+    """Largest absolute phase-current error ``|i_abc - i_abc_ref|`` (A) over the record and the phases."""
+    return jnp.max(jnp.abs(i_abc - i_abc_ref), axis=(-2, -1))

@@ -1,4 +1,5 @@
-"""Controllers: the controller interfaces, discrete PI, design rules and cascaded FOC with its blocks."""
+"""Controllers: the controller interfaces, discrete PI, design rules, cascaded FOC with its blocks, and
+hysteresis current control."""
 
 from .base import (
     AbstractController,
@@ -15,11 +16,14 @@ from .design import (
     speed_loop_active_damping,
 )
 from .foc import FOC, FOCState
+from .hysteresis import HysteresisCurrentControl, HysteresisState, hysteresis_comparator
 from .pi import clip_magnitude, clip_symmetric, pi_update
 
 __all__ = [
     "FOC",
     "FOCState",
+    "HysteresisCurrentControl",
+    "HysteresisState",
     "AbstractController",
     "AbstractCurrentController",
     "AbstractDAxisReference",
@@ -31,6 +35,7 @@ __all__ = [
     "clip_symmetric",
     "current_loop_imc",
     "first_order_rise_time",
+    "hysteresis_comparator",
     "pi_update",
     "speed_loop_active_damping",
 ]
