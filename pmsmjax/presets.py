@@ -141,12 +141,13 @@ def hysteresis_drive(
       1/550 of the winding time constant, so its local error is below 1e-12 relative;
       tests/test_hysteresis.py checks the switch sequence and currents against scipy ``solve_ivp`` at
       rtol 1e-10.
-    - `band_a` = 0.5 A: at 10 us sampling it switches at 11-14 kHz per leg (transitions / 2) through the
-      book scenario, about the 10 kHz carrier of :func:`book_drive`, so the two are compared at about
-      equal switching losses; it keeps the phase-current error within 0.8 A peak (0.23 A RMS) at
-      1000 r/min with 10 N m. It is also about the narrowest band that still sets the ripple: one 10 us
-      sample moves the current by up to 0.6 A at that point, and below about 0.5 A the sampling takes
-      over (0.25 A: 1.8x the switching frequency of 0.5 A instead of 2x, peak error twice the band).
+    - `band_a` = 0.5 A: at 10 us sampling it switches at 12 kHz per leg on average (transitions / 2;
+      11-14 kHz in the phases of the book scenario), about the 10 kHz carrier of :func:`book_drive`, so
+      the two are compared at about equal switching losses; it keeps the phase-current error within
+      0.8 A peak (0.23 A RMS) at 1000 r/min with 10 N m. It is also about the narrowest band that still
+      sets the ripple: one 10 us sample moves the current by up to 0.6 A at that point, and below about
+      0.5 A the sampling takes over (0.25 A: 1.8x the switching frequency of 0.5 A instead of 2x, peak
+      error twice the band).
     - `computation_delay` = False: hysteresis comparators are analog circuits or FPGA logic whose
       latency (well under 1 us) is small next to the sample, so a state acts from the sample that chose
       it. A DSP-style one-sample delay (``True``) lets the current run on for one more sample past the

@@ -428,3 +428,26 @@ def test_smooth_surrogate_gradient_matches_finite_differences():
         print(f"\nd/d{name}: grad {g:.9e}, central difference {float(fd):.9e}")
         assert math.isfinite(g) and g != 0.0
         assert g == pytest.approx(float(fd), rel=1e-4), name
+
+
+# --- the benchmark's quick run ------------------------------------------------------------------------------
+
+
+def test_benchmark_quick_run_reports_every_figure():
+    """benchmarks/bench_hysteresis.py at its quick sizes: every figure present, positive and finite.
+
+    Timings are never asserted (quick-size timings mean nothing); the table must format.
+    """
+    from benchmarks import bench_hysteresis
+
+    r = bench_hysteresis.run(quick=True)
+    assert all(k in r for k in bench_hysteresis.REQUIRED_KEYS)
+    for row in r["operating"]:
+        for key in ("switching_frequency_khz", "ripple_rms_a", "ripple_peak_a"):
+            assert math.isfinite(row[key]) and row[key] > 0, (key, row)
+    for variants in r["cost"].values():
+        assert set(variants) == {"pi_10khz", "hysteresis_10us"}
+        for v in variants.values():
+            assert all(math.isfinite(x) and x >= 0 for x in v.values() if isinstance(x, float))
+            assert v["run_s"] > 0
+    assert "hysteresis_10us" in bench_hysteresis.format_table(r)
