@@ -32,7 +32,7 @@ from .summary import speed_step_summary
 from .validation import ParameterError
 
 #: Control name -> the preset building its drive (``preset(motor) -> Drive``); later chapters add theirs.
-CONTROLS = {"pi": "book_drive", "smc": "smc_drive"}
+CONTROLS = {"pi": "book_drive", "smc": "smc_drive", "hysteresis": "hysteresis_drive"}
 
 SUMMARY_KEYS = {
     "rise_time_s": "rise_time_s",

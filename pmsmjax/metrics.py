@@ -9,6 +9,7 @@ Quantities that are undefined for a given signal (never rises, never settles) ar
 import jax.numpy as jnp
 
 from ._types import Array
+from .frames import dq_to_abc
 from .validation import ParameterError
 
 
@@ -150,3 +151,32 @@ def current_ripple_peak_to_peak_a(i: Array, window: int) -> Array:
     """Peak-to-peak (A) of a current about its moving mean (see :func:`current_ripple_rms_a`)."""
     dev = ripple_about_moving_mean(i, window)
     return jnp.max(dev, axis=-1) - jnp.min(dev, axis=-1)
+
+
+# --- current tracking of switching controllers (hysteresis current control, table DTC) --------------------
+
+
+def reference_phase_currents(i_dq_ref: Array, theta_e_est: Array) -> Array:
+    """``(N, 3)`` reference phase currents, A, from ``i_dq_ref (N, 2)`` A and the controller's
+    (estimated) electrical angle ``theta_e_est (N,)`` rad: what a hysteresis controller compares with.
+
+    From a trace: ``reference_phase_currents(trace.i_dq_ref, trace.theta_e_est)``.
+    """
+    return dq_to_abc(i_dq_ref, theta_e_est)
+
+
+def current_error_rms_a(i_abc: Array, i_abc_ref: Array) -> Array:
+    """RMS of the phase-current error ``i_abc - i_abc_ref`` (A) over the record and the phases.
+
+    ``i_abc, i_abc_ref (N, 3)`` A; pass a steady-state window (e.g. ``trace[k0:]``). It includes any mean
+    tracking error as well as the ripple (hysteresis control has almost none). With switch states held
+    between samples the current is nearly linear between samples, so its extremes lie on the samples
+    and sampled records resolve the ripple.
+    """
+    err = i_abc - i_abc_ref
+    return jnp.sqrt(jnp.mean(err * err, axis=(-2, -1)))
+
+
+def current_error_peak_a(i_abc: Array, i_abc_ref: Array) -> Array:
+    """Largest absolute phase-current error ``|i_abc - i_abc_ref|`` (A) over the record and the phases."""
+    return jnp.max(jnp.abs(i_abc - i_abc_ref), axis=(-2, -1))

@@ -1,5 +1,5 @@
-"""Controllers: the controller interfaces, discrete PI, design rules and cascaded FOC with its blocks
-(PI and sliding-mode speed loops)."""
+"""Controllers: the controller interfaces, discrete PI, design rules, cascaded FOC with its blocks (PI and
+sliding-mode speed loops), and hysteresis current control."""
 
 from .base import (
     AbstractController,
@@ -16,12 +16,15 @@ from .design import (
     speed_loop_active_damping,
 )
 from .foc import FOC, FOCState
+from .hysteresis import HysteresisCurrentControl, HysteresisState, hysteresis_comparator
 from .pi import clip_magnitude, clip_symmetric, pi_update
 from .smc import SlidingModeSpeed, SlidingModeState, smc_design, switching_function
 
 __all__ = [
     "FOC",
     "FOCState",
+    "HysteresisCurrentControl",
+    "HysteresisState",
     "AbstractController",
     "AbstractCurrentController",
     "AbstractDAxisReference",
@@ -35,6 +38,7 @@ __all__ = [
     "clip_symmetric",
     "current_loop_imc",
     "first_order_rise_time",
+    "hysteresis_comparator",
     "pi_update",
     "smc_design",
     "speed_loop_active_damping",
