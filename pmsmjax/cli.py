@@ -220,7 +220,7 @@ def _cmd_tune(args) -> int:
     # The command line is the one place where pmsmjax reaches up into the tuning workflows.
     import dataclasses
 
-    from tuning.job import DEFAULT_CONFIG, read_tune_toml, run_tune_job
+    from tuning.autotune.job import DEFAULT_CONFIG, read_tune_toml, run_tune_job
 
     kwargs = read_tune_toml(args.config) if args.config else {}
     config = kwargs.pop("config", DEFAULT_CONFIG)
@@ -439,7 +439,7 @@ def _add_montecarlo_parser(sub):
     )
     p.add_argument("--n", type=int, help="number of runs (default 1000)")
     p.add_argument("--out", default="montecarlo_out", help="output folder (created), default: montecarlo_out")
-    p.add_argument("--config", default=None, help="study TOML (see tuning/mc_study.py)")
+    p.add_argument("--config", default=None, help="study TOML (see tuning/montecarlo/study.py)")
     p.add_argument("--seed", type=int, help="sampling seed (default 0)")
     p.add_argument("--chunk-size", type=int, help="runs per chunk (default 2048)")
     p.add_argument("--latin-hypercube", action="store_true", help="Latin hypercube sampling")
@@ -456,7 +456,7 @@ def _add_montecarlo_parser(sub):
 
 def _cmd_montecarlo(args) -> int:
     # Split the CPU into one device per core before anything initialises JAX's backends.
-    from tuning.cpu_devices import split_cpu
+    from tuning.montecarlo.cpu_devices import split_cpu
 
     if args.distributed:
         import jax
@@ -464,8 +464,8 @@ def _cmd_montecarlo(args) -> int:
         jax.distributed.initialize()  # cluster settings from the environment (SLURM, Cloud TPU, ...)
     else:
         split_cpu(args.devices)
-    from tuning.mc_study import Study, read_study_toml
     from tuning.montecarlo import run_study
+    from tuning.montecarlo.study import Study, read_study_toml
 
     kwargs = read_study_toml(args.config) if args.config else {}
     for key, value in (
