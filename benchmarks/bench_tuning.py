@@ -9,7 +9,7 @@ scipy at 10 kHz), the 7 FOC gains in log-space from the design-rule gains, bound
 2. Nelder-Mead (:func:`tuning.autotune.baselines.nelder_mead`) with 2000 evaluations, and CMA-ES with the same
    budget when the optional package ``cma`` is installed: best cost, wall time, time to its best, the
    best-so-far curve against wall time;
-3. the gradient tuner (:func:`tuning.autotune.tune`) with Adam (up to 300 iterations, its default
+3. the gradient tuner (:func:`tuning.autotune.tuner.tune`) with Adam (up to 300 iterations, its default
    stopping rules) and with ``method="bfgs"`` (up to 60 iterations; its default penalty rounding, 1 %
    overshoot and 0.1 A, and a sweep of the rounding widths, exact included, to show how much the
    outcome depends on them), every iteration's exact cost timestamped through its ``callback``;

@@ -1,4 +1,4 @@
-"""Identification of motor parameters from logs (tuning/identify.py and its id_* modules).
+"""Identification of motor parameters from logs (the package tuning/identify/).
 
 The logs come from the closed-loop simulator (book drive gains designed for ID_TEST_MOTOR, 2 s at 10 kHz,
 the excitation of tuning.identify.excitation) with 1 % current and 0.5 % voltage noise; every fit here has the
