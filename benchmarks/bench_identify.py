@@ -1,8 +1,9 @@
 """Identification benchmark: accuracy, 95 % interval coverage and speed against SciPy.
 
-The log: the book drive (design-rule gains) on :data:`tuning.synthetic_log.ID_TEST_MOTOR` running
-:func:`tuning.excitation.identification_scenario` (2 s at 10 kHz), plus 1 % current and 0.5 % voltage
-noise (:func:`tuning.synthetic_log.add_noise`), one noise seed per fit. Every figure from one process:
+The log: the book drive (design-rule gains) on :data:`tuning.identify.synthetic_log.ID_TEST_MOTOR`
+running :func:`tuning.identify.excitation.identification_scenario` (2 s at 10 kHz), plus 1 % current and
+0.5 % voltage noise (:func:`tuning.identify.synthetic_log.add_noise`), one noise seed per fit. Every
+figure from one process:
 
 1. ``identify`` on seed 0: wall time of the first call (compile included) and of a second call on
    another seed (the compiled program reused), and each parameter's error against the truth;
@@ -27,11 +28,11 @@ import numpy as np
 import scipy.optimize
 
 from benchmarks.bench_core import machine_info, publish
-from tuning.excitation import identification_scenario
-from tuning.id_fit import _solve_and_linearise
-from tuning.id_log import drive_log_from_columns
 from tuning.identify import NAMES, IdentifyOptions, identify
-from tuning.synthetic_log import ID_TEST_MOTOR, add_noise, simulate_log
+from tuning.identify.excitation import identification_scenario
+from tuning.identify.fit import _solve_and_linearise
+from tuning.identify.log import drive_log_from_columns
+from tuning.identify.synthetic_log import ID_TEST_MOTOR, add_noise, simulate_log
 
 __all__ = ["run", "main", "format_table", "numpy_residuals"]
 
@@ -51,7 +52,7 @@ def _values(pmap, theta: np.ndarray) -> dict:
 
 
 def numpy_residuals(theta: np.ndarray, pmap, ed: dict, md: dict) -> np.ndarray:
-    """The residuals of :func:`tuning.id_fit.joint_residuals` in NumPy (one RK4 sub-step, no dead time).
+    """The residuals of :func:`tuning.identify.fit.joint_residuals` in NumPy (one RK4 sub-step, no dead time).
 
     `ed`, `md`: the electrical and mechanical window data as dicts of NumPy arrays.
     """

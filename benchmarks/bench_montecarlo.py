@@ -28,7 +28,7 @@ import sys
 import tempfile
 import time
 
-from tuning.cpu_devices import split_cpu
+from tuning.montecarlo.cpu_devices import split_cpu
 
 
 def _parse(argv):
@@ -49,8 +49,8 @@ def one_by_one(study, values, k: int) -> dict:
     import jax
     import numpy as np
 
-    from tuning import mc_study
-    from tuning.mc_kernel import run_metrics
+    from tuning.montecarlo import study as mc_study
+    from tuning.montecarlo.kernel import run_metrics
 
     drive = mc_study.build_drive(study)
     names = tuple(study.parameters)
@@ -112,9 +112,9 @@ def run(n: int = 10_000, chunk_size: int | None = None, k_one: int = 20, do_swee
     import numpy as np
 
     from benchmarks.bench_core import machine_info
-    from tuning import mc_study
-    from tuning.distributions import sample
     from tuning.montecarlo import run_study
+    from tuning.montecarlo import study as mc_study
+    from tuning.montecarlo.distributions import sample
 
     gpu = jax.default_backend() != "cpu"
     if chunk_size is None:

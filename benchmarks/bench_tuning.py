@@ -6,10 +6,10 @@ scipy at 10 kHz), the 7 FOC gains in log-space from the design-rule gains, bound
 (batch-mean ITAE + L1 penalties). On it:
 
 1. the design-rule cost (the common starting point);
-2. Nelder-Mead (:func:`tuning.baselines.nelder_mead`) with 2000 evaluations, and CMA-ES with the same
+2. Nelder-Mead (:func:`tuning.autotune.baselines.nelder_mead`) with 2000 evaluations, and CMA-ES with the same
    budget when the optional package ``cma`` is installed: best cost, wall time, time to its best, the
    best-so-far curve against wall time;
-3. the gradient tuner (:func:`tuning.autotune.tune`) with Adam (up to 300 iterations, its default
+3. the gradient tuner (:func:`tuning.autotune.tuner.tune`) with Adam (up to 300 iterations, its default
    stopping rules) and with ``method="bfgs"`` (up to 60 iterations; its default penalty rounding, 1 %
    overshoot and 0.1 A, and a sweep of the rounding widths, exact included, to show how much the
    outcome depends on them), every iteration's exact cost timestamped through its ``callback``;
@@ -36,7 +36,7 @@ import time
 from benchmarks.bench_core import machine_info, publish
 from pmsmjax.presets import book_drive
 from tuning.autotune import TuneConfig, tune
-from tuning.baselines import (
+from tuning.autotune.baselines import (
     BaselineResult,
     cma_available,
     cma_es,
@@ -44,9 +44,9 @@ from tuning.baselines import (
     lbfgs_b,
     nelder_mead,
 )
-from tuning.objectives import ObjectiveWeights
+from tuning.autotune.objectives import ObjectiveWeights
+from tuning.autotune.scenario_batches import make_batch
 from tuning.parameters import apply_gains
-from tuning.scenario_batches import make_batch
 
 __all__ = ["run", "main", "format_table", "time_to_reach", "REQUIRED_KEYS"]
 

@@ -1,4 +1,5 @@
-"""Derivative-free tuning baselines (tuning/baselines.py) and the tuning benchmark at its quick sizes.
+"""Derivative-free tuning baselines (tuning/autotune/baselines.py) and the tuning benchmark at its quick
+sizes.
 
 The problem is the benchmark's quick one (4 scenarios of 0.08-0.1 s, 1 sub-step), so the searches here
 and the benchmark run share their compiled cost. Timings are never asserted.
@@ -13,11 +14,11 @@ import pytest
 from benchmarks import bench_tuning
 from pmsmjax.presets import book_drive
 from pmsmjax.validation import ParameterError
-from tuning import baselines
-from tuning.baselines import cma_available, cma_es, design_rule_cost, nelder_mead
-from tuning.objectives import ObjectiveWeights, batch_cost
+from tuning.autotune import baselines
+from tuning.autotune.baselines import cma_available, cma_es, design_rule_cost, nelder_mead
+from tuning.autotune.objectives import ObjectiveWeights, batch_cost
+from tuning.autotune.scenario_batches import make_batch
 from tuning.parameters import CURRENT_GAINS, SPEED_GAINS, LogParameterisation
-from tuning.scenario_batches import make_batch
 
 EVALUATIONS = 30
 
@@ -188,7 +189,7 @@ def test_bench_tuning_quick_run_reports_every_key_with_finite_values(problem, de
 
 def test_lbfgs_b_improves_with_gradients_and_respects_bounds():
     """L-BFGS-B on JAX gradients lowers the cost in a few evaluations and stays inside the bounds."""
-    from tuning.baselines import lbfgs_b
+    from tuning.autotune.baselines import lbfgs_b
 
     drive = book_drive(n_substeps=1)
     batch = make_batch(3, 2, duration_s=(0.08, 0.1))

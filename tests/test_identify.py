@@ -1,7 +1,7 @@
-"""Identification of motor parameters from logs (tuning/identify.py and its id_* modules).
+"""Identification of motor parameters from logs (the package tuning/identify/).
 
 The logs come from the closed-loop simulator (book drive gains designed for ID_TEST_MOTOR, 2 s at 10 kHz,
-the excitation of tuning.excitation) with 1 % current and 0.5 % voltage noise; every fit here has the
+the excitation of tuning.identify.excitation) with 1 % current and 0.5 % voltage noise; every fit here has the
 same log shape, so the compiled fit is shared by the whole module.
 """
 
@@ -14,11 +14,11 @@ from pmsmjax.cli import main
 from pmsmjax.frames import dq_to_abc, inverse_park
 from pmsmjax.logs import write_csv_atomic
 from pmsmjax.validation import ParameterError
-from tuning.excitation import identification_scenario, prbs
-from tuning.id_log import drive_log_from_columns
-from tuning.id_uncertainty import interval_dof
 from tuning.identify import IdentifyOptions, identify
-from tuning.synthetic_log import ID_TEST_MOTOR, add_noise, simulate_log
+from tuning.identify.excitation import identification_scenario, prbs
+from tuning.identify.log import drive_log_from_columns
+from tuning.identify.synthetic_log import ID_TEST_MOTOR, add_noise, simulate_log
+from tuning.identify.uncertainty import interval_dof
 
 #: Accuracy the issue asks for (relative).
 TOLERANCE = {"R": 0.01, "L_d": 0.02, "L_q": 0.02, "psi_f": 0.005, "J": 0.03, "B": 0.10}
@@ -123,9 +123,9 @@ def test_rk4_at_the_log_step_matches_an_adaptive_solve():
     import jax.numpy as jnp
 
     from pmsmjax.machines import MachineInput, PMSMdq, PMSMParameters, solve_adaptive
-    from tuning import id_electrical as el
-    from tuning.id_log import DriveLog
-    from tuning.id_parameters import ParameterMap
+    from tuning.identify import electrical as el
+    from tuning.identify.log import DriveLog
+    from tuning.identify.parameters import ParameterMap
 
     with jax.enable_x64(True):
         motor = PMSMParameters(**ID_TEST_MOTOR)
@@ -286,7 +286,7 @@ def test_benchmark_smoke_and_the_numpy_residuals_agree_with_jax(clean, tmp_path)
 
     from benchmarks.bench_identify import main as bench_main
     from benchmarks.bench_identify import numpy_residuals
-    from tuning.id_fit import joint_residuals
+    from tuning.identify.fit import joint_residuals
 
     r = bench_main(str(tmp_path / "bench.json"), quick=True)
     assert json.loads((tmp_path / "bench.json").read_text())["n_seeds"] == 3

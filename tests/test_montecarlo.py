@@ -19,12 +19,12 @@ from pmsmjax.machines.motor import PMSMParameters
 from pmsmjax.presets import book_drive
 from pmsmjax.units import rad_s_to_rpm
 from pmsmjax.validation import ParameterError
-from tuning import mc_study
-from tuning.distributions import Distribution, sample, unit_samples
-from tuning.mc_kernel import METRICS, run_metrics
-from tuning.mc_study import Study, read_study_toml
-from tuning.mc_summary import cvar, failures, metric_statistics, spearman_ranks
 from tuning.montecarlo import VOLATILE_KEYS, StudyRunner, chunk_layout, run_study
+from tuning.montecarlo import study as mc_study
+from tuning.montecarlo.distributions import Distribution, sample, unit_samples
+from tuning.montecarlo.kernel import METRICS, run_metrics
+from tuning.montecarlo.study import Study, read_study_toml
+from tuning.montecarlo.summary import cvar, failures, metric_statistics, spearman_ranks
 
 ROOT = Path(__file__).resolve().parent.parent
 # 0.06 s (600 periods): speed step to 600 r/min, 3 N m load at 0.03 s.
@@ -241,7 +241,7 @@ def test_four_forced_cpu_devices_give_the_same_summary(chunked, tmp_path):
     _, reference = chunked
     code = (
         "import jax, json, sys; jax.config.update('jax_enable_x64', True)\n"
-        "from tuning.mc_study import Study; from tuning.montecarlo import run_study\n"
+        "from tuning.montecarlo.study import Study; from tuning.montecarlo import run_study\n"
         "assert len(jax.devices()) == 4\n"
         f"s = run_study(Study(**{vars(STUDY)!r}), sys.argv[1], progress=False, figures=False)\n"
         "print(json.dumps(s))\n"

@@ -14,10 +14,16 @@ from pmsmjax import ParameterError, presets
 from pmsmjax.cli import main
 from pmsmjax.units import rad_s_to_rpm
 from tuning.autotune import TuneConfig, tune
-from tuning.objectives import ObjectiveWeights, aggregate, batch_cost, scenario_metrics, smoothed_penalty
+from tuning.autotune.objectives import (
+    ObjectiveWeights,
+    aggregate,
+    batch_cost,
+    scenario_metrics,
+    smoothed_penalty,
+)
+from tuning.autotune.quasi_newton import bfgs_init, bfgs_tell
+from tuning.autotune.scenario_batches import make_batch
 from tuning.parameters import LogParameterisation, apply_gains, read_gains_toml, write_gains_toml
-from tuning.quasi_newton import bfgs_init, bfgs_tell
-from tuning.scenario_batches import make_batch
 
 SMALL = dict(duration_s=(0.08, 0.1))
 
@@ -285,7 +291,7 @@ def test_tune_command_writes_its_outputs(tmp_path):
 def test_settling_time_matches_the_first_order_design(drive):
     """The design-rule speed loop is beta/(s + beta): 2 % settling at ln(50)/beta (78.2 ms at 50 rad/s)."""
     b = make_batch(3, 5, duration_s=(0.25, 0.3))
-    from tuning.objectives import batch_metrics
+    from tuning.autotune.objectives import batch_metrics
 
     settling = np.asarray(batch_metrics(drive, b)["settling_time_s"])
     beta = presets.BOOK_SPEED_BANDWIDTH
@@ -297,7 +303,7 @@ def test_settling_time_matches_the_first_order_design(drive):
 
 def test_plant_spread_runs_each_scenario_on_its_own_plant(drive):
     """Scenario k of a spread batch equals the nominal scenario run on a plant with J scaled by its factor."""
-    from tuning.objectives import batch_metrics
+    from tuning.autotune.objectives import batch_metrics
 
     spread = make_batch(3, 4, plant_spread={"J": 0.5}, **SMALL)
     nominal = make_batch(3, 4, **SMALL)
@@ -315,7 +321,7 @@ def test_plant_spread_runs_each_scenario_on_its_own_plant(drive):
 
 
 def test_tune_config_file(tmp_path):
-    from tuning.job import read_tune_toml
+    from tuning.autotune.job import read_tune_toml
 
     path = tmp_path / "tune.toml"
     path.write_text(

@@ -2,9 +2,9 @@
 
 The residual vector has two groups, each divided by its own noise level:
 
-- electrical (:mod:`tuning.id_electrical`): simulated minus measured dq currents over shooting
+- electrical (:mod:`tuning.identify.electrical`): simulated minus measured dq currents over shooting
   windows, which involve R, L_d, L_q, psi_f (and V_dt) only, because the speed is measured;
-- mechanical (:mod:`tuning.id_mechanical`): simulated minus measured speed at the end of short
+- mechanical (:mod:`tuning.identify.mechanical`): simulated minus measured speed at the end of short
   windows, which involve J, B, T_c and, through the torque, psi_f, L_d, L_q.
 
 The equations decouple given the measured speed and currents, so the warm starts are computed per
@@ -26,10 +26,10 @@ import numpy as np
 import optimistix as optx
 from jax.flatten_util import ravel_pytree
 
-from . import id_electrical as el
-from . import id_mechanical as me
-from .id_parameters import ParameterMap
-from .id_uncertainty import covariance, interval_dof
+from . import electrical as el
+from . import mechanical as me
+from .parameters import ParameterMap
+from .uncertainty import covariance, interval_dof
 
 __all__ = ["FitResult", "fit", "noise_level", "joint_residuals"]
 
@@ -46,7 +46,7 @@ class FitResult:
     - `electrical`, `mechanical`: the windowed data; `residuals`: simulated minus measured,
       ``i_dq (n_w, W, 2)`` A and ``omega_end (n_m,)`` rad/s; `lags`: Newey-West lags of each group.
     - `dof`: ``(n_free,)`` effective degrees of freedom of each variance estimate (the intervals' t
-      quantile, :func:`tuning.id_uncertainty.interval_dof`).
+      quantile, :func:`tuning.identify.uncertainty.interval_dof`).
     - `steps`: Levenberg-Marquardt steps (all solves); `ok`: the solver converged.
     """
 
@@ -105,11 +105,11 @@ def _solve_and_linearise(y0, args, max_steps: int, rtol: float):
 
 def fit(log, pole_pairs: int, *, hold, fixed, start, dead_time, dead_time_eps, windows, n_substeps,
         max_steps=100, rtol=1e-6) -> FitResult:  # fmt: skip
-    """Fit every free parameter to a :class:`~tuning.id_log.DriveLog`.
+    """Fit every free parameter to a :class:`~tuning.identify.log.DriveLog`.
 
     `fixed`: ``{name: value}`` held fixed; `start`: start values replacing the warm start;
     `windows`: ``(electrical, mechanical)`` shooting-window lengths in log intervals;
-    `hold`, `dead_time`, `dead_time_eps`, `n_substeps`: model options (:mod:`tuning.id_electrical`).
+    `hold`, `dead_time`, `dead_time_eps`, `n_substeps`: model options (:mod:`tuning.identify.electrical`).
     """
     e_names = el.ELECTRICAL_NAMES if dead_time else el.ELECTRICAL_NAMES[:4]
     e_start, _ = el.warm_start(log, pole_pairs, hold, {n: fixed[n] for n in e_names if n in fixed}, dead_time)

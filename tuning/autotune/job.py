@@ -30,10 +30,10 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-from .autotune import TuneConfig, tune
+from ..parameters import apply_gains, get_leaf, write_gains_toml
 from .objectives import ObjectiveWeights, aggregate, batch_metrics, scenario_cost
-from .parameters import apply_gains, get_leaf, write_gains_toml
 from .scenario_batches import ScenarioBatch, make_batch
+from .tuner import TuneConfig, tune
 
 #: The must-show configuration: 64 + 64 scenarios, 0.3-0.5 s, steps of 200-1500 r/min both ways, 0-10 N m;
 #: BFGS (its rounded-penalty default), which gets a 3x lower cost than Adam in fewer iterations.

@@ -1,7 +1,7 @@
 """Mechanical sub-problem: J, B and a constant load torque from speed and the identified torque.
 
 ``J dw_m/dt = T_e - B w_m - T_c - T_L``, with ``T_e = 1.5 p_n [psi_f i_q + (L_d - L_q) i_d i_q]`` from
-the measured currents and the electrical parameters (:mod:`tuning.id_electrical`), ``T_L`` a logged
+the measured currents and the electrical parameters (:mod:`tuning.identify.electrical`), ``T_L`` a logged
 load torque (0 if none) and ``T_c`` an unknown constant load (``load="constant"``) or 0.
 
 **Output error with multiple shooting, end residuals only.** The log is cut into short windows
@@ -23,8 +23,8 @@ import numpy as np
 
 from pmsmjax._types import Array
 
-from .id_parameters import ParameterMap
-from .id_windows import interval_windows, sample_windows, window_layout
+from .parameters import ParameterMap
+from .windows import interval_windows, sample_windows, window_layout
 
 __all__ = ["MECHANICAL_NAMES", "MechanicalData", "mechanical_residuals", "simulate_speed", "warm_start"]
 

@@ -1,12 +1,12 @@
 """Gradient auto-tuning of drive gains over a batch of scenarios.
 
-The cost (:mod:`tuning.objectives`) of the whole batch is differentiated through every closed-loop
-simulation with reverse-mode AD, and ``theta = log(p/p0)`` moves from the design-rule gains by
-``method="adam"`` (a cosine-decayed step) or ``method="bfgs"`` (:mod:`tuning.quasi_newton`: step-capped
-BFGS on the cost with its penalty kinks rounded, one gradient per iteration; far fewer iterations on
-a handful of gains). Costs reported and compared are always the exact ones. The best iterate is kept;
-tuning stops at ``max_iterations``, when the cost has not improved by ``min_rel_improvement`` for
-``patience`` iterations, or when the time budget is spent.
+The cost (:mod:`tuning.autotune.objectives`) of the whole batch is differentiated through every
+closed-loop simulation with reverse-mode AD, and ``theta = log(p/p0)`` moves from the design-rule gains by
+``method="adam"`` (a cosine-decayed step) or ``method="bfgs"`` (:mod:`tuning.autotune.quasi_newton`:
+step-capped BFGS on the cost with its penalty kinks rounded, one gradient per iteration; far fewer
+iterations on a handful of gains). Costs reported and compared are always the exact ones. The best
+iterate is kept; tuning stops at ``max_iterations``, when the cost has not improved by
+``min_rel_improvement`` for ``patience`` iterations, or when the time budget is spent.
 
 Checkpoints (``checkpoint_path``, NumPy ``.npz``, written atomically every ``checkpoint_every``
 iterations and at the end) hold theta, the optimiser state, the best iterate and the history, plus a
@@ -31,8 +31,8 @@ from pmsmjax.drive import Drive
 from pmsmjax.logs import atomic_write
 from pmsmjax.validation import ParameterError
 
+from ..parameters import LogParameterisation
 from .objectives import ObjectiveWeights, batch_cost, smoothed_batch_cost
-from .parameters import LogParameterisation
 from .quasi_newton import bfgs_init, bfgs_tell
 from .scenario_batches import ScenarioBatch
 
@@ -46,7 +46,7 @@ class TuneConfig:
     - `learning_rate`: Adam step in log-space (0.05 = about 5 % change per step at most).
     - `max_step`: BFGS's largest log-space change of any gain per trial (0.5: a factor 1.65).
     - `overshoot_smoothing_pct`, `current_smoothing_a`: BFGS only: the widths over which the kinks of
-      the overshoot and current penalties are rounded (:func:`tuning.objectives.smoothed_penalty`) in
+      the overshoot and current penalties are rounded (:func:`tuning.autotune.objectives.smoothed_penalty`) in
       the cost it follows; 0 = exact.
     - `max_iterations`, `patience`, `min_rel_improvement`: stopping rules.
     - `bounds`: factors on the starting gains, ``(lower <= 1, upper >= 1)``.

@@ -2,21 +2,21 @@
 
 Pipeline (each step in its own module):
 
-1. :mod:`tuning.id_log`: read CSV/.mat/.npz, map columns and units, turn every frame into dq, check
+1. :mod:`tuning.identify.log`: read CSV/.mat/.npz, map columns and units, turn every frame into dq, check
    everything (gaps, units, consistency) before any fitting.
-2. :mod:`tuning.id_electrical`: current residuals over multiple-shooting windows (R, L_d, L_q, psi_f
+2. :mod:`tuning.identify.electrical`: current residuals over multiple-shooting windows (R, L_d, L_q, psi_f
    and a dead-time voltage), the voltage held as the recording held it (``hold``, as in
    :mod:`pmsmjax.replay`); given the measured speed they do not involve the mechanics.
-3. :mod:`tuning.id_mechanical`: speed residuals at window ends (J, B, a constant load, and the
+3. :mod:`tuning.identify.mechanical`: speed residuals at window ends (J, B, a constant load, and the
    electrical parameters through the torque).
-   :mod:`tuning.id_fit`: equation-error warm starts, then one output-error Levenberg-Marquardt solve
+   :mod:`tuning.identify.fit`: equation-error warm starts, then one output-error Levenberg-Marquardt solve
    (optimistix, JAX forward-mode Jacobians) over both groups.
-4. :mod:`tuning.id_uncertainty`: standard errors, 95 % intervals (in log space for positive
+4. :mod:`tuning.identify.uncertainty`: standard errors, 95 % intervals (in log space for positive
    parameters, so they stay positive; Student t with each variance estimate's effective degrees of
    freedom, reported as ``ci95_dof``), identifiability, the weak directions and what excitation would
    fix them.
 
-:func:`identify` works on a :class:`~tuning.id_log.DriveLog`; :func:`identify_file` reads a file and
+:func:`identify` works on a :class:`~tuning.identify.log.DriveLog`; :func:`identify_file` reads a file and
 writes ``DIR/params.json`` and ``DIR/fit.png``. Everything runs in float64.
 """
 
@@ -35,12 +35,12 @@ from scipy import stats
 from pmsmjax.logs import atomic_write
 from pmsmjax.validation import ParameterError
 
-from . import id_electrical as el
-from . import id_fit
-from . import id_mechanical as me
-from .id_fit import FitResult
-from .id_log import DriveLog, load_drive_log, read_log_config
-from .id_uncertainty import ADVICE, weak_directions
+from . import electrical as el
+from . import fit as id_fit
+from . import mechanical as me
+from .fit import FitResult
+from .log import DriveLog, load_drive_log, read_log_config
+from .uncertainty import ADVICE, weak_directions
 
 __all__ = ["IdentifyOptions", "identify", "identify_file", "NAMES", "UNITS"]
 
@@ -352,7 +352,7 @@ def identify_file(
     result = identify(log, opts)
     atomic_write(out / "params.json", lambda f: f.write(json.dumps(result.summary, indent=2).encode()))
     if figures:
-        from .id_plots import save_fit_figure
+        from .plots import save_fit_figure
 
         save_fit_figure(result, out / "fit.png")
     return result

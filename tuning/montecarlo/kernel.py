@@ -7,8 +7,8 @@ every per-period scan output is a separate write that costs about as much as a f
 step, so this is what makes 10,000 runs of 4000 periods affordable.
 
 The definitions equal those of :func:`pmsmjax.summary.speed_step_summary` and
-:func:`tuning.objectives.scenario_metrics` on the period-start samples (tests/test_montecarlo.py checks
-them against :mod:`pmsmjax.metrics` applied to a full trace from :func:`pmsmjax.simulate`):
+:func:`tuning.autotune.objectives.scenario_metrics` on the period-start samples (tests/test_montecarlo.py
+checks them against :mod:`pmsmjax.metrics` applied to a full trace from :func:`pmsmjax.simulate`):
 
 - ``itae``: ``sum_k t_k |w*_k - w_k| Ts``, rad s (speed error in rad/s, whole run).
 - ``overshoot_pct``: ``100 max(0, max_k sign(w*) (w_k - w*_k) / |w*_k|)`` over the periods before the load

@@ -3,10 +3,11 @@
 ``run_study(study, out_dir)``:
 
 1. checks the study and draws every run's parameters on the host (seeded, float64,
-   :mod:`tuning.distributions`), before anything compiles; non-physical samples are refused or clipped;
+   :mod:`tuning.montecarlo.distributions`), before anything compiles; non-physical samples are refused or
+   clipped;
 2. splits the runs into chunks of ``chunk_size`` (rounded up to a multiple of the device count; the
    last chunk is padded with copies of its last run, whose results are dropped);
-3. runs each chunk as one compiled call: ``vmap`` of :func:`tuning.mc_kernel.run_metrics` over the
+3. runs each chunk as one compiled call: ``vmap`` of :func:`tuning.montecarlo.kernel.run_metrics` over the
    chunk, the chunk's runs split over a one-axis device mesh with ``jax.sharding`` (``NamedSharding``
    over axis ``runs``). The same code serves one CPU, several forced CPU devices
    (``XLA_FLAGS=--xla_force_host_platform_device_count=N`` or ``jax_num_cpu_devices``), several GPUs and
@@ -19,8 +20,8 @@
 5. takes the derivative of every metric with respect to every varied parameter by forward-mode AD
    (``jax.jacfwd``: one tangent per parameter, cheap with a handful of parameters) for the first
    ``sensitivity_runs`` runs (also stored, as ``DIR/chunks/sensitivities.npz``);
-6. summarises (:mod:`tuning.mc_summary`), draws the figures (:mod:`tuning.mc_figures`) and writes
-   ``DIR/summary.json``.
+6. summarises (:mod:`tuning.montecarlo.summary`), draws the figures (:mod:`tuning.montecarlo.figures`)
+   and writes ``DIR/summary.json``.
 
 Run time is the time of the chunk calls made in this invocation (compile excluded: each chunk function is
 compiled ahead of time and timed separately as ``compile_time_s``).
@@ -46,11 +47,11 @@ from pmsmjax.simulate import check_simulation
 from pmsmjax.units import rpm_to_rad_s
 from pmsmjax.validation import ParameterError
 
-from . import mc_study
+from . import study as mc_study
 from .distributions import sample
-from .mc_kernel import METRICS, run_metrics
-from .mc_study import Study
-from .mc_summary import sensitivity_summary, summarise
+from .kernel import METRICS, run_metrics
+from .study import Study
+from .summary import sensitivity_summary, summarise
 
 #: Bump when the kernel's metric definitions change: chunks written by another version are recomputed.
 KERNEL_VERSION = 1
@@ -353,7 +354,7 @@ def run_study(
     }
     summary = _finite_or_none(summary)
     if figures:
-        from .mc_figures import save_study_figures
+        from .figures import save_study_figures
 
         t = np.arange(results["speed_rpm"].shape[1]) * study.decimate * runner.drive.Ts
         summary["figures"] = [p.name for p in save_study_figures(results, summary, t, out)]

@@ -30,7 +30,7 @@ __all__ = ["covariance", "score_covariance", "interval_dof", "weak_directions", 
 ADVICE = {
     "R": "current at low speed or standstill, or q-current steps at a constant speed (R i_q against "
     "the back-EMF)",
-    "L_d": "d-axis current injection: steps or a PRBS on id_ref of a few A (tuning.excitation)",
+    "L_d": "d-axis current injection: steps or a PRBS on id_ref of a few A (tuning.identify.excitation)",
     "L_q": "q-axis current changes: speed steps or q-current steps",
     "psi_f": "running at several speeds (the back-EMF grows with speed)",
     "V_dt": "current through zero in every phase at low voltage (slow rotation at load)",

@@ -9,8 +9,8 @@ import numpy as np
 
 from pmsmjax.plotting import save_figure
 
-from . import id_electrical as el
-from . import id_mechanical as me
+from . import electrical as el
+from . import mechanical as me
 
 __all__ = ["fit_figure", "save_fit_figure"]
 

@@ -1,6 +1,6 @@
 """Derivative-free baselines for gain tuning, on exactly the objective and batch the gradient tuner uses.
 
-The gradient tuner (:func:`tuning.autotune.tune`) is only worth its reverse-mode AD if it beats what a
+The gradient tuner (:func:`tuning.autotune.tuner.tune`) is only worth its reverse-mode AD if it beats what a
 plain search reaches with the same cost function. These baselines search the same log-space
 ``theta = log(p / p0)`` (:class:`tuning.parameters.LogParameterisation`, the same bounds, theta = 0 at
 the design-rule gains) and call one jit-compiled batch cost ``theta -> float``:
@@ -30,8 +30,8 @@ import scipy.optimize
 from pmsmjax.drive import Drive
 from pmsmjax.validation import ParameterError
 
+from ..parameters import LogParameterisation
 from .objectives import ObjectiveWeights, batch_cost
-from .parameters import LogParameterisation
 from .scenario_batches import ScenarioBatch
 
 __all__ = ["BaselineResult", "design_rule_cost", "nelder_mead", "cma_es", "cma_available", "make_cost"]
@@ -211,7 +211,7 @@ def nelder_mead(
 
     **Arguments:**
 
-    - `drive`, `batch`, `weights`: the problem, exactly as for :func:`tuning.autotune.tune`.
+    - `drive`, `batch`, `weights`: the problem, exactly as for :func:`tuning.autotune.tuner.tune`.
     - `names`: gains to tune (dotted names or the aliases ``speed``, ``current``).
     - `max_evaluations`: cost evaluations allowed (the search stops exactly there).
     - `bounds`: factors on the starting gains, ``(lower <= 1, upper >= 1)``; the simplex is clipped to them.

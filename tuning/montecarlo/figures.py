@@ -7,7 +7,7 @@ import numpy as np
 
 from pmsmjax.plotting import save_figure
 
-from .mc_kernel import METRICS, UNITS
+from .kernel import METRICS, UNITS
 
 #: Percentile bands of the fan chart, outermost first.
 BANDS = ((5, 95), (25, 75))

@@ -20,7 +20,7 @@ values (not on the device count or the chunking that produced them).
 import numpy as np
 from scipy.stats import spearmanr
 
-from .mc_kernel import METRICS, UNITS
+from .kernel import METRICS, UNITS
 
 PERCENTILES = (1, 5, 25, 50, 75, 95, 99)
 

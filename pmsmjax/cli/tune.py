@@ -1,0 +1,94 @@
+"""``pmsmjax tune``: gradient auto-tuning of the FOC gains (:mod:`tuning.autotune.job`)."""
+
+from pathlib import Path
+
+
+def add_parser(sub):
+    p = sub.add_parser(
+        "tune",
+        help="tune the FOC gains by gradients over a batch of speed/load scenarios",
+        description=(
+            "Gradient auto-tuning of the book drive's speed and current PI gains (BFGS or Adam in log-space "
+            "from the design-rule gains) over a seeded batch of speed steps (200-1500 r/min, both "
+            "directions) and load steps (0-10 N m), checked on a held-out batch. Writes DIR/gains.toml, "
+            "DIR/result.json, DIR/cost.png, DIR/responses.png and DIR/checkpoint.npz; running it again "
+            "resumes. Settings: flags, then --config TOML ([weights], [tune], [job] tables), then built-in "
+            "defaults."
+        ),
+    )
+    p.add_argument("--out", default="tune_out", help="output folder (created), default: tune_out")
+    p.add_argument("--config", default=None, help="TOML with [weights], [tune] and [job] tables")
+    p.add_argument("--iterations", type=int, help="maximum iterations (default 100)")
+    p.add_argument("--train", type=int, help="training scenarios (default 64)")
+    p.add_argument("--heldout", type=int, help="held-out scenarios (default 64)")
+    p.add_argument("--seed", type=int, help="seed of the training batch (default 0; held-out: seed + 1)")
+    p.add_argument(
+        "--duration-s", type=float, nargs=2, metavar=("LOW", "HIGH"), help="scenario durations, s (0.3 0.5)"
+    )
+    p.add_argument(
+        "--gains", nargs="+", help="gains to tune: aliases speed, current or names like controller.speed.kp"
+    )
+    p.add_argument(
+        "--method",
+        choices=("adam", "bfgs"),
+        help="optimiser: bfgs (default; step-capped quasi-Newton on the cost with its penalty kinks rounded) "
+        "or adam",
+    )
+    p.add_argument("--learning-rate", type=float, help="Adam step in log-space (default 0.08)")
+    p.add_argument("--substeps", type=int, help="RK4 sub-steps while tuning (default 1)")
+    p.add_argument("--eval-substeps", type=int, help="RK4 sub-steps for before/after figures (default 10)")
+    p.add_argument("--time-budget-s", type=float, help="stop after this wall time, s")
+    p.add_argument("--fresh", action="store_true", help="ignore and replace an existing checkpoint")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    # The command line is the one place where pmsmjax reaches up into the tuning workflows.
+    import dataclasses
+
+    from tuning.autotune.job import DEFAULT_CONFIG, read_tune_toml, run_tune_job
+
+    kwargs = read_tune_toml(args.config) if args.config else {}
+    config = kwargs.pop("config", DEFAULT_CONFIG)
+    overrides = {
+        "names": tuple(args.gains) if args.gains else None,
+        "method": args.method,
+        "learning_rate": args.learning_rate,
+        "max_iterations": args.iterations,
+        "time_budget_s": args.time_budget_s,
+    }
+    config = dataclasses.replace(config, **{k: v for k, v in overrides.items() if v is not None})
+    for key, value in (
+        ("n_train", args.train),
+        ("n_heldout", args.heldout),
+        ("train_seed", args.seed),
+        ("heldout_seed", None if args.seed is None else args.seed + 1),
+        ("duration_s", tuple(args.duration_s) if args.duration_s else None),
+        ("tune_substeps", args.substeps),
+        ("eval_substeps", args.eval_substeps),
+    ):
+        if value is not None:
+            kwargs[key] = value
+    checkpoint = Path(args.out) / "checkpoint.npz"
+    if args.fresh and checkpoint.exists():
+        checkpoint.unlink()
+    data = run_tune_job(args.out, config=config, progress=not args.no_progress, **kwargs)
+    tr, ho = data["train"], data["heldout"]
+    cut = lambda d: 100.0 * (1.0 - d["after"]["itae"] / d["before"]["itae"])
+    if data["resumed_from_iteration"]:
+        print(f"resumed from iteration {data['resumed_from_iteration']}")
+    print(
+        f"train ITAE {tr['before']['itae']:.4f} -> {tr['after']['itae']:.4f} ({cut(tr):.1f} % lower), "
+        f"held-out {ho['before']['itae']:.4f} -> {ho['after']['itae']:.4f} ({cut(ho):.1f} % lower)"
+    )
+    print(
+        f"overshoot {tr['before']['overshoot_pct']:.3f} -> {tr['after']['overshoot_pct']:.3f} % "
+        f"(train mean), peak current {tr['after']['max_peak_current_a']:.2f} A, "
+        f"scenarios over the limit: {tr['after']['scenarios_over_current_limit']}"
+    )
+    print(
+        f"{data['iterations']} iterations ({data['stopped']}), wall {data['wall_time_s']:.1f} s "
+        f"(compile {data['compile_time_s']:.1f} s); wrote {args.out}/gains.toml, result.json, figures"
+    )
+    return 0

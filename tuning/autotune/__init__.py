@@ -1,0 +1,36 @@
+"""Gradient auto-tuning of a drive's gains over a batch of scenarios (``pmsmjax tune``).
+
+- :mod:`~tuning.autotune.scenario_batches`: seeded train and held-out batches of speed and load steps.
+- :mod:`~tuning.autotune.objectives`: per-scenario metrics and the batch cost (ITAE plus penalties).
+- :mod:`~tuning.autotune.tuner`: :func:`tune`, Adam or BFGS on the log-gains, checkpointed, resumable.
+- :mod:`~tuning.autotune.quasi_newton`: the step-capped BFGS behind ``method="bfgs"``.
+- :mod:`~tuning.autotune.baselines`: derivative-free searches (Nelder-Mead, CMA-ES) on the same cost.
+- :mod:`~tuning.autotune.job`: the ``pmsmjax tune`` job (tune, check on the held-out batch, write files).
+
+The gains themselves (names, ``log(p/p0)`` parameterisation, gains files) are :mod:`tuning.parameters`.
+"""
+
+from .baselines import BaselineResult, cma_available, cma_es, design_rule_cost, nelder_mead
+from .job import DEFAULT_CONFIG, read_tune_toml, run_tune_job
+from .objectives import ObjectiveWeights, batch_cost, batch_metrics
+from .scenario_batches import ScenarioBatch, make_batch
+from .tuner import TuneConfig, TuneResult, tune
+
+__all__ = [
+    "TuneConfig",
+    "TuneResult",
+    "tune",
+    "ObjectiveWeights",
+    "batch_cost",
+    "batch_metrics",
+    "ScenarioBatch",
+    "make_batch",
+    "BaselineResult",
+    "design_rule_cost",
+    "nelder_mead",
+    "cma_es",
+    "cma_available",
+    "DEFAULT_CONFIG",
+    "read_tune_toml",
+    "run_tune_job",
+]

@@ -1,0 +1,35 @@
+"""Motor parameters (R, L_d, L_q, psi_f, J, B) with error bars from a logged drive run (``pmsmjax identify``).
+
+- :mod:`~tuning.identify.pipeline`: :func:`identify` and :func:`identify_file`, the steps below in order.
+- :mod:`~tuning.identify.log`: read a log, map its columns and units, turn it into dq, check it.
+- :mod:`~tuning.identify.electrical`, :mod:`~tuning.identify.mechanical`: the two residual groups
+  (over :mod:`~tuning.identify.windows`, in the unknowns of :mod:`~tuning.identify.parameters`).
+- :mod:`~tuning.identify.fit`: warm starts and the Levenberg-Marquardt solve.
+- :mod:`~tuning.identify.uncertainty`: standard errors, 95 % intervals, identifiability.
+- :mod:`~tuning.identify.plots`: measured against fitted signals.
+- :mod:`~tuning.identify.excitation`, :mod:`~tuning.identify.synthetic_log`: an experiment that makes
+  every parameter identifiable, and simulated logs of it (for tests, notebooks and benchmarks).
+"""
+
+from .excitation import identification_scenario, prbs
+from .log import DriveLog, drive_log_from_columns, load_drive_log, read_log_config
+from .pipeline import NAMES, UNITS, IdentifyOptions, IdentifyResult, identify, identify_file
+from .synthetic_log import ID_TEST_MOTOR, add_noise, simulate_log
+
+__all__ = [
+    "IdentifyOptions",
+    "IdentifyResult",
+    "identify",
+    "identify_file",
+    "NAMES",
+    "UNITS",
+    "DriveLog",
+    "load_drive_log",
+    "drive_log_from_columns",
+    "read_log_config",
+    "identification_scenario",
+    "prbs",
+    "ID_TEST_MOTOR",
+    "simulate_log",
+    "add_noise",
+]

@@ -1,0 +1,31 @@
+"""Monte Carlo robustness studies of a drive over parameter tolerances (``pmsmjax montecarlo``).
+
+- :mod:`~tuning.montecarlo.study`: what a study varies (:class:`Study`, its TOML file, applying a sample).
+- :mod:`~tuning.montecarlo.distributions`: tolerances as distributions, seeded (Latin hypercube) sampling.
+- :mod:`~tuning.montecarlo.kernel`: one closed-loop run reduced to its metrics while it runs.
+- :mod:`~tuning.montecarlo.runner`: :func:`run_study`, chunked, sharded over every device, resumable.
+- :mod:`~tuning.montecarlo.summary`, :mod:`~tuning.montecarlo.figures`: percentiles, failure rates,
+  CVaR, sensitivities; histograms, fan charts, a tornado chart.
+- :mod:`~tuning.montecarlo.cpu_devices`: :func:`split_cpu`, one JAX device per CPU core.
+
+:func:`split_cpu` only works before JAX initialises its backends, and importing this package runs the
+imports below: none of them may touch a device at import time (no module-level arrays).
+"""
+
+from .cpu_devices import split_cpu
+from .distributions import Distribution, sample
+from .runner import VOLATILE_KEYS, StudyRunner, chunk_layout, load_results, run_study
+from .study import Study, read_study_toml
+
+__all__ = [
+    "Study",
+    "read_study_toml",
+    "run_study",
+    "load_results",
+    "StudyRunner",
+    "chunk_layout",
+    "VOLATILE_KEYS",
+    "Distribution",
+    "sample",
+    "split_cpu",
+]
