@@ -15,7 +15,7 @@ from .design import (
     speed_loop_active_damping,
 )
 from .foc import FOC, FOCState
-from .pi import clip_magnitude, clip_symmetric, pi_update
+from .pi import clip_magnitude, clip_symmetric, pi_update, realisable_reference_tracking
 
 __all__ = [
     "FOC",
@@ -32,5 +32,6 @@ __all__ = [
     "current_loop_imc",
     "first_order_rise_time",
     "pi_update",
+    "realisable_reference_tracking",
     "speed_loop_active_damping",
 ]
