@@ -1,5 +1,5 @@
 """Controllers: the controller interfaces, discrete PI, design rules, cascaded FOC with its blocks (PI and
-sliding-mode speed loops), and hysteresis current control."""
+sliding-mode speed loops; MTPA and field weakening), and hysteresis current control."""
 
 from .base import (
     AbstractController,
@@ -15,9 +15,11 @@ from .design import (
     first_order_rise_time,
     speed_loop_active_damping,
 )
+from .field_weakening import VoltageFeedbackFieldWeakening
 from .foc import FOC, FOCState
 from .hysteresis import HysteresisCurrentControl, HysteresisState, hysteresis_comparator
-from .pi import clip_magnitude, clip_symmetric, pi_update
+from .mtpa import MTPA, mtpa_id_from_iq, mtpa_id_from_magnitude
+from .pi import clip_magnitude, clip_symmetric, pi_update, realisable_reference_tracking
 from .smc import SlidingModeSpeed, SlidingModeState, smc_design, switching_function
 
 __all__ = [
@@ -25,6 +27,8 @@ __all__ = [
     "FOCState",
     "HysteresisCurrentControl",
     "HysteresisState",
+    "MTPA",
+    "VoltageFeedbackFieldWeakening",
     "AbstractController",
     "AbstractCurrentController",
     "AbstractDAxisReference",
@@ -39,7 +43,10 @@ __all__ = [
     "current_loop_imc",
     "first_order_rise_time",
     "hysteresis_comparator",
+    "mtpa_id_from_iq",
+    "mtpa_id_from_magnitude",
     "pi_update",
+    "realisable_reference_tracking",
     "smc_design",
     "speed_loop_active_damping",
     "switching_function",

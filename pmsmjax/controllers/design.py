@@ -33,13 +33,18 @@ def current_loop_imc(motor: PMSMParameters, bandwidth_rad_s=1100.0) -> CurrentLo
     return CurrentLoopGains(a_c * motor.L_d, a_c * motor.L_q, a_c * motor.R, a_c * motor.R)
 
 
-def speed_loop_active_damping(motor: PMSMParameters, bandwidth_rad_s=50.0) -> SpeedLoopGains:
-    """Speed PI with active damping for closed-loop bandwidth ``beta`` (rad/s)."""
+def speed_loop_active_damping(
+    motor: PMSMParameters, bandwidth_rad_s=50.0, anti_windup: str = "realisable_reference"
+) -> SpeedLoopGains:
+    """Speed PI with active damping for closed-loop bandwidth ``beta`` (rad/s).
+
+    `anti_windup`: see :class:`SpeedLoopGains` (it acts only while the output is limited).
+    """
     check_positive("speed-loop bandwidth beta", bandwidth_rad_s, "rad/s")
     beta = jnp.asarray(bandwidth_rad_s, motor.R.dtype)
     k_t = motor.torque_constant
     kp = beta * motor.J / k_t
-    return SpeedLoopGains(kp, beta * kp, (beta * motor.J - motor.B) / k_t)
+    return SpeedLoopGains(kp, beta * kp, (beta * motor.J - motor.B) / k_t, anti_windup)
 
 
 def first_order_rise_time(bandwidth_rad_s) -> float:
