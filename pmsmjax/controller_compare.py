@@ -22,6 +22,7 @@ import jax
 import numpy as np
 
 from . import metrics, presets
+from .controls import CONTROLS, control_drive
 from .drive import Drive
 from .intra_period import dense_window
 from .inverters.switching import SwitchingBridge
@@ -30,9 +31,6 @@ from .simulate import check_simulation, simulate
 from .spectra import sampled_spectrum, thd
 from .summary import speed_step_summary
 from .validation import ParameterError
-
-#: Control name -> the preset building its drive (``preset(motor) -> Drive``); later chapters add theirs.
-CONTROLS = {"pi": "book_drive", "smc": "smc_drive", "hysteresis": "hysteresis_drive"}
 
 SUMMARY_KEYS = {
     "rise_time_s": "rise_time_s",
@@ -80,11 +78,9 @@ class ControllerCompareSettings:
             )
 
 
-def control_drive(name: str, motor: PMSMParameters | None = None, bridge: str = "averaged") -> Drive:
-    """The drive of control ``name`` (a key of :data:`CONTROLS`) for ``motor``, on ``bridge``."""
-    if name not in CONTROLS:
-        raise ParameterError(f"unknown control {name!r}: choose from {', '.join(CONTROLS)}.")
-    drive = getattr(presets, CONTROLS[name])(motor)
+def compared_drive(name: str, motor: PMSMParameters | None = None, bridge: str = "averaged") -> Drive:
+    """The drive of control ``name`` (:data:`pmsmjax.controls.CONTROLS`) for ``motor``, on ``bridge``."""
+    drive = control_drive(name, motor)
     if bridge == "switching" and drive.controller.command_kind == "voltage":
         drive = eqx.tree_at(lambda d: d.bridge, drive, SwitchingBridge(drive.bridge.u_dc))
     return drive
@@ -146,7 +142,7 @@ def run_control(name: str, drive: Drive, settings: ControllerCompareSettings) ->
 def compare_controllers(
     names, motor: PMSMParameters | None = None, settings=ControllerCompareSettings(), progress=None
 ) -> dict:
-    """Run each named controller (keys of :data:`CONTROLS`) on the book scenario.
+    """Run each named controller (keys of :data:`pmsmjax.controls.CONTROLS`) on the book scenario.
 
     Returns ``{"settings", "controllers": name -> figures, "traces": name -> Trace, "windows": name ->
     {t, i_abc, torque}}``; `progress`: optional callable taking a line per controller.
@@ -155,7 +151,7 @@ def compare_controllers(
     unknown = [n for n in names if n not in CONTROLS]
     if unknown:
         raise ParameterError(f"unknown controls {unknown}: choose from {', '.join(CONTROLS)}.")
-    drives = {name: control_drive(name, motor, settings.bridge) for name in names}
+    drives = {name: compared_drive(name, motor, settings.bridge) for name in names}
     for drive in drives.values():  # every check before the first compile
         window_periods(drive, settings)
     result = {"settings": dataclasses.asdict(settings), "controllers": {}, "traces": {}, "windows": {}}

@@ -239,10 +239,22 @@ def field_weakening_drive(
     the book's 1100 rad/s; 50 to 800 rad/s all reach 2500 and 3000 r/min, the slower ones touching the
     voltage limit more often on the way). ``kwargs`` go to :func:`book_drive`.
     """
-    if field_weakening_bandwidth is None:
-        field_weakening_bandwidth = kwargs.get("current_bandwidth", BOOK_CURRENT_BANDWIDTH) / 3.0
-    fw = VoltageFeedbackFieldWeakening(field_weakening_bandwidth, voltage_margin, mtpa=True)
+    current_bandwidth = kwargs.get("current_bandwidth", BOOK_CURRENT_BANDWIDTH)
+    fw = field_weakening_block(current_bandwidth, field_weakening_bandwidth, voltage_margin)
     return book_drive(motor, d_axis=fw, **kwargs)
+
+
+def field_weakening_block(
+    current_bandwidth: float = BOOK_CURRENT_BANDWIDTH,
+    field_weakening_bandwidth: float | None = None,
+    voltage_margin: float = 0.95,
+) -> VoltageFeedbackFieldWeakening:
+    """MTPA plus voltage-feedback field weakening whose voltage loop runs at ``field_weakening_bandwidth``
+    (rad/s; default a third of the current loop's ``current_bandwidth``), holding ``voltage_margin`` of the
+    modulator's linear limit (see :func:`field_weakening_drive`)."""
+    if field_weakening_bandwidth is None:
+        field_weakening_bandwidth = current_bandwidth / 3.0
+    return VoltageFeedbackFieldWeakening(field_weakening_bandwidth, voltage_margin, mtpa=True)
 
 
 def book_scenario(

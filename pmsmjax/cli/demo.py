@@ -1,20 +1,66 @@
-"""``pmsmjax demo`` (alias ``simulate``): the book's FOC scenario, written as a trace, summary.json and
-figures."""
+"""``pmsmjax demo`` (alias ``simulate``): the book scenario under a chosen control method, written as a
+trace, summary.json and figures."""
 
 import json
 import time
 from pathlib import Path
+
+from ..validation import ParameterError
+
+CONTROL_NAMES = ("pi", "smc", "hysteresis")
+
+#: Command-line flag (argparse dest) -> preset option; flags left unset keep each preset's own default.
+FLAG_OPTIONS = {
+    "frame": "frame",
+    "substeps": "n_substeps",
+    "no_delay": "computation_delay",
+    "current_bandwidth": "current_bandwidth",
+    "speed_bandwidth": "speed_bandwidth",
+    "field_weakening": "d_axis",
+    "band_a": "band_a",
+    "switching": "switching",
+}
+
+
+def control_drive_from_flags(args, motor):
+    """The drive of ``args.control`` with the options the user set; a flag that does not apply to the
+    chosen control is refused (``--band-a`` with ``--control pi``, say) instead of silently ignored."""
+    from .. import presets
+    from ..controls import control_drive, control_options
+
+    allowed = control_options(args.control)
+    options = {}
+    for flag, option in FLAG_OPTIONS.items():
+        value = getattr(args, flag, None)
+        if value is None or value is False or (flag == "frame" and value == "dq"):
+            continue
+        if option not in allowed:
+            raise ParameterError(f"--{flag.replace('_', '-')} does not apply to --control {args.control}.")
+        if flag == "no_delay":
+            value = False
+        elif flag == "field_weakening":
+            value = presets.field_weakening_block(args.current_bandwidth or presets.BOOK_CURRENT_BANDWIDTH)
+        options[option] = value
+    return control_drive(args.control, motor, **options)
 
 
 def add_parser(sub):
     p = sub.add_parser(
         "demo",
         aliases=["simulate"],
-        help="run the book's FOC scenario and write figures, a trace and summary.json",
+        help="run the book scenario (FOC by default) and write figures, a trace and summary.json",
         description=(
-            "Simulate the book drive (design-rule PI gains, SVPWM, averaged bridge, 10 kHz): a speed step "
-            "from rest, then a load step. Writes DIR/trace.csv (or .npz), DIR/summary.json and PNG figures."
+            "Simulate the book drive (design-rule PI gains, SVPWM, averaged bridge, 10 kHz; or another "
+            "control method with --control): a speed step from rest, then a load step. Writes "
+            "DIR/trace.csv (or .npz), DIR/summary.json and PNG figures."
         ),
+    )
+    p.add_argument(
+        "--control",
+        choices=list(CONTROL_NAMES),
+        default="pi",
+        help="control method: pi (cascaded PI FOC, default), smc (sliding-mode speed loop), hysteresis "
+        "(hysteresis current comparators at 100 kHz)",
     )
     p.add_argument("--out", default="demo_out", help="output folder (created), default: demo_out")
     p.add_argument("--motor", default="book", help="preset name (book, book_salient) or motor TOML file")
@@ -23,10 +69,17 @@ def add_parser(sub):
     p.add_argument("--load-time-s", type=float, default=0.2, help="time of the load step, s (default 0.2)")
     p.add_argument("--duration-s", type=float, default=0.4, help="simulated time, s (default 0.4)")
     p.add_argument("--frame", choices=["dq", "alpha_beta", "abc"], default="dq", help="machine model frame")
-    p.add_argument("--substeps", type=int, default=10, help="RK4 sub-steps per 100 us period (default 10)")
+    p.add_argument("--substeps", type=int, help="RK4 sub-steps per control period (default 10; hysteresis 1)")
     p.add_argument("--no-delay", action="store_true", help="no one-period computational delay")
-    p.add_argument("--current-bandwidth", type=float, default=1100.0, help="current loop a_c, rad/s")
-    p.add_argument("--speed-bandwidth", type=float, default=50.0, help="speed loop beta, rad/s")
+    p.add_argument("--current-bandwidth", type=float, help="current loop a_c, rad/s (default 1100)")
+    p.add_argument("--speed-bandwidth", type=float, help="speed loop beta, rad/s (default 50)")
+    p.add_argument("--field-weakening", action="store_true", help="MTPA and voltage-feedback field weakening")
+    p.add_argument("--band-a", type=float, help="hysteresis band, A (full width; default 0.5)")
+    p.add_argument(
+        "--switching",
+        choices=("sign", "saturation", "tanh"),
+        help="SMC switching function (default sign, the book's)",
+    )
     p.add_argument("--decimate", type=int, default=1, help="record every N-th period (default 1)")
     p.add_argument("--format", choices=["csv", "npz"], default="csv", help="trace file format")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
@@ -43,14 +96,7 @@ def run(args) -> int:
     from ..summary import speed_step_summary
 
     motor = presets.load_motor(args.motor)
-    drive = presets.book_drive(
-        motor,
-        frame=args.frame,
-        n_substeps=args.substeps,
-        computation_delay=not args.no_delay,
-        current_bandwidth=args.current_bandwidth,
-        speed_bandwidth=args.speed_bandwidth,
-    )
+    drive = control_drive_from_flags(args, motor)
     scenario = presets.book_scenario(args.speed_rpm, args.load_nm, args.load_time_s, args.duration_s)
     check_simulation(drive, scenario, args.decimate)
 
@@ -71,12 +117,12 @@ def run(args) -> int:
         },
         "drive": {
             "motor": args.motor,
+            "control": args.control,
             "frame": args.frame,
             "Ts_s": drive.Ts,
             "n_substeps": drive.n_substeps,
             "computation_delay": drive.computation_delay,
-            "current_bandwidth_rad_s": args.current_bandwidth,
-            "speed_bandwidth_rad_s": args.speed_bandwidth,
+            "options": {k: v for k, v in vars(args).items() if k in FLAG_OPTIONS and v not in (None, False)},
             "current_limit_a": float(drive.controller.current_limit),
             "u_dc_v": float(drive.bridge.u_dc),
         },
@@ -94,7 +140,11 @@ def run(args) -> int:
     else:
         atomic_write(out / "trace.npz", lambda f: __import__("numpy").savez(f, **columns))
     atomic_write(out / "summary.json", lambda f: f.write(json.dumps(summary, indent=2).encode()))
-    figures = [] if args.no_figures else save_demo_figures(trace, out, "pmsmjax demo: book FOC drive")
+    figures = (
+        []
+        if args.no_figures
+        else save_demo_figures(trace, out, f"pmsmjax demo: book drive, {args.control} control")
+    )
     m = summary["metrics"]
     print(
         f"final speed {m['final_speed_rpm']:.1f} r/min (ref {m['reference_speed_rpm']:.0f}), "
