@@ -1,4 +1,5 @@
-"""Controllers: the controller interfaces, discrete PI, design rules and cascaded FOC with its blocks."""
+"""Controllers: the controller interfaces, discrete PI, design rules and cascaded FOC with its blocks
+(dq PI or proportional-resonant current loop)."""
 
 from .base import (
     AbstractController,
@@ -16,6 +17,7 @@ from .design import (
 )
 from .foc import FOC, FOCState
 from .pi import clip_magnitude, clip_symmetric, pi_update
+from .pr import ProportionalResonant, ResonantCoefficients, pr_design, resonant_coefficients
 
 __all__ = [
     "FOC",
@@ -26,11 +28,15 @@ __all__ = [
     "AbstractSpeedController",
     "CurrentLoopContext",
     "CurrentLoopGains",
+    "ProportionalResonant",
+    "ResonantCoefficients",
     "SpeedLoopGains",
     "clip_magnitude",
     "clip_symmetric",
     "current_loop_imc",
     "first_order_rise_time",
     "pi_update",
+    "pr_design",
+    "resonant_coefficients",
     "speed_loop_active_damping",
 ]
