@@ -16,9 +16,11 @@ rotating at ``w`` by ``G(j w)``. Near the resonance, ``w = w_0 + delta`` with ``
 
 which seen from the rotor frame (``s' = j delta``) is the leaky integrator ``Kr w_c / (s' + w_c)``. The
 PR is therefore the stationary-frame equivalent of a synchronous-frame PI ``Kp + Ki/s'`` with
-``Ki = Kr w_c`` whose integrator leaks at ``w_c`` (Zmood & Holmes 2003, IEEE TPEL 18(3), 814-822: the
-ideal resonator ``2 Ki s / (s^2 + w_0^2)`` is the ``w_c -> 0`` limit and is exactly the synchronous PI
-``Ki/s'`` for the positive sequence; the ``w_c`` form is their "non-ideal" resonator). Consequences:
+``Ki = Kr w_c`` whose integrator leaks at ``w_c``. (Zmood & Holmes 2003, IEEE TPEL 18(3), 814-822: the
+ideal resonator ``2 Ki s / (s^2 + w_0^2) = Ki/(s - j w_0) + Ki/(s + j w_0)``, the ``w_c -> 0`` limit, is
+the synchronous PI ``Ki/s'`` for the positive sequence plus its mirror for the negative sequence; the
+synchronous PI moved to the stationary frame would need the cross-axis terms that the PR drops. The
+``w_c`` form is their "non-ideal" resonator; tests/test_pr.py checks the equivalence to 1 %.) Consequences:
 
 - the gain at ``w_0`` is ``Kp + Kr``, finite: the steady-state error is about
   ``|u_unmodelled| / |Kp + Kr|``, where ``u_unmodelled`` is the steady voltage the feed-forward does not
@@ -57,8 +59,10 @@ period (:func:`resonant_coefficients`). The resonant term in two-integrator stat
 - ``"tustin-prewarp"`` (default): the bilinear transform with the prewarped step
   ``T = 2 tan(w_0 Ts/2) / w_0`` (``s -> (2/T)(z - 1)/(z + 1)``) in scipy's generalised-bilinear
   state-space realisation. The discrete response at ``z = exp(j w Ts)`` is exactly
-  ``G(j (2/T) tan(w Ts/2))``: equal to ``G(j w_0)`` at ``w_0``. The state stays within ``O(T e)`` of the
-  continuous state, so updating the coefficients as ``w_0`` moves does not jolt the output.
+  ``G(j (2/T) tan(w Ts/2))``: equal to ``G(j w_0)`` at ``w_0``. Its state is ``(I - A T/2) x - (T/2) B e``
+  of the continuous state ``x`` (scipy's realisation of the trapezoidal rule): within ``O(w_0 T)`` of
+  it, so the coefficients may change every period as ``w_0`` moves without the state losing its
+  meaning, as a direct-form biquad's delayed outputs would.
 - ``"sogi"``: the two-integrator form of Yepes et al. 2011 (forward Euler on the direct integrator,
   backward Euler on the feedback one; no division, no feed-through), with the feedback gain
   ``w^ = (2/Ts) sin(w_0 Ts/2)`` that puts the poles' angle at ``w_0 Ts`` exactly. Its ``x1`` then has gain
