@@ -16,6 +16,7 @@ from .validation import ParameterError
 CONTROLS = {
     "pi": (presets.book_drive, "cascaded PI FOC, i_d = 0 (book ch. 3)"),
     "smc": (presets.smc_drive, "sliding-mode speed loop, exponential reaching law, dq PI currents (ch. 3)"),
+    "pr": (presets.pr_drive, "proportional-resonant current loops in alpha-beta, PI speed loop (ch. 3)"),
     "hysteresis": (presets.hysteresis_drive, "hysteresis current comparators, PI speed loop (ch. 3)"),
 }
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from ..validation import ParameterError
 
-CONTROL_NAMES = ("pi", "smc", "hysteresis")
+CONTROL_NAMES = ("pi", "smc", "pr", "hysteresis")
 
 #: Command-line flag (argparse dest) -> preset option; flags left unset keep each preset's own default.
 FLAG_OPTIONS = {
@@ -59,8 +59,8 @@ def add_parser(sub):
         "--control",
         choices=list(CONTROL_NAMES),
         default="pi",
-        help="control method: pi (cascaded PI FOC, default), smc (sliding-mode speed loop), hysteresis "
-        "(hysteresis current comparators at 100 kHz)",
+        help="control method: pi (cascaded PI FOC, default), smc (sliding-mode speed loop), pr "
+        "(proportional-resonant current loops in alpha-beta), hysteresis (current comparators at 100 kHz)",
     )
     p.add_argument("--out", default="demo_out", help="output folder (created), default: demo_out")
     p.add_argument("--motor", default="book", help="preset name (book, book_salient) or motor TOML file")

@@ -1,5 +1,6 @@
 """Controllers: the controller interfaces, discrete PI, design rules, cascaded FOC with its blocks (PI and
-sliding-mode speed loops; MTPA and field weakening), and hysteresis current control."""
+sliding-mode speed loops; dq PI or proportional-resonant current loops; MTPA and field weakening), and
+hysteresis current control."""
 
 from .base import (
     AbstractController,
@@ -20,6 +21,7 @@ from .foc import FOC, FOCState
 from .hysteresis import HysteresisCurrentControl, HysteresisState, hysteresis_comparator
 from .mtpa import MTPA, mtpa_id_from_iq, mtpa_id_from_magnitude
 from .pi import clip_magnitude, clip_symmetric, pi_update, realisable_reference_tracking
+from .pr import ProportionalResonant, ResonantCoefficients, pr_design, resonant_coefficients
 from .smc import SlidingModeSpeed, SlidingModeState, smc_design, switching_function
 
 __all__ = [
@@ -37,6 +39,8 @@ __all__ = [
     "CurrentLoopGains",
     "SlidingModeSpeed",
     "SlidingModeState",
+    "ProportionalResonant",
+    "ResonantCoefficients",
     "SpeedLoopGains",
     "clip_magnitude",
     "clip_symmetric",
@@ -48,6 +52,8 @@ __all__ = [
     "pi_update",
     "realisable_reference_tracking",
     "smc_design",
+    "pr_design",
+    "resonant_coefficients",
     "speed_loop_active_damping",
     "switching_function",
 ]
