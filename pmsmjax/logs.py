@@ -297,6 +297,18 @@ def atomic_write(path: str | os.PathLike, writer: Callable[[io.IOBase], None], m
     return path
 
 
+def check_output_folder(path: str | os.PathLike, flag: str = "--out") -> Path:
+    """Refuse an output folder that cannot be one, before any work: an existing file (not a folder) at
+    ``path``, or on its way. Returns ``Path(path)``; the folder is created by the caller when it writes."""
+    path = Path(path)
+    for p in (path, *path.parents):
+        if p.exists() and not p.is_dir():
+            raise ParameterError(
+                f"{flag} {path}: {p} is an existing file, not a folder; give a folder name (it is created)."
+            )
+    return path
+
+
 def _default_mode(path: Path) -> int:
     if path.exists():
         return path.stat().st_mode & 0o777

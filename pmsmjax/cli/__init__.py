@@ -1,5 +1,5 @@
 """The ``pmsmjax`` command: ``demo`` (alias ``simulate``), ``replay``, ``tune``, ``bench``, ``pwm-compare``,
-``identify`` and ``montecarlo``.
+``compare``, ``identify`` and ``montecarlo``.
 
 Every subcommand checks its input before compiling anything and writes each output file atomically
 (temporary file in the same folder, then rename), so an interrupted or failed run leaves no half file.
@@ -23,6 +23,7 @@ SUBCOMMANDS = (
     "bench",
     "tune",
     "pwm_compare",
+    "compare",
     "identify",
     "montecarlo",
 )

@@ -3,7 +3,6 @@ trace, summary.json and figures."""
 
 import json
 import time
-from pathlib import Path
 
 from ..validation import ParameterError
 
@@ -90,11 +89,12 @@ def run(args) -> int:
     import jax
 
     from .. import presets
-    from ..logs import atomic_write, write_csv_atomic
+    from ..logs import atomic_write, check_output_folder, write_csv_atomic
     from ..plotting import save_demo_figures
     from ..simulate import check_simulation, simulate
     from ..summary import speed_step_summary
 
+    out = check_output_folder(args.out)
     motor = presets.load_motor(args.motor)
     drive = control_drive_from_flags(args, motor)
     scenario = presets.book_scenario(args.speed_rpm, args.load_nm, args.load_time_s, args.duration_s)
@@ -132,7 +132,6 @@ def run(args) -> int:
         "timing": {"compile_s": max(first_call_s - run_s, 0.0), "run_s": run_s},
     }
 
-    out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     columns = trace.columns()
     if args.format == "csv":
