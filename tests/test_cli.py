@@ -21,7 +21,17 @@ def _subcommands() -> list[str]:
 
 
 def test_subcommand_list_is_complete():
-    expected = {"demo", "simulate", "replay", "bench", "tune", "pwm-compare", "identify", "montecarlo"}
+    expected = {
+        "demo",
+        "simulate",
+        "replay",
+        "bench",
+        "tune",
+        "pwm-compare",
+        "compare",
+        "identify",
+        "montecarlo",
+    }
     assert set(_subcommands()) == expected
 
 

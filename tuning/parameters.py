@@ -30,7 +30,9 @@ CURRENT_GAINS = (
     "controller.current.ki_d",
     "controller.current.ki_q",
 )
-ALIASES = {"speed": SPEED_GAINS, "current": CURRENT_GAINS}
+SMC_GAINS = ("controller.speed.c", "controller.speed.eps", "controller.speed.q")
+PR_GAINS = ("controller.current.kp", "controller.current.kr", "controller.current.w_c")
+ALIASES = {"speed": SPEED_GAINS, "current": CURRENT_GAINS, "smc": SMC_GAINS, "pr": PR_GAINS}
 
 
 def get_leaf(drive, name: str):
@@ -51,7 +53,8 @@ def array_leaf_names(drive: Drive) -> list[str]:
 
 
 def resolve_names(drive: Drive, names) -> tuple[str, ...]:
-    """Expand aliases (``speed``, ``current``) and check every name is a positive scalar leaf."""
+    """Expand aliases (``speed``, ``current``, ``smc``, ``pr``) and check every name is a positive scalar
+    leaf."""
     if isinstance(names, str):
         names = [names]
     expanded = []

@@ -1,4 +1,4 @@
-"""``pmsmjax tune``: gradient auto-tuning of the FOC gains (:mod:`tuning.autotune.job`)."""
+"""``pmsmjax tune``: gradient auto-tuning of a control method's gains (:mod:`tuning.autotune.job`)."""
 
 from pathlib import Path
 
@@ -6,10 +6,12 @@ from pathlib import Path
 def add_parser(sub):
     p = sub.add_parser(
         "tune",
-        help="tune the FOC gains by gradients over a batch of speed/load scenarios",
+        help="tune a control method's gains by gradients over a batch of speed/load scenarios",
         description=(
-            "Gradient auto-tuning of the book drive's speed and current PI gains (BFGS or Adam in log-space "
-            "from the design-rule gains) over a seeded batch of speed steps (200-1500 r/min, both "
+            "Gradient auto-tuning of the book drive's gains (BFGS or Adam in log-space from the design-rule "
+            "gains): --control pi (speed and current PIs, default), smc (c, eps, q and the current PIs; "
+            "tuned with tanh switching, re-evaluated with the exact sign law) or pr (Kp, Kr, w_c), over a "
+            "seeded batch of speed steps (200-1500 r/min, both "
             "directions) and load steps (0-10 N m), checked on a held-out batch. Writes DIR/gains.toml, "
             "DIR/result.json, DIR/cost.png, DIR/responses.png and DIR/checkpoint.npz; running it again "
             "resumes. Settings: flags, then --config TOML ([weights], [tune], [job] tables), then built-in "
@@ -17,6 +19,9 @@ def add_parser(sub):
         ),
     )
     p.add_argument("--out", default="tune_out", help="output folder (created), default: tune_out")
+    p.add_argument(
+        "--control", choices=("pi", "smc", "pr"), help="control method whose gains are tuned (default pi)"
+    )
     p.add_argument("--config", default=None, help="TOML with [weights], [tune] and [job] tables")
     p.add_argument("--iterations", type=int, help="maximum iterations (default 100)")
     p.add_argument("--train", type=int, help="training scenarios (default 64)")
@@ -26,7 +31,10 @@ def add_parser(sub):
         "--duration-s", type=float, nargs=2, metavar=("LOW", "HIGH"), help="scenario durations, s (0.3 0.5)"
     )
     p.add_argument(
-        "--gains", nargs="+", help="gains to tune: aliases speed, current or names like controller.speed.kp"
+        "--gains",
+        nargs="+",
+        help="gains to tune: aliases speed, current, smc, pr or names like controller.speed.kp "
+        "(default: the control's own gains)",
     )
     p.add_argument(
         "--method",
@@ -67,6 +75,7 @@ def run(args) -> int:
         ("duration_s", tuple(args.duration_s) if args.duration_s else None),
         ("tune_substeps", args.substeps),
         ("eval_substeps", args.eval_substeps),
+        ("control", args.control),
     ):
         if value is not None:
             kwargs[key] = value
@@ -82,6 +91,12 @@ def run(args) -> int:
         f"train ITAE {tr['before']['itae']:.4f} -> {tr['after']['itae']:.4f} ({cut(tr):.1f} % lower), "
         f"held-out {ho['before']['itae']:.4f} -> {ho['after']['itae']:.4f} ({cut(ho):.1f} % lower)"
     )
+    if "after_surrogate" in ho:
+        print(
+            f"held-out ITAE of the tuned gains on the smoothed surrogate "
+            f"({', '.join(f'{k}={v}' for k, v in data['surrogate']['options'].items())}): "
+            f"{ho['after_surrogate']['itae']:.4f}; on the exact law (above): {ho['after']['itae']:.4f}"
+        )
     print(
         f"overshoot {tr['before']['overshoot_pct']:.3f} -> {tr['after']['overshoot_pct']:.3f} % "
         f"(train mean), peak current {tr['after']['max_peak_current_a']:.2f} A, "

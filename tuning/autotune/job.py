@@ -5,10 +5,15 @@ Outputs in the chosen folder: ``gains.toml`` (load with :func:`tuning.parameters
 scenarios before and after) and ``checkpoint.npz`` (resume point; running the same command again
 continues from it and ends at the same result).
 
+Control methods (``control``: ``pi``, ``smc``, ``pr``; :mod:`tuning.autotune.controls`): the drive of
+:func:`pmsmjax.controls.control_drive` and its default gains.
+
 Surrogate and exact model: tuning runs the drive with ``tune_substeps`` RK4 steps per period (1 by
-default: 4e-7 of peak current from the exact solution at 10 kHz, and a 4x cheaper gradient); every
-before/after figure is re-evaluated with ``eval_substeps`` (10, the book setting), and result.json gives
-the cost on both. (The switching-resolved bridge, when it exists, is the next exact model to add.)
+default: 4e-7 of peak current from the exact solution at 10 kHz, and a 4x cheaper gradient) and with the
+control's smooth surrogate (the SMC's ``tanh`` switching instead of ``sign``); every before/after figure is
+re-evaluated on the exact model (``eval_substeps``, 10, the book setting, and the exact switching), and
+result.json gives the cost on both, plus the held-out figures of the tuned gains on the smoothed model
+(``heldout.after_surrogate``) where the surrogate differs by more than its sub-steps.
 """
 
 import dataclasses
@@ -20,7 +25,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from pmsmjax import presets
+from pmsmjax.controls import control_drive
 from pmsmjax.logs import atomic_write
 from pmsmjax.units import rad_s_to_rpm
 from pmsmjax.validation import ParameterError
@@ -31,13 +36,15 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 from ..parameters import apply_gains, get_leaf, write_gains_toml
+from .controls import control_tuning
 from .objectives import ObjectiveWeights, aggregate, batch_metrics, scenario_cost
 from .scenario_batches import ScenarioBatch, make_batch
 from .tuner import TuneConfig, tune
 
 #: The must-show configuration: 64 + 64 scenarios, 0.3-0.5 s, steps of 200-1500 r/min both ways, 0-10 N m;
-#: BFGS (its rounded-penalty default), which gets a 3x lower cost than Adam in fewer iterations.
-DEFAULT_CONFIG = TuneConfig(method="bfgs", max_iterations=100)
+#: BFGS (its rounded-penalty default), which gets a 3x lower cost than Adam in fewer iterations. ``names``
+#: None: the control's own gains (:data:`tuning.autotune.controls.TUNABLE_CONTROLS`).
+DEFAULT_CONFIG = TuneConfig(names=None, method="bfgs", max_iterations=100)
 
 #: Keys of a tuning TOML file, by table; ``[job]`` holds the keyword arguments of :func:`run_tune_job`.
 JOB_KEYS = (
@@ -50,6 +57,7 @@ JOB_KEYS = (
     "plant_spread",
     "tune_substeps",
     "eval_substeps",
+    "control",
 )
 
 
@@ -121,20 +129,25 @@ def run_tune_job(
     plant_spread: dict | None = None,
     tune_substeps: int = 1,
     eval_substeps: int = 10,
+    control: str = "pi",
     weights: ObjectiveWeights | None = None,
     config: TuneConfig = DEFAULT_CONFIG,
     progress: bool = True,
     callback=None,
 ) -> dict:
-    """Tune the book drive's gains and write the outputs into ``out_dir``; returns result.json's content."""
+    """Tune the gains of the book drive under ``control`` and write the outputs into ``out_dir``; returns
+    result.json's content."""
     weights = ObjectiveWeights() if weights is None else weights
+    tuning = control_tuning(control)
+    if config.names is None:
+        config = dataclasses.replace(config, names=tuning.names)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     batch_options = dict(duration_s=duration_s, kinds=kinds, plant_spread=plant_spread)
     train = make_batch(n_train, train_seed, **batch_options)
     heldout = make_batch(n_heldout, heldout_seed, **batch_options)
-    surrogate = presets.book_drive(n_substeps=tune_substeps)
-    exact = presets.book_drive(n_substeps=eval_substeps)
+    surrogate = control_drive(control, n_substeps=tune_substeps, **tuning.surrogate)
+    exact = control_drive(control, n_substeps=eval_substeps)
 
     result = tune(
         surrogate,
@@ -153,14 +166,19 @@ def run_tune_job(
             "after": evaluate(tuned_exact, heldout, weights),
         },
     }
+    if tuning.surrogate:  # the smoothed law at the exact model's sub-steps: what the optimiser saw
+        smoothed = control_drive(control, n_substeps=eval_substeps, **tuning.surrogate)
+        report["heldout"]["after_surrogate"] = evaluate(apply_gains(smoothed, result.gains), heldout, weights)
     before_gains = {n: float(get_leaf(exact, n)) for n in result.gains}
     data = {
         "train": {k: {**v["summary"], "per_scenario": v["per_scenario"]} for k, v in report["train"].items()},
         "heldout": {
             k: {**v["summary"], "per_scenario": v["per_scenario"]} for k, v in report["heldout"].items()
         },
+        "control": control,
         "gains": {"before": before_gains, "after": result.gains},
         "surrogate": {
+            "options": dict(tuning.surrogate),
             "tune_substeps": tune_substeps,
             "eval_substeps": eval_substeps,
             "train_cost_on_surrogate": {"before": result.initial_cost, "after": result.best_cost},
@@ -190,7 +208,8 @@ def run_tune_job(
         out / "gains.toml",
         list(result.gains),
         list(result.gains.values()),
-        header=f"FOC gains tuned by pmsmjax tune ({time.strftime('%Y-%m-%d')}); SI units.",
+        header=f"{control} gains tuned by pmsmjax tune --control {control} ({time.strftime('%Y-%m-%d')}); "
+        "SI units.",
     )
     atomic_write(out / "result.json", lambda f: f.write(json.dumps(data, indent=2).encode()))
     _figures(out, exact, tuned_exact, train, result.history)
