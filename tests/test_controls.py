@@ -163,3 +163,19 @@ def test_tune_refuses_a_control_it_cannot_tune(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["tune", "--control", "hysteresis", "--out", str(tmp_path / "t")])
     assert "invalid choice" in capsys.readouterr().err
+
+
+def test_controller_benchmark_smoke():
+    """benchmarks/bench_controllers.py at quick sizes: every control timed, ratios consistent."""
+    from benchmarks import bench_controllers
+
+    r = bench_controllers.run(quick=True)
+    assert set(bench_controllers.REQUIRED_KEYS) <= set(r)
+    assert set(r["controls"]) == set(CONTROLS)
+    assert r["controls"]["pi"]["per_period_vs_pi"] == 1.0
+    for c in r["controls"].values():
+        assert c["run_s"] > 0 and np.isfinite(c["us_per_period"])
+        # per simulated second = per period x periods per second, both relative to PI
+        ratio = c["per_period_vs_pi"] * (r["controls"]["pi"]["control_period_s"] / c["control_period_s"])
+        assert c["per_simulated_s_vs_pi"] == pytest.approx(ratio, rel=1e-9)
+    assert "control methods on the book scenario" in bench_controllers.format_table(r)
