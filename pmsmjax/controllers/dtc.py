@@ -10,8 +10,10 @@ stator flux ``psi_ab`` and torque ``T`` (:class:`pmsmjax.estimators.StatorFluxOb
 1. the speed loop (:class:`~pmsmjax.controllers.base.AbstractSpeedController`, the PI with active damping
    by default) every ``speed_divider`` samples. Its output is a q-axis current (A) in the FOC cascade; here
    it is scaled by the controller model's torque constant ``K_t = 1.5 p_n psi_f`` into the torque
-   reference ``T* = K_t i_q*`` (N m), limited to ``K_t * current_limit``. With an ideal torque loop the
-   mechanics see the same ``K_t i_q*`` as under FOC, so the same design rule gives the same speed loop.
+   reference ``T* = K_t i_q*`` (N m), limited to the torque that keeps the current inside
+   ``current_limit`` at the flux reference (:func:`torque_current_limit`: 16.1 N m on the book drive).
+   With an ideal torque loop the mechanics see the same ``K_t i_q*`` as under FOC, so the same design
+   rule gives the same speed loop.
    ``mode="torque"``: ``T* = K_t i_q*`` with the scenario's ``i_q*``.
 2. the flux comparator, two-level with full band ``h_psi`` (Wb) on ``e_psi = psi* - |psi|``::
 
@@ -97,6 +99,7 @@ __all__ = [
     "flux_sector",
     "table_vector",
     "three_level_comparator",
+    "torque_current_limit",
 ]
 
 #: Leg states (a, b, c; 1 = upper switch on) of the vectors V0..V7.
@@ -171,8 +174,8 @@ class SwitchingTableDTC(AbstractController):
       the implied current reference).
     - `torque_band_nm`: full torque band ``h_T``, N m.
     - `flux_band_wb`: full flux band ``h_psi``, Wb.
-    - `current_limit`: peak phase-current limit, A: the torque reference is limited to
-      ``K_t * current_limit``.
+    - `current_limit`: peak phase-current limit, A: the torque reference is limited to what it allows at
+      the flux reference (:func:`torque_current_limit`).
     - `speed`: the speed block (its output a current, A); ``None`` takes the PI with active damping at
       `speed_bandwidth` rad/s.
     - `flux_ref_wb`: stator flux reference ``psi*``, Wb; ``None`` takes ``model.psi_f``.
@@ -282,11 +285,38 @@ def flux_magnitude(psi_ab: Array) -> Array:
     return jnp.where(sq > 0, jnp.sqrt(safe), 0.0)
 
 
+def torque_current_limit(model: PMSMParameters, flux_ref_wb: Array, current_limit: Array) -> Array:
+    """The largest torque-equivalent current ``T_max / K_t``, A, with ``|i| <= current_limit`` at
+    ``|psi| = flux_ref_wb``.
+
+    At the flux reference the current is not free: ``(L_d i_d + psi_f)^2 + (L_q i_q)^2 = psi*^2``. On the
+    current circle ``i_d^2 + i_q^2 = I^2`` this gives ``a i_d^2 + b i_d + c = 0`` with
+    ``a = L_d^2 - L_q^2``, ``b = 2 L_d psi_f``, ``c = psi_f^2 + L_q^2 I^2 - psi*^2``, solved as
+    ``i_d = -2c / (b + sqrt(b^2 - 4ac))`` (the root near the surface machine's ``-c/b``), and then
+    ``T_max = 1.5 p_n (psi_f + (L_d - L_q) i_d) i_q`` with ``i_q = sqrt(I^2 - i_d^2)``. For the book motor
+    at ``psi* = psi_f`` and 15 A: ``i_d`` = -3.2 A, ``i_q`` = 14.65 A, ``T_max`` = 16.1 N m (``K_t I`` =
+    16.4 N m would take 15.3 A). Zero where the flux reference cannot be held on the circle.
+    """
+    m = model
+    a = m.L_d**2 - m.L_q**2
+    b = 2.0 * m.L_d * m.psi_f
+    c = m.psi_f**2 + (m.L_q * current_limit) ** 2 - flux_ref_wb**2
+    disc = b * b - 4.0 * a * c
+    root = jnp.sqrt(jnp.where(disc > 0, disc, 1.0))
+    i_d = -2.0 * c / (b + root)
+    iq_sq = current_limit**2 - i_d**2
+    ok = (disc > 0) & (iq_sq > 0)
+    i_q = jnp.sqrt(jnp.where(ok, iq_sq, 1.0))
+    torque_max = 1.5 * m.pole_pairs * (m.psi_f + (m.L_d - m.L_q) * i_d) * i_q
+    return jnp.where(ok, torque_max / m.torque_constant, 0.0)
+
+
 def speed_torque_reference(controller, state, estimate: Estimate, refs: References, Ts):
     """``(T* N m, speed state, counter)``: the speed block's current scaled by ``K_t``, every
-    ``speed_divider`` samples (held in between), or ``K_t i_q*`` of the scenario in torque mode."""
+    ``speed_divider`` samples (held in between), or ``K_t i_q*`` of the scenario in torque mode; limited
+    to ``K_t`` times :func:`torque_current_limit`, the current circle at the flux reference."""
     k_t = controller.model.torque_constant
-    i_max = controller.current_limit
+    i_max = torque_current_limit(controller.model, controller.flux_ref_wb, controller.current_limit)
     speed_state, counter = state.speed, state.counter
     if controller.mode == "speed":
         new_speed_state, iq = controller.speed.step(

@@ -93,7 +93,8 @@ class SlidingModeDTC(AbstractController):
     - `torque_boundary_nm`: ``phi_T``, N m: boundary-layer width of the torque surface (unused by
       ``"sign"``).
     - `flux_gain_v`: ``K_psi``, V. `flux_boundary_wb`: ``phi_psi``, Wb.
-    - `current_limit`: peak phase-current limit, A (the torque reference is limited to ``K_t`` times it).
+    - `current_limit`: peak phase-current limit, A (the torque reference is limited to what it allows at
+      the flux reference: :func:`pmsmjax.controllers.dtc.torque_current_limit`).
     - `speed`: the speed block (output a current, A); ``None``: the PI with active damping at
       `speed_bandwidth` rad/s.
     - `flux_ref_wb`: ``psi*``, Wb; ``None`` takes ``model.psi_f``.
