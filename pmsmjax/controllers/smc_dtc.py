@@ -238,7 +238,8 @@ def smc_dtc_design(
         if is_concrete(a) and float(a) * Ts >= 0.5:
             raise ParameterError(
                 f"{name}_bandwidth_rad_s = {float(a):g} rad/s is too fast for Ts = {Ts:g} s (a Ts = "
-                f"{float(a) * Ts:.2f} >= 0.5 with the one-period delay): choose a < {0.25 / Ts:g} rad/s."
+                f"{float(a) * Ts:.2f} >= 0.5 with the one-period delay): choose a < {0.5 / Ts:g} rad/s "
+                f"(a <= {0.25 / Ts:g} rad/s is not oscillatory)."
             )
     dtype = motor.R.dtype
     b_t = motor.torque_constant / motor.L_q

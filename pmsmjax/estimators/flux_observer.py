@@ -63,7 +63,7 @@ from .._types import Array
 from ..frames import inverse_park, park
 from ..machines.motor import PMSMParameters, as_float
 from ..signals import Estimate, Sample
-from ..validation import check_nonnegative
+from ..validation import ParameterError, check_nonnegative
 from .base import AbstractEstimator
 from .position_sensors import ExactSensor
 
@@ -117,9 +117,9 @@ class StatorFluxObserver(AbstractEstimator):
             hint="give 0 for the pure voltage model or a crossover of a few tens of rad/s",
         )
         if self.position.injects_voltage:
-            raise NotImplementedError(
-                "StatorFluxObserver does not pass an injection voltage on; wrap a position estimator "
-                "that injects nothing."
+            raise ParameterError(
+                "StatorFluxObserver.position injects a voltage, which this observer does not pass on: wrap "
+                "a position estimator that injects nothing (ExactSensor, Encoder, a back-EMF observer)."
             )
 
     def check_period(self, Ts: float) -> None:
