@@ -387,9 +387,11 @@ def dtc_drive(
     Choices (measured on the book scenario, tests/test_dtc.py and notes/issue-13.md):
 
     - `sample_period_s` = 25 us (40 kHz), inside the usual 20-50 us of DTC implementations.
-    - `torque_band_nm` = 1 N m and `flux_band_wb` = 10 mWb (5.5 % of psi_f): about twice what one
-      25 us sample moves the torque (up to 0.5 N m) and the flux (up to 5 mWb), so the bands, not the
-      sampling, set the ripple.
+    - `torque_band_nm` = 1 N m and `flux_band_wb` = 10 mWb (5.5 % of psi_f): about twice what one 25 us
+      sample moves the torque (0.4-0.65 N m) and the flux magnitude (up to 4.5 mWb) at 1000 r/min under
+      10 N m. Narrower bands buy switching, not ripple, at this sample period: halving them raises the
+      mean switching frequency from 4.4 to 8.1 kHz for the same 0.34 N m RMS torque ripple; doubling them
+      gives 2.4 kHz and 0.46 N m (benchmarks/bench_dtc.py).
     - `n_substeps` = 1: one RK4 step of 25 us spans 0.01 rad of electrical angle at 1000 r/min and
       1/220 of the winding time constant.
     - `computation_delay` = False: as for hysteresis current control, a state acts from the sample that
