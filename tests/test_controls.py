@@ -35,8 +35,8 @@ def test_registry_builds_each_method_and_refuses_what_does_not_apply():
     assert isinstance(control_drive("smc").controller.speed, SlidingModeSpeed)
     assert isinstance(control_drive("pr").controller.current, ProportionalResonant)
     assert control_drive("hysteresis").modulator is None
-    with pytest.raises(ParameterError, match="unknown control 'dtc'"):
-        control_drive("dtc")
+    with pytest.raises(ParameterError, match="unknown control 'foo'"):
+        control_drive("foo")
     with pytest.raises(ParameterError, match="band_a do not apply to control 'pi'"):
         control_drive("pi", band_a=1.0)
 

@@ -12,15 +12,20 @@ def add_parser(sub):
         "compare",
         help="run the book scenario with several control methods and compare them (compare.json, figures)",
         description=(
-            "Each control method (pi, smc, pr, hysteresis) drives the book motor through the book scenario "
-            "(speed step from rest, then a load step). Writes DIR/compare.json (per controller: rise_time_s, "
-            "overshoot_pct, dip_rpm, recovery_time_s, itae, peak_current_a, current_thd_pct, "
-            "switching_frequency_hz, torque_ripple_nm) and side-by-side figures. Ripple, THD and torque "
-            "ripple come from the last electrical periods, sampled inside each control period, with the "
-            "switching-resolved bridge for voltage-commanding controllers."
+            "Each control method (pi, smc, pr, hysteresis, dtc, smc-dtc) drives the book motor through the "
+            "book scenario (speed step from rest, then a load step). Writes DIR/compare.json (per "
+            "controller: rise_time_s, overshoot_pct, dip_rpm, recovery_time_s, itae, peak_current_a, "
+            "current_thd_pct, switching_frequency_hz, torque_ripple_nm, flux_ripple_wb) and side-by-side "
+            "figures. Ripple, THD, torque and flux ripple come from the last electrical periods, sampled "
+            "inside each control period, with the switching-resolved bridge for voltage-commanding "
+            "controllers."
         ),
     )
-    p.add_argument("--control", default="pi,smc,pr,hysteresis", help="comma-separated methods (default: all)")
+    p.add_argument(
+        "--control",
+        default="pi,smc,pr,hysteresis",
+        help="comma-separated methods: pi, smc, pr, hysteresis, dtc, smc-dtc (default: the chapter 3 four)",
+    )
     p.add_argument("--out", default="compare_out", help="output folder (created), default: compare_out")
     p.add_argument("--motor", default="book", help="preset name (book, book_salient) or motor TOML file")
     p.add_argument("--speed-rpm", type=float, default=1000.0, help="speed step, r/min (default 1000)")
@@ -32,6 +37,15 @@ def add_parser(sub):
         choices=("switching", "averaged"),
         default="switching",
         help="bridge of the voltage-commanding controllers (default switching: the PWM ripple is modelled)",
+    )
+    p.add_argument(
+        "--equal-switching",
+        nargs="?",
+        type=float,
+        const=0.0,
+        metavar="HZ",
+        help="also run each banded controller (dtc, hysteresis) with its bands scaled to this mean switching "
+        "frequency, Hz (no value: the PWM frequency of the voltage-commanding controls), as NAME@F kHz",
     )
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.set_defaults(func=run)
@@ -56,6 +70,7 @@ def run(args) -> int:
         load_time_s=args.load_time_s,
         duration_s=args.duration_s,
         bridge=args.bridge,
+        equal_switching_hz=args.equal_switching,
     )
     settings.check()
     motor = presets.load_motor(args.motor)
@@ -69,11 +84,12 @@ def run(args) -> int:
     written = ["compare.json"]
     if not args.no_figures:
         from ..plotting import save_figure
-        from ..plotting_compare import ripple_figure, speed_figure
+        from ..plotting_compare import flux_figure, ripple_figure, speed_figure
 
         for name, fig in (
             ("compare_speed.png", speed_figure(result)),
             ("compare_ripple.png", ripple_figure(result)),
+            ("compare_flux.png", flux_figure(result)),
         ):
             save_figure(fig, out / name)
             written.append(name)

@@ -6,7 +6,7 @@ import time
 
 from ..validation import ParameterError
 
-CONTROL_NAMES = ("pi", "smc", "pr", "hysteresis")
+CONTROL_NAMES = ("pi", "smc", "pr", "hysteresis", "dtc", "smc-dtc")
 
 #: Command-line flag (argparse dest) -> preset option; flags left unset keep each preset's own default.
 FLAG_OPTIONS = {
@@ -18,6 +18,9 @@ FLAG_OPTIONS = {
     "field_weakening": "d_axis",
     "band_a": "band_a",
     "switching": "switching",
+    "torque_band_nm": "torque_band_nm",
+    "flux_band_wb": "flux_band_wb",
+    "sample_period_us": "sample_period_s",
 }
 
 
@@ -37,6 +40,8 @@ def control_drive_from_flags(args, motor):
             raise ParameterError(f"--{flag.replace('_', '-')} does not apply to --control {args.control}.")
         if flag == "no_delay":
             value = False
+        elif flag == "sample_period_us":
+            value = value * 1e-6
         elif flag == "field_weakening":
             value = presets.field_weakening_block(args.current_bandwidth or presets.BOOK_CURRENT_BANDWIDTH)
         options[option] = value
@@ -59,7 +64,8 @@ def add_parser(sub):
         choices=list(CONTROL_NAMES),
         default="pi",
         help="control method: pi (cascaded PI FOC, default), smc (sliding-mode speed loop), pr "
-        "(proportional-resonant current loops in alpha-beta), hysteresis (current comparators at 100 kHz)",
+        "(proportional-resonant current loops in alpha-beta), hysteresis (current comparators at 100 kHz), "
+        "dtc (switching-table direct torque control, 40 kHz samples), smc-dtc (sliding-mode DTC with SVPWM)",
     )
     p.add_argument("--out", default="demo_out", help="output folder (created), default: demo_out")
     p.add_argument("--motor", default="book", help="preset name (book, book_salient) or motor TOML file")
@@ -77,8 +83,11 @@ def add_parser(sub):
     p.add_argument(
         "--switching",
         choices=("sign", "saturation", "tanh"),
-        help="SMC switching function (default sign, the book's)",
+        help="switching function of smc (default sign, the book's) or smc-dtc (default saturation)",
     )
+    p.add_argument("--torque-band-nm", type=float, help="dtc: full torque hysteresis band, N m (default 1)")
+    p.add_argument("--flux-band-wb", type=float, help="dtc: full flux hysteresis band, Wb (default 0.01)")
+    p.add_argument("--sample-period-us", type=float, help="dtc: comparator sample period, us (default 25)")
     p.add_argument("--decimate", type=int, default=1, help="record every N-th period (default 1)")
     p.add_argument("--format", choices=["csv", "npz"], default="csv", help="trace file format")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
