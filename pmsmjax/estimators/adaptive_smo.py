@@ -15,13 +15,14 @@ at ``w`` with unit gain and no phase shift, and the adaptation law (Lyapunov: ``
 ``w``. The law is normalised by ``|e^|^2`` (plus ``emf_floor^2``) so the loop's bandwidth does not change
 with speed.
 
-Sampled form: the current observer as in :mod:`.smo`; ``z`` is rotated forward by the phase of the
-observer's own chain (period weighting and linear-zone pole, :meth:`.smo.SlidingModeObserver.chain_lag`
-less the low-pass part) so it stands for the back-EMF at the sampling instant; the model rotates
-``e^`` exactly by ``w^ Ts`` and blends it towards ``z`` with ``a = 1 - exp(-l Ts)``. Linearised, the
-angle error between ``e^`` and ``z`` obeys the sampled type-2 tracking loop of :mod:`.pll` with
-``a = 1 - exp(-l Ts)``, ``b = gamma Ts^2``: design rule ``l = 2 w_n``, ``gamma = w_n^2`` (double pole at
-``-w_n``), and ``check_period`` refuses the same unstable region.
+Sampled form: the current observer as in :mod:`.smo`; the model rotates ``e^`` exactly by ``w^ Ts`` and
+blends it towards ``z`` with ``a = 1 - exp(-l Ts)``. ``z`` sees the back-EMF through the observer's own
+sampled filter (about half a period and the linear-zone pole, the first two terms of
+:meth:`.smo.SlidingModeObserver.chain_lag`), so ``e^`` is turned forward by that phase at the output
+(outside the loop). Linearised, the angle error between ``e^`` and ``z`` obeys the sampled type-2
+tracking loop of :mod:`.pll` with ``a = 1 - exp(-l Ts)``, ``b = gamma Ts^2``: design rule ``l = 2 w_n``,
+``gamma = w_n^2`` (double pole at ``-w_n``), and ``check_period`` refuses gains whose sampled loop is
+unstable.
 """
 
 import math
@@ -37,8 +38,15 @@ from ..units import rpm_to_rad_s
 from ..validation import ParameterError, check_positive
 from .base import AbstractEstimator
 from .smo import SMO_K_MARGIN, SMO_POLE, check_observer_pole, observer_pole, sliding_current_update
-from .stability import check_poles, concrete_values, tracking_loop_poly
-from .stator_model import cross, emf_angle, first_order_lag, period_weight_phase, rl_coefficients, rotate
+from .stability import check_loop, concrete_values, tracking_loop_matrix
+from .stator_model import (
+    cross,
+    emf_angle,
+    first_order_lag,
+    period_weight_phase,
+    rl_coefficients,
+    rotate,
+)
 from .switching import SWITCHING, Switching
 
 
@@ -85,10 +93,10 @@ class AdaptiveSMO(AbstractEstimator):
         check_observer_pole("AdaptiveSMO", m.R, m.L_q, self.k, self.width, self.switching, Ts)
         values = concrete_values(self.l, self.gamma)
         if values is not None:
-            check_poles(
+            check_loop(
                 f"AdaptiveSMO speed adaptation (l = {values[0].max():g} rad/s, "
                 f"gamma = {values[1].max():g} 1/s^2)",
-                lambda ll, g: tracking_loop_poly(-math.expm1(-ll * Ts), g * Ts * Ts),
+                lambda ll, g: tracking_loop_matrix(-math.expm1(-ll * Ts), g * Ts * Ts),
                 values,
                 f"lower l and gamma: the rule l = 2 w_n, gamma = w_n^2 is stable for w_n below about "
                 f"{(8**0.5 - 2) / Ts:.4g} rad/s",
@@ -113,15 +121,17 @@ class AdaptiveSMO(AbstractEstimator):
             self.switching,
         )
         w = state.omega
-        p = observer_pole(phi, gamma_rl, self.k, self.width, self.switching)
-        # z stands for the back-EMF through the observer's own (half-period, pole p) filter: undo its phase.
-        z_now = rotate(z, period_weight_phase(w, m.R, m.L_q, Ts) + first_order_lag(w, p, Ts))
         e_pred = rotate(state.emf, w * Ts)
-        error = cross(e_pred, z_now) / (jnp.dot(e_pred, e_pred) + self.emf_floor**2)
-        emf = e_pred - jnp.expm1(-self.l * Ts) * (z_now - e_pred)
+        error = cross(e_pred, z) / (jnp.dot(e_pred, e_pred) + self.emf_floor**2)
+        emf = e_pred - jnp.expm1(-self.l * Ts) * (z - e_pred)
         omega = w + Ts * self.gamma * error
-        theta = wrap_angle(emf_angle(emf, omega))
-        return AdaptiveSMOState(i_hat, z, emf, omega), Estimate(theta, omega / m.pole_pairs, back_emf_ab=emf)
+        # z, hence the model, sees the back-EMF through the observer's own filter (about half a period and
+        # the linear-zone pole p): its phase is added to the output, outside the adaptation loop.
+        p = observer_pole(phi, gamma_rl, self.k, self.width, self.switching)
+        emf_now = rotate(emf, period_weight_phase(omega, m.R, m.L_q, Ts) + first_order_lag(omega, p, Ts))
+        theta = wrap_angle(emf_angle(emf_now, omega))
+        new_state = AdaptiveSMOState(i_hat, z, emf, omega)
+        return new_state, Estimate(theta, omega / m.pole_pairs, back_emf_ab=emf_now)
 
 
 #: Design-rule defaults of :func:`adaptive_smo_design`.

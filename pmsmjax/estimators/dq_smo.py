@@ -30,11 +30,15 @@ plus pi below (the model is the same in both frames; :func:`.stator_model.rotor_
 
 Design rule (:func:`dq_smo_design`): ``k``, ``width`` as :func:`.smo.smo_design` with ``L_d``; the PLL at
 ``pll_bandwidth`` (:func:`.pll.pll_design`), the low-pass cut-off ``omega_c`` above it. ``check_period``
-refuses an unstable linear zone and unstable PLL gains.
+refuses an unstable linear zone, and PLL gains whose loop through the observer and the filter is unstable
+(:func:`dq_loop_matrix`).
 """
+
+import math
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 
 from .._types import Array
 from ..frames import inverse_park, park, wrap_angle
@@ -45,8 +49,24 @@ from ..validation import ParameterError, check_positive
 from .base import AbstractEstimator
 from .pll import PLL, PLLState, pll_design
 from .smo import SMO_K_MARGIN, SMO_POLE, check_observer_pole, sliding_current_update
+from .stability import check_loop, concrete_values
 from .stator_model import rl_coefficients, rotate, rotor_angle
 from .switching import SWITCHING, Switching
+
+
+def dq_loop_matrix(a: float, b: float, p: float, f: float) -> np.ndarray:
+    """One period of the linearised loop, state ``[frame angle error, observer output angle, filtered
+    angle, Ts x speed error]`` (in-frame angles, after the frame correction): the frame drifts by the speed
+    error, the observer (pole ``p``) and the low-pass filter (pole ``f``) follow the in-frame angle, the
+    PLL (``a = Ts kp``, ``b = Ts^2 ki``) corrects the frame by ``a e`` and turns every vector with it."""
+    m = np.zeros((4, 4))
+    for j in range(4):
+        d, s1, s2, w = np.eye(4)[j]
+        delta = d - w
+        s1 = p * s1 + (1.0 - p) * delta
+        s2 = f * s2 + (1.0 - f) * s1
+        m[:, j] = [delta - a * s2, s1 - a * s2, s2 - a * s2, w + b * s2]
+    return m
 
 
 class DQSMOState(eqx.Module):
@@ -92,7 +112,22 @@ class DQSlidingModeObserver(AbstractEstimator):
     def check_period(self, Ts: float) -> None:
         m = self.model
         check_observer_pole("DQSlidingModeObserver", m.R, m.L_d, self.k, self.width, self.switching, Ts)
-        self.pll.check_period(Ts, "DQSlidingModeObserver.pll")
+        values = concrete_values(self.pll.kp, self.pll.ki, m.R, m.L_d, self.k, self.width, self.omega_c)
+        if values is None:
+            return
+
+        def loop(kp, ki, r, ell, kk, w, wc):
+            phi, gamma = (float(x) for x in rl_coefficients(r, ell, Ts))
+            p = 0.0 if self.switching == "sign" else phi - gamma * kk / w
+            return dq_loop_matrix(Ts * kp, Ts * Ts * ki, p, math.exp(-wc * Ts))
+
+        check_loop(
+            f"DQSlidingModeObserver PLL through the observer and its low-pass filter (kp = "
+            f"{values[0].max():g} 1/s, ki = {values[1].max():g} 1/s^2, omega_c = {values[6].max():g} rad/s)",
+            loop,
+            values,
+            "lower the PLL bandwidth or raise omega_c (the filter sits inside the PLL's loop)",
+        )
 
     def init(self, sample: Sample) -> DQSMOState:
         zero2 = jnp.zeros_like(sample.i_ab)

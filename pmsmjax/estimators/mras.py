@@ -19,17 +19,19 @@ estimated q axis. ``L`` is the model's ``L_q`` (active flux, :mod:`.stator_model
 Design rule (:func:`mras_design`): linearised about a tracked rotor with ``R << w L``, a speed error
 ``dw`` makes the q-current error grow as ``L d(i - i^)_q/dt = psi_f dw`` and the adaptation error is
 ``-(psi_f/L)(i - i^)_q``: the loop is ``s^2 + Kp (psi_f/L)^2 s + Ki (psi_f/L)^2``. A double pole at
-``-bandwidth`` gives ``Kp = 2 bw (L/psi_f)^2``, ``Ki = bw^2 (L/psi_f)^2``. The same approximation
-sampled (forward-Euler current, one period of delay in the model) has the characteristic polynomial
-``z^2 - (2 - a - 2b) z + (1 - a - b)`` with ``a = Ts Kp (psi_f/L)^2``, ``b = Ts^2 Ki (psi_f/L)^2``;
-``check_period`` refuses gains outside its unit circle.
+``-bandwidth`` gives ``Kp = 2 bw (L/psi_f)^2``, ``Ki = bw^2 (L/psi_f)^2``. ``check_period`` refuses gains
+whose sampled version of that loop (the winding discretised exactly, resistance included, one period of
+delay in the model: :func:`mras_loop_matrix`) is unstable.
 
 The angle is corrected only through the coupling of the two axes at speed (the ``w L`` terms), so near
 standstill the MRAS estimates speed but lets the angle drift: a known limit of the method.
 """
 
+import math
+
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 
 from .._types import Array
 from ..frames import wrap_angle
@@ -37,7 +39,7 @@ from ..machines.motor import PMSMParameters, as_float
 from ..signals import Estimate, Sample
 from ..validation import check_positive
 from .base import AbstractEstimator
-from .stability import check_poles, concrete_values
+from .stability import check_loop, concrete_values
 from .stator_model import cross, emf_direction, period_weight_phase, rl_coefficients
 
 
@@ -48,9 +50,14 @@ class MRASState(eqx.Module):
     integral: Array  # rad/s, the PI's integral part
 
 
-def mras_poly(a: float, b: float) -> list:
-    """Characteristic polynomial of the sampled, linearised MRAS loop (module docstring)."""
-    return [1.0, -(2.0 - a - 2.0 * b), 1.0 - a - b]
+def mras_loop_matrix(kp: float, ki: float, psi_f: float, L: float, R: float, Ts: float) -> np.ndarray:
+    """One period of the linearised MRAS loop (module docstring), state ``[(psi_f/L) q-current error A,
+    integral deviation rad/s]``: ``y_k = Phi y + Gamma (psi_f^2/L) dw``, ``dw = x - Kp y``,
+    ``x_k = x - Ts Ki y_k``."""
+    phi = math.exp(-R * Ts / L)
+    g = -math.expm1(-R * Ts / L) / R * psi_f**2 / L
+    m11 = phi - g * kp
+    return np.array([[m11, g], [-Ts * ki * m11, 1.0 - Ts * ki * g]])
 
 
 class MRAS(AbstractEstimator):
@@ -72,13 +79,12 @@ class MRAS(AbstractEstimator):
 
     def check_period(self, Ts: float) -> None:
         m = self.model
-        values = concrete_values(self.kp, self.ki, m.psi_f, m.L_q)
+        values = concrete_values(self.kp, self.ki, m.psi_f, m.L_q, m.R)
         if values is None:
             return
-        kp, ki, psi, ell = values
-        check_poles(
-            f"MRAS adaptation (kp = {kp.max():g}, ki = {ki.max():g})",
-            lambda p, i, f, l_: mras_poly(Ts * p * (f / l_) ** 2, Ts * Ts * i * (f / l_) ** 2),
+        check_loop(
+            f"MRAS adaptation (kp = {values[0].max():g}, ki = {values[1].max():g})",
+            lambda p, i, f, ell, r: mras_loop_matrix(p, i, f, ell, r, Ts),
             values,
             f"lower the gains: with kp = 2 bw (L/psi_f)^2, ki = bw^2 (L/psi_f)^2 keep bw well below "
             f"{1.0 / Ts:g} rad/s (1/Ts)",

@@ -12,8 +12,10 @@ motors", IEEE TIE 47(1), 2000, doi:10.1109/41.824128): for a bandwidth ``bw`` (r
 loop ``s^2 + kp s + ki`` gets a double pole at ``-bw``: ``kp = 2 bw``, ``ki = bw^2``. The loop tracks a
 constant speed with zero angle error (type 2). The sampled loop's characteristic polynomial is
 ``z^2 - (2 - a - b) z + (1 - a)`` with ``a = Ts kp``, ``b = Ts^2 ki``
-(:func:`pmsmjax.estimators.stability.tracking_loop_poly`); :meth:`PLL.check_period` refuses gains
-outside ``0 < a < 2``, ``0 < b < 4 - 2a`` (ODrive refuses the stricter ``a >= 1``).
+(:func:`pmsmjax.estimators.stability.tracking_loop_matrix`): stable iff ``0 < a < 2``, ``0 < b < 4 - 2a``
+(ODrive refuses the stricter ``a >= 1``). A lag compensation computed from the PLL's own speed belongs on
+its output, not on the angle it locks to: there it would feed the speed back into the phase error and
+shrink the stable gains several-fold.
 """
 
 import equinox as eqx
@@ -23,7 +25,7 @@ from .._types import Array
 from ..frames import wrap_angle
 from ..machines.motor import as_float
 from ..validation import check_positive
-from .stability import check_poles, concrete_values, tracking_loop_poly
+from .stability import check_loop, concrete_values, tracking_loop_matrix
 
 
 class PLLState(eqx.Module):
@@ -53,12 +55,12 @@ class PLL(eqx.Module):
         if values is None:
             return
         kp, ki = values
-        check_poles(
+        check_loop(
             f"{owner} (kp = {kp.max():g} 1/s, ki = {ki.max():g} 1/s^2)",
-            lambda p, i: tracking_loop_poly(Ts * p, Ts * Ts * i),
+            lambda p, i: tracking_loop_matrix(Ts * p, Ts * Ts * i),
             [kp, ki],
-            f"lower the gains: kp Ts must stay below 2 and ki Ts^2 below 4 - 2 kp Ts; the design rule "
-            f"kp = 2 bw, ki = bw^2 is stable for bw < {(8**0.5 - 2) / Ts:.4g} rad/s (ODrive keeps kp Ts < 1)",
+            f"lower the gains: kp Ts must stay below 2 and ki Ts^2 below 4 - 2 kp Ts; the rule kp = 2 bw, "
+            f"ki = bw^2 is stable for bw < {(8**0.5 - 2) / Ts:.4g} rad/s (ODrive keeps kp Ts < 1)",
         )
 
     @staticmethod

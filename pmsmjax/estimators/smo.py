@@ -51,7 +51,7 @@ from ..units import rpm_to_rad_s
 from ..validation import ParameterError, check_positive
 from .base import AbstractEstimator
 from .pll import PLL, PLLState, pll_design
-from .stability import check_poles, concrete_values
+from .stability import check_loop, concrete_values
 from .stator_model import (
     cross,
     emf_angle,
@@ -93,15 +93,15 @@ def check_observer_pole(owner: str, R, L, k, width, switching: Switching, Ts: fl
         return
     R, L, k, width = values
 
-    def poly(r, ell, kk, w):
+    def pole(r, ell, kk, w):
         phi, gamma = rl_coefficients(r, ell, Ts)
-        return [1.0, -(float(phi) - float(gamma) * kk / w)]
+        return [[float(phi) - float(gamma) * kk / w]]
 
     phi, gamma = (float(x.max()) for x in rl_coefficients(R, L, Ts))
     g_max = (1 + phi) / gamma
-    check_poles(
+    check_loop(
         f"{owner} current observer (linear-zone gain k/width = {float((k / width).max()):g} V/A)",
-        poly,
+        pole,
         [R, L, k, width],
         f"widen the switching function: k/width must stay below (1 + Phi)/Gamma = {g_max:.4g} V/A (about "
         f"2 L/Ts); width >= {float(k.max()) / g_max:.4g} A for k = {float(k.max()):g} V",
@@ -112,7 +112,7 @@ class SMOState(eqx.Module):
     i_hat: Array  # (2,) A, observer current at the last sampling instant
     z: Array  # (2,) V, switching output of the last sampling instant
     emf: Array  # (2,) V, low-pass filtered back-EMF
-    theta: Array  # rad, rotor angle ("arctan"); the back-EMF's angle tracked by the PLL ("pll")
+    theta: Array  # rad, rotor angle ("arctan"); the filtered back-EMF's angle tracked by the PLL ("pll")
     omega: Array  # rad/s, electrical speed estimate (the PLL's speed for "pll")
 
 
@@ -206,14 +206,16 @@ class SlidingModeObserver(AbstractEstimator):
             lag = self.chain_lag(omega, Ts)
             theta = wrap_angle(emf_angle(emf, omega) + lag)
         else:
-            # The PLL tracks the back-EMF's angle (theta here), the rotor angle follows from the speed's sign.
+            # The PLL tracks the filtered back-EMF's angle (theta here); the chain's lag is added to its
+            # output, outside its loop (inside, the lag computed from the PLL's own speed would feed the
+            # speed back into the phase error and shrink the stable gains several-fold).
             phi_pred = PLL.predict(PLLState(state.theta, state.omega), Ts)
-            lag = self.chain_lag(state.omega, Ts)
-            error = phase_detector(rotate(emf, lag), phi_pred, self.emf_floor)
+            error = phase_detector(emf, phi_pred, self.emf_floor)
             pll_state = self.pll.correct(PLLState(state.theta, state.omega), phi_pred, error, Ts)
             theta, omega = pll_state.theta, pll_state.omega
+            lag = self.chain_lag(omega, Ts)
         new_state = SMOState(i_hat, z, emf, theta, omega)
-        rotor = theta if self.angle == "arctan" else wrap_angle(rotor_angle(theta, omega))
+        rotor = theta if self.angle == "arctan" else wrap_angle(rotor_angle(theta + lag, omega))
         estimate = Estimate(rotor, omega / m.pole_pairs, back_emf_ab=rotate(emf, lag))
         return new_state, estimate
 

@@ -1,11 +1,12 @@
 """Refusing unstable observer gains before anything runs (the ODrive pattern: its sensorless estimator
 refuses ``Ts kp >= 1``, ``Firmware/MotorControl/sensorless_estimator.cpp``).
 
-Every observer's ``check_period(Ts)`` builds the characteristic polynomial of its linearised loop *in
-discrete time* (the sampled loop, not the continuous one its design rule starts from) and hands it to
-:func:`check_poles`, which raises :class:`~pmsmjax.validation.ParameterError` naming the gain and the fix
-when a pole lies on or outside the unit circle. Batched (vmapped) gains are checked element by element;
-traced gains are skipped (checks are for the values a user passes in).
+Every observer's ``check_period(Ts)`` writes the small-signal model of its loop *as sampled* (one
+period of the implementation, linearised about a rotor tracked at constant speed) as a matrix and hands
+it to :func:`check_loop`, which raises :class:`~pmsmjax.validation.ParameterError` naming the gains and
+the fix when an eigenvalue lies on or outside the unit circle. Batched (vmapped) gains are checked
+element by element; traced gains are skipped (checks are for the values a user passes in).
+tests/test_observers.py runs each observer just inside and just outside the boundary found here.
 """
 
 from collections.abc import Callable
@@ -23,37 +24,36 @@ def concrete_values(*xs) -> list[np.ndarray] | None:
     return list(np.broadcast_arrays(*[np.asarray(jax.device_get(x), dtype=float) for x in xs]))
 
 
-def largest_pole(poly: Callable[..., list], *values: np.ndarray) -> tuple[float, tuple]:
-    """Largest pole magnitude of ``poly(*scalars)`` (coefficients, highest power first) over every element
-    of the broadcast ``values``; returns ``(magnitude, the scalars where it occurs)``."""
-    worst, where = -1.0, ()
+def spectral_radius(matrix: Callable[..., np.ndarray], *values: np.ndarray) -> float:
+    """Largest eigenvalue magnitude of ``matrix(*scalars)`` over every element of the broadcast ``values``."""
+    worst = -1.0
     for idx in np.ndindex(values[0].shape):
-        scalars = tuple(float(v[idx]) for v in values)
-        mag = float(np.max(np.abs(np.roots(poly(*scalars)))))
-        if not np.isfinite(mag):
-            mag = np.inf
-        if mag > worst:
-            worst, where = mag, scalars
-    return worst, where
+        m = np.asarray(matrix(*(float(v[idx]) for v in values)), dtype=float)
+        rho = float(np.max(np.abs(np.linalg.eigvals(m)))) if np.all(np.isfinite(m)) else np.inf
+        worst = max(worst, rho)
+    return worst
 
 
-def check_poles(what: str, poly: Callable[..., list], values: list[np.ndarray] | None, fix: str) -> None:
-    """Raise if the sampled loop ``what`` has a pole with ``|z| >= 1`` for any element of ``values``.
-
-    `poly` maps the scalars of one element to the characteristic polynomial's coefficients; `fix` says
-    what to change (it is completed with the pole found).
-    """
+def check_loop(
+    what: str, matrix: Callable[..., np.ndarray], values: list[np.ndarray] | None, fix: str
+) -> None:
+    """Raise if the sampled loop ``what`` (one period: ``x_k = matrix x_{k-1}``) is unstable for any element
+    of ``values``; `fix` says what to change."""
     if values is None:
         return
-    mag, _ = largest_pole(poly, *values)
-    if not mag < 1.0:
+    rho = spectral_radius(matrix, *values)
+    if not rho < 1.0:
         raise ParameterError(
-            f"{what} is unstable at this sample time (a pole at |z| = {mag:.4g} >= 1): {fix}."
+            f"{what} is unstable at this sample time (an eigenvalue of the sampled loop at |z| = {rho:.4g} "
+            f">= 1): {fix}."
         )
 
 
-def tracking_loop_poly(a: float, b: float) -> list:
-    """Characteristic polynomial of the sampled type-2 tracking loop (PLL) ``th- = th + Ts w``,
-    ``th = th- + a e``, ``w += (b / Ts) e`` with ``e = th_true - th-``: ``z^2 - (2 - a - b) z + (1 - a)``.
-    ``a = Ts kp``, ``b = Ts^2 ki``; stable iff ``0 < a < 2`` and ``0 < b < 4 - 2a``."""
-    return [1.0, -(2.0 - a - b), 1.0 - a]
+def tracking_loop_matrix(a: float, b: float, c: float = 0.0) -> np.ndarray:
+    """One period of a sampled type-2 tracking loop (PLL) about lock, state ``[angle error, Ts x speed
+    error]``: ``th- = th + Ts w``, ``e = (measured - th-)``, ``th = th- + a e``, ``w += (b/Ts) e``.
+    ``a = Ts kp``, ``b = Ts^2 ki``; ``c``: the measured angle moves by ``c Ts w`` with last period's speed
+    estimate (a lag compensation inside the loop, ``c = d(lag)/d(omega) / Ts``; the observers here keep it
+    outside, ``c = 0``). Characteristic polynomial ``z^2 - (2 - a - b + b c) z + (1 - a + b c)``; for
+    ``c = 0``: stable iff ``0 < a < 2``, ``0 < b < 4 - 2 a``."""
+    return np.array([[1.0 - a, 1.0 - a + a * c], [-b, 1.0 - b + b * c]])
