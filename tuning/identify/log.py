@@ -36,7 +36,7 @@ import numpy as np
 
 from pmsmjax.frames import abc_to_alpha_beta, park
 from pmsmjax.inverters.averaged import phase_voltages
-from pmsmjax.logs import check_columns, read_log
+from pmsmjax.logs import check_columns, column_names, read_log
 from pmsmjax.validation import ParameterError
 
 if sys.version_info >= (3, 11):
@@ -433,9 +433,10 @@ def load_stator_log(
             "map (e.g. theta_e=angle)."
         )
     present = _read_canonical(path, columns)
+    unmapped = sorted(set(column_names(path)) - set(present) - set((columns or {}).values()))
     return stator_log_from_columns(
         present, units=units, u_dc=u_dc, resample=resample, truth=truth, pole_pairs=pole_pairs,
-        source=f"log {path}",
+        source=f"log {path}", other_columns=unmapped,
     )  # fmt: skip
 
 
@@ -448,8 +449,10 @@ def stator_log_from_columns(
     truth: tuple[str, ...] = (),
     pole_pairs: int | None = None,
     source: str = "log",
+    other_columns: list[str] = (),
 ) -> StatorLog:
-    """A checked :class:`StatorLog` from canonical columns (NumPy arrays); see :func:`load_stator_log`."""
+    """A checked :class:`StatorLog` from canonical columns (NumPy arrays); see :func:`load_stator_log`.
+    `other_columns`: the file's other column names, searched for close matches of missing ones."""
     if not any(n in cols for n in sum(_STATOR_VOLTAGE_SETS.values(), ())) and all(
         n in cols for n in _VOLTAGE_SETS["dq"]
     ):
@@ -465,9 +468,18 @@ def stator_log_from_columns(
             f"{source}: the currents are logged in dq (i_d, i_q), which needs the rotor angle that the "
             "observer is to estimate: log the stator-frame currents (i_alpha,i_beta or i_a,i_b,i_c)."
         )
-    vset = _pick_set(cols, _STATOR_VOLTAGE_SETS, "voltage", source)
-    iset = _pick_set(cols, _STATOR_CURRENT_SETS, "current", source)
+    try:
+        vset = _pick_set(cols, _STATOR_VOLTAGE_SETS, "voltage", source)
+        iset = _pick_set(cols, _STATOR_CURRENT_SETS, "current", source)
+    except ParameterError as err:
+        raise ParameterError(f"{err}{_hints(cols, other_columns)}") from None
     need = ["time", *_STATOR_VOLTAGE_SETS[vset], *_STATOR_CURRENT_SETS[iset], *truth]
+    missing = [n for n in need if n not in cols and n != "U_dc"]
+    if missing:
+        raise ParameterError(
+            f"{source}: missing column(s) {', '.join(missing)}; present: {', '.join(sorted(cols))}. Add them "
+            f"or map the file's names with a column map{_hints(cols, other_columns, missing)}."
+        )
     if vset == "duty" and u_dc is None:
         need.append("U_dc")
     optional = ["U_dc"] if vset == "duty" and "U_dc" not in need else []
@@ -498,6 +510,23 @@ def stator_log_from_columns(
         source=source,
         notes=tuple(notes),
     )
+
+
+def _hints(cols: dict, other_columns, missing=None) -> str:
+    """`` (hint: ...)`` naming file columns close to the missing canonical ones, or ``""``. Without
+    `missing`: the names lacking from partially logged signal sets (or from every set when none is)."""
+    if missing is None:
+        missing = []
+        for sets in (_STATOR_VOLTAGE_SETS, _STATOR_CURRENT_SETS):
+            partial = [names for names in sets.values() if any(n in cols for n in names)]
+            candidates = partial or [names for k, names in sets.items() if k != "duty"]
+            missing += [n for names in candidates for n in names if n not in cols]
+    pairs = []
+    for name in missing:
+        close = difflib.get_close_matches(name, list(other_columns), n=1, cutoff=0.6)
+        if close:
+            pairs.append(f"{close[0]!r} looks like {name!r}: map it with {name}={close[0]}")
+    return f" (hint: {'; '.join(pairs)})" if pairs else ""
 
 
 def _to_alpha_beta64(c: dict, names, frame: str, u_dc) -> np.ndarray:
