@@ -7,7 +7,7 @@ for washing machine applications", IEEE TIA 45(2), 2009, doi:10.1109/TIA.2009.20
     L di^/dt = -R i^ + u - z,     z = k F(i^ - i)           (current observer, F: sign/saturation/sigmoid)
     e^ = LPF(z)                                              (back-EMF, cut-off w_c)
     th^ = -atan2(e^_a, e^_b) + lag(w^)                       (arctan; book: lag = atan(w^/w_c))
-      or a PLL on -e_a cos th^ - e_b sin th^                 (:mod:`pmsmjax.estimators.pll`)
+      or a PLL on -e_a cos th^ - e_b sin th^, plus lag(w^)   (:mod:`pmsmjax.estimators.pll`)
 
 Sampled form (module docstring of :mod:`.stator_model`): the current observer is propagated exactly over
 the period with the held voltage and last period's ``z``,
@@ -27,15 +27,19 @@ angles the back-EMF allows is meant. ``smo-pll``: the PLL's speed.
 Design rule (:func:`smo_design`): ``k = k_margin psi_f w_e,max`` (``k > max|e|``, the sliding condition,
 with a margin; Utkin, Guldner, Shi, *Sliding Mode Control in Electro-Mechanical Systems*, 2nd ed., 2009,
 ch. 10); ``width`` such that the linear-zone pole is ``p = pole`` (``G = (Phi - p)/Gamma``; ``p = 0`` would
-be deadbeat); ``w_c`` and the speed/PLL bandwidths are fixed fractions of the 10 kHz sampling chosen for
-0.5 % measurement noise (see :func:`smo_design`). ``check_period`` refuses ``|p| >= 1`` (``G`` above
+be deadbeat); ``w_c`` and the speed/PLL bandwidths are fixed values chosen for 10 kHz sampling and 0.5 %
+measurement noise (see :func:`smo_design`). ``check_period`` refuses ``|p| >= 1`` (``G`` above
 ``(1 + Phi)/Gamma``, about ``2 L / Ts``: 105 V/A on the book motor at 10 kHz) and unstable PLL gains.
 
-Why the smoothed function is the default: at 10 kHz the design-rule ``k`` (344 V on the book motor)
-makes the sign observer's current jump by ``k Ts / L = 6.6 A`` each period; its back-EMF estimate is a
-square wave of amplitude ``k`` that the low-pass filter cannot clean (notes/issue-14-observers.md has the
-figures). With the smoothed function and the rule's width the observer never leaves its linear zone:
-at this sample time it is a (saturating) linear back-EMF observer.
+Why the smoothed function is the default: the sign observer's current jumps by ``k Ts / L`` each period
+(13 A for the design-rule ``k`` = 689 V on the book motor at 10 kHz, 3.5 A even for ``k`` = 184 V, 1.2
+times the back-EMF at 2000 r/min), so its back-EMF estimate is a square wave of amplitude ``k`` that the
+low-pass filter cannot clean: 50-94 electrical degrees RMS with the rule's ``k``, 11 with the small one,
+against 0.25-0.5 for the sigmoid (benchmarks/observer_accuracy.py). With the smoothed function and the
+rule's width the observer never leaves its linear zone: at this sample time it is a (saturating) linear
+back-EMF observer. The margin of 3 keeps the per-axis sigmoid's compression of a rotating error small
+(it lowers the effective gain, so the compensated lag is short: a margin of 1.5 left 0.45 degrees at
+2000 r/min).
 """
 
 from typing import Literal
@@ -247,15 +251,17 @@ def smo_design(
 ) -> SlidingModeObserver:
     """The classic SMO with design-rule gains for ``motor`` at period ``Ts`` (s).
 
-    - ``k = k_margin psi_f p_n w_max`` (V), ``w_max`` = ``max_speed_rpm`` (344 V on the book motor at the
-      default 3000 r/min and margin 1.5).
+    - ``k = k_margin psi_f p_n w_max`` (V), ``w_max`` = ``max_speed_rpm`` (689 V on the book motor at the
+      default 3000 r/min and margin 3: the sigmoid's zone stays nearly linear up to 2000 r/min).
     - ``width = k Gamma / (Phi - pole)`` (A): the linear-zone pole at ``pole`` (0.5 by default: half the
-      error left after a period, a compromise between deadbeat's noise gain and a slow observer).
-    - ``omega_c`` (rad/s), ``speed_bandwidth`` (rad/s, ``"arctan"``), ``pll_bandwidth`` (rad/s, ``"pll"``;
-      :func:`pmsmjax.estimators.pll.pll_design`): fixed fractions of the sampling rate chosen on the
-      noisy-log study of notes/issue-14-observers.md; the low-pass lag is compensated exactly, so
-      ``omega_c`` trades noise against the speed-estimate error's effect on the compensation.
-    - ``emf_floor = emf_floor_fraction psi_f p_n w_max`` (V).
+      error left after a period, between deadbeat's noise gain (``pole`` 0) and a slow observer's lag).
+    - ``omega_c`` (rad/s): the low-pass lag is compensated exactly, so it trades noise against the effect
+      of speed-estimate errors on the compensation; ``speed_bandwidth`` (rad/s, ``"arctan"``: a slower
+      filter lags the load step's speed dip, and the compensation with it); ``pll_bandwidth`` (rad/s,
+      ``"pll"``, :func:`pmsmjax.estimators.pll.pll_design`: a type-2 loop's error under acceleration
+      falls as 1/bw^2). Each default was chosen on the design-sensitivity table of
+      benchmarks/observer_accuracy.py (book drive logs, 0.5 % noise; notes/issue-14-observers.md).
+    - ``emf_floor = emf_floor_fraction psi_f p_n w_max`` (V): the PLL's detector normalisation floor.
 
     `model`: the observer's motor model (default ``motor``: no mismatch).
     """
