@@ -1,7 +1,7 @@
 """Switching functions of the sliding-mode observers (BOOK.md chapter 5): ``z = k F(i_hat - i)``.
 
 - ``"sign"``: ``F(x) = sign(x)``, the book's ideal sliding mode. Sampled at 10 kHz it chatters: each
-  period the observer current jumps by ``k Ts / L`` (6.6 A for the design-rule ``k`` on the book motor),
+  period the observer current jumps by ``k Ts / L`` (13 A for the design-rule ``k`` on the book motor),
   and the low-pass filter must remove a square wave of amplitude ``k`` from the back-EMF estimate.
 - ``"saturation"``: ``F(x) = clip(x / width, -1, 1)``, the boundary-layer function (Slotine & Li,
   *Applied Nonlinear Control*, 1991, sec. 7.3); linear with slope ``1/width`` inside ``|x| < width``.
