@@ -370,3 +370,15 @@ def test_gradient_of_the_angle_objective_matches_central_differences(name):
     floor = 1e-9 * values[0]
     assert np.all(np.abs(sens - sens_fd) <= 1e-4 * np.abs(sens_fd) + floor), (sens, sens_fd)
     assert np.sum(np.abs(sens_fd) > floor) >= 3  # the gains matter
+
+
+def test_benchmark_smoke():
+    """benchmarks/bench_observers.py at quick sizes (one observer): every figure present and positive."""
+    from benchmarks import bench_observers
+
+    r = bench_observers.run(quick=True, names=("mras",))
+    assert set(bench_observers.REQUIRED_KEYS) <= set(r)
+    mras = r["drives"]["mras"]
+    keys = ("us_per_period", "per_period_vs_sensored", "speed_only_vs_sensored", "offline_us_per_sample")
+    assert all(math.isfinite(mras[k]) and mras[k] > 0 for k in keys)
+    assert "x sensored" in bench_observers.format_table(r)
