@@ -1,8 +1,9 @@
 """Estimators: the block between sampling and control that gives the rotor angle and speed.
 
 Position sensors (:class:`ExactSensor`, :class:`Encoder`), the stator flux observer of direct torque
-control (:class:`StatorFluxObserver`, chapter 4) and the fundamental-model observers of chapter 5 (:data:`OBSERVERS`: ``smo``, ``smo-pll``, ``adaptive-smo``, ``dq-smo``, ``mras``, ``ekf``), all
-implementing :class:`AbstractEstimator`; :func:`make_observer` builds one by name with its design rule.
+control (:class:`StatorFluxObserver`, chapter 4) and the fundamental-model observers of chapter 5
+(:data:`OBSERVERS`: ``smo``, ``smo-pll``, ``adaptive-smo``, ``dq-smo``, ``mras``, ``ekf``), all implementing
+:class:`AbstractEstimator`; :func:`make_observer` builds an observer by name with its design rule.
 """
 
 from .adaptive_smo import AdaptiveSMO, adaptive_smo_design
