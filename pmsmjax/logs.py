@@ -29,7 +29,7 @@ import numpy as np
 
 from .validation import ParameterError
 
-__all__ = ["read_log", "check_columns", "atomic_write", "write_csv_atomic", "LOG_SUFFIXES"]
+__all__ = ["read_log", "check_columns", "column_names", "atomic_write", "write_csv_atomic", "LOG_SUFFIXES"]
 
 #: File suffixes :func:`read_log` understands.
 LOG_SUFFIXES = (".csv", ".txt", ".npz", ".mat")
@@ -77,6 +77,21 @@ def read_log(
             "per column)."
         )
     return check_columns(raw, required, optional, time=time, source=f"log {path}", line_offset=line_offset)
+
+
+def column_names(path: str | os.PathLike) -> list[str]:
+    """Every column name in the log at ``path`` (for hints about misspelt columns); ``[]`` if it cannot be
+    read (:func:`read_log` reports why)."""
+    path = Path(path)
+    readers = {".csv": _read_csv, ".txt": _read_csv, ".npz": _read_npz, ".mat": _read_mat}
+    reader = readers.get(path.suffix.lower())
+    if reader is None or not path.is_file():
+        return []
+    try:
+        raw = reader(path)
+    except ParameterError:
+        return []
+    return list(raw[0] if isinstance(raw, tuple) else raw)
 
 
 def check_columns(

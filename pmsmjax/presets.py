@@ -291,6 +291,34 @@ def pr_drive(
     return eqx.tree_at(lambda d: d.controller.current, drive, current)
 
 
+def sensorless_drive(
+    observer_name: str,
+    motor: PMSMParameters | None = None,
+    *,
+    observer_options: dict | None = None,
+    observer_model: PMSMParameters | None = None,
+    **kw,
+) -> Drive:
+    """:func:`book_drive` with the chapter 5 observer ``observer_name`` (``smo``, ``smo-pll``,
+    ``adaptive-smo``, ``dq-smo``, ``mras``, ``ekf``; :data:`pmsmjax.estimators.OBSERVERS`) in place of the
+    exact sensor: the controller runs on the estimate, and the trace's ``theta_e_est``/``omega_m_est`` are
+    the observer's.
+
+    The observer gets its design-rule gains for ``observer_model`` (default ``motor``: no plant/model
+    mismatch) at the drive's period, overridden by ``observer_options`` (its design rule's keywords);
+    unstable gains are refused. ``kw`` go to :func:`book_drive`. This swaps the estimator only: the drive
+    starts with the observer cold, so it suits runs that start at speed or take over from another
+    estimator; a start from standstill needs a start-up procedure.
+    """
+    from .estimators.registry import make_observer
+
+    motor = book_motor() if motor is None else motor
+    drive = book_drive(motor, **kw)
+    model = motor if observer_model is None else observer_model
+    observer = make_observer(observer_name, model, drive.Ts, **(observer_options or {}))
+    return eqx.tree_at(lambda d: d.estimator, drive, observer)
+
+
 def book_scenario(
     speed_rpm: float = 1000.0,
     load_nm: float = 10.0,

@@ -50,6 +50,8 @@ class Estimate(eqx.Module):
     - `psi_ab`: ``(2,)`` stator flux linkage in the stationary frame, Wb; ``None`` for estimators that
       do not estimate it (direct torque control needs it: :mod:`pmsmjax.estimators.flux_observer`).
     - `torque`: electromagnetic torque, N m; ``None`` where not estimated.
+    - `back_emf_ab`: ``(2,)`` the observer's stationary-frame back-EMF estimate at the sampling instant, V
+      (chapter 5 observers); ``None`` for position sensors.
     """
 
     theta_e: Array
@@ -57,6 +59,7 @@ class Estimate(eqx.Module):
     u_injection_ab: Array | None = None
     psi_ab: Array | None = None
     torque: Array | None = None
+    back_emf_ab: Array | None = None
 
 
 class References(eqx.Module):

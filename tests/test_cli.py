@@ -31,6 +31,7 @@ def test_subcommand_list_is_complete():
         "compare",
         "identify",
         "montecarlo",
+        "observe",
     }
     assert set(_subcommands()) == expected
 

@@ -1,5 +1,5 @@
 """The ``pmsmjax`` command: ``demo`` (alias ``simulate``), ``replay``, ``tune``, ``bench``, ``pwm-compare``,
-``compare``, ``identify`` and ``montecarlo``.
+``compare``, ``identify``, ``montecarlo`` and ``observe``.
 
 Every subcommand checks its input before compiling anything and writes each output file atomically
 (temporary file in the same folder, then rename), so an interrupted or failed run leaves no half file.
@@ -26,6 +26,7 @@ SUBCOMMANDS = (
     "compare",
     "identify",
     "montecarlo",
+    "observe",
 )
 
 

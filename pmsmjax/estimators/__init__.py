@@ -1,18 +1,42 @@
 """Estimators: the block between sampling and control that gives the rotor angle and speed.
 
-Position sensors (:class:`ExactSensor`, :class:`Encoder`) today; the observers of chapters 5-6 implement
-the same :class:`AbstractEstimator` interface.
+Position sensors (:class:`ExactSensor`, :class:`Encoder`), the stator flux observer of direct torque
+control (:class:`StatorFluxObserver`, chapter 4) and the fundamental-model observers of chapter 5
+(:data:`OBSERVERS`: ``smo``, ``smo-pll``, ``adaptive-smo``, ``dq-smo``, ``mras``, ``ekf``), all implementing
+:class:`AbstractEstimator`; :func:`make_observer` builds an observer by name with its design rule.
 """
 
+from .adaptive_smo import AdaptiveSMO, adaptive_smo_design
 from .base import AbstractEstimator
+from .dq_smo import DQSlidingModeObserver, dq_smo_design
+from .ekf import EKF, ekf_design
 from .flux_observer import StatorFluxObserver, StatorFluxObserverState
+from .mras import MRAS, mras_design
+from .pll import PLL, pll_design
 from .position_sensors import Encoder, EncoderState, ExactSensor
+from .registry import OBSERVERS, make_observer, observer_options
+from .smo import SlidingModeObserver, smo_design
 
 __all__ = [
+    "EKF",
+    "MRAS",
+    "OBSERVERS",
+    "PLL",
     "AbstractEstimator",
+    "AdaptiveSMO",
+    "DQSlidingModeObserver",
     "Encoder",
     "EncoderState",
     "ExactSensor",
+    "SlidingModeObserver",
     "StatorFluxObserver",
     "StatorFluxObserverState",
+    "adaptive_smo_design",
+    "dq_smo_design",
+    "ekf_design",
+    "make_observer",
+    "mras_design",
+    "observer_options",
+    "pll_design",
+    "smo_design",
 ]

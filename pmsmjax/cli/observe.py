@@ -1,0 +1,176 @@
+"""``pmsmjax observe``: run a chapter 5 observer offline on a recorded drive log (:mod:`pmsmjax.observe`)."""
+
+import json
+import time
+
+from ..validation import ParameterError
+
+
+def add_parser(sub):
+    p = sub.add_parser(
+        "observe",
+        help="run a sensorless observer offline on a logged drive run (estimate.csv, figure)",
+        description=(
+            "Estimate the rotor angle and speed from a log's stator-frame voltages and currents "
+            "(CSV/NPZ/MAT; columns time,u_alpha,u_beta,i_alpha,i_beta, or u_a,u_b,u_c / duties d_a,d_b,d_c "
+            "with U_dc, and i_a,i_b,i_c; the voltage of row k is the one applied from row k to row k+1, the "
+            "current is sampled at row k). Other columns are ignored unless named with --truth-columns, then "
+            "the estimate's errors are reported. Writes DIR/estimate.csv (time,theta_e,omega_m: electrical "
+            "rad in [-pi, pi), mechanical rad/s), DIR/observe.json and DIR/observe.png."
+        ),
+    )
+    p.add_argument("log", help="log file (.csv, .npz or .mat)")
+    p.add_argument("--motor", required=True, help="preset name (book, book_salient) or motor TOML file")
+    p.add_argument("--observer", required=True, help="smo, smo-pll, adaptive-smo, dq-smo, mras or ekf")
+    p.add_argument("--out", required=True, help="output folder (created)")
+    p.add_argument("--config", default=None, help="TOML with [columns], [units] and [log] tables")
+    p.add_argument(
+        "--columns", nargs="+", default=[], metavar="CANONICAL=NAME", help="column map, e.g. i_alpha=Ialpha"
+    )
+    p.add_argument("--units", nargs="+", default=[], metavar="COLUMN=UNIT", help="e.g. time=ms omega_m=rpm")
+    p.add_argument(
+        "--truth-columns",
+        default="",
+        metavar="theta_e,omega_m",
+        help="score the estimate against these logged columns (electrical rad, mechanical rad/s)",
+    )
+    p.add_argument(
+        "--settle-s", type=float, default=0.05, help="time excluded from the error figures, s (default 0.05)"
+    )
+    p.add_argument("--u-dc", type=float, default=None, help="DC-link voltage, V, for duty logs without U_dc")
+    p.add_argument("--resample", action="store_true", help="resample an irregular time grid (with a warning)")
+    p.add_argument(
+        "--option",
+        nargs="+",
+        default=[],
+        metavar="NAME=VALUE",
+        help="observer design-rule options, e.g. switching=sign pll_bandwidth=500",
+    )
+    p.add_argument("--no-figures", action="store_true", help="do not write observe.png")
+    p.set_defaults(func=run)
+
+
+def _pairs(items, what) -> dict:
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ParameterError(f"{what}: {item!r} is not KEY=VALUE.")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def _number_or_text(value: str):
+    try:
+        return float(value)
+    except ValueError:
+        return value
+
+
+def run(args) -> int:
+    import numpy as np
+
+    # The command line is the one place where pmsmjax reaches up into the tuning workflows (the log reader
+    # is shared with `pmsmjax identify`).
+    from tuning.identify.log import load_stator_log, read_log_config
+
+    from .. import presets
+    from ..estimators.registry import check_observer_name, make_observer
+    from ..logs import atomic_write, check_output_folder, write_csv_atomic
+    from ..observe import error_statistics, observe
+
+    check_observer_name(args.observer)
+    out = check_output_folder(args.out)
+    motor = presets.load_motor(args.motor)
+    if args.settle_s < 0:
+        raise ParameterError(f"--settle-s must be >= 0 s, got {args.settle_s}.")
+    truth = tuple(c.strip() for c in args.truth_columns.split(",") if c.strip())
+    cfg = read_log_config(args.config) if args.config else {"columns": {}, "units": {}, "log": {}}
+    bad = sorted(set(cfg["log"]) - {"u_dc", "resample"})
+    if bad:
+        raise ParameterError(f"[log] table: unknown keys {bad}; allowed for observe: u_dc, resample.")
+    log = load_stator_log(
+        args.log,
+        columns={**cfg["columns"], **_pairs(args.columns, "--columns")},
+        units={**cfg["units"], **_pairs(args.units, "--units")},
+        u_dc=args.u_dc if args.u_dc is not None else cfg["log"].get("u_dc"),
+        resample=args.resample or bool(cfg["log"].get("resample", False)),
+        truth=truth,
+        pole_pairs=motor.pole_pairs,
+    )
+    options = {k: _number_or_text(v) for k, v in _pairs(args.option, "--option").items()}
+    observer = make_observer(args.observer, motor, log.Ts, **options)
+
+    t0 = time.perf_counter()
+    est = observe(observer, log.u_ab, log.i_ab, log.Ts)
+    theta, omega = np.asarray(est.theta_e, dtype=np.float64), np.asarray(est.omega_m, dtype=np.float64)
+    wall = time.perf_counter() - t0
+    bad_rows = ~(np.isfinite(theta) & np.isfinite(omega))
+    if bad_rows.any():
+        row = int(np.argmax(bad_rows))
+        raise ParameterError(
+            f"observer {args.observer!r} diverged (not finite from row {row}, t = {log.time[row]:.6g} s); "
+            "nothing written: check the motor parameters (--motor), the log's units (--units) and the "
+            "observer options."
+        )
+
+    summary = {
+        "observer": args.observer,
+        "motor": str(args.motor),
+        "log": str(args.log),
+        "samples": int(log.n),
+        "Ts_s": log.Ts,
+        "options": options,
+        "notes": list(log.notes),
+        "wall_time_s": wall,
+    }
+    if truth:
+        summary["errors"] = _errors(log, theta, omega, args.settle_s, error_statistics)
+    out.mkdir(parents=True, exist_ok=True)
+    write_csv_atomic(out / "estimate.csv", {"time": log.time, "theta_e": theta, "omega_m": omega})
+    atomic_write(out / "observe.json", lambda f: f.write(json.dumps(summary, indent=2).encode()))
+    written = ["estimate.csv", "observe.json"]
+    if not args.no_figures:
+        from ..plotting import save_figure
+        from ..plotting_observers import observer_log_figure
+
+        save_figure(
+            observer_log_figure(log.time, theta, omega, log.truth, title=f"{args.observer} on {args.log}"),
+            out / "observe.png",
+        )
+        written.append("observe.png")
+    if truth:
+        e = summary["errors"]
+        parts = []
+        if "angle_rms_deg" in e:
+            parts.append(f"angle error {e['angle_rms_deg']:.3g} deg RMS (max {e['angle_max_deg']:.3g})")
+        if "speed_rms_rpm" in e:
+            parts.append(f"speed error {e['speed_rms_rpm']:.3g} r/min RMS")
+        print(f"after {args.settle_s:g} s: " + ", ".join(parts))
+    print(
+        f"{args.observer}: {log.n} samples in {wall:.2f} s; wrote {', '.join(f'{out}/{w}' for w in written)}"
+    )
+    return 0
+
+
+def _errors(log, theta, omega, settle_s, error_statistics) -> dict:
+    """Error figures against the truth columns present (angle: electrical deg; speed: mechanical r/min)."""
+    import numpy as np
+
+    if log.time[-1] - log.time[0] <= settle_s:
+        raise ParameterError(
+            f"--settle-s {settle_s} s is not shorter than the log ({log.time[-1] - log.time[0]:.4g} s): "
+            "lower it so some samples are scored."
+        )
+    th_true = log.truth.get("theta_e", theta)
+    w_true = log.truth.get("omega_m", omega)
+    stats = error_statistics(log.time, theta, omega, th_true, w_true, settle_s)
+    keys = {"samples"}
+    if "theta_e" in log.truth:
+        keys |= {"angle_rms_deg", "angle_mean_deg", "angle_max_deg"}
+    if "omega_m" in log.truth:
+        keys |= {"speed_rms_rpm", "speed_max_rpm"}
+    out = {k: v for k, v in stats.items() if k in keys}
+    out["settle_s"] = float(settle_s)
+    out["finite"] = bool(np.all(np.isfinite(list(out.values()))))
+    return out

@@ -1,0 +1,73 @@
+"""Observers by name: the one registry behind ``pmsmjax observe --observer``, :func:`pmsmjax.presets.
+sensorless_drive` and the chapter 5 workflows (tuning, Monte Carlo, comparison).
+
+Each name maps to the design rule that builds the observer from a motor and the control period; options
+are the design rule's keyword arguments (e.g. ``switching="sign"``, ``pll_bandwidth=500.0``,
+``model=...`` for an observer whose motor model differs from the plant's).
+"""
+
+import difflib
+import functools
+import inspect
+
+from ..machines.motor import PMSMParameters
+from ..validation import ParameterError
+from .adaptive_smo import adaptive_smo_design
+from .base import AbstractEstimator
+from .dq_smo import dq_smo_design
+from .ekf import ekf_design
+from .mras import mras_design
+from .smo import smo_design
+
+#: Observer name -> (design rule ``f(motor, Ts, **options)``, one-line description).
+OBSERVERS = {
+    "smo": (
+        functools.partial(smo_design, angle="arctan"),
+        "classic SMO in alpha-beta, sigmoid switching, back-EMF low-pass, arctan + exact lag compensation",
+    ),
+    "smo-pll": (
+        functools.partial(smo_design, angle="pll"),
+        "classic SMO in alpha-beta, sigmoid switching, back-EMF low-pass, PLL + exact lag compensation",
+    ),
+    "adaptive-smo": (
+        adaptive_smo_design,
+        "SMO with an adaptive back-EMF model (speed adaptation, no low-pass)",
+    ),
+    "dq-smo": (
+        dq_smo_design,
+        "SMO in the estimated rotating frame on the extended EMF, PLL on E_d (salient)",
+    ),
+    "mras": (mras_design, "MRAS: current model as adjustable model, Popov PI speed adaptation"),
+    "ekf": (ekf_design, "extended Kalman filter, state [i_alpha, i_beta, w_e, theta_e]"),
+}
+
+
+def observer_options(name: str) -> tuple[str, ...]:
+    """Keyword options the design rule of observer ``name`` accepts."""
+    rule = OBSERVERS[name][0]
+    fixed = rule.keywords if isinstance(rule, functools.partial) else {}
+    params = inspect.signature(rule).parameters
+    return tuple(p for p, v in params.items() if v.kind == v.KEYWORD_ONLY and p not in fixed)
+
+
+def check_observer_name(name: str) -> None:
+    """Refuse an unknown observer name, with the closest known name as a hint."""
+    if name not in OBSERVERS:
+        close = difflib.get_close_matches(name, list(OBSERVERS), n=1, cutoff=0.5)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise ParameterError(f"unknown observer {name!r}{hint}: choose from {', '.join(OBSERVERS)}.")
+
+
+def make_observer(name: str, motor: PMSMParameters, Ts: float, **options) -> AbstractEstimator:
+    """The observer ``name`` for ``motor`` at control period ``Ts`` (s), design-rule gains unless
+    ``options`` override them; its gains are checked at ``Ts`` (unstable ones are refused)."""
+    check_observer_name(name)
+    allowed = observer_options(name)
+    bad = sorted(set(options) - set(allowed))
+    if bad:
+        raise ParameterError(
+            f"option(s) {', '.join(bad)} do not apply to observer {name!r}; it takes {', '.join(allowed)}."
+        )
+    observer = OBSERVERS[name][0](motor, Ts, **options)
+    observer.check_period(Ts)
+    return observer
