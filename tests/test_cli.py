@@ -82,8 +82,9 @@ def test_demo_npz_matches_csv(tmp_path):
 @pytest.mark.parametrize(
     "bad, field",
     [
-        (["--substeps", "0"], "n_substeps"),
-        (["--duration-s", "0.30005"], "duration_s"),
+        # Messages name the flag as typed (issue 18): was "n_substeps" and "duration_s".
+        (["--substeps", "0"], "--substeps"),
+        (["--duration-s", "0.30005"], "--duration-s"),
         (["--motor", "no_such_motor.toml"], "no_such_motor"),
         (["--speed-bandwidth", "-5"], "bandwidth"),
     ],
