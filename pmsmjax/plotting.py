@@ -27,15 +27,20 @@ LIMIT_STYLE = dict(color="tab:red", ls=":", lw=1.2)
 
 def _panel(ax, trace: Trace, title: str, ylabel: str, lines, limits=()):
     """Draw ``lines`` = [(values (N,), matplotlib format, label), ...] against time on ``ax``, and
-    ``limits`` = [(value, label), ...] as red dotted horizontal lines (drawn at +-value)."""
+    ``limits`` = [(value, label), ...] as red dotted horizontal lines at +value, and at -value when the
+    curves go that way (a line far below positive-only curves would only squeeze them)."""
     ax = ax or plt.subplots(figsize=(8, 3))[1]
     t = np.asarray(trace.t)
+    low = 0.0
     for values, fmt, label in lines:
-        ax.plot(t, np.asarray(values), fmt, lw=1.2 if fmt == "-" else 0.9, label=label)
+        values = np.asarray(values)
+        low = min(low, float(np.min(values)))
+        ax.plot(t, values, fmt, lw=1.2 if fmt == "-" else 0.9, label=label)
     for value, label in limits:
         if value is not None and np.isfinite(value):
             ax.axhline(value, **LIMIT_STYLE, label=label)
-            ax.axhline(-value, **LIMIT_STYLE)
+            if low < -0.2 * value:
+                ax.axhline(-value, **LIMIT_STYLE)
     ax.set(xlabel="t / s", ylabel=ylabel, title=title)
     ax.grid(alpha=0.3)
     ax.legend(**LEGEND)

@@ -26,8 +26,8 @@ def waveform_figure(result: dict, names, zoom_periods: int = 4):
     Ts = result["settings"]["Ts_s"]
     cycles = result["settings"]["window_cycles"]
     n = len(names)
-    fig = plt.figure(figsize=(9, 3.0 + 1.6 * n + 2.4))
-    grid = fig.add_gridspec(2 + n, 1, height_ratios=[2.2] + [1.1] * n + [1.8], hspace=0.55)
+    fig = plt.figure(figsize=(9, 3.4 + 1.7 * n + 2.6))
+    grid = fig.add_gridspec(2 + n, 1, height_ratios=[2.2] + [1.1] * n + [1.8], hspace=0.75)
     ax_i = fig.add_subplot(grid[0])
     for k, name in enumerate(names):
         w = waves[name]
@@ -39,28 +39,35 @@ def waveform_figure(result: dict, names, zoom_periods: int = 4):
     )
     ax_i.legend(**LEGEND)
     ax_i.grid(alpha=0.3)
-    t_end = zoom_periods * Ts
+    # Zoom where phase a peaks: there the modulators' zero-sequence voltages differ most (at the zero
+    # crossing of phase a they nearly coincide).
+    w0 = waves[names[0]]
+    peak = float(w0["t_i"][np.argmax(np.abs(_fundamental(w0["t_i"], w0["i_abc"][:, 0], cycles)))])
+    t_start = max(0.0, np.floor(peak / Ts - zoom_periods / 2)) * Ts
+    t_end = t_start + zoom_periods * Ts
     ax_r = fig.add_subplot(grid[1 + n])
     first = None
     for k, name in enumerate(names):
         w = waves[name]
         ax_u = fig.add_subplot(grid[1 + k], sharex=first)
         first = first or ax_u
-        keep_u = w["t_u"][:-1] < t_end
-        t_u = np.append(w["t_u"][:-1][keep_u], t_end)
-        u = w["u_abc"][keep_u, 0]
-        ax_u.stairs(u, 1e6 * t_u, color=f"C{k}", lw=1.3, baseline=None, label=name)
-        ax_u.set(ylabel="$u_{aN}$ / V", title=f"{name}: phase voltage, first {zoom_periods} PWM periods")
+        edges = w["t_u"]
+        keep_u = (edges[:-1] >= t_start - 1e-12) & (edges[:-1] < t_end - 1e-12)
+        t_u = np.append(edges[:-1][keep_u], t_end)
+        ax_u.stairs(w["u_abc"][keep_u, 0], 1e6 * t_u, color=f"C{k}", lw=1.3, baseline=None, label=name)
+        ax_u.set(
+            ylabel="$u_{aN}$ / V", title=f"{name}: phase voltage over {zoom_periods} PWM periods at the peak"
+        )
         ax_u.grid(alpha=0.3)
         ax_u.tick_params(labelbottom=False)
-        keep_i = w["t_i"] <= t_end
+        keep_i = (w["t_i"] >= t_start) & (w["t_i"] <= t_end)
         ripple = w["i_abc"][:, 0] - _fundamental(w["t_i"], w["i_abc"][:, 0], cycles)
         ax_r.plot(1e6 * w["t_i"][keep_i], ripple[keep_i], STYLES[k % 4], lw=1.2, color=f"C{k}", label=name)
     ax_r.sharex(first)
     ax_r.set(
-        xlabel="t / us",
+        xlabel="t / us (analysis window)",
         ylabel="ripple / A",
-        title=f"Current ripple ($i_a$ minus its fundamental), first {zoom_periods} PWM periods",
+        title=f"Current ripple ($i_a$ minus its fundamental) over the same {zoom_periods} PWM periods",
     )
     ax_r.legend(**LEGEND)
     ax_r.grid(alpha=0.3)

@@ -69,7 +69,11 @@ def control_drive_from_flags(args, motor):
         if value is None or value is False or (flag == "frame" and value == "dq"):
             continue
         if option not in allowed:
-            raise ParameterError(f"--{flag.replace('_', '-')} does not apply to --control {args.control}.")
+            fits = [c for c in CONTROL_NAMES if option in control_options(c)]
+            raise ParameterError(
+                f"--{flag.replace('_', '-')} does not apply to --control {args.control}: drop it, or choose "
+                f"--control {' or '.join(fits)}."
+            )
         if flag == "no_delay":
             value = False
         elif flag == "field_weakening":

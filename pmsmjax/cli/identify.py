@@ -87,7 +87,8 @@ def _pairs(items, what, convert=str):
     for item in items:
         key, sep, value = item.partition("=")
         if not sep or not key:
-            raise ParameterError(f"{what} {item}: not KEY=VALUE; write e.g. {what} u_d=Ud.")
+            example = {"--fix": "L_d=0.0041", "--units": "time=ms"}.get(what, "u_d=Ud")
+            raise ParameterError(f"{what} {item}: not KEY=VALUE; write e.g. {what} {example}.")
         try:
             out[key.strip()] = convert(value.strip())
         except ValueError:

@@ -14,6 +14,9 @@ from . import mechanical as me
 
 __all__ = ["fit_figure", "save_fit_figure"]
 
+#: Block length of the residual panel's RMS, s.
+RESIDUAL_BLOCK_S = 0.01
+
 
 def fit_figure(result, zoom_s: float = 0.05):
     """Five panels: i_d and i_q over the whole log, i_q over the ``zoom_s`` s at the middle, the current
@@ -45,14 +48,23 @@ def fit_figure(result, zoom_s: float = 0.05):
         ax.plot(t[sel], measured[sel, k], ".", ms=1.5, color="0.55", label="measured")
         ax.plot(t[sel], i_fit[sel, k], "-", lw=0.9, color="C0", label="fitted model")
         ax.set(ylabel=ylabel, title=title)
+    # The residuals themselves are a band of noise at any zoom that shows the whole log; their RMS over
+    # short blocks, over the noise level, is flat at 1 where the model explains everything but noise and
+    # rises where it misses something.
     residual = i_fit - measured
     sigma = result.summary["noise_estimate"]
+    block = max(1, int(round(RESIDUAL_BLOCK_S / float(np.median(np.diff(log.time))))))
+    n_b = t.size // block
+    t_b = t[: n_b * block].reshape(n_b, block)[:, 0]
     for k, (name, key) in enumerate((("$i_d$", "i_d_A"), ("$i_q$", "i_q_A"))):
-        axes[3].plot(t, residual[:, k], lw=0.5, color=f"C{k + 1}", alpha=0.8, label=f"{name} residual")
-        axes[3].axhline(2.0 * sigma[key], color=f"C{k + 1}", ls=":", lw=1.0, label=f"{name}: +-2 x noise")
-        axes[3].axhline(-2.0 * sigma[key], color=f"C{k + 1}", ls=":", lw=1.0)
+        rms = np.sqrt(np.mean(residual[: n_b * block, k].reshape(n_b, block) ** 2, axis=1))
+        axes[3].step(t_b, rms / sigma[key], where="post", lw=1.0, color=f"C{k + 1}", label=name)
+    axes[3].axhline(1.0, color="k", ls=":", lw=1.0, label="noise only")
+    axes[3].set_ylim(0.0, None)
     axes[3].set(
-        ylabel="fitted - measured / A", title="Current residuals (white and inside +-2 x noise: a good fit)"
+        ylabel="residual RMS / noise",
+        title=f"Current residuals (fitted - measured): RMS over {1e3 * RESIDUAL_BLOCK_S:g} ms blocks / noise "
+        "level (1: only noise left)",
     )
     axes[4].plot(t, rpm * log.omega_m[1 : n_w * W + 1], "-", color="0.6", lw=2.2, label="measured")
     axes[4].plot(t, rpm * w_fit, "-", lw=0.9, color="C0", label="fitted model")

@@ -67,7 +67,8 @@ def tornado_figure(summary: dict):
         values = [row[p] for p in order]
         bars = ax.barh(order, values, color=["C3" if v > 0 else "C0" for v in values])
         # Every bar carries its value: bars a hundred times shorter than the longest are invisible.
-        ax.bar_label(bars, labels=[f"{v:+.2g}" for v in values], fontsize=7, padding=2)
+        if any(values):
+            ax.bar_label(bars, labels=[f"{v:+.2g}" for v in values], fontsize=7, padding=2)
         span = max((abs(v) for v in values), default=0.0)
         if span > 0:
             ax.set_xlim(min(0.0, min(values)) - 0.35 * span, max(0.0, max(values)) + 0.35 * span)
