@@ -404,3 +404,30 @@ def test_every_option_help_gives_its_default():
                 if "default" not in (action.help or ""):
                     missing.append(f"{name} {action.option_strings[0]}")
     assert missing == []
+
+
+def test_constants_of_the_jax_free_checks_agree_with_the_library(tmp_path, monkeypatch):
+    from pmsmjax import presets, replay
+    from pmsmjax.cli import demo
+    from tuning.identify import pipeline
+
+    assert (demo.BOOK_U_DC_V, demo.BOOK_CURRENT_LIMIT_A, demo.BOOK_TS_S) == (
+        presets.BOOK_DC_LINK,
+        presets.BOOK_CURRENT_LIMIT,
+        presets.BOOK_TS,
+    )
+    # replay and identify share one default hold: replay's flag default, and what identify passes on
+    # when given none (captured where it reads the log).
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    flag = next(a for a in sub.choices["replay"]._actions if a.dest == "hold")
+    assert flag.default == replay.DEFAULT_HOLD == "auto"
+    seen = {}
+
+    def capture(path, pole_pairs, **kwargs):
+        seen.update(kwargs)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(pipeline, "load_drive_log", capture)
+    with pytest.raises(KeyboardInterrupt):
+        pipeline.identify_file(tmp_path / "log.csv", tmp_path / "out", 4)
+    assert seen["hold"] == replay.DEFAULT_HOLD
