@@ -7,7 +7,16 @@ last ``window_cycles`` whole electrical periods of the run (steady state under l
 - current THD of phase a up to ``thd_max_frequency_hz`` (:mod:`pmsmjax.spectra`), from uniform samples
   of the trajectory *inside* each period (:func:`pmsmjax.intra_period.dense_window`);
 - torque ripple: RMS and peak-to-peak of the electromagnetic torque about its window mean, same samples;
-- mean switching frequency of the legs (:func:`pmsmjax.metrics.switching_frequency_hz`).
+- mean switching frequency of the legs (:func:`pmsmjax.metrics.switching_frequency_hz`);
+- stator flux-magnitude ripple: RMS and peak-to-peak of the plant's true ``|psi|`` about its window mean
+  (``psi_dq = [L_d i_d + psi_f, L_q i_q]`` of the same samples), for every controller whether or not it
+  estimates the flux (the flux is what direct torque control regulates; under FOC it follows the
+  currents).
+
+At equal switching frequency (``equal_switching_hz``): each controller with bands (table DTC, hysteresis
+current control; :mod:`pmsmjax.switching_match`) is run a second time, as ``"NAME@F kHz"``, with its bands
+scaled so that its mean switching frequency over the same window meets the given frequency (by default the
+PWM frequency ``1/Ts`` of the voltage-commanding controllers compared).
 
 Voltage-commanding controllers run on the switching-resolved bridge by default (``bridge="switching"``):
 with the averaged bridge the PWM ripple is not in the model, and its THD and torque ripple would read
@@ -19,11 +28,13 @@ import math
 
 import equinox as eqx
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from . import metrics, presets
 from .controls import CONTROLS, control_drive
 from .drive import Drive
+from .frames import inverse_park
 from .intra_period import dense_window
 from .inverters.switching import SwitchingBridge
 from .machines.motor import PMSMParameters
@@ -31,6 +42,7 @@ from .operating_point import run_flags
 from .simulate import check_simulation, simulate
 from .spectra import sampled_spectrum, thd
 from .summary import speed_step_summary
+from .switching_match import BAND_LEAVES, match_switching_frequency
 from .validation import ParameterError
 
 SUMMARY_KEYS = {
@@ -52,6 +64,8 @@ class ControllerCompareSettings:
     - `sample_rate_hz`: intra-period sampling rate of the ripple analysis (at least one sample a period).
     - `thd_max_frequency_hz`: THD includes components up to this frequency (4 x the book's 10 kHz).
     - `bridge`: ``"switching"`` (segment-exact) or ``"averaged"`` for voltage-commanding controllers.
+    - `equal_switching_hz`: also run each controller with bands at this mean switching frequency, Hz
+      (``0``: the PWM frequency of the voltage-commanding controllers; ``None``: not).
     """
 
     speed_rpm: float = 1000.0
@@ -62,6 +76,7 @@ class ControllerCompareSettings:
     sample_rate_hz: float = 320e3
     thd_max_frequency_hz: float = 40e3
     bridge: str = "switching"
+    equal_switching_hz: float | None = None
 
     def check(self) -> None:
         if self.bridge not in ("switching", "averaged"):
@@ -76,6 +91,11 @@ class ControllerCompareSettings:
             raise ParameterError(
                 f"sample_rate_hz = {self.sample_rate_hz:g} must exceed 2.5 x thd_max_frequency_hz "
                 f"({self.thd_max_frequency_hz:g} Hz) so the spectrum reaches it."
+            )
+        if self.equal_switching_hz is not None and not self.equal_switching_hz >= 0:
+            raise ParameterError(
+                f"equal_switching_hz must be a frequency > 0 Hz, 0 (the PWM frequency of the compared "
+                f"voltage-commanding controls) or None, got {self.equal_switching_hz!r}."
             )
 
 
@@ -102,9 +122,7 @@ def window_periods(drive: Drive, settings: ControllerCompareSettings) -> int:
 
 def run_control(name: str, drive: Drive, settings: ControllerCompareSettings) -> dict:
     """Simulate one controller; returns its figures, its trace and its ripple window (NumPy)."""
-    scenario = presets.book_scenario(
-        settings.speed_rpm, settings.load_nm, settings.load_time_s, settings.duration_s
-    )
+    scenario = _scenario(settings)
     check_simulation(drive, scenario)
     n_window = window_periods(drive, settings)
     trace = jax.block_until_ready(simulate(drive, scenario))
@@ -118,6 +136,8 @@ def run_control(name: str, drive: Drive, settings: ControllerCompareSettings) ->
     flat = jax.tree.map(lambda x: x.reshape((-1,) + x.shape[2:]), dense)
     i_abc = np.asarray(jax.vmap(machine.phase_currents)(flat))
     torque = np.asarray(jax.vmap(machine.electromagnetic_torque)(flat))
+    psi_ab = np.asarray(jax.vmap(lambda st: stator_flux_ab(machine, st))(flat))
+    flux = np.hypot(psi_ab[:, 0], psi_ab[:, 1])
     window_s = n_window * drive.Ts
     n_max = int(settings.thd_max_frequency_hz * window_s)
     spectrum = sampled_spectrum(i_abc[:, 0], window_s, settings.window_cycles, n_max)
@@ -131,14 +151,39 @@ def run_control(name: str, drive: Drive, settings: ControllerCompareSettings) ->
             "torque_ripple_nm": float(np.std(torque)),
             "torque_ripple_pp_nm": float(np.ptp(torque)),
             "mean_torque_nm": float(np.mean(torque)),
+            "flux_ripple_wb": float(np.std(flux)),
+            "flux_ripple_pp_wb": float(np.ptp(flux)),
+            "mean_flux_wb": float(np.mean(flux)),
             "current_limit_a": limit,
             "control_period_s": drive.Ts,
             "command": drive.controller.command_kind,
             "bridge": type(drive.bridge).__name__,
         }
     )
+    for leaf in BAND_LEAVES.get(type(drive.controller), ()):
+        entry[leaf] = float(getattr(drive.controller, leaf))
     t_window = (np.arange(i_abc.shape[0]) + 1) * (drive.Ts / per_period)
-    return {"entry": entry, "trace": trace, "window": {"t": t_window, "i_abc": i_abc, "torque": torque}}
+    window = {"t": t_window, "i_abc": i_abc, "torque": torque, "psi_ab": psi_ab}
+    return {"entry": entry, "trace": trace, "window": window}
+
+
+def stator_flux_ab(machine, state) -> np.ndarray:
+    """``(2,)`` the plant's stator flux linkage in alpha-beta, Wb: ``[L_d i_d + psi_f, L_q i_q]`` rotated by
+    the rotor angle (three-phase machines in any frame)."""
+    m = machine.motor
+    i_dq = machine.currents_dq(state)
+    return inverse_park(jnp.stack([m.L_d * i_dq[0] + m.psi_f, m.L_q * i_dq[1]]), state.theta_e)
+
+
+def pwm_frequency_hz(drives: dict) -> float:
+    """The PWM frequency ``1/Ts`` (Hz) shared by the voltage-commanding drives (``drives``: name -> Drive)."""
+    freqs = {round(1.0 / d.Ts, 6) for d in drives.values() if d.controller.command_kind == "voltage"}
+    if len(freqs) != 1:
+        raise ParameterError(
+            "equal switching frequency needs one PWM frequency to match: the voltage-commanding controls "
+            f"compared have {sorted(freqs) or 'none'} Hz; give the frequency explicitly."
+        )
+    return freqs.pop()
 
 
 def compare_controllers(
@@ -150,9 +195,14 @@ def compare_controllers(
 ) -> dict:
     """Run each named controller (keys of :data:`pmsmjax.controls.CONTROLS`) on the book scenario.
 
+    With ``settings.equal_switching_hz`` each controller with bands is also run with its bands matched
+    to that mean switching frequency (``0``: the PWM frequency of the voltage-commanding controllers,
+    :func:`pwm_frequency_hz`), under the name ``"NAME@F kHz"``; its entry adds ``band_factor`` and
+    ``band_search_runs``.
+
     Returns ``{"settings", "controllers": name -> figures, "traces": name -> Trace, "windows": name ->
-    {t, i_abc, torque}}``; `progress`: optional callable taking a line per controller; `adjust`: optional
-    ``(drive, name) -> drive`` applied to each drive before anything runs (tuned gains, say).
+    {t, i_abc, torque, psi_ab}}``; `progress`: optional callable taking a line per controller; `adjust`:
+    optional ``(drive, name) -> drive`` applied to each drive before anything runs (tuned gains, say).
     """
     settings.check()
     unknown = [n for n in names if n not in CONTROLS]
@@ -163,17 +213,40 @@ def compare_controllers(
         drives = {name: adjust(drive, name) for name, drive in drives.items()}
     for drive in drives.values():  # every check before the first compile
         window_periods(drive, settings)
+    target = settings.equal_switching_hz
+    if target == 0:
+        target = pwm_frequency_hz(drives)
     result = {"settings": dataclasses.asdict(settings), "controllers": {}, "traces": {}, "windows": {}}
+    if target is not None:
+        result["settings"]["equal_switching_hz"] = target
     for name, drive in drives.items():
-        run = run_control(name, drive, settings)
-        result["controllers"][name] = run["entry"]
-        result["traces"][name] = run["trace"]
-        result["windows"][name] = run["window"]
-        if progress:
-            e = run["entry"]
-            progress(
-                f"{name:12s} rise {1e3 * e['rise_time_s']:6.1f} ms  dip {e['dip_rpm']:6.1f} r/min  "
-                f"THD {e['current_thd_pct']:5.2f} %  f_sw {1e-3 * e['switching_frequency_hz']:5.1f} kHz  "
-                f"T ripple {e['torque_ripple_nm']:.3f} N m"
+        _record(result, name, run_control(name, drive, settings), progress)
+        if target is not None and type(drive.controller) in BAND_LEAVES:
+            match = match_switching_frequency(
+                drive, _scenario(settings), target, window_periods(drive, settings)
             )
+            matched = f"{name}@{target / 1e3:g}kHz"
+            run = run_control(matched, match["drive"], settings)
+            run["entry"]["band_factor"] = match["factor"]
+            run["entry"]["band_search_runs"] = len(match["runs"])
+            _record(result, matched, run, progress)
     return result
+
+
+def _scenario(settings: ControllerCompareSettings):
+    return presets.book_scenario(
+        settings.speed_rpm, settings.load_nm, settings.load_time_s, settings.duration_s
+    )
+
+
+def _record(result: dict, name: str, run: dict, progress) -> None:
+    result["controllers"][name] = run["entry"]
+    result["traces"][name] = run["trace"]
+    result["windows"][name] = run["window"]
+    if progress:
+        e = run["entry"]
+        progress(
+            f"{name:12s} rise {1e3 * e['rise_time_s']:6.1f} ms  dip {e['dip_rpm']:6.1f} r/min  "
+            f"THD {e['current_thd_pct']:5.2f} %  f_sw {1e-3 * e['switching_frequency_hz']:5.1f} kHz  "
+            f"T ripple {e['torque_ripple_nm']:.3f} N m  flux ripple {1e3 * e['flux_ripple_wb']:.2f} mWb"
+        )

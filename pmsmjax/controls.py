@@ -18,6 +18,11 @@ CONTROLS = {
     "smc": (presets.smc_drive, "sliding-mode speed loop, exponential reaching law, dq PI currents (ch. 3)"),
     "pr": (presets.pr_drive, "proportional-resonant current loops in alpha-beta, PI speed loop (ch. 3)"),
     "hysteresis": (presets.hysteresis_drive, "hysteresis current comparators, PI speed loop (ch. 3)"),
+    "dtc": (presets.dtc_drive, "switching-table direct torque control, flux observer, PI speed loop (ch. 4)"),
+    "smc-dtc": (
+        presets.smc_dtc_drive,
+        "sliding-mode direct torque control with SVPWM, PI speed loop (ch. 4)",
+    ),
 }
 
 

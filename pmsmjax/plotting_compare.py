@@ -54,3 +54,27 @@ def ripple_figure(result: dict):
             ax.set_xlabel("t / ms (analysis window)")
     fig.tight_layout()
     return fig
+
+
+def flux_figure(result: dict):
+    """Per controller, over the analysis window: the stator flux locus in the alpha-beta plane (left) and
+    its magnitude against time (right)."""
+    windows = result["windows"]
+    names = list(windows)
+    fig, axes = plt.subplots(len(names), 2, figsize=(10, 2.6 * len(names) + 0.6), squeeze=False)
+    for row, name in zip(axes, names, strict=True):
+        psi = windows[name]["psi_ab"]
+        e = result["controllers"][name]
+        row[0].plot(psi[:, 0], psi[:, 1], lw=0.5)
+        row[0].set(xlabel=r"$\psi_\alpha$ / Wb", ylabel=r"$\psi_\beta$ / Wb", title=f"{name}: flux locus")
+        row[0].set_aspect("equal", adjustable="datalim")
+        row[1].plot(1e3 * windows[name]["t"], np.hypot(psi[:, 0], psi[:, 1]), lw=0.6, color="C2")
+        row[1].set(
+            xlabel="t / ms (analysis window)",
+            ylabel=r"$|\psi_s|$ / Wb",
+            title=f"{name}: flux magnitude, ripple {1e3 * e['flux_ripple_wb']:.2f} mWb RMS",
+        )
+        for ax in row:
+            ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return fig

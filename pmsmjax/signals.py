@@ -47,11 +47,16 @@ class Estimate(eqx.Module):
     - `omega_m`: mechanical speed, rad/s.
     - `u_injection_ab`: ``(2,)`` stator-frame voltage to add to the controller's command, V (HF injection);
       ``None`` for estimators that inject nothing.
+    - `psi_ab`: ``(2,)`` stator flux linkage in the stationary frame, Wb; ``None`` for estimators that
+      do not estimate it (direct torque control needs it: :mod:`pmsmjax.estimators.flux_observer`).
+    - `torque`: electromagnetic torque, N m; ``None`` where not estimated.
     """
 
     theta_e: Array
     omega_m: Array
     u_injection_ab: Array | None = None
+    psi_ab: Array | None = None
+    torque: Array | None = None
 
 
 class References(eqx.Module):

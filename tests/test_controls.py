@@ -35,8 +35,8 @@ def test_registry_builds_each_method_and_refuses_what_does_not_apply():
     assert isinstance(control_drive("smc").controller.speed, SlidingModeSpeed)
     assert isinstance(control_drive("pr").controller.current, ProportionalResonant)
     assert control_drive("hysteresis").modulator is None
-    with pytest.raises(ParameterError, match="unknown control 'dtc'"):
-        control_drive("dtc")
+    with pytest.raises(ParameterError, match="unknown control 'foo'"):
+        control_drive("foo")
     with pytest.raises(ParameterError, match="band_a do not apply to control 'pi'"):
         control_drive("pi", band_a=1.0)
 
@@ -128,7 +128,7 @@ def test_compare_and_demo_agree_on_the_same_drive(compared, tmp_path):
 
 def test_compare_refuses_bad_input_before_any_work(tmp_path, capsys):
     assert main(["compare", "--control", "pi,foo", "--out", str(tmp_path / "a")]) == 2
-    assert "unknown ['foo']" in capsys.readouterr().err
+    assert "unknown foo" in capsys.readouterr().err  # issue 18: no Python list repr (was "unknown ['foo']")
     blocker = tmp_path / "file"
     blocker.write_text("")
     assert main(["compare", "--control", "pi", "--out", str(blocker / "sub")]) == 2
@@ -163,3 +163,19 @@ def test_tune_refuses_a_control_it_cannot_tune(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["tune", "--control", "hysteresis", "--out", str(tmp_path / "t")])
     assert "invalid choice" in capsys.readouterr().err
+
+
+def test_controller_benchmark_smoke():
+    """benchmarks/bench_controllers.py at quick sizes: every control timed, ratios consistent."""
+    from benchmarks import bench_controllers
+
+    r = bench_controllers.run(quick=True)
+    assert set(bench_controllers.REQUIRED_KEYS) <= set(r)
+    assert set(r["controls"]) == set(CONTROLS)
+    assert r["controls"]["pi"]["per_period_vs_pi"] == 1.0
+    for c in r["controls"].values():
+        assert c["run_s"] > 0 and np.isfinite(c["us_per_period"])
+        # per simulated second = per period x periods per second, both relative to PI
+        ratio = c["per_period_vs_pi"] * (r["controls"]["pi"]["control_period_s"] / c["control_period_s"])
+        assert c["per_simulated_s_vs_pi"] == pytest.approx(ratio, rel=1e-9)
+    assert "control methods on the book scenario" in bench_controllers.format_table(r)

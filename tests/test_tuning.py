@@ -212,8 +212,8 @@ def test_bfgs_finds_the_rosenbrock_minimum_and_stops_at_an_active_bound():
 
 
 def test_bfgs_tuning_lowers_the_exact_cost_and_resumes_exactly(drive, batch, tmp_path):
-    # Early stopping ends this run (at iteration 9; the last improvement is at 6): resumed at 7, it must
-    # stop at the same place, so the stopping counter has to survive the interruption.
+    # Early stopping ends this run: interrupted between its last improvement and its stop, a resumed run
+    # must stop at the same place, so the stopping counter has to survive the interruption.
     cfg = TuneConfig(
         method="bfgs", max_iterations=12, patience=3, min_rel_improvement=0.02, checkpoint_every=1
     )
@@ -224,7 +224,12 @@ def test_bfgs_tuning_lowers_the_exact_cost_and_resumes_exactly(drive, batch, tmp
         reference.best_cost, rel=1e-9
     )
 
-    resumed = _interrupt_and_resume(drive, batch, cfg, 7, tmp_path / "checkpoint.npz")
+    assert reference.stopped == "no improvement"
+    best_so_far = np.minimum.accumulate(reference.history)
+    improved = [k for k in range(1, len(best_so_far)) if best_so_far[k] < (1 - 0.02) * best_so_far[k - 1]]
+    at = improved[-1] + 2  # iterations are 1-based: one iteration after the last improvement
+    assert at < reference.iterations  # the interruption falls inside the patience window
+    resumed = _interrupt_and_resume(drive, batch, cfg, at, tmp_path / "checkpoint.npz")
     assert resumed.history == reference.history and resumed.gains == reference.gains
     assert resumed.stopped == reference.stopped and resumed.iterations == reference.iterations
 

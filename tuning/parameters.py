@@ -32,7 +32,19 @@ CURRENT_GAINS = (
 )
 SMC_GAINS = ("controller.speed.c", "controller.speed.eps", "controller.speed.q")
 PR_GAINS = ("controller.current.kp", "controller.current.kr", "controller.current.w_c")
-ALIASES = {"speed": SPEED_GAINS, "current": CURRENT_GAINS, "smc": SMC_GAINS, "pr": PR_GAINS}
+SMC_DTC_GAINS = (
+    "controller.torque_gain_v",
+    "controller.torque_boundary_nm",
+    "controller.flux_gain_v",
+    "controller.flux_boundary_wb",
+)
+ALIASES = {
+    "speed": SPEED_GAINS,
+    "current": CURRENT_GAINS,
+    "smc": SMC_GAINS,
+    "pr": PR_GAINS,
+    "smc_dtc": SMC_DTC_GAINS,
+}
 
 
 def get_leaf(drive, name: str):
@@ -53,8 +65,8 @@ def array_leaf_names(drive: Drive) -> list[str]:
 
 
 def resolve_names(drive: Drive, names) -> tuple[str, ...]:
-    """Expand aliases (``speed``, ``current``, ``smc``, ``pr``) and check every name is a positive scalar
-    leaf."""
+    """Expand aliases (``speed``, ``current``, ``smc``, ``pr``, ``smc_dtc``) and check every name is a
+    positive scalar leaf."""
     if isinstance(names, str):
         names = [names]
     expanded = []

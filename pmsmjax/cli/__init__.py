@@ -53,14 +53,10 @@ def _one_line(text) -> str:
 
 
 def main(argv=None) -> int:
-    """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit status (``--help`` exits
-    through ``SystemExit(0)`` as argparse does)."""
-    try:
-        args = build_parser().parse_args(argv)
-    except SystemExit as done:  # a refused flag: the one-line message is printed already
-        if done.code in (0, None):
-            raise
-        return done.code
+    """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit status. As with any
+    argparse program, ``--help`` and a flag refused while parsing (a bad number, an unknown choice) end in
+    ``SystemExit`` (0 and 2; the refusal's one line is printed first)."""
+    args = build_parser().parse_args(argv)
     prog = f"pmsmjax {args.command}"
 
     def show_warning(message, category, filename, lineno, file=None, line=None):

@@ -14,17 +14,22 @@ def add_parser(sub):
         "compare",
         help="run the book scenario with several control methods and compare them (compare.json, figures)",
         description=(
-            "Each control method (pi, smc, pr, hysteresis) drives the book motor through the book scenario "
-            "(speed step from rest, then a load step). Writes DIR/compare.json (per controller: rise_time_s, "
-            "overshoot_pct, dip_rpm, recovery_time_s, itae, peak_current_a, current_thd_pct, "
-            "switching_frequency_hz, torque_ripple_nm, operating_point) and side-by-side figures. Ripple, "
-            "THD and torque ripple come from the last electrical periods, sampled inside each control "
-            "period, with the switching-resolved bridge for voltage-commanding controllers; an operating "
-            "point the drive cannot hold (above its top speed, or a load beyond its current limit) is "
-            "refused, since its ripple figures would describe saturation."
+            "Each control method (pi, smc, pr, hysteresis, dtc, smc-dtc) drives the book motor through the "
+            "book scenario (speed step from rest, then a load step). Writes DIR/compare.json (per "
+            "controller: rise_time_s, overshoot_pct, dip_rpm, recovery_time_s, itae, peak_current_a, "
+            "current_thd_pct, switching_frequency_hz, torque_ripple_nm, flux_ripple_wb, operating_point) and "
+            "side-by-side figures. Ripple, THD, torque and flux ripple come from the last electrical "
+            "periods, sampled inside each control period, with the switching-resolved bridge for "
+            "voltage-commanding controllers; an operating point the drive cannot hold (above its top "
+            "speed, or a load beyond its current limit) is refused, since its ripple figures would describe "
+            "saturation."
         ),
     )
-    p.add_argument("--control", default="pi,smc,pr,hysteresis", help="comma-separated methods (default: all)")
+    p.add_argument(
+        "--control",
+        default="pi,smc,pr,hysteresis",
+        help="comma-separated methods: pi, smc, pr, hysteresis, dtc, smc-dtc (default: the chapter 3 four)",
+    )
     p.add_argument("--out", default="compare_out", help="output folder (created), default: compare_out")
     p.add_argument(
         "--motor", default="book", help="preset name (book, book_salient) or motor TOML file (default book)"
@@ -45,6 +50,16 @@ def add_parser(sub):
         default="switching",
         help="bridge of the voltage-commanding controllers (default switching: the PWM ripple is modelled)",
     )
+    p.add_argument(
+        "--equal-switching",
+        nargs="?",
+        type=checks.nonnegative("Hz"),
+        const=0.0,
+        metavar="HZ",
+        help="also run each banded controller (dtc, hysteresis) with its bands scaled to this mean switching "
+        "frequency, Hz (no value: the PWM frequency of the voltage-commanding controls), as NAME@F kHz "
+        "(default: not run)",
+    )
     add_gains_flag(p)
     p.add_argument(
         "--trust-units", action="store_true", help="accept motor values outside the plausible ranges"
@@ -57,9 +72,9 @@ def precheck(args) -> list[str]:
     """Checks that need no model (before JAX starts); returns the control names."""
     from ..motor_files import motor_values
     from ..operating_point import refuse_unreachable
-    from .demo import BOOK_CURRENT_LIMIT_A, BOOK_TS_S, BOOK_U_DC_V
+    from .demo import BOOK_CURRENT_LIMIT_A, BOOK_TS_S, BOOK_U_DC_V, CONTROL_NAMES
 
-    known = ("pi", "smc", "pr", "hysteresis")
+    known = CONTROL_NAMES
     names = [n.strip() for n in args.control.split(",") if n.strip()]
     unknown = [n for n in names if n not in known]
     if not names or unknown:
@@ -106,6 +121,7 @@ def run(args) -> int:
         load_time_s=args.load_time_s,
         duration_s=args.duration_s,
         bridge=args.bridge,
+        equal_switching_hz=args.equal_switching,
     )
     settings.check()
     motor = presets.load_motor(args.motor, check_units=not args.trust_units)
@@ -122,11 +138,12 @@ def run(args) -> int:
     written = ["compare.json"]
     if not args.no_figures:
         from ..plotting import save_figure
-        from ..plotting_compare import ripple_figure, speed_figure
+        from ..plotting_compare import flux_figure, ripple_figure, speed_figure
 
         for name, fig in (
             ("compare_speed.png", speed_figure(result)),
             ("compare_ripple.png", ripple_figure(result)),
+            ("compare_flux.png", flux_figure(result)),
         ):
             save_figure(fig, out / name)
             written.append(name)

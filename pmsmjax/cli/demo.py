@@ -16,7 +16,7 @@ from ..validation import ParameterError, plain
 from . import checks
 from .gains import add_gains_flag, apply_gains_flag, read_gains_flag
 
-CONTROL_NAMES = ("pi", "smc", "pr", "hysteresis")
+CONTROL_NAMES = ("pi", "smc", "pr", "hysteresis", "dtc", "smc-dtc")
 
 #: Command-line flag (argparse dest) -> preset option; flags left unset keep each preset's own default.
 FLAG_OPTIONS = {
@@ -28,6 +28,9 @@ FLAG_OPTIONS = {
     "field_weakening": "d_axis",
     "band_a": "band_a",
     "switching": "switching",
+    "torque_band_nm": "torque_band_nm",
+    "flux_band_wb": "flux_band_wb",
+    "sample_period_us": "sample_period_s",
     "current_limit": "current_limit",
 }
 
@@ -76,6 +79,8 @@ def control_drive_from_flags(args, motor):
             )
         if flag == "no_delay":
             value = False
+        elif flag == "sample_period_us":
+            value = value * 1e-6
         elif flag == "field_weakening":
             value = presets.field_weakening_block(args.current_bandwidth or presets.BOOK_CURRENT_BANDWIDTH)
         options[option] = value
@@ -101,7 +106,8 @@ def add_parser(sub):
         choices=list(CONTROL_NAMES),
         default="pi",
         help="control method: pi (cascaded PI FOC, default), smc (sliding-mode speed loop), pr "
-        "(proportional-resonant current loops in alpha-beta), hysteresis (current comparators at 100 kHz)",
+        "(proportional-resonant current loops in alpha-beta), hysteresis (current comparators at 100 kHz), "
+        "dtc (switching-table direct torque control, 40 kHz samples), smc-dtc (sliding-mode DTC with SVPWM)",
     )
     p.add_argument("--out", default="demo_out", help="output folder (created), default: demo_out")
     p.add_argument(
@@ -141,7 +147,20 @@ def add_parser(sub):
     p.add_argument(
         "--switching",
         choices=("sign", "saturation", "tanh"),
-        help="SMC switching function (default sign, the book's)",
+        help="switching function of smc (default sign, the book's) or smc-dtc (default saturation)",
+    )
+    p.add_argument(
+        "--torque-band-nm",
+        type=checks.positive("N m"),
+        help="dtc: full torque hysteresis band, N m (default 1)",
+    )
+    p.add_argument(
+        "--flux-band-wb", type=checks.positive("Wb"), help="dtc: full flux hysteresis band, Wb (default 0.01)"
+    )
+    p.add_argument(
+        "--sample-period-us",
+        type=checks.positive("us"),
+        help="dtc: comparator sample period, us (default 25)",
     )
     add_gains_flag(p)
     p.add_argument(

@@ -17,7 +17,9 @@ def add_parser(sub):
         description=(
             "Gradient auto-tuning of the book drive's gains (BFGS or Adam in log-space from the design-rule "
             "gains): --control pi (speed and current PIs, default), smc (c, eps, q and the current PIs; "
-            "tuned with tanh switching, re-evaluated with the exact sign law) or pr (Kp, Kr, w_c), over a "
+            "tuned with tanh switching, re-evaluated with the exact sign law), pr (Kp, Kr, w_c) or "
+            "smc-dtc (the speed PI and the sliding-mode DTC's K_T, phi_T, K_psi, phi_psi for ITAE plus "
+            "torque ripple; tuned with tanh, re-evaluated with the saturation law), over a "
             "seeded batch of speed steps (200-1500 r/min, both "
             "directions) and load steps (0-10 N m), checked on a held-out batch. Writes DIR/gains.toml "
             "(use it with --gains in demo, compare, pwm-compare and montecarlo), DIR/result.json, "
@@ -29,7 +31,7 @@ def add_parser(sub):
     p.add_argument("--out", default="tune_out", help="output folder (created), default: tune_out")
     p.add_argument(
         "--control",
-        choices=("pi", "smc", "pr"),
+        choices=("pi", "smc", "pr", "smc-dtc"),
         help="control method whose gains are tuned (default pi)",
     )
     p.add_argument(
@@ -53,7 +55,8 @@ def add_parser(sub):
     p.add_argument(
         "--gains",
         nargs="+",
-        help="names of the gains to tune: aliases speed, current, smc, pr or names like controller.speed.kp "
+        help="names of the gains to tune: aliases speed, current, smc, pr, smc_dtc or names like "
+        "controller.speed.kp "
         "(default: the control's own gains)",
     )
     p.add_argument(

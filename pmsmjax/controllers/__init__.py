@@ -1,6 +1,6 @@
 """Controllers: the controller interfaces, discrete PI, design rules, cascaded FOC with its blocks (PI and
 sliding-mode speed loops; dq PI or proportional-resonant current loops; MTPA and field weakening), and
-hysteresis current control."""
+hysteresis current control; switching-table and sliding-mode direct torque control."""
 
 from .base import (
     AbstractController,
@@ -16,6 +16,7 @@ from .design import (
     first_order_rise_time,
     speed_loop_active_damping,
 )
+from .dtc import SwitchingTableDTC, torque_current_limit
 from .field_weakening import VoltageFeedbackFieldWeakening
 from .foc import FOC, FOCState
 from .hysteresis import HysteresisCurrentControl, HysteresisState, hysteresis_comparator
@@ -23,6 +24,7 @@ from .mtpa import MTPA, mtpa_id_from_iq, mtpa_id_from_magnitude
 from .pi import clip_magnitude, clip_symmetric, pi_update, realisable_reference_tracking
 from .pr import ProportionalResonant, ResonantCoefficients, pr_design, resonant_coefficients
 from .smc import SlidingModeSpeed, SlidingModeState, smc_design, switching_function
+from .smc_dtc import SlidingModeDTC, smc_dtc_design
 
 __all__ = [
     "FOC",
@@ -56,4 +58,8 @@ __all__ = [
     "resonant_coefficients",
     "speed_loop_active_damping",
     "switching_function",
+    "SwitchingTableDTC",
+    "SlidingModeDTC",
+    "smc_dtc_design",
+    "torque_current_limit",
 ]

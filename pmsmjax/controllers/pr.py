@@ -149,10 +149,12 @@ def resonant_coefficients(
             jnp.stack([jnp.stack([one, -h], -1), jnp.stack([h, 1.0 + wc * T], -1)], -2) / det[..., None, None]
         )
         plus = jnp.stack([jnp.stack([1.0 - wc * T, -h], -1), jnp.stack([h, one], -1)], -2)
-        Ad = m_inv @ plus
+        # Products of 2x2 matrices as broadcast sums, not dot ops: XLA:CPU fuses these into the step,
+        # where tiny dots each cost a library call (the PR drive's per-period cost, bench_controllers).
+        Ad = jnp.sum(m_inv[..., :, :, None] * plus[..., None, :, :], axis=-2)
         Bd = m_inv[..., :, 0] * (2.0 * kr * wc * T)[..., None]
         C = jnp.stack([c * one, -s * one], -1)
-        Cd = jnp.einsum("...i,...ij->...j", C, m_inv)
+        Cd = jnp.sum(C[..., :, None] * m_inv, axis=-2)
         Dd = 0.5 * jnp.sum(C * Bd, -1)
     elif discretisation == "sogi":
         # x1+ = x1 + Ts (2 Kr w_c e - 2 w_c x1 - w^ x2); x2+ = x2 + Ts w^ x1+ (forward then backward Euler).
@@ -230,7 +232,7 @@ class ProportionalResonant(AbstractCurrentController):
         co = self.coefficients(omega_e, ctx.Ts, ctx.delayed)
         error = inverse_park(i_dq_ref, theta_e) - i_ab  # both at the sampling instant
         theta_act = theta_e + omega_e * self.lead_time(ctx.Ts, ctx.delayed)
-        resonant = state @ co.Cd + co.Dd * error
+        resonant = jnp.sum(state * co.Cd, axis=-1) + co.Dd * error
         if self.back_emf_feedforward:
             ff = inverse_park(jnp.stack([jnp.zeros_like(omega_e), omega_e * ctx.model.psi_f]), theta_act)
         else:
@@ -239,7 +241,7 @@ class ProportionalResonant(AbstractCurrentController):
         u_ab = clip_magnitude(ctx.u_max)(v)
         # Back-calculation: the limiter's excess enters the resonators' input (tracking time Kp/Ki).
         error_r = error + (u_ab - v) / self.kp if self.anti_windup else error
-        new_state = state @ jnp.swapaxes(co.Ad, -1, -2) + error_r[:, None] * co.Bd
+        new_state = jnp.sum(state[:, None, :] * co.Ad, axis=-1) + error_r[:, None] * co.Bd
         return new_state, u_ab, park(u_ab, theta_act)
 
 

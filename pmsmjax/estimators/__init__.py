@@ -5,6 +5,14 @@ the same :class:`AbstractEstimator` interface.
 """
 
 from .base import AbstractEstimator
+from .flux_observer import StatorFluxObserver, StatorFluxObserverState
 from .position_sensors import Encoder, EncoderState, ExactSensor
 
-__all__ = ["AbstractEstimator", "Encoder", "EncoderState", "ExactSensor"]
+__all__ = [
+    "AbstractEstimator",
+    "Encoder",
+    "EncoderState",
+    "ExactSensor",
+    "StatorFluxObserver",
+    "StatorFluxObserverState",
+]

@@ -4,11 +4,16 @@ Per control (:data:`pmsmjax.controls.CONTROLS`):
 
 - the gains tuned by default (dotted names or the aliases of :data:`tuning.parameters.ALIASES`):
   PI: the speed and current PIs; SMC: the surface and reaching-law gains ``c, eps, q`` and the current
-  PIs; PR: the resonant current controller's ``kp, kr, w_c``;
+  PIs; PR: the resonant current controller's ``kp, kr, w_c``; SMC-DTC: the speed PI and the sliding-mode
+  DTC's switching gains and boundary layers ``K_T, phi_T, K_psi, phi_psi``;
 - the preset options of the *surrogate* the optimiser differentiates: the SMC's ``sign`` switching has a
   zero derivative almost everywhere, so it is tuned with ``tanh`` (its boundary layer from the design rule)
-  and the tuned gains are re-evaluated on the exact ``sign`` law (DESIGN.md, "Gradients"); the others are
-  smooth already.
+  and the tuned gains are re-evaluated on the exact ``sign`` law (DESIGN.md, "Gradients"); the SMC-DTC
+  likewise with ``tanh`` for its ``saturation`` law (continuous, but with kinks at the layer's edges); the
+  others are smooth already;
+- the objective weights used when the job is given none (the SMC-DTC adds torque ripple, per N m RMS over
+  each scenario's last 20 %, to the speed ITAE: a narrow boundary layer that tightens the torque loop
+  makes the surrogate chatter at the PWM rate, and the ripple term is what prices that).
 """
 
 import dataclasses
@@ -18,16 +23,28 @@ from pmsmjax.validation import ParameterError
 
 @dataclasses.dataclass(frozen=True)
 class ControlTuning:
-    """`names`: the gains tuned by default; `surrogate`: preset options of the differentiated drive."""
+    """`names`: the gains tuned by default; `surrogate`: preset options of the differentiated drive;
+    `weights`: :class:`~tuning.autotune.objectives.ObjectiveWeights` fields that differ from its defaults
+    when the job is given no weights."""
 
     names: tuple[str, ...]
     surrogate: dict = dataclasses.field(default_factory=dict)
+    weights: dict = dataclasses.field(default_factory=dict)
 
+
+#: Weight of the torque ripple (per N m RMS) in the SMC-DTC's default objective: the ripple of the design-rule
+#: gains (0.01-0.2 N m over the last 20 % of a batch scenario, mostly the speed loop's settling) then
+#: weighs a tenth of the speed ITAE (0.03-0.3 rad s), and a chattering law (1 N m with the sign
+#: function) as much as the ITAE itself.
+SMC_DTC_RIPPLE_WEIGHT = 0.1
 
 TUNABLE_CONTROLS = {
     "pi": ControlTuning(("speed", "current")),
     "smc": ControlTuning(("smc", "current"), {"switching": "tanh"}),
     "pr": ControlTuning(("pr",)),
+    "smc-dtc": ControlTuning(
+        ("speed", "smc_dtc"), {"switching": "tanh"}, {"torque_ripple": SMC_DTC_RIPPLE_WEIGHT}
+    ),
 }
 
 

@@ -5,8 +5,9 @@ Outputs in the chosen folder: ``gains.toml`` (load with :func:`tuning.parameters
 scenarios before and after) and ``checkpoint.npz`` (resume point; running the same command again
 continues from it and ends at the same result).
 
-Control methods (``control``: ``pi``, ``smc``, ``pr``; :mod:`tuning.autotune.controls`): the drive of
-:func:`pmsmjax.controls.control_drive` and its default gains.
+Control methods (``control``: ``pi``, ``smc``, ``pr``, ``smc-dtc``; :mod:`tuning.autotune.controls`): the
+drive of :func:`pmsmjax.controls.control_drive`, its default gains and its default objective weights (used
+when ``weights`` is None).
 
 Surrogate and exact model: tuning runs the drive with ``tune_substeps`` RK4 steps per period (1 by
 default: 4e-7 of peak current from the exact solution at 10 kHz, and a 4x cheaper gradient) and with the
@@ -140,8 +141,8 @@ def run_tune_job(
     """Tune the gains of the book drive under ``control`` and write the outputs into ``out_dir``; returns
     result.json's content. `start_gains`: a gains TOML (an earlier run's gains.toml) to start from
     instead of the design-rule gains."""
-    weights = ObjectiveWeights() if weights is None else weights
     tuning = control_tuning(control)
+    weights = ObjectiveWeights(**tuning.weights) if weights is None else weights
     if config.names is None:
         config = dataclasses.replace(config, names=tuning.names)
     out = Path(out_dir)
