@@ -6,34 +6,66 @@ Quick start::
     drive = pmsmjax.presets.book_drive()
     scenario = pmsmjax.presets.book_scenario()
     trace = pmsmjax.simulate(drive, scenario)
+
+The names below are imported on first use (PEP 562), not when the package is: ``import pmsmjax.cli``
+(the ``pmsmjax`` command) then loads neither JAX nor Equinox, so ``pmsmjax --help`` and every refusal of
+bad input answer in a fraction of a second. ``pmsmjax.X`` and ``from pmsmjax import X`` work as before.
 """
 
-from . import controllers, frames, inverters, logs, machines, metrics, presets, replay, scenarios
-from .drive import Drive, DriveState, PeriodInputs
-from .scenarios import Profile, Scenario, stack_scenarios
-from .simulate import simulate
-from .trace import Trace
-from .validation import ParameterError
+import importlib
+import sys
+import types
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "Drive",
-    "DriveState",
-    "ParameterError",
-    "PeriodInputs",
-    "Profile",
-    "Scenario",
-    "Trace",
-    "controllers",
-    "frames",
-    "inverters",
-    "logs",
-    "machines",
-    "metrics",
-    "presets",
-    "replay",
-    "scenarios",
-    "simulate",
-    "stack_scenarios",
-]
+#: Public name -> (module, attribute or None for the module itself).
+_LAZY = {
+    "controllers": ("controllers", None),
+    "frames": ("frames", None),
+    "inverters": ("inverters", None),
+    "logs": ("logs", None),
+    "machines": ("machines", None),
+    "metrics": ("metrics", None),
+    "presets": ("presets", None),
+    "replay": ("replay", None),
+    "scenarios": ("scenarios", None),
+    "Drive": ("drive", "Drive"),
+    "DriveState": ("drive", "DriveState"),
+    "PeriodInputs": ("drive", "PeriodInputs"),
+    "Profile": ("scenarios", "Profile"),
+    "Scenario": ("scenarios", "Scenario"),
+    "stack_scenarios": ("scenarios", "stack_scenarios"),
+    "simulate": ("simulate", "simulate"),
+    "Trace": ("trace", "Trace"),
+    "ParameterError": ("validation", "ParameterError"),
+}
+
+__all__ = sorted(_LAZY)
+
+
+def __getattr__(name):
+    if name not in _LAZY:
+        raise AttributeError(f"module 'pmsmjax' has no attribute {name!r}")
+    module, attr = _LAZY[name]
+    value = importlib.import_module(f"{__name__}.{module}")
+    if attr is not None:
+        value = getattr(value, attr)
+    setattr(sys.modules[__name__], name, value)
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))
+
+
+class _Package(types.ModuleType):
+    """The package module: importing the submodule ``pmsmjax.simulate`` (which the import system binds
+    as an attribute of its package) must not hide the function ``pmsmjax.simulate``."""
+
+    def __setattr__(self, name, value):
+        if name == "simulate" and isinstance(value, types.ModuleType):
+            value = value.simulate
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package

@@ -38,6 +38,7 @@ from .frames import inverse_park
 from .intra_period import dense_window
 from .inverters.switching import SwitchingBridge
 from .machines.motor import PMSMParameters
+from .operating_point import run_flags
 from .simulate import check_simulation, simulate
 from .spectra import sampled_spectrum, thd
 from .summary import speed_step_summary
@@ -141,6 +142,7 @@ def run_control(name: str, drive: Drive, settings: ControllerCompareSettings) ->
     n_max = int(settings.thd_max_frequency_hz * window_s)
     spectrum = sampled_spectrum(i_abc[:, 0], window_s, settings.window_cycles, n_max)
     entry = {key: summary[src] for key, src in SUMMARY_KEYS.items()}
+    entry["operating_point"] = run_flags(trace, drive, load_time_s=settings.load_time_s)
     entry.update(
         {
             "peak_current_a": float(max(np.abs(i_abc).max(), np.abs(np.asarray(trace.i_abc)).max())),
@@ -185,7 +187,11 @@ def pwm_frequency_hz(drives: dict) -> float:
 
 
 def compare_controllers(
-    names, motor: PMSMParameters | None = None, settings=ControllerCompareSettings(), progress=None
+    names,
+    motor: PMSMParameters | None = None,
+    settings=ControllerCompareSettings(),
+    progress=None,
+    adjust=None,
 ) -> dict:
     """Run each named controller (keys of :data:`pmsmjax.controls.CONTROLS`) on the book scenario.
 
@@ -195,13 +201,16 @@ def compare_controllers(
     ``band_search_runs``.
 
     Returns ``{"settings", "controllers": name -> figures, "traces": name -> Trace, "windows": name ->
-    {t, i_abc, torque, psi_ab}}``; `progress`: optional callable taking a line per controller.
+    {t, i_abc, torque, psi_ab}}``; `progress`: optional callable taking a line per controller; `adjust`:
+    optional ``(drive, name) -> drive`` applied to each drive before anything runs (tuned gains, say).
     """
     settings.check()
     unknown = [n for n in names if n not in CONTROLS]
     if unknown:
         raise ParameterError(f"unknown controls {unknown}: choose from {', '.join(CONTROLS)}.")
     drives = {name: compared_drive(name, motor, settings.bridge) for name in names}
+    if adjust is not None:
+        drives = {name: adjust(drive, name) for name, drive in drives.items()}
     for drive in drives.values():  # every check before the first compile
         window_periods(drive, settings)
     target = settings.equal_switching_hz

@@ -29,7 +29,15 @@ import numpy as np
 
 from .validation import ParameterError
 
-__all__ = ["read_log", "check_columns", "column_names", "atomic_write", "write_csv_atomic", "LOG_SUFFIXES"]
+__all__ = [
+    "read_log",
+    "check_columns",
+    "column_names",
+    "misspelt_columns",
+    "atomic_write",
+    "write_csv_atomic",
+    "LOG_SUFFIXES",
+]
 
 #: File suffixes :func:`read_log` understands.
 LOG_SUFFIXES = (".csv", ".txt", ".npz", ".mat")
@@ -44,6 +52,7 @@ def read_log(
     optional: Iterable[str] = (),
     *,
     time: str | None = "time",
+    unused: list | None = None,
 ) -> dict[str, np.ndarray]:
     """Read and check a logged data file; returns ``{column: (N,) float64 array}``.
 
@@ -55,7 +64,9 @@ def read_log(
     - `time`: name of the time column (s) that must be strictly increasing, or ``None`` for no such check.
 
     Only the required and the present optional columns are returned (in that order); other columns are
-    ignored. Raises :class:`ParameterError` for a missing file, an unknown format, a missing required
+    ignored, and their names appended to `unused` when a list is given (to report them, or to catch a
+    misspelt optional column with :func:`misspelt_columns`). Raises :class:`ParameterError` for a
+    missing file, an unknown format, a missing required
     column, NaN/inf values, fewer than two rows, unequal lengths or a time column that does not increase.
     """
     path = Path(path)
@@ -76,6 +87,8 @@ def read_log(
             "(CSV with a header row, NumPy .npz with one key per column, MATLAB .mat with one variable "
             "per column)."
         )
+    if unused is not None:
+        unused.extend(c for c in raw if c not in required and c not in optional)
     return check_columns(raw, required, optional, time=time, source=f"log {path}", line_offset=line_offset)
 
 
@@ -92,6 +105,20 @@ def column_names(path: str | os.PathLike) -> list[str]:
     except ParameterError:
         return []
     return list(raw[0] if isinstance(raw, tuple) else raw)
+
+
+def misspelt_columns(unused, absent, cutoff: float = 0.75) -> list[tuple[str, str]]:
+    """``[(column, known name)]`` for each unused column that looks like a known column the log lacks
+    (``omega`` for ``omega_m``, ``omgea_m``): a misspelt optional column silently changes what is computed,
+    so callers refuse it with the hint. Case-insensitive, :func:`difflib.get_close_matches` at `cutoff`."""
+    absent = list(absent)
+    lower = {a.lower(): a for a in absent}
+    out = []
+    for col in unused:
+        match = difflib.get_close_matches(col.lower(), list(lower), n=1, cutoff=cutoff)
+        if match:
+            out.append((col, lower[match[0]]))
+    return out
 
 
 def check_columns(
@@ -160,7 +187,8 @@ def check_columns(
             row = int(np.argmax(bad)) + 1
             raise ParameterError(
                 f"{source}: time column {time!r} must be strictly increasing but row {row}"
-                f"{_where(row, line_offset)} has {time} = {t[row]!r} after {t[row - 1]!r} at row {row - 1}: "
+                f"{_where(row, line_offset)} has {time} = {float(t[row])!r} after {float(t[row - 1])!r} "
+                f"at row {row - 1}: "
                 "sort the rows by time and drop duplicate samples."
             )
     return out

@@ -6,7 +6,6 @@ J = 0.003 kg m^2, B = 0.008 N m s; the salient variant for HF injection has L_q 
 Drives: :func:`book_drive` (FOC, SVPWM) and :func:`hysteresis_drive` (hysteresis current control).
 """
 
-import sys
 from pathlib import Path
 
 import equinox as eqx
@@ -26,16 +25,10 @@ from .inverters.averaged import AveragedBridge
 from .inverters.svpwm import SVPWM
 from .machines.motor import PMSMParameters
 from .machines.pmsm3 import PMSMabc, PMSMAlphaBeta, PMSMdq
+from .motor_files import MOTOR_FIELDS, PRESET_VALUES, read_motor_file  # noqa: F401 (MOTOR_FIELDS: public here)
 from .scenarios import Profile, Scenario
 from .units import rpm_to_rad_s
 from .validation import ParameterError, check_positive
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
-
-MOTOR_FIELDS = ("R", "L_d", "L_q", "psi_f", "pole_pairs", "J", "B")
 
 #: Book current-loop bandwidth (rad/s) used by reproductions, speed-loop bandwidth (rad/s).
 BOOK_CURRENT_BANDWIDTH = 1100.0
@@ -52,16 +45,9 @@ PR_W_C = 2.0
 
 
 def book_motor(salient: bool = False) -> PMSMParameters:
-    """The book's three-phase PMSM (surface; ``salient=True``: L_q = 12 mH for HF injection)."""
-    return PMSMParameters(
-        R=0.958,
-        L_d=5.25e-3,
-        L_q=12e-3 if salient else 5.25e-3,
-        psi_f=0.1827,
-        J=0.003,
-        B=0.008,
-        pole_pairs=4,
-    )
+    """The book's three-phase PMSM (surface; ``salient=True``: L_q = 12 mH for HF injection); the values
+    are :data:`pmsmjax.motor_files.PRESET_VALUES`."""
+    return PMSMParameters(**PRESET_VALUES["book_salient" if salient else "book"])
 
 
 MOTORS = {"book": lambda: book_motor(False), "book_salient": lambda: book_motor(True)}
@@ -333,11 +319,13 @@ def book_scenario(
     )
 
 
-def load_motor(name_or_path: str | Path) -> PMSMParameters:
+def load_motor(name_or_path: str | Path, *, check_units: bool = True) -> PMSMParameters:
     """A motor by preset name (``book``, ``book_salient``) or from a TOML file.
 
     The TOML file holds ``R, L_d, L_q, psi_f, pole_pairs, J, B`` at top level (or under ``[motor]``), SI
-    units: ohm, H, H, Wb, -, kg m^2, N m s.
+    units: ohm, H, H, Wb, -, kg m^2, N m s; values implausible in those units (an inductance in mH) are
+    refused unless ``check_units=False`` or the file says ``trust_units = true``
+    (:func:`pmsmjax.motor_files.read_motor_file`).
     """
     key = str(name_or_path)
     if key in MOTORS:
@@ -345,35 +333,10 @@ def load_motor(name_or_path: str | Path) -> PMSMParameters:
     path = Path(name_or_path)
     if not path.is_file():
         raise ParameterError(
-            f"motor {key!r} is neither a preset ({', '.join(MOTORS)}) nor an existing TOML file."
+            f"motor {key!r} is neither a preset ({', '.join(MOTORS)}) nor an existing TOML file: give a "
+            "preset name or the path of a motor file."
         )
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as err:
-        raise ParameterError(f"motor file {path}: not valid TOML ({err}).") from err
-    data = data.get("motor", data)
-    missing = [f for f in MOTOR_FIELDS if f not in data]
-    if missing:
-        raise ParameterError(
-            f"motor file {path} lacks {', '.join(missing)}: it needs R, L_d, L_q, psi_f, pole_pairs, J, B "
-            "(SI units: ohm, H, H, Wb, -, kg m^2, N m s)."
-        )
-    unknown = sorted(set(data) - set(MOTOR_FIELDS))
-    if unknown:
-        raise ParameterError(
-            f"motor file {path}: unknown keys {unknown}; allowed: {', '.join(MOTOR_FIELDS)}."
-        )
-    values = {}
-    for f in MOTOR_FIELDS:
-        if f == "pole_pairs":
-            if not isinstance(data[f], int):
-                raise ParameterError(f"motor file {path}: pole_pairs must be an integer, got {data[f]!r}.")
-            values[f] = data[f]
-        else:
-            if not isinstance(data[f], (int, float)):
-                raise ParameterError(f"motor file {path}: {f} must be a number, got {data[f]!r}.")
-            values[f] = float(data[f])
-    return PMSMParameters(**values)
+    return PMSMParameters(**read_motor_file(path, check_units=check_units))
 
 
 #: Table DTC defaults (see :func:`dtc_drive`): comparator sample period s, torque band N m, flux band Wb,

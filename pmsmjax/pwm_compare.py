@@ -169,6 +169,13 @@ def compare(settings: CompareSettings = CompareSettings(), base: Drive | None = 
     per_cycle = settings.check(base.Ts, base.machine.motor.pole_pairs)
     u_dc = float(base.bridge.u_dc)
     start = steady_state(base, settings)
+    reached = float(np.asarray(start.machine.omega_m)) / rpm_to_rad_s(1.0)
+    if abs(reached - settings.speed_rpm) > 0.02 * abs(settings.speed_rpm):
+        # A drive that did not reach the point runs saturated: its spectra would compare nothing.
+        raise ParameterError(
+            f"the drive reached {reached:.0f} r/min, not the {settings.speed_rpm:g} r/min asked for, at "
+            f"{settings.load_nm:g} N m (voltage or current limit): pick an operating point inside its limits."
+        )
     sinusoidal_limit = float(SinusoidalPWM().linear_limit(u_dc))
     entries, waves, spectra = {}, {}, {}
     bridges = {

@@ -18,6 +18,8 @@ integrated over each interval with a fixed number of RK4 sub-steps inside one ji
   drive, where ``u_dq[k]`` is the controller's command computed with the angle at ``t_k``.
 
 The two agree at standstill and differ by about ``omega_e * dt / 2`` rad of voltage angle at speed.
+:func:`replay_file` (``pmsmjax replay``) defaults to ``hold="auto"`` like ``pmsmjax identify``
+(:data:`DEFAULT_HOLD`): the hold whose replay matches the log's own currents, ``"stator"`` when it has none.
 
 **Speed.** With an ``omega_m`` column the speed is imposed (a dynamometer): row k's speed holds over
 interval k and the mechanical equation is not used. Without it the speed is dynamic,
@@ -35,15 +37,25 @@ import jax.numpy as jnp
 import numpy as np
 
 from .frames import inverse_park, wrap_angle
-from .logs import check_columns, read_log, write_csv_atomic
+from .logs import check_columns, misspelt_columns, read_log, write_csv_atomic
 from .machines.base import MachineInput, MachineState
 from .machines.integrate import advance, max_stable_substep
 from .machines.motor import PMSMParameters
 from .machines.pmsm3 import PMSMdq
+from .plausibility import check_time_step
 from .presets import load_motor
 from .validation import ParameterError
 
-__all__ = ["replay", "replay_file", "replay_scan", "default_substeps", "REPLAY_COLUMNS", "LOG_COLUMNS"]
+__all__ = [
+    "replay",
+    "replay_file",
+    "replay_scan",
+    "choose_hold",
+    "default_substeps",
+    "REPLAY_COLUMNS",
+    "LOG_COLUMNS",
+    "DEFAULT_HOLD",
+]
 
 #: Columns of the replay output, in order.
 REPLAY_COLUMNS = ("time", "i_d", "i_q", "omega_m", "theta_e")
@@ -51,6 +63,9 @@ REPLAY_COLUMNS = ("time", "i_d", "i_q", "omega_m", "theta_e")
 #: torque, ``theta_e``/``i_d``/``i_q`` give the initial state from row 0).
 LOG_COLUMNS = (("time", "u_d", "u_q"), ("omega_m", "T_L", "theta_e", "i_d", "i_q"))
 _HOLDS = ("rotor", "stator")
+#: The hold ``pmsmjax replay`` and ``pmsmjax identify`` use unless told: ``"auto"``, found from the log
+#: (identify fits both; replay compares both with the logged currents, :func:`choose_hold`).
+DEFAULT_HOLD = "auto"
 
 
 @eqx.filter_jit
@@ -262,12 +277,56 @@ def _dynamic_speed_bound(motor: PMSMParameters, u: np.ndarray, load: np.ndarray,
     return 1.5 * max(w_volt, abs(omega0)) + 1.0
 
 
+#: What each column replay reads means, for messages.
+COLUMN_MEANINGS = {
+    "time": "time, s",
+    "u_d": "d-axis voltage, V",
+    "u_q": "q-axis voltage, V",
+    "omega_m": "imposed mechanical speed, rad/s",
+    "T_L": "load torque, N m",
+    "theta_e": "initial electrical angle, rad",
+    "i_d": "d-axis current, A",
+    "i_q": "q-axis current, A",
+}
+#: Time units a log may use (``time_unit``), factor to s.
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6}
+
+
+def choose_hold(motor: PMSMParameters, log: dict, **replay_kwargs) -> tuple[str, str]:
+    """The hold that reproduces a log's own currents: ``(hold, note)``.
+
+    With ``i_d`` and ``i_q`` over every row, the log is replayed both ways and the hold whose currents
+    are closer to the logged ones (RMS over all rows) is chosen, as ``pmsmjax identify`` does by fitting
+    both; without them nothing tells the holds apart, and ``"stator"`` (a real inverter; this library's
+    own drive) is used.
+    """
+    if "i_d" not in log or "i_q" not in log:
+        return "stator", (
+            "hold: stator (the log has no i_d, i_q to tell the holds apart; a dq-model simulator's log needs "
+            "--hold rotor)"
+        )
+    err = {}
+    for hold in _HOLDS:
+        res = replay(motor, hold=hold, **replay_kwargs)
+        err[hold] = float(np.sqrt(np.mean((res["i_d"] - log["i_d"]) ** 2 + (res["i_q"] - log["i_q"]) ** 2)))
+    best = min(err, key=err.get)
+    other = "stator" if best == "rotor" else "rotor"
+    return best, (
+        f"hold: {best} (its replay matches the logged currents to {err[best]:.3g} A RMS, the {other} hold "
+        f"to {err[other]:.3g} A)"
+    )
+
+
 def replay_file(
     log_path: str | os.PathLike,
     motor: str | os.PathLike,
     out_dir: str | os.PathLike,
-    hold: str = "rotor",
+    hold: str = DEFAULT_HOLD,
     n_substeps: int | None = None,
+    *,
+    time_unit: str = "s",
+    check_units: bool = True,
+    report: list | None = None,
 ) -> Path:
     """Replay a log file and write ``out_dir/replay.csv``; returns the path written.
 
@@ -279,15 +338,46 @@ def replay_file(
     - `motor`: a preset name (``book``, ``book_salient``) or a TOML file with ``R, L_d, L_q, psi_f,
       pole_pairs, J, B`` in SI units (ohm, H, H, Wb, -, kg m^2, N m s).
     - `out_dir`: output folder, created if needed.
-    - `hold`, `n_substeps`: as in :func:`replay` (``"rotor"`` or ``"stator"`` voltage hold).
+    - `hold`: ``"auto"`` (default, shared with ``pmsmjax identify``: :func:`choose_hold`), ``"rotor"`` or
+      ``"stator"``; `n_substeps`: as in :func:`replay`.
+    - `time_unit`: unit of the time column, ``"s"``, ``"ms"`` or ``"us"``.
+    - `check_units`: refuse a time step implausible for a drive log (a time in ms read as s) and motor
+      values implausible in SI units (:mod:`pmsmjax.plausibility`).
+    - `report`: a list that receives one line per note (the hold chosen, columns not used).
 
-    The output has columns ``time,i_d,i_q,omega_m,theta_e``, one row per log row. All input is read and
-    checked before anything is compiled, and the file is written atomically only after the run
-    succeeded: a failure leaves no (partial) ``replay.csv``.
+    The output has columns ``time,i_d,i_q,omega_m,theta_e`` (time in s), one row per log row. All input is
+    read and checked before anything is compiled, and the file is written atomically only after the run
+    succeeded: a failure leaves no (partial) ``replay.csv``. A column that looks like a misspelt one replay
+    reads (``omega`` for ``omega_m``) is refused: read as absent it would change what is simulated.
     """
+    if hold not in (*_HOLDS, "auto"):
+        raise ParameterError(f"hold must be 'auto', 'rotor' or 'stator', got {hold!r}.")
+    if time_unit not in TIME_UNITS:
+        raise ParameterError(f"time_unit must be one of {', '.join(TIME_UNITS)}, got {time_unit!r}.")
     required, optional = LOG_COLUMNS
-    log = read_log(log_path, required, optional)
-    mot = load_motor(motor)
+    unused: list[str] = []
+    log = read_log(log_path, required, optional, unused=unused)
+    absent = [c for c in optional if c not in log]
+    wrong = misspelt_columns(unused, absent)
+    if wrong:
+        col, known = wrong[0]
+        raise ParameterError(
+            f"log {log_path}: column {col!r} is not one replay reads; it looks like {known!r} "
+            f"({COLUMN_MEANINGS[known]}), which the log lacks, so it would be simulated without it: rename "
+            f"the column to {known!r}, or rename or drop it if it is something else."
+        )
+    if unused and report is not None:
+        report.append(f"columns not used: {', '.join(unused)}")
+    mot = load_motor(motor, check_units=check_units)
+    log["time"] = log["time"] * TIME_UNITS[time_unit]
+    if check_units:
+        tau = min(float(mot.L_d), float(mot.L_q)) / float(mot.R)
+        check_time_step(
+            float(np.median(np.diff(log["time"]))),
+            f"log {log_path}",
+            tau,
+            how="give --time-unit {unit} (or convert the column to seconds)",
+        )
     if ("i_d" in log) != ("i_q" in log):
         have, lack = ("i_d", "i_q") if "i_d" in log else ("i_q", "i_d")
         raise ParameterError(
@@ -295,17 +385,20 @@ def replay_file(
             "or neither."
         )
     i0 = (log["i_d"][0], log["i_q"][0]) if "i_d" in log else (0.0, 0.0)
-    result = replay(
-        mot,
-        log["time"],
-        np.stack([log["u_d"], log["u_q"]], axis=1),
-        log.get("omega_m"),
-        log.get("T_L"),
-        hold=hold,
+    kwargs = dict(
+        time=log["time"],
+        u_dq=np.stack([log["u_d"], log["u_q"]], axis=1),
+        omega_m=log.get("omega_m"),
+        load_torque=log.get("T_L"),
         n_substeps=n_substeps,
         theta_e0=float(log["theta_e"][0]) if "theta_e" in log else 0.0,
         i_dq0=i0,
     )
+    if hold == "auto":
+        hold, note = choose_hold(mot, log, **kwargs)
+        if report is not None:
+            report.append(note)
+    result = replay(mot, hold=hold, **kwargs)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     return write_csv_atomic(out / "replay.csv", {c: result[c] for c in REPLAY_COLUMNS})

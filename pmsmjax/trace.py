@@ -12,6 +12,7 @@ _COLUMNS = {
     "omega_m": ("omega_m", None),
     "speed_rpm": ("speed_rpm", None),
     "speed_ref": ("speed_ref", None),
+    "speed_ref_rpm": ("speed_ref_rpm", None),
     "theta_e": ("theta_e", None),
     "i_d": ("i_dq", 0),
     "i_q": ("i_dq", 1),
@@ -32,6 +33,36 @@ _COLUMNS = {
     "load_torque": ("load_torque", None),
     "theta_e_est": ("theta_e_est", None),
     "omega_m_est": ("omega_m_est", None),
+}
+
+#: Unit of every exported column: speeds come in both rad/s (``omega_m``, ``speed_ref``, mechanical) and
+#: r/min (``speed_rpm``, ``speed_ref_rpm``); ``pmsmjax demo`` writes this table into summary.json.
+COLUMN_UNITS = {
+    "time": "s (period start)",
+    "omega_m": "rad/s (mechanical speed)",
+    "speed_rpm": "r/min (mechanical speed)",
+    "speed_ref": "rad/s (speed reference, mechanical)",
+    "speed_ref_rpm": "r/min (speed reference)",
+    "theta_e": "rad (electrical angle)",
+    "i_d": "A",
+    "i_q": "A",
+    "i_d_ref": "A",
+    "i_q_ref": "A",
+    "i_a": "A",
+    "i_b": "A",
+    "i_c": "A",
+    "u_d_ref": "V (controller's dq voltage command)",
+    "u_q_ref": "V (controller's dq voltage command)",
+    "u_a": "V (period-average phase voltage applied)",
+    "u_b": "V (period-average phase voltage applied)",
+    "u_c": "V (period-average phase voltage applied)",
+    "duty_a": "1 (leg duty cycle applied)",
+    "duty_b": "1 (leg duty cycle applied)",
+    "duty_c": "1 (leg duty cycle applied)",
+    "torque": "N m (electromagnetic)",
+    "load_torque": "N m",
+    "theta_e_est": "rad (estimator's electrical angle)",
+    "omega_m_est": "rad/s (estimator's mechanical speed)",
 }
 
 
@@ -66,6 +97,10 @@ class Trace(eqx.Module):
     @property
     def speed_rpm(self) -> Array:
         return rad_s_to_rpm(self.omega_m)
+
+    @property
+    def speed_ref_rpm(self) -> Array:
+        return rad_s_to_rpm(self.speed_ref)
 
     def columns(self) -> dict[str, np.ndarray]:
         """Flat named columns (NumPy) for a single (unbatched) trace."""

@@ -3,9 +3,13 @@
 Every failure raises :class:`ParameterError` (a ``ValueError``) naming the offending field and the fix.
 Checks are skipped for traced values (inside ``jit``/``vmap``/``grad``): they are meant for the concrete
 values a user passes in, and tracing code must stay free of Python branching on array values.
+
+This module does not import JAX (a value can only be a tracer once JAX is loaded), so the command line
+can raise :class:`ParameterError` for bad flags before JAX starts.
 """
 
-import jax
+import sys
+
 import numpy as np
 
 
@@ -15,11 +19,25 @@ class ParameterError(ValueError):
 
 def is_concrete(x) -> bool:
     """True when ``x`` holds concrete values (not a JAX tracer)."""
-    return not isinstance(x, jax.core.Tracer)
+    jax = sys.modules.get("jax")
+    return jax is None or not isinstance(x, jax.core.Tracer)
 
 
 def _values(x):
-    return np.asarray(jax.device_get(x), dtype=float)
+    jax = sys.modules.get("jax")
+    return np.asarray(x if jax is None else jax.device_get(x), dtype=float)
+
+
+def plain(x) -> str:
+    """A number (or a short array) as a user reads it: ``0.01``, ``[0, nan]``; never a NumPy repr such as
+    ``np.float64(0.01)``."""
+    v = np.asarray(x, dtype=float) if not isinstance(x, str) else None
+    if v is None:
+        return x
+    if v.ndim == 0:
+        return f"{float(v):g}"
+    flat = [f"{float(e):g}" for e in v.reshape(-1)[:6]]
+    return "[" + ", ".join(flat) + (", ...]" if v.size > 6 else "]")
 
 
 def check_finite(name: str, x, unit: str = "") -> None:
@@ -27,7 +45,9 @@ def check_finite(name: str, x, unit: str = "") -> None:
         return
     v = _values(x)
     if not np.all(np.isfinite(v)):
-        raise ParameterError(f"{name} must be finite, got {v}{' ' + unit if unit else ''}: replace NaN/inf.")
+        raise ParameterError(
+            f"{name} must be finite, got {plain(v)}{' ' + unit if unit else ''}: replace NaN/inf."
+        )
 
 
 def check_positive(name: str, x, unit: str = "", hint: str = "") -> None:

@@ -128,7 +128,7 @@ def test_compare_and_demo_agree_on_the_same_drive(compared, tmp_path):
 
 def test_compare_refuses_bad_input_before_any_work(tmp_path, capsys):
     assert main(["compare", "--control", "pi,foo", "--out", str(tmp_path / "a")]) == 2
-    assert "unknown ['foo']" in capsys.readouterr().err
+    assert "unknown foo" in capsys.readouterr().err  # issue 18: no Python list repr (was "unknown ['foo']")
     blocker = tmp_path / "file"
     blocker.write_text("")
     assert main(["compare", "--control", "pi", "--out", str(blocker / "sub")]) == 2

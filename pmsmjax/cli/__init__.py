@@ -6,15 +6,26 @@ Every subcommand checks its input before compiling anything and writes each outp
 
 Each subcommand is one module of this package with ``add_parser(subparsers)``, which adds its parser and
 sets ``func`` to its ``run(args) -> int`` (the exit status); a module imports what its ``run`` needs
-inside ``run``, so ``pmsmjax --help`` stays quick. A new subcommand is a new module and its name in
-:data:`SUBCOMMANDS`.
+inside ``run``, so ``pmsmjax --help`` and refusals of bad flags stay quick (no JAX at start-up; the
+package ``pmsmjax`` loads its names lazily). A new subcommand is a new module and its name in
+:data:`SUBCOMMANDS`; :mod:`pmsmjax.cli.checks` has the shared flag checks.
+
+What the user sees when something goes wrong, from :func:`main`, always one line on stderr:
+
+- bad input (a flag, a file, a column): ``pmsmjax CMD: error: <what, where, the fix>``, exit 2;
+- Ctrl-C: ``pmsmjax CMD: interrupted ...`` (what was kept, how to resume), exit 130;
+- a failure of the program itself: ``pmsmjax CMD: internal error: ...``, exit 1 (the traceback only
+  with the environment variable ``PMSMJAX_TRACEBACK=1``);
+- warnings: ``pmsmjax CMD: warning: ...``.
 """
 
-import argparse
 import importlib
+import os
 import sys
+import warnings
 
 from ..validation import ParameterError
+from .checks import Parser
 
 #: The subcommands' modules, in the order ``pmsmjax --help`` lists them.
 SUBCOMMANDS = (
@@ -30,20 +41,49 @@ SUBCOMMANDS = (
 )
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="pmsmjax", description="Differentiable, batched PMSM drive simulation in JAX."
-    )
-    sub = parser.add_subparsers(dest="command", required=True)
+def build_parser() -> Parser:
+    parser = Parser(prog="pmsmjax", description="Differentiable, batched PMSM drive simulation in JAX.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     for name in SUBCOMMANDS:
         importlib.import_module(f"{__name__}.{name}").add_parser(sub)
     return parser
 
 
+def _one_line(text) -> str:
+    return " ".join(str(text).split())
+
+
 def main(argv=None) -> int:
+    """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit status. As with any
+    argparse program, ``--help`` and a flag refused while parsing (a bad number, an unknown choice) end in
+    ``SystemExit`` (0 and 2; the refusal's one line is printed first)."""
     args = build_parser().parse_args(argv)
-    try:
-        return args.func(args)
-    except ParameterError as err:
-        print(f"pmsmjax {args.command}: error: {err}", file=sys.stderr)
-        return 2
+    prog = f"pmsmjax {args.command}"
+
+    def show_warning(message, category, filename, lineno, file=None, line=None):
+        print(f"{prog}: warning: {_one_line(message)}", file=sys.stderr)
+
+    with warnings.catch_warnings():
+        warnings.showwarning = show_warning
+        try:
+            return args.func(args)
+        except ParameterError as err:
+            print(f"{prog}: error: {_one_line(err)}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt as err:
+            detail = _one_line(err)
+            print(f"{prog}: interrupted{': ' + detail if detail else ''}", file=sys.stderr)
+            return 130
+        except Exception as err:
+            if os.environ.get("PMSMJAX_TRACEBACK"):
+                raise
+            where = f" ({err.filename})" if isinstance(err, OSError) and err.filename else ""
+            if isinstance(err, OSError):
+                print(f"{prog}: error: {err.strerror or _one_line(err)}{where}", file=sys.stderr)
+                return 1
+            print(
+                f"{prog}: internal error: {type(err).__name__}: {_one_line(err)}; this is a bug, please "
+                "report it with the command line (PMSMJAX_TRACEBACK=1 shows the traceback).",
+                file=sys.stderr,
+            )
+            return 1

@@ -4,7 +4,9 @@
 import json
 import time
 
-from ..validation import ParameterError
+from ..validation import ParameterError, plain
+from . import checks
+from .gains import add_gains_flag, apply_gains_flag, read_gains_flag
 
 
 def add_parser(sub):
@@ -15,10 +17,12 @@ def add_parser(sub):
             "Each control method (pi, smc, pr, hysteresis, dtc, smc-dtc) drives the book motor through the "
             "book scenario (speed step from rest, then a load step). Writes DIR/compare.json (per "
             "controller: rise_time_s, overshoot_pct, dip_rpm, recovery_time_s, itae, peak_current_a, "
-            "current_thd_pct, switching_frequency_hz, torque_ripple_nm, flux_ripple_wb) and side-by-side "
-            "figures. Ripple, THD, torque and flux ripple come from the last electrical periods, sampled "
-            "inside each control period, with the switching-resolved bridge for voltage-commanding "
-            "controllers."
+            "current_thd_pct, switching_frequency_hz, torque_ripple_nm, flux_ripple_wb, operating_point) and "
+            "side-by-side figures. Ripple, THD, torque and flux ripple come from the last electrical "
+            "periods, sampled inside each control period, with the switching-resolved bridge for "
+            "voltage-commanding controllers; an operating point the drive cannot hold (above its top "
+            "speed, or a load beyond its current limit) is refused, since its ripple figures would describe "
+            "saturation."
         ),
     )
     p.add_argument(
@@ -27,11 +31,19 @@ def add_parser(sub):
         help="comma-separated methods: pi, smc, pr, hysteresis, dtc, smc-dtc (default: the chapter 3 four)",
     )
     p.add_argument("--out", default="compare_out", help="output folder (created), default: compare_out")
-    p.add_argument("--motor", default="book", help="preset name (book, book_salient) or motor TOML file")
-    p.add_argument("--speed-rpm", type=float, default=1000.0, help="speed step, r/min (default 1000)")
-    p.add_argument("--load-nm", type=float, default=10.0, help="load step, N m (default 10)")
-    p.add_argument("--load-time-s", type=float, default=0.2, help="time of the load step, s (default 0.2)")
-    p.add_argument("--duration-s", type=float, default=0.4, help="simulated time, s (default 0.4)")
+    p.add_argument(
+        "--motor", default="book", help="preset name (book, book_salient) or motor TOML file (default book)"
+    )
+    p.add_argument(
+        "--speed-rpm", type=checks.positive("r/min"), default=1000.0, help="speed step, r/min (default 1000)"
+    )
+    p.add_argument("--load-nm", type=checks.real("N m"), default=10.0, help="load step, N m (default 10)")
+    p.add_argument(
+        "--load-time-s", type=checks.positive("s"), default=0.2, help="time of the load step, s (default 0.2)"
+    )
+    p.add_argument(
+        "--duration-s", type=checks.positive("s"), default=0.4, help="simulated time, s (default 0.4)"
+    )
     p.add_argument(
         "--bridge",
         choices=("switching", "averaged"),
@@ -41,29 +53,68 @@ def add_parser(sub):
     p.add_argument(
         "--equal-switching",
         nargs="?",
-        type=float,
+        type=checks.nonnegative("Hz"),
         const=0.0,
         metavar="HZ",
         help="also run each banded controller (dtc, hysteresis) with its bands scaled to this mean switching "
-        "frequency, Hz (no value: the PWM frequency of the voltage-commanding controls), as NAME@F kHz",
+        "frequency, Hz (no value: the PWM frequency of the voltage-commanding controls), as NAME@F kHz "
+        "(default: not run)",
+    )
+    add_gains_flag(p)
+    p.add_argument(
+        "--trust-units", action="store_true", help="accept motor values outside the plausible ranges"
     )
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
-    from .. import presets
-    from ..controller_compare import ControllerCompareSettings, compare_controllers
-    from ..controls import CONTROLS
-    from ..logs import atomic_write, check_output_folder
+def precheck(args) -> list[str]:
+    """Checks that need no model (before JAX starts); returns the control names."""
+    from ..motor_files import motor_values
+    from ..operating_point import refuse_unreachable
+    from .demo import BOOK_CURRENT_LIMIT_A, BOOK_TS_S, BOOK_U_DC_V, CONTROL_NAMES
 
+    known = CONTROL_NAMES
     names = [n.strip() for n in args.control.split(",") if n.strip()]
-    unknown = [n for n in names if n not in CONTROLS]
+    unknown = [n for n in names if n not in known]
     if not names or unknown:
         raise ParameterError(
-            f"--control {args.control!r}: unknown {unknown or 'empty list'}; "
-            f"choose from {', '.join(CONTROLS)}."
+            f"--control {args.control!r}: unknown {', '.join(unknown) if unknown else 'empty list'}; "
+            f"choose from {', '.join(known)} (comma separated)."
         )
+    checks.output_folder(args.out)
+    if not args.load_time_s < args.duration_s:
+        raise ParameterError(
+            f"--load-time-s {plain(args.load_time_s)} s is not inside the run (--duration-s "
+            f"{plain(args.duration_s)} s): give a time below {plain(args.duration_s)} s."
+        )
+    gains = read_gains_flag(args.gains)
+    if gains is not None and len(names) != 1:
+        raise ParameterError(
+            f"--gains {args.gains}: tuned gains belong to one control method; compare it alone with the "
+            "design-rule version of another by running pmsmjax demo, or pass a single --control."
+        )
+    motor = motor_values(args.motor, check_units=not args.trust_units, Ts=BOOK_TS_S)
+    if motor is not None:
+        refuse_unreachable(
+            motor,
+            args.speed_rpm,
+            args.load_nm,
+            BOOK_U_DC_V,
+            BOOK_U_DC_V / 3**0.5,
+            BOOK_CURRENT_LIMIT_A,
+            what="the comparison of ripple and THD",
+        )
+    return names
+
+
+def run(args) -> int:
+    names = precheck(args)
+
+    from .. import presets
+    from ..controller_compare import ControllerCompareSettings, compare_controllers
+    from ..logs import atomic_write
+
     settings = ControllerCompareSettings(
         speed_rpm=args.speed_rpm,
         load_nm=args.load_nm,
@@ -73,11 +124,14 @@ def run(args) -> int:
         equal_switching_hz=args.equal_switching,
     )
     settings.check()
-    motor = presets.load_motor(args.motor)
-    out = check_output_folder(args.out)
+    motor = presets.load_motor(args.motor, check_units=not args.trust_units)
+    out = checks.output_folder(args.out)
+    gains = read_gains_flag(args.gains)
+    tune = None if gains is None else (lambda drive, name: apply_gains_flag(drive, gains, name))
     t0 = time.perf_counter()
-    result = compare_controllers(names, motor, settings, progress=print)
+    result = compare_controllers(names, motor, settings, progress=print, adjust=tune)
     report = {"settings": result["settings"], "controllers": result["controllers"]}
+    report["settings"]["gains"] = args.gains
     report["wall_time_s"] = time.perf_counter() - t0
     out.mkdir(parents=True, exist_ok=True)
     atomic_write(out / "compare.json", lambda f: f.write(json.dumps(report, indent=2).encode()))
@@ -93,5 +147,8 @@ def run(args) -> int:
         ):
             save_figure(fig, out / name)
             written.append(name)
+    for name, entry in result["controllers"].items():
+        for f in entry["operating_point"]["flags"]:
+            print(f"WARNING {name}: {f['flag']}: {f['cause']}; remedy: {f['remedy']}.")
     print(f"wrote {', '.join(f'{out}/{w}' for w in written)} in {report['wall_time_s']:.1f} s")
     return 0

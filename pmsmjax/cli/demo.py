@@ -1,10 +1,20 @@
 """``pmsmjax demo`` (alias ``simulate``): the book scenario under a chosen control method, written as a
-trace, summary.json and figures."""
+trace, summary.json and figures.
+
+Before any work: the flags (:mod:`pmsmjax.cli.checks`), ``--out``, the motor file (its units,
+:mod:`pmsmjax.plausibility`), the gains file, the load step inside the run, and a speed the drive could
+reach at all. After the run, ``summary.json`` says whether the speed reached its reference and how much
+of the run sat at the voltage or current limit (:func:`pmsmjax.operating_point.run_flags`), and the
+console repeats every such flag with its cause and remedy.
+"""
 
 import json
+import math
 import time
 
-from ..validation import ParameterError
+from ..validation import ParameterError, plain
+from . import checks
+from .gains import add_gains_flag, apply_gains_flag, read_gains_flag
 
 CONTROL_NAMES = ("pi", "smc", "pr", "hysteresis", "dtc", "smc-dtc")
 
@@ -21,7 +31,32 @@ FLAG_OPTIONS = {
     "torque_band_nm": "torque_band_nm",
     "flux_band_wb": "flux_band_wb",
     "sample_period_us": "sample_period_s",
+    "current_limit": "current_limit",
 }
+
+#: The library's names in messages -> this command's flags.
+USER_TERMS = {
+    "Drive.n_substeps": "--substeps",
+    "Scenario.duration_s": "--duration-s",
+    "current_limit": "--current-limit",
+}
+
+#: The names the operating-point flags use for this command's flags.
+OPERATING_FLAGS = {
+    "speed": "--speed-rpm",
+    "load": "--load-nm",
+    "duration": "--duration-s",
+    "field_weakening": "--field-weakening",
+    "current_limit": "--current-limit",
+}
+
+#: The book drive's DC link (V), current limit (A) and control period (s), for the checks made before JAX
+#: starts (tests/test_careless.py checks them against pmsmjax.presets).
+BOOK_U_DC_V, BOOK_CURRENT_LIMIT_A, BOOK_TS_S = 311.0, 15.0, 1e-4
+
+#: A reference beyond this many times the top speed the drive could reach at no load is refused: the run
+#: would only show saturation (up to it, the run is made and its saturation reported).
+MAX_SPEED_FACTOR = 3.0
 
 
 def control_drive_from_flags(args, motor):
@@ -37,7 +72,11 @@ def control_drive_from_flags(args, motor):
         if value is None or value is False or (flag == "frame" and value == "dq"):
             continue
         if option not in allowed:
-            raise ParameterError(f"--{flag.replace('_', '-')} does not apply to --control {args.control}.")
+            fits = [c for c in CONTROL_NAMES if option in control_options(c)]
+            raise ParameterError(
+                f"--{flag.replace('_', '-')} does not apply to --control {args.control}: drop it, or choose "
+                f"--control {' or '.join(fits)}."
+            )
         if flag == "no_delay":
             value = False
         elif flag == "sample_period_us":
@@ -56,7 +95,10 @@ def add_parser(sub):
         description=(
             "Simulate the book drive (design-rule PI gains, SVPWM, averaged bridge, 10 kHz; or another "
             "control method with --control): a speed step from rest, then a load step. Writes "
-            "DIR/trace.csv (or .npz), DIR/summary.json and PNG figures."
+            "DIR/trace.csv (or .npz; speeds in rad/s as omega_m, speed_ref and in r/min as speed_rpm, "
+            "speed_ref_rpm; every column's unit is listed in summary.json trace_columns), DIR/summary.json "
+            "(step and load metrics; operating_point: whether the speed reached its reference and how "
+            "much of the run sat at the voltage or current limit, with cause and remedy) and PNG figures."
         ),
     )
     p.add_argument(
@@ -68,46 +110,141 @@ def add_parser(sub):
         "dtc (switching-table direct torque control, 40 kHz samples), smc-dtc (sliding-mode DTC with SVPWM)",
     )
     p.add_argument("--out", default="demo_out", help="output folder (created), default: demo_out")
-    p.add_argument("--motor", default="book", help="preset name (book, book_salient) or motor TOML file")
-    p.add_argument("--speed-rpm", type=float, default=1000.0, help="speed step, r/min (default 1000)")
-    p.add_argument("--load-nm", type=float, default=10.0, help="load step, N m (default 10)")
-    p.add_argument("--load-time-s", type=float, default=0.2, help="time of the load step, s (default 0.2)")
-    p.add_argument("--duration-s", type=float, default=0.4, help="simulated time, s (default 0.4)")
-    p.add_argument("--frame", choices=["dq", "alpha_beta", "abc"], default="dq", help="machine model frame")
-    p.add_argument("--substeps", type=int, help="RK4 sub-steps per control period (default 10; hysteresis 1)")
+    p.add_argument(
+        "--motor", default="book", help="preset name (book, book_salient) or motor TOML file (default book)"
+    )
+    p.add_argument(
+        "--speed-rpm", type=checks.real("r/min"), default=1000.0, help="speed step, r/min (default 1000)"
+    )
+    p.add_argument("--load-nm", type=checks.real("N m"), default=10.0, help="load step, N m (default 10)")
+    p.add_argument(
+        "--load-time-s",
+        type=checks.nonnegative("s"),
+        default=0.2,
+        help="time of the load step, s (default 0.2)",
+    )
+    p.add_argument(
+        "--duration-s", type=checks.positive("s"), default=0.4, help="simulated time, s (default 0.4)"
+    )
+    p.add_argument(
+        "--frame", choices=["dq", "alpha_beta", "abc"], default="dq", help="machine model frame (default dq)"
+    )
+    p.add_argument(
+        "--substeps", type=checks.count(), help="RK4 sub-steps per control period (default 10; hysteresis 1)"
+    )
     p.add_argument("--no-delay", action="store_true", help="no one-period computational delay")
-    p.add_argument("--current-bandwidth", type=float, help="current loop a_c, rad/s (default 1100)")
-    p.add_argument("--speed-bandwidth", type=float, help="speed loop beta, rad/s (default 50)")
+    p.add_argument(
+        "--current-bandwidth", type=checks.positive("rad/s"), help="current loop a_c, rad/s (default 1100)"
+    )
+    p.add_argument(
+        "--speed-bandwidth", type=checks.positive("rad/s"), help="speed loop beta, rad/s (default 50)"
+    )
+    p.add_argument(
+        "--current-limit", type=checks.positive("A"), help="peak phase-current limit, A (default 15)"
+    )
     p.add_argument("--field-weakening", action="store_true", help="MTPA and voltage-feedback field weakening")
-    p.add_argument("--band-a", type=float, help="hysteresis band, A (full width; default 0.5)")
+    p.add_argument("--band-a", type=checks.positive("A"), help="hysteresis band, A (full width; default 0.5)")
     p.add_argument(
         "--switching",
         choices=("sign", "saturation", "tanh"),
         help="switching function of smc (default sign, the book's) or smc-dtc (default saturation)",
     )
-    p.add_argument("--torque-band-nm", type=float, help="dtc: full torque hysteresis band, N m (default 1)")
-    p.add_argument("--flux-band-wb", type=float, help="dtc: full flux hysteresis band, Wb (default 0.01)")
-    p.add_argument("--sample-period-us", type=float, help="dtc: comparator sample period, us (default 25)")
-    p.add_argument("--decimate", type=int, default=1, help="record every N-th period (default 1)")
-    p.add_argument("--format", choices=["csv", "npz"], default="csv", help="trace file format")
+    p.add_argument(
+        "--torque-band-nm",
+        type=checks.positive("N m"),
+        help="dtc: full torque hysteresis band, N m (default 1)",
+    )
+    p.add_argument(
+        "--flux-band-wb", type=checks.positive("Wb"), help="dtc: full flux hysteresis band, Wb (default 0.01)"
+    )
+    p.add_argument(
+        "--sample-period-us",
+        type=checks.positive("us"),
+        help="dtc: comparator sample period, us (default 25)",
+    )
+    add_gains_flag(p)
+    p.add_argument(
+        "--trust-units",
+        action="store_true",
+        help="accept motor values outside the plausible ranges of pmsmjax.plausibility (an inductance "
+        "above 1 H, say) instead of refusing them as a likely unit mistake",
+    )
+    p.add_argument("--decimate", type=checks.count(), default=1, help="record every N-th period (default 1)")
+    p.add_argument("--format", choices=["csv", "npz"], default="csv", help="trace file format (default csv)")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.set_defaults(func=run)
 
 
+def precheck(args) -> dict | None:
+    """Every check that needs no model (pure Python, before JAX starts); returns the motor's values."""
+    from ..motor_files import motor_values
+    from ..operating_point import top_speed_rpm
+
+    checks.output_folder(args.out)
+    if not args.load_time_s < args.duration_s:
+        raise ParameterError(
+            f"--load-time-s {plain(args.load_time_s)} s is not inside the run (--duration-s "
+            f"{plain(args.duration_s)} s): the load step would never happen; give a time below "
+            f"{plain(args.duration_s)} s, or --load-nm 0 for no load."
+        )
+    read_gains_flag(args.gains)
+    motor = motor_values(args.motor, check_units=not args.trust_units, Ts=BOOK_TS_S)
+    if motor is None:
+        return None
+    u_dc, limit = BOOK_U_DC_V, args.current_limit or BOOK_CURRENT_LIMIT_A
+    top = abs(top_speed_rpm(motor, u_dc / math.sqrt(3.0), 0.0))
+    if args.field_weakening:  # no-load top speed with i_d = -limit, resistance neglected
+        excess = motor["psi_f"] - motor["L_d"] * limit
+        top = (
+            math.inf if excess <= 0 else u_dc / math.sqrt(3.0) / (motor["pole_pairs"] * excess) * 30 / math.pi
+        )
+    if abs(args.speed_rpm) > MAX_SPEED_FACTOR * top:
+        raise ParameterError(
+            f"--speed-rpm {plain(args.speed_rpm)}: this drive cannot turn faster than about {top:.0f} r/min "
+            f"(no load, U_dc = {plain(u_dc)} V"
+            + (", field weakening" if args.field_weakening else ", i_d = 0")
+            + f"); a reference beyond {MAX_SPEED_FACTOR:g}x that would only show saturation: give at most "
+            f"{MAX_SPEED_FACTOR * top:.0f} r/min"
+            + ("" if args.field_weakening else " (or add --field-weakening)")
+            + "."
+        )
+    return motor
+
+
 def run(args) -> int:
+    precheck(args)
+
     import jax
+    import numpy as np
 
     from .. import presets
-    from ..logs import atomic_write, check_output_folder, write_csv_atomic
+    from ..logs import atomic_write, write_csv_atomic
+    from ..operating_point import run_flags
     from ..plotting import save_demo_figures
     from ..simulate import check_simulation, simulate
     from ..summary import speed_step_summary
+    from ..trace import COLUMN_UNITS
 
-    out = check_output_folder(args.out)
-    motor = presets.load_motor(args.motor)
-    drive = control_drive_from_flags(args, motor)
-    scenario = presets.book_scenario(args.speed_rpm, args.load_nm, args.load_time_s, args.duration_s)
-    check_simulation(drive, scenario, args.decimate)
+    out = checks.output_folder(args.out)
+    try:
+        motor = presets.load_motor(args.motor, check_units=not args.trust_units)
+        drive = control_drive_from_flags(args, motor)
+        drive = apply_gains_flag(drive, read_gains_flag(args.gains), args.control)
+        scenario = presets.book_scenario(args.speed_rpm, args.load_nm, args.load_time_s, args.duration_s)
+        n = args.duration_s / drive.Ts
+        if abs(n - round(n)) > 1e-6 * max(n, 1.0):
+            raise ParameterError(
+                f"--duration-s {plain(args.duration_s)} is not a whole number of {plain(drive.Ts * 1e3)} ms "
+                f"control periods: give e.g. {plain(round(n) * drive.Ts)} s."
+            )
+        if round(n) % args.decimate:
+            raise ParameterError(
+                f"--decimate {args.decimate} does not divide the {round(n)} control periods of the run: give "
+                "a divisor of it (1, 2, 5, 10, ...)."
+            )
+        check_simulation(drive, scenario, args.decimate)
+    except ParameterError as err:
+        raise checks.user_terms(err, USER_TERMS) from None
 
     t0 = time.perf_counter()
     trace = jax.block_until_ready(simulate(drive, scenario, decimate=args.decimate))
@@ -117,6 +254,10 @@ def run(args) -> int:
     run_s = time.perf_counter() - t0
 
     load_time = args.load_time_s if 0 < args.load_time_s < args.duration_s else None
+    current_limit = float(np.asarray(drive.controller.current_limit))
+    operating = run_flags(
+        trace, drive, load_time_s=load_time, field_weakening=args.field_weakening, flags=OPERATING_FLAGS
+    )
     summary = {
         "scenario": {
             "speed_rpm": args.speed_rpm,
@@ -132,12 +273,14 @@ def run(args) -> int:
             "n_substeps": drive.n_substeps,
             "computation_delay": drive.computation_delay,
             "options": {k: v for k, v in vars(args).items() if k in FLAG_OPTIONS and v not in (None, False)},
-            "current_limit_a": float(drive.controller.current_limit),
-            "u_dc_v": float(drive.bridge.u_dc),
+            "gains": args.gains,
+            "current_limit_a": current_limit,
+            "u_dc_v": float(np.asarray(drive.bridge.u_dc)),
         },
-        "metrics": speed_step_summary(
-            trace, load_time_s=load_time, current_limit_a=float(drive.controller.current_limit)
-        ),
+        "metrics": speed_step_summary(trace, load_time_s=load_time, current_limit_a=current_limit),
+        "operating_point": operating,
+        "definitions": DEFINITIONS,
+        "trace_columns": COLUMN_UNITS,
         "timing": {"compile_s": max(first_call_s - run_s, 0.0), "run_s": run_s},
     }
 
@@ -146,12 +289,18 @@ def run(args) -> int:
     if args.format == "csv":
         write_csv_atomic(out / "trace.csv", columns)
     else:
-        atomic_write(out / "trace.npz", lambda f: __import__("numpy").savez(f, **columns))
+        atomic_write(out / "trace.npz", lambda f: np.savez(f, **columns))
     atomic_write(out / "summary.json", lambda f: f.write(json.dumps(summary, indent=2).encode()))
     figures = (
         []
         if args.no_figures
-        else save_demo_figures(trace, out, f"pmsmjax demo: book drive, {args.control} control")
+        else save_demo_figures(
+            trace,
+            out,
+            f"pmsmjax demo: book drive, {args.control} control",
+            current_limit_a=current_limit,
+            voltage_limit_v=float(np.asarray(drive.voltage_limit())),
+        )
     )
     m = summary["metrics"]
     print(
@@ -164,12 +313,36 @@ def run(args) -> int:
             f"load step: dip {m['speed_dip_rpm']:.1f} r/min, recovery {_fmt(m['recovery_time_s'], 1e3)} ms; "
             f"peak current {m['peak_phase_current_a']:.2f} A (limit {m['current_limit_a']:.1f} A)"
         )
+    print_flags(operating)
     print(f"compile {summary['timing']['compile_s']:.2f} s, run {summary['timing']['run_s'] * 1e3:.1f} ms")
     print(
         f"wrote {out}/trace.{args.format}, {out}/summary.json"
         + (f" and {len(figures)} figures" if figures else "")
     )
     return 0
+
+
+#: What summary.json's less obvious figures mean.
+DEFINITIONS = {
+    "steady_state_error_rpm": "mean of reference - speed over the last 10 % of the samples before the load "
+    "step, r/min",
+    "final_error_rpm": "mean of reference - speed over the last n samples of the run, n = a tenth of the "
+    "samples before the load step (the same window length as steady_state_error_rpm), r/min",
+    "rise_time_s": "10 % to 90 % of the step, s (null: not reached)",
+    "settling_time_s": "last entry into the 2 % band around the reference, s (null: not settled)",
+    "speed_dip_rpm": "largest drop below the reference after the load step, r/min",
+    "recovery_time_s": "time from the load step until the speed stays within recovery_band_rpm, s",
+    "itae_rad_s": "integral of t |reference - speed| over the run, speed in rad/s (rad s)",
+    "operating_point": "voltage_limited_share / current_limited_share: share of the control periods at the "
+    "voltage or current limit; segments: whether the mean speed over the last 10 % before the load step and "
+    "of the run is within the tolerance of the reference; flags: each shortfall with cause and remedy",
+}
+
+
+def print_flags(operating: dict) -> None:
+    """One console line per operating-point flag."""
+    for f in operating["flags"]:
+        print(f"WARNING {f['flag']}: {f['cause']}; remedy: {f['remedy']}.")
 
 
 def _fmt(x, scale):

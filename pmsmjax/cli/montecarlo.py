@@ -1,30 +1,69 @@
 """``pmsmjax montecarlo``: a Monte Carlo robustness study of the book drive (:mod:`tuning.montecarlo`)."""
 
+import argparse
+import os
+import textwrap
+
+from ..validation import ParameterError
+from . import checks
+from .gains import add_gains_flag, read_gains_flag
+
+#: The study TOML, as ``pmsmjax montecarlo --help`` shows it (the layout of tuning/montecarlo/study.py).
+STUDY_TOML = """\
+study TOML (--config; every table and key optional, flags win over it):
+
+  [study]       n = 1000, seed = 0, sampling = "random" | "latin_hypercube", chunk_size = 2048,
+                nonphysical = "refuse" | "clip", decimate = 40, sensitivity_runs = 256
+  [drive]       motor = "book" (preset or motor TOML), gains = "tune_out/gains.toml" (relative to this
+                file), current_bandwidth = 1100.0 (rad/s), speed_bandwidth = 50.0 (rad/s),
+                current_limit = 15.0 (A), u_dc = 311.0 (V), n_substeps = 10
+  [scenario]    speed_rpm = 1000.0, load_nm = 10.0, load_time_s = 0.2, duration_s = 0.4
+  [thresholds]  current_a = 15.75 (A; default 1.05 x current_limit), tracking_rpm = 10.0
+  [parameters."motor.R"]   distribution = "uniform" | "normal" | "lognormal", tolerance = 0.2 (+-20 %),
+                           sigmas = 3.0, nominal = ... (default: the drive's own value)
+
+  Parameter names: motor.R, motor.L_d, motor.L_q, motor.psi_f, motor.J, motor.B (the plant's),
+  bridge.u_dc, controller.<path> (e.g. controller.speed.kp), scenario.speed_rpm, scenario.load_nm.
+  A [parameters] table replaces the default set (R 20 %, L_d/L_q 15 %, psi_f 10 %, J/B 50 %,
+  u_dc 10 %) as a whole.
+"""
+
 
 def add_parser(sub):
+    description = (
+        "Run N closed-loop runs of the book scenario (1000 r/min step, 10 N m load step at 0.2 s, "
+        "0.4 s, 10 kHz, 10 sub-steps) with the plant's R, L_d, L_q, psi_f, J, B and the DC link drawn "
+        "from their tolerances (default: R +-20 %, L +-15 %, psi_f +-10 %, J +-50 %, B +-50 %, "
+        "U_dc +-10 %, uniform), chunked and sharded over every device. Writes DIR/summary.json (percentiles, "
+        "failure rates, CVaR, AD sensitivities, Spearman ranks, run and compile time), DIR/histograms.png, "
+        "DIR/fan_chart.png, DIR/tornado.png and DIR/chunks/*.npz; running it again resumes (Ctrl-C keeps "
+        "every finished chunk). Settings: flags, then --config TOML (below), then built-in defaults."
+    )
     p = sub.add_parser(
         "montecarlo",
         help="Monte Carlo robustness study of the book drive over parameter tolerances",
-        description=(
-            "Run N closed-loop runs of the book scenario (1000 r/min step, 10 N m load step at 0.2 s, "
-            "0.4 s, 10 kHz, 10 sub-steps) with the plant's R, L_d, L_q, psi_f, J, B and the DC link drawn "
-            "from their tolerances (default: R +-20 %, L +-15 %, psi_f +-10 %, J +-50 %, B +-50 %, "
-            "U_dc +-10 %, uniform), "
-            "chunked and sharded over every device. Writes DIR/summary.json (percentiles, failure rates, "
-            "CVaR, AD sensitivities, Spearman ranks, run and compile time), DIR/histograms.png, "
-            "DIR/fan_chart.png, DIR/tornado.png and DIR/chunks/*.npz; running it again resumes. Settings: "
-            "flags, then --config TOML ([study], [drive], [scenario], [thresholds], [parameters.NAME])."
-        ),
+        description="\n".join(textwrap.wrap(description, 100)),
+        epilog=STUDY_TOML,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("--n", type=int, help="number of runs (default 1000)")
+    p.add_argument("--n", type=checks.count(), help="number of runs (default 1000)")
     p.add_argument("--out", default="montecarlo_out", help="output folder (created), default: montecarlo_out")
-    p.add_argument("--config", default=None, help="study TOML (see tuning/montecarlo/study.py)")
-    p.add_argument("--seed", type=int, help="sampling seed (default 0)")
-    p.add_argument("--chunk-size", type=int, help="runs per chunk (default 2048)")
+    p.add_argument("--config", default=None, help="study TOML, layout below (default: none)")
+    p.add_argument("--seed", type=checks.count(minimum=0), help="sampling seed (default 0)")
+    p.add_argument("--chunk-size", type=checks.count(), help="runs per chunk (default 2048)")
     p.add_argument("--latin-hypercube", action="store_true", help="Latin hypercube sampling")
     p.add_argument("--clip", action="store_true", help="clip non-physical samples instead of refusing")
-    p.add_argument("--sensitivity-runs", type=int, help="runs differentiated by forward-mode AD (256)")
-    p.add_argument("--devices", type=int, help="CPU only: split the CPU into this many devices (cores)")
+    p.add_argument(
+        "--sensitivity-runs",
+        type=checks.count(minimum=0),
+        help="runs differentiated by forward-mode AD (default 256)",
+    )
+    p.add_argument(
+        "--devices",
+        type=checks.count(),
+        help="CPU only: split the CPU into this many devices, at most its core count (default: every core)",
+    )
+    add_gains_flag(p)
     p.add_argument(
         "--distributed", action="store_true", help="multi-host: call jax.distributed.initialize() first"
     )
@@ -33,7 +72,24 @@ def add_parser(sub):
     p.set_defaults(func=run)
 
 
+def precheck(args) -> None:
+    """Checks that need no model (before JAX starts)."""
+    checks.output_folder(args.out)
+    if args.config is not None:
+        checks.existing_file(args.config, "--config", "study file")
+    read_gains_flag(args.gains)
+    cores = os.cpu_count() or 1
+    if args.devices is not None and args.devices > cores:
+        raise ParameterError(
+            f"--devices {args.devices}: this machine has {cores} CPU core(s); more devices than cores only "
+            f"share them (slower, more memory): give at most {cores}, or leave it out (one per core)."
+        )
+    if args.devices is not None and args.distributed:
+        raise ParameterError("--devices splits one machine's CPU; with --distributed leave it out.")
+
+
 def run(args) -> int:
+    precheck(args)
     # Split the CPU into one device per core before anything initialises JAX's backends.
     from tuning.montecarlo.cpu_devices import split_cpu
 
@@ -54,10 +110,16 @@ def run(args) -> int:
         ("sensitivity_runs", args.sensitivity_runs),
         ("sampling", "latin_hypercube" if args.latin_hypercube else None),
         ("nonphysical", "clip" if args.clip else None),
+        ("gains", args.gains),
     ):
         if value is not None:
             kwargs[key] = value
-    s = run_study(Study(**kwargs), args.out, progress=not args.no_progress, figures=not args.no_figures)
+    try:
+        s = run_study(Study(**kwargs), args.out, progress=not args.no_progress, figures=not args.no_figures)
+    except KeyboardInterrupt:
+        raise KeyboardInterrupt(
+            f"the finished chunks are kept in {args.out}/chunks: rerun the same command to resume"
+        ) from None
     if s is None:  # not process 0 of a multi-host run: it only computed its shards
         return 0
     f, m = s["failures"], s["metrics"]

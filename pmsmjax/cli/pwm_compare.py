@@ -3,7 +3,12 @@
 
 import json
 import time
-from pathlib import Path
+
+from ..validation import ParameterError, plain
+from . import checks
+from .gains import add_gains_flag, apply_gains_flag, read_gains_flag
+
+MODULATOR_NAMES = ("sinusoidal", "third_harmonic", "min_max", "svpwm")
 
 
 def add_parser(sub):
@@ -15,29 +20,79 @@ def add_parser(sub):
             "operating point of the book drive (reached through the book scenario), each with the averaged "
             "bridge, the switching-resolved bridge, and the switching bridge with dead time. Writes "
             "DIR/pwm.json (per variant: linear_limit_v, fundamental, voltage and current THD, DC-bus "
-            "utilisation against sinusoidal PWM), DIR/waveforms.npz and PNG figures."
+            "utilisation against sinusoidal PWM), DIR/waveforms.npz and PNG figures. An operating point the "
+            "drive cannot hold (above its top speed at the load, or a load beyond its current limit) is "
+            "refused: the spectra of a saturated drive compare nothing."
         ),
     )
     p.add_argument("--out", default="pwm_out", help="output folder (created), default: pwm_out")
-    p.add_argument("--speed-rpm", type=float, default=1000.0, help="speed, r/min (f_sw/f_1 whole; 1000)")
-    p.add_argument("--load-nm", type=float, default=10.0, help="load torque, N m (default 10)")
-    p.add_argument("--dead-time-us", type=float, default=2.0, help="dead time of the _deadtime variants, us")
-    p.add_argument("--settle-cycles", type=int, default=2, help="fundamental periods settled (default 2)")
-    p.add_argument("--window-cycles", type=int, default=2, help="fundamental periods analysed (default 2)")
+    p.add_argument(
+        "--speed-rpm",
+        type=checks.positive("r/min"),
+        default=1000.0,
+        help="speed, r/min; f_sw / f_1 must be whole: 1000 r/min (default) gives 150",
+    )
+    p.add_argument("--load-nm", type=checks.real("N m"), default=10.0, help="load torque, N m (default 10)")
+    p.add_argument(
+        "--dead-time-us",
+        type=checks.nonnegative("us", maximum=50.0),
+        default=2.0,
+        help="dead time of the _deadtime variants, us (default 2)",
+    )
+    p.add_argument(
+        "--settle-cycles", type=checks.count(), default=2, help="fundamental periods settled (default 2)"
+    )
+    p.add_argument(
+        "--window-cycles", type=checks.count(), default=2, help="fundamental periods analysed (default 2)"
+    )
     p.add_argument(
         "--modulators",
         nargs="+",
-        default=["sinusoidal", "third_harmonic", "min_max", "svpwm"],
+        choices=MODULATOR_NAMES,
+        default=list(MODULATOR_NAMES),
         help="modulators to compare (default: all four)",
     )
+    add_gains_flag(p)
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.set_defaults(func=run)
 
 
+def precheck(args) -> None:
+    """Checks that need no model (before JAX starts)."""
+    from ..motor_files import PRESET_VALUES
+    from ..operating_point import refuse_unreachable
+    from .demo import BOOK_CURRENT_LIMIT_A, BOOK_TS_S, BOOK_U_DC_V
+
+    checks.output_folder(args.out)
+    read_gains_flag(args.gains)
+    motor = PRESET_VALUES["book"]
+    f1 = args.speed_rpm / 60.0 * motor["pole_pairs"]
+    per_cycle = 1.0 / (f1 * BOOK_TS_S)
+    if abs(per_cycle - round(per_cycle)) > 1e-9 * per_cycle:
+        good = [n for n in (250, 300, 375, 500, 600, 750, 1000, 1250, 1500) if n <= 2 * args.speed_rpm]
+        raise ParameterError(
+            f"--speed-rpm {plain(args.speed_rpm)}: a fundamental period ({1e3 / f1:.4g} ms) is not a whole "
+            f"number of {plain(BOOK_TS_S * 1e6)} us PWM periods, so the spectra would leak: pick a speed "
+            f"with f_sw / f_1 whole, e.g. {', '.join(str(n) for n in good[-4:])} r/min."
+        )
+    refuse_unreachable(
+        motor,
+        args.speed_rpm,
+        args.load_nm,
+        BOOK_U_DC_V,
+        BOOK_U_DC_V / 3**0.5,
+        BOOK_CURRENT_LIMIT_A,
+        what="the PWM comparison",
+    )
+
+
 def run(args) -> int:
+    precheck(args)
+
     import numpy as np
 
     from ..logs import atomic_write
+    from ..presets import book_drive
     from ..pwm_compare import CompareSettings, compare
 
     settings = CompareSettings(
@@ -46,13 +101,15 @@ def run(args) -> int:
         dead_time_s=args.dead_time_us * 1e-6,
         settle_cycles=args.settle_cycles,
         window_cycles=args.window_cycles,
-        modulators=tuple(args.modulators),
+        modulators=tuple(dict.fromkeys(args.modulators)),
     )
+    base = apply_gains_flag(book_drive(), read_gains_flag(args.gains), "pi")
+    out = checks.output_folder(args.out)
     t0 = time.perf_counter()
-    result = compare(settings, progress=print)
-    out = Path(args.out)
+    result = compare(settings, base=base, progress=print)
     out.mkdir(parents=True, exist_ok=True)
     report = {"settings": result["settings"], "entries": result["entries"]}
+    report["settings"]["gains"] = args.gains
     report["wall_time_s"] = time.perf_counter() - t0
     atomic_write(out / "pwm.json", lambda f: f.write(json.dumps(report, indent=2).encode()))
     arrays = {f"{name}/{key}": v for name, w in result["waves"].items() for key, v in w.items()}

@@ -1,5 +1,7 @@
 """``pmsmjax replay``: run the machine under a recorded voltage sequence."""
 
+from . import checks
+
 
 def add_parser(sub):
     p = sub.add_parser(
@@ -7,8 +9,10 @@ def add_parser(sub):
         help="run the machine under a recorded voltage sequence",
         description=(
             "Replay a log (CSV/NPZ/MAT) with columns time,u_d,u_q and optionally omega_m (imposed speed, "
-            "mechanical rad/s), T_L (N m). Row k's voltage is held until row k+1. Writes DIR/replay.csv "
-            "with time,i_d,i_q,omega_m,theta_e (row k = state at row k's time)."
+            "mechanical rad/s), T_L (N m), theta_e, i_d, i_q (row 0: the initial state). Row k's voltage is "
+            "held until row k+1. Writes DIR/replay.csv with time,i_d,i_q,omega_m,theta_e (row k = state at "
+            "row k's time; time in s). A column that looks like a misspelt one of these (omega for omega_m) "
+            "is refused; other columns are reported as not used."
         ),
     )
     p.add_argument("log", help="log file (.csv, .npz or .mat)")
@@ -16,18 +20,47 @@ def add_parser(sub):
     p.add_argument("--out", required=True, help="output folder (created)")
     p.add_argument(
         "--hold",
-        choices=["rotor", "stator"],
-        default="rotor",
-        help="frame the voltage is held in between rows: rotor (dq-model simulators, default) or stator "
-        "(a real inverter)",
+        choices=["auto", "rotor", "stator"],
+        default="auto",
+        help="frame the voltage is held in between rows: stator (a real inverter), rotor (dq-model "
+        "simulators) or auto (default, as pmsmjax identify: the one whose replay matches the log's own "
+        "i_d, i_q; stator when the log has none)",
     )
-    p.add_argument("--substeps", type=int, default=None, help="RK4 steps per row (default: automatic)")
+    p.add_argument(
+        "--time-unit", choices=["s", "ms", "us"], default="s", help="unit of the time column (default s)"
+    )
+    p.add_argument(
+        "--substeps", type=checks.count(), default=None, help="RK4 steps per row (default: automatic)"
+    )
+    p.add_argument(
+        "--trust-units",
+        action="store_true",
+        help="accept a time step or motor values outside the plausible ranges (a 0.1 s step, an inductance "
+        "above 1 H) instead of refusing them as a likely unit mistake",
+    )
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    checks.existing_file(args.log, "log", "log file")
+    checks.output_folder(args.out)
+    from ..motor_files import motor_values
+
+    motor_values(args.motor, check_units=not args.trust_units)
     from ..replay import replay_file
 
-    path = replay_file(args.log, args.motor, args.out, hold=args.hold, n_substeps=args.substeps)
+    notes: list[str] = []
+    path = replay_file(
+        args.log,
+        args.motor,
+        args.out,
+        hold=args.hold,
+        n_substeps=args.substeps,
+        time_unit=args.time_unit,
+        check_units=not args.trust_units,
+        report=notes,
+    )
+    for note in notes:
+        print(note)
     print(f"wrote {path}")
     return 0

@@ -1,6 +1,13 @@
-"""``pmsmjax tune``: gradient auto-tuning of a control method's gains (:mod:`tuning.autotune.job`)."""
+"""``pmsmjax tune``: gradient auto-tuning of a control method's gains (:mod:`tuning.autotune.job`).
+
+Ctrl-C saves the checkpoint of the last finished iteration and ends with one line saying where, exit 130;
+the same command resumes from it.
+"""
 
 from pathlib import Path
+
+from ..validation import ParameterError, plain
+from . import checks
 
 
 def add_parser(sub):
@@ -14,10 +21,11 @@ def add_parser(sub):
             "smc-dtc (the speed PI and the sliding-mode DTC's K_T, phi_T, K_psi, phi_psi for ITAE plus "
             "torque ripple; tuned with tanh, re-evaluated with the saturation law), over a "
             "seeded batch of speed steps (200-1500 r/min, both "
-            "directions) and load steps (0-10 N m), checked on a held-out batch. Writes DIR/gains.toml, "
-            "DIR/result.json, DIR/cost.png, DIR/responses.png and DIR/checkpoint.npz; running it again "
-            "resumes. Settings: flags, then --config TOML ([weights], [tune], [job] tables), then built-in "
-            "defaults."
+            "directions) and load steps (0-10 N m), checked on a held-out batch. Writes DIR/gains.toml "
+            "(use it with --gains in demo, compare, pwm-compare and montecarlo), DIR/result.json, "
+            "DIR/cost.png, DIR/responses.png and DIR/checkpoint.npz; running it again resumes (Ctrl-C keeps "
+            "the last finished iteration; --fresh starts over). Settings: flags, then --config TOML "
+            "([weights], [tune], [job] tables), then built-in defaults."
         ),
     )
     p.add_argument("--out", default="tune_out", help="output folder (created), default: tune_out")
@@ -26,19 +34,37 @@ def add_parser(sub):
         choices=("pi", "smc", "pr", "smc-dtc"),
         help="control method whose gains are tuned (default pi)",
     )
-    p.add_argument("--config", default=None, help="TOML with [weights], [tune] and [job] tables")
-    p.add_argument("--iterations", type=int, help="maximum iterations (default 100)")
-    p.add_argument("--train", type=int, help="training scenarios (default 64)")
-    p.add_argument("--heldout", type=int, help="held-out scenarios (default 64)")
-    p.add_argument("--seed", type=int, help="seed of the training batch (default 0; held-out: seed + 1)")
     p.add_argument(
-        "--duration-s", type=float, nargs=2, metavar=("LOW", "HIGH"), help="scenario durations, s (0.3 0.5)"
+        "--config", default=None, help="TOML with [weights], [tune] and [job] tables (default: none)"
+    )
+    p.add_argument("--iterations", type=checks.count(), help="maximum iterations (default 100)")
+    p.add_argument("--train", type=checks.count(), help="training scenarios (default 64)")
+    p.add_argument("--heldout", type=checks.count(), help="held-out scenarios (default 64)")
+    p.add_argument(
+        "--seed",
+        type=checks.count(minimum=0),
+        help="seed of the training batch (default 0; held-out: seed + 1)",
+    )
+    p.add_argument(
+        "--duration-s",
+        type=checks.positive("s", maximum=10.0),
+        nargs=2,
+        metavar=("LOW", "HIGH"),
+        help="range of the scenario durations, s (default 0.3 0.5)",
     )
     p.add_argument(
         "--gains",
         nargs="+",
-        help="gains to tune: aliases speed, current, smc, pr, smc_dtc or names like controller.speed.kp "
+        help="names of the gains to tune: aliases speed, current, smc, pr, smc_dtc or names like "
+        "controller.speed.kp "
         "(default: the control's own gains)",
+    )
+    p.add_argument(
+        "--start-gains",
+        metavar="FILE",
+        default=None,
+        help="start from the gains of a gains.toml (an earlier pmsmjax tune) instead of the design rules "
+        "(default: design rules)",
     )
     p.add_argument(
         "--method",
@@ -46,20 +72,50 @@ def add_parser(sub):
         help="optimiser: bfgs (default; step-capped quasi-Newton on the cost with its penalty kinks rounded) "
         "or adam",
     )
-    p.add_argument("--learning-rate", type=float, help="Adam step in log-space (default 0.08)")
-    p.add_argument("--substeps", type=int, help="RK4 sub-steps while tuning (default 1)")
-    p.add_argument("--eval-substeps", type=int, help="RK4 sub-steps for before/after figures (default 10)")
-    p.add_argument("--time-budget-s", type=float, help="stop after this wall time, s")
+    p.add_argument(
+        "--learning-rate", type=checks.positive(maximum=2.0), help="Adam step in log-space (default 0.08)"
+    )
+    p.add_argument("--substeps", type=checks.count(), help="RK4 sub-steps while tuning (default 1)")
+    p.add_argument(
+        "--eval-substeps", type=checks.count(), help="RK4 sub-steps for before/after figures (default 10)"
+    )
+    p.add_argument(
+        "--time-budget-s", type=checks.positive("s"), help="stop after this wall time, s (default: none)"
+    )
     p.add_argument("--fresh", action="store_true", help="ignore and replace an existing checkpoint")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
 
+def precheck(args) -> None:
+    """Checks that need no model (before JAX starts)."""
+    from .gains import read_gains_flag
+
+    checks.output_folder(args.out)
+    if args.config is not None:
+        checks.existing_file(args.config, "--config", "tuning config")
+    if args.duration_s and args.duration_s[0] > args.duration_s[1]:
+        low, high = args.duration_s
+        raise ParameterError(
+            f"--duration-s {plain(low)} {plain(high)}: LOW is above HIGH; give the range as LOW HIGH, "
+            f"e.g. --duration-s {plain(high)} {plain(low)}."
+        )
+    for name in args.gains or ():
+        if name.endswith(".toml") or Path(name).is_file():
+            raise ParameterError(
+                f"--gains {name}: tune's --gains takes the names of the gains to tune (speed, current, ...); "
+                f"to start from a tuned gains file use --start-gains {name}."
+            )
+    read_gains_flag(args.start_gains, "--start-gains")
+
+
 def run(args) -> int:
+    precheck(args)
     # The command line is the one place where pmsmjax reaches up into the tuning workflows.
     import dataclasses
 
     from tuning.autotune.job import DEFAULT_CONFIG, read_tune_toml, run_tune_job
+    from tuning.autotune.tuner import TuneInterrupted
 
     kwargs = read_tune_toml(args.config) if args.config else {}
     config = kwargs.pop("config", DEFAULT_CONFIG)
@@ -80,13 +136,24 @@ def run(args) -> int:
         ("tune_substeps", args.substeps),
         ("eval_substeps", args.eval_substeps),
         ("control", args.control),
+        ("start_gains", args.start_gains),
     ):
         if value is not None:
             kwargs[key] = value
     checkpoint = Path(args.out) / "checkpoint.npz"
     if args.fresh and checkpoint.exists():
         checkpoint.unlink()
-    data = run_tune_job(args.out, config=config, progress=not args.no_progress, **kwargs)
+    try:
+        data = run_tune_job(args.out, config=config, progress=not args.no_progress, **kwargs)
+    except TuneInterrupted:
+        raise
+    except KeyboardInterrupt:
+        kept = (
+            f"; the checkpoint {checkpoint} is kept: rerun the same command to resume"
+            if checkpoint.exists()
+            else ""
+        )
+        raise KeyboardInterrupt(f"outside the iterations{kept}") from None
     tr, ho = data["train"], data["heldout"]
     cut = lambda d: 100.0 * (1.0 - d["after"]["itae"] / d["before"]["itae"])
     if data["resumed_from_iteration"]:

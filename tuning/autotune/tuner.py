@@ -108,6 +108,15 @@ class TuneResult:
     resumed_from: int
 
 
+class TuneInterrupted(KeyboardInterrupt):
+    """Ctrl-C during :func:`tune`; the message says at which iteration and where the checkpoint is.
+    `iteration`: the iterations the saved checkpoint holds."""
+
+    def __init__(self, message: str, iteration: int):
+        super().__init__(message)
+        self.iteration = iteration
+
+
 def _fingerprint(param: LogParameterisation, batch: ScenarioBatch, weights, config: TuneConfig) -> str:
     """A hash of everything that determines the tuning path (to refuse resuming a different problem)."""
     h = hashlib.sha256()
@@ -205,6 +214,8 @@ def tune(
         total=config.max_iterations, initial=it0, disable=not progress, desc="tune", unit="it", leave=False
     )
     it = it0
+    # The last consistent resume point (every field from the same iteration): what Ctrl-C saves.
+    snapshot = (theta, opt_state, best_theta, best_cost, list(history), it)
     try:
         while it < config.max_iterations:
             # BFGS backs off from a trial that destabilises the drive; its start, and Adam, cannot.
@@ -218,6 +229,7 @@ def tune(
                 since_best += 1
             theta, opt_state = next_point(theta, followed, grad, opt_state)
             it += 1
+            snapshot = (theta, opt_state, best_theta, best_cost, list(history), it)
             bar.update(1)
             bar.set_postfix(cost=f"{cost:.5g}", best=f"{best_cost:.5g}")
             if path is not None and (it % config.checkpoint_every == 0):
@@ -235,6 +247,15 @@ def tune(
             cost = float(cost)
             step_s = time.perf_counter() - t_step
             steady_s = step_s if steady_s is None else min(steady_s, step_s)
+    except KeyboardInterrupt:
+        bar.close()
+        where = ""
+        if path is not None:
+            _save_checkpoint(path, fingerprint, *snapshot)
+            where = f"; the checkpoint {path} holds it: rerun the same command to resume"
+        raise TuneInterrupted(
+            f"at iteration {snapshot[-1]} of {config.max_iterations}{where}", snapshot[-1]
+        ) from None
     finally:
         bar.close()
     if path is not None:
@@ -281,11 +302,19 @@ def _save_checkpoint(path, fingerprint, theta, opt_state, best_theta, best_cost,
 
 
 def _load_checkpoint(path, fingerprint, opt_state_template):
-    with np.load(path) as data:
-        if str(data["fingerprint"]) != fingerprint:
+    try:
+        data = np.load(path)
+    except Exception as err:  # a truncated or foreign file
+        raise ParameterError(
+            f"checkpoint {path} cannot be read ({type(err).__name__}): rerun with --fresh (pmsmjax tune) or "
+            "delete it to start over."
+        ) from err
+    with data:
+        if "fingerprint" not in data.files or str(data["fingerprint"]) != fingerprint:
             raise ParameterError(
                 f"checkpoint {path} belongs to a different tuning problem (gains, scenarios, weights or "
-                "settings changed): delete it or choose another output folder."
+                "settings changed): to start fresh, rerun with --fresh (pmsmjax tune; it replaces the "
+                "checkpoint) or delete the file; to keep it, write to another output folder (--out)."
             )
         treedef = jax.tree.structure(opt_state_template)
         n = treedef.num_leaves

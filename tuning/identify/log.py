@@ -14,14 +14,15 @@ Canonical columns (SI units after conversion):
 
 The voltage of row k is the one applied from ``t_k`` to ``t_{k+1}``. Stationary-frame and duty voltages
 are turned into dq with ``theta_e[k]``; how the voltage is held between rows (``hold``) is a property of
-the recording, as in :mod:`pmsmjax.replay`: ``"stator"`` for a real inverter (default), ``"rotor"`` for
-a dq-model simulator.
+the recording, as in :mod:`pmsmjax.replay`: ``"stator"`` for a real inverter, ``"rotor"`` for a dq-model
+simulator, ``"auto"`` (the command's default) to find it from the log (:mod:`tuning.identify.hold`).
 
 Checks, all before any fitting, each a :class:`~pmsmjax.validation.ParameterError` naming the column
-and the fix: missing or unknown columns (with close-name hints), NaN/inf, non-increasing time
-(:func:`pmsmjax.logs.check_columns`), irregular sampling or gaps (refused, or resampled with a warning
-when asked), a sampling step too long for the electrical dynamics, and a speed inconsistent with the
-angle (rpm in a rad/s column, electrical instead of mechanical speed, wrong pole pairs).
+and the fix: missing or unknown columns (with close-name hints; a file column that looks like a
+misspelt canonical one the log lacks, ``omgea_m``, is refused rather than left unused), NaN/inf,
+non-increasing time (:func:`pmsmjax.logs.check_columns`), irregular sampling or gaps (refused, or
+resampled with a warning when asked), a sampling step too long for the electrical dynamics, and a speed
+inconsistent with the angle (rpm in a rad/s column, electrical instead of mechanical speed, wrong pole pairs).
 """
 
 import dataclasses
@@ -36,7 +37,7 @@ import numpy as np
 
 from pmsmjax.frames import abc_to_alpha_beta, park
 from pmsmjax.inverters.averaged import phase_voltages
-from pmsmjax.logs import check_columns, column_names, read_log
+from pmsmjax.logs import check_columns, column_names, misspelt_columns, read_log
 from pmsmjax.validation import ParameterError
 
 if sys.version_info >= (3, 11):
@@ -68,6 +69,17 @@ CANONICAL = (
     + sum(_VOLTAGE_SETS.values(), ())
     + sum(_CURRENT_SETS.values(), ())
 )
+#: What each canonical column is, for messages.
+MEANINGS = {
+    "time": "time, s",
+    "theta_e": "electrical rotor angle, rad",
+    "omega_m": "mechanical speed, rad/s",
+    "T_L": "known load torque, N m",
+    "U_dc": "DC-link voltage, V",
+    **{c: "voltage, V" for c in sum(_VOLTAGE_SETS.values(), ()) if not c.startswith("d_")},
+    **{c: "duty cycle, 0..1" for c in _VOLTAGE_SETS["duty"]},
+    **{c: "current, A" for c in sum(_CURRENT_SETS.values(), ())},
+}
 #: Accepted units: canonical column (or group) -> {unit: factor to SI}.
 _UNITS = {
     "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6},
@@ -143,14 +155,27 @@ def load_drive_log(
     V, for duty logs without a ``U_dc`` column; `resample`: resample an irregular time grid onto a
     uniform one (with a warning) instead of refusing it.
     """
-    present = _read_canonical(path, columns)
-    return drive_log_from_columns(
+    unused: list[str] = []
+    present = _read_canonical(path, columns, unused)
+    wrong = misspelt_columns(unused, [c for c in CANONICAL if c not in present])
+    if wrong:
+        col, known = wrong[0]
+        raise ParameterError(
+            f"log {path}: column {col!r} is not a column identify reads; it looks like {known!r} "
+            f"({MEANINGS[known]}), which the log lacks, so it would be identified without it: map it "
+            f"(--columns {known}={col}) or rename it; rename or drop it if it is something else."
+        )
+    log = drive_log_from_columns(
         present, pole_pairs, units=units, hold=hold, u_dc=u_dc, resample=resample, source=f"log {path}"
     )
+    if unused:
+        log = dataclasses.replace(log, notes=log.notes + (f"columns not used: {', '.join(unused)}",))
+    return log
 
 
-def _read_canonical(path, columns: dict | None) -> dict:
-    """The canonical columns present in the log at ``path``, read through the column map ``columns``."""
+def _read_canonical(path, columns: dict | None, unused: list | None = None) -> dict:
+    """The canonical columns present in the log at ``path``, read through the column map ``columns``;
+    the file's other column names are appended to ``unused`` when a list is given."""
     columns = dict(columns or {})
     bad = sorted(set(columns) - set(CANONICAL))
     if bad:
@@ -160,7 +185,7 @@ def _read_canonical(path, columns: dict | None) -> dict:
             f"are canonical names ({', '.join(CANONICAL)}), the values the names in the file."
         )
     wanted = [columns.get(c, c) for c in CANONICAL]
-    raw = read_log(path, (), wanted, time=None)
+    raw = read_log(path, (), wanted, time=None, unused=unused)
     back = {columns.get(c, c): c for c in CANONICAL}
     present = {back[k]: v for k, v in raw.items()}
     if not present:
@@ -184,9 +209,10 @@ def drive_log_from_columns(
     """Build a checked :class:`DriveLog` from canonical columns (NumPy arrays); see :func:`load_drive_log`."""
     if not isinstance(pole_pairs, (int, np.integer)) or isinstance(pole_pairs, bool) or pole_pairs < 1:
         raise ParameterError(f"pole_pairs must be a positive integer (poles / 2), got {pole_pairs!r}.")
-    if hold not in ("stator", "rotor"):
+    if hold not in ("stator", "rotor", "auto"):
         raise ParameterError(
-            f"hold must be 'stator' (real inverter) or 'rotor' (dq-model simulator), got {hold!r}."
+            f"hold must be 'stator' (real inverter), 'rotor' (dq-model simulator) or 'auto' (found from the "
+            f"log), got {hold!r}."
         )
     vset = _pick_set(cols, _VOLTAGE_SETS, "voltage", source)
     iset = _pick_set(cols, _CURRENT_SETS, "current", source)
@@ -212,10 +238,17 @@ def drive_log_from_columns(
     if resampled:
         notes.append(resampled)
     if np.median(dt) > MAX_STEP_S:
+        step = float(np.median(dt))
+        unit = next((u for u, f in (("ms", 1e-3), ("us", 1e-6)) if step * f <= MAX_STEP_S), None)
+        guess = (
+            f"time looks like it is in {unit}: set its unit (--units time={unit}, or time = '{unit}' in "
+            "[units])"
+            if unit
+            else "log faster"
+        )
         raise ParameterError(
-            f"{source}: sampling step {np.median(dt):.3g} s is longer than {MAX_STEP_S:g} s; the current "
-            "dynamics (a few ms) need samples at 1 kHz or faster. If time is not in seconds, set its unit "
-            "(units: time = 'ms' or 'us')."
+            f"{source}: sampling step {step:.3g} s is longer than {MAX_STEP_S:g} s; the current dynamics (a "
+            f"few ms) need samples at 1 kHz or faster: {guess}."
         )
 
     if "theta_e" in c and "omega_m" in c:
@@ -233,17 +266,22 @@ def drive_log_from_columns(
     th = c["theta_e"]
     u = _to_dq(c, _VOLTAGE_SETS[vset], vset, th, u_dc)
     i = _to_dq(c, _CURRENT_SETS[iset], iset, th, None)
-    return DriveLog(
+    log = DriveLog(
         time=c["time"],
         u_dq=u,
         i_dq=i,
         omega_m=c["omega_m"],
         theta_e=th,
         load_torque=c.get("T_L", np.zeros_like(c["time"])),
-        hold=hold,
+        hold="stator" if hold == "auto" else hold,
         source=source,
         notes=tuple(notes),
     )
+    if hold == "auto":
+        from .hold import detect_hold
+
+        log = detect_hold(log, pole_pairs)[0]
+    return log
 
 
 def _pick_set(cols, sets, what, source) -> str:

@@ -26,13 +26,13 @@ import math
 import os
 import time
 from collections.abc import Mapping
-from pathlib import Path
 
 import jax
 import numpy as np
 from scipy import stats
 
-from pmsmjax.logs import atomic_write
+from pmsmjax.logs import atomic_write, check_output_folder
+from pmsmjax.replay import DEFAULT_HOLD
 from pmsmjax.validation import ParameterError
 
 from . import electrical as el
@@ -40,7 +40,7 @@ from . import fit as id_fit
 from . import mechanical as me
 from .fit import FitResult
 from .log import DriveLog, load_drive_log, read_log_config
-from .uncertainty import ADVICE, weak_directions
+from .uncertainty import ADVICE, EXCITATION_AVERAGE_S, MIN_EXCITATION, excitation, weak_directions
 
 __all__ = ["IdentifyOptions", "identify", "identify_file", "NAMES", "UNITS"]
 
@@ -148,7 +148,23 @@ def _identify(log: DriveLog, opt: IdentifyOptions) -> IdentifyResult:
     _, explained = el.warm_start(log, opt.pole_pairs, log.hold, el_fixed, opt.dead_time)
     _check_consistency(log, opt, explained)
     t_checked = time.perf_counter()
-    result = id_fit.fit(
+    try:
+        result = _fit(log, opt, fixed, w_el, w_me)
+    except np.linalg.LinAlgError as err:
+        raise ParameterError(
+            f"{log.source}: the fit failed numerically ({err}): the model does not describe this log as read "
+            f"(voltage hold {log.hold!r}; --hold auto picks the one that fits), or the log does not excite "
+            "the parameters (hold some fixed with --fix)."
+        ) from None
+    t_end = time.perf_counter()
+    summary = _summary(log, opt, result)
+    summary["wall_time_s"] = time.perf_counter() - t_start
+    summary["timing_s"] = {"checks": t_checked - t_start, "fit": t_end - t_checked}
+    return IdentifyResult(summary, result, log)
+
+
+def _fit(log: DriveLog, opt: IdentifyOptions, fixed: dict, w_el: int, w_me: int) -> FitResult:
+    return id_fit.fit(
         log,
         opt.pole_pairs,
         hold=log.hold,
@@ -160,11 +176,6 @@ def _identify(log: DriveLog, opt: IdentifyOptions) -> IdentifyResult:
         n_substeps=opt.n_substeps,
         max_steps=opt.max_steps,
     )
-    t_end = time.perf_counter()
-    summary = _summary(log, opt, result)
-    summary["wall_time_s"] = time.perf_counter() - t_start
-    summary["timing_s"] = {"checks": t_checked - t_start, "fit": t_end - t_checked}
-    return IdentifyResult(summary, result, log)
 
 
 def _check_consistency(log: DriveLog, opt: IdentifyOptions, explained: float) -> None:
@@ -191,7 +202,7 @@ def _check_consistency(log: DriveLog, opt: IdentifyOptions, explained: float) ->
             )
 
 
-def _entries(fit: FitResult, rel_tol: float, torque_rms: float) -> dict:
+def _entries(fit: FitResult, rel_tol: float, torque_rms: float, excited: dict | None = None) -> dict:
     out = {}
     se_theta = np.sqrt(np.diag(fit.cov))
     se_white = np.sqrt(np.diag(fit.cov_white))
@@ -225,6 +236,9 @@ def _entries(fit: FitResult, rel_tol: float, torque_rms: float) -> dict:
             "unit": UNITS[name],
             "fixed": False,
         }
+        quiet = (excited or {}).get(name)
+        if quiet is not None and not quiet["excited"]:
+            ok = entry["identifiable"] = False
         if not ok:
             # A linearised interval around a value the data does not pin down is not a 95 % interval.
             entry["ci95"] = [None, None]
@@ -232,6 +246,14 @@ def _entries(fit: FitResult, rel_tol: float, torque_rms: float) -> dict:
                 "not determined by this log: the value is where the fit stopped and the local stderr "
                 "understates the uncertainty; see identifiability.advice"
             )
+            if quiet is not None and not quiet["excited"]:
+                entry["note"] = (
+                    f"not determined by this log: {quiet['current']} varies by "
+                    f"{quiet['variation_rms_a']:.3g} A RMS ({1e3 * EXCITATION_AVERAGE_S:g} ms average) "
+                    f"against {quiet['noise_a']:.3g} A of noise ({quiet['ratio']:.2g}x, {MIN_EXCITATION:g}x "
+                    "needed): what moves it is noise, so the fitted value and its stderr say nothing about "
+                    "the motor; see identifiability.advice"
+                )
         out[name] = entry
     for name in fit.pmap.names:
         if name not in out:
@@ -253,7 +275,8 @@ def _summary(log: DriveLog, opt: IdentifyOptions, fit: FitResult) -> dict:
     d, md = fit.electrical, fit.mechanical
     err_i, err_w = fit.residuals["i_dq"], fit.residuals["omega_end"]
     torque = np.asarray(me.electromagnetic_torque(fit.values, log.i_dq, opt.pole_pairs))
-    params = _entries(fit, opt.rel_tol, float(np.sqrt(np.mean(torque**2))))
+    excited = excitation(log.time, log.i_dq)
+    params = _entries(fit, opt.rel_tol, float(np.sqrt(np.mean(torque**2))), excited)
     rms = lambda x, axis=None: np.sqrt(np.mean(np.square(x), axis=axis))
     unidentifiable = [n for n, p in params.items() if p["identifiable"] is False]
     lam = np.linalg.eigvalsh(fit.M)
@@ -266,6 +289,12 @@ def _summary(log: DriveLog, opt: IdentifyOptions, fit: FitResult) -> dict:
             "weak_directions": _weak(fit, opt.rel_tol),
             "advice": {n: ADVICE[n] for n in unidentifiable},
             "condition_number": float(np.sqrt(lam.max() / lam.min())) if lam.min() > 0 else None,
+            "excitation": {
+                "rule": f"an inductance is identifiable only when its current axis varies by at least "
+                f"{MIN_EXCITATION:g}x its noise level (RMS after a {1e3 * EXCITATION_AVERAGE_S:g} ms average "
+                "against the noise from first differences)",
+                **excited,
+            },
         },
         "residual_rms": {
             "i_d_A": float(rms(err_i[..., 0])),
@@ -322,6 +351,8 @@ def identify_file(
 ) -> IdentifyResult:
     """Read ``log_path``, identify, write ``out_dir/params.json`` (and ``fit.png``); returns the result.
 
+    `hold`: ``"auto"`` (default, :data:`pmsmjax.replay.DEFAULT_HOLD`: the hold that fits better,
+    :mod:`tuning.identify.hold`), ``"stator"`` or ``"rotor"``.
     `config`: TOML with ``[columns]``, ``[units]``, ``[log]`` (``hold``, ``u_dc``, ``resample``) and
     ``[identify]`` (:class:`IdentifyOptions` fields; ``fixed``/``start`` as tables); explicit arguments
     win over it. Everything is checked before anything is compiled; files are written atomically.
@@ -343,13 +374,13 @@ def identify_file(
         pole_pairs,
         columns=cols,
         units=unit_map,
-        hold=hold or log_cfg.get("hold", "stator"),
+        hold=hold or log_cfg.get("hold", DEFAULT_HOLD),
         u_dc=u_dc if u_dc is not None else log_cfg.get("u_dc"),
         resample=resample or bool(log_cfg.get("resample", False)),
     )
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = check_output_folder(out_dir)
     result = identify(log, opts)
+    out.mkdir(parents=True, exist_ok=True)
     atomic_write(out / "params.json", lambda f: f.write(json.dumps(result.summary, indent=2).encode()))
     if figures:
         from .plots import save_fit_figure

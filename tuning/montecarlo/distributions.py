@@ -20,7 +20,7 @@ import math
 import numpy as np
 from scipy.special import ndtri
 
-from pmsmjax.validation import ParameterError
+from pmsmjax.validation import ParameterError, plain
 
 KINDS = ("uniform", "normal", "lognormal")
 SAMPLING = ("random", "latin_hypercube")
@@ -50,7 +50,8 @@ class Distribution:
         for field in ("nominal", "tolerance", "sigmas"):
             v = getattr(self, field)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise ParameterError(f"{name}: {field} must be a finite number, got {v!r}.")
+                shown = plain(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else repr(v)
+                raise ParameterError(f"{name}: {field} must be a finite number, got {shown}.")
         if self.tolerance < 0:
             raise ParameterError(
                 f"{name}: tolerance must be >= 0 (a relative half-width, 0.2 for +-20 %), "

@@ -1,0 +1,161 @@
+"""Checks of command-line input shared by every subcommand: a bad flag is refused before any work, with
+one line naming the flag, the value in the user's unit and the fix, and exit status 2.
+
+Pure Python (no JAX, no Equinox): a refusal comes back in a fraction of a second.
+
+How a subcommand uses it (``pmsmjax/cli/demo.py`` is the worked example):
+
+- one-flag checks as the argparse ``type``::
+
+      p.add_argument("--load-nm", type=checks.real("N m"), default=10.0, help="... (default 10)")
+      p.add_argument("--duration-s", type=checks.positive("s"), ...)
+      p.add_argument("--dead-time-us", type=checks.nonnegative("us"), ...)
+      p.add_argument("--substeps", type=checks.count(), ...)            # an int >= 1
+
+  A bad value ends as ``pmsmjax demo: error: argument --load-nm: nan is not a finite number of N m:
+  give one, e.g. 10 (see pmsmjax demo --help)`` (the parser's ``error`` prints that one line).
+- first thing in ``run(args)``, before importing anything heavy: :func:`output_folder` for ``--out`` and
+  the checks that involve several flags, raising :class:`~pmsmjax.validation.ParameterError` with
+  :func:`flag` to name each flag as the user typed it.
+- a :class:`~pmsmjax.validation.ParameterError` raised later by the library is printed as one line by
+  :func:`pmsmjax.cli.main`; :func:`user_terms` turns the library's names (``Drive.n_substeps``) into the
+  flags (``--substeps``) where a subcommand maps them.
+"""
+
+import argparse
+import math
+import os
+from pathlib import Path
+
+from ..validation import ParameterError, plain
+
+__all__ = [
+    "Parser",
+    "number",
+    "real",
+    "positive",
+    "nonnegative",
+    "count",
+    "flag",
+    "output_folder",
+    "output_file",
+    "existing_file",
+    "user_terms",
+    "plain",
+]
+
+
+class Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (no usage block) pointing at ``--help``; exit 2."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def number(
+    unit: str = "",
+    *,
+    minimum: float | None = None,
+    maximum: float | None = None,
+    above: bool = False,
+    integer: bool = False,
+    example: str | None = None,
+):
+    """An argparse ``type``: a finite number (an ``int`` with ``integer=True``) in ``unit``, at least
+    `minimum` (greater than it with ``above=True``) and at most `maximum`."""
+    of = f" of {unit}" if unit else ""
+    in_unit = f" {unit}" if unit else ""
+    kind = "whole number" if integer else "number"
+
+    def convert(text: str):
+        try:
+            value = int(text) if integer else float(text)
+        except ValueError:
+            hint = f", e.g. {example}" if example else ""
+            raise argparse.ArgumentTypeError(f"{text!r} is not a {kind}{of}: give one{hint}") from None
+        if not math.isfinite(value):
+            hint = f", e.g. {example}" if example else ""
+            raise argparse.ArgumentTypeError(f"{text} is not a finite {kind}{of}: give one{hint}")
+        if minimum is not None and (value <= minimum if above else value < minimum):
+            sign = ">" if above else ">="
+            raise argparse.ArgumentTypeError(
+                f"{plain(value)}{in_unit} is too small: give a value {sign} {plain(minimum)}{in_unit}"
+            )
+        if maximum is not None and value > maximum:
+            raise argparse.ArgumentTypeError(
+                f"{plain(value)}{in_unit} is too large: give a value <= {plain(maximum)}{in_unit}"
+            )
+        return value
+
+    convert.__name__ = kind
+    return convert
+
+
+def real(unit: str = "", example: str | None = None):
+    """Any finite number in ``unit`` (negative allowed: a reverse speed, a generating load)."""
+    return number(unit, example=example)
+
+
+def positive(unit: str = "", maximum: float | None = None):
+    """A finite number > 0 in ``unit``."""
+    return number(unit, minimum=0.0, above=True, maximum=maximum)
+
+
+def nonnegative(unit: str = "", maximum: float | None = None):
+    """A finite number >= 0 in ``unit``."""
+    return number(unit, minimum=0.0, maximum=maximum)
+
+
+def count(minimum: int = 1, maximum: int | None = None):
+    """A whole number >= ``minimum`` (and <= ``maximum``)."""
+    return number(minimum=minimum, maximum=maximum, integer=True)
+
+
+def flag(dest: str) -> str:
+    """The flag of an argparse ``dest`` as the user typed it: ``load_time_s`` -> ``--load-time-s``."""
+    return "--" + dest.replace("_", "-")
+
+
+def output_folder(path, name: str = "--out") -> Path:
+    """Refuse an output folder that cannot be made or written, before any work: an existing file (not a
+    folder) at ``path`` or on its way, or a nearest existing folder the user may not write into.
+    Nothing is created. Returns ``Path(path)``."""
+    from ..logs import check_output_folder
+
+    path = check_output_folder(path, name)
+    existing = next((p for p in (path, *path.parents) if p.exists()), Path("."))
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise ParameterError(
+            f"{name} {path}: folder {existing} is not writable by you: choose a folder you can write to."
+        )
+    return path
+
+
+def output_file(path, name: str) -> Path:
+    """Refuse an output file path that is a folder or whose folder does not exist, before any work."""
+    path = Path(path)
+    if path.is_dir():
+        raise ParameterError(f"{name} {path} is a folder: give a file name, e.g. {path / 'results.json'}.")
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise ParameterError(f"{name} {path}: folder {folder} does not exist; create it or write elsewhere.")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise ParameterError(f"{name} {path}: folder {folder} is not writable by you: write elsewhere.")
+    return path
+
+
+def existing_file(path, name: str, what: str = "file") -> Path:
+    """Refuse a path that is not an existing file (missing, or a folder)."""
+    path = Path(path)
+    if not path.is_file():
+        state = "is a folder" if path.is_dir() else "does not exist"
+        raise ParameterError(f"{name} {path}: the {what} {state}; check the path.")
+    return path
+
+
+def user_terms(err: ParameterError, terms: dict[str, str]) -> ParameterError:
+    """``err`` with the library's names replaced by the user's (``{"Drive.n_substeps": "--substeps"}``)."""
+    text = str(err)
+    for internal, user in terms.items():
+        text = text.replace(internal, user)
+    return ParameterError(text)
