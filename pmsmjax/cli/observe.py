@@ -23,28 +23,42 @@ def add_parser(sub):
     p.add_argument("--motor", required=True, help="preset name (book, book_salient) or motor TOML file")
     p.add_argument("--observer", required=True, help="smo, smo-pll, adaptive-smo, dq-smo, mras or ekf")
     p.add_argument("--out", required=True, help="output folder (created)")
-    p.add_argument("--config", default=None, help="TOML with [columns], [units] and [log] tables")
     p.add_argument(
-        "--columns", nargs="+", default=[], metavar="CANONICAL=NAME", help="column map, e.g. i_alpha=Ialpha"
+        "--config", default=None, help="TOML with [columns], [units] and [log] tables (default: none)"
     )
-    p.add_argument("--units", nargs="+", default=[], metavar="COLUMN=UNIT", help="e.g. time=ms omega_m=rpm")
+    p.add_argument(
+        "--columns",
+        nargs="+",
+        default=[],
+        metavar="CANONICAL=NAME",
+        help="column map, e.g. i_alpha=Ialpha (default: the canonical names)",
+    )
+    p.add_argument(
+        "--units", nargs="+", default=[], metavar="COLUMN=UNIT", help="e.g. time=ms omega_m=rpm (default: SI)"
+    )
     p.add_argument(
         "--truth-columns",
         default="",
         metavar="theta_e,omega_m",
-        help="score the estimate against these logged columns (electrical rad, mechanical rad/s)",
+        help="score the estimate against these logged columns (electrical rad, mechanical rad/s; "
+        "default: none)",
     )
     p.add_argument(
         "--settle-s", type=float, default=0.05, help="time excluded from the error figures, s (default 0.05)"
     )
-    p.add_argument("--u-dc", type=float, default=None, help="DC-link voltage, V, for duty logs without U_dc")
+    p.add_argument(
+        "--u-dc",
+        type=float,
+        default=None,
+        help="DC-link voltage, V, for duty logs without U_dc (default: none)",
+    )
     p.add_argument("--resample", action="store_true", help="resample an irregular time grid (with a warning)")
     p.add_argument(
         "--option",
         nargs="+",
         default=[],
         metavar="NAME=VALUE",
-        help="observer design-rule options, e.g. switching=sign pll_bandwidth=500",
+        help="observer design-rule options, e.g. switching=sign pll_bandwidth=500 (default: the design rule)",
     )
     p.add_argument("--no-figures", action="store_true", help="do not write observe.png")
     p.set_defaults(func=run)
