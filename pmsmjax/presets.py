@@ -300,11 +300,26 @@ def sensorless_drive(
     (:class:`pmsmjax.estimators.startup.StartupEstimator`, defaults :data:`STARTUP_DEFAULTS`, overridden
     by ``startup_options``).
     """
-    from .estimators.registry import make_observer
-
     motor = book_motor() if motor is None else motor
     drive = book_drive(motor, **kw)
     model = motor if observer_model is None else observer_model
+    return with_observer(drive, observer_name, model, observer_options, startup, startup_options)
+
+
+def with_observer(
+    drive: Drive,
+    observer_name: str,
+    model: PMSMParameters,
+    observer_options: dict | None = None,
+    startup: bool = True,
+    startup_options: dict | None = None,
+) -> Drive:
+    """``drive`` with the chapter 5 observer ``observer_name`` (design rule for ``model`` at the drive's
+    period, overridden by ``observer_options``) as its estimator, wrapped in the I/f start from standstill
+    if ``startup`` (:data:`STARTUP_DEFAULTS` overridden by ``startup_options``). The controller must be a
+    :class:`~pmsmjax.controllers.FOC` (it holds the start-up current)."""
+    from .estimators.registry import make_observer
+
     observer = make_observer(observer_name, model, drive.Ts, **(observer_options or {}))
     if startup:
         from .estimators.startup import StartupEstimator

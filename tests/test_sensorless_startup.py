@@ -73,3 +73,28 @@ def test_bad_startup_parameters_are_refused():
     obs = presets.sensorless_drive("smo").estimator
     with pytest.raises(ParameterError, match="i_start"):
         StartupEstimator(obs, 4, i_start=-1.0, accel=1000.0, handover_speed=15.0, blend_speed=10.0)
+
+
+def test_demo_flag_names_are_the_registry():
+    from pmsmjax.cli.demo import ESTIMATOR_NAMES
+
+    assert set(ESTIMATOR_NAMES) == set(OBSERVERS)
+
+
+def test_demo_runs_sensorless_from_standstill(tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    out = tmp_path / "demo"
+    cmd = [sys.executable, "-m", "pmsmjax", "demo", "--estimator", "smo-pll", "--duration-s", "0.3"]
+    res = subprocess.run(cmd + ["--out", str(out), "--no-figures"], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["drive"]["estimator"] == "smo-pll"
+    assert abs(summary["metrics"]["final_speed_rpm"] - 1000.0) < 30.0
+    res = subprocess.run(
+        cmd + ["--control", "dtc", "--out", str(tmp_path / "x")], capture_output=True, text=True
+    )
+    assert res.returncode != 0 and "--estimator does not apply to --control dtc" in res.stderr
+    assert not (tmp_path / "x").exists()
