@@ -283,6 +283,8 @@ def sensorless_drive(
     *,
     observer_options: dict | None = None,
     observer_model: PMSMParameters | None = None,
+    startup: bool = False,
+    startup_options: dict | None = None,
     **kw,
 ) -> Drive:
     """:func:`book_drive` with the chapter 5 observer ``observer_name`` (``smo``, ``smo-pll``,
@@ -294,15 +296,43 @@ def sensorless_drive(
     mismatch) at the drive's period, overridden by ``observer_options`` (its design rule's keywords);
     unstable gains are refused. ``kw`` go to :func:`book_drive`. This swaps the estimator only: the drive
     starts with the observer cold, so it suits runs that start at speed or take over from another
-    estimator; a start from standstill needs a start-up procedure.
+    estimator; ``startup=True`` wraps the observer in the I/f start from standstill
+    (:class:`pmsmjax.estimators.startup.StartupEstimator`, defaults :data:`STARTUP_DEFAULTS`, overridden
+    by ``startup_options``).
     """
-    from .estimators.registry import make_observer
-
     motor = book_motor() if motor is None else motor
     drive = book_drive(motor, **kw)
     model = motor if observer_model is None else observer_model
+    return with_observer(drive, observer_name, model, observer_options, startup, startup_options)
+
+
+def with_observer(
+    drive: Drive,
+    observer_name: str,
+    model: PMSMParameters,
+    observer_options: dict | None = None,
+    startup: bool = True,
+    startup_options: dict | None = None,
+) -> Drive:
+    """``drive`` with the chapter 5 observer ``observer_name`` (design rule for ``model`` at the drive's
+    period, overridden by ``observer_options``) as its estimator, wrapped in the I/f start from standstill
+    if ``startup`` (:data:`STARTUP_DEFAULTS` overridden by ``startup_options``). The controller must be a
+    :class:`~pmsmjax.controllers.FOC` (it holds the start-up current)."""
+    from .estimators.registry import make_observer
+
     observer = make_observer(observer_name, model, drive.Ts, **(observer_options or {}))
+    if startup:
+        from .estimators.startup import StartupEstimator
+
+        opts = {**STARTUP_DEFAULTS, **(startup_options or {})}
+        observer = StartupEstimator(observer, model.pole_pairs, **opts)
     return eqx.tree_at(lambda d: d.estimator, drive, observer)
+
+
+#: I/f start-up of the book drive (:func:`sensorless_drive` with ``startup=True``): current amplitude
+#: (A; 1.1 N m/A torque constant, J = 0.003 kg m^2), ramp acceleration (mechanical rad/s^2), hand-over
+#: speed and blend span (mechanical rad/s: 150 r/min, then 100 r/min of blend).
+STARTUP_DEFAULTS = dict(i_start=8.0, accel=1000.0, handover_speed=15.7, blend_speed=10.5)
 
 
 def book_scenario(

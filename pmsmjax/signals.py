@@ -52,6 +52,10 @@ class Estimate(eqx.Module):
     - `torque`: electromagnetic torque, N m; ``None`` where not estimated.
     - `back_emf_ab`: ``(2,)`` the observer's stationary-frame back-EMF estimate at the sampling instant, V
       (chapter 5 observers); ``None`` for position sensors.
+    - `startup_weight`: weight in [0, 1] of the start-up current reference ``startup_i_dq`` in the
+      controller's current reference (1: open-loop I/f start, 0: speed loop in charge); ``None`` for
+      estimators without a start-up (:mod:`pmsmjax.estimators.startup`).
+    - `startup_i_dq`: ``(2,)`` the start-up current reference in the estimate's frame, A; ``None`` likewise.
     """
 
     theta_e: Array
@@ -60,6 +64,8 @@ class Estimate(eqx.Module):
     psi_ab: Array | None = None
     torque: Array | None = None
     back_emf_ab: Array | None = None
+    startup_weight: Array | None = None
+    startup_i_dq: Array | None = None
 
 
 class References(eqx.Module):

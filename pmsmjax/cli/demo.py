@@ -18,6 +18,12 @@ from .gains import add_gains_flag, apply_gains_flag, read_gains_flag
 
 CONTROL_NAMES = ("pi", "smc", "pr", "hysteresis", "dtc", "smc-dtc")
 
+#: ``--estimator``: the chapter 5 observers (:data:`pmsmjax.estimators.OBSERVERS`; listed here so the
+#: flags are checked before JAX starts) and the controls that can run on one (FOC cascades: they hold the
+#: I/f start-up current).
+ESTIMATOR_NAMES = ("smo", "smo-pll", "adaptive-smo", "dq-smo", "mras", "ekf")
+SENSORLESS_CONTROLS = ("pi", "smc", "pr")
+
 #: Command-line flag (argparse dest) -> preset option; flags left unset keep each preset's own default.
 FLAG_OPTIONS = {
     "frame": "frame",
@@ -109,6 +115,12 @@ def add_parser(sub):
         "(proportional-resonant current loops in alpha-beta), hysteresis (current comparators at 100 kHz), "
         "dtc (switching-table direct torque control, 40 kHz samples), smc-dtc (sliding-mode DTC with SVPWM)",
     )
+    p.add_argument(
+        "--estimator",
+        choices=list(ESTIMATOR_NAMES),
+        help="run sensorless from standstill on this chapter 5 observer, with the I/f start-up and hand-over "
+        "(default: the exact position sensor); with --control pi, smc or pr",
+    )
     p.add_argument("--out", default="demo_out", help="output folder (created), default: demo_out")
     p.add_argument(
         "--motor", default="book", help="preset name (book, book_salient) or motor TOML file (default book)"
@@ -181,6 +193,11 @@ def precheck(args) -> dict | None:
     from ..operating_point import top_speed_rpm
 
     checks.output_folder(args.out)
+    if getattr(args, "estimator", None) and args.control not in SENSORLESS_CONTROLS:
+        raise ParameterError(
+            f"--estimator does not apply to --control {args.control}: the sensorless start-up needs a FOC "
+            f"cascade; choose --control {' or '.join(SENSORLESS_CONTROLS)}, or drop --estimator."
+        )
     if not args.load_time_s < args.duration_s:
         raise ParameterError(
             f"--load-time-s {plain(args.load_time_s)} s is not inside the run (--duration-s "
@@ -230,6 +247,8 @@ def run(args) -> int:
         motor = presets.load_motor(args.motor, check_units=not args.trust_units)
         drive = control_drive_from_flags(args, motor)
         drive = apply_gains_flag(drive, read_gains_flag(args.gains), args.control)
+        if args.estimator:
+            drive = presets.with_observer(drive, args.estimator, motor)
         scenario = presets.book_scenario(args.speed_rpm, args.load_nm, args.load_time_s, args.duration_s)
         n = args.duration_s / drive.Ts
         if abs(n - round(n)) > 1e-6 * max(n, 1.0):
@@ -268,6 +287,7 @@ def run(args) -> int:
         "drive": {
             "motor": args.motor,
             "control": args.control,
+            "estimator": args.estimator or "exact sensor",
             "frame": args.frame,
             "Ts_s": drive.Ts,
             "n_substeps": drive.n_substeps,
@@ -297,7 +317,8 @@ def run(args) -> int:
         else save_demo_figures(
             trace,
             out,
-            f"pmsmjax demo: book drive, {args.control} control",
+            f"pmsmjax demo: book drive, {args.control} control"
+            + (f", sensorless ({args.estimator}, I/f start)" if args.estimator else ""),
             current_limit_a=current_limit,
             voltage_limit_v=float(np.asarray(drive.voltage_limit())),
         )

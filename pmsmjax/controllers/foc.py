@@ -127,6 +127,10 @@ class FOC(AbstractController):
         else:
             iq_ref = jnp.clip(refs.iq_ref, -iq_max, iq_max)
         i_dq_ref = jnp.stack([id_ref, iq_ref])
+        if estimate.startup_weight is not None:
+            # sensorless start (I/f): the start-up block holds the current, then hands over smoothly
+            w = estimate.startup_weight
+            i_dq_ref = w * estimate.startup_i_dq + (1.0 - w) * i_dq_ref
 
         current_state, u_ab, u_dq = self.current.step(
             state.current, i_dq_ref, sample.i_ab, estimate.theta_e, omega_e, ctx

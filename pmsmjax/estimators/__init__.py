@@ -3,7 +3,8 @@
 Position sensors (:class:`ExactSensor`, :class:`Encoder`), the stator flux observer of direct torque
 control (:class:`StatorFluxObserver`, chapter 4) and the fundamental-model observers of chapter 5
 (:data:`OBSERVERS`: ``smo``, ``smo-pll``, ``adaptive-smo``, ``dq-smo``, ``mras``, ``ekf``), all implementing
-:class:`AbstractEstimator`; :func:`make_observer` builds an observer by name with its design rule.
+:class:`AbstractEstimator`; :class:`StartupEstimator` wraps an observer in the I/f start from
+standstill; :func:`make_observer` builds an observer by name with its design rule.
 """
 
 from .adaptive_smo import AdaptiveSMO, adaptive_smo_design
@@ -16,6 +17,7 @@ from .pll import PLL, pll_design
 from .position_sensors import Encoder, EncoderState, ExactSensor
 from .registry import OBSERVERS, make_observer, observer_options
 from .smo import SlidingModeObserver, smo_design
+from .startup import StartupEstimator, StartupState
 
 __all__ = [
     "EKF",
@@ -29,6 +31,8 @@ __all__ = [
     "EncoderState",
     "ExactSensor",
     "SlidingModeObserver",
+    "StartupEstimator",
+    "StartupState",
     "StatorFluxObserver",
     "StatorFluxObserverState",
     "adaptive_smo_design",
