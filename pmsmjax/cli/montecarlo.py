@@ -12,7 +12,7 @@ from .gains import add_gains_flag, read_gains_flag
 STUDY_TOML = """\
 study TOML (--config; every table and key optional, flags win over it):
 
-  [study]       n = 1000, seed = 0, sampling = "random" | "latin_hypercube", chunk_size = 2048,
+  [study]       n = 1000, seed = 0, sampling = "random" | "latin_hypercube", chunk_size = "auto" | N,
                 nonphysical = "refuse" | "clip", decimate = 40, sensitivity_runs = 256
   [drive]       motor = "book" (preset or motor TOML), gains = "tune_out/gains.toml" (relative to this
                 file), current_bandwidth = 1100.0 (rad/s), speed_bandwidth = 50.0 (rad/s),
@@ -50,7 +50,11 @@ def add_parser(sub):
     p.add_argument("--out", default="montecarlo_out", help="output folder (created), default: montecarlo_out")
     p.add_argument("--config", default=None, help="study TOML, layout below (default: none)")
     p.add_argument("--seed", type=checks.count(minimum=0), help="sampling seed (default 0)")
-    p.add_argument("--chunk-size", type=checks.count(), help="runs per chunk (default 2048)")
+    p.add_argument(
+        "--chunk-size",
+        type=_chunk_size,
+        help="most runs per chunk, or 'auto' (default: from the device memory and the drive's bytes per run)",
+    )
     p.add_argument("--latin-hypercube", action="store_true", help="Latin hypercube sampling")
     p.add_argument("--clip", action="store_true", help="clip non-physical samples instead of refusing")
     p.add_argument(
@@ -70,6 +74,11 @@ def add_parser(sub):
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
+
+
+def _chunk_size(text: str):
+    """``--chunk-size``: ``auto``, or a whole number >= 1 (checked as the other counts are)."""
+    return text if text == "auto" else checks.count()(text)
 
 
 def precheck(args) -> None:

@@ -74,9 +74,10 @@ class Study:
     """Settings of a Monte Carlo study (see the module docstring for the TOML layout).
 
     - `n`: number of runs; `seed`: sampling seed; `sampling`: ``random`` or ``latin_hypercube``.
-    - `chunk_size`: runs per chunk (one compiled call, one file on disk; rounded up to two runs per
-      device). 2048 was the fastest of 256-8192 on 2 CPU cores (``benchmarks/bench_montecarlo.py --sweep``);
-      on a GPU use tens of thousands.
+    - `chunk_size`: most runs per chunk (one compiled call, one file on disk; chunks are balanced and
+      rounded up to two runs per device), or ``"auto"`` (default): from the device's free memory and the
+      drive's bytes per run, capped where throughput stops improving (:mod:`tuning.montecarlo.chunking`:
+      2048 on 2 CPU devices, the fastest of 256-8192 measured; 262,144 per GPU).
     - `nonphysical`: what to do with samples outside a parameter's physical range: ``refuse`` (error) or
       ``clip`` (moved to the bound, counted in the summary).
     - `decimate`: keep every this many periods of speed and current for the fan chart.
@@ -92,7 +93,7 @@ class Study:
     n: int = 1000
     seed: int = 0
     sampling: str = "random"
-    chunk_size: int = 2048
+    chunk_size: int | str = "auto"
     nonphysical: str = "refuse"
     decimate: int = 40
     sensitivity_runs: int = 256
@@ -118,8 +119,11 @@ class Study:
     def __post_init__(self):
         for f in ("n", "chunk_size", "decimate", "n_substeps"):
             v = getattr(self, f)
+            if f == "chunk_size" and v == "auto":
+                continue
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise ParameterError(f"study {f} must be an int >= 1, got {v!r}.")
+                also = ' or "auto"' if f == "chunk_size" else ""
+                raise ParameterError(f"study {f} must be an int >= 1{also}, got {v!r}.")
         if isinstance(self.sensitivity_runs, bool) or not isinstance(self.sensitivity_runs, int):
             raise ParameterError(
                 f"study sensitivity_runs must be an int >= 0, got {self.sensitivity_runs!r}."
