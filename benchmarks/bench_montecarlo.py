@@ -34,7 +34,9 @@ from tuning.montecarlo.cpu_devices import split_cpu
 def _parse(argv):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--n", type=int, default=10_000, help="runs (default 10000)")
-    p.add_argument("--chunk-size", type=int, default=None, help="runs per chunk (default 2048; 65536 on GPU)")
+    p.add_argument(
+        "--chunk-size", type=int, default=None, help="most runs per chunk (default: auto, from device memory)"
+    )
     p.add_argument("--one-by-one", type=int, default=20, help="runs timed one by one (default 20)")
     p.add_argument("--sweep", action="store_true", help="also time chunk sizes 256..8192")
     p.add_argument("--devices", type=int, default=None, help="CPU devices (default: one per core)")
@@ -108,7 +110,6 @@ def sweep(study, values, sizes) -> list[dict]:
 
 
 def run(n: int = 10_000, chunk_size: int | None = None, k_one: int = 20, do_sweep: bool = False) -> dict:
-    import jax
     import numpy as np
 
     from benchmarks.bench_core import machine_info
@@ -116,9 +117,8 @@ def run(n: int = 10_000, chunk_size: int | None = None, k_one: int = 20, do_swee
     from tuning.montecarlo import study as mc_study
     from tuning.montecarlo.distributions import sample
 
-    gpu = jax.default_backend() != "cpu"
     if chunk_size is None:
-        chunk_size = 65_536 if gpu else mc_study.Study.chunk_size
+        chunk_size = mc_study.Study.chunk_size  # "auto": tuning.montecarlo.chunking
     study = mc_study.Study(n=n, chunk_size=chunk_size, sensitivity_runs=0)
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
