@@ -20,6 +20,9 @@ montecarlo`` does; ``--devices`` overrides, ``XLA_FLAGS`` set by you wins):
    20-30 ms, ``--tune-iterations`` iterations, with a progress bar (to stderr) and a checkpoint every 5
    iterations as the command has.
 
+``--unroll-substeps`` runs the Monte Carlo rows with the RK4 sub-steps written out
+(:class:`pmsmjax.inverters.averaged.AveragedBridge`), for comparing the two program forms on a device.
+
 Columns:
 
 - **kernel**: Monte Carlo: the compiled chunk function alone, summed over the chunks (inputs already on
@@ -130,6 +133,7 @@ def montecarlo_row(workload: str, n: int, **study_kwargs) -> dict:
         "n": n,
         "periods_per_run": periods,
         "n_substeps": study.n_substeps,
+        "unroll_substeps": study.unroll_substeps,
         "chunk_size": size,
         "n_chunks": count,
         "chunk_rule": summary["chunk_rule"],
@@ -218,17 +222,19 @@ def run(
     tune_scenarios: int = 1024,
     tune_iterations: int = 20,
     quick: bool = False,
+    unroll_substeps: bool = False,
 ) -> dict:
     from benchmarks.bench_core import machine_info
 
     if quick:
         n_book, n_short, tune_scenarios, tune_iterations = 8, 64, 4, 3
     rows = []
+    drive = {"unroll_substeps": True} if unroll_substeps else {}
     if n_book:
         book = dict(duration_s=0.02, load_time_s=0.01, decimate=20) if quick else {}
-        rows.append(montecarlo_row("montecarlo book", n_book, **book))
+        rows.append(montecarlo_row("montecarlo book", n_book, **book, **drive))
     if n_short:
-        rows.append(montecarlo_row("montecarlo short", n_short, **SHORT_SCENARIO))
+        rows.append(montecarlo_row("montecarlo short", n_short, **SHORT_SCENARIO, **drive))
     if tune_scenarios:
         rows.append(tuning_row(tune_scenarios, tune_iterations, (0.002, 0.003) if quick else TUNE_DURATION_S))
     return {"quick": quick, "rows": rows, "machine": machine_info()}
@@ -252,7 +258,8 @@ def format_table(r: dict) -> str:
     lines = []
     for row in r["rows"]:
         if row["workload"].startswith("montecarlo"):
-            chunk = f"{row['n_chunks']} x {row['chunk_size']} ({row['chunk_rule'].get('limited_by', 'given')})"
+            limit = row["chunk_rule"].get("limited_by", "given")
+            chunk = f"{row['n_chunks']} x {row['chunk_size']} ({limit})"
             whole = f"{row['whole_s']:.2f} s cold, {row['whole_warm_s']:.2f} s warm"
             ratio = f"{row['whole_over_kernel']:.2f} cold, {row['warm_over_kernel']:.2f} warm"
         else:
@@ -287,10 +294,11 @@ def format_table(r: dict) -> str:
 def _parse(argv):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--n-book", type=int, default=10_000, help="book-scenario runs (default 10000; 0: skip)")
-    p.add_argument("--n-short", type=int, default=200_000, help="short-scenario runs (default 200000; 0: skip)")
+    p.add_argument("--n-short", type=int, default=200_000, help="short-scenario runs (200000; 0: skip)")
     p.add_argument("--tune-scenarios", type=int, default=1024, help="tuning batch (default 1024; 0: skip)")
     p.add_argument("--tune-iterations", type=int, default=20, help="tuning iterations timed (default 20)")
     p.add_argument("--devices", type=int, default=None, help="CPU devices (default: one per core)")
+    p.add_argument("--unroll-substeps", action="store_true", help="Monte Carlo rows: RK4 sub-steps unrolled")
     p.add_argument("--quick", action="store_true", help="tiny sizes (smoke test; timings meaningless)")
     p.add_argument("--json", default="bench_scale.json", help="output JSON (default bench_scale.json)")
     return p.parse_args(argv)
@@ -301,7 +309,9 @@ def main(argv=None) -> dict:
     split_cpu(args.devices)
     from benchmarks.bench_core import publish
 
-    results = run(args.n_book, args.n_short, args.tune_scenarios, args.tune_iterations, args.quick)
+    results = run(
+        args.n_book, args.n_short, args.tune_scenarios, args.tune_iterations, args.quick, args.unroll_substeps
+    )
     return publish(results, format_table(results), args.json)
 
 

@@ -164,6 +164,31 @@ def test_auto_chunk_size_is_recorded_and_refusals_name_the_field(tmp_path):
     assert exit_info.value.code == 2
 
 
+def test_compilation_cache_flag_keeps_the_compiled_chunk_function(tmp_path):
+    # In a child process: the flag sets JAX's cache directory for the whole process.
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    config = tmp_path / "study.toml"
+    config.write_text(
+        "[study]\nsensitivity_runs = 0\ndecimate = 20\n[scenario]\nduration_s = 0.02\nload_time_s = 0.01\n"
+        '[parameters."motor.R"]\ntolerance = 0.2\n'
+    )
+    cache, out = tmp_path / "cache", tmp_path / "mc"
+    args = ["montecarlo", "--n", "4", "--out", str(out), "--config", str(config), "--no-figures"]
+    args += ["--no-progress", "--compilation-cache", str(cache)]
+    code = f"import sys; from pmsmjax.cli import main; sys.exit(main({args!r}))"
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=root)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert any(cache.iterdir())  # the chunk function's executable, kept for the next run
+    assert json.loads((out / "summary.json").read_text())["n_runs"] == 4
+
+
 # -------------------------------------------------------------------------------------- Spearman ranks
 
 
@@ -240,6 +265,33 @@ def test_ahead_of_time_evaluation_equals_the_jit_one(tuning_problem):
     evaluate = compile_value_and_grad(theta, drive, batch, weights, param)
     for a, b in zip(evaluate(theta), _value_and_grad(theta, drive, batch, weights, param), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+# ------------------------------------------------------------------------------------- unrolled sub-steps
+
+
+def test_unrolled_substeps_are_the_same_equations_in_one_program():
+    import re
+
+    import pmsmjax
+    from pmsmjax.inverters.averaged import AveragedBridge
+    from pmsmjax.simulate import period_inputs
+
+    drive = book_drive()
+    unrolled = mc_study.build_drive(Study(unroll_substeps=True))
+    assert unrolled.bridge.unroll_substeps and not drive.bridge.unroll_substeps
+    assert isinstance(unrolled.bridge, AveragedBridge)
+    assert float(unrolled.bridge.u_dc) == float(drive.bridge.u_dc)
+    scenario = pmsmjax.presets.book_scenario(600.0, 3.0, load_time_s=0.01, duration_s=0.02)
+    x = jax.tree.map(lambda a: a[0], period_inputs(scenario, drive.Ts))
+    for d, expected in ((drive, {"unroll=1"}), (unrolled, {"unroll=10"})):  # the 10 RK4 sub-steps
+        jaxpr = str(jax.make_jaxpr(lambda s, d=d: d.step(s, x))(d.init()))
+        assert set(re.findall(r"unroll=\w+", jaxpr)) == expected
+    a, b = pmsmjax.simulate(drive, scenario), pmsmjax.simulate(unrolled, scenario)
+    for name in ("omega_m", "i_dq", "theta_e", "u_dq_ref"):
+        np.testing.assert_allclose(getattr(b, name), getattr(a, name), rtol=1e-13, atol=1e-12, err_msg=name)
+    with pytest.raises(ParameterError, match="unroll_substeps"):
+        Study(unroll_substeps="yes")
 
 
 # ------------------------------------------------------------------------------------------- benchmark

@@ -16,7 +16,7 @@ study TOML (--config; every table and key optional, flags win over it):
                 nonphysical = "refuse" | "clip", decimate = 40, sensitivity_runs = 256
   [drive]       motor = "book" (preset or motor TOML), gains = "tune_out/gains.toml" (relative to this
                 file), current_bandwidth = 1100.0 (rad/s), speed_bandwidth = 50.0 (rad/s),
-                current_limit = 15.0 (A), u_dc = 311.0 (V), n_substeps = 10
+                current_limit = 15.0 (A), u_dc = 311.0 (V), n_substeps = 10, unroll_substeps = false
   [scenario]    speed_rpm = 1000.0, load_nm = 10.0, load_time_s = 0.2, duration_s = 0.4
   [thresholds]  current_a = 15.75 (A; default 1.05 x current_limit), tracking_rpm = 10.0
   [parameters."motor.R"]   distribution = "uniform" | "normal" | "lognormal", tolerance = 0.2 (+-20 %),
@@ -71,6 +71,17 @@ def add_parser(sub):
     p.add_argument(
         "--distributed", action="store_true", help="multi-host: call jax.distributed.initialize() first"
     )
+    p.add_argument(
+        "--compilation-cache",
+        metavar="DIR",
+        help="keep compiled chunk functions in DIR (JAX's persistent cache): a later study of the same "
+        "shape (drive, scenario length, chunk size, devices) skips most of the compile",
+    )
+    p.add_argument(
+        "--unroll-substeps",
+        action="store_true",
+        help="write the RK4 sub-steps out instead of looping (faster kernel on a GPU; same results)",
+    )
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
@@ -108,6 +119,11 @@ def run(args) -> int:
         jax.distributed.initialize()  # cluster settings from the environment (SLURM, Cloud TPU, ...)
     else:
         split_cpu(args.devices)
+    if args.compilation_cache:
+        import jax
+
+        jax.config.update("jax_compilation_cache_dir", args.compilation_cache)
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     from tuning.montecarlo import run_study
     from tuning.montecarlo.study import Study, read_study_toml
 
@@ -120,6 +136,7 @@ def run(args) -> int:
         ("sampling", "latin_hypercube" if args.latin_hypercube else None),
         ("nonphysical", "clip" if args.clip else None),
         ("gains", args.gains),
+        ("unroll_substeps", True if args.unroll_substeps else None),
     ):
         if value is not None:
             kwargs[key] = value
