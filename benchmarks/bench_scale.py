@@ -28,8 +28,9 @@ Columns:
 - **kernel**: Monte Carlo: the compiled chunk function alone, summed over the chunks (inputs already on
   the device, results left there); tuning: one cost-and-gradient evaluation of the batch (median of 7).
 - **whole call**: Monte Carlo: ``run_study`` wall time, *cold* (first call for the study: compile
-  included) and *warm* (the same study again into a new folder: compiled function reused); tuning: the
-  median wall time per iteration inside ``tune`` (compile excluded).
+  included) and *warm* (the same study again into a new folder: compiled function reused; the median of
+  ``--repeats`` calls, each followed by a kernel timing, the kernel column being their median); tuning:
+  the median wall time per iteration inside ``tune`` (compile excluded).
 - **host**: tuning only: CPU time of the Python thread per iteration (median; XLA computes on its own
   threads, so this is the host's own work: dispatch, optimiser step, progress bar, checkpoints).
 - **periods/s, runs/s**: over the kernel time; for tuning, scenario-periods (and scenarios) differentiated
@@ -103,8 +104,9 @@ def kernel_time(runner, values, size: int, count: int) -> float:
     return total
 
 
-def montecarlo_row(workload: str, n: int, **study_kwargs) -> dict:
-    """Row 1 or 2 of the module docstring."""
+def montecarlo_row(workload: str, n: int, repeats: int = 3, **study_kwargs) -> dict:
+    """Row 1 or 2 of the module docstring: one cold call, then ``repeats`` warm calls and kernel timings
+    in turn (medians), so that a change in the shared machine's load falls on both alike."""
     import numpy as np
 
     from tuning.montecarlo import run_study
@@ -114,19 +116,22 @@ def montecarlo_row(workload: str, n: int, **study_kwargs) -> dict:
 
     load_before = _load()
     study = mc_study.Study(n=n, sensitivity_runs=0, **study_kwargs)
+    warm, kernel = [], []
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
         summary = run_study(study, f"{tmp}/cold", progress=False, figures=False)
         cold = time.perf_counter() - start
-        start = time.perf_counter()
-        warm_summary = run_study(study, f"{tmp}/warm", progress=False, figures=False)
-        warm = time.perf_counter() - start
-    runner = _runner(study, None)
-    dists = mc_study.distributions(study, runner.drive)
-    samples = sample(dists, study.n, study.seed, study.sampling)
-    values = np.stack([samples[k] for k in runner.names], axis=1)
-    size, count = summary["chunks"]["size"], summary["chunks"]["count"]
-    kernel = kernel_time(runner, values, size, count)
+        runner = _runner(study, None)
+        dists = mc_study.distributions(study, runner.drive)
+        samples = sample(dists, study.n, study.seed, study.sampling)
+        values = np.stack([samples[k] for k in runner.names], axis=1)
+        size, count = summary["chunks"]["size"], summary["chunks"]["count"]
+        for k in range(repeats):
+            start = time.perf_counter()
+            warm_summary = run_study(study, f"{tmp}/warm{k}", progress=False, figures=False)
+            warm.append(time.perf_counter() - start)
+            kernel.append(kernel_time(runner, values, size, count))
+    warm, kernel = float(np.median(warm)), float(np.median(kernel))
     periods = study.n_periods
     return {
         "workload": workload,
@@ -223,18 +228,19 @@ def run(
     tune_iterations: int = 20,
     quick: bool = False,
     unroll_substeps: bool = False,
+    repeats: int = 3,
 ) -> dict:
     from benchmarks.bench_core import machine_info
 
     if quick:
-        n_book, n_short, tune_scenarios, tune_iterations = 8, 64, 4, 3
+        n_book, n_short, tune_scenarios, tune_iterations, repeats = 8, 64, 4, 3, 1
     rows = []
     drive = {"unroll_substeps": True} if unroll_substeps else {}
     if n_book:
         book = dict(duration_s=0.02, load_time_s=0.01, decimate=20) if quick else {}
-        rows.append(montecarlo_row("montecarlo book", n_book, **book, **drive))
+        rows.append(montecarlo_row("montecarlo book", n_book, repeats, **book, **drive))
     if n_short:
-        rows.append(montecarlo_row("montecarlo short", n_short, **SHORT_SCENARIO, **drive))
+        rows.append(montecarlo_row("montecarlo short", n_short, repeats, **SHORT_SCENARIO, **drive))
     if tune_scenarios:
         rows.append(tuning_row(tune_scenarios, tune_iterations, (0.002, 0.003) if quick else TUNE_DURATION_S))
     return {"quick": quick, "rows": rows, "machine": machine_info()}
@@ -299,6 +305,7 @@ def _parse(argv):
     p.add_argument("--tune-iterations", type=int, default=20, help="tuning iterations timed (default 20)")
     p.add_argument("--devices", type=int, default=None, help="CPU devices (default: one per core)")
     p.add_argument("--unroll-substeps", action="store_true", help="Monte Carlo rows: RK4 sub-steps unrolled")
+    p.add_argument("--repeats", type=int, default=3, help="warm calls and kernel timings per row (3)")
     p.add_argument("--quick", action="store_true", help="tiny sizes (smoke test; timings meaningless)")
     p.add_argument("--json", default="bench_scale.json", help="output JSON (default bench_scale.json)")
     return p.parse_args(argv)
@@ -310,7 +317,13 @@ def main(argv=None) -> dict:
     from benchmarks.bench_core import publish
 
     results = run(
-        args.n_book, args.n_short, args.tune_scenarios, args.tune_iterations, args.quick, args.unroll_substeps
+        args.n_book,
+        args.n_short,
+        args.tune_scenarios,
+        args.tune_iterations,
+        args.quick,
+        args.unroll_substeps,
+        args.repeats,
     )
     return publish(results, format_table(results), args.json)
 

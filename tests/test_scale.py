@@ -150,6 +150,55 @@ def test_a_missing_middle_chunk_is_recomputed_between_loaded_ones(study_dir, tmp
     assert again["metrics"] == reference["metrics"] and again["spearman"] == reference["spearman"]
 
 
+def test_two_processes_give_the_same_summary(study_dir, tmp_path):
+    # jax.distributed on one machine: two processes with one CPU device each (the multi-host path:
+    # samples drawn by both, shards fed by each, results gathered, files written by process 0, the
+    # automatic chunk size agreed on), against the one-process study above.
+    import json
+    import os
+    import socket
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from tuning.montecarlo import VOLATILE_KEYS
+
+    with socket.socket() as sock:
+        sock.bind(("localhost", 0))
+        port = sock.getsockname()[1]
+    root = Path(__file__).resolve().parent.parent
+    study = {**vars(STUDY), "chunk_size": "auto"}
+    code = (
+        "import jax, json, sys; jax.config.update('jax_enable_x64', True)\n"
+        f"jax.distributed.initialize('localhost:{port}', num_processes=2, process_id=int(sys.argv[1]))\n"
+        "from tuning.montecarlo import run_study; from tuning.montecarlo.study import Study\n"
+        f"s = run_study(Study(**{study!r}), sys.argv[2], progress=False, figures=False)\n"
+        "print(json.dumps(s))\n"
+    )
+    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=1", "PYTHONPATH": str(root)}
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", code, str(i), str(tmp_path)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env,
+            cwd=root,
+        )
+        for i in (0, 1)
+    ]
+    outputs = [p.communicate(timeout=600) for p in procs]
+    for p, (_, err) in zip(procs, outputs, strict=True):
+        assert p.returncode == 0, err[-2000:]
+    two = json.loads(outputs[0][0].strip().splitlines()[-1])
+    assert outputs[1][0].strip().splitlines()[-1] == "null"  # process 1 computes, process 0 reports
+    assert two["devices"] == {"count": 2, "kind": "cpu", "processes": 2}
+    assert two["chunk_rule"]["limited_by"] == "runs" and two["chunk_rule"]["free_bytes_per_device"] > 2**20
+    _, reference = study_dir
+    strip = lambda s: {k: v for k, v in s.items() if k not in (*VOLATILE_KEYS, "study")}
+    assert strip(two) == strip(reference)
+
+
 def test_auto_chunk_size_is_recorded_and_refusals_name_the_field(tmp_path):
     s = run_study(Study(**{**vars(STUDY), "chunk_size": "auto"}), tmp_path, progress=False, figures=False)
     rule = s["chunk_rule"]

@@ -69,8 +69,14 @@ def add_parser(sub):
     )
     add_gains_flag(p)
     p.add_argument(
-        "--distributed", action="store_true", help="multi-host: call jax.distributed.initialize() first"
+        "--distributed",
+        action="store_true",
+        help="multi-host: call jax.distributed.initialize() first (cluster from SLURM, Open MPI, ... or the "
+        "three flags below)",
     )
+    p.add_argument("--coordinator", metavar="HOST:PORT", help="with --distributed: process 0's address")
+    p.add_argument("--num-processes", type=int, help="with --distributed: number of processes")
+    p.add_argument("--process-id", type=int, help="with --distributed: this process's index, 0 writes files")
     p.add_argument(
         "--compilation-cache",
         metavar="DIR",
@@ -116,7 +122,10 @@ def run(args) -> int:
     if args.distributed:
         import jax
 
-        jax.distributed.initialize()  # cluster settings from the environment (SLURM, Cloud TPU, ...)
+        # Cluster settings from the flags, else from the environment (SLURM, Open MPI, Cloud TPU, ...).
+        given = {"coordinator_address": args.coordinator, "num_processes": args.num_processes}
+        given["process_id"] = args.process_id
+        jax.distributed.initialize(**{k: v for k, v in given.items() if v is not None})
     else:
         split_cpu(args.devices)
     if args.compilation_cache:

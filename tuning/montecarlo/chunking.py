@@ -82,12 +82,16 @@ def device_free_bytes(devices) -> int:
 
 
 def _agree_min(x: int) -> int:
-    """The smallest ``x`` over every process (identity with one process)."""
+    """The smallest ``x`` bytes over every process (identity with one process), to the MiB below.
+
+    Gathered in MiB as int32: without x64, JAX would narrow an int64 byte count (20 GB of RAM
+    wrapped round to a negative number, seen on two CPU processes)."""
     if jax.process_count() == 1:
         return x
     from jax.experimental import multihost_utils
 
-    return int(np.min(multihost_utils.process_allgather(np.asarray(x, np.int64))))
+    mib = np.asarray(min(x // 2**20, np.iinfo(np.int32).max), np.int32)
+    return int(np.min(multihost_utils.process_allgather(mib))) * 2**20
 
 
 def auto_chunk_size(
