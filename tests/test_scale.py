@@ -23,7 +23,9 @@ from tuning.autotune.tuner import _value_and_grad, compile_value_and_grad
 from tuning.montecarlo import StudyRunner, chunk_layout, load_results, run_study
 from tuning.montecarlo import study as mc_study
 from tuning.montecarlo.chunking import (
+    MAX_RUNS,
     MEMORY_FRACTION,
+    MIN_RUN_PERIODS,
     THROUGHPUT_CAP,
     auto_chunk_size,
     device_free_bytes,
@@ -51,6 +53,15 @@ def test_chunk_rule_takes_the_smallest_of_memory_throughput_and_runs():
     assert size == 4 * THROUGHPUT_CAP["gpu"] and how["limited_by"] == "throughput"
     size, _ = auto_chunk_size(10**7, 2, 1000, free_bytes=80 * 2**30, platform="cpu")
     assert size == 2 * THROUGHPUT_CAP["cpu"]
+    # Short runs on a CPU: at least 2^18 run-periods per device, at most 16,384 runs; long runs keep the cap.
+    size, _ = auto_chunk_size(10**7, 2, 1000, n_periods=20, free_bytes=80 * 2**30, platform="cpu")
+    assert size == 2 * math.ceil(MIN_RUN_PERIODS["cpu"] / 20) == 26_216
+    size, _ = auto_chunk_size(10**7, 2, 1000, n_periods=1, free_bytes=80 * 2**30, platform="cpu")
+    assert size == 2 * MAX_RUNS["cpu"]
+    size, _ = auto_chunk_size(10**7, 2, 1000, n_periods=4000, free_bytes=80 * 2**30, platform="cpu")
+    assert size == 2 * THROUGHPUT_CAP["cpu"]
+    size, _ = auto_chunk_size(10**7, 1, 1000, n_periods=20, free_bytes=80 * 2**30, platform="gpu")
+    assert size == THROUGHPUT_CAP["gpu"]
     # A small study: all of it in one chunk.
     size, how = auto_chunk_size(300, 2, 1000, free_bytes=80 * 2**30, platform="cpu")
     assert size == 300 and how["limited_by"] == "runs"
@@ -89,6 +100,11 @@ def test_bytes_per_run_bounds_xla_memory_analysis(vary_speed):
     per_run = (total(64) - total(16)) / 48
     estimate = runner.per_run_bytes()
     assert per_run <= estimate <= 5 * per_run, (per_run, estimate)
+    # The output shapes it counts are the kernel's own.
+    traced = jax.eval_shape(runner._packed, jax.ShapeDtypeStruct((len(runner.names),), runner.dtype))
+    assert jax.tree.structure(traced) == jax.tree.structure(runner.output_shapes())
+    for a, b in zip(jax.tree.leaves(traced), jax.tree.leaves(runner.output_shapes()), strict=True):
+        assert (a.shape, a.dtype) == (b.shape, b.dtype)
 
 
 # ------------------------------------------------------------------------------------- chunk layout

@@ -3,7 +3,9 @@
 The rule (:func:`auto_chunk_size`), per device, then times the device count::
 
     runs per device = min( floor(MEMORY_FRACTION * free bytes / bytes per run),   # what fits
-                           THROUGHPUT_CAP[platform] )                              # what still pays
+                           target[platform] )                                      # what still pays
+    target = THROUGHPUT_CAP, raised for short runs on a CPU to
+             min(ceil(MIN_RUN_PERIODS / periods per run), MAX_RUNS)
 
 rounded down to at least two runs per device (:func:`tuning.montecarlo.runner.chunk_layout` then
 balances the chunks over the study's ``n`` runs).
@@ -12,8 +14,8 @@ balances the chunks over the study's ``n`` runs).
   over this process's devices; on the CPU, which reports no memory statistics, the host's available RAM
   (``MemAvailable`` of /proc/meminfo, else ``sysconf``) shared by its CPU devices. With several processes
   (``jax.distributed``) every process takes the smallest of all processes' values, so they agree.
-- **bytes per run** (:func:`bytes_per_run`): an upper bound of what one run holds on the device, from the
-  shapes of the compiled function (``jax.eval_shape``, nothing runs): the parameter row, the metrics and
+- **bytes per run** (:func:`bytes_per_run`): an upper bound of what one run holds on the device, from
+  shapes alone (nothing is traced or run): the parameter row, the metrics and
   the decimated record it returns, ``TEMP_FACTOR`` times the drive's scan carry (RK4 stages, the
   controller's intermediates, double-buffered carries) and, when the study varies a scenario parameter,
   the scenario's per-period inputs (``N`` values each: XLA materialises them per run then). On the book
@@ -27,6 +29,12 @@ balances the chunks over the study's ``n`` runs).
   (``benchmarks/bench_montecarlo.py --sweep``: 2048 runs on 2 CPU devices were the fastest of 256-8192);
   GPU and TPU: 262,144 runs per device, the largest batch measured (one H100, issue 19: 703 M periods/s,
   against 292 M at 65,536); larger batches are unmeasured, so not assumed to pay.
+- **Short runs on a CPU** (``MIN_RUN_PERIODS``, ``MAX_RUNS``): every chunk costs the host about 1.5 ms
+  (dispatch, fetch, file), and on a CPU the host shares the cores with the computation; a chunk of 2048
+  runs of 20 periods computes in 3 ms. So a CPU chunk carries at least 2^18 run-periods per device, up to
+  16,384 runs per device (a million 20-period runs on 2 CPU devices, measured: whole call 3.3 s with chunks
+  of 2048, 2.4-2.6 s with 8k-32k, kernel throughput flat from 1k to 16k runs per device and down by a
+  half at 60k, by cache misses). Runs of 256 periods or more keep the throughput cap.
 
 An explicit ``chunk_size`` (study TOML or ``--chunk-size``) overrides the rule.
 """
@@ -42,6 +50,9 @@ MEMORY_FRACTION = 0.5
 TEMP_FACTOR = 16
 #: Runs per device beyond which throughput was not measured to improve, by platform.
 THROUGHPUT_CAP = {"cpu": 1024, "gpu": 262_144, "tpu": 262_144}
+#: Least run-periods per device and chunk (short runs), and the most runs per device then, by platform.
+MIN_RUN_PERIODS = {"cpu": 2**18}
+MAX_RUNS = {"cpu": 16_384}
 #: Free memory assumed when neither the device nor the operating system says (bytes).
 FALLBACK_FREE_BYTES = 4 * 2**30
 
@@ -99,14 +110,16 @@ def auto_chunk_size(
     n_devices: int,
     per_run_bytes: int,
     *,
+    n_periods: int | None = None,
     free_bytes: int | None = None,
     platform: str | None = None,
 ) -> tuple[int, dict]:
     """Runs per chunk by the module's rule, and how it was reached (for summary.json).
 
     **Arguments:** `n_runs`: the study's runs; `n_devices`: devices in the mesh (all processes);
-    `per_run_bytes`: :func:`bytes_per_run`; `free_bytes` (per device) and `platform` (``"cpu"``,
-    ``"gpu"``, ...) default to what this process's devices report.
+    `per_run_bytes`: :func:`bytes_per_run`; `n_periods`: periods per run (None: no short-run rule);
+    `free_bytes` (per device) and `platform` (``"cpu"``, ``"gpu"``, ...) default to what this process's
+    devices report.
 
     **Returns:** ``(runs per chunk, {"rule", "platform", "per_run_bytes", "free_bytes_per_device",
     "limited_by"})``; ``limited_by`` is ``"memory"``, ``"throughput"`` or ``"runs"`` (the study is smaller).
@@ -117,6 +130,8 @@ def auto_chunk_size(
         free_bytes = _agree_min(device_free_bytes(local))
     by_memory = int(MEMORY_FRACTION * free_bytes) // max(int(per_run_bytes), 1)
     cap = THROUGHPUT_CAP.get(platform, THROUGHPUT_CAP["gpu"])
+    if n_periods and platform in MIN_RUN_PERIODS:
+        cap = max(cap, min(-(-MIN_RUN_PERIODS[platform] // n_periods), MAX_RUNS[platform]))
     per_device = max(min(by_memory, cap), 2)
     size = per_device * n_devices
     limited_by = "memory" if by_memory < cap else "throughput"
@@ -132,15 +147,15 @@ def auto_chunk_size(
     return size, detail
 
 
-def bytes_per_run(one, n_params: int, dtype, carry, period_inputs) -> int:
+def bytes_per_run(outputs, n_params: int, dtype, carry, period_inputs) -> int:
     """Upper bound of the device bytes of one run (see the module docstring).
 
-    **Arguments:** `one`: the per-run function ``values (P,) -> outputs``; `n_params`: P; `dtype`: the
-    parameters' dtype; `carry`: a pytree of the scan carry (``drive.init()``, arrays or shape structs);
+    **Arguments:** `outputs`: one run's outputs (arrays or shape structs); `n_params`: P, the sampled
+    parameters; `dtype`: their dtype; `carry`: a pytree of the scan carry (``drive.init()``, arrays or
+    shape structs);
     `period_inputs`: the per-run scenario inputs over every period (arrays or shape structs).
     """
     row = jax.ShapeDtypeStruct((n_params,), dtype)
-    outputs = jax.eval_shape(one, row)
     return tree_bytes(row) + tree_bytes(outputs) + tree_bytes(period_inputs) + TEMP_FACTOR * tree_bytes(carry)
 
 
@@ -152,4 +167,6 @@ __all__ = [
     "MEMORY_FRACTION",
     "TEMP_FACTOR",
     "THROUGHPUT_CAP",
+    "MIN_RUN_PERIODS",
+    "MAX_RUNS",
 ]

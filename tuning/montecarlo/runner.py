@@ -141,7 +141,7 @@ class StudyRunner:
             m, record = one(values)
             return jnp.stack([m[k] for k in COLUMNS]), record
 
-        self._one = one
+        self._packed = packed
         self._forward = jax.jit(jax.vmap(packed), in_shardings=self.sharding, out_shardings=self.sharding)
         self._jacobian = jax.jit(jax.vmap(jac), in_shardings=self.sharding, out_shardings=self.sharding)
         self._compiled = {}
@@ -201,13 +201,21 @@ class StudyRunner:
         (``{name: (B, N / decimate)}``) of every row of ``values (B, P)`` (B a multiple of two per device)."""
         return self.fetch(self.dispatch(values))
 
+    def output_shapes(self) -> tuple:
+        """One run's outputs of the forward function, as shape structs: the stacked :data:`COLUMNS` and
+        the decimated record (from the study's settings: tracing the kernel for them would cost as much as
+        lowering it; tests/test_scale.py checks them against ``jax.eval_shape``)."""
+        n_record = self.study.n_periods // self.study.decimate
+        record = {k: jax.ShapeDtypeStruct((n_record,), self.dtype) for k in ("speed_rpm", "i_q_a")}
+        return jax.ShapeDtypeStruct((len(COLUMNS),), self.dtype), record
+
     def per_run_bytes(self) -> int:
         """Upper bound of one run's device memory (:func:`tuning.montecarlo.chunking.bytes_per_run`)."""
         d, s = mc_study.apply_sample(self.drive, self.study, (), ())
         carry = jax.eval_shape(d.init)
         varied = any(n.startswith("scenario.") for n in self.names)
         inputs = jax.eval_shape(lambda: period_inputs(s, d.Ts)) if varied else None
-        return bytes_per_run(self._one, len(self.names), self.dtype, carry, inputs)
+        return bytes_per_run(self.output_shapes(), len(self.names), self.dtype, carry, inputs)
 
     def chunk_size(self, n: int) -> tuple[int, dict]:
         """The study's ``chunk_size``, or with ``"auto"`` the rule of :mod:`tuning.montecarlo.chunking`;
@@ -215,7 +223,7 @@ class StudyRunner:
         n_dev = len(self.mesh.devices.flat)
         if self.study.chunk_size != "auto":
             return self.study.chunk_size, {"rule": "given"}
-        return auto_chunk_size(n, n_dev, self.per_run_bytes())
+        return auto_chunk_size(n, n_dev, self.per_run_bytes(), n_periods=self.study.n_periods)
 
     def jacobian(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``((B, n_metrics, P) derivatives, (B,) finite flags)`` for the rows of ``values``."""

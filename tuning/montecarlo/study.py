@@ -78,7 +78,8 @@ class Study:
     - `chunk_size`: most runs per chunk (one compiled call, one file on disk; chunks are balanced and
       rounded up to two runs per device), or ``"auto"`` (default): from the device's free memory and the
       drive's bytes per run, capped where throughput stops improving (:mod:`tuning.montecarlo.chunking`:
-      2048 on 2 CPU devices, the fastest of 256-8192 measured; 262,144 per GPU).
+      2048 on 2 CPU devices for runs of 256 periods or more, the fastest of 256-8192 measured, more for
+      shorter runs; 262,144 per GPU).
     - `nonphysical`: what to do with samples outside a parameter's physical range: ``refuse`` (error) or
       ``clip`` (moved to the bound, counted in the summary).
     - `decimate`: keep every this many periods of speed and current for the fan chart.
