@@ -227,6 +227,9 @@ def test_auto_chunk_size_is_recorded_and_refusals_name_the_field(tmp_path):
     with pytest.raises(SystemExit) as exit_info:
         main(["montecarlo", "--chunk-size", "big", "--out", str(tmp_path / "x")])
     assert exit_info.value.code == 2
+    out = ["--out", str(tmp_path / "x")]
+    assert main(["montecarlo", "--process-id", "1", *out]) == 2  # cluster flags need --distributed
+    assert main(["montecarlo", "--distributed", "--num-processes", "2", "--process-id", "2", *out]) == 2
 
 
 def test_compilation_cache_flag_keeps_the_compiled_chunk_function(tmp_path):

@@ -74,14 +74,26 @@ def add_parser(sub):
         help="multi-host: call jax.distributed.initialize() first (cluster from SLURM, Open MPI, ... or the "
         "three flags below)",
     )
-    p.add_argument("--coordinator", metavar="HOST:PORT", help="with --distributed: process 0's address")
-    p.add_argument("--num-processes", type=int, help="with --distributed: number of processes")
-    p.add_argument("--process-id", type=int, help="with --distributed: this process's index, 0 writes files")
+    p.add_argument(
+        "--coordinator",
+        metavar="HOST:PORT",
+        help="with --distributed: process 0's address (default: from the cluster's environment)",
+    )
+    p.add_argument(
+        "--num-processes",
+        type=checks.count(),
+        help="with --distributed: number of processes (default: from the cluster's environment)",
+    )
+    p.add_argument(
+        "--process-id",
+        type=checks.count(minimum=0),
+        help="with --distributed: this process's index, 0 writes the files (default: from the environment)",
+    )
     p.add_argument(
         "--compilation-cache",
         metavar="DIR",
         help="keep compiled chunk functions in DIR (JAX's persistent cache): a later study of the same "
-        "shape (drive, scenario length, chunk size, devices) skips most of the compile",
+        "shape (drive, scenario length, chunk size, devices) skips most of the compile (default: none)",
     )
     p.add_argument(
         "--unroll-substeps",
@@ -112,6 +124,18 @@ def precheck(args) -> None:
         )
     if args.devices is not None and args.distributed:
         raise ParameterError("--devices splits one machine's CPU; with --distributed leave it out.")
+    cluster = [f for f in ("coordinator", "num_processes", "process_id") if getattr(args, f) is not None]
+    if cluster and not args.distributed:
+        raise ParameterError(f"{checks.flag(cluster[0])} describes a multi-host run: add --distributed.")
+    if (
+        args.num_processes is not None
+        and args.process_id is not None
+        and args.process_id >= args.num_processes
+    ):
+        raise ParameterError(
+            f"--process-id {args.process_id}: processes are numbered 0 to {args.num_processes - 1} "
+            f"(--num-processes {args.num_processes})."
+        )
 
 
 def run(args) -> int:
