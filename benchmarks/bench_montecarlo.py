@@ -34,10 +34,13 @@ from tuning.montecarlo.cpu_devices import split_cpu
 def _parse(argv):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--n", type=int, default=10_000, help="runs (default 10000)")
-    p.add_argument("--chunk-size", type=int, default=None, help="runs per chunk (default 2048; 65536 on GPU)")
+    p.add_argument(
+        "--chunk-size", type=int, default=None, help="most runs per chunk (default: auto, from device memory)"
+    )
     p.add_argument("--one-by-one", type=int, default=20, help="runs timed one by one (default 20)")
     p.add_argument("--sweep", action="store_true", help="also time chunk sizes 256..8192")
     p.add_argument("--devices", type=int, default=None, help="CPU devices (default: one per core)")
+    p.add_argument("--unroll-substeps", action="store_true", help="RK4 sub-steps unrolled (for GPUs)")
     p.add_argument(
         "--json", default="bench_montecarlo.json", help="output JSON (default bench_montecarlo.json)"
     )
@@ -107,8 +110,13 @@ def sweep(study, values, sizes) -> list[dict]:
     return rows
 
 
-def run(n: int = 10_000, chunk_size: int | None = None, k_one: int = 20, do_sweep: bool = False) -> dict:
-    import jax
+def run(
+    n: int = 10_000,
+    chunk_size: int | None = None,
+    k_one: int = 20,
+    do_sweep: bool = False,
+    unroll_substeps: bool = False,
+) -> dict:
     import numpy as np
 
     from benchmarks.bench_core import machine_info
@@ -116,10 +124,9 @@ def run(n: int = 10_000, chunk_size: int | None = None, k_one: int = 20, do_swee
     from tuning.montecarlo import study as mc_study
     from tuning.montecarlo.distributions import sample
 
-    gpu = jax.default_backend() != "cpu"
     if chunk_size is None:
-        chunk_size = 65_536 if gpu else mc_study.Study.chunk_size
-    study = mc_study.Study(n=n, chunk_size=chunk_size, sensitivity_runs=0)
+        chunk_size = mc_study.Study.chunk_size  # "auto": tuning.montecarlo.chunking
+    study = mc_study.Study(n=n, chunk_size=chunk_size, sensitivity_runs=0, unroll_substeps=unroll_substeps)
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
         summary = run_study(study, tmp, progress=False, figures=False)
@@ -133,6 +140,7 @@ def run(n: int = 10_000, chunk_size: int | None = None, k_one: int = 20, do_swee
         "n_runs": n,
         "n_periods_per_run": periods,
         "n_substeps": study.n_substeps,
+        "unroll_substeps": unroll_substeps,
         "chunk_size": summary["chunks"]["size"],
         "n_chunks": summary["chunks"]["count"],
         "devices": summary["devices"],
@@ -184,7 +192,7 @@ def main(argv=None) -> dict:
     split_cpu(args.devices)
     from benchmarks.bench_core import publish
 
-    results = run(args.n, args.chunk_size, args.one_by_one, args.sweep)
+    results = run(args.n, args.chunk_size, args.one_by_one, args.sweep, args.unroll_substeps)
     return publish(results, format_table(results), args.json)
 
 

@@ -21,8 +21,8 @@ scipy at 10 kHz), the 7 FOC gains in log-space from the design-rule gains, bound
 6. the machine.
 
 Wall times exclude compilation, which is reported separately: the searches compile their cost before
-starting the clock; the tuner's timestamps have its reported ``compile_time_s`` (first gradient call
-minus a steady one) subtracted. ``*_incl_compile_s`` keys keep the raw figures.
+starting the clock; the tuner's timestamps have its reported ``compile_time_s`` (its ahead-of-time
+compile) subtracted. ``*_incl_compile_s`` keys keep the raw figures.
 
 ``main(json_path)`` prints a table and writes the figures as JSON (atomically). ``quick=True`` shrinks
 every size so the benchmark runs in seconds (smoke tests); its figures mean nothing.

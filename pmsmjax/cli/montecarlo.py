@@ -12,11 +12,11 @@ from .gains import add_gains_flag, read_gains_flag
 STUDY_TOML = """\
 study TOML (--config; every table and key optional, flags win over it):
 
-  [study]       n = 1000, seed = 0, sampling = "random" | "latin_hypercube", chunk_size = 2048,
+  [study]       n = 1000, seed = 0, sampling = "random" | "latin_hypercube", chunk_size = "auto" | N,
                 nonphysical = "refuse" | "clip", decimate = 40, sensitivity_runs = 256
   [drive]       motor = "book" (preset or motor TOML), gains = "tune_out/gains.toml" (relative to this
                 file), current_bandwidth = 1100.0 (rad/s), speed_bandwidth = 50.0 (rad/s),
-                current_limit = 15.0 (A), u_dc = 311.0 (V), n_substeps = 10
+                current_limit = 15.0 (A), u_dc = 311.0 (V), n_substeps = 10, unroll_substeps = false
   [scenario]    speed_rpm = 1000.0, load_nm = 10.0, load_time_s = 0.2, duration_s = 0.4
   [thresholds]  current_a = 15.75 (A; default 1.05 x current_limit), tracking_rpm = 10.0
   [parameters."motor.R"]   distribution = "uniform" | "normal" | "lognormal", tolerance = 0.2 (+-20 %),
@@ -50,7 +50,11 @@ def add_parser(sub):
     p.add_argument("--out", default="montecarlo_out", help="output folder (created), default: montecarlo_out")
     p.add_argument("--config", default=None, help="study TOML, layout below (default: none)")
     p.add_argument("--seed", type=checks.count(minimum=0), help="sampling seed (default 0)")
-    p.add_argument("--chunk-size", type=checks.count(), help="runs per chunk (default 2048)")
+    p.add_argument(
+        "--chunk-size",
+        type=_chunk_size,
+        help="most runs per chunk, or 'auto' (default: from the device memory and the drive's bytes per run)",
+    )
     p.add_argument("--latin-hypercube", action="store_true", help="Latin hypercube sampling")
     p.add_argument("--clip", action="store_true", help="clip non-physical samples instead of refusing")
     p.add_argument(
@@ -65,11 +69,45 @@ def add_parser(sub):
     )
     add_gains_flag(p)
     p.add_argument(
-        "--distributed", action="store_true", help="multi-host: call jax.distributed.initialize() first"
+        "--distributed",
+        action="store_true",
+        help="multi-host: call jax.distributed.initialize() first (cluster from SLURM, Open MPI, ... or the "
+        "three flags below)",
+    )
+    p.add_argument(
+        "--coordinator",
+        metavar="HOST:PORT",
+        help="with --distributed: process 0's address (default: from the cluster's environment)",
+    )
+    p.add_argument(
+        "--num-processes",
+        type=checks.count(),
+        help="with --distributed: number of processes (default: from the cluster's environment)",
+    )
+    p.add_argument(
+        "--process-id",
+        type=checks.count(minimum=0),
+        help="with --distributed: this process's index, 0 writes the files (default: from the environment)",
+    )
+    p.add_argument(
+        "--compilation-cache",
+        metavar="DIR",
+        help="keep compiled chunk functions in DIR (JAX's persistent cache): a later study of the same "
+        "shape (drive, scenario length, chunk size, devices) skips most of the compile (default: none)",
+    )
+    p.add_argument(
+        "--unroll-substeps",
+        action="store_true",
+        help="write the RK4 sub-steps out instead of looping (faster kernel on a GPU; same results)",
     )
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
+
+
+def _chunk_size(text: str):
+    """``--chunk-size``: ``auto``, or a whole number >= 1 (checked as the other counts are)."""
+    return text if text == "auto" else checks.count()(text)
 
 
 def precheck(args) -> None:
@@ -86,6 +124,18 @@ def precheck(args) -> None:
         )
     if args.devices is not None and args.distributed:
         raise ParameterError("--devices splits one machine's CPU; with --distributed leave it out.")
+    cluster = [f for f in ("coordinator", "num_processes", "process_id") if getattr(args, f) is not None]
+    if cluster and not args.distributed:
+        raise ParameterError(f"{checks.flag(cluster[0])} describes a multi-host run: add --distributed.")
+    if (
+        args.num_processes is not None
+        and args.process_id is not None
+        and args.process_id >= args.num_processes
+    ):
+        raise ParameterError(
+            f"--process-id {args.process_id}: processes are numbered 0 to {args.num_processes - 1} "
+            f"(--num-processes {args.num_processes})."
+        )
 
 
 def run(args) -> int:
@@ -96,9 +146,17 @@ def run(args) -> int:
     if args.distributed:
         import jax
 
-        jax.distributed.initialize()  # cluster settings from the environment (SLURM, Cloud TPU, ...)
+        # Cluster settings from the flags, else from the environment (SLURM, Open MPI, Cloud TPU, ...).
+        given = {"coordinator_address": args.coordinator, "num_processes": args.num_processes}
+        given["process_id"] = args.process_id
+        jax.distributed.initialize(**{k: v for k, v in given.items() if v is not None})
     else:
         split_cpu(args.devices)
+    if args.compilation_cache:
+        import jax
+
+        jax.config.update("jax_compilation_cache_dir", args.compilation_cache)
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     from tuning.montecarlo import run_study
     from tuning.montecarlo.study import Study, read_study_toml
 
@@ -111,6 +169,7 @@ def run(args) -> int:
         ("sampling", "latin_hypercube" if args.latin_hypercube else None),
         ("nonphysical", "clip" if args.clip else None),
         ("gains", args.gains),
+        ("unroll_substeps", True if args.unroll_substeps else None),
     ):
         if value is not None:
             kwargs[key] = value

@@ -5,6 +5,7 @@ Phase-to-neutral voltages of a star-connected, isolated-neutral machine fed by l
 voltage is held in the stator frame over the period, as the real inverter holds it.
 """
 
+import equinox as eqx
 import jax.numpy as jnp
 
 from .._types import Array
@@ -22,17 +23,24 @@ def phase_voltages(duties: Array, u_dc: Array) -> Array:
 
 
 class AveragedBridge(AbstractBridge):
-    """Ideal averaged inverter. `u_dc`: DC-link voltage, V (array leaf: vmappable, differentiable)."""
+    """Ideal averaged inverter. `u_dc`: DC-link voltage, V (array leaf: vmappable, differentiable).
+
+    `unroll_substeps` (static): write the period's RK4 sub-steps out rather than loop over them
+    (:func:`pmsmjax.machines.integrate.advance`; for GPUs, where it was measured to pay).
+    """
 
     u_dc: Array
+    unroll_substeps: bool = eqx.field(static=True, default=False)
 
-    def __init__(self, u_dc=311.0):
+    def __init__(self, u_dc=311.0, unroll_substeps: bool = False):
         self.u_dc = as_float(u_dc)
+        self.unroll_substeps = bool(unroll_substeps)
 
     def __check_init__(self):
         check_positive("u_dc (DC-link voltage)", self.u_dc, "V")
 
     def advance(self, machine, state, duties, load_torque, Ts, n_substeps):
         u_ab = abc_to_alpha_beta(phase_voltages(duties, self.u_dc))
-        new_state = advance(machine, state, MachineInput(u_ab, load_torque, "stator"), Ts, n_substeps)
+        inputs = MachineInput(u_ab, load_torque, "stator")
+        new_state = advance(machine, state, inputs, Ts, n_substeps, self.unroll_substeps)
         return new_state, u_ab

@@ -5,26 +5,31 @@
 1. checks the study and draws every run's parameters on the host (seeded, float64,
    :mod:`tuning.montecarlo.distributions`), before anything compiles; non-physical samples are refused or
    clipped;
-2. splits the runs into chunks of ``chunk_size`` (rounded up to a multiple of the device count; the
-   last chunk is padded with copies of its last run, whose results are dropped);
+2. splits the runs into equal chunks of at most ``chunk_size`` runs (``"auto"``: from the device's free
+   memory and the drive's bytes per run, :mod:`tuning.montecarlo.chunking`), each rounded up to two runs
+   per device; the last chunk is padded with copies of its last run, whose results are dropped;
 3. runs each chunk as one compiled call: ``vmap`` of :func:`tuning.montecarlo.kernel.run_metrics` over the
    chunk, the chunk's runs split over a one-axis device mesh with ``jax.sharding`` (``NamedSharding``
    over axis ``runs``). The same code serves one CPU, several forced CPU devices
    (``XLA_FLAGS=--xla_force_host_platform_device_count=N`` or ``jax_num_cpu_devices``), several GPUs and
    several hosts after ``jax.distributed.initialize()`` (every process draws the same samples, feeds
    its own devices' shards, and process 0 writes the files);
-4. writes each finished chunk to ``DIR/chunks/chunk_NNNNN.npz`` atomically, tagged with a fingerprint
+4. dispatches each chunk before fetching the previous one, so that copying a chunk's results to the host
+   and writing its file overlap the next chunk's computation; results go straight into arrays allocated
+   once for all runs;
+5. writes each finished chunk to ``DIR/chunks/chunk_NNNNN.npz`` atomically, tagged with a fingerprint
    of the study, the samples, the precision and the code's version of the metrics; a rerun of the same
    study loads the chunks it finds and computes only the missing ones, so an interrupted study finishes
    where it stopped with the same results;
-5. takes the derivative of every metric with respect to every varied parameter by forward-mode AD
+6. takes the derivative of every metric with respect to every varied parameter by forward-mode AD
    (``jax.jacfwd``: one tangent per parameter, cheap with a handful of parameters) for the first
    ``sensitivity_runs`` runs (also stored, as ``DIR/chunks/sensitivities.npz``);
-6. summarises (:mod:`tuning.montecarlo.summary`), draws the figures (:mod:`tuning.montecarlo.figures`)
+7. summarises (:mod:`tuning.montecarlo.summary`), draws the figures (:mod:`tuning.montecarlo.figures`)
    and writes ``DIR/summary.json``.
 
-Run time is the time of the chunk calls made in this invocation (compile excluded: each chunk function is
-compiled ahead of time and timed separately as ``compile_time_s``).
+Run time is the wall time from the first chunk dispatched in this invocation until the last one's
+results are on the host (compile excluded: each chunk function is compiled ahead of time and timed
+separately as ``compile_time_s``; the file writes that overlap computation are inside it).
 """
 
 import hashlib
@@ -43,11 +48,12 @@ from tqdm import tqdm
 
 from pmsmjax.logs import atomic_write
 from pmsmjax.machines.integrate import max_stable_substep
-from pmsmjax.simulate import check_simulation
+from pmsmjax.simulate import check_simulation, period_inputs
 from pmsmjax.units import rpm_to_rad_s
 from pmsmjax.validation import ParameterError
 
 from . import study as mc_study
+from .chunking import auto_chunk_size, bytes_per_run
 from .distributions import sample
 from .kernel import METRICS, run_metrics
 from .study import Study
@@ -55,8 +61,18 @@ from .summary import sensitivity_summary, summarise
 
 #: Bump when the kernel's metric definitions change: chunks written by another version are recomputed.
 KERNEL_VERSION = 1
+#: The forward function's first output: these columns, stacked (one transfer per chunk, not eight).
+COLUMNS = METRICS + ("finite",)
 #: Keys of summary.json that describe how (fast) the study ran rather than its results.
-VOLATILE_KEYS = ("run_time_s", "compile_time_s", "runs_per_s", "sensitivity_time_s", "devices", "chunks")
+VOLATILE_KEYS = (
+    "run_time_s",
+    "compile_time_s",
+    "runs_per_s",
+    "sensitivity_time_s",
+    "devices",
+    "chunks",
+    "chunk_rule",
+)
 
 
 def device_mesh() -> Mesh:
@@ -65,16 +81,20 @@ def device_mesh() -> Mesh:
 
 
 def chunk_layout(n: int, chunk_size: int, n_devices: int) -> tuple[int, int]:
-    """``(chunk size, number of chunks)`` for ``n`` runs: ``chunk_size`` (at most ``n``) rounded up to a
-    multiple of ``2 n_devices``.
+    """``(chunk size, number of chunks)`` for ``n`` runs in chunks of at most ``chunk_size`` (rounded up
+    to a multiple of ``2 n_devices``), balanced: as many chunks as that maximum needs, each as small as
+    that count allows (10,000 runs at 2048: 5 chunks of 2000, not 4 of 2048 and a fifth padded by 240).
 
     At least two runs per device: with a batch of one, XLA compiles scalar code whose rounding differs in
     the last bit from the vectorised code of larger batches (observed), and results would then depend on
     the device count. From two runs up they are bitwise identical (tests/test_montecarlo.py).
     """
     unit = 2 * n_devices
-    size = -(-min(chunk_size, n) // unit) * unit
-    return size, -(-n // size)
+    largest = -(-min(chunk_size, n) // unit) * unit
+    count = -(-n // largest)
+    per_chunk = -(-n // count)
+    size = -(-per_chunk // unit) * unit
+    return size, count
 
 
 def _to_global(x: np.ndarray, sharding: NamedSharding) -> jax.Array:
@@ -117,7 +137,12 @@ class StudyRunner:
         def jac(values):
             return jax.jacfwd(one_metrics, has_aux=True)(values)
 
-        self._forward = jax.jit(jax.vmap(one), in_shardings=self.sharding, out_shardings=self.sharding)
+        def packed(values):
+            m, record = one(values)
+            return jnp.stack([m[k] for k in COLUMNS]), record
+
+        self._packed = packed
+        self._forward = jax.jit(jax.vmap(packed), in_shardings=self.sharding, out_shardings=self.sharding)
         self._jacobian = jax.jit(jax.vmap(jac), in_shardings=self.sharding, out_shardings=self.sharding)
         self._compiled = {}
         self.compile_time_s = 0.0
@@ -158,10 +183,47 @@ class StudyRunner:
         fn = self.compile(kind, values.shape[0])
         return fn(_to_global(values.astype(self.dtype), self.sharding))
 
+    def dispatch(self, values: np.ndarray):
+        """Start the forward runs of the rows of ``values (B, P)`` (B a multiple of two per device) and
+        return at once (JAX dispatches asynchronously); :meth:`fetch` waits for the results."""
+        return self._call("forward", values)
+
+    @staticmethod
+    def fetch(outputs) -> tuple[dict, dict]:
+        """The host copies of :meth:`dispatch`'s outputs: ``(metrics, record)`` as in :meth:`forward`."""
+        packed, record = jax.block_until_ready(outputs)
+        packed = _to_host(packed)
+        metrics = {k: packed[:, i] for i, k in enumerate(COLUMNS)}
+        return metrics, jax.tree.map(_to_host, record)
+
     def forward(self, values: np.ndarray) -> tuple[dict, dict]:
-        """Metrics and decimated record of every row of ``values (B, P)`` (B a multiple of the devices)."""
-        metrics, record = jax.block_until_ready(self._call("forward", values))
-        return jax.tree.map(_to_host, metrics), jax.tree.map(_to_host, record)
+        """Metrics (``{name: (B,)}``, ``finite`` included) and decimated record
+        (``{name: (B, N / decimate)}``) of every row of ``values (B, P)`` (B a multiple of two per device)."""
+        return self.fetch(self.dispatch(values))
+
+    def output_shapes(self) -> tuple:
+        """One run's outputs of the forward function, as shape structs: the stacked :data:`COLUMNS` and
+        the decimated record (from the study's settings: tracing the kernel for them would cost as much as
+        lowering it; tests/test_scale.py checks them against ``jax.eval_shape``)."""
+        n_record = self.study.n_periods // self.study.decimate
+        record = {k: jax.ShapeDtypeStruct((n_record,), self.dtype) for k in ("speed_rpm", "i_q_a")}
+        return jax.ShapeDtypeStruct((len(COLUMNS),), self.dtype), record
+
+    def per_run_bytes(self) -> int:
+        """Upper bound of one run's device memory (:func:`tuning.montecarlo.chunking.bytes_per_run`)."""
+        d, s = mc_study.apply_sample(self.drive, self.study, (), ())
+        carry = jax.eval_shape(d.init)
+        varied = any(n.startswith("scenario.") for n in self.names)
+        inputs = jax.eval_shape(lambda: period_inputs(s, d.Ts)) if varied else None
+        return bytes_per_run(self.output_shapes(), len(self.names), self.dtype, carry, inputs)
+
+    def chunk_size(self, n: int) -> tuple[int, dict]:
+        """The study's ``chunk_size``, or with ``"auto"`` the rule of :mod:`tuning.montecarlo.chunking`;
+        returns ``(runs per chunk before balancing, how it was chosen)``."""
+        n_dev = len(self.mesh.devices.flat)
+        if self.study.chunk_size != "auto":
+            return self.study.chunk_size, {"rule": "given"}
+        return auto_chunk_size(n, n_dev, self.per_run_bytes(), n_periods=self.study.n_periods)
 
     def jacobian(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``((B, n_metrics, P) derivatives, (B,) finite flags)`` for the rows of ``values``."""
@@ -271,39 +333,73 @@ def run_study(
     values = np.stack([samples[k] for k in runner.names], axis=1)
     key = fingerprint(study, runner.drive, values, runner.dtype)
     n_dev = len(runner.mesh.devices.flat)
-    size, n_chunks = chunk_layout(study.n, study.chunk_size, n_dev)
+    largest, chunk_rule = runner.chunk_size(study.n)
+    size, n_chunks = chunk_layout(study.n, largest, n_dev)
     writer = jax.process_index() == 0
     chunk_dir = out / "chunks"
     if writer:
         chunk_dir.mkdir(parents=True, exist_ok=True)
 
-    parts, computed, runs_now, run_time = [], 0, 0, 0.0
+    results: dict = {}  # {name: (n,) or (n, N / decimate)} on the writer, filled chunk by chunk
+    counts = {"computed": 0, "runs": 0}
+    clock = {"run_time": 0.0, "busy_since": None, "fetched": None}
     bar = tqdm(total=n_chunks, disable=not progress, desc="montecarlo", unit="chunk", leave=False)
+
+    def store(lo: int, hi: int, data: dict) -> None:
+        for k, v in data.items():
+            if k not in results:
+                results[k] = np.empty((study.n,) + v.shape[1:], v.dtype)
+            results[k][lo:hi] = v[: hi - lo]
+
+    def finish(c: int, lo: int, hi: int, path: Path, chunk_key: str, outputs) -> None:
+        """Wait for chunk ``c``'s results, keep them and write its file (while the next one computes)."""
+        metrics, record = runner.fetch(outputs)
+        clock["fetched"] = time.perf_counter()
+        counts["computed"] += 1
+        counts["runs"] += hi - lo
+        if writer:
+            data = {k: v[: hi - lo] for k, v in {**metrics, **record}.items()}
+            store(lo, hi, data)
+            tagged = {"fingerprint": np.asarray(chunk_key), **data}
+            atomic_write(path, lambda f: np.savez(f, **tagged))
+
+    def done(c: int) -> None:
+        bar.update(1)
+        if after_chunk is not None:
+            after_chunk(c)
+
+    pending = None  # (c, lo, hi, path, chunk_key, device outputs) of the chunk in flight
     try:
         for c in range(n_chunks):
             lo, hi = c * size, min((c + 1) * size, study.n)
             path = chunk_dir / f"chunk_{c:05d}.npz"
             chunk_key = f"{key}:{lo}:{hi - lo}"
             data = _load_agreed(path, chunk_key, hi - lo)
+            launched = None
             if data is None:
-                runner.compile("forward", size)  # outside the timed region
-                start = time.perf_counter()
-                metrics, record = runner.forward(_pad(values[lo:hi], size))
-                run_time += time.perf_counter() - start
-                runs_now += hi - lo
-                data = {k: v[: hi - lo] for k, v in {**metrics, **record}.items()}
+                runner.compile("forward", size)  # outside the timed region (a no-op after the first)
+                if clock["busy_since"] is None:
+                    clock["busy_since"] = time.perf_counter()
+                launched = (c, lo, hi, path, chunk_key, runner.dispatch(_pad(values[lo:hi], size)))
+            if pending is not None:
+                finish(*pending)
+                done(pending[0])
+            if launched is None:
+                if clock["busy_since"] is not None:  # nothing in flight any more: close the timed stretch
+                    clock["run_time"] += clock["fetched"] - clock["busy_since"]
+                    clock["busy_since"] = None
                 if writer:
-                    tagged = {"fingerprint": np.asarray(chunk_key), **data}
-                    atomic_write(path, lambda f, d=tagged: np.savez(f, **d))
-                computed += 1
-            if writer:
-                parts.append(data)
-            bar.update(1)
-            if after_chunk is not None:
-                after_chunk(c)
+                    store(lo, hi, data)
+                done(c)
+            pending = launched
+        if pending is not None:
+            finish(*pending)
+            clock["run_time"] += clock["fetched"] - clock["busy_since"]
+            done(pending[0])
     finally:
         bar.close()
-    results = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]} if writer else None
+    computed, runs_now, run_time = counts["computed"], counts["runs"], clock["run_time"]
+    results = results if writer else None
 
     n_sens = min(study.sensitivity_runs, study.n)
     sensitivities, sensitivity_time = None, None
@@ -334,7 +430,13 @@ def run_study(
         "compile_time_s": runner.compile_time_s,
         "runs_per_s": runs_now / run_time if run_time > 0 else None,
         "sensitivity_time_s": sensitivity_time,
-        "chunks": {"size": size, "count": n_chunks, "computed_now": computed, "loaded": n_chunks - computed},
+        "chunks": {
+            "size": size,
+            "count": n_chunks,
+            "computed_now": computed,
+            "loaded": n_chunks - computed,
+        },
+        "chunk_rule": chunk_rule,
         "devices": {
             "count": n_dev,
             "kind": str(runner.mesh.devices.flat[0].device_kind),

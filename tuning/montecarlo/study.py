@@ -17,7 +17,7 @@ The TOML file (every table and key optional; defaults below)::
     [study]        n, seed, sampling ("random" | "latin_hypercube"), chunk_size, nonphysical
                    ("refuse" | "clip"), decimate, sensitivity_runs
     [drive]        motor (preset or TOML file), gains (gains TOML from pmsmjax tune), current_bandwidth,
-                   speed_bandwidth, current_limit, u_dc, n_substeps
+                   speed_bandwidth, current_limit, u_dc, n_substeps, unroll_substeps
     [scenario]     speed_rpm, load_nm, load_time_s, duration_s
     [thresholds]   current_a, tracking_rpm
     [parameters."motor.R"]  distribution = "uniform", tolerance = 0.2, sigmas = 3.0, nominal = ...
@@ -37,6 +37,7 @@ import numpy as np
 
 from pmsmjax import presets
 from pmsmjax.drive import Drive
+from pmsmjax.inverters.averaged import AveragedBridge
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.units import rpm_to_rad_s
 from pmsmjax.validation import ParameterError
@@ -74,17 +75,20 @@ class Study:
     """Settings of a Monte Carlo study (see the module docstring for the TOML layout).
 
     - `n`: number of runs; `seed`: sampling seed; `sampling`: ``random`` or ``latin_hypercube``.
-    - `chunk_size`: runs per chunk (one compiled call, one file on disk; rounded up to two runs per
-      device). 2048 was the fastest of 256-8192 on 2 CPU cores (``benchmarks/bench_montecarlo.py --sweep``);
-      on a GPU use tens of thousands.
+    - `chunk_size`: most runs per chunk (one compiled call, one file on disk; chunks are balanced and
+      rounded up to two runs per device), or ``"auto"`` (default): from the device's free memory and the
+      drive's bytes per run, capped where throughput stops improving (:mod:`tuning.montecarlo.chunking`:
+      2048 on 2 CPU devices for runs of 256 periods or more, the fastest of 256-8192 measured, more for
+      shorter runs; 262,144 per GPU).
     - `nonphysical`: what to do with samples outside a parameter's physical range: ``refuse`` (error) or
       ``clip`` (moved to the bound, counted in the summary).
     - `decimate`: keep every this many periods of speed and current for the fan chart.
     - `sensitivity_runs`: runs (the first ones) whose derivatives are taken by forward-mode AD.
     - `parameters`: ``{name: {"distribution", "tolerance", "sigmas", "nominal"}}`` (nominal optional).
     - drive: `motor`, `gains` (TOML path or None), `current_bandwidth` rad/s, `speed_bandwidth` rad/s,
-      `current_limit` A, `u_dc` V, `n_substeps`; scenario: `speed_rpm`, `load_nm`, `load_time_s`,
-      `duration_s`.
+      `current_limit` A, `u_dc` V, `n_substeps`, `unroll_substeps` (the RK4 sub-steps written out, not
+      looped: :class:`pmsmjax.inverters.averaged.AveragedBridge`; for GPUs); scenario: `speed_rpm`,
+      `load_nm`, `load_time_s`, `duration_s`.
     - thresholds: `current_threshold_a` (None: 1.05 times the current limit), `tracking_threshold_rpm`
       (mean speed error over the last 10 % of the run).
     """
@@ -92,7 +96,7 @@ class Study:
     n: int = 1000
     seed: int = 0
     sampling: str = "random"
-    chunk_size: int = 2048
+    chunk_size: int | str = "auto"
     nonphysical: str = "refuse"
     decimate: int = 40
     sensitivity_runs: int = 256
@@ -108,6 +112,7 @@ class Study:
     current_limit: float = presets.BOOK_CURRENT_LIMIT
     u_dc: float = presets.BOOK_DC_LINK
     n_substeps: int = 10
+    unroll_substeps: bool = False
     speed_rpm: float = 1000.0
     load_nm: float = 10.0
     load_time_s: float = 0.2
@@ -118,8 +123,11 @@ class Study:
     def __post_init__(self):
         for f in ("n", "chunk_size", "decimate", "n_substeps"):
             v = getattr(self, f)
+            if f == "chunk_size" and v == "auto":
+                continue
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise ParameterError(f"study {f} must be an int >= 1, got {v!r}.")
+                also = ' or "auto"' if f == "chunk_size" else ""
+                raise ParameterError(f"study {f} must be an int >= 1{also}, got {v!r}.")
         if isinstance(self.sensitivity_runs, bool) or not isinstance(self.sensitivity_runs, int):
             raise ParameterError(
                 f"study sensitivity_runs must be an int >= 0, got {self.sensitivity_runs!r}."
@@ -134,6 +142,10 @@ class Study:
             )
         if self.nonphysical not in ("refuse", "clip"):
             raise ParameterError(f"study nonphysical must be 'refuse' or 'clip', got {self.nonphysical!r}.")
+        if not isinstance(self.unroll_substeps, bool):
+            raise ParameterError(
+                f"study unroll_substeps must be true or false, got {self.unroll_substeps!r}."
+            )
         if not self.parameters:
             raise ParameterError("the study varies no parameter: give at least one [parameters.NAME] table.")
         for f in ("current_bandwidth", "speed_bandwidth", "current_limit", "u_dc", "duration_s"):
@@ -194,6 +206,9 @@ def build_drive(study: Study) -> Drive:
         u_dc=study.u_dc,
         n_substeps=study.n_substeps,
     )
+    if study.unroll_substeps:
+        unrolled = AveragedBridge(drive.bridge.u_dc, unroll_substeps=True)
+        drive = eqx.tree_at(lambda d: d.bridge, drive, unrolled)
     return drive if study.gains is None else apply_gains(drive, study.gains)
 
 
@@ -308,6 +323,7 @@ _SECTIONS = {
         "current_limit",
         "u_dc",
         "n_substeps",
+        "unroll_substeps",
     ),
     "scenario": ("speed_rpm", "load_nm", "load_time_s", "duration_s"),
     "thresholds": ("current_a", "tracking_rpm"),

@@ -18,7 +18,6 @@ values (not on the device count or the chunking that produced them).
 """
 
 import numpy as np
-from scipy.stats import spearmanr
 
 from .kernel import METRICS, UNITS
 
@@ -62,20 +61,58 @@ def failures(metrics: dict, current_threshold_a: float, tracking_threshold_rpm: 
     return out
 
 
+def average_ranks(x: np.ndarray) -> np.ndarray:
+    """Ranks ``1..n`` of ``x (n,)``, ties sharing their mean rank (as ``scipy.stats.rankdata``'s
+    ``"average"``), from one unstable sort: stability is irrelevant once ties are averaged, and NumPy's
+    default sort is 4x faster than the stable one ``rankdata`` uses (measured, a million values)."""
+    order = np.argsort(x)
+    xs = x[order]
+    first = np.empty(x.size, bool)
+    first[:1] = True
+    np.not_equal(xs[1:], xs[:-1], out=first[1:])
+    starts = np.flatnonzero(first)
+    ranks = np.empty(x.size, np.float64)
+    if starts.size == x.size:  # no ties (the sampled parameters, most metrics)
+        ranks[order] = np.arange(1.0, x.size + 1.0)
+        return ranks
+    ends = np.append(starts[1:], x.size)
+    ranks[order] = np.repeat(0.5 * (starts + ends + 1), ends - starts)
+    return ranks
+
+
 def spearman_ranks(samples: dict, metrics: dict) -> dict:
-    """``{metric: {parameter: Spearman rho}}`` over the finite runs (None where undefined)."""
+    """``{metric: {parameter: Spearman rho}}`` over the finite runs (None where undefined).
+
+    Rho is the Pearson correlation of the average ranks (the definition ``scipy.stats.spearmanr``
+    computes). Every column is ranked once per set of included runs (one set, unless a metric is
+    non-finite where the state is not), instead of twice per metric-parameter pair: 13 sorts for 6
+    metrics and 7 parameters rather than 84.
+    """
     finite = metrics["finite"] > 0.5
-    out = {}
+    out = {m: {} for m in METRICS}
+    by_mask: dict[bytes, list] = {}
     for m in METRICS:
-        row = {}
-        for p, x in samples.items():
-            ok = finite & np.isfinite(metrics[m])
-            xs, ys = x[ok], metrics[m][ok]
-            if xs.size < 3 or np.ptp(xs) == 0 or np.ptp(ys) == 0:
-                row[p] = None
+        ok = finite & np.isfinite(metrics[m])
+        by_mask.setdefault(np.packbits(ok).tobytes(), [ok, []])[1].append(m)
+    for ok, names in by_mask.values():
+        n_ok = int(np.sum(ok))
+        if n_ok < 3:
+            for m in names:
+                out[m] = {p: None for p in samples}
+            continue
+        centred = {}
+        for col, x in [*((("p", p), samples[p]) for p in samples), *((("m", m), metrics[m]) for m in names)]:
+            v = x[ok]
+            if np.ptp(v) == 0:
+                centred[col] = None
             else:
-                row[p] = float(spearmanr(xs, ys).statistic)
-        out[m] = row
+                r = average_ranks(v)
+                r -= r.mean()
+                centred[col] = r / np.linalg.norm(r)
+        for m in names:
+            for p in samples:
+                a, b = centred["p", p], centred["m", m]
+                out[m][p] = None if a is None or b is None else float(np.clip(a @ b, -1.0, 1.0))
     return out
 
 
