@@ -50,6 +50,11 @@ class AbstractBridge(eqx.Module):
         """
         return abc_to_alpha_beta(self.u_dc * (duties - jnp.mean(duties, axis=-1, keepdims=True)))
 
+    def phase_voltages(self, duties: Array) -> Array:
+        """``(..., n)`` ideal period-average phase-to-neutral voltages, V, of duties ``(..., n)`` (one star
+        point; the multi-phase bridges override it for several)."""
+        return self.u_dc * (duties - jnp.mean(duties, axis=-1, keepdims=True))
+
     def check_period(self, Ts: float) -> None:
         """Raise :class:`pmsmjax.ParameterError` if the bridge's settings do not fit the period ``Ts`` (s).
 
