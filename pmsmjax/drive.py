@@ -101,6 +101,12 @@ class Drive(eqx.Module):
                 f"the modulator drives {n_modulator} legs but the machine has {n_machine} phases: "
                 "choose a modulator for the machine's phase count."
             )
+        if self.bridge.n_phases != n_machine:
+            raise ParameterError(
+                f"the bridge has {self.bridge.n_phases} legs but the machine has {n_machine} phases: "
+                "choose a bridge for the machine's phase count (six phases: MultiPhaseAveragedBridge, "
+                "MultiPhaseSwitchingBridge)."
+            )
         self.bridge.check_period(self.Ts)
         self.estimator.check_period(self.Ts)
 

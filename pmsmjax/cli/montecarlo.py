@@ -67,6 +67,21 @@ def add_parser(sub):
     p.add_argument(
         "--distributed", action="store_true", help="multi-host: call jax.distributed.initialize() first"
     )
+    p.add_argument(
+        "--machine",
+        choices=("three-phase", "six-phase"),
+        help="three-phase book drive (default) or the six-phase drive (book ch. 7-9)",
+    )
+    p.add_argument(
+        "--control",
+        choices=("vsd", "double-dq", "conventional", "pr"),
+        help="six-phase control scheme (default vsd)",
+    )
+    p.add_argument(
+        "--pwm",
+        choices=("four-vector", "two-vector", "decoupled", "double-zs"),
+        help="six-phase modulator (default four-vector)",
+    )
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
@@ -111,6 +126,9 @@ def run(args) -> int:
         ("sampling", "latin_hypercube" if args.latin_hypercube else None),
         ("nonphysical", "clip" if args.clip else None),
         ("gains", args.gains),
+        ("machine", args.machine),
+        ("control", args.control),
+        ("pwm", args.pwm),
     ):
         if value is not None:
             kwargs[key] = value

@@ -41,6 +41,7 @@ class AbstractBridge(eqx.Module):
     """
 
     u_dc: eqx.AbstractVar[Array]
+    n_phases: ClassVar[int] = 3
 
     def commanded_voltage(self, duties: Array) -> Array:
         """``(2,)`` stator-frame period-average voltage, V, that ideal legs with ``duties (n,)`` give.
