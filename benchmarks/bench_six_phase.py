@@ -7,7 +7,8 @@ the ratios hold under a varying machine load:
 - ``three-phase``: :func:`pmsmjax.presets.book_drive` (dq machine, SVPWM, averaged bridge, PI FOC);
 - ``six-phase <scheme>``: :func:`pmsmjax.presets_six_phase.six_phase_drive` with each control scheme
   (dq + z1-z2 machine, four-vector SVPWM, averaged bridge);
-- the same two with the switching-resolved bridges (7 segments against 13 per period);
+- the same two with the switching-resolved bridges (7 segments against 13 per period); the six-phase PR
+  scheme against the three-phase PR drive (:func:`pmsmjax.presets.pr_drive`);
 - a ``vmap`` batch (``--batch``, default 64 runs) of the three-phase and the six-phase VSD drive: the
   per-run cost that Monte Carlo studies and tuning pay.
 
@@ -41,6 +42,7 @@ def run(quick: bool = False, batch: int = 64) -> dict:
     three = presets.book_drive()
     drives = {"three-phase": three}
     drives.update({f"six-phase {name}": six_phase_drive(control=name) for name in SIX_PHASE_CONTROLS})
+    drives["three-phase pr"] = presets.pr_drive()
     drives["three-phase switching"] = eqx.tree_at(
         lambda d: d.bridge, three, SwitchingBridge(three.bridge.u_dc)
     )
@@ -68,6 +70,8 @@ def run(quick: bool = False, batch: int = 64) -> dict:
         }
     pairs = {
         "three-phase": "three-phase",
+        "six-phase pr": "three-phase pr",
+        "three-phase pr": "three-phase pr",
         "three-phase switching": "three-phase switching",
         "six-phase vsd switching": "three-phase switching",
         f"three-phase x{batch}": f"three-phase x{batch}",

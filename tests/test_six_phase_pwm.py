@@ -184,6 +184,30 @@ def test_switching_bridge_period_average_equals_the_averaged_bridge():
         sw_bridge.advance(machine, state, jnp.zeros(3), 0.0, 1e-4, 1)
 
 
+def test_dead_time_and_device_drop_of_the_six_leg_bridge():
+    """With constant-sign currents each switching leg loses ``sign(i) U_dc t_d / Ts`` of average pole
+    voltage (dead time) and ``sign(i) U_f`` (device drop); the ideal fast path equals the general one."""
+    from pmsmjax.presets_six_phase import six_phase_machine
+
+    machine = six_phase_machine(frame="natural", mechanics="imposed")
+    # 20 A at 15 deg from the phase axes: every phase carries at least 20 sin(15 deg) = 5.2 A, and the
+    # duties' few volts cannot change a sign within the period (standstill: no back-EMF).
+    i_ab = 20.0 * np.array([np.cos(np.pi / 12), np.sin(np.pi / 12)])
+    state = machine.initial_state_vsd([*i_ab, 0.0, 0.0], 0.0, 0.2)
+    Ts, t_d, drop = 1e-4, 2e-6, 1.5
+    d = jnp.asarray([0.49, 0.51, 0.5, 0.52, 0.48, 0.505])
+    ideal = MultiPhaseSwitchingBridge(U_DC).advance(machine, state, d, 0.0, Ts, 1)
+    general = MultiPhaseSwitchingBridge(U_DC, device_drop=0.0).advance(machine, state, d, 0.0, Ts, 1)
+    np.testing.assert_allclose(general[1], ideal[1], atol=1e-10)
+    np.testing.assert_allclose(general[0].currents, ideal[0].currents, atol=1e-12)
+    sign = np.sign(np.asarray(machine.phase_currents(state)))
+    _, u_dead = MultiPhaseSwitchingBridge(U_DC, dead_time=t_d).advance(machine, state, d, 0.0, Ts, 1)
+    lost = -sign * U_DC * t_d / Ts  # per leg, average pole voltage
+    np.testing.assert_allclose(u_dead, period_average(np.asarray(d) + lost / U_DC), atol=1e-9)
+    _, u_drop = MultiPhaseSwitchingBridge(U_DC, device_drop=drop).advance(machine, state, d, 0.0, Ts, 1)
+    np.testing.assert_allclose(u_drop, period_average(np.asarray(d) - sign * drop / U_DC), atol=1e-9)
+
+
 def test_modulator_gradients_match_finite_differences():
     u0 = jnp.asarray([80.0, -40.0, 3.0, -2.0])
     w = jnp.asarray([0.3, -0.2, 0.5, 0.1, -0.4, 0.7])

@@ -2,7 +2,7 @@
 
 from .averaged import AveragedBridge, phase_voltages
 from .base import AbstractBridge, AbstractModulator
-from .multiphase_bridges import MultiPhaseAveragedBridge, MultiPhaseSwitchingBridge  # noqa: I001
+from .multiphase_bridges import MultiPhaseAveragedBridge, MultiPhaseSwitchingBridge
 from .six_phase_carrier import DecoupledSVPWM, DoubleZeroSequencePWM
 from .six_phase_svpwm import FourVectorSVPWM, TwoVectorSVPWM
 from .spwm import MinMaxPWM, SinusoidalPWM, ThirdHarmonicPWM, third_harmonic

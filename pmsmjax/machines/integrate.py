@@ -89,8 +89,12 @@ def advance(
 
     Wrapping only at the interval end keeps every RK4 stage on a continuous angle. Machines whose
     equations depend on the angle only through a stator-frame held voltage (``angle_only_in_voltage``,
-    the dq model) take :func:`rk4_step_rotating_hold` (see the module docstring).
+    the dq model) take :func:`rk4_step_rotating_hold` (see the module docstring). A machine with a
+    ``split_advance`` (the balanced multi-phase dq model) integrates itself.
     """
+    split = getattr(machine, "split_advance", None)
+    if split is not None:  # a multi-phase model whose planes integrate separately (pmsm_multiphase.py)
+        return split(state, inputs, duration, n_substeps)
     h = duration / n_substeps
     if inputs.frame == "stator" and getattr(machine, "angle_only_in_voltage", False):
         carry = (state, inputs.dq(state.theta_e))
