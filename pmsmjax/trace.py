@@ -65,6 +65,13 @@ COLUMN_UNITS = {
     "omega_m_est": "rad/s (estimator's mechanical speed)",
 }
 
+#: The further columns of a six-phase trace (the second set U, V, W; :meth:`Trace.columns`).
+SIX_PHASE_COLUMN_UNITS = {
+    **{f"i_{x}": "A" for x in "uvw"},
+    **{f"u_{x}": "V (period-average phase voltage applied)" for x in "uvw"},
+    **{f"duty_{x}": "1 (leg duty cycle applied)" for x in "uvw"},
+}
+
 
 class Trace(eqx.Module):
     """Recorded signals; the leading axis is time (after any batch axes from ``vmap``).

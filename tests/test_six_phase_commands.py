@@ -52,6 +52,7 @@ def test_demo_six_phase(control, pwm, tmp_path):
     )
     header = (out / "trace.csv").read_text().splitlines()[0].split(",")
     assert {"i_a", "i_u", "i_w", "duty_v"} <= set(header)
+    assert set(header) == set(summary["trace_columns"])  # every column's unit is listed
     if pwm == "two-vector":  # z1-z2 left to the modulator: 5th/7th currents flow
         assert summary["metrics"]["z_current_peak_a"] > 1.0
     else:

@@ -387,6 +387,9 @@ def run(args) -> int:
     }
 
     if six_phase:
+        from ..trace import SIX_PHASE_COLUMN_UNITS
+
+        summary["trace_columns"] = {**COLUMN_UNITS, **SIX_PHASE_COLUMN_UNITS}
         summary["drive"]["pwm"] = args.pwm or "four-vector"
         summary["drive"]["bridge"] = args.bridge or "averaged"
         summary["metrics"]["z_current_peak_a"] = z_current_peak(trace)
