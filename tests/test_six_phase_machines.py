@@ -274,6 +274,24 @@ def test_isolated_stars_hold_zero_star_currents_under_unbalance():
     assert abs(i[:3].sum()) < 1e-12 and abs(i[3:].sum()) < 1e-12
 
 
+def test_linearisation_of_the_dq_model_shows_the_z_pole():
+    """``linearise`` on the six-phase dq model: the z1-z2 rows are ``-R/L_ls`` on the diagonal, ``1/L_ls``
+    from their voltages, and decoupled from everything else."""
+    from pmsmjax.machines import linearise
+
+    motor = six_phase_motor()
+    m = MultiPhasePMSMdq(motor)
+    A, B = linearise(
+        m, m.initial_state_vsd([3.0, 1.0, 0.5, -0.2], 80.0, 0.4), MachineInput(jnp.zeros(4), 1.0)
+    )
+    A, B = np.asarray(A), np.asarray(B)
+    R, L = float(motor.R), float(motor.L_ls)
+    np.testing.assert_allclose(A[2:4, 2:4], -R / L * np.eye(2), rtol=1e-12)
+    np.testing.assert_allclose(B[2:4, 2:4], np.eye(2) / L, rtol=1e-12)
+    assert np.all(A[2:4, [0, 1, 4, 5]] == 0) and np.all(A[[0, 1, 4, 5]][:, 2:4] == 0)
+    assert B.shape == (6, 5)
+
+
 def test_parameter_and_layout_checks():
     with pytest.raises(ParameterError, match="L_ls"):
         MultiPhaseParameters(R=0.5, L_d=1e-3, L_q=1e-3, psi_f=0.1, L_ls=2e-3, J=1e-3, B=0.0)
