@@ -101,6 +101,12 @@ class Drive(eqx.Module):
                 f"the modulator drives {n_modulator} legs but the machine has {n_machine} phases: "
                 "choose a modulator for the machine's phase count."
             )
+        if self.bridge.n_phases != n_machine:
+            raise ParameterError(
+                f"the bridge has {self.bridge.n_phases} legs but the machine has {n_machine} phases: "
+                "choose a bridge for the machine's phase count (six phases: MultiPhaseAveragedBridge, "
+                "MultiPhaseSwitchingBridge)."
+            )
         self.bridge.check_period(self.Ts)
         self.estimator.check_period(self.Ts)
 
@@ -148,7 +154,9 @@ class Drive(eqx.Module):
         if self.controller.command_kind == "voltage":
             u_ab = out.command
             if self.estimator.injects_voltage:
-                u_ab = u_ab + estimate.u_injection_ab
+                inj = estimate.u_injection_ab
+                # A multi-phase command [alpha, beta, z1, z2, ...]: the injection is in the alpha-beta plane.
+                u_ab = u_ab + inj if u_ab.shape == (2,) else u_ab.at[:2].add(inj)
             new_duties = self.modulator.duties(u_ab, self.bridge.u_dc)
         else:
             new_duties = out.command.astype(ms.omega_m.dtype)

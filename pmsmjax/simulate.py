@@ -142,9 +142,13 @@ def trace_from_records(drive: Drive, rec: PeriodRecord, xs: PeriodInputs, dt: fl
         theta_e=ms.theta_e,
         i_dq=i_dq,
         i_dq_ref=rec.i_dq_ref,
-        i_abc=dq_to_abc(i_dq, ms.theta_e),
+        i_abc=dq_to_abc(i_dq, ms.theta_e) if machine.n_phases == 3 else jax.vmap(machine.phase_currents)(ms),
         u_dq_ref=rec.u_dq_ref,
-        u_abc=phase_voltages(rec.duties, drive.bridge.u_dc),
+        u_abc=(
+            phase_voltages(rec.duties, drive.bridge.u_dc)
+            if machine.n_phases == 3
+            else drive.bridge.phase_voltages(rec.duties)
+        ),
         duties=rec.duties,
         torque=jax.vmap(machine.electromagnetic_torque)(ms),
         load_torque=xs.load_torque,

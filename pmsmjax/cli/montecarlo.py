@@ -100,6 +100,21 @@ def add_parser(sub):
         action="store_true",
         help="write the RK4 sub-steps out instead of looping (faster kernel on a GPU; same results)",
     )
+    p.add_argument(
+        "--machine",
+        choices=("three-phase", "six-phase"),
+        help="three-phase book drive (default) or the six-phase drive (book ch. 7-9)",
+    )
+    p.add_argument(
+        "--control",
+        choices=("vsd", "double-dq", "conventional", "pr"),
+        help="six-phase control scheme (default vsd)",
+    )
+    p.add_argument(
+        "--pwm",
+        choices=("four-vector", "two-vector", "decoupled", "double-zs"),
+        help="six-phase modulator (default four-vector)",
+    )
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
@@ -170,6 +185,9 @@ def run(args) -> int:
         ("nonphysical", "clip" if args.clip else None),
         ("gains", args.gains),
         ("unroll_substeps", True if args.unroll_substeps else None),
+        ("machine", args.machine),
+        ("control", args.control),
+        ("pwm", args.pwm),
     ):
         if value is not None:
             kwargs[key] = value

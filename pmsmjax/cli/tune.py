@@ -30,9 +30,15 @@ def add_parser(sub):
     )
     p.add_argument("--out", default="tune_out", help="output folder (created), default: tune_out")
     p.add_argument(
+        "--machine",
+        choices=("three-phase", "six-phase"),
+        help="three-phase book drive (default) or the six-phase drive (book ch. 7-9)",
+    )
+    p.add_argument(
         "--control",
-        choices=("pi", "smc", "pr", "smc-dtc"),
-        help="control method whose gains are tuned (default pi)",
+        choices=("pi", "smc", "pr", "smc-dtc", "vsd", "double-dq", "conventional"),
+        help="control method whose gains are tuned (default pi; six-phase: vsd, double-dq, conventional, "
+        "pr, default vsd)",
     )
     p.add_argument(
         "--config", default=None, help="TOML with [weights], [tune] and [job] tables (default: none)"
@@ -137,6 +143,7 @@ def run(args) -> int:
         ("eval_substeps", args.eval_substeps),
         ("control", args.control),
         ("start_gains", args.start_gains),
+        ("machine", args.machine),
     ):
         if value is not None:
             kwargs[key] = value

@@ -8,6 +8,8 @@ continues from it and ends at the same result).
 Control methods (``control``: ``pi``, ``smc``, ``pr``, ``smc-dtc``; :mod:`tuning.autotune.controls`): the
 drive of :func:`pmsmjax.controls.control_drive`, its default gains and its default objective weights (used
 when ``weights`` is None).
+``machine="six-phase"``: the six-phase drive (:func:`pmsmjax.presets_six_phase.six_phase_drive`) under
+``vsd``, ``double-dq``, ``conventional`` or ``pr`` (default ``vsd``).
 
 Surrogate and exact model: tuning runs the drive with ``tune_substeps`` RK4 steps per period (1 by
 default: 4e-7 of peak current from the exact solution at 10 kHz, and a 4x cheaper gradient) and with the
@@ -60,6 +62,7 @@ JOB_KEYS = (
     "eval_substeps",
     "control",
     "start_gains",
+    "machine",
 )
 
 
@@ -131,8 +134,9 @@ def run_tune_job(
     plant_spread: dict | None = None,
     tune_substeps: int = 1,
     eval_substeps: int = 10,
-    control: str = "pi",
+    control: str | None = None,
     start_gains: str | None = None,
+    machine: str = "three-phase",
     weights: ObjectiveWeights | None = None,
     config: TuneConfig = DEFAULT_CONFIG,
     progress: bool = True,
@@ -140,8 +144,12 @@ def run_tune_job(
 ) -> dict:
     """Tune the gains of the book drive under ``control`` and write the outputs into ``out_dir``; returns
     result.json's content. `start_gains`: a gains TOML (an earlier run's gains.toml) to start from
-    instead of the design-rule gains."""
-    tuning = control_tuning(control)
+    instead of the design-rule gains. `machine`: ``three-phase`` (the book motor) or ``six-phase``."""
+    if machine not in ("three-phase", "six-phase"):
+        raise ParameterError(f"machine must be 'three-phase' or 'six-phase', got {machine!r}.")
+    if control is None:
+        control = "vsd" if machine == "six-phase" else "pi"
+    tuning = control_tuning(control, machine)
     weights = ObjectiveWeights(**tuning.weights) if weights is None else weights
     if config.names is None:
         config = dataclasses.replace(config, names=tuning.names)
@@ -150,8 +158,8 @@ def run_tune_job(
     batch_options = dict(duration_s=duration_s, kinds=kinds, plant_spread=plant_spread)
     train = make_batch(n_train, train_seed, **batch_options)
     heldout = make_batch(n_heldout, heldout_seed, **batch_options)
-    surrogate = control_drive(control, n_substeps=tune_substeps, **tuning.surrogate)
-    exact = control_drive(control, n_substeps=eval_substeps)
+    surrogate = _drive(machine, control, n_substeps=tune_substeps, **tuning.surrogate)
+    exact = _drive(machine, control, n_substeps=eval_substeps)
     if start_gains is not None:
         surrogate, exact = apply_gains(surrogate, start_gains), apply_gains(exact, start_gains)
 
@@ -173,7 +181,7 @@ def run_tune_job(
         },
     }
     if tuning.surrogate:  # the smoothed law at the exact model's sub-steps: what the optimiser saw
-        smoothed = control_drive(control, n_substeps=eval_substeps, **tuning.surrogate)
+        smoothed = _drive(machine, control, n_substeps=eval_substeps, **tuning.surrogate)
         if start_gains is not None:
             smoothed = apply_gains(smoothed, start_gains)
         report["heldout"]["after_surrogate"] = evaluate(apply_gains(smoothed, result.gains), heldout, weights)
@@ -184,6 +192,7 @@ def run_tune_job(
             k: {**v["summary"], "per_scenario": v["per_scenario"]} for k, v in report["heldout"].items()
         },
         "control": control,
+        "machine": machine,
         "gains": {"before": before_gains, "after": result.gains},
         "surrogate": {
             "options": dict(tuning.surrogate),
@@ -222,6 +231,15 @@ def run_tune_job(
     atomic_write(out / "result.json", lambda f: f.write(json.dumps(data, indent=2).encode()))
     _figures(out, exact, tuned_exact, train, result.history)
     return data
+
+
+def _drive(machine: str, control: str, **options):
+    """The drive of ``control`` on the book motor (``three-phase``) or its six-phase rewind."""
+    if machine == "six-phase":
+        from pmsmjax.presets_six_phase import six_phase_drive
+
+        return six_phase_drive(control=control, **options)
+    return control_drive(control, **options)
 
 
 def _figures(out: Path, before, after, batch: ScenarioBatch, history) -> None:

@@ -58,7 +58,7 @@ class Accumulators(eqx.Module):
     excess: jax.Array  # largest sign(w*) (w - w*) / |w*| before the load step
     last_outside: jax.Array  # int32 index of the last pre-load period outside the band, -1 if none
     dip: jax.Array  # largest w* - w after the load step, rad/s
-    peak: jax.Array  # largest |i_abc|, A
+    peak: jax.Array  # largest |phase current|, A
     tail_error: jax.Array  # sum of w* - w over the tail window, rad/s
     finite: jax.Array  # bool, every sampled state finite so far
 
@@ -104,6 +104,11 @@ def run_metrics(
     dtype = state.machine.omega_m.dtype
     k_tail = int(round((1.0 - tail_fraction) * n))
     load_time_s = jnp.asarray(load_time_s, dtype)
+    machine = drive.machine
+    if machine.n_phases == 3:  # as the three-phase kernel always computed it
+        phase_currents = lambda ms: dq_to_abc(machine.currents_dq(ms), ms.theta_e)
+    else:
+        phase_currents = machine.phase_currents
 
     def period(carry, k_x):
         s, acc = carry
@@ -122,7 +127,7 @@ def run_metrics(
             excess=jnp.where(pre, jnp.maximum(acc.excess, rel), acc.excess),
             last_outside=jnp.where(outside, k, acc.last_outside),
             dip=jnp.where(pre, acc.dip, jnp.maximum(acc.dip, e)),
-            peak=jnp.maximum(acc.peak, jnp.max(jnp.abs(dq_to_abc(i_dq, ms.theta_e)))),
+            peak=jnp.maximum(acc.peak, jnp.max(jnp.abs(phase_currents(ms)))),
             tail_error=acc.tail_error + jnp.where(k >= k_tail, e, 0.0),
             finite=acc.finite & finite,
         )

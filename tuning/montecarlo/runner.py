@@ -155,9 +155,10 @@ class StudyRunner:
         if not samples:
             return
         motor = self.drive.machine.motor
+        inductances = ("R", "L_d", "L_q") + (("L_ls",) if hasattr(motor, "L_ls") else ())  # six-phase leakage
         sampled = SimpleNamespace(
             pole_pairs=motor.pole_pairs,
-            **{f: samples.get(f"motor.{f}", np.asarray(getattr(motor, f))) for f in ("R", "L_d", "L_q")},
+            **{f: samples.get(f"motor.{f}", np.asarray(getattr(motor, f))) for f in inductances},
         )
         speed = rpm_to_rad_s(np.max(np.abs(samples.get("scenario.speed_rpm", self.study.speed_rpm))))
         h_max = max_stable_substep(sampled, 1.5 * speed + 1.0)  # the margin check_simulation allows

@@ -5,9 +5,9 @@ A study runs the book scenario form (speed step from rest to ``speed_rpm`` at t 
 :func:`pmsmjax.presets.book_drive` (optionally with tuned gains from ``pmsmjax tune``). Each varied
 parameter is named by a dotted path:
 
-- ``motor.R``, ``motor.L_d``, ``motor.L_q``, ``motor.psi_f``, ``motor.J``, ``motor.B``: the *plant's*
-  motor. The controller's own motor model (decoupling, delay compensation) stays nominal, as on a real
-  drive whose firmware holds the data-sheet values.
+- ``motor.R``, ``motor.L_d``, ``motor.L_q``, ``motor.psi_f``, ``motor.J``, ``motor.B`` (six-phase also
+  ``motor.L_ls``): the *plant's* motor. The controller's own motor model (decoupling, delay
+  compensation) stays nominal, as on a real drive whose firmware holds the data-sheet values.
 - ``bridge.u_dc``: the DC-link voltage, V.
 - ``controller.<path>``: any scalar array leaf of the controller, e.g. ``controller.speed.kp``.
 - ``scenario.speed_rpm``, ``scenario.load_nm``: the speed step (r/min) and the load step (N m).
@@ -17,7 +17,8 @@ The TOML file (every table and key optional; defaults below)::
     [study]        n, seed, sampling ("random" | "latin_hypercube"), chunk_size, nonphysical
                    ("refuse" | "clip"), decimate, sensitivity_runs
     [drive]        motor (preset or TOML file), gains (gains TOML from pmsmjax tune), current_bandwidth,
-                   speed_bandwidth, current_limit, u_dc, n_substeps, unroll_substeps
+                   speed_bandwidth, current_limit, u_dc, n_substeps, unroll_substeps, machine
+                   ("three-phase" | "six-phase"), control and pwm (six-phase: pmsmjax.presets_six_phase)
     [scenario]     speed_rpm, load_nm, load_time_s, duration_s
     [thresholds]   current_a, tracking_rpm
     [parameters."motor.R"]  distribution = "uniform", tolerance = 0.2, sigmas = 3.0, nominal = ...
@@ -91,6 +92,10 @@ class Study:
       `load_nm`, `load_time_s`, `duration_s`.
     - thresholds: `current_threshold_a` (None: 1.05 times the current limit), `tracking_threshold_rpm`
       (mean speed error over the last 10 % of the run).
+    - `machine`: ``three-phase`` (the book drive) or ``six-phase``
+      (:func:`pmsmjax.presets_six_phase.six_phase_drive` on the six-phase rewind of `motor`); `control`
+      and `pwm`: the six-phase scheme and modulator (None: ``vsd``, ``four-vector``; three phases take
+      only the PI drive).
     """
 
     n: int = 1000
@@ -119,6 +124,9 @@ class Study:
     duration_s: float = 0.4
     current_threshold_a: float | None = None
     tracking_threshold_rpm: float = 10.0
+    machine: str = "three-phase"
+    control: str | None = None
+    pwm: str | None = None
 
     def __post_init__(self):
         for f in ("n", "chunk_size", "decimate", "n_substeps"):
@@ -155,6 +163,20 @@ class Study:
         _check_number("tracking_threshold_rpm", self.tracking_threshold_rpm, positive=True)
         if self.current_threshold_a is not None:
             _check_number("current_threshold_a", self.current_threshold_a, positive=True)
+        if self.machine not in ("three-phase", "six-phase"):
+            raise ParameterError(f"study machine must be 'three-phase' or 'six-phase', got {self.machine!r}.")
+        if self.machine == "three-phase" and self.control not in (None, "pi"):
+            raise ParameterError(
+                f"study control {self.control!r}: the three-phase study runs the PI book drive; other "
+                "controls are for machine = 'six-phase'."
+            )
+        if self.machine == "three-phase" and self.pwm is not None:
+            raise ParameterError("study pwm applies to machine = 'six-phase' only.")
+        if self.machine == "six-phase" and self.unroll_substeps:
+            raise ParameterError(
+                "study unroll_substeps applies to the three-phase drive only (the six-phase dq model "
+                "integrates its planes itself); drop it or set machine = 'three-phase'."
+            )
         if not 0 < self.load_time_s < self.duration_s:
             raise ParameterError(
                 f"load_time_s = {self.load_time_s} s must lie inside the run "
@@ -198,6 +220,20 @@ def _check_number(name, v, positive=False):
 
 def build_drive(study: Study) -> Drive:
     """The nominal drive of ``study`` (book drive, the study's motor and settings, tuned gains if given)."""
+    if study.machine == "six-phase":
+        from pmsmjax.presets_six_phase import load_six_phase_motor, six_phase_drive
+
+        drive = six_phase_drive(
+            load_six_phase_motor(study.motor),
+            control=study.control or "vsd",
+            pwm=study.pwm or "four-vector",
+            current_bandwidth=study.current_bandwidth,
+            speed_bandwidth=study.speed_bandwidth,
+            current_limit=study.current_limit,
+            u_dc=study.u_dc,
+            n_substeps=study.n_substeps,
+        )
+        return drive if study.gains is None else apply_gains(drive, study.gains)
     drive = presets.book_drive(
         presets.load_motor(study.motor),
         current_bandwidth=study.current_bandwidth,
@@ -221,9 +257,8 @@ def nominal_value(study: Study, drive: Drive, name: str) -> float:
 
 
 def check_name(drive: Drive, name: str) -> None:
-    allowed = (
-        [f"motor.{f}" for f in MOTOR_FIELDS] + ["bridge.u_dc"] + [f"scenario.{f}" for f in SCENARIO_FIELDS]
-    )
+    fields = MOTOR_FIELDS + (("L_ls",) if hasattr(drive.machine.motor, "L_ls") else ())
+    allowed = [f"motor.{f}" for f in fields] + ["bridge.u_dc"] + [f"scenario.{f}" for f in SCENARIO_FIELDS]
     controller = [n for n in array_leaf_names(drive) if n.startswith("controller.") and ".model." not in n]
     if name not in allowed and name not in controller:
         raise ParameterError(
@@ -324,6 +359,9 @@ _SECTIONS = {
         "u_dc",
         "n_substeps",
         "unroll_substeps",
+        "machine",
+        "control",
+        "pwm",
     ),
     "scenario": ("speed_rpm", "load_nm", "load_time_s", "duration_s"),
     "thresholds": ("current_a", "tracking_rpm"),
