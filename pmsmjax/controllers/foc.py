@@ -121,7 +121,8 @@ def cascade_references(controller, state: FOCState, estimate: Estimate, refs: Re
     """Steps 1-2 of the cascade (d-axis reference, speed loop) of ``controller`` (a :class:`FOC`, or a
     controller with the same ``model``, ``speed``, ``d_axis``, ``current_limit``, ``mode`` and
     ``speed_divider`` fields and a :class:`FOCState`, such as the six-phase
-    :class:`pmsmjax.controllers.six_phase.SixPhaseFOC`).
+    :class:`pmsmjax.controllers.six_phase.SixPhaseFOC` and
+    :class:`pmsmjax.controllers.hysteresis.HysteresisCurrentControl`).
 
     During a sensorless start (``estimate.startup_weight`` set) the start-up current is blended in.
 
