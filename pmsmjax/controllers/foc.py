@@ -120,7 +120,8 @@ class FOC(AbstractController):
 def cascade_references(controller, state: FOCState, estimate: Estimate, refs: References, ctx):
     """Steps 1-2 of the cascade (d-axis reference, speed loop) of ``controller`` (a :class:`FOC`, or a
     controller with the same ``model``, ``speed``, ``d_axis``, ``current_limit``, ``mode`` and
-    ``speed_divider`` fields and a :class:`FOCState`, such as the six-phase
+    ``speed_divider`` fields and a state with :class:`FOCState`'s ``speed``, ``d_axis``, ``iq_ref`` and
+    ``counter``, such as the six-phase
     :class:`pmsmjax.controllers.six_phase.SixPhaseFOC` and
     :class:`pmsmjax.controllers.hysteresis.HysteresisCurrentControl`).
 
