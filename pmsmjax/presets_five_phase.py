@@ -48,7 +48,7 @@ from .controllers.six_phase import MultiPhaseFOC, VSDCurrentControl, vsd_current
 from .drive import Drive
 from .inverters.multiphase_bridges import MultiPhaseAveragedBridge, MultiPhaseSwitchingBridge
 from .inverters.multiphase_carrier import ZeroSequencePWM
-from .inverters.multiphase_svpwm import NearFourVectorSVPWM
+from .inverters.multiphase_svpwm import LargeVectorSVPWM, NearFourVectorSVPWM
 from .machines.multiphase_motor import MultiPhaseParameters
 from .machines.pmsm_multiphase import MultiPhasePMSMdq, MultiPhasePMSMNatural, MultiPhasePMSMVSD
 from .multiphase_frames import FIVE_PHASE
@@ -131,9 +131,19 @@ def _sinusoidal():
     return ZeroSequencePWM(FIVE_PHASE, "none", name="sinusoidal")
 
 
+def _large():
+    return LargeVectorSVPWM(FIVE_PHASE)
+
+
 #: Modulators (BOOK.md chapter 10): near-four-vector SVPWM, carrier PWM with min-max zero-sequence
-#: injection, and sinusoidal carrier PWM (no injection; the reference point for DC-link use).
-FIVE_PHASE_PWMS = {"near-four-vector": _nfv, "carrier": _carrier, "sinusoidal": _sinusoidal}
+#: injection, sinusoidal carrier PWM (no injection; the reference point for DC-link use), and the
+#: two-large-vector SVPWM (x-y uncontrolled: the contrast that shows why the near-four-vector method).
+FIVE_PHASE_PWMS = {
+    "near-four-vector": _nfv,
+    "carrier": _carrier,
+    "sinusoidal": _sinusoidal,
+    "large-vector": _large,
+}
 
 #: Control schemes (BOOK.md chapter 10): name -> one-line description.
 FIVE_PHASE_CONTROLS = {

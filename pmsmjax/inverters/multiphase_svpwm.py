@@ -21,6 +21,11 @@ limit as carrier PWM with min-max zero-sequence injection (:mod:`.multiphase_car
 the two give the same duties (the zero states split equally is min-max injection): a check of each
 against the other. Six phases: the same tables give ``U_dc/sqrt(3)``.
 
+:class:`LargeVectorSVPWM` is the contrast (the six-phase two-vector method's counterpart): only L_k, L_k+1,
+``[L_k L_k+1]_ab t = u_ab / U_dc``, the x-y average left as it falls (five phases: ``0.2472 U_dc`` per unit
+of dwell time, driving third and seventh harmonic currents through the leakage); linear to the inscribed
+circle of the L polygon, ``|L| cos(pi/K)`` (five phases: ``(4/5) cos 36 deg cos 18 deg = 0.6155 U_dc``).
+
 Over-modulation: as the six-phase method, dwell times beyond the period are scaled to it (direction kept,
 x-y average still as commanded up to that scale), negative dwell times (an unreachable x-y command) set
 to zero. Reference: ``(2,)`` [alpha, beta] or ``(4,)`` [alpha, beta, x, y], V.
@@ -39,7 +44,7 @@ from ..validation import ParameterError
 from .base import AbstractModulator
 from .multiphase_vectors import space_vectors
 
-__all__ = ["NearFourVectorSVPWM", "four_vector_tables", "padded_reference"]
+__all__ = ["LargeVectorSVPWM", "NearFourVectorSVPWM", "four_vector_tables", "padded_reference"]
 
 
 def padded_reference(u_ref: Array, n_active: int = 4) -> Array:
@@ -77,6 +82,22 @@ def four_vector_tables(layout: PhaseLayout) -> tuple[np.ndarray, np.ndarray, np.
     return inv, states, sv.bisectors
 
 
+@functools.lru_cache(maxsize=8)
+def large_vector_tables(layout: PhaseLayout) -> tuple[np.ndarray, np.ndarray]:
+    """Per sector: ``inv (K, 2, 2)`` of ``[L_k L_k+1]`` on alpha-beta, ``states (K, 2, n)``."""
+    sv = space_vectors(layout)
+    K = len(sv.large)
+    inv = np.empty((K, 2, 2))
+    states = np.empty((K, 2, layout.n))
+    for k in range(K):
+        idx = [sv.large[k], sv.large[(k + 1) % K]]
+        inv[k] = np.linalg.inv(sv.vectors[idx, :2].T)
+        states[k] = sv.states[idx]
+    for a in (inv, states):
+        a.setflags(write=False)
+    return inv, states
+
+
 def _select(table: np.ndarray, k: Array, dtype) -> Array:
     """``table[k]`` as a one-hot product (its reverse-mode derivative stays a product, not a scatter)."""
     one_hot = jax.nn.one_hot(k, table.shape[0], dtype=dtype)
@@ -84,7 +105,7 @@ def _select(table: np.ndarray, k: Array, dtype) -> Array:
 
 
 def _duties(t: Array, states: Array) -> Array:
-    """Leg duties from dwell fractions ``t (4,)`` of states ``(4, n)`` (negative times set to 0, scaled to
+    """Leg duties from dwell fractions ``t (m,)`` of states ``(m, n)`` (negative times set to 0, scaled to
     the period if they exceed it), the zero states sharing the rest equally."""
     t = jnp.maximum(t, 0.0)
     total = jnp.sum(t)
@@ -130,3 +151,32 @@ class NearFourVectorSVPWM(AbstractModulator):
         inv, _, bisectors = four_vector_tables(self.layout)
         total = np.sum(inv[0] @ np.concatenate([bisectors[0], np.zeros(2)]))
         return u_dc / total
+
+
+class LargeVectorSVPWM(AbstractModulator):
+    """SVPWM with the two adjacent large vectors only (module docstring): the second plane's average is
+    not controlled. `layout` (static), default five phases. Linear to ``|L| cos(pi/K) U_dc``."""
+
+    layout: PhaseLayout = eqx.field(static=True, default=FIVE_PHASE)
+    name: str = eqx.field(static=True, default="large-vector")
+
+    @property
+    def n_phases(self) -> int:  # type: ignore[override]
+        return self.layout.n
+
+    def dwell_times(self, u_ref: Array, u_dc: Array) -> tuple[Array, Array]:
+        """``(k, t (2,))``: sector and dwell fractions of L_k, L_k+1 before any scaling."""
+        u = padded_reference(u_ref, self.layout.n_active)
+        inv, _ = large_vector_tables(self.layout)
+        _, _, bisectors = four_vector_tables(self.layout)
+        k = jnp.argmax(jnp.asarray(bisectors, u.dtype) @ u[:2])
+        return k, _select(inv, k, u.dtype) @ (u[:2] / u_dc)
+
+    def duties(self, u_ref, u_dc):
+        k, t = self.dwell_times(u_ref, u_dc)
+        _, states = large_vector_tables(self.layout)
+        return _duties(t, _select(states, k, t.dtype))
+
+    def linear_limit(self, u_dc):
+        sv = space_vectors(self.layout)
+        return sv.large_magnitude * np.cos(np.pi / len(sv.large)) * u_dc
