@@ -166,11 +166,11 @@ class SixPhaseFOC(AbstractController):
         check_positive("current_limit", self.current_limit, "A")
         layout = getattr(self.current, "layout", SIX_PHASE)
         if getattr(self.model, "n_phases", 3) != layout.n:
+            word = {5: "five", 6: "six"}.get(layout.n, f"{layout.n}")
             raise ParameterError(
-                f"SixPhaseFOC with a {layout.n}-phase current block ({layout.name}) needs a {layout.n}-phase "
-                f"motor model (MultiPhaseParameters with n_phases = {layout.n}), got "
-                f"{type(self.model).__name__} with n_phases = {getattr(self.model, 'n_phases', 3)}: use "
-                "presets_six_phase.six_phase_motor() or presets_five_phase.five_phase_motor()."
+                f"SixPhaseFOC with a {word}-phase current block needs a {word}-phase motor model "
+                f"(MultiPhaseParameters with n_phases = {layout.n}), got {type(self.model).__name__}: use "
+                f"pmsmjax.presets_{word}_phase.{word}_phase_motor()."
             )
         if self.mode not in ("speed", "current"):
             raise ParameterError(f"mode must be 'speed' or 'current', got {self.mode!r}.")
