@@ -81,21 +81,25 @@ def harmonics_figure(result: dict):
     return fig
 
 
-def z_currents_figure(trace, title: str = ""):
-    """A six-phase run: the phase currents of both sets and the z1-z2 currents against time."""
+def z_currents_figure(trace, title: str = "", layout=None):
+    """A six-phase run: the phase currents of both sets and the z1-z2 currents against time; with
+    ``layout=FIVE_PHASE`` a five-phase run's phase currents and x-y currents."""
     from .multiphase_frames import SIX_PHASE, vsd
 
+    layout = SIX_PHASE if layout is None else layout
+    six = layout == SIX_PHASE
     t = np.asarray(trace.t)
     i = np.asarray(trace.i_abc)
-    iz = np.asarray(vsd(i, SIX_PHASE))[:, 2:4]
+    iz = np.asarray(vsd(i, layout))[:, 2:4]
     fig, (ax_p, ax_z) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
-    for k, name in enumerate("ABCUVW"):
-        ax_p.plot(t, i[:, k], lw=0.8, ls="-" if k < 3 else "--", label=f"$i_{name}$")
-    ax_p.set(ylabel="i / A", title="phase currents (sets ABC solid, UVW dashed)")
+    for k, name in enumerate("ABCUVW" if six else "ABCDE"[: layout.n]):
+        ax_p.plot(t, i[:, k], lw=0.8, ls="-" if k < 3 or not six else "--", label=f"$i_{name}$")
+    ax_p.set(ylabel="i / A", title="phase currents (sets ABC solid, UVW dashed)" if six else "phase currents")
     ax_p.legend(fontsize=7, ncol=6, loc="upper right")
-    ax_z.plot(t, iz[:, 0], lw=0.8, label="$i_{z1}$")
-    ax_z.plot(t, iz[:, 1], lw=0.8, label="$i_{z2}$")
-    ax_z.set(xlabel="t / s", ylabel="i / A", title="z1-z2 currents")
+    a, b = ("z1", "z2") if six else ("x", "y")
+    ax_z.plot(t, iz[:, 0], lw=0.8, label=f"$i_{{{a}}}$")
+    ax_z.plot(t, iz[:, 1], lw=0.8, label=f"$i_{{{b}}}$")
+    ax_z.set(xlabel="t / s", ylabel="i / A", title=f"{a}-{b} currents")
     ax_z.legend(fontsize=8)
     for ax in (ax_p, ax_z):
         ax.grid(alpha=0.3)
