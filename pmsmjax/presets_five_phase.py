@@ -44,7 +44,8 @@ cascade :class:`~pmsmjax.controllers.six_phase.MultiPhaseFOC` with the five-phas
 from pathlib import Path
 
 from .controllers.design import current_loop_imc, speed_loop_active_damping
-from .controllers.six_phase import MultiPhaseFOC, VSDCurrentControl, vsd_current_design
+from .controllers.pr import pr_design
+from .controllers.six_phase import MultiPhaseFOC, VSDCurrentControl, vsd_current_design, z_pr_design
 from .drive import Drive
 from .inverters.multiphase_bridges import MultiPhaseAveragedBridge, MultiPhaseSwitchingBridge
 from .inverters.multiphase_carrier import ZeroSequencePWM
@@ -58,6 +59,7 @@ from .presets import (
     BOOK_DC_LINK,
     BOOK_SPEED_BANDWIDTH,
     BOOK_TS,
+    PR_W_C,
     book_motor,
 )
 from .presets_six_phase import THREE_PHASE_LEAKAGE_FRACTION, read_multiphase_motor_file
@@ -149,6 +151,7 @@ FIVE_PHASE_PWMS = {
 FIVE_PHASE_CONTROLS = {
     "vsd": "i_d = 0 vector control: dq PIs and x-y PIs (3 theta_e frame), PI speed loop (ch. 10)",
     "conventional": "dq PIs only, x-y voltage zero (open loop), PI speed loop (ch. 10)",
+    "pr": "stationary-frame PR on alpha-beta and x-y (resonant at w_e: phase unbalance), PI speed loop",
 }
 
 
@@ -164,12 +167,22 @@ def five_phase_machine(motor=None, frame: str = "dq", mechanics: str = "dynamic"
     )
 
 
-def five_phase_current_block(control: str, motor, current_bandwidth: float):
-    """The five-phase current block of ``control`` (:data:`FIVE_PHASE_CONTROLS`) from the design rules."""
+def five_phase_current_block(control: str, motor, current_bandwidth: float, w_c: float = PR_W_C):
+    """The five-phase current block of ``control`` (:data:`FIVE_PHASE_CONTROLS`) from the design rules.
+
+    ``pr``: the alpha-beta PR (:func:`~pmsmjax.controllers.pr.pr_design`) and the x-y PR
+    (:func:`~pmsmjax.controllers.six_phase.z_pr_design`), both resonant at ``w_e``: a phase-resistance
+    unbalance puts x-y currents at ``+-w_e`` (not constant in the ``3 theta_e`` frame of the ``vsd`` x-y
+    PI, which removes third-harmonic disturbances instead); a real-coefficient resonator at ``w_e``
+    removes both directions."""
     if control == "vsd":
         return vsd_current_design(motor, current_bandwidth, layout=FIVE_PHASE, rotation=XY_ROTATION)
     if control == "conventional":
         return VSDCurrentControl(current_loop_imc(motor, current_bandwidth), None, FIVE_PHASE)
+    if control == "pr":
+        return VSDCurrentControl(
+            pr_design(motor, current_bandwidth, w_c), z_pr_design(motor, current_bandwidth, w_c), FIVE_PHASE
+        )
     raise ParameterError(
         f"five-phase control must be one of {', '.join(FIVE_PHASE_CONTROLS)}, got {control!r}."
     )
@@ -194,11 +207,12 @@ def five_phase_drive(
     speed_divider: int = 1,
     dead_time: float | None = None,
     resistance_scale=None,
+    w_c: float = PR_W_C,
 ) -> Drive:
     """A five-phase drive: `control` (:data:`FIVE_PHASE_CONTROLS`), `pwm` (:data:`FIVE_PHASE_PWMS`),
     `bridge` (``averaged`` or ``switching``, the latter with optional `dead_time` s), `frame`
     (:data:`FIVE_PHASE_FRAMES`); the rest as :func:`pmsmjax.presets.book_drive`. `resistance_scale`:
-    ``(5,)`` phase resistance factors of the plant (unbalance).
+    ``(5,)`` phase resistance factors of the plant (unbalance); `w_c` rad/s: the PR resonators' damping.
 
     The controller's model is the plant's motor (its ``psi_f3`` unused by the controller): the speed PI
     with active damping at ``speed_bandwidth``, the current loops at ``current_bandwidth``.
@@ -217,7 +231,7 @@ def five_phase_drive(
     controller = MultiPhaseFOC(
         model=motor,
         speed=speed_loop_active_damping(motor, speed_bandwidth),
-        current=five_phase_current_block(control, motor, current_bandwidth),
+        current=five_phase_current_block(control, motor, current_bandwidth, w_c),
         current_limit=current_limit,
         mode=mode,
         speed_divider=speed_divider,

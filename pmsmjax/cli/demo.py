@@ -25,7 +25,7 @@ SIX_PHASE_PWM_NAMES = ("four-vector", "two-vector", "decoupled", "double-zs")
 THREE_PHASE_FRAMES = ("dq", "alpha_beta", "abc")
 SIX_PHASE_FRAME_NAMES = ("dq", "vsd", "double-dq", "natural")
 #: ``--machine five-phase``: pmsmjax.presets_five_phase.FIVE_PHASE_CONTROLS, _PWMS, _FRAMES.
-FIVE_PHASE_CONTROL_NAMES = ("vsd", "conventional")
+FIVE_PHASE_CONTROL_NAMES = ("vsd", "conventional", "pr")
 FIVE_PHASE_PWM_NAMES = ("near-four-vector", "carrier", "sinusoidal", "large-vector")
 FIVE_PHASE_FRAME_NAMES = ("dq", "vsd", "natural")
 #: Per multi-phase machine: (controls, modulators, frames, default modulator).
@@ -219,7 +219,8 @@ def add_parser(sub):
         "dtc (switching-table direct torque control, 40 kHz samples), smc-dtc (sliding-mode DTC with "
         "SVPWM). Six-phase: vsd (dq and z1-z2 PIs, default), double-dq (four PIs, cross-coupling "
         "compensation), conventional (dq PIs only), pr (stationary-frame PR on alpha-beta and z1-z2). "
-        "Five-phase: vsd (i_d = 0, dq and x-y PIs, default), conventional (dq PIs only)",
+        "Five-phase: vsd (i_d = 0, dq and x-y PIs, default), conventional (dq PIs only), pr "
+        "(stationary-frame PR on alpha-beta and x-y)",
     )
     p.add_argument(
         "--pwm",

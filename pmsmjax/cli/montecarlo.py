@@ -109,7 +109,7 @@ def add_parser(sub):
     p.add_argument(
         "--control",
         choices=("vsd", "double-dq", "conventional", "pr"),
-        help="six- or five-phase control scheme (default vsd; five-phase: vsd, conventional)",
+        help="six- or five-phase control scheme (default vsd; five-phase: vsd, conventional, pr)",
     )
     p.add_argument(
         "--pwm",

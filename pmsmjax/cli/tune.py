@@ -39,7 +39,7 @@ def add_parser(sub):
         "--control",
         choices=("pi", "smc", "pr", "smc-dtc", "vsd", "double-dq", "conventional"),
         help="control method whose gains are tuned (default pi; six-phase: vsd, double-dq, conventional, "
-        "pr, default vsd; five-phase: vsd, conventional, default vsd)",
+        "pr, default vsd; five-phase: vsd, conventional, pr, default vsd)",
     )
     p.add_argument(
         "--config", default=None, help="TOML with [weights], [tune] and [job] tables (default: none)"

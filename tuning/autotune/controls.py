@@ -69,6 +69,7 @@ SIX_PHASE_TUNABLE_CONTROLS = {
 FIVE_PHASE_TUNABLE_CONTROLS = {
     "vsd": ControlTuning(("speed",) + _VSD_DQ),
     "conventional": ControlTuning(("speed",) + _VSD_DQ),
+    "pr": ControlTuning(("speed",) + _PR_DQ),
 }
 
 
