@@ -29,6 +29,7 @@ _LAZY = {
     "multiphase_frames": ("multiphase_frames", None),
     "presets": ("presets", None),
     "presets_six_phase": ("presets_six_phase", None),
+    "presets_five_phase": ("presets_five_phase", None),
     "replay": ("replay", None),
     "scenarios": ("scenarios", None),
     "Drive": ("drive", "Drive"),

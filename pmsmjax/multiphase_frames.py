@@ -1,11 +1,13 @@
 """Multi-phase reference frames: vector space decomposition (VSD) of n phases, and the six-phase double dq
-(BOOK.md chapter 7).
+(BOOK.md chapter 7); the five-phase layout of chapter 10.
 
 **Phase layout.** A machine's windings are described by a :class:`PhaseLayout`: the angle of each phase's
 magnetic axis (rad, from the A axis), the groups of phases that share an isolated star point, and the
 harmonic order of each two-dimensional subspace of the VSD. :data:`SIX_PHASE` is the dual three-phase
 winding of chapter 7: sets ABC at 0, 120, 240 deg and UVW at 30, 150, 270 deg, two isolated neutrals,
-subspaces alpha-beta (order 1) and z1-z2 (order 5).
+subspaces alpha-beta (order 1) and z1-z2 (order 5). :data:`FIVE_PHASE` is the symmetrical five-phase
+winding of chapter 10: phases A..E at ``72 k`` deg, one star point, subspaces alpha-beta (order 1) and x-y
+(order 3), so the 5x5 VSD is the five-phase Clarke (rows alpha, beta, x, y, zero sequence).
 
 **VSD** (Zhao & Lipo, "Space vector PWM control of dual three-phase induction machine using vector space
 decomposition", IEEE TIA 31(5), 1995). Row pairs ``(2/n) [cos(h g_k), sin(h g_k)]`` for each harmonic
@@ -58,6 +60,7 @@ from .validation import ParameterError
 __all__ = [
     "PhaseLayout",
     "SIX_PHASE",
+    "FIVE_PHASE",
     "DOUBLE_DQ_TO_VSD",
     "VSD_TO_DOUBLE_DQ",
     "vsd_matrix",
@@ -125,6 +128,17 @@ SIX_PHASE = PhaseLayout(
     neutrals=((0, 1, 2), (3, 4, 5)),
     harmonics=(1, 5),
     name="six-phase (dual three-phase, 30 deg)",
+)
+
+#: The symmetrical five-phase winding (BOOK.md chapter 10): A, B, C, D, E at 0, 72, 144, 216, 288 deg, one
+#: isolated star point; subspaces alpha-beta (fundamental, order 1) and x-y (order 3). Phase harmonics of
+#: orders ``5k +- 1`` map into alpha-beta, ``5k +- 2`` (3, 7, 13, ...) into x-y, multiples of 5 into the
+#: zero sequence (no current with an isolated star).
+FIVE_PHASE = PhaseLayout(
+    angles=tuple(2 * math.pi * k / 5 for k in range(5)),
+    neutrals=((0, 1, 2, 3, 4),),
+    harmonics=(1, 3),
+    name="five-phase (72 deg)",
 )
 
 

@@ -37,6 +37,8 @@ def vectors_figure(u_dc: float = 1.0):
 def trajectories_figure(result: dict, names):
     """Per variant: each period's average voltage on alpha-beta and z1-z2, and the currents in both planes."""
     waves = result["waves"]
+    five = result["settings"].get("phases", 6) == 5
+    plane, a, b = ("x-y", "x", "y") if five else ("z1-z2", "z1", "z2")
     fig, axes = plt.subplots(2, 2, figsize=(10, 9))
     for k, name in enumerate(names):
         w = waves[name]
@@ -47,9 +49,9 @@ def trajectories_figure(result: dict, names):
         axes[1, 1].plot(i[:, 2], i[:, 3], lw=0.5, color=f"C{k}", label=name)
     titles = (
         ("period-average voltage, alpha-beta", "$u_\\alpha$ / V", "$u_\\beta$ / V"),
-        ("period-average voltage, z1-z2", "$u_{z1}$ / V", "$u_{z2}$ / V"),
+        (f"period-average voltage, {plane}", f"$u_{{{a}}}$ / V", f"$u_{{{b}}}$ / V"),
         ("current, alpha-beta", "$i_\\alpha$ / A", "$i_\\beta$ / A"),
-        ("current, z1-z2", "$i_{z1}$ / A", "$i_{z2}$ / A"),
+        (f"current, {plane}", f"$i_{{{a}}}$ / A", f"$i_{{{b}}}$ / A"),
     )
     for ax, (title, xl, yl) in zip(axes.ravel(), titles, strict=True):
         ax.set(title=title, xlabel=xl, ylabel=yl)
@@ -61,14 +63,21 @@ def trajectories_figure(result: dict, names):
 
 
 def harmonics_figure(result: dict):
-    """5th and 7th harmonic phase currents and current THD of every variant."""
+    """5th and 7th (five phases: 3rd and 7th) harmonic phase currents and current THD of every variant."""
     entries = result["entries"]
     names = list(entries)
+    five = result["settings"].get("phases", 6) == 5
+    h1, h2 = (3, 7) if five else (5, 7)
+    nth = {3: "3rd", 5: "5th", 7: "7th"}
     x = np.arange(len(names))
     fig, (ax_h, ax_t) = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
-    ax_h.bar(x - 0.2, [entries[n]["harmonic_5_current_a"] for n in names], 0.4, label="5th")
-    ax_h.bar(x + 0.2, [entries[n]["harmonic_7_current_a"] for n in names], 0.4, label="7th")
-    ax_h.set(ylabel="amplitude / A", title="5th and 7th harmonic phase currents (mean of the six phases)")
+    ax_h.bar(x - 0.2, [entries[n][f"harmonic_{h1}_current_a"] for n in names], 0.4, label=nth[h1])
+    ax_h.bar(x + 0.2, [entries[n][f"harmonic_{h2}_current_a"] for n in names], 0.4, label=nth[h2])
+    ax_h.set(
+        ylabel="amplitude / A",
+        title=f"{nth[h1]} and {nth[h2]} harmonic phase currents "
+        f"(mean of the {'five' if five else 'six'} phases)",
+    )
     ax_h.legend(fontsize=8)
     ax_t.bar(x, [entries[n]["current_thd_pct"] for n in names], 0.6, color="C2")
     f_max = result["settings"]["thd_max_frequency_hz"]
@@ -81,21 +90,25 @@ def harmonics_figure(result: dict):
     return fig
 
 
-def z_currents_figure(trace, title: str = ""):
-    """A six-phase run: the phase currents of both sets and the z1-z2 currents against time."""
+def z_currents_figure(trace, title: str = "", layout=None):
+    """A six-phase run: the phase currents of both sets and the z1-z2 currents against time; with
+    ``layout=FIVE_PHASE`` a five-phase run's phase currents and x-y currents."""
     from .multiphase_frames import SIX_PHASE, vsd
 
+    layout = SIX_PHASE if layout is None else layout
+    six = layout == SIX_PHASE
     t = np.asarray(trace.t)
     i = np.asarray(trace.i_abc)
-    iz = np.asarray(vsd(i, SIX_PHASE))[:, 2:4]
+    iz = np.asarray(vsd(i, layout))[:, 2:4]
     fig, (ax_p, ax_z) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
-    for k, name in enumerate("ABCUVW"):
-        ax_p.plot(t, i[:, k], lw=0.8, ls="-" if k < 3 else "--", label=f"$i_{name}$")
-    ax_p.set(ylabel="i / A", title="phase currents (sets ABC solid, UVW dashed)")
+    for k, name in enumerate("ABCUVW" if six else "ABCDE"[: layout.n]):
+        ax_p.plot(t, i[:, k], lw=0.8, ls="-" if k < 3 or not six else "--", label=f"$i_{name}$")
+    ax_p.set(ylabel="i / A", title="phase currents (sets ABC solid, UVW dashed)" if six else "phase currents")
     ax_p.legend(fontsize=7, ncol=6, loc="upper right")
-    ax_z.plot(t, iz[:, 0], lw=0.8, label="$i_{z1}$")
-    ax_z.plot(t, iz[:, 1], lw=0.8, label="$i_{z2}$")
-    ax_z.set(xlabel="t / s", ylabel="i / A", title="z1-z2 currents")
+    a, b = ("z1", "z2") if six else ("x", "y")
+    ax_z.plot(t, iz[:, 0], lw=0.8, label=f"$i_{{{a}}}$")
+    ax_z.plot(t, iz[:, 1], lw=0.8, label=f"$i_{{{b}}}$")
+    ax_z.set(xlabel="t / s", ylabel="i / A", title=f"{a}-{b} currents")
     ax_z.legend(fontsize=8)
     for ax in (ax_p, ax_z):
         ax.grid(alpha=0.3)

@@ -109,36 +109,46 @@ def load_six_phase_motor(name_or_path) -> MultiPhaseParameters:
     key = str(name_or_path)
     if key in ("book", "book_salient"):
         return six_phase_motor(key == "book_salient")
+    return read_multiphase_motor_file(name_or_path, 6)
+
+
+def read_multiphase_motor_file(name_or_path, n_phases: int, optional=()) -> MultiPhaseParameters:
+    """An ``n_phases`` motor from a TOML file with :data:`SIX_PHASE_FIELDS` (the n-phase fields, SI units)
+    and the keys of `optional` (e.g. ``("psi_f3",)``), at top level or under ``[motor]``; ``n_phases``
+    may be given and must match."""
+    key = str(name_or_path)
+    word = {5: "five", 6: "six"}.get(n_phases, str(n_phases))
     path = Path(name_or_path)
     if not path.is_file():
         raise ParameterError(
-            f"six-phase motor {key!r} is neither a preset (book, book_salient) nor an existing TOML file."
+            f"{word}-phase motor {key!r} is neither a preset (book, book_salient) nor an existing TOML file."
         )
     try:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as err:
         raise ParameterError(f"motor file {path}: not valid TOML ({err}).") from err
     data = dict(data.get("motor", data))
-    n = data.pop("n_phases", 6)
-    if n != 6:
-        raise ParameterError(f"motor file {path}: n_phases = {n!r}, a six-phase motor needs 6.")
+    n = data.pop("n_phases", n_phases)
+    if n != n_phases:
+        raise ParameterError(f"motor file {path}: n_phases = {n!r}, a {word}-phase motor needs {n_phases}.")
     missing = [f for f in SIX_PHASE_FIELDS if f not in data]
     if missing:
         raise ParameterError(
-            f"motor file {path} lacks {', '.join(missing)}: a six-phase motor needs "
+            f"motor file {path} lacks {', '.join(missing)}: a {word}-phase motor needs "
             f"{', '.join(SIX_PHASE_FIELDS)} (SI units: ohm, H, H, Wb, H, -, kg m^2, N m s)."
         )
-    unknown = sorted(set(data) - set(SIX_PHASE_FIELDS))
+    allowed = SIX_PHASE_FIELDS + tuple(optional)
+    unknown = sorted(set(data) - set(allowed))
     if unknown:
         raise ParameterError(
-            f"motor file {path}: unknown keys {unknown}; allowed: {', '.join(SIX_PHASE_FIELDS)}, n_phases."
+            f"motor file {path}: unknown keys {unknown}; allowed: {', '.join(allowed)}, n_phases."
         )
     if not isinstance(data["pole_pairs"], int):
         raise ParameterError(f"motor file {path}: pole_pairs must be an integer, got {data['pole_pairs']!r}.")
-    for f in SIX_PHASE_FIELDS:
-        if f != "pole_pairs" and not isinstance(data[f], (int, float)):
+    for f in allowed:
+        if f != "pole_pairs" and f in data and not isinstance(data[f], (int, float)):
             raise ParameterError(f"motor file {path}: {f} must be a number, got {data[f]!r}.")
-    return MultiPhaseParameters(**{f: data[f] for f in SIX_PHASE_FIELDS}, n_phases=6)
+    return MultiPhaseParameters(**{f: data[f] for f in allowed if f in data}, n_phases=n_phases)
 
 
 #: Machine model frames: ``dq`` (fundamental in the rotor frame, z1-z2 stationary: the fast one), ``vsd``

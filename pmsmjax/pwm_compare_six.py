@@ -18,6 +18,13 @@ Procedure (as :mod:`pmsmjax.pwm_compare` for three phases):
    ``thd_max_carriers`` times the switching frequency, and the 5th and 7th harmonic phase currents (the
    harmonics of orders ``6k -+ 1``, k odd, that live in z1-z2), all averaged over the six phases.
 
+**Five phases** (``SixPhaseCompareSettings(phases=5)``, ``pmsmjax pwm-compare --phases 5``, BOOK.md chapter
+10): the same procedure on the five-phase drive (:func:`pmsmjax.presets_five_phase.five_phase_drive`,
+conventional control) with its modulators (:data:`~pmsmjax.presets_five_phase.FIVE_PHASE_PWMS`) and the
+five-leg bridges; the second plane is x-y and the harmonics reported are the 3rd and 7th (orders
+``5k +- 2``, the ones that live in x-y): keys ``x_y_average_voltage_*``, ``harmonic_3_current_a``,
+``harmonic_3_xy_current_a``, ...
+
 Variants: ``<modulator>`` (averaged bridge), ``<modulator>_switching`` (:class:`MultiPhaseSwitchingBridge`,
 no dead time) and optionally ``<modulator>_switching_deadtime``; modulators ``four-vector``,
 ``two-vector``, ``decoupled``, ``double-zs``.
@@ -33,7 +40,7 @@ import numpy as np
 from .drive import Drive
 from .intra_period import dense_window
 from .inverters.multiphase_bridges import MultiPhaseAveragedBridge, MultiPhaseSwitchingBridge
-from .multiphase_frames import SIX_PHASE, inverse_vsd, vsd
+from .multiphase_frames import inverse_vsd, vsd
 from .presets_six_phase import SIX_PHASE_PWMS, six_phase_drive
 from .pwm_compare import steady_state
 from .scenarios import Profile, Scenario
@@ -51,7 +58,8 @@ BRIDGES = ("averaged", "switching", "deadtime")
 class SixPhaseCompareSettings:
     """Operating point and analysis sizes (see :class:`pmsmjax.pwm_compare.CompareSettings`).
 
-    `bridges`: subset of ``("averaged", "switching", "deadtime")``; `dead_time_s` for the last.
+    `bridges`: subset of ``("averaged", "switching", "deadtime")``; `dead_time_s` for the last. `phases`:
+    6 (default) or 5; with 5, `modulators` defaults to the five-phase ones.
     """
 
     speed_rpm: float = 1000.0
@@ -61,15 +69,42 @@ class SixPhaseCompareSettings:
     window_cycles: int = 2
     samples_per_period: int = 32
     thd_max_carriers: float = 4.0
-    modulators: tuple[str, ...] = tuple(SIX_PHASE_PWMS)
+    modulators: tuple[str, ...] | None = None
     bridges: tuple[str, ...] = ("averaged", "switching")
+    phases: int = 6
+
+    @property
+    def table(self) -> dict:
+        """The modulators of the phase count (name -> constructor)."""
+        if self.phases == 5:
+            from .presets_five_phase import FIVE_PHASE_PWMS
+
+            return FIVE_PHASE_PWMS
+        return SIX_PHASE_PWMS
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(self.table) if self.modulators is None else tuple(self.modulators)
+
+    @property
+    def plane(self) -> str:
+        """The second VSD plane's name: z (six phases) or xy (five)."""
+        return "xy" if self.phases == 5 else "z"
+
+    @property
+    def orders(self) -> tuple[int, int]:
+        """The harmonic orders that live in the second plane, reported: 5, 7 (six phases) or 3, 7 (five)."""
+        return (3, 7) if self.phases == 5 else (5, 7)
 
     def check(self, Ts: float, pole_pairs: int) -> int:
         """Validate; return the PWM periods per fundamental period (must be whole)."""
-        unknown = [m for m in self.modulators if m not in SIX_PHASE_PWMS]
+        if self.phases not in (5, 6):
+            raise ParameterError(f"phases must be 5 or 6, got {self.phases!r}.")
+        word = "five" if self.phases == 5 else "six"
+        unknown = [m for m in self.names if m not in self.table]
         if unknown:
             raise ParameterError(
-                f"unknown six-phase modulators {unknown}: choose from {list(SIX_PHASE_PWMS)}."
+                f"unknown {word}-phase modulators {unknown}: choose from {list(self.table)}."
             )
         bad = [b for b in self.bridges if b not in BRIDGES]
         if bad:
@@ -97,7 +132,7 @@ class SixPhaseCompareSettings:
 
 def run_variant(drive: Drive, start, settings: SixPhaseCompareSettings, per_cycle: int) -> dict:
     """Simulate one variant from ``start``; the window's waveforms (NumPy): ``t_i (N,)`` s, ``i_phase
-    (N, 6)`` A and ``i_vsd (N, 4)`` A (uniform samples), ``t_u (K+1,)`` s, ``u_vsd (K, 4)`` and ``u_phase
+    (N, n)`` A and ``i_vsd (N, 4)`` A (uniform samples), ``t_u (K+1,)`` s, ``u_vsd (K, 4)`` and ``u_phase
     (K, 6)`` V (piecewise constant), ``u_vsd_period (P, 4)`` V (each period's average of the applied
     voltage), ``omega_m``."""
     Ts, M = drive.Ts, settings.samples_per_period
@@ -110,9 +145,10 @@ def run_variant(drive: Drive, start, settings: SixPhaseCompareSettings, per_cycl
     trace = simulate(drive, scenario, initial_state=start)
     window = jax.tree.map(lambda x: x[n_settle:], trace)
     machine = drive.machine
+    layout = machine.layout
     dense, t_u, u_vsd = dense_window(drive, window, M)
     i_phase = jax.vmap(jax.vmap(lambda s: machine.phase_currents(s)))(dense)
-    i_phase = np.asarray(i_phase).reshape(-1, 6)
+    i_phase = np.asarray(i_phase).reshape(-1, layout.n)
     # Each period's average of the voltage the bridge applied (dead-time errors included): the integral of
     # the piecewise-constant voltage between period starts, which are cut points of t_u.
     integral = np.concatenate([np.zeros((1, u_vsd.shape[-1])), np.cumsum(np.diff(t_u)[:, None] * u_vsd, 0)])
@@ -121,10 +157,10 @@ def run_variant(drive: Drive, start, settings: SixPhaseCompareSettings, per_cycl
     return {
         "t_i": (np.arange(n_window * M) + 1) * Ts / M,
         "i_phase": i_phase,
-        "i_vsd": np.asarray(vsd(jnp.asarray(i_phase), SIX_PHASE))[:, :4],
+        "i_vsd": np.asarray(vsd(jnp.asarray(i_phase), layout))[:, :4],
         "t_u": t_u,
         "u_vsd": np.asarray(u_vsd),
-        "u_phase": np.asarray(inverse_vsd(jnp.asarray(u_vsd), SIX_PHASE)),
+        "u_phase": np.asarray(inverse_vsd(jnp.asarray(u_vsd), layout)),
         "u_vsd_period": u_period,
         "omega_m": float(np.mean(np.asarray(window.omega_m))),
     }
@@ -142,20 +178,22 @@ def analyse(wave: dict, settings: SixPhaseCompareSettings, Ts: float) -> dict:
     mean = lambda x: float(np.mean(x))
     z_avg = np.hypot(wave["u_vsd_period"][:, 2], wave["u_vsd_period"][:, 3])
     i_z = np.hypot(wave["i_vsd"][:, 2], wave["i_vsd"][:, 3])
-    return {
+    z = settings.plane
+    out = {
         "fundamental_phase_voltage_v": mean(spec_u.fundamental),
         "fundamental_current_a": mean(spec_i.fundamental),
-        "z_average_voltage_rms_v": float(np.sqrt(np.mean(z_avg**2))),
-        "z_average_voltage_peak_v": float(np.max(z_avg)),
-        "z_current_rms_a": float(np.sqrt(np.mean(i_z**2))),
+        f"{z}_average_voltage_rms_v": float(np.sqrt(np.mean(z_avg**2))),
+        f"{z}_average_voltage_peak_v": float(np.max(z_avg)),
+        f"{z}_current_rms_a": float(np.sqrt(np.mean(i_z**2))),
         "voltage_thd_pct": 100.0 * mean(thd(spec_u, f_max)),
         "current_thd_pct": 100.0 * mean(thd(spec_i, f_max)),
-        "harmonic_5_current_a": mean(spec_i.amplitudes[5 * cycles]),
-        "harmonic_7_current_a": mean(spec_i.amplitudes[7 * cycles]),
-        "harmonic_5_z_current_a": mean(spec_z.amplitudes[5 * cycles]),
-        "harmonic_7_z_current_a": mean(spec_z.amplitudes[7 * cycles]),
-        "spectra": {"phase_voltage": spec_u, "current": spec_i},
     }
+    for k in settings.orders:
+        out[f"harmonic_{k}_current_a"] = mean(spec_i.amplitudes[k * cycles])
+    for k in settings.orders:
+        out[f"harmonic_{k}_{z}_current_a"] = mean(spec_z.amplitudes[k * cycles])
+    out["spectra"] = {"phase_voltage": spec_u, "current": spec_i}
+    return out
 
 
 def compare_six_phase(
@@ -164,18 +202,29 @@ def compare_six_phase(
     """Run every variant; ``{"settings", "entries", "waves", "spectra"}`` as
     :func:`pmsmjax.pwm_compare.compare`. `base`: the drive (default: six-phase, conventional control,
     four-vector SVPWM, averaged bridge)."""
+    if base is None and settings.phases == 5:
+        from .presets_five_phase import five_phase_drive
+
+        base = five_phase_drive(control="conventional", pwm="near-four-vector")
     base = six_phase_drive(control="conventional", pwm="four-vector") if base is None else base
     per_cycle = settings.check(base.Ts, base.machine.motor.pole_pairs)
+    layout = base.machine.layout
+    if layout.n != settings.phases:
+        raise ParameterError(f"the base drive has {layout.n} phases, the settings {settings.phases}.")
     u_dc = float(base.bridge.u_dc)
     start = steady_state(base, settings)  # the book scenario to (speed_rpm, load_nm)
     bridges = {
-        "averaged": ("", MultiPhaseAveragedBridge(u_dc)),
-        "switching": ("_switching", MultiPhaseSwitchingBridge(u_dc)),
-        "deadtime": ("_switching_deadtime", MultiPhaseSwitchingBridge(u_dc, dead_time=settings.dead_time_s)),
+        "averaged": ("", MultiPhaseAveragedBridge(u_dc, layout)),
+        "switching": ("_switching", MultiPhaseSwitchingBridge(u_dc, layout=layout)),
+        "deadtime": (
+            "_switching_deadtime",
+            MultiPhaseSwitchingBridge(u_dc, dead_time=settings.dead_time_s, layout=layout),
+        ),
     }
+    z, (h1, h2) = settings.plane, settings.orders
     entries, waves, spectra = {}, {}, {}
-    for mod_name in settings.modulators:
-        modulator = SIX_PHASE_PWMS[mod_name]()
+    for mod_name in settings.names:
+        modulator = settings.table[mod_name]()
         for bridge_key in settings.bridges:
             suffix, bridge = bridges[bridge_key]
             name = mod_name + suffix
@@ -195,15 +244,19 @@ def compare_six_phase(
             if progress:
                 e = entries[name]
                 progress(
-                    f"{name:30s} U1 {e['fundamental_phase_voltage_v']:6.2f} V  u_z avg "
-                    f"{e['z_average_voltage_rms_v']:6.2f} V  THD i {e['current_thd_pct']:6.2f} %  "
-                    f"i5 {e['harmonic_5_current_a']:.3f} A  i7 {e['harmonic_7_current_a']:.3f} A"
+                    f"{name:30s} U1 {e['fundamental_phase_voltage_v']:6.2f} V  u_{z} avg "
+                    f"{e[f'{z}_average_voltage_rms_v']:6.2f} V  THD i {e['current_thd_pct']:6.2f} %  "
+                    f"i{h1} {e[f'harmonic_{h1}_current_a']:.3f} A  "
+                    f"i{h2} {e[f'harmonic_{h2}_current_a']:.3f} A"
                 )
     return {
         "settings": {
             **dataclasses.asdict(settings),
-            "phases": 6,
-            "control": "conventional (dq loops only, z1-z2 voltage reference 0)",
+            "modulators": list(settings.names),
+            "phases": settings.phases,
+            "control": "conventional (dq loops only, "
+            + ("x-y" if settings.phases == 5 else "z1-z2")
+            + " voltage reference 0)",
             "u_dc_v": u_dc,
             "Ts_s": base.Ts,
             "thd_max_frequency_hz": settings.thd_max_carriers / base.Ts,

@@ -72,6 +72,13 @@ SIX_PHASE_COLUMN_UNITS = {
     **{f"duty_{x}": "1 (leg duty cycle applied)" for x in "uvw"},
 }
 
+#: The further columns of a five-phase trace (phases D and E, capitals: ``i_d`` is the d-axis current).
+FIVE_PHASE_COLUMN_UNITS = {
+    **{f"i_{x}": "A (phase current)" for x in "DE"},
+    **{f"u_{x}": "V (period-average phase voltage applied)" for x in "DE"},
+    **{f"duty_{x}": "1 (leg duty cycle applied)" for x in "DE"},
+}
+
 
 class Trace(eqx.Module):
     """Recorded signals; the leading axis is time (after any batch axes from ``vmap``).
@@ -120,6 +127,11 @@ class Trace(eqx.Module):
             out[name] = x if idx is None else x[..., idx]
         if np.shape(self.i_abc)[-1] == 6:  # the second set of a six-phase machine
             for k, phase in enumerate("uvw", start=3):
+                out[f"i_{phase}"] = np.asarray(self.i_abc)[..., k]
+                out[f"u_{phase}"] = np.asarray(self.u_abc)[..., k]
+                out[f"duty_{phase}"] = np.asarray(self.duties)[..., k]
+        elif np.shape(self.i_abc)[-1] == 5:  # phases D and E of a five-phase machine
+            for k, phase in enumerate("DE", start=3):
                 out[f"i_{phase}"] = np.asarray(self.i_abc)[..., k]
                 out[f"u_{phase}"] = np.asarray(self.u_abc)[..., k]
                 out[f"duty_{phase}"] = np.asarray(self.duties)[..., k]

@@ -1,5 +1,6 @@
 """``pmsmjax demo`` (alias ``simulate``): the book scenario under a chosen control method, written as a
-trace, summary.json and figures; ``--machine six-phase`` runs the dual three-phase drive (book ch. 7-9).
+trace, summary.json and figures; ``--machine six-phase`` runs the dual three-phase drive (book ch. 7-9),
+``--machine five-phase`` the five-phase drive (book ch. 10).
 
 Before any work: the flags (:mod:`pmsmjax.cli.checks`), ``--out``, the motor file (its units,
 :mod:`pmsmjax.plausibility`), the gains file, the load step inside the run, and a speed the drive could
@@ -23,7 +24,21 @@ SIX_PHASE_CONTROL_NAMES = ("vsd", "double-dq", "conventional", "pr")
 SIX_PHASE_PWM_NAMES = ("four-vector", "two-vector", "decoupled", "double-zs")
 THREE_PHASE_FRAMES = ("dq", "alpha_beta", "abc")
 SIX_PHASE_FRAME_NAMES = ("dq", "vsd", "double-dq", "natural")
-#: Flags the six-phase drive takes (argparse dest -> six_phase_drive option).
+#: ``--machine five-phase``: pmsmjax.presets_five_phase.FIVE_PHASE_CONTROLS, _PWMS, _FRAMES.
+FIVE_PHASE_CONTROL_NAMES = ("vsd", "conventional", "pr")
+FIVE_PHASE_PWM_NAMES = ("near-four-vector", "carrier", "sinusoidal", "large-vector")
+FIVE_PHASE_FRAME_NAMES = ("dq", "vsd", "natural")
+#: Per multi-phase machine: (controls, modulators, frames, default modulator).
+MULTIPHASE_NAMES = {
+    "six-phase": (SIX_PHASE_CONTROL_NAMES, SIX_PHASE_PWM_NAMES, SIX_PHASE_FRAME_NAMES, "four-vector"),
+    "five-phase": (
+        FIVE_PHASE_CONTROL_NAMES,
+        FIVE_PHASE_PWM_NAMES,
+        FIVE_PHASE_FRAME_NAMES,
+        "near-four-vector",
+    ),
+}
+#: Flags the six- and five-phase drives take (argparse dest -> six_phase_drive / five_phase_drive option).
 SIX_PHASE_FLAG_OPTIONS = {
     "frame": "frame",
     "substeps": "n_substeps",
@@ -83,10 +98,13 @@ MAX_SPEED_FACTOR = 3.0
 
 
 def six_phase_drive_from_flags(args):
-    """``--machine six-phase``: the six-phase drive of ``args.control`` with the flags the user set; flags
-    of the three-phase controls are refused."""
+    """``--machine six-phase`` (or ``five-phase``): the multi-phase drive of ``args.control`` with the flags
+    the user set; flags of the three-phase controls are refused."""
     from ..presets_six_phase import load_six_phase_motor, six_phase_drive
 
+    if args.machine == "five-phase":
+        from ..presets_five_phase import five_phase_drive as six_phase_drive  # noqa: F811
+        from ..presets_five_phase import load_five_phase_motor as load_six_phase_motor  # noqa: F811
     options = {}
     for flag in FLAG_OPTIONS.keys() | SIX_PHASE_FLAG_OPTIONS.keys():
         value = getattr(args, flag, None)
@@ -98,26 +116,33 @@ def six_phase_drive_from_flags(args):
 
 def check_machine_flags(args) -> None:
     """The flags that do not fit ``--machine`` are refused before any work (pure Python)."""
-    if args.machine == "six-phase":
+    if args.machine in MULTIPHASE_NAMES:
+        machine = args.machine
+        controls, pwms, frames, _ = MULTIPHASE_NAMES[machine]
         if args.control is None:
             args.control = "vsd"
-        if args.control not in SIX_PHASE_CONTROL_NAMES:
+        if args.control not in controls:
+            kind = "a three-phase" if args.control in CONTROL_NAMES else "another machine's"
             raise ParameterError(
-                f"--control {args.control} is a three-phase control; with --machine six-phase choose from "
-                f"{', '.join(SIX_PHASE_CONTROL_NAMES)}."
+                f"--control {args.control} is {kind} control; with --machine {machine} choose from "
+                f"{', '.join(controls)}."
             )
         for flag in FLAG_OPTIONS.keys() - SIX_PHASE_FLAG_OPTIONS.keys():
             if getattr(args, flag, None) not in (None, False):
-                raise ParameterError(f"--{flag.replace('_', '-')} does not apply to --machine six-phase.")
+                raise ParameterError(f"--{flag.replace('_', '-')} does not apply to --machine {machine}.")
         if getattr(args, "estimator", None):
             raise ParameterError(
                 "--estimator applies to the three-phase drive only (the chapter 5 observers are "
                 "three-phase); drop it or use --machine three-phase."
             )
-        if args.frame is not None and args.frame not in SIX_PHASE_FRAME_NAMES:
+        if args.frame is not None and args.frame not in frames:
+            kind = "a three-phase" if args.frame in THREE_PHASE_FRAMES else "another machine's"
             raise ParameterError(
-                f"--frame {args.frame} is a three-phase frame; six-phase frames: "
-                f"{', '.join(SIX_PHASE_FRAME_NAMES)}."
+                f"--frame {args.frame} is {kind} frame; {machine} frames: {', '.join(frames)}."
+            )
+        if getattr(args, "pwm", None) is not None and args.pwm not in pwms:
+            raise ParameterError(
+                f"--pwm {args.pwm} does not drive the {machine} machine; choose from {', '.join(pwms)}."
             )
         return
     if args.control is None:
@@ -132,7 +157,8 @@ def check_machine_flags(args) -> None:
             f"--frame {args.frame} is a six-phase frame; three-phase frames: {', '.join(THREE_PHASE_FRAMES)}."
         )
     if args.control not in CONTROL_NAMES:
-        raise ParameterError(f"--control {args.control} needs --machine six-phase.")
+        need = "five-phase" if args.control not in SIX_PHASE_CONTROL_NAMES else "six-phase"
+        raise ParameterError(f"--control {args.control} needs --machine {need}.")
 
 
 def control_drive_from_flags(args, motor):
@@ -179,29 +205,34 @@ def add_parser(sub):
     )
     p.add_argument(
         "--machine",
-        choices=("three-phase", "six-phase"),
+        choices=("three-phase", "six-phase", "five-phase"),
         default="three-phase",
-        help="three-phase book motor (default) or six-phase: the book motor rewound as a dual three-phase "
-        "machine (book ch. 7-9)",
+        help="three-phase book motor (default), six-phase: the book motor rewound as a dual three-phase "
+        "machine (book ch. 7-9), or five-phase: rewound as a five-phase machine (book ch. 10)",
     )
     p.add_argument(
         "--control",
-        choices=list(dict.fromkeys(CONTROL_NAMES + SIX_PHASE_CONTROL_NAMES)),
+        choices=list(dict.fromkeys(CONTROL_NAMES + SIX_PHASE_CONTROL_NAMES + FIVE_PHASE_CONTROL_NAMES)),
         default=None,
         help="control method. Three-phase: pi (cascaded PI FOC, default), smc (sliding-mode speed loop), pr "
         "(proportional-resonant current loops in alpha-beta), hysteresis (current comparators at 100 kHz), "
         "dtc (switching-table direct torque control, 40 kHz samples), smc-dtc (sliding-mode DTC with "
         "SVPWM). Six-phase: vsd (dq and z1-z2 PIs, default), double-dq (four PIs, cross-coupling "
-        "compensation), conventional (dq PIs only), pr (stationary-frame PR on alpha-beta and z1-z2)",
+        "compensation), conventional (dq PIs only), pr (stationary-frame PR on alpha-beta and z1-z2). "
+        "Five-phase: vsd (i_d = 0, dq and x-y PIs, default), conventional (dq PIs only), pr "
+        "(stationary-frame PR on alpha-beta and x-y)",
     )
     p.add_argument(
         "--pwm",
-        choices=SIX_PHASE_PWM_NAMES,
+        choices=SIX_PHASE_PWM_NAMES + FIVE_PHASE_PWM_NAMES,
         help="six-phase modulator: four-vector SVPWM (default), two-vector SVPWM, decoupled (two SVPWMs), "
-        "double-zs (carrier PWM, a zero sequence per set)",
+        "double-zs (carrier PWM, a zero sequence per set); five-phase: near-four-vector SVPWM (default), "
+        "carrier (min-max zero sequence), sinusoidal, large-vector (x-y uncontrolled)",
     )
     p.add_argument(
-        "--bridge", choices=("averaged", "switching"), help="six-phase inverter model (default averaged)"
+        "--bridge",
+        choices=("averaged", "switching"),
+        help="six- or five-phase inverter model (default averaged)",
     )
     p.add_argument(
         "--estimator",
@@ -213,8 +244,8 @@ def add_parser(sub):
     p.add_argument(
         "--motor",
         default="book",
-        help="preset name (book, book_salient; with --machine six-phase their six-phase rewinds) or motor "
-        "TOML file (default book)",
+        help="preset name (book, book_salient; with --machine six-phase or five-phase their rewinds) or "
+        "motor TOML file (default book)",
     )
     p.add_argument(
         "--speed-rpm", type=checks.real("r/min"), default=1000.0, help="speed step, r/min (default 1000)"
@@ -231,9 +262,10 @@ def add_parser(sub):
     )
     p.add_argument(
         "--frame",
-        choices=list(dict.fromkeys(THREE_PHASE_FRAMES + SIX_PHASE_FRAME_NAMES)),
+        choices=list(dict.fromkeys(THREE_PHASE_FRAMES + SIX_PHASE_FRAME_NAMES + FIVE_PHASE_FRAME_NAMES)),
         default=None,
-        help="machine model frame: dq (default), alpha_beta, abc; six-phase: dq, vsd, double-dq, natural",
+        help="machine model frame: dq (default), alpha_beta, abc; six-phase: dq, vsd, double-dq, natural; "
+        "five-phase: dq, vsd, natural",
     )
     p.add_argument(
         "--substeps", type=checks.count(), help="RK4 sub-steps per control period (default 10; hysteresis 1)"
@@ -301,7 +333,7 @@ def precheck(args) -> dict | None:
             f"{plain(args.duration_s)} s, or --load-nm 0 for no load."
         )
     read_gains_flag(args.gains)
-    if args.machine == "six-phase":  # its motor file is read and checked when the drive is built
+    if args.machine in MULTIPHASE_NAMES:  # its motor file is read and checked when the drive is built
         return None
     motor = motor_values(args.motor, check_units=not args.trust_units, Ts=BOOK_TS_S)
     if motor is None:
@@ -341,7 +373,7 @@ def run(args) -> int:
     from ..trace import COLUMN_UNITS
 
     out = checks.output_folder(args.out)
-    six_phase = args.machine == "six-phase"
+    six_phase = args.machine in MULTIPHASE_NAMES  # six- or five-phase
     try:
         if six_phase:
             drive = six_phase_drive_from_flags(args)
@@ -412,12 +444,16 @@ def run(args) -> int:
     }
 
     if six_phase:
-        from ..trace import SIX_PHASE_COLUMN_UNITS
+        from ..trace import FIVE_PHASE_COLUMN_UNITS, SIX_PHASE_COLUMN_UNITS
 
-        summary["trace_columns"] = {**COLUMN_UNITS, **SIX_PHASE_COLUMN_UNITS}
-        summary["drive"]["pwm"] = args.pwm or "four-vector"
+        five = args.machine == "five-phase"
+        extra = FIVE_PHASE_COLUMN_UNITS if five else SIX_PHASE_COLUMN_UNITS
+        summary["trace_columns"] = {**COLUMN_UNITS, **extra}
+        summary["drive"]["pwm"] = args.pwm or MULTIPHASE_NAMES[args.machine][3]
         summary["drive"]["bridge"] = args.bridge or "averaged"
-        summary["metrics"]["z_current_peak_a"] = z_current_peak(trace)
+        summary["metrics"]["xy_current_peak_a" if five else "z_current_peak_a"] = z_current_peak(
+            trace, drive.machine.layout
+        )
     out.mkdir(parents=True, exist_ok=True)
     columns = trace.columns()
     if args.format == "csv":
@@ -431,7 +467,7 @@ def run(args) -> int:
         else save_demo_figures(
             trace,
             out,
-            f"pmsmjax demo: {'six-phase' if six_phase else 'book'} drive, {args.control} control"
+            f"pmsmjax demo: {args.machine if six_phase else 'book'} drive, {args.control} control"
             + (f", sensorless ({args.estimator}, I/f start)" if args.estimator else ""),
             current_limit_a=current_limit,
             voltage_limit_v=float(np.asarray(drive.voltage_limit())),
@@ -441,8 +477,9 @@ def run(args) -> int:
         from ..plotting import save_figure
         from ..plotting_six_phase import z_currents_figure
 
-        fig = z_currents_figure(trace, f"six-phase drive, {args.control}")
-        figures.append(save_figure(fig, out / "currents_z.png"))
+        fig = z_currents_figure(trace, f"{args.machine} drive, {args.control}", drive.machine.layout)
+        name = "currents_xy.png" if args.machine == "five-phase" else "currents_z.png"
+        figures.append(save_figure(fig, out / name))
     m = summary["metrics"]
     print(
         f"final speed {m['final_speed_rpm']:.1f} r/min (ref {m['reference_speed_rpm']:.0f}), "
@@ -486,13 +523,13 @@ def print_flags(operating: dict) -> None:
         print(f"WARNING {f['flag']}: {f['cause']}; remedy: {f['remedy']}.")
 
 
-def z_current_peak(trace) -> float:
-    """Largest |z1-z2| current (A) of a six-phase trace."""
+def z_current_peak(trace, layout=None) -> float:
+    """Largest |z1-z2| current (A) of a six-phase trace (|x-y| of a five-phase one: ``layout``)."""
     import numpy as np
 
     from ..multiphase_frames import SIX_PHASE, vsd
 
-    i_z = np.asarray(vsd(trace.i_abc, SIX_PHASE))[:, 2:4]
+    i_z = np.asarray(vsd(trace.i_abc, SIX_PHASE if layout is None else layout))[:, 2:4]
     return float(np.max(np.hypot(i_z[:, 0], i_z[:, 1])))
 
 

@@ -102,18 +102,29 @@ def add_parser(sub):
     )
     p.add_argument(
         "--machine",
-        choices=("three-phase", "six-phase"),
-        help="three-phase book drive (default) or the six-phase drive (book ch. 7-9)",
+        choices=("three-phase", "six-phase", "five-phase"),
+        help="three-phase book drive (default), the six-phase drive (book ch. 7-9) or the five-phase drive "
+        "(book ch. 10)",
     )
     p.add_argument(
         "--control",
         choices=("vsd", "double-dq", "conventional", "pr"),
-        help="six-phase control scheme (default vsd)",
+        help="six- or five-phase control scheme (default vsd; five-phase: vsd, conventional, pr)",
     )
     p.add_argument(
         "--pwm",
-        choices=("four-vector", "two-vector", "decoupled", "double-zs"),
-        help="six-phase modulator (default four-vector)",
+        choices=(
+            "four-vector",
+            "two-vector",
+            "decoupled",
+            "double-zs",
+            "near-four-vector",
+            "carrier",
+            "sinusoidal",
+            "large-vector",
+        ),
+        help="six-phase modulator (default four-vector); five-phase: near-four-vector (default), carrier, "
+        "sinusoidal, large-vector",
     )
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")

@@ -31,14 +31,15 @@ def add_parser(sub):
     p.add_argument("--out", default="tune_out", help="output folder (created), default: tune_out")
     p.add_argument(
         "--machine",
-        choices=("three-phase", "six-phase"),
-        help="three-phase book drive (default) or the six-phase drive (book ch. 7-9)",
+        choices=("three-phase", "six-phase", "five-phase"),
+        help="three-phase book drive (default), the six-phase drive (book ch. 7-9) or the five-phase drive "
+        "(book ch. 10)",
     )
     p.add_argument(
         "--control",
         choices=("pi", "smc", "pr", "smc-dtc", "vsd", "double-dq", "conventional"),
         help="control method whose gains are tuned (default pi; six-phase: vsd, double-dq, conventional, "
-        "pr, default vsd)",
+        "pr, default vsd; five-phase: vsd, conventional, pr, default vsd)",
     )
     p.add_argument(
         "--config", default=None, help="TOML with [weights], [tune] and [job] tables (default: none)"

@@ -26,6 +26,7 @@ from .pi import clip_magnitude, clip_symmetric, pi_update, realisable_reference_
 from .pr import ProportionalResonant, ResonantCoefficients, pr_design, resonant_coefficients
 from .six_phase import (
     DoubleDQCurrentPI,
+    MultiPhaseFOC,
     SixPhaseFOC,
     VSDCurrentControl,
     ZCurrentPI,
@@ -77,6 +78,7 @@ __all__ = [
     "torque_current_limit",
     "DoubleDQCurrentPI",
     "SixPhaseFOC",
+    "MultiPhaseFOC",
     "VSDCurrentControl",
     "ZCurrentPI",
     "ZProportionalResonant",

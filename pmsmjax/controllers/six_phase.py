@@ -47,6 +47,17 @@ double-dq scheme integrates the same thing in its coordinates: the measured diff
 and the predicted mean (the dq loop of the VSD scheme, :class:`~.current_pi.CurrentLoopGains`, integrates
 its prediction, as for three phases).
 
+**Five phases (BOOK.md chapter 10).** The same cascade drives the five-phase machine: the VSD current block
+takes the winding ``layout`` (:data:`~pmsmjax.multiphase_frames.FIVE_PHASE`: the second plane is x-y), and
+the x-y PI's frame is a static choice, ``rotation``: the frame at ``rotation theta_e``. Six phases use
+``-1`` (the counter-rotating frame above); five phases ``+3``, the third-harmonic synchronous frame, in
+which the x-y disturbances of a five-phase drive are constant: a third-harmonic back-EMF
+(``psi_f3 e^{j 3 th}``, :mod:`pmsmjax.machines.pmsm_multiphase`) and the third harmonic of dead-time
+voltage errors (phase harmonic 3 maps into x-y). In the frame at ``r theta_e`` the plant is
+``u' = R i' + L_ls di'/dt + j r w_e L_ls i'``: the same internal-model gains, decoupling ``j r w_e L_ls i'``.
+:class:`SixPhaseFOC` is also exported as :data:`MultiPhaseFOC`; it checks that the model's phase count is
+the current block's layout's.
+
 Voltage limits: the dq (or each set's dq) command is limited to the modulator's linear limit ``u_max``;
 the z1-z2 command to ``z_limit_fraction u_max`` (it shares the DC link with the fundamental; small z1-z2
 voltages suffice, the subspace's impedance being only ``R + j w L_ls``).
@@ -58,10 +69,11 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from .._types import Array
-from ..frames import inverse_park
+from ..frames import inverse_park, park
 from ..machines.motor import as_float
 from ..multiphase_frames import (
     SIX_PHASE,
+    PhaseLayout,
     double_dq,
     double_dq_to_vsd,
     vsd,
@@ -87,6 +99,7 @@ __all__ = [
     "AbstractSixPhaseCurrentController",
     "AbstractZCurrentController",
     "DoubleDQCurrentPI",
+    "MultiPhaseFOC",
     "SixPhaseFOC",
     "VSDCurrentControl",
     "ZCurrentPI",
@@ -151,10 +164,13 @@ class SixPhaseFOC(AbstractController):
 
     def __check_init__(self):
         check_positive("current_limit", self.current_limit, "A")
-        if getattr(self.model, "n_phases", 3) != 6:
+        layout = getattr(self.current, "layout", SIX_PHASE)
+        if getattr(self.model, "n_phases", 3) != layout.n:
+            word = {5: "five", 6: "six"}.get(layout.n, f"{layout.n}")
             raise ParameterError(
-                "SixPhaseFOC needs a six-phase motor model (MultiPhaseParameters with n_phases = 6), got "
-                f"{type(self.model).__name__}: use pmsmjax.presets_six_phase.six_phase_motor()."
+                f"SixPhaseFOC with a {word}-phase current block needs a {word}-phase motor model "
+                f"(MultiPhaseParameters with n_phases = {layout.n}), got {type(self.model).__name__}: use "
+                f"pmsmjax.presets_{word}_phase.{word}_phase_motor()."
             )
         if self.mode not in ("speed", "current"):
             raise ParameterError(f"mode must be 'speed' or 'current', got {self.mode!r}.")
@@ -190,19 +206,33 @@ class SixPhaseFOC(AbstractController):
         return new_state, ControlOutput(u_vsd, u_dq, i_dq_ref)
 
 
+#: The n-phase cascade (five or six phases): the same class.
+MultiPhaseFOC = SixPhaseFOC
+
+
 # --- VSD: fundamental block + z1-z2 block -----------------------------------------------------------
 class VSDCurrentControl(AbstractSixPhaseCurrentController):
-    """VSD current control: `dq` a three-phase current block on the alpha-beta subspace, `z` a z1-z2 block
-    or ``None`` (conventional control: z1-z2 voltage 0). State ``(dq state, z state)``."""
+    """VSD current control: `dq` a three-phase current block on the alpha-beta subspace, `z` a block on the
+    second plane (six phases: z1-z2; five phases: x-y) or ``None`` (conventional control: that voltage 0).
+    `layout` (static, default six phases): the winding whose VSD splits the phase currents; it must have
+    two planes. State ``(dq state, z state)``."""
 
     dq: AbstractCurrentController
     z: AbstractZCurrentController | None = None
+    layout: PhaseLayout = eqx.field(static=True, default=SIX_PHASE)
+
+    def __check_init__(self):
+        if self.layout.n_planes != 2:
+            raise ParameterError(
+                f"VSDCurrentControl controls two planes (alpha-beta and one more); the layout "
+                f"{self.layout.name!r} has {self.layout.n_planes}."
+            )
 
     def init(self, dtype):
         return (self.dq.init(dtype), None if self.z is None else self.z.init(dtype))
 
     def step(self, state, i_dq_ref, i_phase, theta_e, omega_e, ctx):
-        i_vsd = vsd(i_phase, SIX_PHASE)
+        i_vsd = vsd(i_phase, self.layout)
         dq_state, u_ab, u_dq = self.dq.step(state[0], i_dq_ref, i_vsd[:2], theta_e, omega_e, ctx)
         if self.z is None:
             z_state, u_z = None, jnp.zeros(2, u_ab.dtype)
@@ -216,42 +246,64 @@ class ZCurrentPI(AbstractZCurrentController):
     computational delay, prediction of the current one period ahead (as :mod:`.current_pi`).
 
     **Arguments:** `kp` V/A, `ki` V/(A s); `z_limit_fraction` (static): the command is limited to this
-    fraction of the modulator's linear limit. State ``(integral (2,) V, last command (2,) V)`` in the
-    counter-rotating frame.
+    fraction of the modulator's linear limit; `rotation` (static int, default -1): the PI's frame is at
+    ``rotation theta_e`` (-1: counter-rotating, six phases; +3: five phases' x-y, module docstring). State
+    ``(integral (2,) V, last command (2,) V)`` in that frame.
     """
 
     kp: Array = eqx.field(converter=as_float)
     ki: Array = eqx.field(converter=as_float)
     z_limit_fraction: float = eqx.field(static=True, default=0.2)
+    rotation: int = eqx.field(static=True, default=-1)
 
     def __check_init__(self):
         check_positive("ZCurrentPI.kp", self.kp, "V/A")
         check_nonnegative("ZCurrentPI.ki", self.ki, "V/(A s)")
         if not 0.0 < self.z_limit_fraction <= 1.0:
             raise ParameterError(f"z_limit_fraction must lie in (0, 1], got {self.z_limit_fraction}.")
+        if not isinstance(self.rotation, int):
+            raise ParameterError(
+                f"ZCurrentPI.rotation must be an int (frame at rotation theta_e), got {self.rotation!r}."
+            )
 
     def init(self, dtype):
         return (jnp.zeros(2, dtype), jnp.zeros(2, dtype))
 
+    def _to_frame(self, x, theta_e):
+        # -1 keeps the six-phase functions (and their arithmetic) exactly.
+        if self.rotation == -1:
+            return z_to_counter_rotating(x, theta_e)
+        return park(x, self.rotation * theta_e)
+
+    def _from_frame(self, x, theta_e):
+        if self.rotation == -1:
+            return z_from_counter_rotating(x, theta_e)
+        return inverse_park(x, self.rotation * theta_e)
+
     def step(self, state, i_z, theta_e, omega_e, ctx):
         m = ctx.model
         integral, u_prev = state
-        i_c = z_to_counter_rotating(i_z, theta_e)
+        i_c = self._to_frame(i_z, theta_e)
         if ctx.delayed and ctx.delay_compensation:
-            # d i'/dt = (u' - R i')/L_ls + j w_e i' (the counter-rotating frame's own rotation).
-            rotation = omega_e * jnp.stack([-i_c[1], i_c[0]])
+            # d i'/dt = (u' - R i')/L_ls - j r w_e i' (the frame's own rotation; r = -1: + j w_e i').
+            if self.rotation == -1:
+                rotation = omega_e * jnp.stack([-i_c[1], i_c[0]])
+            else:
+                rotation = -self.rotation * omega_e * jnp.stack([-i_c[1], i_c[0]])
             i_ctrl = i_c + ctx.Ts * ((u_prev - m.R * i_c) / m.L_ls + rotation)
         else:
             i_ctrl = i_c
-        if ctx.decoupling:
+        if ctx.decoupling and self.rotation == -1:
             ff = omega_e * m.L_ls * jnp.stack([i_ctrl[1], -i_ctrl[0]])  # cancels -j w_e L_ls i'
+        elif ctx.decoupling:
+            ff = self.rotation * omega_e * m.L_ls * jnp.stack([-i_ctrl[1], i_ctrl[0]])  # j r w_e L_ls i'
         else:
             ff = jnp.zeros(2, i_c.dtype)
         # Proportional path on the predicted current, integral on the measured one (module docstring).
         v = self.kp * (-i_ctrl) + integral + ff
         u_c = clip_magnitude(self.z_limit_fraction * ctx.u_max)(v)
         integral = integral + ctx.Ts * self.ki * (-i_c) + (u_c - v)
-        u_z = z_from_counter_rotating(u_c, theta_e + omega_e * angle_lead(ctx.Ts, ctx.delayed))
+        u_z = self._from_frame(u_c, theta_e + omega_e * angle_lead(ctx.Ts, ctx.delayed))
         return (integral, u_c), u_z
 
 
@@ -379,20 +431,30 @@ class DoubleDQCurrentPI(AbstractSixPhaseCurrentController):
 
 
 # --- design rules -----------------------------------------------------------------------------------
-def z_current_imc(motor, bandwidth_rad_s=1100.0, z_limit_fraction: float = 0.2) -> ZCurrentPI:
-    """Internal-model z1-z2 PI: ``Kp = a_z L_ls``, ``Ki = a_z R`` (closed loop ``a_z/(s + a_z)`` with the
-    decoupling, as the dq loop)."""
+def z_current_imc(
+    motor, bandwidth_rad_s=1100.0, z_limit_fraction: float = 0.2, rotation: int = -1
+) -> ZCurrentPI:
+    """Internal-model z1-z2 (or x-y) PI: ``Kp = a_z L_ls``, ``Ki = a_z R`` (closed loop ``a_z/(s + a_z)``
+    with the decoupling, as the dq loop), in the frame at ``rotation theta_e``."""
     check_positive("z-loop bandwidth a_z", bandwidth_rad_s, "rad/s")
     a = jnp.asarray(bandwidth_rad_s, motor.R.dtype)
-    return ZCurrentPI(a * motor.L_ls, a * motor.R, z_limit_fraction)
+    return ZCurrentPI(a * motor.L_ls, a * motor.R, z_limit_fraction, rotation)
 
 
-def vsd_current_design(motor, bandwidth_rad_s=1100.0, z_bandwidth_rad_s=None, z: bool = True):
+def vsd_current_design(
+    motor,
+    bandwidth_rad_s=1100.0,
+    z_bandwidth_rad_s=None,
+    z: bool = True,
+    layout: PhaseLayout = SIX_PHASE,
+    rotation: int = -1,
+):
     """VSD current control from the internal-model rules: the dq PI (:func:`current_loop_imc`) and, with
-    ``z=True``, the z1-z2 PI (:func:`z_current_imc`, bandwidth default the dq loop's); ``z=False`` is the
-    conventional scheme."""
-    z_block = z_current_imc(motor, z_bandwidth_rad_s or bandwidth_rad_s) if z else None
-    return VSDCurrentControl(current_loop_imc(motor, bandwidth_rad_s), z_block)
+    ``z=True``, the second plane's PI (:func:`z_current_imc`, bandwidth default the dq loop's, frame at
+    ``rotation theta_e``); ``z=False`` is the conventional scheme. `layout`: the winding (five phases:
+    :data:`~pmsmjax.multiphase_frames.FIVE_PHASE` with ``rotation=3``)."""
+    z_block = z_current_imc(motor, z_bandwidth_rad_s or bandwidth_rad_s, rotation=rotation) if z else None
+    return VSDCurrentControl(current_loop_imc(motor, bandwidth_rad_s), z_block, layout)
 
 
 def double_dq_design(motor, bandwidth_rad_s=1100.0, cross_coupling: bool = True) -> DoubleDQCurrentPI:

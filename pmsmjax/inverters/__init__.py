@@ -3,6 +3,8 @@
 from .averaged import AveragedBridge, phase_voltages
 from .base import AbstractBridge, AbstractModulator
 from .multiphase_bridges import MultiPhaseAveragedBridge, MultiPhaseSwitchingBridge
+from .multiphase_carrier import ZeroSequencePWM
+from .multiphase_svpwm import LargeVectorSVPWM, NearFourVectorSVPWM
 from .six_phase_carrier import DecoupledSVPWM, DoubleZeroSequencePWM
 from .six_phase_svpwm import FourVectorSVPWM, TwoVectorSVPWM
 from .spwm import MinMaxPWM, SinusoidalPWM, ThirdHarmonicPWM, third_harmonic
@@ -28,4 +30,7 @@ __all__ = [
     "DoubleZeroSequencePWM",
     "FourVectorSVPWM",
     "TwoVectorSVPWM",
+    "LargeVectorSVPWM",
+    "NearFourVectorSVPWM",
+    "ZeroSequencePWM",
 ]

@@ -12,7 +12,12 @@ written for those reads them unchanged) plus the leakage inductance ``L_ls`` and
   ``L_ls < min(L_d, L_q)`` (a positive magnetising inductance).
 - ``psi_f``: PM flux linkage of one phase (peak), Wb.
 - ``torque_constant``: ``(n/2) p_n psi_f`` (amplitude-invariant VSD; 3 p_n psi_f for six phases,
-  BOOK.md chapter 7).
+  BOOK.md chapter 7; 2.5 p_n psi_f for five, chapter 10).
+- ``psi_f3``: optional third-harmonic PM flux linkage of one phase (peak), Wb: the phase flux
+  ``psi_f cos(th - g) + psi_f3 cos(3 (th - g))``. ``None`` (default) leaves it out of the program. For five
+  phases it lies in the x-y plane (order 3), where x-y currents make torque with it
+  (:mod:`pmsmjax.machines.pmsm_multiphase`); layouts without an order-3 plane refuse it (six phases: the
+  third harmonic is each star's zero sequence, which isolated stars carry no current in).
 
 Leakage is taken as the phase's own (diagonal) leakage; mutual leakage between phases sharing slots is
 not modelled (it would lower the z1-z2 inductance below ``L_ls``).
@@ -27,12 +32,16 @@ from ..validation import ParameterError, check_nonnegative, check_positive, is_c
 from .motor import as_float
 
 
+def _optional_float(x):
+    return None if x is None else as_float(x)
+
+
 class MultiPhaseParameters(eqx.Module):
     """Electrical and mechanical parameters of an n-phase PMSM (see the module docstring).
 
     **Arguments:** `R` ohm (per phase); `L_d`, `L_q` H (VSD fundamental subspace); `psi_f` Wb (per phase,
     peak); `L_ls` H (phase leakage); `J` kg m^2; `B` N m s/rad; `pole_pairs` (static int); `n_phases`
-    (static int, default 6).
+    (static int, default 6); `psi_f3` Wb (third-harmonic PM flux, peak) or None (default: none).
     """
 
     R: Array = eqx.field(converter=as_float)
@@ -44,6 +53,7 @@ class MultiPhaseParameters(eqx.Module):
     B: Array = eqx.field(converter=as_float)
     pole_pairs: int = eqx.field(static=True, default=4)
     n_phases: int = eqx.field(static=True, default=6)
+    psi_f3: Array | None = eqx.field(default=None, converter=_optional_float)
 
     def __check_init__(self):
         if not isinstance(self.pole_pairs, int) or self.pole_pairs < 1:

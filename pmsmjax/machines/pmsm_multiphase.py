@@ -28,6 +28,15 @@ model the unbalance that the z1-z2 current loops of chapter 9 exist to remove. T
 then computed through the phases, ``T_act diag(R k) T_act^-1 i`` (isolated stars: the zero-sequence rows
 are absorbed by the star-point voltages), in every model. With it, the dq model loses its fast hold.
 
+**Third-harmonic back-EMF** (``motor.psi_f3``, five phases, BOOK.md chapter 10; None: left out). The
+phase magnet flux gains ``psi_f3 cos(3 (th - g_x))``. Its VSD lies in the order-3 plane (five phases:
+x-y) as ``psi_f3 [cos 3th, sin 3th]`` (``(2/n) sum_k cos(3 th - 3 g_k) e^{j 3 g_k} = e^{j 3 th}``), so that
+plane gains the back-EMF ``3 w_e psi_f3 [-sin 3th, cos 3th]`` and the torque
+``(n/2) p_n 3 psi_f3 (i_y cos 3th - i_x sin 3th)`` (co-energy derivative): x-y currents then make torque.
+The natural model takes it in its flux (torque by the co-energy derivative as before); the VSD model in
+the x-y flux; the dq model (x-y stationary) as the two terms above, and then integrates with the angle
+as a state (no rotating hold, no split advance).
+
 Input: :class:`~pmsmjax.machines.base.MachineInput` with ``u`` of ``2 n_planes`` components: the
 stationary VSD voltage ``[u_alpha, u_beta, u_z1, u_z2, ...]`` (``frame="stator"``), or
 ``[u_d, u_q, u_z1, u_z2, ...]`` with only the fundamental in the rotor frame (``frame="rotor"``).
@@ -91,6 +100,21 @@ class AbstractMultiPhaseMachine(AbstractMachine):
                     f"{jnp.shape(self.resistance_scale)}."
                 )
             check_positive("resistance_scale (phase resistance factors)", self.resistance_scale)
+        if self.motor.psi_f3 is not None and 3 not in self.layout.harmonics:
+            raise ParameterError(
+                f"psi_f3 (third-harmonic PM flux) is modelled only for windings with an order-3 plane (five "
+                f"phases: x-y); the layout {self.layout.name!r} has orders {self.layout.harmonics}: its "
+                "third harmonic is zero sequence and makes no current with isolated stars. Give psi_f3=None."
+            )
+
+    @property
+    def third_harmonic_plane(self) -> int:
+        """Index of the first VSD component of the order-3 plane (five phases: 2, the x axis)."""
+        return 2 * self.layout.harmonics.index(3)
+
+    def third_harmonic_flux(self, theta_e) -> Array:
+        """``(2,)`` PM flux of the order-3 plane, Wb: ``psi_f3 [cos 3th, sin 3th]`` (requires psi_f3)."""
+        return self.motor.psi_f3 * jnp.stack([jnp.cos(3.0 * theta_e), jnp.sin(3.0 * theta_e)])
 
     # --- frame conversions ---------------------------------------------------------------------
     def currents_to_vsd(self, currents: Array, theta_e: Array) -> Array:
@@ -169,8 +193,12 @@ class MultiPhasePMSMNatural(AbstractMultiPhaseMachine):
         return m.L_ls * jnp.eye(n) + L_0m * jnp.cos(gx - gy) + L_2m * jnp.cos(2.0 * theta_e - gx - gy)
 
     def magnet_flux(self, theta_e) -> Array:
-        """``(n,)`` PM flux linked by each phase, Wb."""
-        return self.motor.psi_f * jnp.cos(theta_e - self._axes(jnp.result_type(theta_e, self.motor.R)))
+        """``(n,)`` PM flux linked by each phase, Wb (with the third harmonic if ``psi_f3`` is given)."""
+        angle = theta_e - self._axes(jnp.result_type(theta_e, self.motor.R))
+        flux = self.motor.psi_f * jnp.cos(angle)
+        if self.motor.psi_f3 is not None:
+            flux = flux + self.motor.psi_f3 * jnp.cos(3.0 * angle)
+        return flux
 
     def flux(self, currents, theta_e) -> Array:
         return self.inductance(theta_e) @ currents + self.magnet_flux(theta_e)
@@ -235,7 +263,11 @@ class MultiPhasePMSMVSD(AbstractMultiPhaseMachine):
         """``(2 n_planes,)`` stator flux linkage in VSD coordinates, Wb."""
         pm = self.motor.psi_f * jnp.stack([jnp.cos(theta_e), jnp.sin(theta_e)])
         psi_ab = self.inductance(theta_e) @ currents[:2] + pm
-        return jnp.concatenate([psi_ab, self.motor.L_ls * currents[2:]])
+        psi_rest = self.motor.L_ls * currents[2:]
+        if self.motor.psi_f3 is not None:
+            k = self.third_harmonic_plane - 2
+            psi_rest = psi_rest.at[k : k + 2].add(self.third_harmonic_flux(theta_e))
+        return jnp.concatenate([psi_ab, psi_rest])
 
     def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
         _, dflux = jax.jvp(lambda th: self.flux(currents, th), (theta_e,), (jnp.ones_like(theta_e),))
@@ -244,7 +276,12 @@ class MultiPhasePMSMVSD(AbstractMultiPhaseMachine):
 
     def torque(self, currents, theta_e):
         psi = self.flux(currents, theta_e)
-        return self.motor.torque_factor * (psi[0] * currents[1] - psi[1] * currents[0])
+        torque = psi[0] * currents[1] - psi[1] * currents[0]
+        if self.motor.psi_f3 is not None:
+            # d/dth of i_xy . psi_f3 e^{j 3th} = 3 (psi_x i_y - psi_y i_x) (the leakage part cancels).
+            k = self.third_harmonic_plane
+            torque = torque + 3.0 * (psi[k] * currents[k + 1] - psi[k + 1] * currents[k])
+        return self.motor.torque_factor * torque
 
     def currents_to_vsd(self, currents, theta_e):
         return currents
@@ -296,14 +333,16 @@ class MultiPhasePMSMdq(AbstractMultiPhaseMachine):
 
     @property
     def angle_only_in_voltage(self) -> bool:
-        """The rotating-hold integration applies unless an asymmetric resistance brings the angle in."""
-        return self.resistance_scale is None
+        """The rotating-hold integration applies unless an asymmetric resistance or a third-harmonic
+        back-EMF brings the angle in."""
+        return self.resistance_scale is None and self.motor.psi_f3 is None
 
     @property
     def split_advance(self):
         """``(state, inputs, duration, n_substeps) -> state`` integrating the fundamental and the other
-        planes separately (class docstring), or ``None`` when an unbalance couples them."""
-        if self.resistance_scale is not None:
+        planes separately (class docstring), or ``None`` when an unbalance couples them or a third-harmonic
+        back-EMF drives the x-y plane."""
+        if self.resistance_scale is not None or self.motor.psi_f3 is not None:
             return None
 
         def advance_split(state: MachineState, inputs: MachineInput, duration, n_substeps: int):
@@ -334,12 +373,23 @@ class MultiPhasePMSMdq(AbstractMultiPhaseMachine):
             r = jnp.concatenate([park(r_vsd[:2], theta_e), r_vsd[2:]])
         did = (u_m[0] - r[0] + omega_e * m.L_q * i_q) / m.L_d
         diq = (u_m[1] - r[1] - omega_e * (m.L_d * i_d + m.psi_f)) / m.L_q
-        return jnp.concatenate([jnp.stack([did, diq]), (u_m[2:] - r[2:]) / m.L_ls])
+        u_rest = u_m[2:] - r[2:]
+        if m.psi_f3 is not None:
+            # Back-EMF of the third-harmonic flux in its (stationary) plane: d/dt psi_f3 e^{j 3th}.
+            k = self.third_harmonic_plane - 2
+            psi3 = self.third_harmonic_flux(theta_e)
+            u_rest = u_rest.at[k : k + 2].add(-3.0 * omega_e * jnp.stack([-psi3[1], psi3[0]]))
+        return jnp.concatenate([jnp.stack([did, diq]), u_rest / m.L_ls])
 
     def torque(self, currents, theta_e):
         m = self.motor
         i_d, i_q = currents[0], currents[1]
-        return m.torque_factor * (m.psi_f * i_q + (m.L_d - m.L_q) * i_d * i_q)
+        torque = m.psi_f * i_q + (m.L_d - m.L_q) * i_d * i_q
+        if m.psi_f3 is not None:
+            k = self.third_harmonic_plane
+            psi3 = self.third_harmonic_flux(theta_e)
+            torque = torque + 3.0 * (psi3[0] * currents[k + 1] - psi3[1] * currents[k])
+        return m.torque_factor * torque
 
     def currents_to_dq(self, currents, theta_e):
         return currents[:2]

@@ -64,8 +64,19 @@ SIX_PHASE_TUNABLE_CONTROLS = {
 }
 
 
+#: The five-phase schemes (:data:`pmsmjax.presets_five_phase.FIVE_PHASE_CONTROLS`): the speed PI and the dq
+#: current gains (the x-y gains left out as the six-phase z1-z2 ones, for the same reason).
+FIVE_PHASE_TUNABLE_CONTROLS = {
+    "vsd": ControlTuning(("speed",) + _VSD_DQ),
+    "conventional": ControlTuning(("speed",) + _VSD_DQ),
+    "pr": ControlTuning(("speed",) + _PR_DQ),
+}
+
+
 def control_tuning(name: str, machine: str = "three-phase") -> ControlTuning:
-    table = SIX_PHASE_TUNABLE_CONTROLS if machine == "six-phase" else TUNABLE_CONTROLS
+    table = {"six-phase": SIX_PHASE_TUNABLE_CONTROLS, "five-phase": FIVE_PHASE_TUNABLE_CONTROLS}.get(
+        machine, TUNABLE_CONTROLS
+    )
     if name not in table:
         raise ParameterError(f"pmsmjax tune tunes the {machine} controls {', '.join(table)}, not {name!r}.")
     return table[name]

@@ -9,7 +9,8 @@ Control methods (``control``: ``pi``, ``smc``, ``pr``, ``smc-dtc``; :mod:`tuning
 drive of :func:`pmsmjax.controls.control_drive`, its default gains and its default objective weights (used
 when ``weights`` is None).
 ``machine="six-phase"``: the six-phase drive (:func:`pmsmjax.presets_six_phase.six_phase_drive`) under
-``vsd``, ``double-dq``, ``conventional`` or ``pr`` (default ``vsd``).
+``vsd``, ``double-dq``, ``conventional`` or ``pr`` (default ``vsd``); ``machine="five-phase"``: the
+five-phase drive (:func:`pmsmjax.presets_five_phase.five_phase_drive`) under ``vsd`` or ``conventional``.
 
 Surrogate and exact model: tuning runs the drive with ``tune_substeps`` RK4 steps per period (1 by
 default: 4e-7 of peak current from the exact solution at 10 kHz, and a 4x cheaper gradient) and with the
@@ -144,11 +145,12 @@ def run_tune_job(
 ) -> dict:
     """Tune the gains of the book drive under ``control`` and write the outputs into ``out_dir``; returns
     result.json's content. `start_gains`: a gains TOML (an earlier run's gains.toml) to start from
-    instead of the design-rule gains. `machine`: ``three-phase`` (the book motor) or ``six-phase``."""
-    if machine not in ("three-phase", "six-phase"):
-        raise ParameterError(f"machine must be 'three-phase' or 'six-phase', got {machine!r}.")
+    instead of the design-rule gains. `machine`: ``three-phase`` (the book motor), ``six-phase`` or
+    ``five-phase``."""
+    if machine not in ("three-phase", "six-phase", "five-phase"):
+        raise ParameterError(f"machine must be 'three-phase', 'six-phase' or 'five-phase', got {machine!r}.")
     if control is None:
-        control = "vsd" if machine == "six-phase" else "pi"
+        control = "pi" if machine == "three-phase" else "vsd"
     tuning = control_tuning(control, machine)
     weights = ObjectiveWeights(**tuning.weights) if weights is None else weights
     if config.names is None:
@@ -234,7 +236,11 @@ def run_tune_job(
 
 
 def _drive(machine: str, control: str, **options):
-    """The drive of ``control`` on the book motor (``three-phase``) or its six-phase rewind."""
+    """The drive of ``control`` on the book motor (``three-phase``) or its six- or five-phase rewind."""
+    if machine == "five-phase":
+        from pmsmjax.presets_five_phase import five_phase_drive
+
+        return five_phase_drive(control=control, **options)
     if machine == "six-phase":
         from pmsmjax.presets_six_phase import six_phase_drive
 

@@ -5,8 +5,8 @@ A study runs the book scenario form (speed step from rest to ``speed_rpm`` at t 
 :func:`pmsmjax.presets.book_drive` (optionally with tuned gains from ``pmsmjax tune``). Each varied
 parameter is named by a dotted path:
 
-- ``motor.R``, ``motor.L_d``, ``motor.L_q``, ``motor.psi_f``, ``motor.J``, ``motor.B`` (six-phase also
-  ``motor.L_ls``): the *plant's* motor. The controller's own motor model (decoupling, delay
+- ``motor.R``, ``motor.L_d``, ``motor.L_q``, ``motor.psi_f``, ``motor.J``, ``motor.B`` (six- and five-phase
+  also ``motor.L_ls``): the *plant's* motor. The controller's own motor model (decoupling, delay
   compensation) stays nominal, as on a real drive whose firmware holds the data-sheet values.
 - ``bridge.u_dc``: the DC-link voltage, V.
 - ``controller.<path>``: any scalar array leaf of the controller, e.g. ``controller.speed.kp``.
@@ -18,7 +18,8 @@ The TOML file (every table and key optional; defaults below)::
                    ("refuse" | "clip"), decimate, sensitivity_runs
     [drive]        motor (preset or TOML file), gains (gains TOML from pmsmjax tune), current_bandwidth,
                    speed_bandwidth, current_limit, u_dc, n_substeps, unroll_substeps, machine
-                   ("three-phase" | "six-phase"), control and pwm (six-phase: pmsmjax.presets_six_phase)
+                   ("three-phase" | "six-phase" | "five-phase"), control and pwm (pmsmjax.presets_six_phase,
+                   pmsmjax.presets_five_phase)
     [scenario]     speed_rpm, load_nm, load_time_s, duration_s
     [thresholds]   current_a, tracking_rpm
     [parameters."motor.R"]  distribution = "uniform", tolerance = 0.2, sigmas = 3.0, nominal = ...
@@ -92,9 +93,10 @@ class Study:
       `load_nm`, `load_time_s`, `duration_s`.
     - thresholds: `current_threshold_a` (None: 1.05 times the current limit), `tracking_threshold_rpm`
       (mean speed error over the last 10 % of the run).
-    - `machine`: ``three-phase`` (the book drive) or ``six-phase``
-      (:func:`pmsmjax.presets_six_phase.six_phase_drive` on the six-phase rewind of `motor`); `control`
-      and `pwm`: the six-phase scheme and modulator (None: ``vsd``, ``four-vector``; three phases take
+    - `machine`: ``three-phase`` (the book drive), ``six-phase``
+      (:func:`pmsmjax.presets_six_phase.six_phase_drive` on the six-phase rewind of `motor`) or
+      ``five-phase`` (:func:`pmsmjax.presets_five_phase.five_phase_drive`); `control` and `pwm`: the
+      scheme and modulator (None: ``vsd`` and ``four-vector`` / ``near-four-vector``; three phases take
       only the PI drive).
     """
 
@@ -163,8 +165,10 @@ class Study:
         _check_number("tracking_threshold_rpm", self.tracking_threshold_rpm, positive=True)
         if self.current_threshold_a is not None:
             _check_number("current_threshold_a", self.current_threshold_a, positive=True)
-        if self.machine not in ("three-phase", "six-phase"):
-            raise ParameterError(f"study machine must be 'three-phase' or 'six-phase', got {self.machine!r}.")
+        if self.machine not in ("three-phase", "six-phase", "five-phase"):
+            raise ParameterError(
+                f"study machine must be 'three-phase', 'six-phase' or 'five-phase', got {self.machine!r}."
+            )
         if self.machine == "three-phase" and self.control not in (None, "pi"):
             raise ParameterError(
                 f"study control {self.control!r}: the three-phase study runs the PI book drive; other "
@@ -172,7 +176,7 @@ class Study:
             )
         if self.machine == "three-phase" and self.pwm is not None:
             raise ParameterError("study pwm applies to machine = 'six-phase' only.")
-        if self.machine == "six-phase" and self.unroll_substeps:
+        if self.machine != "three-phase" and self.unroll_substeps:
             raise ParameterError(
                 "study unroll_substeps applies to the three-phase drive only (the six-phase dq model "
                 "integrates its planes itself); drop it or set machine = 'three-phase'."
@@ -220,13 +224,15 @@ def _check_number(name, v, positive=False):
 
 def build_drive(study: Study) -> Drive:
     """The nominal drive of ``study`` (book drive, the study's motor and settings, tuned gains if given)."""
-    if study.machine == "six-phase":
+    if study.machine in ("six-phase", "five-phase"):
+        from pmsmjax.presets_five_phase import five_phase_drive, load_five_phase_motor
         from pmsmjax.presets_six_phase import load_six_phase_motor, six_phase_drive
 
-        drive = six_phase_drive(
-            load_six_phase_motor(study.motor),
+        five = study.machine == "five-phase"
+        drive = (five_phase_drive if five else six_phase_drive)(
+            (load_five_phase_motor if five else load_six_phase_motor)(study.motor),
             control=study.control or "vsd",
-            pwm=study.pwm or "four-vector",
+            pwm=study.pwm or ("near-four-vector" if five else "four-vector"),
             current_bandwidth=study.current_bandwidth,
             speed_bandwidth=study.speed_bandwidth,
             current_limit=study.current_limit,
