@@ -5,6 +5,7 @@ from .continuous import linearise, solve_adaptive
 from .integrate import advance, rk4_step
 from .motor import PMSMParameters
 from .pmsm3 import PMSMabc, PMSMAlphaBeta, PMSMdq
+from .saturation import DAxisSaturation, SaturatedPMSMdq, saturated_machine
 
 __all__ = [
     "AbstractMachine",
@@ -18,4 +19,7 @@ __all__ = [
     "linearise",
     "solve_adaptive",
     "rk4_step",
+    "DAxisSaturation",
+    "SaturatedPMSMdq",
+    "saturated_machine",
 ]
