@@ -14,6 +14,7 @@ from .ekf import EKF, ekf_design
 from .flux_observer import StatorFluxObserver, StatorFluxObserverState
 from .mras import MRAS, mras_design
 from .pll import PLL, pll_design
+from .polarity import PolarityDetector, PolarityState, polarity_detector
 from .position_sensors import Encoder, EncoderState, ExactSensor
 from .registry import OBSERVERS, make_observer, observer_options
 from .smo import SlidingModeObserver, smo_design
@@ -43,4 +44,7 @@ __all__ = [
     "observer_options",
     "pll_design",
     "smo_design",
+    "PolarityDetector",
+    "PolarityState",
+    "polarity_detector",
 ]
