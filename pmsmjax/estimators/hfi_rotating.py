@@ -119,7 +119,9 @@ class HFIRotating(AbstractEstimator):
         check_positive("HFIRotating.error_cutoff", self.error_cutoff, "rad/s")
         hs.check_salient("HFIRotating", self.L_d, self.L_q)
         if self.carrier not in ("internal", "measured"):
-            raise ParameterError(f"HFIRotating.carrier must be 'internal' or 'measured', got {self.carrier!r}.")
+            raise ParameterError(
+                f"HFIRotating.carrier must be 'internal' or 'measured', got {self.carrier!r}."
+            )
 
     def check_period(self, Ts: float) -> None:
         hs.check_carrier("HFIRotating", self.hf_omega, self.bandpass_bandwidth, Ts)
