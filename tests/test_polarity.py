@@ -112,3 +112,28 @@ def test_without_detection_runs_backwards(drive):
     blind = eqx.tree_at(lambda d: d.estimator, drive, ModuloPiStandIn(jnp.asarray(np.pi + BIAS)))
     tr = simulate(blind, SCENARIO, initial_state=blind.init(theta_e=0.5))
     assert float(tr.omega_m[-1]) < -2.0 * SPEED
+
+
+def test_with_rotating_injection_from_24_angles(drive):
+    """The real modulo-pi estimator (rotating HF injection, locking to the d axis nearest its start angle
+    0, i.e. to the wrong pole for half of the initial angles): after detection every start has the right
+    polarity, and a speed step at 80 ms runs forward."""
+    from pmsmjax.estimators.hfi_rotating import hfi_rotating_design
+
+    hfi = hfi_rotating_design(drive.machine.motor, drive.Ts)
+    d = eqx.tree_at(lambda d: d.estimator.observer, drive, hfi)
+    sc = Scenario(duration_s=0.2, speed_ref=Profile.step(0.08, 0.0, 30.0), load_torque=Profile.constant(0.0))
+
+    def run(theta0):
+        tr = simulate(d, sc, initial_state=d.init(theta_e=theta0))
+        return tr.t, tr.omega_m, wrap_angle(tr.theta_e_est - tr.theta_e)
+
+    t, w, err = jax.jit(jax.vmap(run))(jnp.asarray(ANGLES))
+    t, w, err = np.asarray(t[0]), np.asarray(w), np.rad2deg(np.asarray(err))
+    k_lock = np.searchsorted(t, float(d.estimator.settle_time)) - 1
+    wrong_pole = np.abs(err[:, k_lock]) > 90.0
+    assert 8 <= wrong_pole.sum() <= 16  # the injection alone locks to the wrong pole for about half
+    after = t >= float(d.estimator.decision_time) + float(d.estimator.release_time)
+    assert np.abs(err[:, after]).max() < 10.0
+    # standstill hold on the injection speed estimate: a few rad/s of wander, never a run backwards
+    assert np.all(np.abs(w[:, -1] - 30.0) < 1.5) and w.min() > -0.1 * 30.0

@@ -154,10 +154,14 @@ class PolarityDetector(AbstractEstimator):
         # the pulses end before the decision, so they are in the unflipped frame the controller then uses
         i_dq_start = jnp.stack([i_d_ref, jnp.zeros_like(i_d_ref)])
         weight = jnp.clip(1.0 - (t - self.decision_time) / self.release_time, 0.0, 1.0)
+        # the rotor is held at standstill while the start-up block is in charge: report zero speed then, so
+        # that the wrapped estimator's pulse transients do not wind up the speed loop (as the I/f start
+        # reports its ramp speed)
+        omega = (1.0 - weight) * obs.omega_m
         estimate = eqx.tree_at(
-            lambda e: (e.theta_e, e.startup_weight, e.startup_i_dq),
+            lambda e: (e.theta_e, e.omega_m, e.startup_weight, e.startup_i_dq),
             obs,
-            (theta, weight, i_dq_start),
+            (theta, omega, weight, i_dq_start),
             is_leaf=lambda x: x is None,
         )
         return new_state, estimate
