@@ -31,7 +31,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from .._types import Array
-from ..validation import ParameterError, check_positive, plain
+from ..validation import ParameterError, check_positive, is_concrete, plain
 from .base import MachineInput, Mechanics
 from .motor import as_float
 from .pmsm3 import PMSMdq
@@ -59,11 +59,7 @@ class DAxisSaturation(eqx.Module):
 
     def __check_init__(self):
         check_positive("DAxisSaturation.current_scale (i_s)", self.current_scale, "A")
-        try:
-            bad = bool(jnp.any((self.depth < 0.0) | (self.depth >= 1.0)))
-        except Exception:  # traced inside a transformation: checked where concrete
-            bad = False
-        if bad:
+        if is_concrete(self.depth) and bool(jnp.any((self.depth < 0.0) | (self.depth >= 1.0))):
             raise ParameterError(
                 f"DAxisSaturation.depth (a) must lie in [0, 1), got {plain(self.depth)}: the incremental "
                 "inductance L_d (1 - a tanh(i_d/i_s)) must stay positive; 0 switches saturation off."
