@@ -4,7 +4,9 @@ Position sensors (:class:`ExactSensor`, :class:`Encoder`), the stator flux obser
 control (:class:`StatorFluxObserver`, chapter 4) and the fundamental-model observers of chapter 5
 (:data:`OBSERVERS`: ``smo``, ``smo-pll``, ``adaptive-smo``, ``dq-smo``, ``mras``, ``ekf``), all implementing
 :class:`AbstractEstimator`; :class:`StartupEstimator` wraps an observer in the I/f start from
-standstill; :func:`make_observer` builds an observer by name with its design rule.
+standstill; :func:`make_observer` builds an observer by name with its design rule. The HF-injection
+estimators of chapter 6 (:class:`HFIRotating`, :class:`HFIPulsating`; ``hfi-rotating``, ``hfi-pulsating``)
+read the saliency at standstill and low speed.
 """
 
 from .adaptive_smo import AdaptiveSMO, adaptive_smo_design
@@ -12,6 +14,8 @@ from .base import AbstractEstimator
 from .dq_smo import DQSlidingModeObserver, dq_smo_design
 from .ekf import EKF, ekf_design
 from .flux_observer import StatorFluxObserver, StatorFluxObserverState
+from .hfi_pulsating import HFIPulsating, hfi_pulsating_design
+from .hfi_rotating import HFIRotating, hfi_rotating_design
 from .mras import MRAS, mras_design
 from .pll import PLL, pll_design
 from .position_sensors import Encoder, EncoderState, ExactSensor
@@ -21,6 +25,8 @@ from .startup import StartupEstimator, StartupState
 
 __all__ = [
     "EKF",
+    "HFIPulsating",
+    "HFIRotating",
     "MRAS",
     "OBSERVERS",
     "PLL",
@@ -38,6 +44,8 @@ __all__ = [
     "adaptive_smo_design",
     "dq_smo_design",
     "ekf_design",
+    "hfi_pulsating_design",
+    "hfi_rotating_design",
     "make_observer",
     "mras_design",
     "observer_options",

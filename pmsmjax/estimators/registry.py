@@ -3,7 +3,9 @@ sensorless_drive` and the chapter 5 workflows (tuning, Monte Carlo, comparison).
 
 Each name maps to the design rule that builds the observer from a motor and the control period; options
 are the design rule's keyword arguments (e.g. ``switching="sign"``, ``pll_bandwidth=500.0``,
-``model=...`` for an observer whose motor model differs from the plant's).
+``model=...`` for an observer whose motor model differs from the plant's). The HF-injection estimators
+(chapter 6: ``hfi-rotating``, ``hfi-pulsating``; :data:`INJECTION_OBSERVERS`) take ``hf_voltage`` (V) and
+``hf_frequency`` (Hz) among their options.
 """
 
 import difflib
@@ -16,6 +18,8 @@ from .adaptive_smo import adaptive_smo_design
 from .base import AbstractEstimator
 from .dq_smo import dq_smo_design
 from .ekf import ekf_design
+from .hfi_pulsating import hfi_pulsating_design
+from .hfi_rotating import hfi_rotating_design
 from .mras import mras_design
 from .smo import smo_design
 
@@ -39,7 +43,18 @@ OBSERVERS = {
     ),
     "mras": (mras_design, "MRAS: current model as adjustable model, Popov PI speed adaptation"),
     "ekf": (ekf_design, "extended Kalman filter, state [i_alpha, i_beta, w_e, theta_e]"),
+    "hfi-rotating": (
+        hfi_rotating_design,
+        "rotating HF injection (salient machines, standstill and low speed; angle modulo pi)",
+    ),
+    "hfi-pulsating": (
+        hfi_pulsating_design,
+        "pulsating HF injection on the estimated d axis (salient machines; angle modulo pi)",
+    ),
 }
+
+#: Observers that inject a carrier and read the saliency: their angle is the d axis modulo pi.
+INJECTION_OBSERVERS = ("hfi-rotating", "hfi-pulsating")
 
 
 def observer_options(name: str) -> tuple[str, ...]:
