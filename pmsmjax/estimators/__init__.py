@@ -19,13 +19,14 @@ from .hfi_rotating import HFIRotating, hfi_rotating_design
 from .mras import MRAS, mras_design
 from .pll import PLL, pll_design
 from .position_sensors import Encoder, EncoderState, ExactSensor
-from .registry import OBSERVERS, make_observer, observer_options
+from .registry import INJECTION_OBSERVERS, OBSERVERS, make_observer, observer_options
 from .smo import SlidingModeObserver, smo_design
 from .startup import StartupEstimator, StartupState
 
 __all__ = [
     "EKF",
     "HFIPulsating",
+    "INJECTION_OBSERVERS",
     "HFIRotating",
     "MRAS",
     "OBSERVERS",
