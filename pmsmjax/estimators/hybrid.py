@@ -49,6 +49,7 @@ from ..signals import Sample
 from ..units import rpm_to_rad_s
 from ..validation import ParameterError, check_positive
 from .base import AbstractEstimator
+from .pll import PLLState
 from .stability import concrete_values
 
 
@@ -70,6 +71,26 @@ def pull_observer(observer: AbstractEstimator, state, theta_e, omega_m, strength
         theta = wrap_angle(x[3] + strength * wrap_angle(theta_e - x[3]))
         x = x.at[2].set(x[2] + strength * (omega_e - x[2])).at[3].set(theta)
         return eqx.tree_at(lambda s: s.x, state, x)
+    return state
+
+
+def pull_injection(injection: AbstractEstimator, state, theta_e, omega_m, strength):
+    """``state`` of the injection estimator with its PLL moved by ``strength`` of the way to ``theta_e``
+    (rad, the angle its estimate should give) and ``omega_m`` (mechanical rad/s). Knows the injection
+    estimators with a ``pll`` state (:mod:`.hfi_rotating`, :mod:`.hfi_pulsating`) and looks through a
+    :class:`.polarity.PolarityDetector` (less its flip); others run free."""
+    from .polarity import PolarityDetector
+
+    if isinstance(injection, PolarityDetector):
+        theta_inner = theta_e - injection.flip(state, state.t)
+        inner = pull_injection(injection.observer, state.observer, theta_inner, omega_m, strength)
+        return eqx.tree_at(lambda s: s.observer, state, inner)
+    pll = getattr(state, "pll", None)
+    if isinstance(pll, PLLState) and hasattr(injection, "pole_pairs"):
+        omega_e = injection.pole_pairs * omega_m
+        theta = wrap_angle(pll.theta + strength * wrap_angle(theta_e - pll.theta))
+        omega = pll.omega + strength * (omega_e - pll.omega)
+        return eqx.tree_at(lambda s: s.pll, state, PLLState(theta, omega))
     return state
 
 
@@ -155,6 +176,7 @@ class HybridEstimator(AbstractEstimator):
         speed = state.speed + g * (jnp.abs(omega) - state.speed)
         u_inj = self.injection_scale(state.speed) * inj.u_injection_ab
         obs_state = pull_observer(self.observer, obs_state, theta, omega, 1.0 - w)
+        inj_state = pull_injection(self.injection, inj_state, wrap_angle(theta - correction), omega, w)
         estimate = eqx.tree_at(
             lambda e: (e.theta_e, e.omega_m, e.u_injection_ab),
             inj,
@@ -174,12 +196,13 @@ def hybrid_design(
     Ts: float,
     *,
     injection: str = "hfi-rotating",
-    observer: str = "smo-pll",
+    observer: str = "ekf",
     low_rpm: float = HYBRID_BAND_RPM["low"],
     high_rpm: float = HYBRID_BAND_RPM["high"],
     off_rpm: float = HYBRID_BAND_RPM["off"],
     speed_filter: float = 200.0,
     polarity: bool = True,
+    delay_periods: float = 1.5,
     injection_options: dict | None = None,
     observer_options: dict | None = None,
     polarity_options: dict | None = None,
@@ -187,22 +210,18 @@ def hybrid_design(
     """The hybrid for ``motor`` at period ``Ts`` (s): injection ``injection`` (registry name), inside a
     :class:`.polarity.PolarityDetector` if ``polarity``, and the observer ``observer`` (registry name),
     crossover band in r/min, scheduling-speed filter in rad/s (200 rad/s: well below the injection's
-    error filter, above the speed loop's 50 rad/s)."""
+    error filter, above the speed loop's 50 rad/s). ``delay_periods``: the drive's command delay for the
+    injection's carrier phase (1.5 periods with a computational delay, 0.5 without).
+
+    The default observer is the EKF: with the smo-pll the book scenario lost lock at every band tried
+    (50-150, 100-200, 150-250 r/min; the SMO is not reliable below about 150 r/min and the injection lags
+    by 20 degrees and more at the current limit's acceleration above that; notes/issue-15-polarity.md)."""
     from .polarity import polarity_detector
-    from .registry import OBSERVERS, make_observer
+    from .registry import make_observer
 
     low, high, off = (rpm_to_rad_s(x) for x in (low_rpm, high_rpm, off_rpm))
-    if injection in OBSERVERS:
-        inj = make_observer(injection, motor, Ts, **(injection_options or {}))
-    elif injection == "hfi-rotating":  # until the injection estimators are in the registry
-        from .hfi_rotating import hfi_rotating_design
-
-        inj = hfi_rotating_design(motor, Ts, **(injection_options or {}))
-        inj.check_period(Ts)
-    else:
-        raise ParameterError(
-            f"unknown injection estimator {injection!r}: choose hfi-rotating or hfi-pulsating."
-        )
+    inj_opts = {"delay_periods": delay_periods, **(injection_options or {})}
+    inj = make_observer(injection, motor, Ts, **inj_opts)
     if polarity:
         inj = polarity_detector(inj, motor.R, **(polarity_options or {}))
     obs = make_observer(observer, motor, Ts, **(observer_options or {}))

@@ -21,6 +21,7 @@ from .dq_smo import dq_smo_design
 from .ekf import ekf_design
 from .hfi_pulsating import hfi_pulsating_design
 from .hfi_rotating import hfi_rotating_design
+from .hybrid import hybrid_design
 from .mras import mras_design
 from .smo import smo_design
 
@@ -57,6 +58,10 @@ INJECTION_OBSERVERS = {
     "hfi-pulsating": (
         hfi_pulsating_design,
         "pulsating HF injection on the estimated d axis (salient machines; angle modulo pi)",
+    ),
+    "hybrid": (
+        hybrid_design,
+        "HF injection (with start-up polarity pulses) below a crossover band, EKF above: whole speed range",
     ),
 }
 
