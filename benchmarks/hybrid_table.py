@@ -23,18 +23,18 @@ import numpy as np
 from pmsmjax.hybrid_study import hybrid_book_drive, hybrid_scenarios, run_from_angles, summary
 
 VARIANTS = {
-    "default (ekf, 50-150-250 r/min)": {},
-    "ekf, 30-100-200 r/min": dict(low_rpm=30.0, high_rpm=100.0, off_rpm=200.0),
-    "ekf, 80-200-300 r/min": dict(low_rpm=80.0, high_rpm=200.0, off_rpm=300.0),
-    "smo-pll, 50-150-250 r/min": dict(observer="smo-pll"),
-    "smo-pll, 150-250-350 r/min": dict(observer="smo-pll", low_rpm=150.0, high_rpm=250.0, off_rpm=350.0),
+    "default: ekf 50/150/250 r/min": {},
+    "ekf 30/100/200 r/min": dict(low_rpm=30.0, high_rpm=100.0, off_rpm=200.0),
+    "ekf 80/200/300 r/min": dict(low_rpm=80.0, high_rpm=200.0, off_rpm=300.0),
+    "smo-pll 50/150/250 r/min": dict(observer="smo-pll"),
+    "smo-pll 150/250/350 r/min": dict(observer="smo-pll", low_rpm=150.0, high_rpm=250.0, off_rpm=350.0),
     "no polarity pulses": dict(polarity=False),
 }
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--variants", default=",".join(VARIANTS), help="comma-separated variant names")
+    parser.add_argument("--variants", default=",".join(VARIANTS), help="comma-separated variant names (default: all)")
     args = parser.parse_args(argv)
     jax.config.update("jax_enable_x64", True)
     angles = np.arange(8) * 2.0 * np.pi / 8.0

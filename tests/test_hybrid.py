@@ -97,3 +97,17 @@ def test_polarity_latch_from_the_observer():
 def test_band_is_checked():
     with pytest.raises(ParameterError, match="low_speed < high_speed"):
         HybridEstimator(Fixed(0.0, 0.0), Fixed(0.0, 0.0), 15.0, 5.0, 25.0, 200.0)
+
+
+def test_observe_refuses_hybrid_offline(tmp_path, capsys):
+    from pmsmjax.cli import main
+
+    log = tmp_path / "log.csv"
+    log.write_text("time,u_alpha,u_beta,i_alpha,i_beta\n0,0,0,0,0\n0.0001,0,0,0,0\n")
+    out = tmp_path / "out"
+    assert (
+        main(["observe", str(log), "--motor", "book_salient", "--observer", "hybrid", "--out", str(out)]) == 2
+    )
+    err = capsys.readouterr().err
+    assert "observer 'hybrid' cannot run offline" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists() or not any(out.iterdir())

@@ -133,6 +133,12 @@ def run(args) -> int:
             "drive that made the log, which a log does not record; use --observer hfi-rotating on logs "
             "with rotating injection."
         )
+    if args.observer == "hybrid":
+        raise ParameterError(
+            "observer 'hybrid' cannot run offline: it commands start-up polarity pulses and fades its "
+            "carrier with its own speed estimate, which a recorded log cannot follow; run its parts, "
+            "--observer hfi-rotating and a chapter 5 observer, on the log instead."
+        )
     hf_flags = {"--hf-voltage": args.hf_voltage, "--hf-frequency": args.hf_frequency}
     given = [flag for flag, value in hf_flags.items() if value is not None]
     if args.polarity_known:
