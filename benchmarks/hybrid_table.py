@@ -29,12 +29,15 @@ VARIANTS = {
     "smo-pll 50/150/250 r/min": dict(observer="smo-pll"),
     "smo-pll 150/250/350 r/min": dict(observer="smo-pll", low_rpm=150.0, high_rpm=250.0, off_rpm=350.0),
     "no polarity pulses": dict(polarity=False),
+    "hfi-pulsating injection": dict(injection="hfi-pulsating"),
 }
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--variants", default=",".join(VARIANTS), help="comma-separated variant names (default: all)")
+    parser.add_argument(
+        "--variants", default=",".join(VARIANTS), help="comma-separated variant names (default: all)"
+    )
     args = parser.parse_args(argv)
     jax.config.update("jax_enable_x64", True)
     angles = np.arange(8) * 2.0 * np.pi / 8.0

@@ -132,7 +132,7 @@ def test_gradient_wrt_depth():
     def final_current(depth):
         m = SaturatedPMSMdq(motor, saturation=DAxisSaturation(depth, I_S))
         s0 = m.initial_state((0.0, 0.0), 0.0, 0.2)
-        s = advance(m, s0, MachineInput(jnp.array([80.0, 20.0]), jnp.asarray(0.0)), 1e-3, 20)
+        s = advance(m, s0, MachineInput(jnp.array([80.0, 20.0]), jnp.asarray(0.0)), 1e-3, 4)
         return s.currents[0]
 
     g = float(jax.grad(final_current)(0.3))
