@@ -16,6 +16,7 @@ from .ekf import EKF, ekf_design
 from .flux_observer import StatorFluxObserver, StatorFluxObserverState
 from .hfi_pulsating import HFIPulsating, hfi_pulsating_design
 from .hfi_rotating import HFIRotating, hfi_rotating_design
+from .hybrid import HybridEstimator, HybridState, hybrid_design
 from .mras import MRAS, mras_design
 from .pll import PLL, pll_design
 from .polarity import PolarityDetector, PolarityState, polarity_detector
@@ -56,4 +57,7 @@ __all__ = [
     "PolarityDetector",
     "PolarityState",
     "polarity_detector",
+    "HybridEstimator",
+    "HybridState",
+    "hybrid_design",
 ]
