@@ -7,8 +7,9 @@ motor; averaged bridge, 10 RK4 sub-steps, float32 as the command line runs) simu
 standstill, 10 N m load step at a quarter of the run. The calls are timed interleaved
 (:func:`benchmarks.bench_core.time_interleaved`) so their ratios hold under a varying machine load. The
 issue's goal is <= 1.5x per period. Beside it, the same scan keeping only the speed per period (no Trace
-record: the drive's arithmetic alone), and the rotating estimator alone on the rotating drive's log
-(:func:`pmsmjax.observe.observe`, carrier read from the voltages, as ``pmsmjax observe`` runs it).
+record: the drive's arithmetic alone), and each estimator alone on the rotating drive's log
+(:func:`pmsmjax.observe.observe`; the rotating one with the carrier read from the voltages, as
+``pmsmjax observe`` runs it; the pulsating one for its cost only).
 
     python -m benchmarks.bench_hfi --json hfi.json
 """
@@ -79,9 +80,9 @@ def run(quick: bool = False) -> dict:
         out[name]["speed_only_vs_sensored"] = (
             out[name]["speed_only_us_per_period"] / out["sensored"]["speed_only_us_per_period"]
         )
-    key = "hfi-rotating (offline)"
-    out["hfi-rotating"]["offline_us_per_sample"] = 1e6 * best[key] / periods
-    out["hfi-rotating"]["offline_compile_s"] = compile_time(first[key], best[key])
+        key = f"{name} (offline)"
+        out[name]["offline_us_per_sample"] = 1e6 * best[key] / periods
+        out[name]["offline_compile_s"] = compile_time(first[key], best[key])
     return {
         "drives": out,
         "duration_s": duration,

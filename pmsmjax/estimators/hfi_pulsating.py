@@ -130,7 +130,7 @@ class HFIPulsating(AbstractEstimator):
         error = state.error + hs.lowpass_gain(self.error_cutoff, Ts) * (demodulated - state.error)
         pll_state = self.pll.correct(state.pll, theta_pred, error / (2.0 * self.error_amplitude(Ts)), Ts)
         u_inj = inverse_park(
-            jnp.stack([self.hf_voltage * jnp.cos(state.carrier), 0.0 * error]), pll_state.theta
+            jnp.stack([self.hf_voltage * jnp.cos(state.carrier), jnp.zeros_like(error)]), pll_state.theta
         )
         carrier = wrap_angle(state.carrier + self.hf_omega * Ts)
         i_fund = sample.i_ab - i_h if self.filter_feedback else None
