@@ -157,8 +157,13 @@ class HFIRotating(AbstractEstimator):
             ref = hs.unit(hs.flux_phase(state.carrier, self.hf_omega, Ts, self.delay_periods))
         else:
             voltage_bandpass, u_h = hs.bandpass_step(state.voltage_bandpass, sample.u_ab_last, coefficients)
-            # the flux at t_k leads the last period's (held) voltage by x/2 - pi/2; |u_h| -> V_h
-            ref = hs.cmul(u_h / self.hf_voltage, hs.unit(0.5 * self.hf_omega * Ts - 0.5 * jnp.pi))
+            # the flux at t_k leads the last period's (held) voltage by x/2 - pi/2. Normalised to a unit
+            # phasor so that a log's carrier amplitude only scales I_n; below 1 % of V_h (the resonator
+            # starting) no reference. Double where: finite gradients at zero.
+            mag2 = jnp.sum(u_h * u_h)
+            present = mag2 > (0.01 * self.hf_voltage) ** 2
+            u_unit = jnp.where(present, u_h / jnp.sqrt(jnp.where(present, mag2, 1.0)), 0.0)
+            ref = hs.cmul(u_unit, hs.unit(0.5 * self.hf_omega * Ts - 0.5 * jnp.pi))
         # negative-sequence extraction: the positive sequence is DC in the carrier's frame
         g_p = hs.lowpass_gain(self.sequence_cutoff, Ts)
         positive = state.positive + g_p * (hs.cmul(i_h, hs.conj(ref)) - state.positive)
