@@ -236,3 +236,22 @@ def test_refusals(method):
         make_observer(method, MOTOR, TS, hf_frequency=3000.0)
     with pytest.raises(ParameterError, match="hf_frequency"):
         make_observer(method, MOTOR, TS, hf_frequency=-1.0)
+
+
+def test_carrier_delay_bookkeeping_without_computational_delay():
+    """Without the computational delay the held carrier's flux lags its command by half a period, not 1.5
+    (hfi_signal docstring): ``with_observer`` sets ``delay_periods = 0.5`` and the rotating method is
+    unbiased; told 1.5 instead, its image of 2 th is off by one carrier step ``w_h Ts`` (36 degrees at
+    1 kHz, 10 kHz), an angle bias of ``-w_h Ts / 2`` = -18 degrees, as the derivation predicts."""
+    sc = Scenario(duration_s=0.15, speed_ref=Profile.constant(0.0), load_torque=Profile.constant(2.0))
+    bias = {}
+    for opts in ({}, {"delay_periods": 1.5}):
+        drive = presets.sensorless_drive(
+            "hfi-rotating", MOTOR, computation_delay=False, observer_options=opts
+        )
+        tr = simulate(drive, sc, initial_state=drive.init(theta_e=0.5))
+        e = np.degrees(np.asarray(angle_error_modulo_pi(tr.theta_e_est, tr.theta_e)))
+        bias[drive.estimator.delay_periods] = float(np.mean(e[np.asarray(tr.t) >= 0.1]))
+    w_h = float(make_observer("hfi-rotating", MOTOR, TS).hf_omega)
+    assert abs(bias[0.5]) < 0.5, bias
+    assert bias[1.5] == pytest.approx(-math.degrees(0.5 * w_h * TS), abs=1.0), bias
