@@ -213,7 +213,9 @@ def run(args) -> int:
         from ..plotting_observers import observer_log_figure
 
         save_figure(
-            observer_log_figure(log.time, theta, omega, log.truth, title=f"{args.observer} on {args.log}"),
+            observer_log_figure(
+                log.time, theta, omega, log.truth, title=f"{args.observer} on {args.log}", modulo_pi=modulo_pi
+            ),
             out / "observe.png",
         )
         written.append("observe.png")

@@ -16,10 +16,10 @@ Signal chain per sample:
 1. **band-pass** ``i_h = BPF(i_ab)`` (the resonator of :mod:`.hfi_signal`); ``i_ab - i_h`` is the
    fundamental current the controller gets;
 2. **q-axis HF current** in the estimated frame: ``i_qh^ = Park(i_h, th^ + s)[q]``, where ``s`` is the
-   resonator's rotation of the pulsating vector when the frame turns at ``w_e``: its two images at
-   ``w_h + w_e`` and ``-(w_h - w_e)`` are shifted by ``arg H(w_h + w_e)`` and ``-arg H(w_h - w_e)``, i.e. the
-   vector by ``s = (arg H(w_h + w_e) - arg H(w_h - w_e)) / 2`` (``~ -2 w_e / B``) and the carrier by half
-   their sum (``~ 0``);
+   resonator's rotation of the pulsating vector when the frame turns at the electrical speed ``w_e``:
+   its two images at ``w_h + w_e`` and ``-(w_h - w_e)`` are shifted by ``arg H(w_h + w_e)`` and
+   ``-arg H(w_h - w_e)``, i.e. the vector by ``s = (arg H(w_h + w_e) - arg H(w_h - w_e)) / 2``
+   (``~ -2 w_e / B``) and the carrier by half their sum (``~ 0``);
 3. **demodulation**: ``eps = LPF(2 cos(phi) i_qh^) = I_n sin(2 dth)`` (the product's ``2 w_h`` part
    filtered), scaled by ``1 / (2 I_n)`` of the model: ``~ dth`` for small errors;
 4. **PLL** (:class:`pmsmjax.estimators.pll.PLL`) -> ``th^`` (the injection axis) and ``w^``.
@@ -130,7 +130,7 @@ class HFIPulsating(AbstractEstimator):
         error = state.error + hs.lowpass_gain(self.error_cutoff, Ts) * (demodulated - state.error)
         pll_state = self.pll.correct(state.pll, theta_pred, error / (2.0 * self.error_amplitude(Ts)), Ts)
         u_inj = inverse_park(
-            jnp.stack([self.hf_voltage * jnp.cos(state.carrier), 0.0 * error]), pll_state.theta
+            jnp.stack([self.hf_voltage * jnp.cos(state.carrier), jnp.zeros_like(error)]), pll_state.theta
         )
         carrier = wrap_angle(state.carrier + self.hf_omega * Ts)
         i_fund = sample.i_ab - i_h if self.filter_feedback else None
@@ -163,7 +163,7 @@ def hfi_pulsating_design(
     if hf_voltage is None:
         per_volt = hs.negative_sequence_amplitude(motor.L_d, motor.L_q, 1.0, w_h, Ts)
         hf_voltage = hs.TARGET_NEGATIVE_SEQUENCE_A / per_volt
-    w_e = w_h / 3.0 if error_cutoff is None else error_cutoff
+    w_l = w_h / 3.0 if error_cutoff is None else error_cutoff
     return HFIPulsating(
         L_d=motor.L_d,
         L_q=motor.L_q,
@@ -171,8 +171,8 @@ def hfi_pulsating_design(
         hf_voltage=hf_voltage,
         hf_omega=w_h,
         bandpass_bandwidth=w_h / bandpass_q,
-        error_cutoff=w_e,
-        pll=pll_design(as_float(w_e) / 7.0 if pll_bandwidth is None else pll_bandwidth),
+        error_cutoff=w_l,
+        pll=pll_design(as_float(w_l) / 7.0 if pll_bandwidth is None else pll_bandwidth),
         theta0=theta0,
         delay_periods=float(delay_periods),
         filter_feedback=bool(filter_feedback),

@@ -13,13 +13,13 @@ Signal chain per sample ``k`` (complex notation ``x_a + j x_b``):
 2. **negative-sequence extraction**: in the frame turning with the carrier the positive sequence is DC:
    ``p = LPF_{w_p}(i_h e^{-j phi})``, ``i_n = i_h - p e^{j phi}``;
 3. **heterodyne demodulation**: ``z = i_n e^{j phi} = I_n e^{j 2 th}`` (exactly, at standstill);
-   ``eps = Im(z e^{-j 2 th^}) = I_n sin(2 (th - th^))``, low-passed (cut-off ``w_e``, inside the loop so it
+   ``eps = Im(z e^{-j 2 th^}) = I_n sin(2 (th - th^))``, low-passed (cut-off ``w_l``, inside the loop so it
    costs no steady-state lag) and scaled by ``1 / (2 I_n)`` of the model: ``~ th - th^`` for small errors;
 4. **PLL** (:class:`pmsmjax.estimators.pll.PLL`, type 2) -> ``th^``, ``w^``.
 
-The resonator and the sequence filter delay the rotor's image, which turns at ``2 w_e``: it sits at
-``-(w_h - 2 w_e)`` in the stationary frame, where the resonator shifts it by ``-arg H(w_h - 2 w_e)``
-(``~ -4 w_e / B``), and the sequence filter's complement shifts it by
+The resonator and the sequence filter delay the rotor's image, which turns at ``2 w_e`` (``w_e`` the
+electrical speed): it sits at ``-(w_h - 2 w_e)`` in the stationary frame, where the resonator shifts it
+by ``-arg H(w_h - 2 w_e)`` (``~ -4 w_e / B``), and the sequence filter's complement shifts it by
 :func:`.hfi_signal.highpass_complement_phase`. The PLL locks onto ``2 th`` less these; half of them,
 evaluated exactly at the PLL's speed, is added to its output angle (not to the angle it locks to, see
 :mod:`.pll`). The resistance, neglected in the HF model, turns the negative sequence too: with the
@@ -36,9 +36,9 @@ Filter design (:func:`hfi_rotating_design`; defaults for the book's 10 kHz contr
 ``f_h = f_s / 10`` (1 kHz: 10 samples a carrier period, Nyquist 5 kHz, 6x the 175 Hz current-loop
 bandwidth); ``B = w_h / 5`` (1257 rad/s, second order); ``w_p = w_h / 50`` (126 rad/s, first order:
 the positive sequence is constant at standstill, its 2 w_h image in the error is removed, not filtered);
-``w_e = w_h / 3`` (2094 rad/s, first order: attenuates what is left at ``2 w_h`` 6-fold); PLL
-bandwidth ``w_e / 7`` (299 rad/s, double pole; the continuous loop with the in-loop low-pass is stable
-for a bandwidth below ``2 w_e`` by Routh, and a seventh keeps its damping). Measured on the salient book
+``w_l = w_h / 3`` (2094 rad/s, first order: attenuates what is left at ``2 w_h`` 6-fold); PLL
+bandwidth ``w_l / 7`` (299 rad/s, double pole; the continuous loop with the in-loop low-pass is stable
+for a bandwidth below ``2 w_l`` by Routh, and a seventh keeps its damping). Measured on the salient book
 drive (speed-loop bandwidth 50 rad/s): a PLL bandwidth of 105 rad/s, twice the speed loop's, let the
 speed loop and the estimator oscillate and lose lock under a 10 N m load at standstill; 200-300 rad/s
 hold it (notes/issue-15-hfi.md).
@@ -89,7 +89,7 @@ class HFIRotating(AbstractEstimator):
     - `hf_omega`: carrier angular frequency ``w_h``, rad/s.
     - `bandpass_bandwidth`: resonator -3 dB bandwidth ``B``, rad/s.
     - `sequence_cutoff`: positive-sequence low-pass cut-off ``w_p``, rad/s.
-    - `error_cutoff`: error-signal low-pass cut-off ``w_e``, rad/s.
+    - `error_cutoff`: error-signal low-pass cut-off ``w_l``, rad/s.
     - `pll`: the tracking loop (gains 1/s, 1/s^2).
     - `theta0`: initial angle estimate, electrical rad.
     - `delay_periods`: static, periods from the carrier command to the middle of its hold (1.5 with the
@@ -157,8 +157,13 @@ class HFIRotating(AbstractEstimator):
             ref = hs.unit(hs.flux_phase(state.carrier, self.hf_omega, Ts, self.delay_periods))
         else:
             voltage_bandpass, u_h = hs.bandpass_step(state.voltage_bandpass, sample.u_ab_last, coefficients)
-            # the flux at t_k leads the last period's (held) voltage by x/2 - pi/2; |u_h| -> V_h
-            ref = hs.cmul(u_h / self.hf_voltage, hs.unit(0.5 * self.hf_omega * Ts - 0.5 * jnp.pi))
+            # the flux at t_k leads the last period's (held) voltage by x/2 - pi/2. Normalised to a unit
+            # phasor so that a log's carrier amplitude only scales I_n; below 1 % of V_h (the resonator
+            # starting) no reference. Double where: finite gradients at zero.
+            mag2 = jnp.sum(u_h * u_h)
+            present = mag2 > (0.01 * self.hf_voltage) ** 2
+            u_unit = jnp.where(present, u_h / jnp.sqrt(jnp.where(present, mag2, 1.0)), 0.0)
+            ref = hs.cmul(u_unit, hs.unit(0.5 * self.hf_omega * Ts - 0.5 * jnp.pi))
         # negative-sequence extraction: the positive sequence is DC in the carrier's frame
         g_p = hs.lowpass_gain(self.sequence_cutoff, Ts)
         positive = state.positive + g_p * (hs.cmul(i_h, hs.conj(ref)) - state.positive)
@@ -214,7 +219,7 @@ def hfi_rotating_design(
     if hf_voltage is None:
         per_volt = hs.negative_sequence_amplitude(motor.L_d, motor.L_q, 1.0, w_h, Ts)
         hf_voltage = hs.TARGET_NEGATIVE_SEQUENCE_A / per_volt
-    w_e = w_h / 3.0 if error_cutoff is None else error_cutoff
+    w_l = w_h / 3.0 if error_cutoff is None else error_cutoff
     return HFIRotating(
         L_d=motor.L_d,
         L_q=motor.L_q,
@@ -224,8 +229,8 @@ def hfi_rotating_design(
         hf_omega=w_h,
         bandpass_bandwidth=w_h / bandpass_q,
         sequence_cutoff=w_h / 50.0 if sequence_cutoff is None else sequence_cutoff,
-        error_cutoff=w_e,
-        pll=pll_design(as_float(w_e) / 7.0 if pll_bandwidth is None else pll_bandwidth),
+        error_cutoff=w_l,
+        pll=pll_design(as_float(w_l) / 7.0 if pll_bandwidth is None else pll_bandwidth),
         theta0=theta0,
         delay_periods=float(delay_periods),
         carrier=carrier,
