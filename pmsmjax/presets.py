@@ -319,10 +319,10 @@ def with_observer(
     period, overridden by ``observer_options``) as its estimator, wrapped in the I/f start from standstill
     if ``startup`` (:data:`STARTUP_DEFAULTS` overridden by ``startup_options``). The controller must be a
     :class:`~pmsmjax.controllers.FOC` (it holds the start-up current)."""
-    from .estimators.registry import INJECTION_OBSERVERS, make_observer
+    from .estimators.registry import HYBRID_OBSERVERS, INJECTION_OBSERVERS, make_observer
 
     observer_options = dict(observer_options or {})
-    if observer_name in INJECTION_OBSERVERS:
+    if observer_name in INJECTION_OBSERVERS or observer_name in HYBRID_OBSERVERS:
         # the carrier's phase at the sampling instant depends on when the drive applies the command
         observer_options.setdefault("delay_periods", 1.5 if drive.computation_delay else 0.5)
     observer = make_observer(observer_name, model, drive.Ts, **observer_options)

@@ -21,7 +21,7 @@ from .mras import MRAS, mras_design
 from .pll import PLL, pll_design
 from .polarity import PolarityDetector, PolarityState, polarity_detector
 from .position_sensors import Encoder, EncoderState, ExactSensor
-from .registry import INJECTION_OBSERVERS, OBSERVERS, make_observer, observer_options
+from .registry import HYBRID_OBSERVERS, INJECTION_OBSERVERS, OBSERVERS, make_observer, observer_options
 from .smo import SlidingModeObserver, smo_design
 from .startup import StartupEstimator, StartupState
 
@@ -29,6 +29,7 @@ __all__ = [
     "EKF",
     "HFIPulsating",
     "INJECTION_OBSERVERS",
+    "HYBRID_OBSERVERS",
     "HFIRotating",
     "MRAS",
     "OBSERVERS",

@@ -6,7 +6,8 @@ are the design rule's keyword arguments (e.g. ``switching="sign"``, ``pll_bandwi
 ``model=...`` for an observer whose motor model differs from the plant's). The HF-injection estimators
 (chapter 6: ``hfi-rotating``, ``hfi-pulsating``; :data:`INJECTION_OBSERVERS`, looked up by the same
 functions) take ``hf_voltage`` (V) and
-``hf_frequency`` (Hz) among their options.
+``hf_frequency`` (Hz) among their options. The whole-speed-range ``hybrid`` (:data:`HYBRID_OBSERVERS`,
+:mod:`.hybrid`) takes its band, its two parts' names and their options.
 """
 
 import difflib
@@ -59,6 +60,12 @@ INJECTION_OBSERVERS = {
         hfi_pulsating_design,
         "pulsating HF injection on the estimated d axis (salient machines; angle modulo pi)",
     ),
+}
+
+#: Whole-speed-range estimators (chapter 6 with chapter 5), same form; apart from
+#: :data:`INJECTION_OBSERVERS` because they are no modulo-pi injection estimators (studies of those
+#: iterate over that registry), though they inject a carrier at low speed.
+HYBRID_OBSERVERS = {
     "hybrid": (
         hybrid_design,
         "HF injection (with start-up polarity pulses) below a crossover band, EKF above: whole speed range",
@@ -67,7 +74,10 @@ INJECTION_OBSERVERS = {
 
 
 def _registered(name: str):
-    return OBSERVERS[name] if name in OBSERVERS else INJECTION_OBSERVERS[name]
+    for registry in (OBSERVERS, INJECTION_OBSERVERS):
+        if name in registry:
+            return registry[name]
+    return HYBRID_OBSERVERS[name]
 
 
 def observer_options(name: str) -> tuple[str, ...]:
@@ -80,7 +90,7 @@ def observer_options(name: str) -> tuple[str, ...]:
 
 def check_observer_name(name: str) -> None:
     """Refuse an unknown observer name, with the closest known name as a hint."""
-    known = [*OBSERVERS, *INJECTION_OBSERVERS]
+    known = [*OBSERVERS, *INJECTION_OBSERVERS, *HYBRID_OBSERVERS]
     if name not in known:
         close = difflib.get_close_matches(name, known, n=1, cutoff=0.5)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
