@@ -11,6 +11,8 @@ the cases (the modulo-pi ambiguity) plus a 3 degree error. Checks:
 - contrast: without detection, a start with the estimate off by pi runs away backwards.
 """
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -137,3 +139,29 @@ def test_with_rotating_injection_from_24_angles(drive):
     assert np.abs(err[:, after]).max() < 10.0
     # standstill hold on the injection speed estimate: a few rad/s of wander, never a run backwards
     assert np.all(np.abs(w[:, -1] - 30.0) < 1.5) and w.min() > -0.1 * 30.0
+
+
+def test_sigmoid_decision_surrogate(drive):
+    """The smooth surrogate agrees with the comparator away from a tie and has the sigmoid's gradient."""
+    from pmsmjax.estimators.polarity import PolarityState
+
+    det = dataclasses.replace(drive.estimator, decision="sigmoid")
+    t_dec = float(det.decision_time)
+
+    def flip(L_plus, L_minus, d=det):
+        # state with unit current changes, so the secant inductances are the fluxes
+        s = PolarityState(
+            None, jnp.asarray(t_dec), jnp.asarray(0.0), jnp.stack([L_plus, L_minus]), jnp.ones(2)
+        )
+        return d.flip(s, t_dec)
+
+    exact = drive.estimator
+    for Lp, Lm in [(4.6e-3, 5.9e-3), (5.9e-3, 4.6e-3)]:
+        assert abs(float(flip(Lp, Lm)) - float(flip(Lp, Lm, exact))) < 1e-5
+    scale = float(det.decision_scale)
+    g = float(jax.grad(flip)(5.0e-3, 5.0e-3))  # at a tie: pi sigmoid'(0) / scale
+    assert abs(g - np.pi * 0.25 / scale) < 1e-9 * abs(g)
+    assert (
+        float(flip(5.0e-3, 5.0e-3, exact)) == 0.0
+        and float(jax.grad(lambda a: flip(a, 5.0e-3, exact))(5.0e-3)) == 0
+    )
