@@ -19,6 +19,9 @@ inductance ``L = dpsi_d / di_d``) is smaller along the true +d axis. This wrappe
    whatever the current controller does, so ``L = dpsi / di`` is the secant inductance of the flux map;
 4. decides: if ``L(+) > L(-)`` the estimated +d is the magnet's -d: the angle is flipped by pi from then
    on; then the start-up weight ramps from 1 to 0 over ``release_time`` (the speed loop takes over).
+   While the weight is above 0 the reported speed is the wrapped estimator's times ``1 - weight``: the
+   rotor is held at standstill, and the pulse transients in an injection estimator's speed would otherwise
+   wind up the speed loop (24 starts with rotating injection: up to 14 rad/s of wander before, 2.4 after).
 
 The resistance enters both pulses alike (same current, same duration), so an error in ``R`` shifts both
 inductances by about the same amount and does not change the decision. The wrapped estimator's injection
