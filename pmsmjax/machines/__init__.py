@@ -14,6 +14,7 @@ from .pmsm_multiphase import (
     MultiPhasePMSMNatural,
     MultiPhasePMSMVSD,
 )
+from .saturation import DAxisSaturation, SaturatedPMSMdq, saturated_machine
 
 __all__ = [
     "AbstractMachine",
@@ -33,4 +34,7 @@ __all__ = [
     "MultiPhasePMSMNatural",
     "MultiPhasePMSMVSD",
     "PMSM6DoubleDQ",
+    "DAxisSaturation",
+    "SaturatedPMSMdq",
+    "saturated_machine",
 ]
