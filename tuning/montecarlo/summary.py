@@ -92,9 +92,10 @@ def spearman_ranks(samples: dict, metrics: dict) -> dict:
     metrics and 7 parameters rather than 84.
     """
     finite = metrics["finite"] > 0.5
-    out = {m: {} for m in METRICS}
+    names = METRICS + tuple(k for k in OBSERVER_METRICS if k in metrics and k != "lock_lost")
+    out = {m: {} for m in names}
     by_mask: dict[bytes, list] = {}
-    for m in METRICS:
+    for m in names:
         ok = finite & np.isfinite(metrics[m])
         by_mask.setdefault(np.packbits(ok).tobytes(), [ok, []])[1].append(m)
     for ok, names in by_mask.values():
