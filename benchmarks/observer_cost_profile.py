@@ -105,11 +105,11 @@ def main(argv=None) -> None:
             for name, d in drives.items():
                 s = running_start(d, w)
                 if fn is None:
-                    calls[name, mode] = lambda d=d, s=s: jax.block_until_ready(
-                        simulate(d, scenario, initial_state=s)
+                    calls[name, mode] = lambda d=d, s=s, sc=scenario: jax.block_until_ready(
+                        simulate(d, sc, initial_state=s)
                     )
                 else:
-                    calls[name, mode] = lambda d=d, s=s, fn=fn: jax.block_until_ready(fn(d, s, xs))
+                    calls[name, mode] = lambda d=d, s=s, fn=fn, xs=xs: jax.block_until_ready(fn(d, s, xs))
         _, best = time_interleaved(calls, args.reps)
         periods = xs.speed_ref.shape[0]
         print(f"\n{duration:g} s ({periods} periods): us per period (x the sensored drive with no output)")
