@@ -182,3 +182,26 @@ def test_sensorless_study_summary(tmp_path):
     assert 0.0 < s["metrics"]["angle_error_rms_deg"]["p95"] < s["metrics"]["angle_error_max_deg"]["max"]
     data = json.loads((tmp_path / "summary.json").read_text())
     assert data["study"]["estimator"] == "smo"
+
+
+def test_montecarlo_command_with_an_estimator(tmp_path, capsys):
+    config = tmp_path / "study.toml"
+    config.write_text(
+        '[study]\nn = 2\ndecimate = 20\n[drive]\nestimator = "mras"\n'
+        "[scenario]\nduration_s = 0.1\nload_time_s = 0.06\n"
+    )
+    out = tmp_path / "mc"
+    argv = ["montecarlo", "--config", str(config), "--sensitivity-runs", "2", "--no-figures", "--no-progress"]
+    assert main([*argv, "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "angle_error_rms_deg" in printed and "loss of lock: 0 runs" in printed
+    s = json.loads((out / "summary.json").read_text())
+    assert s["study"]["estimator"] == "mras"
+    assert set(s["parameters"]) == set(SENSORLESS_TOLERANCES)
+    # forward-mode sensitivities through the sensorless closed loop (I/f start included) are finite
+    per_unit = s["sensitivities"]["per_unit"]
+    assert all(math.isfinite(v) for m in per_unit.values() for v in m.values())
+    # an unknown observer is refused before any work
+    with pytest.raises(SystemExit):
+        main(["montecarlo", "--estimator", "nope", "--out", str(tmp_path / "x")])
+    assert "invalid choice: 'nope'" in capsys.readouterr().err and not (tmp_path / "x").exists()
