@@ -18,86 +18,34 @@ the ratios hold under a varying machine load:
 
 import argparse
 
-import equinox as eqx
-import jax
-import jax.numpy as jnp
-
-from benchmarks.bench_core import compile_time, machine_info, publish, time_interleaved
-from pmsmjax import presets, simulate
-from pmsmjax.inverters import SwitchingBridge
+from benchmarks.bench_core import publish
+from benchmarks.multiphase_cost import REQUIRED_KEYS, format_cost_table, time_against_three_phase
 from pmsmjax.presets_five_phase import FIVE_PHASE_CONTROLS, five_phase_drive, five_phase_motor
 
 __all__ = ["run", "main", "format_table", "REQUIRED_KEYS"]
 
-REQUIRED_KEYS = ("drives", "duration_s", "batch", "dtype", "machine")
 
-
-def run(quick: bool = False, batch: int = 64) -> dict:
-    """Time every drive on the book scenario (``quick``: 0.02 s, 1 round, batch 4; figures meaningless)."""
-    duration = 0.02 if quick else 0.4
-    reps = 1 if quick else 5
-    batch = 4 if quick else batch
-    scenario = presets.book_scenario(duration_s=duration, load_time_s=duration / 2)
-    three = presets.book_drive()
-    drives = {"three-phase": three}
-    drives.update({f"five-phase {name}": five_phase_drive(control=name) for name in FIVE_PHASE_CONTROLS})
+def five_phase_drives(three) -> dict:
+    """The five-phase drives: each scheme, carrier PWM, third-harmonic back-EMF, switching bridge."""
+    drives = {f"five-phase {name}": five_phase_drive(control=name) for name in FIVE_PHASE_CONTROLS}
     drives["five-phase vsd carrier"] = five_phase_drive(pwm="carrier")
     drives["five-phase vsd third-harmonic"] = five_phase_drive(
         five_phase_motor(third_harmonic=0.1), pwm="carrier"
     )
-    drives["three-phase switching"] = eqx.tree_at(
-        lambda d: d.bridge, three, SwitchingBridge(three.bridge.u_dc)
-    )
     drives["five-phase vsd switching"] = five_phase_drive(bridge="switching")
-    calls = {name: (lambda d=d: jax.block_until_ready(simulate(d, scenario))) for name, d in drives.items()}
+    return drives
 
-    def batched(drive):
-        stacked = jax.tree.map(lambda x: jnp.stack([x] * batch) if eqx.is_array(x) else x, drive)
-        f = eqx.filter_jit(eqx.filter_vmap(lambda d: simulate(d, scenario).omega_m))
-        return lambda: jax.block_until_ready(f(stacked))
 
-    calls[f"three-phase x{batch}"] = batched(three)
-    calls[f"five-phase vsd x{batch}"] = batched(drives["five-phase vsd"])
-    first, best = time_interleaved(calls, reps)
-    out = {}
-    for name in calls:
-        runs = batch if name.endswith(f"x{batch}") else 1
-        d = drives.get(name, three)
-        periods = round(duration / d.Ts)
-        out[name] = {
-            "run_s": best[name],
-            "compile_s": compile_time(first[name], best[name]),
-            "runs": runs,
-            "us_per_period": 1e6 * best[name] / (periods * runs),
-        }
-    pairs = {
-        "three-phase switching": "three-phase switching",
-        "five-phase vsd switching": "three-phase switching",
-        f"three-phase x{batch}": f"three-phase x{batch}",
-        f"five-phase vsd x{batch}": f"three-phase x{batch}",
-    }
-    for name, o in out.items():
-        o["vs_three_phase"] = o["us_per_period"] / out[pairs.get(name, "three-phase")]["us_per_period"]
-    dtype = str(jnp.result_type(float))
-    return {"drives": out, "duration_s": duration, "batch": batch, "dtype": dtype, "machine": machine_info()}
+PAIRS = {"five-phase vsd switching": "three-phase switching"}
+
+
+def run(quick: bool = False, batch: int = 64) -> dict:
+    """Time every drive on the book scenario (``quick``: 0.02 s, 1 round, batch 4; figures meaningless)."""
+    return time_against_three_phase(five_phase_drives, "five-phase vsd", PAIRS, quick=quick, batch=batch)
 
 
 def format_table(r: dict) -> str:
-    lines = [
-        f"five-phase vs three-phase drive, book scenario ({r['duration_s']:g} s, {r['dtype']}), best of "
-        "rounds",
-        f"{'drive':32s} {'runs':>5s} {'run ms':>9s} {'compile s':>9s} {'us/period/run':>13s} "
-        f"{'x three-phase':>13s}",
-    ]
-    for name, o in r["drives"].items():
-        lines.append(
-            f"{name:32s} {o['runs']:5d} {o['run_s'] * 1e3:9.2f} {o['compile_s']:9.2f} "
-            f"{o['us_per_period']:13.3f} {o['vs_three_phase']:13.2f}"
-        )
-    m = r["machine"]
-    lines.append("ratios: against the three-phase drive with the same bridge and batch")
-    lines.append(f"machine: {m['cpu']}, {m['cpu_count']} cores, jax {m['jax']}, {m['backend']}")
-    return "\n".join(lines)
+    return format_cost_table(r, "five-phase")
 
 
 def main(json_path: str | None = None, quick: bool = False, batch: int = 64) -> dict:
