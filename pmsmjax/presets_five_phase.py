@@ -43,11 +43,10 @@ cascade :class:`~pmsmjax.controllers.six_phase.MultiPhaseFOC` with the five-phas
 
 from pathlib import Path
 
-from .controllers.design import current_loop_imc, speed_loop_active_damping
+from .controllers.design import current_loop_imc
 from .controllers.pr import pr_design
-from .controllers.six_phase import MultiPhaseFOC, VSDCurrentControl, vsd_current_design, z_pr_design
+from .controllers.six_phase import VSDCurrentControl, vsd_current_design, z_pr_design
 from .drive import Drive
-from .inverters.multiphase_bridges import MultiPhaseAveragedBridge, MultiPhaseSwitchingBridge
 from .inverters.multiphase_carrier import ZeroSequencePWM
 from .inverters.multiphase_svpwm import LargeVectorSVPWM, NearFourVectorSVPWM
 from .machines.multiphase_motor import MultiPhaseParameters
@@ -62,7 +61,11 @@ from .presets import (
     PR_W_C,
     book_motor,
 )
-from .presets_six_phase import THREE_PHASE_LEAKAGE_FRACTION, read_multiphase_motor_file
+from .presets_six_phase import (
+    THREE_PHASE_LEAKAGE_FRACTION,
+    assemble_multiphase_drive,
+    read_multiphase_motor_file,
+)
 from .validation import ParameterError
 
 __all__ = [
@@ -220,27 +223,19 @@ def five_phase_drive(
     motor = five_phase_motor() if motor is None else motor
     if pwm not in FIVE_PHASE_PWMS:
         raise ParameterError(f"five-phase pwm must be one of {', '.join(FIVE_PHASE_PWMS)}, got {pwm!r}.")
-    if bridge == "averaged":
-        if dead_time is not None:
-            raise ParameterError("dead_time needs the switching-resolved bridge: set bridge='switching'.")
-        inverter = MultiPhaseAveragedBridge(u_dc, FIVE_PHASE)
-    elif bridge == "switching":
-        inverter = MultiPhaseSwitchingBridge(u_dc, dead_time=dead_time, layout=FIVE_PHASE)
-    else:
-        raise ParameterError(f"bridge must be 'averaged' or 'switching', got {bridge!r}.")
-    controller = MultiPhaseFOC(
-        model=motor,
-        speed=speed_loop_active_damping(motor, speed_bandwidth),
-        current=five_phase_current_block(control, motor, current_bandwidth, w_c),
+    return assemble_multiphase_drive(
+        motor,
+        five_phase_machine(motor, frame, mechanics, resistance_scale),
+        five_phase_current_block(control, motor, current_bandwidth, w_c),
+        FIVE_PHASE_PWMS[pwm](),
+        layout=FIVE_PHASE,
+        bridge=bridge,
+        dead_time=dead_time,
+        u_dc=u_dc,
+        speed_bandwidth=speed_bandwidth,
         current_limit=current_limit,
         mode=mode,
         speed_divider=speed_divider,
-    )
-    return Drive(
-        machine=five_phase_machine(motor, frame, mechanics, resistance_scale),
-        controller=controller,
-        modulator=FIVE_PHASE_PWMS[pwm](),
-        bridge=inverter,
         Ts=Ts,
         n_substeps=n_substeps,
         computation_delay=computation_delay,

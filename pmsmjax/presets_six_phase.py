@@ -50,6 +50,7 @@ from .inverters.six_phase_svpwm import FourVectorSVPWM, TwoVectorSVPWM
 from .machines.multiphase_motor import MultiPhaseParameters
 from .machines.pmsm6 import PMSM6DoubleDQ
 from .machines.pmsm_multiphase import MultiPhasePMSMdq, MultiPhasePMSMNatural, MultiPhasePMSMVSD
+from .multiphase_frames import SIX_PHASE
 from .presets import (
     BOOK_CURRENT_BANDWIDTH,
     BOOK_CURRENT_LIMIT,
@@ -233,28 +234,60 @@ def six_phase_drive(
     motor = six_phase_motor() if motor is None else motor
     if pwm not in SIX_PHASE_PWMS:
         raise ParameterError(f"six-phase pwm must be one of {', '.join(SIX_PHASE_PWMS)}, got {pwm!r}.")
+    return assemble_multiphase_drive(
+        motor,
+        six_phase_machine(motor, frame, mechanics, resistance_scale),
+        six_phase_current_block(control, motor, current_bandwidth, w_c),
+        SIX_PHASE_PWMS[pwm](),
+        layout=SIX_PHASE,
+        bridge=bridge,
+        dead_time=dead_time,
+        u_dc=u_dc,
+        speed_bandwidth=speed_bandwidth,
+        current_limit=current_limit,
+        mode=mode,
+        speed_divider=speed_divider,
+        Ts=Ts,
+        n_substeps=n_substeps,
+        computation_delay=computation_delay,
+    )
+
+
+def assemble_multiphase_drive(
+    motor: MultiPhaseParameters,
+    machine,
+    current,
+    modulator,
+    *,
+    layout,
+    bridge: str,
+    dead_time: float | None,
+    u_dc: float,
+    speed_bandwidth: float,
+    current_limit: float,
+    mode: str,
+    speed_divider: int,
+    Ts: float,
+    n_substeps: int,
+    computation_delay: bool,
+) -> Drive:
+    """A multi-phase FOC drive from its parts (shared by the six- and five-phase presets): the n-leg
+    ``bridge`` (``averaged``, or ``switching`` with optional ``dead_time`` s) for ``layout``, and the FOC
+    cascade with the speed PI (active damping at ``speed_bandwidth`` rad/s) around the ``current`` block."""
     if bridge == "averaged":
         if dead_time is not None:
             raise ParameterError("dead_time needs the switching-resolved bridge: set bridge='switching'.")
-        inverter = MultiPhaseAveragedBridge(u_dc)
+        inverter = MultiPhaseAveragedBridge(u_dc, layout)
     elif bridge == "switching":
-        inverter = MultiPhaseSwitchingBridge(u_dc, dead_time=dead_time)
+        inverter = MultiPhaseSwitchingBridge(u_dc, dead_time=dead_time, layout=layout)
     else:
         raise ParameterError(f"bridge must be 'averaged' or 'switching', got {bridge!r}.")
     controller = SixPhaseFOC(
         model=motor,
         speed=speed_loop_active_damping(motor, speed_bandwidth),
-        current=six_phase_current_block(control, motor, current_bandwidth, w_c),
+        current=current,
         current_limit=current_limit,
         mode=mode,
         speed_divider=speed_divider,
     )
-    return Drive(
-        machine=six_phase_machine(motor, frame, mechanics, resistance_scale),
-        controller=controller,
-        modulator=SIX_PHASE_PWMS[pwm](),
-        bridge=inverter,
-        Ts=Ts,
-        n_substeps=n_substeps,
-        computation_delay=computation_delay,
-    )
+    return Drive(machine, controller, modulator, inverter, Ts, n_substeps, computation_delay)
