@@ -17,16 +17,14 @@ record: the drive's arithmetic alone), and each estimator alone on the rotating 
 import argparse
 
 import jax
-import jax.numpy as jnp
 
-from benchmarks.bench_core import compile_time, machine_info, publish, time_interleaved
-from benchmarks.bench_observers import _speed_only
+from benchmarks.bench_core import publish
+from benchmarks.bench_observers import format_estimator_table, time_estimator_drives
 from pmsmjax import presets, simulate
 from pmsmjax.estimators import INJECTION_OBSERVERS, make_observer
 from pmsmjax.frames import abc_to_alpha_beta
 from pmsmjax.observe import observe
 from pmsmjax.scenarios import Profile, Scenario
-from pmsmjax.simulate import period_inputs
 
 __all__ = ["run", "main", "format_table", "REQUIRED_KEYS"]
 
@@ -43,15 +41,6 @@ def run(quick: bool = False) -> dict:
     drives.update({name: presets.sensorless_drive(name, motor) for name in INJECTION_OBSERVERS})
     # initial states built once, outside the timed calls (eager init is host work, not the scan's)
     states = {name: d.init(theta_e=0.3) for name, d in drives.items()}
-    calls = {
-        name: (lambda d=d, s=states[name]: jax.block_until_ready(simulate(d, scenario, initial_state=s)))
-        for name, d in drives.items()
-    }
-    xs = period_inputs(scenario, drives["sensored"].Ts)
-    bare = {
-        f"{name} (speed only)": (lambda d=d, s=states[name]: jax.block_until_ready(_speed_only(d, s, xs)))
-        for name, d in drives.items()
-    }
     ts = drives["sensored"].Ts
     # the log for the offline run: the same run, its load profile with one more breakpoint so that this
     # call does not compile (and so hide) the timed drive's program
@@ -68,54 +57,15 @@ def run(quick: bool = False) -> dict:
         "hfi-pulsating": make_observer("hfi-pulsating", motor, ts),
     }
     offline = {
-        f"{name} (offline)": (lambda o=o: jax.block_until_ready(observe(o, u_ab, i_ab, ts).theta_e))
+        name: (lambda o=o: jax.block_until_ready(observe(o, u_ab, i_ab, ts).theta_e))
         for name, o in offline_estimators.items()
     }
-    first, best = time_interleaved({**calls, **bare, **offline}, reps)
-    periods = round(duration / ts)
-    out = {}
-    for name in drives:
-        out[name] = {
-            "run_s": best[name],
-            "compile_s": compile_time(first[name], best[name]),
-            "us_per_period": 1e6 * best[name] / periods,
-            "speed_only_us_per_period": 1e6 * best[f"{name} (speed only)"] / periods,
-        }
-    for name in INJECTION_OBSERVERS:
-        out[name]["per_period_vs_sensored"] = out[name]["us_per_period"] / out["sensored"]["us_per_period"]
-        out[name]["speed_only_vs_sensored"] = (
-            out[name]["speed_only_us_per_period"] / out["sensored"]["speed_only_us_per_period"]
-        )
-        key = f"{name} (offline)"
-        out[name]["offline_us_per_sample"] = 1e6 * best[key] / periods
-        out[name]["offline_compile_s"] = compile_time(first[key], best[key])
-    return {
-        "drives": out,
-        "duration_s": duration,
-        "periods": periods,
-        "dtype": str(jnp.result_type(float)),
-        "machine": machine_info(),
-    }
+    return time_estimator_drives(drives, states, scenario, offline, reps)
 
 
 def format_table(r: dict) -> str:
-    lines = [
-        f"HF-injection drives, salient book motor, standstill + 10 N m step ({r['duration_s']:g} s, "
-        f"{r['periods']} periods, {r['dtype']}), best of rounds",
-        f"{'drive':14s} {'run ms':>8s} {'compile s':>9s} {'us/period':>9s} {'x sensored':>10s} "
-        f"{'speed-only us/period':>20s} {'x sensored':>10s} {'estimator alone us/sample':>25s}",
-    ]
-    for name, c in r["drives"].items():
-        ratio = c.get("per_period_vs_sensored", 1.0)
-        bare = c.get("speed_only_vs_sensored", 1.0)
-        alone = f"{c['offline_us_per_sample']:25.3f}" if "offline_us_per_sample" in c else f"{'-':>25s}"
-        lines.append(
-            f"{name:14s} {c['run_s'] * 1e3:8.2f} {c['compile_s']:9.2f} {c['us_per_period']:9.2f} "
-            f"{ratio:10.2f} {c['speed_only_us_per_period']:20.2f} {bare:10.2f} {alone}"
-        )
-    m = r["machine"]
-    lines.append(f"machine: {m['cpu']}, {m['cpu_count']} cores, jax {m['jax']}, {m['backend']}")
-    return "\n".join(lines)
+    title = "HF-injection drives, salient book motor, standstill + 10 N m step"
+    return format_estimator_table(r, title, alone="estimator alone")
 
 
 def main(json_path: str | None = None, quick: bool = False) -> dict:

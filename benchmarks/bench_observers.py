@@ -63,27 +63,39 @@ def run(quick: bool = False, names=tuple(OBSERVERS)) -> dict:
     drives = {"sensored": presets.book_drive()}
     drives.update({name: presets.sensorless_drive(name) for name in names})
     states = {name: running_start(d, w) for name, d in drives.items()}
-    calls = {
-        name: (lambda d=d, s=states[name]: jax.block_until_ready(simulate(d, scenario, initial_state=s)))
-        for name, d in drives.items()
-    }
     # The observers alone on the sensored run's log (the observer's state machine, no plant).
     tr = simulate(drives["sensored"], scenario, initial_state=states["sensored"])
     u_ab, i_ab = abc_to_alpha_beta(tr.u_abc), abc_to_alpha_beta(tr.i_abc)
     ts = drives["sensored"].Ts
     offline = {
-        f"{name} (offline)": (
-            lambda o=drives[name].estimator: jax.block_until_ready(observe(o, u_ab, i_ab, ts).theta_e)
-        )
+        name: (lambda o=drives[name].estimator: jax.block_until_ready(observe(o, u_ab, i_ab, ts).theta_e))
         for name in names
     }
-    xs = period_inputs(scenario, drives["sensored"].Ts)
+    return time_estimator_drives(drives, states, scenario, offline, reps)
+
+
+def time_estimator_drives(drives: dict, states: dict, scenario, offline: dict, reps: int) -> dict:
+    """Time ``drives`` (``{"sensored": drive, name: drive, ...}``) on ``scenario`` from ``states``, each
+    also as the bare scan recording only the speed, and the ``offline`` calls (``{name: estimator alone on
+    a log}``), interleaved; every estimator drive's figures are also given relative to ``sensored``.
+
+    **Returns:** ``{"drives": {name: {run_s, compile_s, us_per_period, speed_only_us_per_period,
+    per_period_vs_sensored, speed_only_vs_sensored, offline_us_per_sample, offline_compile_s}},
+    "duration_s", "periods", "dtype", "machine"}``.
+    """
+    ts = drives["sensored"].Ts
+    xs = period_inputs(scenario, ts)
+    calls = {
+        name: (lambda d=d, s=states[name]: jax.block_until_ready(simulate(d, scenario, initial_state=s)))
+        for name, d in drives.items()
+    }
     bare = {
         f"{name} (speed only)": (lambda d=d, s=states[name]: jax.block_until_ready(_speed_only(d, s, xs)))
         for name, d in drives.items()
     }
-    first, best = time_interleaved({**calls, **bare, **offline}, reps)
-    periods = round(duration / ts)
+    alone = {f"{name} (offline)": call for name, call in offline.items()}
+    first, best = time_interleaved({**calls, **bare, **alone}, reps)
+    periods = round(scenario.duration_s / ts)
     out = {}
     for name in drives:
         out[name] = {
@@ -92,42 +104,50 @@ def run(quick: bool = False, names=tuple(OBSERVERS)) -> dict:
             "us_per_period": 1e6 * best[name] / periods,
             "speed_only_us_per_period": 1e6 * best[f"{name} (speed only)"] / periods,
         }
-    base = out["sensored"]["us_per_period"]
-    bare_base = out["sensored"]["speed_only_us_per_period"]
-    for name in names:
-        out[name]["per_period_vs_sensored"] = out[name]["us_per_period"] / base
-        out[name]["speed_only_vs_sensored"] = out[name]["speed_only_us_per_period"] / bare_base
-        key = f"{name} (offline)"
-        out[name]["offline_us_per_sample"] = 1e6 * best[key] / periods
-        out[name]["offline_compile_s"] = compile_time(first[key], best[key])
-    dtype = str(jnp.result_type(float))
+    for name in drives:
+        if name == "sensored":
+            continue
+        out[name]["per_period_vs_sensored"] = out[name]["us_per_period"] / out["sensored"]["us_per_period"]
+        out[name]["speed_only_vs_sensored"] = (
+            out[name]["speed_only_us_per_period"] / out["sensored"]["speed_only_us_per_period"]
+        )
+        if name in offline:
+            key = f"{name} (offline)"
+            out[name]["offline_us_per_sample"] = 1e6 * best[key] / periods
+            out[name]["offline_compile_s"] = compile_time(first[key], best[key])
     return {
         "drives": out,
-        "duration_s": duration,
+        "duration_s": scenario.duration_s,
         "periods": periods,
-        "dtype": dtype,
+        "dtype": str(jnp.result_type(float)),
         "machine": machine_info(),
     }
 
 
-def format_table(r: dict) -> str:
+def format_estimator_table(r: dict, title: str, alone: str = "observer alone") -> str:
+    """The figures of :func:`time_estimator_drives` as a text table, headed by ``title``."""
+    head = f"{alone} us/sample"
+    w = len(head)
     lines = [
-        f"sensorless drives, 1000 r/min flying start + 10 N m step ({r['duration_s']:g} s, {r['periods']} "
-        f"periods, {r['dtype']}), best of rounds",
+        f"{title} ({r['duration_s']:g} s, {r['periods']} periods, {r['dtype']}), best of rounds",
         f"{'drive':14s} {'run ms':>8s} {'compile s':>9s} {'us/period':>9s} {'x sensored':>10s} "
-        f"{'speed-only us/period':>20s} {'x sensored':>10s} {'observer alone us/sample':>24s}",
+        f"{'speed-only us/period':>20s} {'x sensored':>10s} {head:>{w}s}",
     ]
     for name, c in r["drives"].items():
         ratio = c.get("per_period_vs_sensored", 1.0)
         bare = c.get("speed_only_vs_sensored", 1.0)
-        alone = f"{c['offline_us_per_sample']:24.3f}" if "offline_us_per_sample" in c else f"{'-':>24s}"
+        cell = f"{c['offline_us_per_sample']:{w}.3f}" if "offline_us_per_sample" in c else f"{'-':>{w}s}"
         lines.append(
             f"{name:14s} {c['run_s'] * 1e3:8.2f} {c['compile_s']:9.2f} {c['us_per_period']:9.2f} "
-            f"{ratio:10.2f} {c['speed_only_us_per_period']:20.2f} {bare:10.2f} {alone}"
+            f"{ratio:10.2f} {c['speed_only_us_per_period']:20.2f} {bare:10.2f} {cell}"
         )
     m = r["machine"]
     lines.append(f"machine: {m['cpu']}, {m['cpu_count']} cores, jax {m['jax']}, {m['backend']}")
     return "\n".join(lines)
+
+
+def format_table(r: dict) -> str:
+    return format_estimator_table(r, "sensorless drives, 1000 r/min flying start + 10 N m step")
 
 
 def main(json_path: str | None = None, quick: bool = False) -> dict:
