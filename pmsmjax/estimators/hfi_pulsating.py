@@ -37,7 +37,6 @@ frequency signal injection", IEEE TIA 35(1), 1999, doi:10.1109/28.740843; M. Lin
 IECON 2002, doi:10.1109/IECON.2002.1187512 (pulsating injection in the estimated d axis).
 """
 
-import math
 from typing import ClassVar
 
 import equinox as eqx
@@ -155,15 +154,9 @@ def hfi_pulsating_design(
     """The pulsating-injection estimator for ``motor`` at period ``Ts`` (s) by the design rule of the
     module docstring. ``hf_frequency`` in Hz (default ``0.1 / Ts``), ``hf_voltage`` in V (default: the
     voltage giving a 0.25 A error-signal amplitude), cut-offs and bandwidths in rad/s."""
-    f_h = 0.1 / Ts if hf_frequency is None else float(hf_frequency)
-    check_positive("hf_frequency", f_h, "Hz", f"a carrier near {0.1 / Ts:g} Hz (f_s / 10)")
-    check_positive("bandpass_q", bandpass_q, "", "Q = w_h / B, e.g. 5")
-    w_h = 2.0 * math.pi * f_h
-    hs.check_salient("hfi-pulsating", motor.L_d, motor.L_q)
-    if hf_voltage is None:
-        per_volt = hs.negative_sequence_amplitude(motor.L_d, motor.L_q, 1.0, w_h, Ts)
-        hf_voltage = hs.TARGET_NEGATIVE_SEQUENCE_A / per_volt
-    w_l = w_h / 3.0 if error_cutoff is None else error_cutoff
+    w_h, hf_voltage, w_l = hs.carrier_design(
+        "hfi-pulsating", motor, Ts, hf_frequency, hf_voltage, bandpass_q, error_cutoff
+    )
     return HFIPulsating(
         L_d=motor.L_d,
         L_q=motor.L_q,

@@ -41,7 +41,7 @@ import jax.numpy as jnp
 
 from .._types import Array
 from ..frames import wrap_angle
-from ..validation import ParameterError, is_concrete
+from ..validation import ParameterError, check_positive, is_concrete
 
 #: Default carrier frequency as a fraction of the sampling frequency: 10 samples per carrier period, far
 #: below the 5 kHz Nyquist frequency of 10 kHz control, far above the ~175 Hz current-loop bandwidth.
@@ -144,6 +144,25 @@ def check_salient(owner: str, L_d, L_q) -> None:
             f"L_q = {float(jnp.min(L_q)):g} H: use the salient preset (--motor book_salient) or a "
             "chapter 5 observer."
         )
+
+
+def carrier_design(owner: str, motor, Ts: float, hf_frequency, hf_voltage, bandpass_q, error_cutoff):
+    """The carrier both injection design rules share: ``(w_h rad/s, V_h V, error low-pass cut-off rad/s)``.
+
+    The carrier frequency defaults to ``f_s / 10`` (``hf_frequency`` Hz overrides), ``V_h`` to the voltage
+    giving a :data:`TARGET_NEGATIVE_SEQUENCE_A` error-signal amplitude at the held carrier's effective
+    frequency, the error low-pass to ``w_h / 3``; ``owner`` names the estimator in the errors.
+    """
+    f_h = 0.1 / Ts if hf_frequency is None else float(hf_frequency)
+    check_positive("hf_frequency", f_h, "Hz", f"a carrier near {0.1 / Ts:g} Hz (f_s / 10)")
+    check_positive("bandpass_q", bandpass_q, "", "Q = w_h / B, e.g. 5")
+    w_h = 2.0 * math.pi * f_h
+    check_salient(owner, motor.L_d, motor.L_q)
+    if hf_voltage is None:
+        per_volt = negative_sequence_amplitude(motor.L_d, motor.L_q, 1.0, w_h, Ts)
+        hf_voltage = TARGET_NEGATIVE_SEQUENCE_A / per_volt
+    w_l = w_h / 3.0 if error_cutoff is None else error_cutoff
+    return w_h, hf_voltage, w_l
 
 
 def highpass_complement_phase(v, gain) -> Array:
