@@ -334,14 +334,12 @@ def run_estimators(args, names: list[str]) -> int:
 
         first = next(iter(result["traces"].values()))
         entries = result["controllers"]
-        errors = {
-            f"{n} (mod pi)" if entries[n]["angle_modulo"] == "pi" else n: np.degrees(
-                (angle_error_modulo_pi if entries[n]["angle_modulo"] == "pi" else angle_error)(
-                    tr.theta_e_est, tr.theta_e
-                )
-            )
-            for n, tr in result["traces"].items()
-        }
+        errors = {}
+        for n, tr in result["traces"].items():
+            if entries[n]["angle_modulo"] == "pi":  # injection without polarity
+                errors[f"{n} (mod pi)"] = np.degrees(angle_error_modulo_pi(tr.theta_e_est, tr.theta_e))
+            else:
+                errors[n] = np.degrees(angle_error(tr.theta_e_est, tr.theta_e))
         angle0 = result["settings"]["initial_angle_deg"]
         start = f"rotor {angle0:g} el. deg off" if chapter6_run(names) else "I/f"
         title = f"Angle error, sensorless from standstill ({start}), {args.scenario} scenario"
@@ -355,7 +353,11 @@ def run_estimators(args, names: list[str]) -> int:
         speed = (
             speed_figure(result)
             if args.scenario == "book"
-            else speed_figure(result, title=f"Speed, {args.scenario} scenario", load_time_s=0.1)
+            else speed_figure(
+                result,
+                title=f"Speed, {args.scenario} scenario",
+                load_time_s=0.15 if args.scenario == "reversal" else 0.1,  # the fixed scenarios' load steps
+            )
         )
         for name, fig in (("compare_speed.png", speed), ("compare_angle_error.png", angle)):
             save_figure(fig, out / name)
