@@ -6,10 +6,13 @@ import numpy as np
 from .units import rad_s_to_rpm
 
 
-def speed_figure(result: dict):
-    """Speed of every controller against time, with the reference; a zoom on the load step below."""
+def speed_figure(
+    result: dict, title: str = "Speed step from rest, then load step", load_time_s: float | None = None
+):
+    """Speed of every controller against time, with the reference; a zoom on the load step (at
+    ``load_time_s``, s, default the settings') below."""
     traces = result["traces"]
-    load_time = result["settings"]["load_time_s"]
+    load_time = result["settings"]["load_time_s"] if load_time_s is None else load_time_s
     fig, (ax, ax_zoom) = plt.subplots(2, 1, figsize=(8, 6.5))
     first = next(iter(traces.values()))
     for axis in (ax, ax_zoom):
@@ -20,7 +23,7 @@ def speed_figure(result: dict):
             axis.plot(np.asarray(tr.t), rad_s_to_rpm(np.asarray(tr.omega_m)), lw=1.1, label=name)
         axis.grid(alpha=0.3)
         axis.set(xlabel="t / s", ylabel="n / (r/min)")
-    ax.set_title("Speed step from rest, then load step")
+    ax.set_title(title)
     ax.legend(loc="lower right", fontsize=8)
     ax_zoom.set_xlim(load_time - 0.01, min(load_time + 0.15, float(first.t[-1])))
     lows = [

@@ -37,22 +37,46 @@ def add_parser(sub):
         "adaptive-smo, dq-smo, mras, ekf; 'all' for the six) on the book PI drive, sensorless from "
         "standstill (I/f start): angle error RMS/max after convergence (el. deg), speed estimation error, "
         "ITAE, loss of lock, and the lowest speed held under the load step (a sweep of speed references "
-        "downwards, also with the plant's R 30 %% above the observer's); writes compare.json, "
-        "compare_estimators.md and figures",
+        "downwards, also with the plant's R 30 %% above the observer's); or the chapter 6 estimators "
+        "(hfi-rotating, hfi-pulsating: angle scored modulo pi; hybrid) on the salient book motor with "
+        "d-axis saturation, the rotor --initial-angle-deg off their initial estimate (see --scenario); "
+        "writes compare.json, compare_estimators.md and figures (default: the control methods are compared)",
+    )
+    p.add_argument(
+        "--scenario",
+        choices=("book", "standstill", "slow-reversal", "reversal"),
+        default=None,
+        help="with --estimator: book (speed step, load step; default for the chapter 5 observers and the "
+        "hybrid), standstill (speed 0, --load-nm stepped on at 0.1 s, 0.8 s; default for hfi-*), "
+        "slow-reversal (0 -> 60 -> -60 r/min, --load-nm at 0.1 s, 0.8 s), reversal (hybrid: -1000 -> "
+        "1000 r/min at 0.3 s under 5 N m from 0.15 s, 0.7 s)",
+    )
+    p.add_argument(
+        "--initial-angle-deg",
+        type=checks.real("el. deg"),
+        default=None,
+        help="with chapter 6 estimators: initial rotor angle, electrical degrees off their initial estimate "
+        "(default 30; the injection methods without polarity lock to the wrong pole beyond 90)",
     )
     p.add_argument("--out", default="compare_out", help="output folder (created), default: compare_out")
     p.add_argument(
-        "--motor", default="book", help="preset name (book, book_salient) or motor TOML file (default book)"
+        "--motor",
+        default=None,
+        help="preset name (book, book_salient) or motor TOML file (default book; book_salient for the "
+        "chapter 6 estimators)",
     )
     p.add_argument(
-        "--speed-rpm", type=checks.positive("r/min"), default=1000.0, help="speed step, r/min (default 1000)"
+        "--speed-rpm", type=checks.positive("r/min"), default=None, help="speed step, r/min (default 1000)"
     )
     p.add_argument("--load-nm", type=checks.real("N m"), default=10.0, help="load step, N m (default 10)")
     p.add_argument(
-        "--load-time-s", type=checks.positive("s"), default=0.2, help="time of the load step, s (default 0.2)"
+        "--load-time-s",
+        type=checks.positive("s"),
+        default=None,
+        help="time of the load step, s (default 0.2)",
     )
     p.add_argument(
-        "--duration-s", type=checks.positive("s"), default=0.4, help="simulated time, s (default 0.4)"
+        "--duration-s", type=checks.positive("s"), default=None, help="simulated time, s (default 0.4)"
     )
     p.add_argument(
         "--bridge",
@@ -84,11 +108,36 @@ def precheck(args) -> list[str]:
     from ..operating_point import refuse_unreachable
     from .demo import BOOK_CURRENT_LIMIT_A, BOOK_TS_S, BOOK_U_DC_V, CONTROL_NAMES, ESTIMATOR_NAMES
 
+    chapter6 = False
     if args.estimator is not None:
-        names = _estimator_names(args, ESTIMATOR_NAMES)
+        names = _estimator_names(args, (*ESTIMATOR_NAMES, *CHAPTER6_NAMES), ESTIMATOR_NAMES)
+        chapter6 = any(n in CHAPTER6_NAMES for n in names)
+        _chapter6_flags(args, names, chapter6)
+        if chapter6:
+            from ..controller_compare import check_estimator_scenario
+
+            check_estimator_scenario(names, args.scenario)
         control = "pi"
     else:
         names = control = None
+        for flag, value in (("--scenario", args.scenario), ("--initial-angle-deg", args.initial_angle_deg)):
+            if value is not None:
+                raise ParameterError(f"{flag} belongs to --estimator: give --estimator NAMES or drop it.")
+    if args.motor is None:
+        args.motor = "book_salient" if chapter6 else "book"
+    fixed = args.scenario not in (None, "book")
+    for flag, key, default in (
+        ("--speed-rpm", "speed_rpm", 1000.0),
+        ("--load-time-s", "load_time_s", 0.2),
+        ("--duration-s", "duration_s", 0.4),
+    ):
+        if getattr(args, key) is None:
+            setattr(args, key, default)
+        elif fixed:
+            raise ParameterError(
+                f"{flag} sets the book scenario; --scenario {args.scenario} is a fixed run (only --load-nm "
+                "applies): drop it or give --scenario book."
+            )
     known = CONTROL_NAMES
     control_list = args.control if args.control is not None else (control or "pi,smc,pr,hysteresis")
     controls = [n.strip() for n in control_list.split(",") if n.strip()]
@@ -112,7 +161,13 @@ def precheck(args) -> list[str]:
             "design-rule version of another by running pmsmjax demo, or pass a single --control."
         )
     motor = motor_values(args.motor, check_units=not args.trust_units, Ts=BOOK_TS_S)
-    if motor is not None:
+    if chapter6 and motor is not None and not motor["L_q"] > motor["L_d"]:
+        raise ParameterError(
+            f"--motor {args.motor}: L_q = {plain(motor['L_q'])} H is not above L_d = "
+            f"{plain(motor['L_d'])} H; HF injection needs a salient machine: give --motor book_salient or "
+            "a salient motor file."
+        )
+    if motor is not None and not fixed:
         refuse_unreachable(
             motor,
             args.speed_rpm,
@@ -125,16 +180,42 @@ def precheck(args) -> list[str]:
     return names
 
 
-def _estimator_names(args, known) -> list[str]:
+#: The chapter 6 estimators ``compare --estimator`` takes (the keys of
+#: :data:`pmsmjax.estimators.INJECTION_OBSERVERS` and ``HYBRID_OBSERVERS``; spelled here so that the
+#: checks run before JAX starts, tests/test_hfi_compare.py checks they agree).
+CHAPTER6_NAMES = ("hfi-rotating", "hfi-pulsating", "hybrid")
+
+
+def _chapter6_flags(args, names: list[str], chapter6: bool) -> None:
+    """Fill in --scenario (book; standstill when an injection method is compared) and refuse what does
+    not fit before JAX starts (the scenario-estimator pairs themselves:
+    :func:`pmsmjax.controller_compare.check_estimator_scenario`)."""
+    if args.scenario is None:
+        injection = any(n.startswith("hfi-") for n in names)
+        args.scenario = "standstill" if injection else "book"
+    if not chapter6:
+        if args.scenario != "book":
+            raise ParameterError(
+                f"--scenario {args.scenario} is for the chapter 6 estimators ({', '.join(CHAPTER6_NAMES)}); "
+                "the chapter 5 observers are compared on the book scenario: drop --scenario."
+            )
+        if args.initial_angle_deg is not None:
+            raise ParameterError(
+                "--initial-angle-deg is for the chapter 6 estimators (the chapter 5 observers start with "
+                "I/f from angle 0): drop it."
+            )
+
+
+def _estimator_names(args, known, everything) -> list[str]:
     """``--estimator`` as a list of observer names, refused with the fix when malformed or combined with
     flags that belong to the control comparison."""
     text = args.estimator
-    names = list(known) if text.strip() == "all" else [n.strip() for n in text.split(",") if n.strip()]
+    names = list(everything) if text.strip() == "all" else [n.strip() for n in text.split(",") if n.strip()]
     unknown = [n for n in names if n not in known]
     if not names or unknown:
         raise ParameterError(
             f"--estimator {text!r}: unknown {', '.join(unknown) if unknown else 'empty list'}; choose from "
-            f"{', '.join(known)} (comma separated) or 'all'."
+            f"{', '.join(known)} (comma separated) or 'all' (the six chapter 5 observers)."
         )
     if args.control not in (None, "pi"):
         raise ParameterError(
@@ -147,6 +228,11 @@ def _estimator_names(args, known) -> list[str]:
                 f"{flag} does not apply to --estimator (it tunes or matches control methods): drop it."
             )
     return names
+
+
+def chapter6_run(names) -> bool:
+    """Whether the compared estimators are chapter 6's."""
+    return any(n in CHAPTER6_NAMES for n in names)
 
 
 def run(args) -> int:
@@ -211,7 +297,7 @@ def run_estimators(args, names: list[str]) -> int:
         estimator_table,
     )
     from ..logs import atomic_write
-    from ..observer_metrics import angle_error
+    from ..observer_metrics import angle_error, angle_error_modulo_pi
 
     settings = ControllerCompareSettings(
         speed_rpm=args.speed_rpm,
@@ -225,7 +311,15 @@ def run_estimators(args, names: list[str]) -> int:
     out = checks.output_folder(args.out)
     t0 = time.perf_counter()
     print("  ".join(h for h, _, _ in ESTIMATOR_COLUMNS))
-    result = compare_estimators(names, motor, settings, LowSpeedSweep(load_nm=args.load_nm), progress=print)
+    result = compare_estimators(
+        names,
+        motor,
+        settings,
+        LowSpeedSweep(load_nm=args.load_nm),
+        progress=print,
+        scenario=args.scenario,
+        initial_angle_deg=args.initial_angle_deg,
+    )
     report = {"settings": result["settings"], "estimators": result["controllers"]}
     report["wall_time_s"] = time.perf_counter() - t0
     out.mkdir(parents=True, exist_ok=True)
@@ -239,16 +333,33 @@ def run_estimators(args, names: list[str]) -> int:
         from ..plotting_observers import angle_error_figure
 
         first = next(iter(result["traces"].values()))
-        errors = {
-            n: np.degrees(angle_error(tr.theta_e_est, tr.theta_e)) for n, tr in result["traces"].items()
-        }
+        entries = result["controllers"]
+        errors = {}
+        for n, tr in result["traces"].items():
+            if entries[n]["angle_modulo"] == "pi":  # injection without polarity
+                errors[f"{n} (mod pi)"] = np.degrees(angle_error_modulo_pi(tr.theta_e_est, tr.theta_e))
+            else:
+                errors[n] = np.degrees(angle_error(tr.theta_e_est, tr.theta_e))
+        angle0 = result["settings"]["initial_angle_deg"]
+        start = f"rotor {angle0:g} el. deg off" if chapter6_run(names) else "I/f"
+        title = f"Angle error, sensorless from standstill ({start}), {args.scenario} scenario"
         angle = angle_error_figure(
             np.asarray(first.t),
             errors,
             speed_rpm=np.asarray(first.omega_m) * 30.0 / np.pi,
-            title="Angle error, sensorless from standstill (I/f start), book scenario",
+            title=title,
+            ylim=20.0 if chapter6_run(names) else 5.0,
         )
-        for name, fig in (("compare_speed.png", speed_figure(result)), ("compare_angle_error.png", angle)):
+        speed = (
+            speed_figure(result)
+            if args.scenario == "book"
+            else speed_figure(
+                result,
+                title=f"Speed, {args.scenario} scenario",
+                load_time_s=0.15 if args.scenario == "reversal" else 0.1,  # the fixed scenarios' load steps
+            )
+        )
+        for name, fig in (("compare_speed.png", speed), ("compare_angle_error.png", angle)):
             save_figure(fig, out / name)
             written.append(name)
     for name, entry in result["controllers"].items():
