@@ -126,6 +126,10 @@ def run(args) -> int:
 
     kwargs = read_tune_toml(args.config) if args.config else {}
     config = kwargs.pop("config", DEFAULT_CONFIG)
+    if args.estimator is not None and config is DEFAULT_CONFIG:
+        from tuning.autotune.observers import OBSERVER_CONFIG
+
+        config = dataclasses.replace(DEFAULT_CONFIG, **OBSERVER_CONFIG)
     overrides = {
         "names": tuple(args.gains) if args.gains else None,
         "method": args.method,

@@ -45,7 +45,7 @@ else:  # pragma: no cover
 from ..parameters import apply_gains, get_leaf, write_gains_toml
 from .controls import control_tuning
 from .objectives import ObjectiveWeights, aggregate, batch_metrics, scenario_cost
-from .observers import make_observer_batch, observer_drive, observer_tuning
+from .observers import OBSERVER_CONFIG, make_observer_batch, observer_drive, observer_tuning
 from .scenario_batches import ScenarioBatch, make_batch
 from .tuner import TuneConfig, tune
 
@@ -159,6 +159,10 @@ def run_tune_job(
                 f"{control} or tune the control's gains without --estimator."
             )
         tuning = observer_tuning(estimator)
+        if (
+            config is DEFAULT_CONFIG
+        ):  # no settings given: the observers' optimiser (observers.OBSERVER_CONFIG)
+            config = dataclasses.replace(DEFAULT_CONFIG, **OBSERVER_CONFIG)
         build = lambda substeps, options: observer_drive(
             estimator, n_substeps=substeps, observer_options=options
         )
