@@ -154,7 +154,7 @@ def scenario_metrics(
 def _safe_sqrt(x):
     """``sqrt(x)`` with a zero derivative at ``x = 0`` (double where: the exact sensor's angle error is 0,
     where sqrt's derivative is infinite)."""
-    positive = x > 0
+    positive = ~(x <= 0)  # NaN (a diverged run) counts as positive, so it propagates instead of reading 0
     return jnp.where(positive, jnp.sqrt(jnp.where(positive, x, 1.0)), 0.0)
 
 
