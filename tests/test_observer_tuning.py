@@ -1,5 +1,6 @@
 """Gradient tuning of the chapter 5 observers (issue 14, item 4): the tuning objective's gradient w.r.t.
-every tunable observer parameter.
+every tunable observer parameter; the sensored warm-up, the angle-error metric against NumPy, resume and
+the ``pmsmjax tune --estimator`` outputs.
 
 Independent reference: central finite differences of the same loss in float64 (tests/conftest.py), at
 the design-rule point; and finiteness of the gradient over 1000 random draws of the parameters within a
@@ -8,21 +9,28 @@ linearised stability region the observer is not a candidate). One compiled, vmap
 per observer evaluates the design point, the 2n finite-difference points and the 1000 draws in one call.
 """
 
+import json
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
+import pmsmjax
+from pmsmjax.cli import main
 from pmsmjax.estimators import OBSERVERS
 from pmsmjax.validation import ParameterError
-from tuning.autotune.objectives import ObjectiveWeights, smoothed_batch_cost
+from tuning.autotune import TuneConfig, tune
+from tuning.autotune.job import run_tune_job
+from tuning.autotune.objectives import ObjectiveWeights, scenario_metrics, smoothed_batch_cost, start_at_speed
 from tuning.autotune.observers import (
     TUNABLE_OBSERVERS,
+    WARMUP_S,
     make_observer_batch,
     observer_drive,
     observer_tuning,
 )
-from tuning.parameters import LogParameterisation, get_leaf, set_leaves
+from tuning.parameters import LogParameterisation, apply_gains, get_leaf, read_gains_toml, set_leaves
 
 N_DRAWS = 1000
 H = 1e-5  # log-space step of the central differences
@@ -83,3 +91,79 @@ def test_vector_leaf_elements_are_named_and_set():
     assert float(get_leaf(drive, "estimator.observer.q[2]")) == q[2]
     new = set_leaves(drive, ["estimator.observer.q[2]", "estimator.observer.q[0]"], [1.0, 2.0])
     np.testing.assert_array_equal(np.asarray(new.estimator.observer.q), [2.0, q[1], 1.0, q[3]])
+
+
+@pytest.fixture(scope="module")
+def mras_run():
+    """One observer scenario of the MRAS drive (behind the sensored warm-up), started at speed."""
+    drive = observer_drive("mras", n_substeps=1)
+    batch = make_observer_batch(1, 5, duration_s=(0.12, 0.12), kinds=("step",))
+    scenario = jax.tree.map(lambda a: a[0], batch.scenarios)
+    start = start_at_speed(drive, batch.initial_speed_m[0], batch.initial_theta_e[0])
+    return drive, batch, pmsmjax.simulate(drive, scenario, initial_state=start)
+
+
+def test_warmup_hands_over_at_its_time_and_the_angle_metric_matches_numpy(mras_run):
+    drive, batch, tr = mras_run
+    t = np.asarray(tr.t)
+    err = np.asarray(tr.theta_e_est) - np.asarray(tr.theta_e)
+    warm = t < WARMUP_S - 1e-9
+    # on the sensor until the hand-over: the estimate is the plant's angle to rounding (wrapped the same)
+    assert np.max(np.abs(np.angle(np.exp(1j * err[warm])))) < 1e-9
+    assert np.max(np.abs(np.angle(np.exp(1j * err[~warm])))) > 1e-6  # then the observer's own estimate
+    assert abs(float(tr.omega_m[0]) - float(batch.initial_speed_m[0])) < 1e-9  # started at speed
+    m = scenario_metrics(tr, batch.duration_s[0], batch.load_time_s[0], 15.0, 300.0, observe_from_s=WARMUP_S)
+    keep = (t >= WARMUP_S - 1e-12) & (t < float(batch.duration_s[0]) - 1e-12)
+    wrapped = (err[keep] + np.pi) % (2 * np.pi) - np.pi
+    assert float(m["angle_error_rms_rad"]) == pytest.approx(np.sqrt(np.mean(wrapped**2)), rel=1e-10)
+    chord = 2 * np.sin(err[keep] / 2)
+    assert float(m["angle_chord_rms_rad"]) == pytest.approx(np.sqrt(np.mean(chord**2)), rel=1e-10)
+    assert 0 < float(m["angle_error_rms_rad"]) < np.radians(10)  # locked
+
+
+def test_observer_tuning_resumes_exactly_and_the_command_writes_its_outputs(tmp_path):
+    """``tune`` on an observer: an interrupted run resumes to the same history and gains; ``pmsmjax tune
+    --estimator`` writes gains.toml (observer paths), result.json with angle errors, figures."""
+    tuning = observer_tuning("mras")
+    drive = observer_drive("mras", n_substeps=1)
+    batch = make_observer_batch(2, 7, duration_s=(0.12, 0.12), kinds=("step",))
+    weights = ObjectiveWeights(**tuning.weights)
+    cfg = TuneConfig(
+        names=tuning.names, method="adam", learning_rate=0.1, max_iterations=5, checkpoint_every=1
+    )
+    reference = tune(drive, batch, weights, cfg, progress=False)
+    path = tmp_path / "checkpoint.npz"
+
+    def interrupt(iteration, cost):
+        if iteration == 2:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        tune(drive, batch, weights, cfg, checkpoint_path=path, progress=False, callback=interrupt)
+    resumed = tune(drive, batch, weights, cfg, checkpoint_path=path, progress=False)
+    assert resumed.resumed_from == 2
+    assert resumed.history == reference.history and resumed.gains == reference.gains
+
+    out = tmp_path / "tune"
+    args = ["tune", "--estimator", "mras", "--out", str(out), "--train", "2", "--heldout", "2"]
+    args += ["--iterations", "2", "--duration-s", "0.12", "0.12", "--eval-substeps", "2", "--no-progress"]
+    assert main(args) == 0
+    data = json.loads((out / "result.json").read_text())
+    assert data["estimator"] == "mras" and data["stability"] == "stable"
+    for part in ("train", "heldout"):
+        for when in ("before", "after"):
+            assert np.isfinite(data[part][when]["angle_error_rms_rad"])
+    gains = read_gains_toml(out / "gains.toml")
+    assert set(gains) == set(tuning.names)
+    for name in ("cost.png", "responses.png", "checkpoint.npz"):
+        assert (out / name).stat().st_size > 0
+    # the tuned gains apply to the I/f-start drive too (same path estimator.observer.*)
+    from pmsmjax import presets
+
+    started = apply_gains(presets.sensorless_drive("mras", startup=True), gains)
+    assert float(started.estimator.observer.kp) == pytest.approx(gains["estimator.observer.kp"])
+
+
+def test_estimator_needs_the_foc_control(tmp_path):
+    with pytest.raises(ParameterError, match="--estimator ekf tunes an observer on the FOC drive"):
+        run_tune_job(tmp_path, estimator="ekf", control="smc", n_train=1, n_heldout=1)
