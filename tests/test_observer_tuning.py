@@ -30,7 +30,14 @@ from tuning.autotune.observers import (
     observer_drive,
     observer_tuning,
 )
-from tuning.parameters import LogParameterisation, apply_gains, get_leaf, read_gains_toml, set_leaves
+from tuning.parameters import (
+    LogParameterisation,
+    apply_gains,
+    get_leaf,
+    read_gains_toml,
+    set_leaves,
+    write_gains_toml,
+)
 
 N_DRAWS = 1000
 H = 1e-5  # log-space step of the central differences
@@ -167,3 +174,26 @@ def test_observer_tuning_resumes_exactly_and_the_command_writes_its_outputs(tmp_
 def test_estimator_needs_the_foc_control(tmp_path):
     with pytest.raises(ParameterError, match="--estimator ekf tunes an observer on the FOC drive"):
         run_tune_job(tmp_path, estimator="ekf", control="smc", n_train=1, n_heldout=1)
+
+
+def test_tuned_observer_gains_apply_in_demo(tmp_path):
+    """``pmsmjax demo --estimator smo --gains`` takes a gains.toml of ``tune --estimator smo`` (observer
+    paths, speed_bandwidth included) on the I/f-start drive."""
+    names = observer_tuning("smo").names
+    drive = observer_drive("smo", n_substeps=1)
+    values = [1.1 * float(get_leaf(drive, n)) for n in names]
+    write_gains_toml(tmp_path / "gains.toml", names, values)
+    out = tmp_path / "demo"
+    args = [
+        "demo",
+        "--estimator",
+        "smo",
+        "--gains",
+        str(tmp_path / "gains.toml"),
+        "--duration-s",
+        "0.05",
+        "--load-time-s",
+        "0.04",
+    ]
+    assert main([*args, "--out", str(out)]) == 0
+    assert (out / "summary.json").stat().st_size > 0
