@@ -38,6 +38,7 @@ from .frames import inverse_park
 from .intra_period import dense_window
 from .inverters.switching import SwitchingBridge
 from .machines.motor import PMSMParameters
+from .observer_metrics import observer_errors, speed_held
 from .operating_point import run_flags
 from .simulate import check_simulation, simulate
 from .spectra import sampled_spectrum, thd
@@ -250,3 +251,166 @@ def _record(result: dict, name: str, run: dict, progress) -> None:
             f"THD {e['current_thd_pct']:5.2f} %  f_sw {1e-3 * e['switching_frequency_hz']:5.1f} kHz  "
             f"T ripple {e['torque_ripple_nm']:.3f} N m  flux ripple {1e3 * e['flux_ripple_wb']:.2f} mWb"
         )
+
+
+# --- Chapter 5: observers side by side (``pmsmjax compare --estimator``) ---------------------------------
+
+#: Speeds (r/min) of the low-speed sweep under load, highest first.
+LOW_SPEED_SWEEP_RPM = (500.0, 300.0, 200.0, 150.0, 100.0, 70.0, 50.0, 30.0, 20.0, 10.0, 5.0, 2.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class LowSpeedSweep:
+    """The sweep behind ``lowest_held_rpm``: one run per speed in `speeds_rpm`, each from standstill
+    (I/f start) to `start_rpm`, the load `load_nm` stepped on at `load_time_s`, then the reference ramped
+    from `start_rpm` down to the swept speed over [`ramp_start_s`, `ramp_end_s`], held to `duration_s`;
+    judged from `judge_from_s` to the end (:func:`pmsmjax.observer_metrics.speed_held`).
+
+    With the observer's model equal to the plant and no noise, a fundamental-model observer sees the
+    small back-EMF exactly and holds very low speeds; what limits it on a real drive is model error. So
+    the sweep is also run with the plant's stator resistance times `hot_r_factor` (1.3: about 75 K of
+    copper heating) while the observer and the controller keep the nominal value (None: not run).
+    """
+
+    speeds_rpm: tuple = LOW_SPEED_SWEEP_RPM
+    start_rpm: float = 500.0
+    load_nm: float = 10.0
+    load_time_s: float = 0.1
+    ramp_start_s: float = 0.15
+    ramp_end_s: float = 0.35
+    judge_from_s: float = 0.45
+    duration_s: float = 0.6
+    hot_r_factor: float | None = 1.3
+
+    def scenario(self, speed_rpm: float):
+        from .scenarios import Profile, Scenario
+        from .units import rpm_to_rad_s
+
+        return Scenario(
+            duration_s=self.duration_s,
+            speed_ref=Profile.ramp(
+                self.ramp_start_s, self.ramp_end_s, rpm_to_rad_s(self.start_rpm), rpm_to_rad_s(speed_rpm)
+            ),
+            load_torque=Profile.step(self.load_time_s, 0.0, self.load_nm),
+        )
+
+
+def observer_drive(
+    name: str, motor: PMSMParameters | None = None, bridge: str = "averaged", startup: bool = True
+) -> Drive:
+    """The book FOC drive with observer ``name`` (:data:`pmsmjax.estimators.OBSERVERS`, design-rule gains
+    for ``motor``) and the I/f start from standstill, on ``bridge``."""
+    drive = presets.sensorless_drive(name, motor, startup=startup)
+    if bridge == "switching":
+        drive = eqx.tree_at(lambda d: d.bridge, drive, SwitchingBridge(drive.bridge.u_dc))
+    return drive
+
+
+def low_speed_sweep(drive: Drive, sweep: LowSpeedSweep = LowSpeedSweep(), r_factor: float = 1.0) -> dict:
+    """Run ``drive`` (its plant's R times ``r_factor``) through every speed of ``sweep`` (one batched
+    simulation); returns ``{"runs": [{speed_rpm, held, ...}], "lowest_held_rpm"}``: the lowest swept
+    speed such that it and every higher swept speed were held (None if the highest was not)."""
+    from .scenarios import stack_scenarios
+
+    if r_factor != 1.0:
+        drive = eqx.tree_at(lambda d: d.machine.motor.R, drive, drive.machine.motor.R * r_factor)
+
+    scenarios = [sweep.scenario(s) for s in sweep.speeds_rpm]
+    check_simulation(drive, scenarios[0])
+    batch = stack_scenarios(scenarios)
+    traces = jax.block_until_ready(jax.vmap(simulate, in_axes=(None, 0))(drive, batch))
+    runs, lowest = [], None
+    for i, speed in enumerate(sweep.speeds_rpm):
+        trace = jax.tree.map(lambda x, i=i: np.asarray(x[i]), traces)
+        run = {"speed_rpm": float(speed), **speed_held(trace, drive.Ts, sweep.judge_from_s)}
+        runs.append(run)
+    for run in runs:  # highest first: stop at the first speed not held
+        if not run["held"]:
+            break
+        lowest = run["speed_rpm"]
+    return {"runs": runs, "lowest_held_rpm": lowest, "r_factor": r_factor}
+
+
+def compare_estimators(
+    names,
+    motor: PMSMParameters | None = None,
+    settings=ControllerCompareSettings(),
+    sweep: LowSpeedSweep | None = LowSpeedSweep(),
+    progress=None,
+) -> dict:
+    """Run the book FOC drive sensorless from standstill with each named observer on the book scenario.
+
+    Each entry holds the figures of :func:`run_control` (rise, dip, ITAE, THD, ripple, ...) and the
+    observer's (:func:`pmsmjax.observer_metrics.observer_errors`: angle error RMS/max after convergence in
+    electrical degrees, speed estimation error RMS, speed tracking error RMS, ``lock_lost``), plus, unless
+    ``sweep`` is None, ``lowest_held_rpm`` under ``sweep.load_nm`` and the sweep's runs
+    (:func:`low_speed_sweep`), and ``lowest_held_rpm_hot_r`` with the plant's R off the observer's by
+    ``sweep.hot_r_factor``. Returns the layout of :func:`compare_controllers`.
+    """
+    from .estimators.registry import check_observer_name
+
+    settings.check()
+    for name in names:
+        check_observer_name(name)
+    drives = {name: observer_drive(name, motor, settings.bridge) for name in names}
+    for drive in drives.values():
+        window_periods(drive, settings)
+    result = {"settings": dataclasses.asdict(settings), "controllers": {}, "traces": {}, "windows": {}}
+    result["settings"]["sweep"] = None if sweep is None else dataclasses.asdict(sweep)
+    for name, drive in drives.items():
+        run = run_control(name, drive, settings)
+        run["entry"].update(observer_errors(run["trace"], drive.Ts))
+        run["entry"]["observer"] = name
+        if sweep is not None:
+            swept = low_speed_sweep(drive, sweep)
+            run["entry"]["lowest_held_rpm"] = swept["lowest_held_rpm"]
+            run["entry"]["low_speed_runs"] = swept["runs"]
+            if sweep.hot_r_factor is not None:
+                hot = low_speed_sweep(drive, sweep, sweep.hot_r_factor)
+                run["entry"]["lowest_held_rpm_hot_r"] = hot["lowest_held_rpm"]
+                run["entry"]["low_speed_runs_hot_r"] = hot["runs"]
+        result["controllers"][name] = run["entry"]
+        result["traces"][name] = run["trace"]
+        result["windows"][name] = run["window"]
+        if progress:
+            progress(estimator_row(name, run["entry"]))
+    return result
+
+
+#: Columns of the observer table: (header, key, format).
+ESTIMATOR_COLUMNS = (
+    ("observer", "observer", "{:12s}"),
+    ("angle RMS deg", "angle_error_rms_deg", "{:13.3f}"),
+    ("angle max deg", "angle_error_max_deg", "{:13.3f}"),
+    ("speed est RMS r/min", "speed_error_rms_rpm", "{:19.3f}"),
+    ("ITAE rad s", "itae", "{:10.4f}"),
+    ("dip r/min", "dip_rpm", "{:9.1f}"),
+    ("lock lost", "lock_lost", "{!s:9s}"),
+    ("lowest held r/min", "lowest_held_rpm", "{!s:17s}"),
+    ("lowest held, hot R", "lowest_held_rpm_hot_r", "{!s:18s}"),
+)
+
+
+def estimator_row(name: str, entry: dict) -> str:
+    """One row of the observer table (:data:`ESTIMATOR_COLUMNS`)."""
+    cells = []
+    for _, key, fmt in ESTIMATOR_COLUMNS:
+        value = name if key == "observer" else entry.get(key)
+        if isinstance(value, float) and key.startswith("lowest_held"):
+            value = f"{value:g}"
+        cells.append(fmt.format(value))
+    return "  ".join(cells)
+
+
+def estimator_table(result: dict) -> str:
+    """The observer table of :func:`compare_estimators`'s result, as Markdown."""
+    head = "| " + " | ".join(h for h, _, _ in ESTIMATOR_COLUMNS) + " |"
+    rule = "|" + "|".join("---" for _ in ESTIMATOR_COLUMNS) + "|"
+    rows = []
+    for name, e in result["controllers"].items():
+        cells = [name]
+        for _, key, _ in ESTIMATOR_COLUMNS[1:]:
+            v = e.get(key)
+            cells.append(f"{v:.3g}" if isinstance(v, float) else ("-" if v is None else str(v)))
+        rows.append("| " + " | ".join(cells) + " |")
+    return "\n".join([head, rule, *rows])

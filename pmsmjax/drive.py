@@ -6,7 +6,8 @@ One step is one control period ``Ts`` (DESIGN.md, "The drive, generalised"):
 2. **Sample** at the period start: phase currents ``(n,)`` and their alpha-beta components, the DC
    voltage, the voltage commanded over the last period, and the ideal shaft sensor
    (:class:`pmsmjax.signals.Sample`).
-3. **Estimator** -> angle and speed (and an injection voltage for HF-injection estimators).
+3. **Estimator** -> angle and speed (and, for HF-injection estimators, an injection voltage added to the
+   controller's voltage command and the carrier-free current the controller gets instead of ``i_ab``).
 4. **Controller** -> a stator-frame voltage for the **modulator** (``command_kind == "voltage"``) or
    leg switch states (``"switches"``, no modulator); both become ``(n,)`` leg duties (switch states are
    duties of 0 or 1 held over the period). Which one is a class constant: no runtime branch.
@@ -101,6 +102,12 @@ class Drive(eqx.Module):
                 f"the modulator drives {n_modulator} legs but the machine has {n_machine} phases: "
                 "choose a modulator for the machine's phase count."
             )
+        if self.bridge.n_phases != n_machine:
+            raise ParameterError(
+                f"the bridge has {self.bridge.n_phases} legs but the machine has {n_machine} phases: "
+                "choose a bridge for the machine's phase count (six phases: MultiPhaseAveragedBridge, "
+                "MultiPhaseSwitchingBridge)."
+            )
         self.bridge.check_period(self.Ts)
         self.estimator.check_period(self.Ts)
 
@@ -142,13 +149,20 @@ class Drive(eqx.Module):
         sample = self.sample(ms, state.last_duties)
         estimator_state, estimate = self.estimator.step(state.estimator, sample, self.Ts)
         refs = References(x.speed_ref, x.id_ref, x.iq_ref)
+        seen = sample
+        if estimate.i_ab_fundamental is not None:
+            # HF injection: the current loop gets the carrier-free current (stationary frame; the phase
+            # currents stay raw, so only controllers that read i_ab are shielded from the carrier)
+            seen = eqx.tree_at(lambda s: s.i_ab, sample, estimate.i_ab_fundamental)
         ctrl_state, out = self.controller.step(
-            state.controller, sample, estimate, refs, self.Ts, self.voltage_limit(), self.computation_delay
+            state.controller, seen, estimate, refs, self.Ts, self.voltage_limit(), self.computation_delay
         )
         if self.controller.command_kind == "voltage":
             u_ab = out.command
             if self.estimator.injects_voltage:
-                u_ab = u_ab + estimate.u_injection_ab
+                inj = estimate.u_injection_ab
+                # A multi-phase command [alpha, beta, z1, z2, ...]: the injection is in the alpha-beta plane.
+                u_ab = u_ab + inj if u_ab.shape == (2,) else u_ab.at[:2].add(inj)
             new_duties = self.modulator.duties(u_ab, self.bridge.u_dc)
         else:
             new_duties = out.command.astype(ms.omega_m.dtype)

@@ -29,7 +29,10 @@ def _dense_switching(drive: Drive, states: MachineState, duties, load, n_samples
 @eqx.filter_jit
 def _dense_averaged(drive: Drive, states: MachineState, duties, load, n_samples: int):
     def one(s, d, L):
-        u_ab = abc_to_alpha_beta(phase_voltages(d, drive.bridge.u_dc))
+        if drive.machine.n_phases == 3:
+            u_ab = abc_to_alpha_beta(phase_voltages(d, drive.bridge.u_dc))
+        else:  # a multi-phase bridge: the stationary VSD voltage [alpha, beta, z1, z2, ...]
+            u_ab = drive.bridge.vsd_voltage(d)
         step = lambda x, _: (advance(drive.machine, x, MachineInput(u_ab, L), drive.Ts / n_samples, 1),) * 2
         return jax.lax.scan(step, s, None, length=n_samples)[1], u_ab
 
@@ -42,17 +45,24 @@ def dense_window(drive: Drive, window: Trace, n_samples: int):
 
     **Returns** ``(states, t_u, u_ab)``: a :class:`MachineState` of ``(N, n_samples)`` leaves; the bounds
     ``(K+1,)`` s (from the window start) and ``(K, 2)`` stator voltages V of the piecewise-constant
-    applied voltage (one interval per period for the averaged bridge, the switching segments otherwise).
+    applied voltage (one interval per period for the averaged bridge, the switching segments otherwise;
+    ``(K, 2 n_planes)`` stationary VSD voltages for a multi-phase machine, whose period-start states are
+    rebuilt from the recorded phase currents).
     """
     machine, Ts = drive.machine, drive.Ts
     n = window.t.shape[0]
-    states = MachineState(
-        jax.vmap(machine.currents_from_dq)(window.i_dq, window.theta_e), window.omega_m, window.theta_e
-    )
-    if isinstance(drive.bridge, SwitchingBridge):
+    if machine.n_phases == 3:
+        currents = jax.vmap(machine.currents_from_dq)(window.i_dq, window.theta_e)
+    else:
+        from .multiphase_frames import vsd
+
+        i_vsd = vsd(window.i_abc, machine.layout)[:, : machine.layout.n_active]
+        currents = jax.vmap(machine.currents_from_vsd)(i_vsd, window.theta_e)
+    states = MachineState(currents, window.omega_m, window.theta_e)
+    if isinstance(drive.bridge, SwitchingBridge) or hasattr(drive.bridge, "sample_period"):
         dense, times, u_ab = _dense_switching(drive, states, window.duties, window.load_torque, n_samples)
         t_u = (np.arange(n)[:, None] * Ts + np.asarray(times)[:, :-1]).ravel()
-        u_ab = np.asarray(u_ab).reshape(-1, 2)
+        u_ab = np.asarray(u_ab).reshape(-1, np.shape(u_ab)[-1])
     else:
         dense, u_ab = _dense_averaged(drive, states, window.duties, window.load_torque, n_samples)
         t_u, u_ab = np.arange(n) * Ts, np.asarray(u_ab)

@@ -21,7 +21,7 @@ from .estimators.base import AbstractEstimator
 from .frames import alpha_beta_to_abc, wrap_angle
 from .signals import Sample
 
-__all__ = ["ObserverOutput", "observe", "angle_error", "error_statistics"]
+__all__ = ["ObserverOutput", "observe", "angle_error", "angle_error_modulo_pi", "error_statistics"]
 
 
 class ObserverOutput(eqx.Module):
@@ -62,15 +62,25 @@ def angle_error(theta_est, theta_true) -> Array:
     return wrap_angle(jnp.asarray(theta_est) - jnp.asarray(theta_true))
 
 
-def error_statistics(time, theta_est, omega_est, theta_true, omega_true, settle_s: float = 0.0) -> dict:
-    """Angle and speed error figures after ``settle_s`` (s from the first row), NumPy floats.
+def angle_error_modulo_pi(theta_est, theta_true) -> Array:
+    """The angle error modulo pi, rad in [-pi/2, pi/2): ``wrap(2 (theta_est - theta_true)) / 2``; what
+    an HF-injection estimator (the d axis without its polarity) is scored by."""
+    return 0.5 * wrap_angle(2.0 * (jnp.asarray(theta_est) - jnp.asarray(theta_true)))
+
+
+def error_statistics(
+    time, theta_est, omega_est, theta_true, omega_true, settle_s: float = 0.0, modulo_pi: bool = False
+) -> dict:
+    """Angle and speed error figures after ``settle_s`` (s from the first row), NumPy floats; with
+    ``modulo_pi`` the angle error is taken modulo pi (:func:`angle_error_modulo_pi`).
 
     Keys: ``angle_rms_deg``, ``angle_mean_deg``, ``angle_max_deg`` (electrical degrees),
     ``speed_rms_rpm``, ``speed_max_rpm`` (mechanical r/min), ``samples``.
     """
     t = np.asarray(time)
     keep = t >= t[0] + settle_s
-    e = np.degrees(np.asarray(angle_error(theta_est, theta_true)))[keep]
+    error = angle_error_modulo_pi if modulo_pi else angle_error
+    e = np.degrees(np.asarray(error(theta_est, theta_true)))[keep]
     w = (np.asarray(omega_est) - np.asarray(omega_true))[keep] * 30.0 / np.pi
     return {
         "angle_rms_deg": float(np.sqrt(np.mean(e**2))),

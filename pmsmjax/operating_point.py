@@ -6,9 +6,11 @@ Steady state of the dq model (BOOK.md chapter 1) at mechanical speed ``w`` (rad/
     T_e = T_L + B w,  i_q = T_e / (1.5 p (psi_f + (L_d - L_q) i_d)),
     u_d = R i_d - w_e L_q i_q,  u_q = R i_q + w_e (L_d i_d + psi_f),  w_e = p w,
 
-and the point is reachable when ``|u_dq| <= U_lim`` (the modulator's linear limit, ``U_dc / sqrt 3`` for
-SVPWM) and ``|i_dq| <= I_max`` (the controller's current limit). With i_d = 0 control the top speed at a
-load follows by bisection; with field weakening any ``-I_max <= i_d <= 0`` may be used.
+(``1.5`` is the three-phase torque factor; a multi-phase motor's dict carries ``n_phases`` and its
+``n/2`` replaces it: 3 for six phases, 2.5 for five), and the point is reachable when
+``|u_dq| <= U_lim`` (the modulator's linear limit, ``U_dc / sqrt 3`` for SVPWM) and ``|i_dq| <= I_max``
+(the controller's current limit). With i_d = 0 control the top speed at a load follows by bisection;
+with field weakening any ``-I_max <= i_d <= 0`` may be used.
 
 :func:`steady_point`, :func:`top_speed_rpm` and :func:`reachable` are pure Python on a dict of motor
 values (:func:`pmsmjax.motor_files.motor_values`), so the command line checks a request before JAX
@@ -54,6 +56,9 @@ def motor_dict(motor) -> dict:
     get = (lambda k: motor[k]) if isinstance(motor, Mapping) else (lambda k: getattr(motor, k))
     out = {k: float(np.asarray(get(k))) for k in ("R", "L_d", "L_q", "psi_f", "J", "B")}
     out["pole_pairs"] = int(get("pole_pairs"))
+    n = motor.get("n_phases", 3) if isinstance(motor, Mapping) else getattr(motor, "n_phases", 3)
+    if n != 3:  # multi-phase: the torque factor n/2 (module docstring)
+        out["n_phases"] = int(n)
     return out
 
 
@@ -66,7 +71,7 @@ def steady_point(motor: Mapping, speed_rad_s: float, load_nm: float, i_d: float 
     flux = motor["psi_f"] + (motor["L_d"] - motor["L_q"]) * i_d
     if abs(flux) < 1e-12:
         return {"i_q": math.inf, "current": math.inf, "voltage": math.inf}
-    i_q = torque / (1.5 * p * flux)
+    i_q = torque / (0.5 * motor.get("n_phases", 3) * p * flux)
     w_e = p * speed_rad_s
     u_d = motor["R"] * i_d - w_e * motor["L_q"] * i_q
     u_q = motor["R"] * i_q + w_e * (motor["L_d"] * i_d + motor["psi_f"])

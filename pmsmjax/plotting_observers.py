@@ -10,17 +10,23 @@ from .units import rad_s_to_rpm
 __all__ = ["observer_log_figure", "angle_error_figure"]
 
 
-def observer_log_figure(time, theta_e, omega_m, truth: dict | None = None, title: str = ""):
+def observer_log_figure(
+    time, theta_e, omega_m, truth: dict | None = None, title: str = "", modulo_pi: bool = False
+):
     """Estimated angle (electrical rad) and speed (r/min) against time, with the truth where given
     (``truth``: ``theta_e`` electrical rad, ``omega_m`` mechanical rad/s), and the angle error in electrical
-    degrees when the angle is known. Returns the figure."""
+    degrees when the angle is known. ``modulo_pi``: the estimate is the d axis without its polarity (HF
+    injection); the true angle is drawn and the error taken modulo pi. Returns the figure."""
     truth = truth or {}
     t = np.asarray(time)
     n_rows = 3 if "theta_e" in truth else 2
     fig, axes = plt.subplots(n_rows, 1, figsize=(8, 2.4 * n_rows), sharex=True)
     ax = axes[0]
     if "theta_e" in truth:
-        ax.plot(t, np.asarray(truth["theta_e"]), "k-", lw=1.0, label="actual")
+        actual = np.asarray(truth["theta_e"])
+        if modulo_pi:
+            actual = 0.5 * np.asarray(wrap_angle(2.0 * actual))
+        ax.plot(t, actual, "k-", lw=1.0, label="actual (modulo pi)" if modulo_pi else "actual")
     ax.plot(t, np.asarray(theta_e), "-", lw=0.8, label="estimated")
     ax.set(ylabel="$\\theta_e$ / rad", title=title)
     ax = axes[1]
@@ -29,9 +35,10 @@ def observer_log_figure(time, theta_e, omega_m, truth: dict | None = None, title
     ax.plot(t, rad_s_to_rpm(np.asarray(omega_m)), "-", lw=0.8, label="estimated")
     ax.set(ylabel="n / (r/min)")
     if "theta_e" in truth:
-        err = np.degrees(np.asarray(wrap_angle(np.asarray(theta_e) - np.asarray(truth["theta_e"]))))
+        diff = np.asarray(theta_e) - np.asarray(truth["theta_e"])
+        err = np.degrees(np.asarray(0.5 * wrap_angle(2.0 * diff) if modulo_pi else wrap_angle(diff)))
         axes[2].plot(t, err, "-", lw=0.8)
-        axes[2].set(ylabel="angle error / el. deg")
+        axes[2].set(ylabel="angle error (modulo pi) / el. deg" if modulo_pi else "angle error / el. deg")
     for ax in axes:
         ax.grid(alpha=0.3)
     axes[0].legend(loc="upper right")

@@ -288,7 +288,8 @@ def sensorless_drive(
     **kw,
 ) -> Drive:
     """:func:`book_drive` with the chapter 5 observer ``observer_name`` (``smo``, ``smo-pll``,
-    ``adaptive-smo``, ``dq-smo``, ``mras``, ``ekf``; :data:`pmsmjax.estimators.OBSERVERS`) in place of the
+    ``adaptive-smo``, ``dq-smo``, ``mras``, ``ekf``; the HF-injection estimators ``hfi-rotating``,
+    ``hfi-pulsating`` of chapter 6 on a salient motor; :data:`pmsmjax.estimators.OBSERVERS`) in place of the
     exact sensor: the controller runs on the estimate, and the trace's ``theta_e_est``/``omega_m_est`` are
     the observer's.
 
@@ -318,9 +319,13 @@ def with_observer(
     period, overridden by ``observer_options``) as its estimator, wrapped in the I/f start from standstill
     if ``startup`` (:data:`STARTUP_DEFAULTS` overridden by ``startup_options``). The controller must be a
     :class:`~pmsmjax.controllers.FOC` (it holds the start-up current)."""
-    from .estimators.registry import make_observer
+    from .estimators.registry import HYBRID_OBSERVERS, INJECTION_OBSERVERS, make_observer
 
-    observer = make_observer(observer_name, model, drive.Ts, **(observer_options or {}))
+    observer_options = dict(observer_options or {})
+    if observer_name in INJECTION_OBSERVERS or observer_name in HYBRID_OBSERVERS:
+        # the carrier's phase at the sampling instant depends on when the drive applies the command
+        observer_options.setdefault("delay_periods", 1.5 if drive.computation_delay else 0.5)
+    observer = make_observer(observer_name, model, drive.Ts, **observer_options)
     if startup:
         from .estimators.startup import StartupEstimator
 

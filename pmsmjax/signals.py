@@ -56,6 +56,10 @@ class Estimate(eqx.Module):
       controller's current reference (1: open-loop I/f start, 0: speed loop in charge); ``None`` for
       estimators without a start-up (:mod:`pmsmjax.estimators.startup`).
     - `startup_i_dq`: ``(2,)`` the start-up current reference in the estimate's frame, A; ``None`` likewise.
+    - `i_ab_fundamental`: ``(2,)`` stationary-frame current with the injected carrier filtered out, A: the
+      drive gives it to the controller in place of the sampled ``i_ab`` so that the current loop never
+      acts on the carrier (HF injection, :mod:`pmsmjax.estimators.hfi_signal`); ``None``: the controller
+      gets the sampled currents.
     """
 
     theta_e: Array
@@ -66,6 +70,7 @@ class Estimate(eqx.Module):
     back_emf_ab: Array | None = None
     startup_weight: Array | None = None
     startup_i_dq: Array | None = None
+    i_ab_fundamental: Array | None = None
 
 
 class References(eqx.Module):

@@ -65,15 +65,30 @@ COLUMN_UNITS = {
     "omega_m_est": "rad/s (estimator's mechanical speed)",
 }
 
+#: The further columns of a six-phase trace (the second set U, V, W; :meth:`Trace.columns`).
+SIX_PHASE_COLUMN_UNITS = {
+    **{f"i_{x}": "A" for x in "uvw"},
+    **{f"u_{x}": "V (period-average phase voltage applied)" for x in "uvw"},
+    **{f"duty_{x}": "1 (leg duty cycle applied)" for x in "uvw"},
+}
+
+#: The further columns of a five-phase trace (phases D and E, capitals: ``i_d`` is the d-axis current).
+FIVE_PHASE_COLUMN_UNITS = {
+    **{f"i_{x}": "A (phase current)" for x in "DE"},
+    **{f"u_{x}": "V (period-average phase voltage applied)" for x in "DE"},
+    **{f"duty_{x}": "1 (leg duty cycle applied)" for x in "DE"},
+}
+
 
 class Trace(eqx.Module):
     """Recorded signals; the leading axis is time (after any batch axes from ``vmap``).
 
     - `t`: ``(N,)`` period start times, s.
     - `omega_m`, `speed_ref`: mechanical speed and its reference, rad/s. `theta_e`: electrical angle, rad.
-    - `i_dq`, `i_dq_ref`: ``(N, 2)`` measured and reference dq currents, A. `i_abc`: ``(N, 3)`` A.
-    - `u_dq_ref`: ``(N, 2)`` controller voltage command, V. `u_abc`: ``(N, 3)`` period-average applied
-      phase voltages, V. `duties`: ``(N, 3)`` applied leg duty cycles.
+    - `i_dq`, `i_dq_ref`: ``(N, 2)`` measured and reference dq currents, A. `i_abc`: ``(N, n)`` phase
+      currents, A (``n`` = 3; six phases: A, B, C, U, V, W).
+    - `u_dq_ref`: ``(N, 2)`` controller voltage command, V. `u_abc`: ``(N, n)`` period-average applied
+      phase voltages, V. `duties`: ``(N, n)`` applied leg duty cycles.
     - `torque`: electromagnetic torque, N m. `load_torque`: load torque, N m.
     - `theta_e_est`, `omega_m_est`: the estimator's electrical angle (rad) and mechanical speed (rad/s)
       that the controller used (equal to `theta_e`, `omega_m` with the exact sensor).
@@ -110,6 +125,16 @@ class Trace(eqx.Module):
         for name, (attr, idx) in _COLUMNS.items():
             x = np.asarray(getattr(self, attr))
             out[name] = x if idx is None else x[..., idx]
+        if np.shape(self.i_abc)[-1] == 6:  # the second set of a six-phase machine
+            for k, phase in enumerate("uvw", start=3):
+                out[f"i_{phase}"] = np.asarray(self.i_abc)[..., k]
+                out[f"u_{phase}"] = np.asarray(self.u_abc)[..., k]
+                out[f"duty_{phase}"] = np.asarray(self.duties)[..., k]
+        elif np.shape(self.i_abc)[-1] == 5:  # phases D and E of a five-phase machine
+            for k, phase in enumerate("DE", start=3):
+                out[f"i_{phase}"] = np.asarray(self.i_abc)[..., k]
+                out[f"u_{phase}"] = np.asarray(self.u_abc)[..., k]
+                out[f"duty_{phase}"] = np.asarray(self.duties)[..., k]
         return out
 
     def __getitem__(self, index) -> "Trace":

@@ -27,8 +27,18 @@ def add_parser(sub):
     )
     p.add_argument(
         "--control",
-        default="pi,smc,pr,hysteresis",
+        default=None,
         help="comma-separated methods: pi, smc, pr, hysteresis, dtc, smc-dtc (default: the chapter 3 four)",
+    )
+    p.add_argument(
+        "--estimator",
+        default=None,
+        help="instead of control methods, compare chapter 5 observers (comma-separated: smo, smo-pll, "
+        "adaptive-smo, dq-smo, mras, ekf; 'all' for the six) on the book PI drive, sensorless from "
+        "standstill (I/f start): angle error RMS/max after convergence (el. deg), speed estimation error, "
+        "ITAE, loss of lock, and the lowest speed held under the load step (a sweep of speed references "
+        "downwards, also with the plant's R 30 %% above the observer's); writes compare.json, "
+        "compare_estimators.md and figures",
     )
     p.add_argument("--out", default="compare_out", help="output folder (created), default: compare_out")
     p.add_argument(
@@ -69,17 +79,24 @@ def add_parser(sub):
 
 
 def precheck(args) -> list[str]:
-    """Checks that need no model (before JAX starts); returns the control names."""
+    """Checks that need no model (before JAX starts); returns the control (or observer) names."""
     from ..motor_files import motor_values
     from ..operating_point import refuse_unreachable
-    from .demo import BOOK_CURRENT_LIMIT_A, BOOK_TS_S, BOOK_U_DC_V, CONTROL_NAMES
+    from .demo import BOOK_CURRENT_LIMIT_A, BOOK_TS_S, BOOK_U_DC_V, CONTROL_NAMES, ESTIMATOR_NAMES
 
+    if args.estimator is not None:
+        names = _estimator_names(args, ESTIMATOR_NAMES)
+        control = "pi"
+    else:
+        names = control = None
     known = CONTROL_NAMES
-    names = [n.strip() for n in args.control.split(",") if n.strip()]
-    unknown = [n for n in names if n not in known]
-    if not names or unknown:
+    control_list = args.control if args.control is not None else (control or "pi,smc,pr,hysteresis")
+    controls = [n.strip() for n in control_list.split(",") if n.strip()]
+    names = names if names is not None else controls
+    unknown = [n for n in controls if n not in known]
+    if not controls or unknown:
         raise ParameterError(
-            f"--control {args.control!r}: unknown {', '.join(unknown) if unknown else 'empty list'}; "
+            f"--control {control_list!r}: unknown {', '.join(unknown) if unknown else 'empty list'}; "
             f"choose from {', '.join(known)} (comma separated)."
         )
     checks.output_folder(args.out)
@@ -108,8 +125,34 @@ def precheck(args) -> list[str]:
     return names
 
 
+def _estimator_names(args, known) -> list[str]:
+    """``--estimator`` as a list of observer names, refused with the fix when malformed or combined with
+    flags that belong to the control comparison."""
+    text = args.estimator
+    names = list(known) if text.strip() == "all" else [n.strip() for n in text.split(",") if n.strip()]
+    unknown = [n for n in names if n not in known]
+    if not names or unknown:
+        raise ParameterError(
+            f"--estimator {text!r}: unknown {', '.join(unknown) if unknown else 'empty list'}; choose from "
+            f"{', '.join(known)} (comma separated) or 'all'."
+        )
+    if args.control not in (None, "pi"):
+        raise ParameterError(
+            f"--estimator with --control {args.control!r}: the observers are compared on the book PI drive "
+            "(FOC, which holds the I/f start-up current); drop --control or give --control pi."
+        )
+    for flag, value in (("--gains", args.gains), ("--equal-switching", args.equal_switching)):
+        if value is not None:
+            raise ParameterError(
+                f"{flag} does not apply to --estimator (it tunes or matches control methods): drop it."
+            )
+    return names
+
+
 def run(args) -> int:
     names = precheck(args)
+    if args.estimator is not None:
+        return run_estimators(args, names)
 
     from .. import presets
     from ..controller_compare import ControllerCompareSettings, compare_controllers
@@ -145,6 +188,67 @@ def run(args) -> int:
             ("compare_ripple.png", ripple_figure(result)),
             ("compare_flux.png", flux_figure(result)),
         ):
+            save_figure(fig, out / name)
+            written.append(name)
+    for name, entry in result["controllers"].items():
+        for f in entry["operating_point"]["flags"]:
+            print(f"WARNING {name}: {f['flag']}: {f['cause']}; remedy: {f['remedy']}.")
+    print(f"wrote {', '.join(f'{out}/{w}' for w in written)} in {report['wall_time_s']:.1f} s")
+    return 0
+
+
+def run_estimators(args, names: list[str]) -> int:
+    """``pmsmjax compare --estimator``: the observers side by side (:func:`pmsmjax.controller_compare.
+    compare_estimators`); writes compare.json, compare_estimators.md and figures."""
+    import numpy as np
+
+    from .. import presets
+    from ..controller_compare import (
+        ESTIMATOR_COLUMNS,
+        ControllerCompareSettings,
+        LowSpeedSweep,
+        compare_estimators,
+        estimator_table,
+    )
+    from ..logs import atomic_write
+    from ..observer_metrics import angle_error
+
+    settings = ControllerCompareSettings(
+        speed_rpm=args.speed_rpm,
+        load_nm=args.load_nm,
+        load_time_s=args.load_time_s,
+        duration_s=args.duration_s,
+        bridge=args.bridge,
+    )
+    settings.check()
+    motor = presets.load_motor(args.motor, check_units=not args.trust_units)
+    out = checks.output_folder(args.out)
+    t0 = time.perf_counter()
+    print("  ".join(h for h, _, _ in ESTIMATOR_COLUMNS))
+    result = compare_estimators(names, motor, settings, LowSpeedSweep(load_nm=args.load_nm), progress=print)
+    report = {"settings": result["settings"], "estimators": result["controllers"]}
+    report["wall_time_s"] = time.perf_counter() - t0
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write(out / "compare.json", lambda f: f.write(json.dumps(report, indent=2).encode()))
+    table = estimator_table(result) + "\n"
+    atomic_write(out / "compare_estimators.md", lambda f: f.write(table.encode()))
+    written = ["compare.json", "compare_estimators.md"]
+    if not args.no_figures:
+        from ..plotting import save_figure
+        from ..plotting_compare import speed_figure
+        from ..plotting_observers import angle_error_figure
+
+        first = next(iter(result["traces"].values()))
+        errors = {
+            n: np.degrees(angle_error(tr.theta_e_est, tr.theta_e)) for n, tr in result["traces"].items()
+        }
+        angle = angle_error_figure(
+            np.asarray(first.t),
+            errors,
+            speed_rpm=np.asarray(first.omega_m) * 30.0 / np.pi,
+            title="Angle error, sensorless from standstill (I/f start), book scenario",
+        )
+        for name, fig in (("compare_speed.png", speed_figure(result)), ("compare_angle_error.png", angle)):
             save_figure(fig, out / name)
             written.append(name)
     for name, entry in result["controllers"].items():

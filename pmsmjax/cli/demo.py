@@ -1,5 +1,6 @@
 """``pmsmjax demo`` (alias ``simulate``): the book scenario under a chosen control method, written as a
-trace, summary.json and figures.
+trace, summary.json and figures; ``--machine six-phase`` runs the dual three-phase drive (book ch. 7-9),
+``--machine five-phase`` the five-phase drive (book ch. 10).
 
 Before any work: the flags (:mod:`pmsmjax.cli.checks`), ``--out``, the motor file (its units,
 :mod:`pmsmjax.plausibility`), the gains file, the load step inside the run, and a speed the drive could
@@ -17,6 +18,37 @@ from . import checks
 from .gains import add_gains_flag, apply_gains_flag, read_gains_flag
 
 CONTROL_NAMES = ("pi", "smc", "pr", "hysteresis", "dtc", "smc-dtc")
+#: ``--machine six-phase``: the schemes of pmsmjax.presets_six_phase.SIX_PHASE_CONTROLS (listed here so
+#: that ``--help`` needs no JAX import), its modulators and model frames.
+SIX_PHASE_CONTROL_NAMES = ("vsd", "double-dq", "conventional", "pr")
+SIX_PHASE_PWM_NAMES = ("four-vector", "two-vector", "decoupled", "double-zs")
+THREE_PHASE_FRAMES = ("dq", "alpha_beta", "abc")
+SIX_PHASE_FRAME_NAMES = ("dq", "vsd", "double-dq", "natural")
+#: ``--machine five-phase``: pmsmjax.presets_five_phase.FIVE_PHASE_CONTROLS, _PWMS, _FRAMES.
+FIVE_PHASE_CONTROL_NAMES = ("vsd", "conventional", "pr")
+FIVE_PHASE_PWM_NAMES = ("near-four-vector", "carrier", "sinusoidal", "large-vector")
+FIVE_PHASE_FRAME_NAMES = ("dq", "vsd", "natural")
+#: Per multi-phase machine: (controls, modulators, frames, default modulator).
+MULTIPHASE_NAMES = {
+    "six-phase": (SIX_PHASE_CONTROL_NAMES, SIX_PHASE_PWM_NAMES, SIX_PHASE_FRAME_NAMES, "four-vector"),
+    "five-phase": (
+        FIVE_PHASE_CONTROL_NAMES,
+        FIVE_PHASE_PWM_NAMES,
+        FIVE_PHASE_FRAME_NAMES,
+        "near-four-vector",
+    ),
+}
+#: Flags the six- and five-phase drives take (argparse dest -> six_phase_drive / five_phase_drive option).
+SIX_PHASE_FLAG_OPTIONS = {
+    "frame": "frame",
+    "substeps": "n_substeps",
+    "no_delay": "computation_delay",
+    "current_bandwidth": "current_bandwidth",
+    "speed_bandwidth": "speed_bandwidth",
+    "current_limit": "current_limit",
+    "pwm": "pwm",
+    "bridge": "bridge",
+}
 
 #: ``--estimator``: the chapter 5 observers (:data:`pmsmjax.estimators.OBSERVERS`; listed here so the
 #: flags are checked before JAX starts) and the controls that can run on one (FOC cascades: they hold the
@@ -65,6 +97,70 @@ BOOK_U_DC_V, BOOK_CURRENT_LIMIT_A, BOOK_TS_S = 311.0, 15.0, 1e-4
 MAX_SPEED_FACTOR = 3.0
 
 
+def six_phase_drive_from_flags(args):
+    """``--machine six-phase`` (or ``five-phase``): the multi-phase drive of ``args.control`` with the flags
+    the user set; flags of the three-phase controls are refused."""
+    from ..presets_six_phase import load_six_phase_motor, six_phase_drive
+
+    if args.machine == "five-phase":
+        from ..presets_five_phase import five_phase_drive as six_phase_drive  # noqa: F811
+        from ..presets_five_phase import load_five_phase_motor as load_six_phase_motor  # noqa: F811
+    options = {}
+    for flag in FLAG_OPTIONS.keys() | SIX_PHASE_FLAG_OPTIONS.keys():
+        value = getattr(args, flag, None)
+        if value is None or value is False:
+            continue
+        options[SIX_PHASE_FLAG_OPTIONS[flag]] = False if flag == "no_delay" else value
+    return six_phase_drive(load_six_phase_motor(args.motor), control=args.control, **options)
+
+
+def check_machine_flags(args) -> None:
+    """The flags that do not fit ``--machine`` are refused before any work (pure Python)."""
+    if args.machine in MULTIPHASE_NAMES:
+        machine = args.machine
+        controls, pwms, frames, _ = MULTIPHASE_NAMES[machine]
+        if args.control is None:
+            args.control = "vsd"
+        if args.control not in controls:
+            kind = "a three-phase" if args.control in CONTROL_NAMES else "another machine's"
+            raise ParameterError(
+                f"--control {args.control} is {kind} control; with --machine {machine} choose from "
+                f"{', '.join(controls)}."
+            )
+        for flag in FLAG_OPTIONS.keys() - SIX_PHASE_FLAG_OPTIONS.keys():
+            if getattr(args, flag, None) not in (None, False):
+                raise ParameterError(f"--{flag.replace('_', '-')} does not apply to --machine {machine}.")
+        if getattr(args, "estimator", None):
+            raise ParameterError(
+                "--estimator applies to the three-phase drive only (the chapter 5 observers are "
+                "three-phase); drop it or use --machine three-phase."
+            )
+        if args.frame is not None and args.frame not in frames:
+            kind = "a three-phase" if args.frame in THREE_PHASE_FRAMES else "another machine's"
+            raise ParameterError(
+                f"--frame {args.frame} is {kind} frame; {machine} frames: {', '.join(frames)}."
+            )
+        if getattr(args, "pwm", None) is not None and args.pwm not in pwms:
+            raise ParameterError(
+                f"--pwm {args.pwm} does not drive the {machine} machine; choose from {', '.join(pwms)}."
+            )
+        return
+    if args.control is None:
+        args.control = "pi"
+    for flag in ("pwm", "bridge"):
+        if getattr(args, flag, None) is not None:
+            raise ParameterError(
+                f"--{flag} applies to --machine six-phase only (three phases: SVPWM, averaged)."
+            )
+    if args.frame is not None and args.frame not in THREE_PHASE_FRAMES:
+        raise ParameterError(
+            f"--frame {args.frame} is a six-phase frame; three-phase frames: {', '.join(THREE_PHASE_FRAMES)}."
+        )
+    if args.control not in CONTROL_NAMES:
+        need = "five-phase" if args.control not in SIX_PHASE_CONTROL_NAMES else "six-phase"
+        raise ParameterError(f"--control {args.control} needs --machine {need}.")
+
+
 def control_drive_from_flags(args, motor):
     """The drive of ``args.control`` with the options the user set; a flag that does not apply to the
     chosen control is refused (``--band-a`` with ``--control pi``, say) instead of silently ignored."""
@@ -108,12 +204,35 @@ def add_parser(sub):
         ),
     )
     p.add_argument(
+        "--machine",
+        choices=("three-phase", "six-phase", "five-phase"),
+        default="three-phase",
+        help="three-phase book motor (default), six-phase: the book motor rewound as a dual three-phase "
+        "machine (book ch. 7-9), or five-phase: rewound as a five-phase machine (book ch. 10)",
+    )
+    p.add_argument(
         "--control",
-        choices=list(CONTROL_NAMES),
-        default="pi",
-        help="control method: pi (cascaded PI FOC, default), smc (sliding-mode speed loop), pr "
+        choices=list(dict.fromkeys(CONTROL_NAMES + SIX_PHASE_CONTROL_NAMES + FIVE_PHASE_CONTROL_NAMES)),
+        default=None,
+        help="control method. Three-phase: pi (cascaded PI FOC, default), smc (sliding-mode speed loop), pr "
         "(proportional-resonant current loops in alpha-beta), hysteresis (current comparators at 100 kHz), "
-        "dtc (switching-table direct torque control, 40 kHz samples), smc-dtc (sliding-mode DTC with SVPWM)",
+        "dtc (switching-table direct torque control, 40 kHz samples), smc-dtc (sliding-mode DTC with "
+        "SVPWM). Six-phase: vsd (dq and z1-z2 PIs, default), double-dq (four PIs, cross-coupling "
+        "compensation), conventional (dq PIs only), pr (stationary-frame PR on alpha-beta and z1-z2). "
+        "Five-phase: vsd (i_d = 0, dq and x-y PIs, default), conventional (dq PIs only), pr "
+        "(stationary-frame PR on alpha-beta and x-y)",
+    )
+    p.add_argument(
+        "--pwm",
+        choices=SIX_PHASE_PWM_NAMES + FIVE_PHASE_PWM_NAMES,
+        help="six-phase modulator: four-vector SVPWM (default), two-vector SVPWM, decoupled (two SVPWMs), "
+        "double-zs (carrier PWM, a zero sequence per set); five-phase: near-four-vector SVPWM (default), "
+        "carrier (min-max zero sequence), sinusoidal, large-vector (x-y uncontrolled)",
+    )
+    p.add_argument(
+        "--bridge",
+        choices=("averaged", "switching"),
+        help="six- or five-phase inverter model (default averaged)",
     )
     p.add_argument(
         "--estimator",
@@ -123,7 +242,10 @@ def add_parser(sub):
     )
     p.add_argument("--out", default="demo_out", help="output folder (created), default: demo_out")
     p.add_argument(
-        "--motor", default="book", help="preset name (book, book_salient) or motor TOML file (default book)"
+        "--motor",
+        default="book",
+        help="preset name (book, book_salient; with --machine six-phase or five-phase their rewinds) or "
+        "motor TOML file (default book)",
     )
     p.add_argument(
         "--speed-rpm", type=checks.real("r/min"), default=1000.0, help="speed step, r/min (default 1000)"
@@ -139,7 +261,11 @@ def add_parser(sub):
         "--duration-s", type=checks.positive("s"), default=0.4, help="simulated time, s (default 0.4)"
     )
     p.add_argument(
-        "--frame", choices=["dq", "alpha_beta", "abc"], default="dq", help="machine model frame (default dq)"
+        "--frame",
+        choices=list(dict.fromkeys(THREE_PHASE_FRAMES + SIX_PHASE_FRAME_NAMES + FIVE_PHASE_FRAME_NAMES)),
+        default=None,
+        help="machine model frame: dq (default), alpha_beta, abc; six-phase: dq, vsd, double-dq, natural; "
+        "five-phase: dq, vsd, natural",
     )
     p.add_argument(
         "--substeps", type=checks.count(), help="RK4 sub-steps per control period (default 10; hysteresis 1)"
@@ -193,10 +319,12 @@ def precheck(args) -> dict | None:
     from ..operating_point import top_speed_rpm
 
     checks.output_folder(args.out)
+    check_machine_flags(args)
     if getattr(args, "estimator", None) and args.control not in SENSORLESS_CONTROLS:
         raise ParameterError(
-            f"--estimator does not apply to --control {args.control}: the sensorless start-up needs a FOC "
-            f"cascade; choose --control {' or '.join(SENSORLESS_CONTROLS)}, or drop --estimator."
+            f"--estimator does not apply to --control {args.control}: the sensorless start-up needs a "
+            f"three-phase FOC cascade; choose --control {' or '.join(SENSORLESS_CONTROLS)} (three-phase), "
+            "or drop --estimator."
         )
     if not args.load_time_s < args.duration_s:
         raise ParameterError(
@@ -205,6 +333,8 @@ def precheck(args) -> dict | None:
             f"{plain(args.duration_s)} s, or --load-nm 0 for no load."
         )
     read_gains_flag(args.gains)
+    if args.machine in MULTIPHASE_NAMES:  # its motor file is read and checked when the drive is built
+        return None
     motor = motor_values(args.motor, check_units=not args.trust_units, Ts=BOOK_TS_S)
     if motor is None:
         return None
@@ -243,10 +373,14 @@ def run(args) -> int:
     from ..trace import COLUMN_UNITS
 
     out = checks.output_folder(args.out)
+    six_phase = args.machine in MULTIPHASE_NAMES  # six- or five-phase
     try:
-        motor = presets.load_motor(args.motor, check_units=not args.trust_units)
-        drive = control_drive_from_flags(args, motor)
-        if args.estimator:
+        if six_phase:
+            drive = six_phase_drive_from_flags(args)
+        else:
+            motor = presets.load_motor(args.motor, check_units=not args.trust_units)
+            drive = control_drive_from_flags(args, motor)
+        if args.estimator:  # three-phase only (check_machine_flags)
             drive = presets.with_observer(drive, args.estimator, motor)
         # after the observer is in: a gains.toml of pmsmjax tune --estimator names estimator.observer.*
         drive = apply_gains_flag(drive, read_gains_flag(args.gains), args.control)
@@ -286,14 +420,19 @@ def run(args) -> int:
             "duration_s": args.duration_s,
         },
         "drive": {
+            "machine": args.machine,
             "motor": args.motor,
             "control": args.control,
             "estimator": args.estimator or "exact sensor",
-            "frame": args.frame,
+            "frame": args.frame or "dq",
             "Ts_s": drive.Ts,
             "n_substeps": drive.n_substeps,
             "computation_delay": drive.computation_delay,
-            "options": {k: v for k, v in vars(args).items() if k in FLAG_OPTIONS and v not in (None, False)},
+            "options": {
+                k: v
+                for k, v in vars(args).items()
+                if k in FLAG_OPTIONS.keys() | SIX_PHASE_FLAG_OPTIONS.keys() and v not in (None, False)
+            },
             "gains": args.gains,
             "current_limit_a": current_limit,
             "u_dc_v": float(np.asarray(drive.bridge.u_dc)),
@@ -305,6 +444,17 @@ def run(args) -> int:
         "timing": {"compile_s": max(first_call_s - run_s, 0.0), "run_s": run_s},
     }
 
+    if six_phase:
+        from ..trace import FIVE_PHASE_COLUMN_UNITS, SIX_PHASE_COLUMN_UNITS
+
+        five = args.machine == "five-phase"
+        extra = FIVE_PHASE_COLUMN_UNITS if five else SIX_PHASE_COLUMN_UNITS
+        summary["trace_columns"] = {**COLUMN_UNITS, **extra}
+        summary["drive"]["pwm"] = args.pwm or MULTIPHASE_NAMES[args.machine][3]
+        summary["drive"]["bridge"] = args.bridge or "averaged"
+        summary["metrics"]["xy_current_peak_a" if five else "z_current_peak_a"] = z_current_peak(
+            trace, drive.machine.layout
+        )
     out.mkdir(parents=True, exist_ok=True)
     columns = trace.columns()
     if args.format == "csv":
@@ -318,12 +468,19 @@ def run(args) -> int:
         else save_demo_figures(
             trace,
             out,
-            f"pmsmjax demo: book drive, {args.control} control"
+            f"pmsmjax demo: {args.machine if six_phase else 'book'} drive, {args.control} control"
             + (f", sensorless ({args.estimator}, I/f start)" if args.estimator else ""),
             current_limit_a=current_limit,
             voltage_limit_v=float(np.asarray(drive.voltage_limit())),
         )
     )
+    if six_phase and not args.no_figures:
+        from ..plotting import save_figure
+        from ..plotting_six_phase import z_currents_figure
+
+        fig = z_currents_figure(trace, f"{args.machine} drive, {args.control}", drive.machine.layout)
+        name = "currents_xy.png" if args.machine == "five-phase" else "currents_z.png"
+        figures.append(save_figure(fig, out / name))
     m = summary["metrics"]
     print(
         f"final speed {m['final_speed_rpm']:.1f} r/min (ref {m['reference_speed_rpm']:.0f}), "
@@ -365,6 +522,16 @@ def print_flags(operating: dict) -> None:
     """One console line per operating-point flag."""
     for f in operating["flags"]:
         print(f"WARNING {f['flag']}: {f['cause']}; remedy: {f['remedy']}.")
+
+
+def z_current_peak(trace, layout=None) -> float:
+    """Largest |z1-z2| current (A) of a six-phase trace (|x-y| of a five-phase one: ``layout``)."""
+    import numpy as np
+
+    from ..multiphase_frames import SIX_PHASE, vsd
+
+    i_z = np.asarray(vsd(trace.i_abc, SIX_PHASE if layout is None else layout))[:, 2:4]
+    return float(np.max(np.hypot(i_z[:, 0], i_z[:, 1])))
 
 
 def _fmt(x, scale):

@@ -6,6 +6,7 @@ import textwrap
 
 from ..validation import ParameterError
 from . import checks
+from .demo import ESTIMATOR_NAMES
 from .gains import add_gains_flag, read_gains_flag
 
 #: The study TOML, as ``pmsmjax montecarlo --help`` shows it (the layout of tuning/montecarlo/study.py).
@@ -16,7 +17,8 @@ study TOML (--config; every table and key optional, flags win over it):
                 nonphysical = "refuse" | "clip", decimate = 40, sensitivity_runs = 256
   [drive]       motor = "book" (preset or motor TOML), gains = "tune_out/gains.toml" (relative to this
                 file), current_bandwidth = 1100.0 (rad/s), speed_bandwidth = 50.0 (rad/s),
-                current_limit = 15.0 (A), u_dc = 311.0 (V), n_substeps = 10, unroll_substeps = false
+                current_limit = 15.0 (A), u_dc = 311.0 (V), n_substeps = 10, unroll_substeps = false,
+                estimator = "smo" (a chapter 5 observer; default: the exact sensor)
   [scenario]    speed_rpm = 1000.0, load_nm = 10.0, load_time_s = 0.2, duration_s = 0.4
   [thresholds]  current_a = 15.75 (A; default 1.05 x current_limit), tracking_rpm = 10.0
   [parameters."motor.R"]   distribution = "uniform" | "normal" | "lognormal", tolerance = 0.2 (+-20 %),
@@ -26,6 +28,12 @@ study TOML (--config; every table and key optional, flags win over it):
   bridge.u_dc, controller.<path> (e.g. controller.speed.kp), scenario.speed_rpm, scenario.load_nm.
   A [parameters] table replaces the default set (R 20 %, L_d/L_q 15 %, psi_f 10 %, J/B 50 %,
   u_dc 10 %) as a whole.
+
+  Sensorless (--estimator NAME): the drive runs on that observer from standstill (I/f start). The observer
+  and the controller keep the nominal motor; the plant's R, L_d, L_q, psi_f are drawn (default R +-30 %,
+  L_d, L_q +-20 % each, psi_f +-10 %, uniform). Adds per run the angle error RMS and max and the speed
+  estimation error RMS after 50 ms, and loss of lock (out of lock, |angle error| > 90 el. deg or
+  |speed estimate error| > 50 % of the reference + 1 rad/s, for more than 10 ms) as a failure kind.
 """
 
 
@@ -69,6 +77,12 @@ def add_parser(sub):
     )
     add_gains_flag(p)
     p.add_argument(
+        "--estimator",
+        choices=list(ESTIMATOR_NAMES),
+        help="sensorless study: run on this chapter 5 observer with the I/f start, the plant's R, L, psi_f "
+        "drawn against the observer's nominal model (default: the exact sensor)",
+    )
+    p.add_argument(
         "--distributed",
         action="store_true",
         help="multi-host: call jax.distributed.initialize() first (cluster from SLURM, Open MPI, ... or the "
@@ -99,6 +113,32 @@ def add_parser(sub):
         "--unroll-substeps",
         action="store_true",
         help="write the RK4 sub-steps out instead of looping (faster kernel on a GPU; same results)",
+    )
+    p.add_argument(
+        "--machine",
+        choices=("three-phase", "six-phase", "five-phase"),
+        help="three-phase book drive (default), the six-phase drive (book ch. 7-9) or the five-phase drive "
+        "(book ch. 10)",
+    )
+    p.add_argument(
+        "--control",
+        choices=("vsd", "double-dq", "conventional", "pr"),
+        help="six- or five-phase control scheme (default vsd; five-phase: vsd, conventional, pr)",
+    )
+    p.add_argument(
+        "--pwm",
+        choices=(
+            "four-vector",
+            "two-vector",
+            "decoupled",
+            "double-zs",
+            "near-four-vector",
+            "carrier",
+            "sinusoidal",
+            "large-vector",
+        ),
+        help="six-phase modulator (default four-vector); five-phase: near-four-vector (default), carrier, "
+        "sinusoidal, large-vector",
     )
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -170,6 +210,10 @@ def run(args) -> int:
         ("nonphysical", "clip" if args.clip else None),
         ("gains", args.gains),
         ("unroll_substeps", True if args.unroll_substeps else None),
+        ("machine", args.machine),
+        ("control", args.control),
+        ("pwm", args.pwm),
+        ("estimator", args.estimator),
     ):
         if value is not None:
             kwargs[key] = value
@@ -191,6 +235,12 @@ def run(args) -> int:
         st = m[name]
         if st["n"]:
             print(f"  {name:16s} p5 {st['p5']:.4g}  p50 {st['p50']:.4g}  p95 {st['p95']:.4g} {st['unit']}")
+    for name in ("angle_error_rms_deg", "angle_error_max_deg", "speed_error_rms_rpm"):
+        st = m.get(name, {"n": 0})
+        if st["n"]:
+            print(f"  {name:19s} p50 {st['p50']:.4g}  p95 {st['p95']:.4g}  max {st['max']:.4g} {st['unit']}")
+    if "lock_lost" in f:
+        print(f"  loss of lock: {f['lock_lost']['count']} runs ({100 * f['lock_lost']['rate']:.2f} %)")
     print(
         f"failures: {100 * f['any']['rate']:.2f} % (current {f['current_limit']['count']}, tracking "
         f"{f['speed_tracking']['count']}, unstable {f['unstable']['count']}); wrote {args.out}/summary.json"

@@ -1,4 +1,12 @@
-"""``pmsmjax observe``: run a chapter 5 observer offline on a recorded drive log (:mod:`pmsmjax.observe`)."""
+"""``pmsmjax observe``: run a chapter 5 observer, or the rotating HF-injection estimator of chapter 6, offline
+on a recorded drive log (:mod:`pmsmjax.observe`).
+
+``hfi-rotating`` reads the carrier from the log's voltages (``carrier="measured"``: the log's drive
+injected it, this run does not), and its angle is the d axis modulo pi: ``estimate.csv`` gives it in
+[-pi/2, pi/2) and the errors are taken modulo pi, unless ``--polarity-known``. ``hfi-pulsating`` is
+refused: its demodulation needs the injection axis of the drive that made the log, which a log does not
+record.
+"""
 
 import json
 import time
@@ -16,12 +24,19 @@ def add_parser(sub):
             "with U_dc, and i_a,i_b,i_c; the voltage of row k is the one applied from row k to row k+1, the "
             "current is sampled at row k). Other columns are ignored unless named with --truth-columns, then "
             "the estimate's errors are reported. Writes DIR/estimate.csv (time,theta_e,omega_m: electrical "
-            "rad in [-pi, pi), mechanical rad/s), DIR/observe.json and DIR/observe.png."
+            "rad in [-pi, pi), mechanical rad/s), DIR/observe.json and DIR/observe.png. hfi-rotating runs on "
+            "logs of a salient machine with rotating injection (give --hf-voltage and --hf-frequency of the "
+            "log's carrier); its angle is the d axis modulo pi, in [-pi/2, pi/2), unless --polarity-known."
         ),
     )
     p.add_argument("log", help="log file (.csv, .npz or .mat)")
     p.add_argument("--motor", required=True, help="preset name (book, book_salient) or motor TOML file")
-    p.add_argument("--observer", required=True, help="smo, smo-pll, adaptive-smo, dq-smo, mras or ekf")
+    p.add_argument(
+        "--observer",
+        required=True,
+        help="smo, smo-pll, adaptive-smo, dq-smo, mras, ekf, or hfi-rotating (logs of a salient machine with "
+        "rotating injection)",
+    )
     p.add_argument("--out", required=True, help="output folder (created)")
     p.add_argument(
         "--config", default=None, help="TOML with [columns], [units] and [log] tables (default: none)"
@@ -60,6 +75,23 @@ def add_parser(sub):
         metavar="NAME=VALUE",
         help="observer design-rule options, e.g. switching=sign pll_bandwidth=500 (default: the design rule)",
     )
+    p.add_argument(
+        "--hf-voltage",
+        type=float,
+        default=None,
+        help="hfi-rotating: the log's carrier amplitude, V (default: the design rule's)",
+    )
+    p.add_argument(
+        "--hf-frequency",
+        type=float,
+        default=None,
+        help="hfi-rotating: the log's carrier frequency, Hz (default: a tenth of the sampling frequency)",
+    )
+    p.add_argument(
+        "--polarity-known",
+        action="store_true",
+        help="hfi-rotating: report the angle in [-pi, pi) and score it modulo 2 pi (default: modulo pi)",
+    )
     p.add_argument("--no-figures", action="store_true", help="do not write observe.png")
     p.set_defaults(func=run)
 
@@ -89,11 +121,32 @@ def run(args) -> int:
     from tuning.identify.log import load_stator_log, read_log_config
 
     from .. import presets
-    from ..estimators.registry import check_observer_name, make_observer
+    from ..estimators.registry import INJECTION_OBSERVERS, check_observer_name, make_observer
     from ..logs import atomic_write, check_output_folder, write_csv_atomic
     from ..observe import error_statistics, observe
 
     check_observer_name(args.observer)
+    injection = args.observer in INJECTION_OBSERVERS
+    if args.observer == "hfi-pulsating":
+        raise ParameterError(
+            "observer 'hfi-pulsating' cannot run offline: its demodulation needs the injection axis of the "
+            "drive that made the log, which a log does not record; use --observer hfi-rotating on logs "
+            "with rotating injection."
+        )
+    if args.observer == "hybrid":
+        raise ParameterError(
+            "observer 'hybrid' cannot run offline: it commands start-up polarity pulses and fades its "
+            "carrier with its own speed estimate, which a recorded log cannot follow; run its parts, "
+            "--observer hfi-rotating and a chapter 5 observer, on the log instead."
+        )
+    hf_flags = {"--hf-voltage": args.hf_voltage, "--hf-frequency": args.hf_frequency}
+    given = [flag for flag, value in hf_flags.items() if value is not None]
+    if args.polarity_known:
+        given.append("--polarity-known")
+    if given and not injection:
+        raise ParameterError(
+            f"{', '.join(given)} apply to the HF-injection observer hfi-rotating only, not {args.observer!r}."
+        )
     out = check_output_folder(args.out)
     motor = presets.load_motor(args.motor)
     if args.settle_s < 0:
@@ -113,12 +166,22 @@ def run(args) -> int:
         pole_pairs=motor.pole_pairs,
     )
     options = {k: _number_or_text(v) for k, v in _pairs(args.option, "--option").items()}
+    if injection:
+        # the log's drive injected the carrier: take its phase from the logged voltages
+        options.setdefault("carrier", "measured")
+        if args.hf_voltage is not None:
+            options["hf_voltage"] = args.hf_voltage
+        if args.hf_frequency is not None:
+            options["hf_frequency"] = args.hf_frequency
     observer = make_observer(args.observer, motor, log.Ts, **options)
 
     t0 = time.perf_counter()
     est = observe(observer, log.u_ab, log.i_ab, log.Ts)
     theta, omega = np.asarray(est.theta_e, dtype=np.float64), np.asarray(est.omega_m, dtype=np.float64)
     wall = time.perf_counter() - t0
+    modulo_pi = injection and not args.polarity_known
+    if modulo_pi:
+        theta = 0.5 * ((2.0 * theta + np.pi) % (2.0 * np.pi) - np.pi)  # the d axis modulo pi, [-pi/2, pi/2)
     bad_rows = ~(np.isfinite(theta) & np.isfinite(omega))
     if bad_rows.any():
         row = int(np.argmax(bad_rows))
@@ -137,9 +200,10 @@ def run(args) -> int:
         "options": options,
         "notes": list(log.notes),
         "wall_time_s": wall,
+        "angle_modulo_pi": bool(modulo_pi),
     }
     if truth:
-        summary["errors"] = _errors(log, theta, omega, args.settle_s, error_statistics)
+        summary["errors"] = _errors(log, theta, omega, args.settle_s, error_statistics, modulo_pi)
     out.mkdir(parents=True, exist_ok=True)
     write_csv_atomic(out / "estimate.csv", {"time": log.time, "theta_e": theta, "omega_m": omega})
     atomic_write(out / "observe.json", lambda f: f.write(json.dumps(summary, indent=2).encode()))
@@ -149,7 +213,9 @@ def run(args) -> int:
         from ..plotting_observers import observer_log_figure
 
         save_figure(
-            observer_log_figure(log.time, theta, omega, log.truth, title=f"{args.observer} on {args.log}"),
+            observer_log_figure(
+                log.time, theta, omega, log.truth, title=f"{args.observer} on {args.log}", modulo_pi=modulo_pi
+            ),
             out / "observe.png",
         )
         written.append("observe.png")
@@ -167,7 +233,7 @@ def run(args) -> int:
     return 0
 
 
-def _errors(log, theta, omega, settle_s, error_statistics) -> dict:
+def _errors(log, theta, omega, settle_s, error_statistics, modulo_pi=False) -> dict:
     """Error figures against the truth columns present (angle: electrical deg; speed: mechanical r/min)."""
     import numpy as np
 
@@ -178,7 +244,7 @@ def _errors(log, theta, omega, settle_s, error_statistics) -> dict:
         )
     th_true = log.truth.get("theta_e", theta)
     w_true = log.truth.get("omega_m", omega)
-    stats = error_statistics(log.time, theta, omega, th_true, w_true, settle_s)
+    stats = error_statistics(log.time, theta, omega, th_true, w_true, settle_s, modulo_pi=modulo_pi)
     keys = {"samples"}
     if "theta_e" in log.truth:
         keys |= {"angle_rms_deg", "angle_mean_deg", "angle_max_deg"}

@@ -30,9 +30,16 @@ def add_parser(sub):
     )
     p.add_argument("--out", default="tune_out", help="output folder (created), default: tune_out")
     p.add_argument(
+        "--machine",
+        choices=("three-phase", "six-phase", "five-phase"),
+        help="three-phase book drive (default), the six-phase drive (book ch. 7-9) or the five-phase drive "
+        "(book ch. 10)",
+    )
+    p.add_argument(
         "--control",
-        choices=("pi", "smc", "pr", "smc-dtc"),
-        help="control method whose gains are tuned (default pi)",
+        choices=("pi", "smc", "pr", "smc-dtc", "vsd", "double-dq", "conventional"),
+        help="control method whose gains are tuned (default pi; six-phase: vsd, double-dq, conventional, "
+        "pr, default vsd; five-phase: vsd, conventional, pr, default vsd)",
     )
     p.add_argument(
         "--estimator",
@@ -148,6 +155,7 @@ def run(args) -> int:
         ("eval_substeps", args.eval_substeps),
         ("control", args.control),
         ("start_gains", args.start_gains),
+        ("machine", args.machine),
         ("estimator", args.estimator),
     ):
         if value is not None:

@@ -1,6 +1,7 @@
 """Controllers: the controller interfaces, discrete PI, design rules, cascaded FOC with its blocks (PI and
 sliding-mode speed loops; dq PI or proportional-resonant current loops; MTPA and field weakening), and
-hysteresis current control; switching-table and sliding-mode direct torque control."""
+hysteresis current control; switching-table and sliding-mode direct torque control; the six-phase
+cascade (VSD, double dq, PR current loops)."""
 
 from .base import (
     AbstractController,
@@ -23,6 +24,19 @@ from .hysteresis import HysteresisCurrentControl, HysteresisState, hysteresis_co
 from .mtpa import MTPA, mtpa_id_from_iq, mtpa_id_from_magnitude
 from .pi import clip_magnitude, clip_symmetric, pi_update, realisable_reference_tracking
 from .pr import ProportionalResonant, ResonantCoefficients, pr_design, resonant_coefficients
+from .six_phase import (
+    DoubleDQCurrentPI,
+    MultiPhaseFOC,
+    SixPhaseFOC,
+    VSDCurrentControl,
+    ZCurrentPI,
+    ZProportionalResonant,
+    double_dq_design,
+    pr_current_design,
+    vsd_current_design,
+    z_current_imc,
+    z_pr_design,
+)
 from .smc import SlidingModeSpeed, SlidingModeState, smc_design, switching_function
 from .smc_dtc import SlidingModeDTC, smc_dtc_design
 
@@ -62,4 +76,15 @@ __all__ = [
     "SlidingModeDTC",
     "smc_dtc_design",
     "torque_current_limit",
+    "DoubleDQCurrentPI",
+    "SixPhaseFOC",
+    "MultiPhaseFOC",
+    "VSDCurrentControl",
+    "ZCurrentPI",
+    "ZProportionalResonant",
+    "double_dq_design",
+    "pr_current_design",
+    "vsd_current_design",
+    "z_current_imc",
+    "z_pr_design",
 ]

@@ -100,40 +100,64 @@ class FOC(AbstractController):
         self, state: FOCState, sample: Sample, estimate: Estimate, refs: References, Ts, u_max, delayed
     ) -> tuple[FOCState, ControlOutput]:
         omega_e = self.model.pole_pairs * estimate.omega_m
-        ctx = CurrentLoopContext(
-            self.model, Ts, u_max, delayed, state.u_dq_prev, self.decoupling, self.delay_compensation
+        ctx = self.context(state, Ts, u_max, delayed)
+        speed_state, d_axis_state, iq_ref, counter, i_dq_ref = cascade_references(
+            self, state, estimate, refs, ctx
         )
-        d_axis_state, id_ref = state.d_axis, refs.id_ref
-        if self.d_axis is not None:
-            d_axis_state, id_ref = self.d_axis.step(
-                state.d_axis, id_ref, state.iq_ref, omega_e, ctx, self.current_limit
-            )
-        id_ref = jnp.clip(id_ref, -self.current_limit, self.current_limit)
-        iq_max_sq = self.current_limit**2 - id_ref**2
-        iq_max = jnp.sqrt(jnp.where(iq_max_sq > 0, iq_max_sq, 1.0)) * (iq_max_sq > 0)
-
-        speed_state, counter = state.speed, state.counter
-        if self.mode == "speed":
-            new_speed_state, new_iq = self.speed.step(
-                state.speed, refs.speed_ref, estimate.omega_m, iq_max, Ts * self.speed_divider
-            )
-            if self.speed_divider == 1:
-                speed_state, iq_ref = new_speed_state, new_iq
-            else:
-                update = state.counter == 0
-                speed_state = jax.tree.map(lambda a, b: jnp.where(update, a, b), new_speed_state, state.speed)
-                iq_ref = jnp.where(update, new_iq, state.iq_ref)
-                counter = (state.counter + 1) % self.speed_divider
-        else:
-            iq_ref = jnp.clip(refs.iq_ref, -iq_max, iq_max)
-        i_dq_ref = jnp.stack([id_ref, iq_ref])
-        if estimate.startup_weight is not None:
-            # sensorless start (I/f): the start-up block holds the current, then hands over smoothly
-            w = estimate.startup_weight
-            i_dq_ref = w * estimate.startup_i_dq + (1.0 - w) * i_dq_ref
-
         current_state, u_ab, u_dq = self.current.step(
             state.current, i_dq_ref, sample.i_ab, estimate.theta_e, omega_e, ctx
         )
         new_state = FOCState(speed_state, current_state, d_axis_state, u_dq, iq_ref, counter)
         return new_state, ControlOutput(u_ab, u_dq, i_dq_ref)
+
+    def context(self, state: FOCState, Ts, u_max, delayed) -> CurrentLoopContext:
+        """The current loop's :class:`CurrentLoopContext` for this period."""
+        return CurrentLoopContext(
+            self.model, Ts, u_max, delayed, state.u_dq_prev, self.decoupling, self.delay_compensation
+        )
+
+
+def cascade_references(controller, state: FOCState, estimate: Estimate, refs: References, ctx):
+    """Steps 1-2 of the cascade (d-axis reference, speed loop) of ``controller`` (a :class:`FOC`, or a
+    controller with the same ``model``, ``speed``, ``d_axis``, ``current_limit``, ``mode`` and
+    ``speed_divider`` fields and a state with :class:`FOCState`'s ``speed``, ``d_axis``, ``iq_ref`` and
+    ``counter``, such as the six-phase
+    :class:`pmsmjax.controllers.six_phase.SixPhaseFOC` and
+    :class:`pmsmjax.controllers.hysteresis.HysteresisCurrentControl`).
+
+    During a sensorless start (``estimate.startup_weight`` set) the start-up current is blended in.
+
+    **Returns:** ``(speed_state, d_axis_state, iq_ref, counter, i_dq_ref (2,) A)``.
+    """
+    c = controller
+    omega_e = c.model.pole_pairs * estimate.omega_m
+    Ts = ctx.Ts
+    d_axis_state, id_ref = state.d_axis, refs.id_ref
+    if c.d_axis is not None:
+        d_axis_state, id_ref = c.d_axis.step(
+            state.d_axis, id_ref, state.iq_ref, omega_e, ctx, c.current_limit
+        )
+    id_ref = jnp.clip(id_ref, -c.current_limit, c.current_limit)
+    iq_max_sq = c.current_limit**2 - id_ref**2
+    iq_max = jnp.sqrt(jnp.where(iq_max_sq > 0, iq_max_sq, 1.0)) * (iq_max_sq > 0)
+
+    speed_state, counter = state.speed, state.counter
+    if c.mode == "speed":
+        new_speed_state, new_iq = c.speed.step(
+            state.speed, refs.speed_ref, estimate.omega_m, iq_max, Ts * c.speed_divider
+        )
+        if c.speed_divider == 1:
+            speed_state, iq_ref = new_speed_state, new_iq
+        else:
+            update = state.counter == 0
+            speed_state = jax.tree.map(lambda a, b: jnp.where(update, a, b), new_speed_state, state.speed)
+            iq_ref = jnp.where(update, new_iq, state.iq_ref)
+            counter = (state.counter + 1) % c.speed_divider
+    else:
+        iq_ref = jnp.clip(refs.iq_ref, -iq_max, iq_max)
+    i_dq_ref = jnp.stack([id_ref, iq_ref])
+    if estimate.startup_weight is not None:
+        # sensorless start (I/f): the start-up block holds the current, then hands over smoothly
+        w = estimate.startup_weight
+        i_dq_ref = w * estimate.startup_i_dq + (1.0 - w) * i_dq_ref
+    return speed_state, d_axis_state, iq_ref, counter, i_dq_ref

@@ -56,7 +56,7 @@ from ..signals import CommandKind, ControlOutput, Estimate, References, Sample
 from ..validation import ParameterError, check_positive
 from .base import AbstractController, AbstractDAxisReference, AbstractSpeedController, CurrentLoopContext
 from .design import speed_loop_active_damping
-from .foc import ControlMode
+from .foc import ControlMode, cascade_references
 
 ComparatorKind = Literal["exact", "smooth"]
 
@@ -180,35 +180,14 @@ class HysteresisCurrentControl(AbstractController):
             raise ParameterError(
                 f"HysteresisCurrentControl drives three legs; the machine has {sample.i_phase.shape[-1]}."
             )
-        omega_e = self.model.pole_pairs * estimate.omega_m
-        d_axis_state, id_ref = state.d_axis, refs.id_ref
-        if self.d_axis is not None:
-            # The voltage the legs applied over the last sample, in the estimated rotor frame: a hexagon
-            # vertex, not a smooth command (field weakening should filter it).
-            u_dq_last = park(sample.u_ab_last, estimate.theta_e)
-            ctx = CurrentLoopContext(self.model, Ts, u_max, delayed, u_dq_last, False, False)
-            d_axis_state, id_ref = self.d_axis.step(
-                state.d_axis, id_ref, state.iq_ref, omega_e, ctx, self.current_limit
-            )
-        id_ref = jnp.clip(id_ref, -self.current_limit, self.current_limit)
-        iq_max_sq = self.current_limit**2 - id_ref**2
-        iq_max = jnp.sqrt(jnp.where(iq_max_sq > 0, iq_max_sq, 1.0)) * (iq_max_sq > 0)
-
-        speed_state, counter = state.speed, state.counter
-        if self.mode == "speed":
-            new_speed_state, new_iq = self.speed.step(
-                state.speed, refs.speed_ref, estimate.omega_m, iq_max, Ts * self.speed_divider
-            )
-            if self.speed_divider == 1:
-                speed_state, iq_ref = new_speed_state, new_iq
-            else:
-                update = state.counter == 0
-                speed_state = jax.tree.map(lambda a, b: jnp.where(update, a, b), new_speed_state, state.speed)
-                iq_ref = jnp.where(update, new_iq, state.iq_ref)
-                counter = (state.counter + 1) % self.speed_divider
-        else:
-            iq_ref = jnp.clip(refs.iq_ref, -iq_max, iq_max)
-        i_dq_ref = jnp.stack([id_ref, iq_ref])
+        # The voltage the legs applied over the last sample, in the estimated rotor frame: a hexagon vertex,
+        # not a smooth command (field weakening should filter it).
+        u_dq_last = park(sample.u_ab_last, estimate.theta_e)
+        ctx = CurrentLoopContext(self.model, Ts, u_max, delayed, u_dq_last, False, False)
+        # d-axis reference and speed loop: the FOC cascade's steps 1-2
+        speed_state, d_axis_state, iq_ref, counter, i_dq_ref = cascade_references(
+            self, state, estimate, refs, ctx
+        )
 
         i_abc_ref = dq_to_abc(i_dq_ref, estimate.theta_e)
         switches = hysteresis_comparator(

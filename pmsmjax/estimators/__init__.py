@@ -4,7 +4,9 @@ Position sensors (:class:`ExactSensor`, :class:`Encoder`), the stator flux obser
 control (:class:`StatorFluxObserver`, chapter 4) and the fundamental-model observers of chapter 5
 (:data:`OBSERVERS`: ``smo``, ``smo-pll``, ``adaptive-smo``, ``dq-smo``, ``mras``, ``ekf``), all implementing
 :class:`AbstractEstimator`; :class:`StartupEstimator` wraps an observer in the I/f start from
-standstill; :func:`make_observer` builds an observer by name with its design rule.
+standstill; :func:`make_observer` builds an observer by name with its design rule. The HF-injection
+estimators of chapter 6 (:class:`HFIRotating`, :class:`HFIPulsating`; ``hfi-rotating``, ``hfi-pulsating``)
+read the saliency at standstill and low speed.
 """
 
 from .adaptive_smo import AdaptiveSMO, adaptive_smo_design
@@ -12,15 +14,23 @@ from .base import AbstractEstimator
 from .dq_smo import DQSlidingModeObserver, dq_smo_design
 from .ekf import EKF, ekf_design
 from .flux_observer import StatorFluxObserver, StatorFluxObserverState
+from .hfi_pulsating import HFIPulsating, hfi_pulsating_design
+from .hfi_rotating import HFIRotating, hfi_rotating_design
+from .hybrid import HybridEstimator, HybridState, hybrid_design
 from .mras import MRAS, mras_design
 from .pll import PLL, pll_design
+from .polarity import PolarityDetector, PolarityState, polarity_detector
 from .position_sensors import Encoder, EncoderState, ExactSensor
-from .registry import OBSERVERS, make_observer, observer_options
+from .registry import HYBRID_OBSERVERS, INJECTION_OBSERVERS, OBSERVERS, make_observer, observer_options
 from .smo import SlidingModeObserver, smo_design
 from .startup import StartupEstimator, StartupState
 
 __all__ = [
     "EKF",
+    "HFIPulsating",
+    "INJECTION_OBSERVERS",
+    "HYBRID_OBSERVERS",
+    "HFIRotating",
     "MRAS",
     "OBSERVERS",
     "PLL",
@@ -38,9 +48,17 @@ __all__ = [
     "adaptive_smo_design",
     "dq_smo_design",
     "ekf_design",
+    "hfi_pulsating_design",
+    "hfi_rotating_design",
     "make_observer",
     "mras_design",
     "observer_options",
     "pll_design",
     "smo_design",
+    "PolarityDetector",
+    "PolarityState",
+    "polarity_detector",
+    "HybridEstimator",
+    "HybridState",
+    "hybrid_design",
 ]

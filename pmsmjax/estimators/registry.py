@@ -3,7 +3,11 @@ sensorless_drive` and the chapter 5 workflows (tuning, Monte Carlo, comparison).
 
 Each name maps to the design rule that builds the observer from a motor and the control period; options
 are the design rule's keyword arguments (e.g. ``switching="sign"``, ``pll_bandwidth=500.0``,
-``model=...`` for an observer whose motor model differs from the plant's).
+``model=...`` for an observer whose motor model differs from the plant's). The HF-injection estimators
+(chapter 6: ``hfi-rotating``, ``hfi-pulsating``; :data:`INJECTION_OBSERVERS`, looked up by the same
+functions) take ``hf_voltage`` (V) and
+``hf_frequency`` (Hz) among their options. The whole-speed-range ``hybrid`` (:data:`HYBRID_OBSERVERS`,
+:mod:`.hybrid`) takes its band, its two parts' names and their options.
 """
 
 import difflib
@@ -16,6 +20,9 @@ from .adaptive_smo import adaptive_smo_design
 from .base import AbstractEstimator
 from .dq_smo import dq_smo_design
 from .ekf import ekf_design
+from .hfi_pulsating import hfi_pulsating_design
+from .hfi_rotating import hfi_rotating_design
+from .hybrid import hybrid_design
 from .mras import mras_design
 from .smo import smo_design
 
@@ -41,10 +48,41 @@ OBSERVERS = {
     "ekf": (ekf_design, "extended Kalman filter, state [i_alpha, i_beta, w_e, theta_e]"),
 }
 
+#: The HF-injection estimators of chapter 6, same form. Kept apart from :data:`OBSERVERS` (the chapter 5
+#: fundamental-model observers, which the chapter 5 studies, benchmarks and ``demo --estimator`` iterate
+#: over on the surface book motor): these need a salient machine and give the d axis modulo pi.
+INJECTION_OBSERVERS = {
+    "hfi-rotating": (
+        hfi_rotating_design,
+        "rotating HF injection (salient machines, standstill and low speed; angle modulo pi)",
+    ),
+    "hfi-pulsating": (
+        hfi_pulsating_design,
+        "pulsating HF injection on the estimated d axis (salient machines; angle modulo pi)",
+    ),
+}
+
+#: Whole-speed-range estimators (chapter 6 with chapter 5), same form; apart from
+#: :data:`INJECTION_OBSERVERS` because they are no modulo-pi injection estimators (studies of those
+#: iterate over that registry), though they inject a carrier at low speed.
+HYBRID_OBSERVERS = {
+    "hybrid": (
+        hybrid_design,
+        "HF injection (with start-up polarity pulses) below a crossover band, EKF above: whole speed range",
+    ),
+}
+
+
+def _registered(name: str):
+    for registry in (OBSERVERS, INJECTION_OBSERVERS):
+        if name in registry:
+            return registry[name]
+    return HYBRID_OBSERVERS[name]
+
 
 def observer_options(name: str) -> tuple[str, ...]:
     """Keyword options the design rule of observer ``name`` accepts."""
-    rule = OBSERVERS[name][0]
+    rule = _registered(name)[0]
     fixed = rule.keywords if isinstance(rule, functools.partial) else {}
     params = inspect.signature(rule).parameters
     return tuple(p for p, v in params.items() if v.kind == v.KEYWORD_ONLY and p not in fixed)
@@ -52,10 +90,11 @@ def observer_options(name: str) -> tuple[str, ...]:
 
 def check_observer_name(name: str) -> None:
     """Refuse an unknown observer name, with the closest known name as a hint."""
-    if name not in OBSERVERS:
-        close = difflib.get_close_matches(name, list(OBSERVERS), n=1, cutoff=0.5)
+    known = [*OBSERVERS, *INJECTION_OBSERVERS, *HYBRID_OBSERVERS]
+    if name not in known:
+        close = difflib.get_close_matches(name, known, n=1, cutoff=0.5)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
-        raise ParameterError(f"unknown observer {name!r}{hint}: choose from {', '.join(OBSERVERS)}.")
+        raise ParameterError(f"unknown observer {name!r}{hint}: choose from {', '.join(known)}.")
 
 
 def make_observer(name: str, motor: PMSMParameters, Ts: float, **options) -> AbstractEstimator:
@@ -68,6 +107,6 @@ def make_observer(name: str, motor: PMSMParameters, Ts: float, **options) -> Abs
         raise ParameterError(
             f"option(s) {', '.join(bad)} do not apply to observer {name!r}; it takes {', '.join(allowed)}."
         )
-    observer = OBSERVERS[name][0](motor, Ts, **options)
+    observer = _registered(name)[0](motor, Ts, **options)
     observer.check_period(Ts)
     return observer

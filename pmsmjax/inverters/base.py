@@ -41,6 +41,7 @@ class AbstractBridge(eqx.Module):
     """
 
     u_dc: eqx.AbstractVar[Array]
+    n_phases: ClassVar[int] = 3
 
     def commanded_voltage(self, duties: Array) -> Array:
         """``(2,)`` stator-frame period-average voltage, V, that ideal legs with ``duties (n,)`` give.
@@ -49,6 +50,11 @@ class AbstractBridge(eqx.Module):
         dead-time and device-drop errors.
         """
         return abc_to_alpha_beta(self.u_dc * (duties - jnp.mean(duties, axis=-1, keepdims=True)))
+
+    def phase_voltages(self, duties: Array) -> Array:
+        """``(..., n)`` ideal period-average phase-to-neutral voltages, V, of duties ``(..., n)`` (one star
+        point; the multi-phase bridges override it for several)."""
+        return self.u_dc * (duties - jnp.mean(duties, axis=-1, keepdims=True))
 
     def check_period(self, Ts: float) -> None:
         """Raise :class:`pmsmjax.ParameterError` if the bridge's settings do not fit the period ``Ts`` (s).

@@ -121,37 +121,9 @@ class SwitchingBridge(AbstractBridge):
         return jnp.tanh(i_abc / self.sign_smoothing)
 
     def segments(self, duties: Array, Ts, extra_times: Array | None = None):
-        """The period cut at every gate edge, the end of every dead window, and ``extra_times``.
-
-        **Arguments:** `duties`: ``(3,)`` upper-switch duties; `Ts`: period, s; `extra_times`: optional
-        ``(M,)`` further cut points in [0, Ts], s (sampling instants).
-
-        **Returns:** ``(times, high, dead, order)``: ``(K+1,)`` sorted bounds from 0 to Ts; ``(K, 3)``
-        gate state (1 = upper gate on) and ``(K, 3)`` dead-window indicator of every leg in every interval;
-        and the argsort that put the cut points in order (edges and window ends first, ``extra_times``
-        last). K = 7 + M without dead time, 13 + M with it.
-        """
-        on = 0.5 * Ts * (1.0 - duties)
-        off = 0.5 * Ts * (1.0 + duties)
-        cuts = [on, off]
-        if self.resolve_dead_time:
-            t_d = jnp.where((duties > 0.0) & (duties < 1.0), self.dead_time, 0.0)  # idle legs: no edges
-            on_end, off_end = jnp.minimum(on + t_d, Ts), jnp.minimum(off + t_d, Ts)
-            cuts += [on_end, off_end]
-        if extra_times is not None:
-            cuts.append(extra_times)
-        cuts = jnp.concatenate(cuts)
-        order = jnp.argsort(cuts)
-        zero = jnp.zeros((1,), cuts.dtype)
-        times = jnp.concatenate([zero, jnp.sort(cuts), zero + Ts])
-        mid = 0.5 * (times[1:] + times[:-1])[:, None]
-        inside = lambda lo, hi: (lo[None, :] <= mid) & (mid < hi[None, :])
-        high = inside(on, off).astype(cuts.dtype)
-        if self.resolve_dead_time:
-            dead = (inside(on, on_end) | inside(off, off_end)).astype(cuts.dtype)
-        else:
-            dead = jnp.zeros_like(high)
-        return times, high, dead, order
+        """The period cut at every gate edge, the end of every dead window, and ``extra_times``
+        (:func:`pwm_segments` with this bridge's dead time)."""
+        return pwm_segments(duties, Ts, self.dead_time, self.resolve_dead_time, extra_times)
 
     def _integrate(self, machine, state, times, high, dead, load_torque):
         """Integrate interval by interval; the pole voltages use the current at each interval start.
@@ -198,3 +170,39 @@ class SwitchingBridge(AbstractBridge):
         # Cut point c (sorted position rank(c)) ends interval rank(c); the samples are the last M cuts.
         pick = jnp.argsort(order)[-n_samples:]
         return jax.tree.map(lambda x: x[pick], states), times, u_ab
+
+
+def pwm_segments(duties: Array, Ts, dead_time, resolve_dead_time: bool, extra_times: Array | None = None):
+    """The period cut at every gate edge of centre-aligned PWM, the end of every dead window, and
+    ``extra_times``; for any number of legs.
+
+    **Arguments:** `duties`: ``(n,)`` upper-switch duties; `Ts`: period, s; `dead_time`: s (used when
+    `resolve_dead_time`, static); `extra_times`: optional ``(M,)`` further cut points in [0, Ts], s
+    (sampling instants).
+
+    **Returns:** ``(times, high, dead, order)``: ``(K+1,)`` sorted bounds from 0 to Ts; ``(K, n)``
+    gate state (1 = upper gate on) and ``(K, n)`` dead-window indicator of every leg in every interval;
+    and the argsort that put the cut points in order (edges and window ends first, ``extra_times``
+    last). K = 2n + 1 + M without dead time, 4n + 1 + M with it (7 and 13 for three legs).
+    """
+    on = 0.5 * Ts * (1.0 - duties)
+    off = 0.5 * Ts * (1.0 + duties)
+    cuts = [on, off]
+    if resolve_dead_time:
+        t_d = jnp.where((duties > 0.0) & (duties < 1.0), dead_time, 0.0)  # idle legs: no edges
+        on_end, off_end = jnp.minimum(on + t_d, Ts), jnp.minimum(off + t_d, Ts)
+        cuts += [on_end, off_end]
+    if extra_times is not None:
+        cuts.append(extra_times)
+    cuts = jnp.concatenate(cuts)
+    order = jnp.argsort(cuts)
+    zero = jnp.zeros((1,), cuts.dtype)
+    times = jnp.concatenate([zero, jnp.sort(cuts), zero + Ts])
+    mid = 0.5 * (times[1:] + times[:-1])[:, None]
+    inside = lambda lo, hi: (lo[None, :] <= mid) & (mid < hi[None, :])
+    high = inside(on, off).astype(cuts.dtype)
+    if resolve_dead_time:
+        dead = (inside(on, on_end) | inside(off, off_end)).astype(cuts.dtype)
+    else:
+        dead = jnp.zeros_like(high)
+    return times, high, dead, order

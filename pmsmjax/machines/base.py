@@ -37,7 +37,9 @@ class MachineInput(eqx.Module):
 
     - `u`: ``(2,)`` held voltage, V; alpha-beta if ``frame == "stator"``, dq if ``frame == "rotor"``.
       A real inverter holds its voltage in the stator frame; a log replayed from another simulator's dq
-      model usually held it in the rotor frame.
+      model usually held it in the rotor frame. Multi-phase machines take ``(2 n_planes,)``: the
+      fundamental plane first (alpha-beta or dq by ``frame``), then the other VSD planes (z1-z2, ...),
+      which are always stationary.
     - `load_torque`: load torque opposing motion, N m.
     - `frame`: which frame the voltage is held in (static).
     """
@@ -48,11 +50,18 @@ class MachineInput(eqx.Module):
 
     def alpha_beta(self, theta_e: Array) -> Array:
         """The held voltage seen in the stator frame at rotor angle ``theta_e`` (rad)."""
-        return self.u if self.frame == "stator" else inverse_park(self.u, theta_e)
+        return self.u if self.frame == "stator" else _first_plane(inverse_park, self.u, theta_e)
 
     def dq(self, theta_e: Array) -> Array:
         """The held voltage seen in the rotor frame at rotor angle ``theta_e`` (rad)."""
-        return park(self.u, theta_e) if self.frame == "stator" else self.u
+        return _first_plane(park, self.u, theta_e) if self.frame == "stator" else self.u
+
+
+def _first_plane(rotate, u: Array, theta_e: Array) -> Array:
+    """``rotate`` applied to the fundamental plane ``u[:2]``; further planes (multi-phase) pass unchanged."""
+    if u.shape[-1] == 2:
+        return rotate(u, theta_e)
+    return jnp.concatenate([rotate(u[..., :2], theta_e), u[..., 2:]], axis=-1)
 
 
 class AbstractMachine(eqx.Module):

@@ -4,7 +4,8 @@
   accuracy, identification), using the same ``vector_field`` the scan integrates with RK4.
 - :func:`linearise`: the Jacobians ``A = df/dx``, ``B = df/du`` at an operating point, for small-signal
   analysis and controller design. State order ``[currents..., omega_m, theta_e]``, input order
-  ``[u_1, u_2, load_torque]`` (the held voltage in its hold frame, then the load).
+  ``[u_1, u_2, load_torque]`` (the held voltage in its hold frame, then the load; a multi-phase machine's
+  ``[u_1, ..., u_m, load_torque]`` with its ``m`` VSD voltage components).
 """
 
 import diffrax
@@ -45,13 +46,15 @@ def solve_adaptive(
 def linearise(machine: AbstractMachine, state: MachineState, inputs: MachineInput) -> tuple[Array, Array]:
     """``(A, B)``: Jacobians of the vector field at ``(state, inputs)``.
 
-    ``A: (n, n)`` with ``n = len(currents) + 2``; ``B: (n, 3)`` for ``[u_1, u_2, load_torque]``.
+    ``A: (n, n)`` with ``n = len(currents) + 2``; ``B: (n, m + 1)`` for ``[u_1, ..., u_m, load_torque]``
+    (``m = 2`` for three phases).
     """
     x0, unravel_x = ravel_pytree(state)
     u0 = jnp.concatenate([inputs.u, jnp.atleast_1d(inputs.load_torque)])
+    m = inputs.u.shape[0]
 
     def f(x, u):
-        dx = machine.vector_field(None, unravel_x(x), MachineInput(u[:2], u[2], inputs.frame))
+        dx = machine.vector_field(None, unravel_x(x), MachineInput(u[:m], u[m], inputs.frame))
         return ravel_pytree(dx)[0]
 
     return jax.jacfwd(f, 0)(x0, u0), jax.jacfwd(f, 1)(x0, u0)

@@ -15,6 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..frames import wrap_angle
+from ..validation import is_concrete
 from .base import AbstractMachine, MachineInput, MachineState
 
 
@@ -39,7 +40,8 @@ _SIN_DENOMINATORS = (6.0, 20.0, 42.0, 72.0, 110.0, 156.0)
 
 
 def rotate_back(x_dq, delta):
-    """``x_dq (2,)`` seen from a rotor frame advanced by ``delta`` rad: ``R(-delta) x_dq``.
+    """``x_dq (2,)`` seen from a rotor frame advanced by ``delta`` rad: ``R(-delta) x_dq``. A longer
+    vector (a multi-phase machine's ``[d, q, z1, z2, ...]``) has only its first two components rotated.
 
     Taylor series of cos and sin. In float64 to ``delta^14`` (truncation below 1e-16 for
     ``|delta| <= 0.5``, 1e-12 at 1 rad); in float32 to ``delta^9`` (below 3e-10 at 0.5 rad, far under
@@ -55,7 +57,9 @@ def rotate_back(x_dq, delta):
     for a in reversed(_SIN_DENOMINATORS[:n_sin]):
         s = 1.0 - d2 * (1.0 / a) * s
     s = delta * s
-    return jnp.stack([x_dq[0] * c + x_dq[1] * s, -x_dq[0] * s + x_dq[1] * c])
+    rotated = jnp.stack([x_dq[0] * c + x_dq[1] * s, -x_dq[0] * s + x_dq[1] * c])
+    # Multi-phase machines: the planes after the fundamental are stationary, they pass unrotated.
+    return rotated if x_dq.shape[0] == 2 else jnp.concatenate([rotated, x_dq[2:]])
 
 
 def rk4_step_rotating_hold(machine: AbstractMachine, state: MachineState, u_dq, load_torque, h):
@@ -90,13 +94,17 @@ def advance(
 
     Wrapping only at the interval end keeps every RK4 stage on a continuous angle. Machines whose
     equations depend on the angle only through a stator-frame held voltage (``angle_only_in_voltage``,
-    the dq model) take :func:`rk4_step_rotating_hold` (see the module docstring).
+    the dq model) take :func:`rk4_step_rotating_hold` (see the module docstring). A machine with a
+    ``split_advance`` (the balanced multi-phase dq model) integrates itself.
 
     `unroll` (static): write the sub-steps out instead of looping over them: the same arithmetic, one
     larger fused program per period. On one H100 (issue 19) it took the Monte Carlo kernel from 682 to
     896 M periods/s and one unbatched run from 0.58 to 0.24 s; on 2 CPU cores it is 2 % faster with
     bitwise the same results and a compile 1.1 s longer (measured), so it is off by default.
     """
+    split = getattr(machine, "split_advance", None)
+    if split is not None:  # a multi-phase model whose planes integrate separately (pmsm_multiphase.py)
+        return split(state, inputs, duration, n_substeps)
     h = duration / n_substeps
     loop = lambda body, carry: jax.lax.fori_loop(0, n_substeps, body, carry, unroll=bool(unroll))
     if inputs.frame == "stator" and getattr(machine, "angle_only_in_voltage", False):
@@ -115,11 +123,17 @@ def advance(
 def max_stable_substep(motor_or_machine, max_speed_m) -> float:
     """Longest RK4 sub-step (s) we accept: 0.5 / (fastest electrical rate), from concrete values.
 
-    The electrical rates are ``R/L`` (the current's own pole) and ``omega_e`` (rotation of the flux); RK4
+    The electrical rates are ``R/L`` (the current's own pole; L the smallest inductance, the leakage for
+    a multi-phase machine) and ``omega_e`` (rotation of the flux); RK4
     is stable to about 2.8 on both axes and accurate to 1e-4 per period at 0.5. Used by the input checks,
     so it works on NumPy values (it must not create JAX tracers inside a jit).
     """
     motor = getattr(motor_or_machine, "motor", motor_or_machine)
     R, L_d, L_q = (np.asarray(jax.device_get(x), dtype=float) for x in (motor.R, motor.L_d, motor.L_q))
-    rate = np.maximum(R / np.minimum(L_d, L_q), motor.pole_pairs * np.abs(max_speed_m))
+    L_min = np.minimum(L_d, L_q)
+    if hasattr(motor, "L_ls") and is_concrete(
+        motor.L_ls
+    ):  # multi-phase: the leakage-only planes (z1-z2, x-y) are the fastest
+        L_min = np.minimum(L_min, np.asarray(jax.device_get(motor.L_ls), dtype=float))
+    rate = np.maximum(R / L_min, motor.pole_pairs * np.abs(max_speed_m))
     return float(np.min(0.5 / rate))

@@ -48,7 +48,35 @@ TUNABLE_CONTROLS = {
 }
 
 
-def control_tuning(name: str) -> ControlTuning:
-    if name not in TUNABLE_CONTROLS:
-        raise ParameterError(f"pmsmjax tune tunes the controls {', '.join(TUNABLE_CONTROLS)}, not {name!r}.")
-    return TUNABLE_CONTROLS[name]
+_VSD_DQ = tuple(f"controller.current.dq.{k}" for k in ("kp_d", "kp_q", "ki_d", "ki_q"))
+_PR_DQ = tuple(f"controller.current.dq.{k}" for k in ("kp", "kr", "w_c"))
+
+#: The six-phase schemes (:data:`pmsmjax.presets_six_phase.SIX_PHASE_CONTROLS`): the speed PI and the
+#: fundamental-subspace current gains (double dq: its four PIs and the cross-coupling compensation). The
+#: z1-z2 gains are left out by default: on the balanced nominal plant with the averaged bridge no z1-z2
+#: current flows, so the speed objectives give them no gradient (name them, e.g.
+#: ``controller.current.z.kp``, to tune them on an unbalanced plant).
+SIX_PHASE_TUNABLE_CONTROLS = {
+    "vsd": ControlTuning(("speed",) + _VSD_DQ),
+    "conventional": ControlTuning(("speed",) + _VSD_DQ),
+    "double-dq": ControlTuning(("speed", "current", "controller.current.kc_d", "controller.current.kc_q")),
+    "pr": ControlTuning(("speed",) + _PR_DQ),
+}
+
+
+#: The five-phase schemes (:data:`pmsmjax.presets_five_phase.FIVE_PHASE_CONTROLS`): the speed PI and the dq
+#: current gains (the x-y gains left out as the six-phase z1-z2 ones, for the same reason).
+FIVE_PHASE_TUNABLE_CONTROLS = {
+    "vsd": ControlTuning(("speed",) + _VSD_DQ),
+    "conventional": ControlTuning(("speed",) + _VSD_DQ),
+    "pr": ControlTuning(("speed",) + _PR_DQ),
+}
+
+
+def control_tuning(name: str, machine: str = "three-phase") -> ControlTuning:
+    table = {"six-phase": SIX_PHASE_TUNABLE_CONTROLS, "five-phase": FIVE_PHASE_TUNABLE_CONTROLS}.get(
+        machine, TUNABLE_CONTROLS
+    )
+    if name not in table:
+        raise ParameterError(f"pmsmjax tune tunes the {machine} controls {', '.join(table)}, not {name!r}.")
+    return table[name]

@@ -8,6 +8,9 @@ continues from it and ends at the same result).
 Control methods (``control``: ``pi``, ``smc``, ``pr``, ``smc-dtc``; :mod:`tuning.autotune.controls`): the
 drive of :func:`pmsmjax.controls.control_drive`, its default gains and its default objective weights (used
 when ``weights`` is None).
+``machine="six-phase"``: the six-phase drive (:func:`pmsmjax.presets_six_phase.six_phase_drive`) under
+``vsd``, ``double-dq``, ``conventional`` or ``pr`` (default ``vsd``); ``machine="five-phase"``: the
+five-phase drive (:func:`pmsmjax.presets_five_phase.five_phase_drive`) under ``vsd`` or ``conventional``.
 
 Observers (``estimator``: ``smo``, ``smo-pll``, ``adaptive-smo``, ``dq-smo``, ``mras``, ``ekf``;
 :mod:`tuning.autotune.observers`): the book FOC drive on that observer behind a sensored warm-up, its
@@ -67,6 +70,7 @@ JOB_KEYS = (
     "eval_substeps",
     "control",
     "start_gains",
+    "machine",
     "estimator",
 )
 
@@ -139,8 +143,9 @@ def run_tune_job(
     plant_spread: dict | None = None,
     tune_substeps: int = 1,
     eval_substeps: int = 10,
-    control: str = "pi",
+    control: str | None = None,
     start_gains: str | None = None,
+    machine: str = "three-phase",
     estimator: str | None = None,
     weights: ObjectiveWeights | None = None,
     config: TuneConfig = DEFAULT_CONFIG,
@@ -149,28 +154,37 @@ def run_tune_job(
 ) -> dict:
     """Tune the gains of the book drive under ``control`` and write the outputs into ``out_dir``; returns
     result.json's content. `start_gains`: a gains TOML (an earlier run's gains.toml) to start from
-    instead of the design-rule gains. `estimator`: tune that observer's parameters instead (module
-    docstring; `control` must then be ``pi``); `duration_s` defaults to (0.3, 0.5) s for a control and
+    instead of the design-rule gains. `machine`: ``three-phase`` (the book motor), ``six-phase`` or
+    ``five-phase``. `estimator`: tune that chapter 5 observer's parameters instead (module docstring; the
+    three-phase FOC drive, control ``pi``); `duration_s` defaults to (0.3, 0.5) s for a control and
     (0.15, 0.25) s for an observer."""
+    if machine not in ("three-phase", "six-phase", "five-phase"):
+        raise ParameterError(f"machine must be 'three-phase', 'six-phase' or 'five-phase', got {machine!r}.")
     if estimator is not None:
-        if control != "pi":
+        if machine != "three-phase" or control not in (None, "pi"):
             raise ParameterError(
-                f"--estimator {estimator} tunes an observer on the FOC drive (control pi); drop --control "
-                f"{control} or tune the control's gains without --estimator."
+                f"--estimator {estimator} tunes an observer on the three-phase FOC drive (control pi); drop "
+                f"--control {control} / --machine {machine} or tune the control's gains without --estimator."
             )
+        control = "pi"
         tuning = observer_tuning(estimator)
-        if (
-            config is DEFAULT_CONFIG
-        ):  # no settings given: the observers' optimiser (observers.OBSERVER_CONFIG)
+        # no settings given: the observers' optimiser (observers.OBSERVER_CONFIG)
+        if config is DEFAULT_CONFIG:
             config = dataclasses.replace(DEFAULT_CONFIG, **OBSERVER_CONFIG)
-        build = lambda substeps, options: observer_drive(
-            estimator, n_substeps=substeps, observer_options=options
-        )
+
+        def build(substeps, options):
+            return observer_drive(estimator, n_substeps=substeps, observer_options=options)
+
         batch_maker = make_observer_batch
         duration_s = (0.15, 0.25) if duration_s is None else duration_s
     else:
-        tuning = control_tuning(control)
-        build = lambda substeps, options: control_drive(control, n_substeps=substeps, **options)
+        if control is None:
+            control = "pi" if machine == "three-phase" else "vsd"
+        tuning = control_tuning(control, machine)
+
+        def build(substeps, options):
+            return _drive(machine, control, n_substeps=substeps, **options)
+
         batch_maker = make_batch
         duration_s = (0.3, 0.5) if duration_s is None else duration_s
     weights = ObjectiveWeights(**tuning.weights) if weights is None else weights
@@ -215,6 +229,7 @@ def run_tune_job(
             k: {**v["summary"], "per_scenario": v["per_scenario"]} for k, v in report["heldout"].items()
         },
         "control": control,
+        "machine": machine,
         "estimator": estimator,
         "gains": {"before": before_gains, "after": result.gains},
         "surrogate": {
@@ -257,6 +272,19 @@ def run_tune_job(
     atomic_write(out / "result.json", lambda f: f.write(json.dumps(data, indent=2).encode()))
     _figures(out, exact, tuned_exact, train, result.history)
     return data
+
+
+def _drive(machine: str, control: str, **options):
+    """The drive of ``control`` on the book motor (``three-phase``) or its six- or five-phase rewind."""
+    if machine == "five-phase":
+        from pmsmjax.presets_five_phase import five_phase_drive
+
+        return five_phase_drive(control=control, **options)
+    if machine == "six-phase":
+        from pmsmjax.presets_six_phase import six_phase_drive
+
+        return six_phase_drive(control=control, **options)
+    return control_drive(control, **options)
 
 
 def _stability(drive) -> str:

@@ -117,7 +117,7 @@ def scenario_metrics(
 
     i_abs = jnp.abs(trace.i_abc) * active[:, None]
     peak = jnp.max(i_abs)
-    rms = jnp.sqrt(jnp.sum(trace.i_abc**2 * active[:, None]) / (3.0 * n_active))
+    rms = jnp.sqrt(jnp.sum(trace.i_abc**2 * active[:, None]) / (trace.i_abc.shape[-1] * n_active))
     u_norm = jnp.sqrt(jnp.sum(trace.u_dq_ref**2, axis=-1) + 1e-12) / u_max
     # A smooth count of the periods on the voltage limit: sigmoid of the distance to it.
     saturation = jnp.sum(jax.nn.sigmoid((u_norm - 0.999) / soft_width) * active) / n_active

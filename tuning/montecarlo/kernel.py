@@ -20,14 +20,23 @@ checks them against :mod:`pmsmjax.metrics` applied to a full trace from :func:`p
 - ``peak_current_a``: largest absolute sampled phase current, A.
 - ``final_error_rpm``: mean ``w* - w`` over the last ``tail_fraction`` of the run, r/min.
 - ``finite``: 1.0 if every sampled state stayed finite, else 0.0 (a run that diverged).
+
+With an observer in the drive (``drive.records_estimate``), also :data:`OBSERVER_METRICS`, defined as in
+:func:`pmsmjax.observer_metrics.observer_errors` (periods from ``converged_after_s`` on):
+
+- ``angle_error_rms_deg``, ``angle_error_max_deg``: RMS and largest ``|wrap(theta_est - theta)|``,
+  electrical degrees;
+- ``speed_error_rms_rpm``: RMS of ``omega_est - omega``, r/min;
+- ``lock_lost``: 1.0 if a run of out-of-lock periods lasted longer than ``LOCK_WINDOW_S``, else 0.0.
 """
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from pmsmjax import observer_metrics as om
 from pmsmjax.drive import Drive
-from pmsmjax.frames import dq_to_abc
+from pmsmjax.frames import dq_to_abc, wrap_angle
 from pmsmjax.scenarios import Scenario
 from pmsmjax.simulate import period_inputs
 from pmsmjax.units import rad_s_to_rpm
@@ -40,8 +49,14 @@ METRICS = (
     "peak_current_a",
     "final_error_rpm",
 )
-#: Units of :data:`METRICS`, for tables and figure labels.
+#: The observer's figures, kept when the drive has an observer (see the module docstring).
+OBSERVER_METRICS = ("angle_error_rms_deg", "angle_error_max_deg", "speed_error_rms_rpm", "lock_lost")
+#: Units of :data:`METRICS` and :data:`OBSERVER_METRICS`, for tables and figure labels.
 UNITS = {
+    "angle_error_rms_deg": "el. deg",
+    "angle_error_max_deg": "el. deg",
+    "speed_error_rms_rpm": "r/min",
+    "lock_lost": "-",
     "itae": "rad s",
     "overshoot_pct": "%",
     "settling_time_s": "s",
@@ -58,13 +73,25 @@ class Accumulators(eqx.Module):
     excess: jax.Array  # largest sign(w*) (w - w*) / |w*| before the load step
     last_outside: jax.Array  # int32 index of the last pre-load period outside the band, -1 if none
     dip: jax.Array  # largest w* - w after the load step, rad/s
-    peak: jax.Array  # largest |i_abc|, A
+    peak: jax.Array  # largest |phase current|, A
     tail_error: jax.Array  # sum of w* - w over the tail window, rad/s
     finite: jax.Array  # bool, every sampled state finite so far
+    observer: "ObserverAccumulators | None"  # None without an observer
 
 
-def _init(dtype) -> Accumulators:
+class ObserverAccumulators(eqx.Module):
+    """Running observer figures after convergence (scalars)."""
+
+    angle_sq: jax.Array  # sum of e_theta^2, rad^2
+    angle_max: jax.Array  # largest |e_theta|, rad
+    speed_sq: jax.Array  # sum of (omega_est - omega)^2, (rad/s)^2
+    run: jax.Array  # int32 length of the current out-of-lock run, periods
+    longest: jax.Array  # int32 longest out-of-lock run, periods
+
+
+def _init(dtype, observer: bool) -> Accumulators:
     zero = jnp.zeros((), dtype)
+    izero = jnp.zeros((), jnp.int32)
     return Accumulators(
         zero,
         jnp.asarray(-jnp.inf, dtype),
@@ -73,6 +100,23 @@ def _init(dtype) -> Accumulators:
         zero,
         zero,
         jnp.asarray(True),
+        ObserverAccumulators(zero, zero, zero, izero, izero) if observer else None,
+    )
+
+
+def _observer_update(acc: ObserverAccumulators, after, ms, estimate, speed_ref) -> ObserverAccumulators:
+    """One period of the observer figures (``estimate``: ``(2,)`` angle rad, speed rad/s)."""
+    e_theta = wrap_angle(estimate[0] - ms.theta_e)
+    e_speed = estimate[1] - ms.omega_m
+    limit = om.LOCK_SPEED_FRACTION * jnp.abs(speed_ref) + om.LOCK_SPEED_FLOOR_RAD_S
+    bad = after & ((jnp.abs(e_theta) > om.LOCK_ANGLE_RAD) | (jnp.abs(e_speed) > limit))
+    run = jnp.where(bad, acc.run + 1, 0)
+    return ObserverAccumulators(
+        angle_sq=acc.angle_sq + jnp.where(after, e_theta**2, 0.0),
+        angle_max=jnp.where(after, jnp.maximum(acc.angle_max, jnp.abs(e_theta)), acc.angle_max),
+        speed_sq=acc.speed_sq + jnp.where(after, e_speed**2, 0.0),
+        run=run,
+        longest=jnp.maximum(acc.longest, run),
     )
 
 
@@ -84,6 +128,7 @@ def run_metrics(
     decimate: int = 40,
     settle_band: float = 0.02,
     tail_fraction: float = 0.1,
+    converged_after_s: float = om.CONVERGED_AFTER_S,
 ) -> tuple[dict, dict]:
     """Simulate ``drive`` through ``scenario`` keeping only the figures of merit and a decimated record.
 
@@ -93,8 +138,10 @@ def run_metrics(
     - `load_time_s`: time of the load step, s (scalar, may be traced): splits the step and load windows.
     - `decimate` (static): keep the speed and current of every this many periods (must divide the count).
     - `settle_band`, `tail_fraction` (static): see the module docstring.
+    - `converged_after_s` (static): the observer figures count periods from this time on, s.
 
-    **Returns:** ``(metrics, record)``: a dict of scalars keyed by :data:`METRICS` plus ``finite``, and a
+    **Returns:** ``(metrics, record)``: a dict of scalars keyed by :data:`METRICS` plus ``finite`` (and
+    :data:`OBSERVER_METRICS` when the drive has an observer), and a
     dict with ``speed_rpm`` and ``i_q_a``, each ``(N / decimate,)`` (the first period of every block).
     """
     Ts = drive.Ts
@@ -103,7 +150,14 @@ def run_metrics(
     state = drive.init()
     dtype = state.machine.omega_m.dtype
     k_tail = int(round((1.0 - tail_fraction) * n))
+    k_converged = int(round(converged_after_s / Ts))
+    observed = drive.records_estimate
     load_time_s = jnp.asarray(load_time_s, dtype)
+    machine = drive.machine
+    if machine.n_phases == 3:  # as the three-phase kernel always computed it
+        phase_currents = lambda ms: dq_to_abc(machine.currents_dq(ms), ms.theta_e)
+    else:
+        phase_currents = machine.phase_currents
 
     def period(carry, k_x):
         s, acc = carry
@@ -117,16 +171,20 @@ def run_metrics(
         rel = jnp.sign(ref) * (w - ref) / jnp.maximum(jnp.abs(ref), 1e-6)
         outside = pre & (jnp.abs(e) > settle_band * jnp.abs(ref))
         finite = jnp.isfinite(w) & jnp.all(jnp.isfinite(ms.currents))
+        s, rec = drive.step(s, x)
+        obs = None
+        if observed:
+            obs = _observer_update(acc.observer, k >= k_converged, ms, rec.estimate, ref)
         acc = Accumulators(
             itae=acc.itae + t * jnp.abs(e),
             excess=jnp.where(pre, jnp.maximum(acc.excess, rel), acc.excess),
             last_outside=jnp.where(outside, k, acc.last_outside),
             dip=jnp.where(pre, acc.dip, jnp.maximum(acc.dip, e)),
-            peak=jnp.maximum(acc.peak, jnp.max(jnp.abs(dq_to_abc(i_dq, ms.theta_e)))),
+            peak=jnp.maximum(acc.peak, jnp.max(jnp.abs(phase_currents(ms)))),
             tail_error=acc.tail_error + jnp.where(k >= k_tail, e, 0.0),
             finite=acc.finite & finite,
+            observer=obs,
         )
-        s, _ = drive.step(s, x)
         return (s, acc), (w, i_dq[1])
 
     ks = jnp.arange(n, dtype=jnp.int32)
@@ -138,7 +196,7 @@ def run_metrics(
         carry, _ = jax.lax.scan(lambda c, kx: (period(c, kx)[0], None), carry, rest)
         return carry, recorded
 
-    (_, acc), (w_rec, iq_rec) = jax.lax.scan(block, (state, _init(dtype)), blocks)
+    (_, acc), (w_rec, iq_rec) = jax.lax.scan(block, (state, _init(dtype, observed)), blocks)
     n_pre = jnp.sum((ks.astype(dtype) * Ts < load_time_s).astype(jnp.int32))
     settle_index = jnp.minimum(acc.last_outside + 1, n_pre)
     metrics = {
@@ -150,7 +208,13 @@ def run_metrics(
         "final_error_rpm": rad_s_to_rpm(acc.tail_error / (n - k_tail)),
         "finite": acc.finite.astype(dtype),
     }
+    if observed:
+        o, n_after = acc.observer, max(n - k_converged, 1)
+        metrics["angle_error_rms_deg"] = jnp.degrees(jnp.sqrt(o.angle_sq / n_after))
+        metrics["angle_error_max_deg"] = jnp.degrees(o.angle_max)
+        metrics["speed_error_rms_rpm"] = rad_s_to_rpm(jnp.sqrt(o.speed_sq / n_after))
+        metrics["lock_lost"] = (o.longest.astype(dtype) * Ts > om.LOCK_WINDOW_S).astype(dtype)
     return metrics, {"speed_rpm": rad_s_to_rpm(w_rec), "i_q_a": iq_rec}
 
 
-__all__ = ["run_metrics", "METRICS", "UNITS"]
+__all__ = ["run_metrics", "METRICS", "OBSERVER_METRICS", "UNITS"]

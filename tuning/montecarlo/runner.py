@@ -55,14 +55,16 @@ from pmsmjax.validation import ParameterError
 from . import study as mc_study
 from .chunking import auto_chunk_size, bytes_per_run
 from .distributions import sample
-from .kernel import METRICS, run_metrics
+from .kernel import METRICS, OBSERVER_METRICS, run_metrics
 from .study import Study
 from .summary import sensitivity_summary, summarise
 
 #: Bump when the kernel's metric definitions change: chunks written by another version are recomputed.
 KERNEL_VERSION = 1
-#: The forward function's first output: these columns, stacked (one transfer per chunk, not eight).
+#: The forward function's first output: these columns, stacked (one transfer per chunk, not eight);
+#: a study with an observer has :data:`OBSERVER_COLUMNS`.
 COLUMNS = METRICS + ("finite",)
+OBSERVER_COLUMNS = METRICS + OBSERVER_METRICS + ("finite",)
 #: Keys of summary.json that describe how (fast) the study ran rather than its results.
 VOLATILE_KEYS = (
     "run_time_s",
@@ -120,7 +122,8 @@ class StudyRunner:
         self.mesh = device_mesh() if mesh is None else mesh
         self.sharding = NamedSharding(self.mesh, PartitionSpec("runs"))
         self.dtype = self.drive.machine.motor.R.dtype
-        study_, drive, names = study, self.drive, self.names
+        self.columns = COLUMNS if study.estimator is None else OBSERVER_COLUMNS
+        study_, drive, names, columns = study, self.drive, self.names, self.columns
         if study.n_periods % study.decimate:
             raise ParameterError(
                 f"study decimate = {study.decimate} must divide the {study.n_periods} periods of the run."
@@ -139,7 +142,7 @@ class StudyRunner:
 
         def packed(values):
             m, record = one(values)
-            return jnp.stack([m[k] for k in COLUMNS]), record
+            return jnp.stack([m[k] for k in columns]), record
 
         self._packed = packed
         self._forward = jax.jit(jax.vmap(packed), in_shardings=self.sharding, out_shardings=self.sharding)
@@ -155,9 +158,10 @@ class StudyRunner:
         if not samples:
             return
         motor = self.drive.machine.motor
+        inductances = ("R", "L_d", "L_q") + (("L_ls",) if hasattr(motor, "L_ls") else ())  # six-phase leakage
         sampled = SimpleNamespace(
             pole_pairs=motor.pole_pairs,
-            **{f: samples.get(f"motor.{f}", np.asarray(getattr(motor, f))) for f in ("R", "L_d", "L_q")},
+            **{f: samples.get(f"motor.{f}", np.asarray(getattr(motor, f))) for f in inductances},
         )
         speed = rpm_to_rad_s(np.max(np.abs(samples.get("scenario.speed_rpm", self.study.speed_rpm))))
         h_max = max_stable_substep(sampled, 1.5 * speed + 1.0)  # the margin check_simulation allows
@@ -188,12 +192,11 @@ class StudyRunner:
         return at once (JAX dispatches asynchronously); :meth:`fetch` waits for the results."""
         return self._call("forward", values)
 
-    @staticmethod
-    def fetch(outputs) -> tuple[dict, dict]:
+    def fetch(self, outputs) -> tuple[dict, dict]:
         """The host copies of :meth:`dispatch`'s outputs: ``(metrics, record)`` as in :meth:`forward`."""
         packed, record = jax.block_until_ready(outputs)
         packed = _to_host(packed)
-        metrics = {k: packed[:, i] for i, k in enumerate(COLUMNS)}
+        metrics = {k: packed[:, i] for i, k in enumerate(self.columns)}
         return metrics, jax.tree.map(_to_host, record)
 
     def forward(self, values: np.ndarray) -> tuple[dict, dict]:
@@ -207,7 +210,7 @@ class StudyRunner:
         lowering it; tests/test_scale.py checks them against ``jax.eval_shape``)."""
         n_record = self.study.n_periods // self.study.decimate
         record = {k: jax.ShapeDtypeStruct((n_record,), self.dtype) for k in ("speed_rpm", "i_q_a")}
-        return jax.ShapeDtypeStruct((len(COLUMNS),), self.dtype), record
+        return jax.ShapeDtypeStruct((len(self.columns),), self.dtype), record
 
     def per_run_bytes(self) -> int:
         """Upper bound of one run's device memory (:func:`tuning.montecarlo.chunking.bytes_per_run`)."""

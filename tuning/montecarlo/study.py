@@ -5,19 +5,30 @@ A study runs the book scenario form (speed step from rest to ``speed_rpm`` at t 
 :func:`pmsmjax.presets.book_drive` (optionally with tuned gains from ``pmsmjax tune``). Each varied
 parameter is named by a dotted path:
 
-- ``motor.R``, ``motor.L_d``, ``motor.L_q``, ``motor.psi_f``, ``motor.J``, ``motor.B``: the *plant's*
-  motor. The controller's own motor model (decoupling, delay compensation) stays nominal, as on a real
-  drive whose firmware holds the data-sheet values.
+- ``motor.R``, ``motor.L_d``, ``motor.L_q``, ``motor.psi_f``, ``motor.J``, ``motor.B`` (six- and five-phase
+  also ``motor.L_ls``): the *plant's* motor. The controller's own motor model (decoupling, delay
+  compensation) stays nominal, as on a real drive whose firmware holds the data-sheet values.
 - ``bridge.u_dc``: the DC-link voltage, V.
 - ``controller.<path>``: any scalar array leaf of the controller, e.g. ``controller.speed.kp``.
 - ``scenario.speed_rpm``, ``scenario.load_nm``: the speed step (r/min) and the load step (N m).
+
+**Sensorless studies** (``estimator``, issue 14): the drive runs on a chapter 5 observer
+(:data:`pmsmjax.estimators.OBSERVERS`) with the I/f start from standstill
+(:func:`pmsmjax.presets.with_observer`). The observer's motor model, like the controller's, is the
+*nominal* motor; the ``motor.*`` parameters perturb the *plant*, so every draw is a plant/model
+mismatch as on a drive whose motor differs from its data sheet. The default set is then
+:data:`SENSORLESS_TOLERANCES` (R +-30 %, L_d and L_q +-20 % each, drawn independently, psi_f +-10 %,
+uniform). Independent L_d and L_q make the plant slightly salient (up to about +-50 % L_q/L_d) where the
+nominal motor is not: part of the inductance error a non-salient observer model sees.
 
 The TOML file (every table and key optional; defaults below)::
 
     [study]        n, seed, sampling ("random" | "latin_hypercube"), chunk_size, nonphysical
                    ("refuse" | "clip"), decimate, sensitivity_runs
     [drive]        motor (preset or TOML file), gains (gains TOML from pmsmjax tune), current_bandwidth,
-                   speed_bandwidth, current_limit, u_dc, n_substeps, unroll_substeps
+                   speed_bandwidth, current_limit, u_dc, n_substeps, unroll_substeps, estimator,
+                   machine ("three-phase" | "six-phase" | "five-phase"), control and pwm
+                   (pmsmjax.presets_six_phase, pmsmjax.presets_five_phase)
     [scenario]     speed_rpm, load_nm, load_time_s, duration_s
     [thresholds]   current_a, tracking_rpm
     [parameters."motor.R"]  distribution = "uniform", tolerance = 0.2, sigmas = 3.0, nominal = ...
@@ -61,6 +72,8 @@ DEFAULT_TOLERANCES = {
     "motor.B": 0.50,
     "bridge.u_dc": 0.10,
 }
+#: The default set of a sensorless study: the plant/observer-model errors of issue 14, uniform.
+SENSORLESS_TOLERANCES = {"motor.R": 0.30, "motor.L_d": 0.20, "motor.L_q": 0.20, "motor.psi_f": 0.10}
 MOTOR_FIELDS = ("R", "L_d", "L_q", "psi_f", "J", "B")
 SCENARIO_FIELDS = ("speed_rpm", "load_nm")
 # Parameters that must stay > 0 (the rest of the drive's parameters must stay >= 0).
@@ -87,10 +100,16 @@ class Study:
     - `parameters`: ``{name: {"distribution", "tolerance", "sigmas", "nominal"}}`` (nominal optional).
     - drive: `motor`, `gains` (TOML path or None), `current_bandwidth` rad/s, `speed_bandwidth` rad/s,
       `current_limit` A, `u_dc` V, `n_substeps`, `unroll_substeps` (the RK4 sub-steps written out, not
-      looped: :class:`pmsmjax.inverters.averaged.AveragedBridge`; for GPUs); scenario: `speed_rpm`,
+      looped: :class:`pmsmjax.inverters.averaged.AveragedBridge`; for GPUs), `estimator` (a chapter 5
+      observer name, or None for the exact sensor; see the module docstring); scenario: `speed_rpm`,
       `load_nm`, `load_time_s`, `duration_s`.
     - thresholds: `current_threshold_a` (None: 1.05 times the current limit), `tracking_threshold_rpm`
       (mean speed error over the last 10 % of the run).
+    - `machine`: ``three-phase`` (the book drive), ``six-phase``
+      (:func:`pmsmjax.presets_six_phase.six_phase_drive` on the six-phase rewind of `motor`) or
+      ``five-phase`` (:func:`pmsmjax.presets_five_phase.five_phase_drive`); `control` and `pwm`: the
+      scheme and modulator (None: ``vsd`` and ``four-vector`` / ``near-four-vector``; three phases take
+      only the PI drive).
     """
 
     n: int = 1000
@@ -100,11 +119,7 @@ class Study:
     nonphysical: str = "refuse"
     decimate: int = 40
     sensitivity_runs: int = 256
-    parameters: dict = dataclasses.field(
-        default_factory=lambda: {
-            k: {"distribution": "uniform", "tolerance": v} for k, v in DEFAULT_TOLERANCES.items()
-        }
-    )
+    parameters: dict | None = None  # None: DEFAULT_TOLERANCES, or SENSORLESS_TOLERANCES with an estimator
     motor: str = "book"
     gains: str | None = None
     current_bandwidth: float = presets.BOOK_CURRENT_BANDWIDTH
@@ -113,14 +128,26 @@ class Study:
     u_dc: float = presets.BOOK_DC_LINK
     n_substeps: int = 10
     unroll_substeps: bool = False
+    estimator: str | None = None
     speed_rpm: float = 1000.0
     load_nm: float = 10.0
     load_time_s: float = 0.2
     duration_s: float = 0.4
     current_threshold_a: float | None = None
     tracking_threshold_rpm: float = 10.0
+    machine: str = "three-phase"
+    control: str | None = None
+    pwm: str | None = None
 
     def __post_init__(self):
+        if self.estimator is not None:
+            from pmsmjax.estimators.registry import check_observer_name
+
+            check_observer_name(self.estimator)
+        if self.parameters is None:
+            tolerances = DEFAULT_TOLERANCES if self.estimator is None else SENSORLESS_TOLERANCES
+            default = {k: {"distribution": "uniform", "tolerance": v} for k, v in tolerances.items()}
+            object.__setattr__(self, "parameters", default)
         for f in ("n", "chunk_size", "decimate", "n_substeps"):
             v = getattr(self, f)
             if f == "chunk_size" and v == "auto":
@@ -155,6 +182,27 @@ class Study:
         _check_number("tracking_threshold_rpm", self.tracking_threshold_rpm, positive=True)
         if self.current_threshold_a is not None:
             _check_number("current_threshold_a", self.current_threshold_a, positive=True)
+        if self.machine not in ("three-phase", "six-phase", "five-phase"):
+            raise ParameterError(
+                f"study machine must be 'three-phase', 'six-phase' or 'five-phase', got {self.machine!r}."
+            )
+        if self.machine == "three-phase" and self.control not in (None, "pi"):
+            raise ParameterError(
+                f"study control {self.control!r}: the three-phase study runs the PI book drive; other "
+                "controls are for machine = 'six-phase'."
+            )
+        if self.machine == "three-phase" and self.pwm is not None:
+            raise ParameterError("study pwm applies to machine = 'six-phase' only.")
+        if self.machine != "three-phase" and self.estimator is not None:
+            raise ParameterError(
+                f"study estimator {self.estimator!r} applies to the three-phase drive only (the chapter 5 "
+                "observers are three-phase); drop it or set machine = 'three-phase'."
+            )
+        if self.machine != "three-phase" and self.unroll_substeps:
+            raise ParameterError(
+                "study unroll_substeps applies to the three-phase drive only (the six-phase dq model "
+                "integrates its planes itself); drop it or set machine = 'three-phase'."
+            )
         if not 0 < self.load_time_s < self.duration_s:
             raise ParameterError(
                 f"load_time_s = {self.load_time_s} s must lie inside the run "
@@ -198,6 +246,22 @@ def _check_number(name, v, positive=False):
 
 def build_drive(study: Study) -> Drive:
     """The nominal drive of ``study`` (book drive, the study's motor and settings, tuned gains if given)."""
+    if study.machine in ("six-phase", "five-phase"):
+        from pmsmjax.presets_five_phase import five_phase_drive, load_five_phase_motor
+        from pmsmjax.presets_six_phase import load_six_phase_motor, six_phase_drive
+
+        five = study.machine == "five-phase"
+        drive = (five_phase_drive if five else six_phase_drive)(
+            (load_five_phase_motor if five else load_six_phase_motor)(study.motor),
+            control=study.control or "vsd",
+            pwm=study.pwm or ("near-four-vector" if five else "four-vector"),
+            current_bandwidth=study.current_bandwidth,
+            speed_bandwidth=study.speed_bandwidth,
+            current_limit=study.current_limit,
+            u_dc=study.u_dc,
+            n_substeps=study.n_substeps,
+        )
+        return drive if study.gains is None else apply_gains(drive, study.gains)
     drive = presets.book_drive(
         presets.load_motor(study.motor),
         current_bandwidth=study.current_bandwidth,
@@ -209,7 +273,10 @@ def build_drive(study: Study) -> Drive:
     if study.unroll_substeps:
         unrolled = AveragedBridge(drive.bridge.u_dc, unroll_substeps=True)
         drive = eqx.tree_at(lambda d: d.bridge, drive, unrolled)
-    return drive if study.gains is None else apply_gains(drive, study.gains)
+    drive = drive if study.gains is None else apply_gains(drive, study.gains)
+    if study.estimator is not None:  # the observer's model: the nominal motor (the plant is varied)
+        drive = presets.with_observer(drive, study.estimator, drive.machine.motor, startup=True)
+    return drive
 
 
 def nominal_value(study: Study, drive: Drive, name: str) -> float:
@@ -221,9 +288,8 @@ def nominal_value(study: Study, drive: Drive, name: str) -> float:
 
 
 def check_name(drive: Drive, name: str) -> None:
-    allowed = (
-        [f"motor.{f}" for f in MOTOR_FIELDS] + ["bridge.u_dc"] + [f"scenario.{f}" for f in SCENARIO_FIELDS]
-    )
+    fields = MOTOR_FIELDS + (("L_ls",) if hasattr(drive.machine.motor, "L_ls") else ())
+    allowed = [f"motor.{f}" for f in fields] + ["bridge.u_dc"] + [f"scenario.{f}" for f in SCENARIO_FIELDS]
     controller = [n for n in array_leaf_names(drive) if n.startswith("controller.") and ".model." not in n]
     if name not in allowed and name not in controller:
         raise ParameterError(
@@ -324,6 +390,10 @@ _SECTIONS = {
         "u_dc",
         "n_substeps",
         "unroll_substeps",
+        "machine",
+        "control",
+        "pwm",
+        "estimator",
     ),
     "scenario": ("speed_rpm", "load_nm", "load_time_s", "duration_s"),
     "thresholds": ("current_a", "tracking_rpm"),

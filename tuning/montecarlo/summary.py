@@ -7,7 +7,8 @@ values (not on the device count or the chunking that produced them).
   the runs whose state stayed finite.
 - Failure rates against thresholds: peak phase current above ``current_threshold_a``; loss of speed
   tracking (``|final_error_rpm|`` above ``tracking_threshold_rpm``); instability (the state became
-  NaN/inf). A run fails when any of them holds; a diverged run counts in all three.
+  NaN/inf); with an observer, loss of lock (``lock_lost``, :mod:`pmsmjax.observer_metrics`). A run fails
+  when any of them holds; a diverged run counts in all of them.
 - CVaR at ``alpha``: the mean of the worst ``1 - alpha`` share of the runs (larger = worse for every
   metric; ``final_error_rpm`` by magnitude); diverged runs are excluded here and counted as failures.
 - Sensitivities: the population mean of each metric's derivative with respect to each parameter (from
@@ -19,7 +20,7 @@ values (not on the device count or the chunking that produced them).
 
 import numpy as np
 
-from .kernel import METRICS, UNITS
+from .kernel import METRICS, OBSERVER_METRICS, UNITS
 
 PERCENTILES = (1, 5, 25, 50, 75, 95, 99)
 
@@ -50,8 +51,10 @@ def failures(metrics: dict, current_threshold_a: float, tracking_threshold_rpm: 
         current = unstable | ~(metrics["peak_current_a"] <= current_threshold_a)
         tracking = unstable | ~(np.abs(metrics["final_error_rpm"]) <= tracking_threshold_rpm)
     kinds = {"current_limit": current, "speed_tracking": tracking, "unstable": unstable}
+    if "lock_lost" in metrics:
+        kinds["lock_lost"] = unstable | ~(metrics["lock_lost"] < 0.5)
     out = {k: {"count": int(np.sum(v)), "rate": float(np.mean(v))} for k, v in kinds.items()}
-    any_failure = current | tracking | unstable
+    any_failure = np.logical_or.reduce(list(kinds.values()))
     out["any"] = {"count": int(np.sum(any_failure)), "rate": float(np.mean(any_failure))}
     out["thresholds"] = {
         "current_a": float(current_threshold_a),
@@ -89,9 +92,10 @@ def spearman_ranks(samples: dict, metrics: dict) -> dict:
     metrics and 7 parameters rather than 84.
     """
     finite = metrics["finite"] > 0.5
-    out = {m: {} for m in METRICS}
+    names = METRICS + tuple(k for k in OBSERVER_METRICS if k in metrics and k != "lock_lost")
+    out = {m: {} for m in names}
     by_mask: dict[bytes, list] = {}
-    for m in METRICS:
+    for m in names:
         ok = finite & np.isfinite(metrics[m])
         by_mask.setdefault(np.packbits(ok).tobytes(), [ok, []])[1].append(m)
     for ok, names in by_mask.values():
@@ -147,7 +151,7 @@ def summarise(
                 "unit": UNITS[m],
                 **metric_statistics(np.abs(metrics[m]) if m == "final_error_rpm" else metrics[m], alpha),
             }
-            for m in METRICS
+            for m in METRICS + tuple(k for k in OBSERVER_METRICS if k in metrics)
         },
         "failures": failures(metrics, current_threshold_a, tracking_threshold_rpm),
         "spearman": spearman_ranks(samples, metrics),

@@ -1,0 +1,232 @@
+"""Sensorless over the whole speed range: HF injection at low speed, a chapter 5 observer above a crossover
+band (BOOK.md chapter 6 with chapter 5; the weighted hand-over of e.g. Silva, Asher, Sumner, "Hybrid
+rotor position observer for wide speed-range sensorless PM motor drives including zero speed", IEEE
+Trans. Ind. Electron. 53(2), 2006, doi:10.1109/TIE.2006.870875).
+
+Both estimators run every period on the same sample. With ``|w|`` the hybrid's own speed estimate (last
+period's, through a first-order filter of bandwidth ``speed_filter`` so that noise does not chatter the
+hand-over), the observer's weight is
+
+    ``w = s((|w| - w_low) / (w_high - w_low))``,   ``s(x) = 3x^2 - 2x^3`` on [0, 1] (smoothstep: C^1),
+
+0 below ``w_low`` (injection alone), 1 above ``w_high`` (observer alone). The angle is blended along the
+shorter arc, ``th = th_inj + w wrap(th_obs - th_inj)`` (no jump of 2 pi), the speed linearly. The injection
+voltage is scaled by ``a = clip((w_off - |w|) / (w_off - w_high), 0, 1)``: full up to ``w_high``, faded
+out at ``w_off`` (the carrier costs losses, noise and voltage at speed, where it is not needed).
+
+Polarity. The injection knows the d axis modulo pi. From standstill the polarity is found by
+:class:`.polarity.PolarityDetector` wrapped around the injection estimator (pass it as ``injection``).
+Back from high speed (e.g. a reversal through zero), the injection estimator re-locks to either pole
+while the carrier fades in; while the observer is trusted (``w >= 1/2``) the hybrid therefore keeps a
+correction ``c`` in {0, pi} that puts the injection's angle on the observer's side:
+``c = pi`` iff ``|wrap(th_obs - th_inj)| > pi/2``, held below ``w = 1/2``. This is a comparator (exact; its
+derivative is zero almost everywhere): it only selects one of two branches of the same estimate.
+
+The band ``(w_low, w_high, w_off)`` and the filter are parameters (tunable; differentiable: the weight
+and the fade are smooth in them). Defaults (:func:`hybrid_design`): 5 % to 15 % of the book drive's
+1000 r/min (50 to 150 r/min), the carrier gone at 25 %; measured on the book scenario and a -1000 -> 1000
+r/min reversal (benchmarks/hybrid_table.py): 30/100/200 r/min holds as well, 80/200/300 r/min too but with
+17 degrees peak error in the reversal.
+
+Slaving. A fundamental-model observer sees no back-EMF at standstill and runs wherever its equations take
+it; left alone it would have to converge while the drive accelerates through the band (a few ms at the
+book drive's current limit). So below the band the hybrid pulls the observer's angle and speed to its own
+estimate: after each step the observer's angle and speed states move by ``(1 - w)`` of their difference
+to the hybrid's (:func:`pull_observer`: fully slaved at ``w = 0``, free at ``w = 1``). It knows the states
+of :class:`.smo.SlidingModeObserver` with a PLL (the PLL tracks the back-EMF angle: rotor angle, plus pi
+below zero speed) and :class:`.ekf.EKF` (``x = [i_a, i_b, w_e, th_e]``); other observers run free.
+Likewise above the band the injection estimator's PLL is pulled by ``w`` to the hybrid's estimate (less
+the polarity correction; :func:`pull_injection`), so that when the carrier fades back in (a reversal) it
+is already locked on the right pole at the right speed instead of re-acquiring during the deceleration.
+
+Start-up fields (``startup_weight``, ``startup_i_dq``) and the carrier-free current
+(``i_ab_fundamental``) come from the injection estimate (the polarity pulses, the carrier filter).
+"""
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from .._types import Array
+from ..frames import wrap_angle
+from ..machines.motor import PMSMParameters, as_float
+from ..signals import Sample
+from ..units import rpm_to_rad_s
+from ..validation import ParameterError, check_positive
+from .base import AbstractEstimator
+from .pll import PLLState
+from .stability import concrete_values
+
+
+def pull_observer(observer: AbstractEstimator, state, theta_e, omega_m, strength):
+    """``state`` of ``observer`` with its angle and speed moved by ``strength`` (in [0, 1]) of the way to
+    ``theta_e`` (rad) and ``omega_m`` (mechanical rad/s); unchanged for observers it does not know."""
+    from .ekf import EKF
+    from .smo import SlidingModeObserver
+
+    if isinstance(observer, SlidingModeObserver) and observer.angle == "pll":
+        omega_e = observer.model.pole_pairs * omega_m
+        phi = theta_e + jnp.where(omega_e < 0, jnp.pi, 0.0)  # the back-EMF's angle the PLL tracks
+        theta = wrap_angle(state.theta + strength * wrap_angle(phi - state.theta))
+        omega = state.omega + strength * (omega_e - state.omega)
+        return eqx.tree_at(lambda s: (s.theta, s.omega), state, (theta, omega))
+    if isinstance(observer, EKF):
+        x = state.x
+        omega_e = observer.model.pole_pairs * omega_m
+        theta = wrap_angle(x[3] + strength * wrap_angle(theta_e - x[3]))
+        x = x.at[2].set(x[2] + strength * (omega_e - x[2])).at[3].set(theta)
+        return eqx.tree_at(lambda s: s.x, state, x)
+    return state
+
+
+def pull_injection(injection: AbstractEstimator, state, theta_e, omega_m, strength):
+    """``state`` of the injection estimator with its PLL moved by ``strength`` of the way to ``theta_e``
+    (rad, the angle its estimate should give) and ``omega_m`` (mechanical rad/s). Knows the injection
+    estimators with a ``pll`` state (:mod:`.hfi_rotating`, :mod:`.hfi_pulsating`) and looks through a
+    :class:`.polarity.PolarityDetector` (less its flip); others run free."""
+    from .polarity import PolarityDetector
+
+    if isinstance(injection, PolarityDetector):
+        theta_inner = theta_e - injection.flip(state, state.t)
+        inner = pull_injection(injection.observer, state.observer, theta_inner, omega_m, strength)
+        return eqx.tree_at(lambda s: s.observer, state, inner)
+    pll = getattr(state, "pll", None)
+    if isinstance(pll, PLLState) and hasattr(injection, "pole_pairs"):
+        omega_e = injection.pole_pairs * omega_m
+        theta = wrap_angle(pll.theta + strength * wrap_angle(theta_e - pll.theta))
+        omega = pll.omega + strength * (omega_e - pll.omega)
+        return eqx.tree_at(lambda s: s.pll, state, PLLState(theta, omega))
+    return state
+
+
+class HybridState(eqx.Module):
+    injection: object  # the injection estimator's state
+    observer: object  # the observer's state
+    speed: Array  # rad/s mechanical, filtered |speed| that schedules the hand-over
+    correction: Array  # rad, 0 or pi added to the injection's angle (polarity from the observer)
+
+
+def smoothstep(x):
+    """``3x^2 - 2x^3`` on [0, 1], 0 below, 1 above: C^1, monotone."""
+    x = jnp.clip(x, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+class HybridEstimator(AbstractEstimator):
+    """Injection at low speed, an observer above a crossover band (see the module docstring).
+
+    **Arguments:**
+
+    - `injection`: the low-speed estimator (HF injection, optionally inside a polarity detector).
+    - `observer`: the high-speed estimator (a chapter 5 observer).
+    - `low_speed`: ``w_low``, mechanical rad/s: below it the injection alone.
+    - `high_speed`: ``w_high``, mechanical rad/s: above it the observer alone.
+    - `injection_off_speed`: ``w_off``, mechanical rad/s: the carrier is faded out from ``w_high`` to here.
+    - `speed_filter`: bandwidth of the scheduling speed's first-order filter, rad/s.
+    """
+
+    injection: AbstractEstimator
+    observer: AbstractEstimator
+    low_speed: Array = eqx.field(converter=as_float)
+    high_speed: Array = eqx.field(converter=as_float)
+    injection_off_speed: Array = eqx.field(converter=as_float)
+    speed_filter: Array = eqx.field(converter=as_float)
+
+    def __check_init__(self):
+        check_positive("HybridEstimator.low_speed (w_low)", self.low_speed, "rad/s (mechanical)")
+        check_positive("HybridEstimator.speed_filter", self.speed_filter, "rad/s")
+        values = concrete_values(self.low_speed, self.high_speed, self.injection_off_speed)
+        if values is not None:
+            lo, hi, off = values
+            if not (lo < hi).all() or not (hi < off).all():
+                raise ParameterError(
+                    f"HybridEstimator needs low_speed < high_speed < injection_off_speed (mechanical rad/s), "
+                    f"got {lo}, {hi}, {off}: the band needs a width and the carrier fade must end above it."
+                )
+
+    @property
+    def injects_voltage(self) -> bool:
+        return True
+
+    def check_period(self, Ts: float) -> None:
+        self.injection.check_period(Ts)
+        self.observer.check_period(Ts)
+
+    def init(self, sample: Sample) -> HybridState:
+        zero = jnp.zeros((), sample.i_ab.dtype)
+        return HybridState(self.injection.init(sample), self.observer.init(sample), zero, zero)
+
+    def observer_weight(self, speed) -> Array:
+        """Observer weight in [0, 1] at scheduling speed ``speed`` (mechanical rad/s, >= 0)."""
+        return smoothstep((speed - self.low_speed) / (self.high_speed - self.low_speed))
+
+    def injection_scale(self, speed) -> Array:
+        """Carrier amplitude factor in [0, 1] at scheduling speed ``speed`` (mechanical rad/s, >= 0)."""
+        return jnp.clip(
+            (self.injection_off_speed - speed) / (self.injection_off_speed - self.high_speed), 0, 1
+        )
+
+    def step(self, state: HybridState, sample: Sample, Ts: float):
+        inj_state, inj = self.injection.step(state.injection, sample, Ts)
+        obs_state, obs = self.observer.step(state.observer, sample, Ts)
+        w = self.observer_weight(state.speed)
+        # polarity of the injection's angle from the observer while the observer is trusted
+        flipped = jnp.abs(wrap_angle(obs.theta_e - inj.theta_e)) > 0.5 * jnp.pi
+        correction = jnp.where(w >= 0.5, jnp.where(flipped, jnp.pi, 0.0), state.correction)
+        theta_inj = wrap_angle(inj.theta_e + correction)
+        theta = wrap_angle(theta_inj + w * wrap_angle(obs.theta_e - theta_inj))
+        omega = (1.0 - w) * inj.omega_m + w * obs.omega_m
+        # exact discretisation of the first-order filter of |omega|
+        g = 1.0 - jnp.exp(-self.speed_filter * Ts)
+        speed = state.speed + g * (jnp.abs(omega) - state.speed)
+        u_inj = self.injection_scale(state.speed) * inj.u_injection_ab
+        obs_state = pull_observer(self.observer, obs_state, theta, omega, 1.0 - w)
+        inj_state = pull_injection(self.injection, inj_state, wrap_angle(theta - correction), omega, w)
+        estimate = eqx.tree_at(
+            lambda e: (e.theta_e, e.omega_m, e.u_injection_ab),
+            inj,
+            (theta, omega, u_inj),
+            is_leaf=lambda x: x is None,
+        )
+        return HybridState(inj_state, obs_state, speed, correction), estimate
+
+
+#: Crossover band of :func:`hybrid_design`, r/min: observer weight from 0 at ``low`` to 1 at ``high``,
+#: carrier faded out at ``off``.
+HYBRID_BAND_RPM = dict(low=50.0, high=150.0, off=250.0)
+
+
+def hybrid_design(
+    motor: PMSMParameters,
+    Ts: float,
+    *,
+    injection: str = "hfi-rotating",
+    observer: str = "ekf",
+    low_rpm: float = HYBRID_BAND_RPM["low"],
+    high_rpm: float = HYBRID_BAND_RPM["high"],
+    off_rpm: float = HYBRID_BAND_RPM["off"],
+    speed_filter: float = 200.0,
+    polarity: bool = True,
+    delay_periods: float = 1.5,
+    injection_options: dict | None = None,
+    observer_options: dict | None = None,
+    polarity_options: dict | None = None,
+) -> HybridEstimator:
+    """The hybrid for ``motor`` at period ``Ts`` (s): injection ``injection`` (registry name), inside a
+    :class:`.polarity.PolarityDetector` if ``polarity``, and the observer ``observer`` (registry name),
+    crossover band in r/min, scheduling-speed filter in rad/s (200 rad/s: well below the injection's
+    error filter, above the speed loop's 50 rad/s). ``delay_periods``: the drive's command delay for the
+    injection's carrier phase (1.5 periods with a computational delay, 0.5 without).
+
+    The default observer is the EKF: with the smo-pll the book scenario lost lock at every band tried
+    (50-150, 100-200, 150-250 r/min; the SMO is not reliable below about 150 r/min and the injection lags
+    by 20 degrees and more at the current limit's acceleration above that; notes/issue-15-polarity.md)."""
+    from .polarity import polarity_detector
+    from .registry import make_observer
+
+    low, high, off = (rpm_to_rad_s(x) for x in (low_rpm, high_rpm, off_rpm))
+    inj_opts = {"delay_periods": delay_periods, **(injection_options or {})}
+    inj = make_observer(injection, motor, Ts, **inj_opts)
+    if polarity:
+        inj = polarity_detector(inj, motor.R, **(polarity_options or {}))
+    obs = make_observer(observer, motor, Ts, **(observer_options or {}))
+    return HybridEstimator(inj, obs, low, high, off, speed_filter)

@@ -1,0 +1,228 @@
+"""n-leg two-level bridges for multi-phase machines with isolated star points (six phases: two stars).
+
+Phase-to-neutral voltage of phase ``x`` in star ``S``: ``u_xN = v_x - mean_{y in S} v_y`` with ``v`` the
+pole voltages (each star's common mode does not reach its windings). The machine is driven by the
+stationary VSD voltage of those phase voltages, ``(2 n_planes,)`` = [alpha, beta, z1, z2, ...]
+(:mod:`pmsmjax.multiphase_frames`); the zero sequences of isolated stars are 0.
+
+- :class:`MultiPhaseAveragedBridge`: the period-average voltage held over the period (``d`` the duties:
+  ``v = U_dc d``).
+- :class:`MultiPhaseSwitchingBridge`: the period cut at every gate edge of centre-aligned PWM (2n edges,
+  2n + 1 segments; with dead time 4n + 1), the machine integrated over each constant-voltage segment,
+  exactly as :class:`pmsmjax.inverters.switching.SwitchingBridge` does for three legs (same segment
+  function :func:`pmsmjax.inverters.switching.pwm_segments`, same dead-time and device-drop model with
+  the exact or ``tanh`` current sign). Both return the period-average VSD voltage; they agree on it.
+
+``commanded_voltage`` (what the controller knows it applied) is the alpha-beta part ``(2,)`` of the
+ideal period average, the interface every controller reads.
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._types import Array
+from ..machines.base import MachineInput
+from ..machines.integrate import advance
+from ..machines.motor import as_float
+from ..multiphase_frames import SIX_PHASE, PhaseLayout, vsd_matrix
+from ..validation import ParameterError, check_nonnegative, check_positive, is_concrete
+from .base import AbstractBridge
+from .switching import CurrentSign, pwm_segments
+
+__all__ = [
+    "MultiPhaseAveragedBridge",
+    "MultiPhaseSwitchingBridge",
+    "star_phase_voltages",
+    "vsd_voltage",
+]
+
+
+def star_phase_voltages(pole: Array, layout: PhaseLayout = SIX_PHASE) -> Array:
+    """Phase-to-neutral voltages ``(..., n)`` from pole voltages ``(..., n)`` (V): each phase less the mean
+    of its star."""
+    out = pole
+    for group in layout.neutrals:
+        idx = np.asarray(group)
+        mean = jnp.mean(pole[..., idx], axis=-1, keepdims=True)
+        mask = np.zeros(layout.n)
+        mask[idx] = 1.0
+        out = out - jnp.asarray(mask, pole.dtype) * mean
+    return out
+
+
+def vsd_voltage(phase_voltages: Array, layout: PhaseLayout = SIX_PHASE) -> Array:
+    """``(..., 2 n_planes)`` stationary VSD voltage [alpha, beta, z1, z2, ...] of phase voltages
+    ``(..., n)`` V (the zero sequences dropped)."""
+    T = vsd_matrix(layout)[: layout.n_active]
+    return phase_voltages @ jnp.asarray(T.T, phase_voltages.dtype)
+
+
+class MultiPhaseAveragedBridge(AbstractBridge):
+    """Ideal averaged n-leg inverter. `u_dc`: DC-link voltage, V; `layout`: the winding (static)."""
+
+    u_dc: Array
+    layout: PhaseLayout = eqx.field(static=True)
+
+    def __init__(self, u_dc=311.0, layout: PhaseLayout = SIX_PHASE):
+        self.u_dc = as_float(u_dc)
+        self.layout = layout
+
+    def __check_init__(self):
+        check_positive("u_dc (DC-link voltage)", self.u_dc, "V")
+        self.layout.check()
+
+    @property
+    def n_phases(self) -> int:
+        return self.layout.n
+
+    def phase_voltages(self, duties: Array) -> Array:
+        """``(..., n)`` period-average phase-to-neutral voltages, V, of duties ``(..., n)``."""
+        return star_phase_voltages(self.u_dc * duties, self.layout)
+
+    def vsd_voltage(self, duties: Array) -> Array:
+        """``(..., 2 n_planes)`` period-average stationary VSD voltage, V."""
+        return vsd_voltage(self.phase_voltages(duties), self.layout)
+
+    def commanded_voltage(self, duties):
+        return self.vsd_voltage(duties)[..., :2]
+
+    def advance(self, machine, state, duties, load_torque, Ts, n_substeps):
+        u = self.vsd_voltage(duties)
+        return advance(machine, state, MachineInput(u, load_torque, "stator"), Ts, n_substeps), u
+
+
+class MultiPhaseSwitchingBridge(AbstractBridge):
+    """n-leg inverter resolved into its switching segments (module docstring).
+
+    **Arguments:** as :class:`pmsmjax.inverters.switching.SwitchingBridge` (`u_dc`, `dead_time` s or
+    None, `device_drop` V, `sign_smoothing` A, `current_sign`, `segment_substeps`), plus `layout`.
+    ``device_drop=None`` (default) leaves the device drop out of the program as ``dead_time=None`` does
+    the dead time (``0.0`` keeps it, to vary or differentiate it). With neither, no segment's voltage
+    depends on the current, so all segment voltages are computed at once before the segment loop (the
+    loop then only integrates: measured 1.7 times faster on the six-phase book drive).
+    """
+
+    u_dc: Array
+    dead_time: Array
+    device_drop: Array
+    sign_smoothing: Array
+    layout: PhaseLayout = eqx.field(static=True)
+    current_sign: CurrentSign = eqx.field(static=True)
+    segment_substeps: int = eqx.field(static=True)
+    resolve_dead_time: bool = eqx.field(static=True)
+    resolve_device_drop: bool = eqx.field(static=True)
+
+    def __init__(
+        self,
+        u_dc=311.0,
+        dead_time=None,
+        device_drop=None,
+        sign_smoothing=0.05,
+        current_sign: CurrentSign = "exact",
+        segment_substeps: int = 1,
+        layout: PhaseLayout = SIX_PHASE,
+    ):
+        self.u_dc = as_float(u_dc)
+        self.resolve_dead_time = dead_time is not None
+        self.dead_time = as_float(0.0 if dead_time is None else dead_time)
+        self.resolve_device_drop = device_drop is not None
+        self.device_drop = as_float(0.0 if device_drop is None else device_drop)
+        self.sign_smoothing = as_float(sign_smoothing)
+        self.current_sign = current_sign
+        self.segment_substeps = segment_substeps
+        self.layout = layout
+
+    def __check_init__(self):
+        self.layout.check()
+        check_positive("MultiPhaseSwitchingBridge.u_dc (DC-link voltage)", self.u_dc, "V")
+        check_nonnegative("MultiPhaseSwitchingBridge.dead_time", self.dead_time, "s")
+        check_nonnegative("MultiPhaseSwitchingBridge.device_drop", self.device_drop, "V")
+        check_positive("MultiPhaseSwitchingBridge.sign_smoothing", self.sign_smoothing, "A")
+        if self.current_sign not in ("exact", "smooth"):
+            raise ParameterError(f"current_sign must be 'exact' or 'smooth', got {self.current_sign!r}.")
+        if not isinstance(self.segment_substeps, int) or self.segment_substeps < 1:
+            raise ParameterError(f"segment_substeps must be an int >= 1, got {self.segment_substeps!r}.")
+
+    @property
+    def n_phases(self) -> int:
+        return self.layout.n
+
+    def check_period(self, Ts: float) -> None:
+        """Raise unless the dead time fits the PWM period: ``t_d < Ts/2``."""
+        if not is_concrete(self.dead_time):
+            return
+        t_d = float(np.max(np.asarray(jax.device_get(self.dead_time))))
+        if t_d >= 0.5 * Ts:
+            raise ParameterError(
+                f"MultiPhaseSwitchingBridge.dead_time = {t_d:g} s is not below half the PWM period Ts/2 = "
+                f"{0.5 * Ts:g} s: a typical dead time is 0.5-3 us."
+            )
+
+    def phase_voltages(self, duties: Array) -> Array:
+        """``(..., n)`` ideal period-average phase-to-neutral voltages, V."""
+        return star_phase_voltages(self.u_dc * duties, self.layout)
+
+    def commanded_voltage(self, duties):
+        return vsd_voltage(self.phase_voltages(duties), self.layout)[..., :2]
+
+    def phase_current_sign(self, i_phase: Array) -> Array:
+        if self.current_sign == "exact":
+            return jnp.sign(i_phase)
+        return jnp.tanh(i_phase / self.sign_smoothing)
+
+    def segments(self, duties: Array, Ts, extra_times: Array | None = None):
+        """:func:`pmsmjax.inverters.switching.pwm_segments` with this bridge's dead time."""
+        return pwm_segments(duties, Ts, self.dead_time, self.resolve_dead_time, extra_times)
+
+    def _integrate(self, machine, state, times, high, dead, load_torque):
+        if not (self.resolve_dead_time or self.resolve_device_drop):
+            # Ideal switches: every segment's voltage follows from the gate states alone.
+            u_all = vsd_voltage(star_phase_voltages(self.u_dc * high, self.layout), self.layout)
+
+            def ideal(s, seg):
+                duration, u = seg
+                s = advance(
+                    machine, s, MachineInput(u, load_torque, "stator"), duration, self.segment_substeps
+                )
+                return s, (s, u)
+
+            final, (states, u) = jax.lax.scan(ideal, state, (jnp.diff(times), u_all))
+            return final, states, u
+
+        def body(s, seg):
+            duration, high_k, dead_k = seg
+            sign = self.phase_current_sign(machine.phase_currents(s))
+            freewheel = 0.5 * (1.0 - sign)  # both off: upper diode (high) for i < 0, lower for i > 0
+            pole = self.u_dc * ((1.0 - dead_k) * high_k + dead_k * freewheel) - self.device_drop * sign
+            u = vsd_voltage(star_phase_voltages(pole, self.layout), self.layout)
+            s = advance(machine, s, MachineInput(u, load_torque, "stator"), duration, self.segment_substeps)
+            return s, (s, u)
+
+        final, (states, u) = jax.lax.scan(body, state, (jnp.diff(times), high, dead))
+        return final, states, u
+
+    def _checked(self, duties, Ts):
+        if jnp.shape(duties) != (self.layout.n,):
+            raise ParameterError(
+                f"duties must have shape ({self.layout.n},) (one per leg), got {jnp.shape(duties)}."
+            )
+        self.check_period(Ts)
+
+    def advance(self, machine, state, duties, load_torque, Ts, n_substeps):
+        self._checked(duties, Ts)
+        times, high, dead, _ = self.segments(duties, Ts)
+        new_state, _, u = self._integrate(machine, state, times, high, dead, load_torque)
+        return new_state, jnp.diff(times) @ u / Ts
+
+    def sample_period(self, machine, state, duties, load_torque, Ts, n_samples: int):
+        """States at ``t_j = j Ts / n_samples``, j = 1..n_samples, within one period (as
+        :meth:`pmsmjax.inverters.switching.SwitchingBridge.sample_period`); returns ``(MachineState of
+        (n_samples,) leaves, (K+1,) interval bounds s, (K, 2 n_planes) VSD voltage of each interval V)``."""
+        self._checked(duties, Ts)
+        samples = Ts * jnp.arange(1, n_samples + 1, dtype=state.omega_m.dtype) / n_samples
+        times, high, dead, order = self.segments(duties, Ts, samples)
+        _, states, u = self._integrate(machine, state, times, high, dead, load_torque)
+        pick = jnp.argsort(order)[-n_samples:]
+        return jax.tree.map(lambda x: x[pick], states), times, u

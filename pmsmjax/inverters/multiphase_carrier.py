@@ -1,0 +1,89 @@
+"""Carrier PWM with zero-sequence injection for any multi-phase layout (BOOK.md chapter 10: five phases;
+for the six-phase layout with min-max injection this is
+:class:`~pmsmjax.inverters.six_phase_carrier.DoubleZeroSequencePWM`).
+
+The VSD reference (``(2,)`` alpha-beta, the other planes 0, or the full ``(2 n_planes,)``) becomes phase
+references by the inverse VSD (:func:`pmsmjax.multiphase_frames.inverse_vsd`, each star's zero sequence
+0); each star then gets one zero sequence, which its isolated neutral removes from the windings, and each
+leg is compared with the centre-aligned carrier: ``d_x = 1/2 + (u_x + u_0,S)/U_dc``, clipped to [0, 1].
+
+- ``injection="min-max"`` (default): ``u_0,S = -(max_S u + min_S u)/2`` centres each star's references
+  in the DC link. For a balanced star of ``m`` phases (``m`` odd) the spread ``max - min`` of a set of
+  amplitude ``U`` peaks at ``2 U cos(pi/(2m))``, so the linear range is ``U_dc / (2 cos(pi/(2m)))``:
+  five phases ``0.5257 U_dc`` (5.15 % above sinusoidal PWM), three ``U_dc/sqrt(3)``.
+- ``injection="none"``: sinusoidal PWM, linear to ``U_dc/2``.
+
+With a nonzero x-y reference the phase references are no longer one balanced set and the limit applies
+to their actual spread (duties clip beyond it).
+"""
+
+import math
+from typing import Literal
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from .._types import Array
+from ..multiphase_frames import FIVE_PHASE, PhaseLayout, inverse_vsd
+from ..validation import ParameterError
+from .base import AbstractModulator
+from .multiphase_svpwm import padded_reference
+
+__all__ = ["ZeroSequencePWM"]
+
+Injection = Literal["min-max", "none"]
+
+
+class ZeroSequencePWM(AbstractModulator):
+    """Carrier PWM with one zero sequence per star (module docstring). `layout` (static, default five
+    phases); `injection` (static): ``"min-max"`` or ``"none"``."""
+
+    layout: PhaseLayout = eqx.field(static=True, default=FIVE_PHASE)
+    injection: Injection = eqx.field(static=True, default="min-max")
+    name: str = eqx.field(static=True, default="carrier")
+
+    def __check_init__(self):
+        self.layout.check()
+        if self.injection not in ("min-max", "none"):
+            raise ParameterError(f"injection must be 'min-max' or 'none', got {self.injection!r}.")
+        if self.injection == "min-max":
+            for group in self.layout.neutrals:
+                m = len(group)
+                g = np.sort(
+                    np.mod(
+                        np.asarray(self.layout.angles)[list(group)] - self.layout.angles[group[0]], 2 * np.pi
+                    )
+                )
+                if m % 2 == 0 or not np.allclose(g, 2 * np.pi * np.arange(m) / m, atol=1e-9):
+                    raise ParameterError(
+                        f"ZeroSequencePWM min-max: each star must be a symmetrical set of an odd number of "
+                        f"phases for the stated linear range; layout {self.layout.name!r} has {group}."
+                    )
+
+    @property
+    def n_phases(self) -> int:  # type: ignore[override]
+        return self.layout.n
+
+    def phase_references(self, u_ref: Array) -> Array:
+        """``(n,)`` phase references, V, of a ``(2,)`` or full VSD reference."""
+        return inverse_vsd(padded_reference(u_ref, self.layout.n_active), self.layout)
+
+    def duties(self, u_ref, u_dc):
+        u = self.phase_references(u_ref)
+        if self.injection == "none":
+            return jnp.clip(0.5 + u / u_dc, 0.0, 1.0)
+        u_0 = jnp.zeros_like(u)
+        for group in self.layout.neutrals:
+            idx = np.asarray(group)
+            mask = np.zeros(self.layout.n)
+            mask[idx] = 1.0
+            zs = -0.5 * (jnp.max(u[idx]) + jnp.min(u[idx]))
+            u_0 = u_0 + jnp.asarray(mask, u.dtype) * zs
+        return jnp.clip(0.5 + (u + u_0) / u_dc, 0.0, 1.0)
+
+    def linear_limit(self, u_dc):
+        if self.injection == "none":
+            return 0.5 * u_dc
+        m = max(len(g) for g in self.layout.neutrals)
+        return u_dc / (2.0 * math.cos(math.pi / (2 * m)))

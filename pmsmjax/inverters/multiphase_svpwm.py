@@ -1,0 +1,182 @@
+"""Near-four-vector SVPWM for any multi-phase layout with two VSD planes (BOOK.md chapter 10: five phases;
+the construction of :class:`~pmsmjax.inverters.six_phase_svpwm.FourVectorSVPWM` for six).
+
+In the sector ``k`` of the alpha-beta reference (between the large vectors L_k and L_k+1,
+:mod:`.multiphase_vectors`) it applies L_k, L_k+1 and the two collinear vectors of the next group (five
+phases: the medium vectors M_k, M_k+1) for the dwell fractions that solve
+
+    [L_k  L_k+1  M_k  M_k+1] t = [u_alpha, u_beta, u_x, u_y] / U_dc
+
+(all four planes' components of each state), so the second plane's (x-y's) period average is the commanded
+one, zero for a ``(2,)`` reference (Iqbal & Levi, "Space vector PWM techniques for sinusoidal output
+voltage generation with a five-phase voltage source inverter", Electric Power Components and Systems
+34(2), 2006: the "near-four-vector" method). The rest of the period is shared equally by the zero states,
+leg ``x``'s duty ``d_x = sum_i t_i b_{i,x} + t_0/2``; the bridge realises it by centre-aligned carrier
+comparison, so the period average of the applied voltage is exactly ``sum_i t_i V_i``.
+
+**Linear range** (x-y reference 0): the dwell times sum to one at the sector bisectors at
+``|u| = U_dc / (2 cos(pi/10)) = 0.5257 U_dc`` for five phases (:meth:`NearFourVectorSVPWM.linear_limit`
+computes it from the tables: ``1 / sum(t)`` for a unit reference along a bisector). That is the same
+limit as carrier PWM with min-max zero-sequence injection (:mod:`.multiphase_carrier`), and inside it
+the two give the same duties (the zero states split equally is min-max injection): a check of each
+against the other. Six phases: the same tables give ``U_dc/sqrt(3)``.
+
+:class:`LargeVectorSVPWM` is the contrast (the six-phase two-vector method's counterpart): only L_k, L_k+1,
+``[L_k L_k+1]_ab t = u_ab / U_dc``, the x-y average left as it falls (five phases: ``0.2472 U_dc`` per unit
+of dwell time, driving third and seventh harmonic currents through the leakage); linear to the inscribed
+circle of the L polygon, ``|L| cos(pi/K)`` (five phases: ``(4/5) cos 36 deg cos 18 deg = 0.6155 U_dc``).
+
+Over-modulation: as the six-phase method, dwell times beyond the period are scaled to it (direction kept,
+x-y average still as commanded up to that scale), negative dwell times (an unreachable x-y command) set
+to zero. Reference: ``(2,)`` [alpha, beta] or ``(4,)`` [alpha, beta, x, y], V.
+"""
+
+import functools
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._types import Array
+from ..multiphase_frames import FIVE_PHASE, PhaseLayout
+from ..validation import ParameterError
+from .base import AbstractModulator
+from .multiphase_vectors import space_vectors
+
+__all__ = ["LargeVectorSVPWM", "NearFourVectorSVPWM", "four_vector_tables", "padded_reference"]
+
+
+def padded_reference(u_ref: Array, n_active: int = 4) -> Array:
+    """``(n_active,)`` VSD reference from a ``(2,)`` alpha-beta one (other planes 0) or a full one."""
+    shape = jnp.shape(u_ref)
+    if shape == (2,):
+        return jnp.concatenate([u_ref, jnp.zeros(n_active - 2, jnp.result_type(u_ref))])
+    if shape == (n_active,):
+        return u_ref
+    raise ParameterError(
+        f"this modulator takes a (2,) [alpha, beta] or ({n_active},) VSD reference, got {shape}."
+    )
+
+
+@functools.lru_cache(maxsize=8)
+def four_vector_tables(layout: PhaseLayout) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per sector ``k``: ``inv (K, 4, 4)`` the inverse of ``[L_k L_k+1 S_k S_k+1]`` (columns the states'
+    VSD vectors per unit of ``U_dc``), ``states (K, 4, n)`` their leg states, ``bisectors (K, 2)``."""
+    if layout.n_active != 4:
+        raise ParameterError(
+            f"near-four-vector SVPWM needs two VSD planes; the layout {layout.name!r} has {layout.n_planes}."
+        )
+    sv = space_vectors(layout)
+    K = len(sv.large)
+    nxt = lambda idx: np.roll(idx, -1)
+    columns = [sv.large, nxt(sv.large), sv.second, nxt(sv.second)]
+    inv = np.empty((K, 4, 4))
+    states = np.empty((K, 4, layout.n))
+    for k in range(K):
+        idx = [c[k] for c in columns]
+        inv[k] = np.linalg.inv(sv.vectors[idx].T)
+        states[k] = sv.states[idx]
+    for a in (inv, states):
+        a.setflags(write=False)
+    return inv, states, sv.bisectors
+
+
+@functools.lru_cache(maxsize=8)
+def large_vector_tables(layout: PhaseLayout) -> tuple[np.ndarray, np.ndarray]:
+    """Per sector: ``inv (K, 2, 2)`` of ``[L_k L_k+1]`` on alpha-beta, ``states (K, 2, n)``."""
+    sv = space_vectors(layout)
+    K = len(sv.large)
+    inv = np.empty((K, 2, 2))
+    states = np.empty((K, 2, layout.n))
+    for k in range(K):
+        idx = [sv.large[k], sv.large[(k + 1) % K]]
+        inv[k] = np.linalg.inv(sv.vectors[idx, :2].T)
+        states[k] = sv.states[idx]
+    for a in (inv, states):
+        a.setflags(write=False)
+    return inv, states
+
+
+def _select(table: np.ndarray, k: Array, dtype) -> Array:
+    """``table[k]`` as a one-hot product (its reverse-mode derivative stays a product, not a scatter)."""
+    one_hot = jax.nn.one_hot(k, table.shape[0], dtype=dtype)
+    return jnp.tensordot(one_hot, jnp.asarray(table, dtype), axes=1)
+
+
+def _duties(t: Array, states: Array) -> Array:
+    """Leg duties from dwell fractions ``t (m,)`` of states ``(m, n)`` (negative times set to 0, scaled to
+    the period if they exceed it), the zero states sharing the rest equally."""
+    t = jnp.maximum(t, 0.0)
+    total = jnp.sum(t)
+    over = total > 1.0
+    t = t * jnp.where(over, 1.0 / jnp.where(over, total, 1.0), 1.0)  # double-where: finite gradient
+    return t @ states + 0.5 * (1.0 - jnp.sum(t))
+
+
+class NearFourVectorSVPWM(AbstractModulator):
+    """Near-four-vector SVPWM (module docstring): two large and two next vectors per sector, the second
+    plane's average nulled (or as commanded). `layout` (static): the winding, default five phases."""
+
+    layout: PhaseLayout = eqx.field(static=True, default=FIVE_PHASE)
+    name: str = eqx.field(static=True, default="near-four-vector")
+
+    def __check_init__(self):
+        four_vector_tables(self.layout)  # raises for a layout without two planes
+
+    @property
+    def n_phases(self) -> int:  # type: ignore[override]
+        return self.layout.n
+
+    def sector(self, u_ab: Array) -> Array:
+        """Sector index (int) of a ``(2,)`` alpha-beta vector: the bisector it projects most on."""
+        _, _, bisectors = four_vector_tables(self.layout)
+        return jnp.argmax(jnp.asarray(bisectors, u_ab.dtype) @ u_ab)
+
+    def dwell_times(self, u_ref: Array, u_dc: Array) -> tuple[Array, Array]:
+        """``(k, t (4,))``: sector and dwell fractions of L_k, L_k+1, S_k, S_k+1 before any scaling."""
+        u = padded_reference(u_ref, self.layout.n_active)
+        inv, _, _ = four_vector_tables(self.layout)
+        k = self.sector(u[:2])
+        return k, _select(inv, k, u.dtype) @ (u / u_dc)
+
+    def duties(self, u_ref, u_dc):
+        k, t = self.dwell_times(u_ref, u_dc)
+        _, states, _ = four_vector_tables(self.layout)
+        return _duties(t, _select(states, k, t.dtype))
+
+    def linear_limit(self, u_dc):
+        """``U_dc / sum(t)`` for a unit reference along a bisector (x-y 0), V peak (five phases:
+        ``U_dc / (2 cos 18 deg)``)."""
+        inv, _, bisectors = four_vector_tables(self.layout)
+        total = np.sum(inv[0] @ np.concatenate([bisectors[0], np.zeros(2)]))
+        return u_dc / total
+
+
+class LargeVectorSVPWM(AbstractModulator):
+    """SVPWM with the two adjacent large vectors only (module docstring): the second plane's average is
+    not controlled. `layout` (static), default five phases. Linear to ``|L| cos(pi/K) U_dc``."""
+
+    layout: PhaseLayout = eqx.field(static=True, default=FIVE_PHASE)
+    name: str = eqx.field(static=True, default="large-vector")
+
+    @property
+    def n_phases(self) -> int:  # type: ignore[override]
+        return self.layout.n
+
+    def dwell_times(self, u_ref: Array, u_dc: Array) -> tuple[Array, Array]:
+        """``(k, t (2,))``: sector and dwell fractions of L_k, L_k+1 before any scaling."""
+        u = padded_reference(u_ref, self.layout.n_active)
+        inv, _ = large_vector_tables(self.layout)
+        _, _, bisectors = four_vector_tables(self.layout)
+        k = jnp.argmax(jnp.asarray(bisectors, u.dtype) @ u[:2])
+        return k, _select(inv, k, u.dtype) @ (u[:2] / u_dc)
+
+    def duties(self, u_ref, u_dc):
+        k, t = self.dwell_times(u_ref, u_dc)
+        _, states = large_vector_tables(self.layout)
+        return _duties(t, _select(states, k, t.dtype))
+
+    def linear_limit(self, u_dc):
+        sv = space_vectors(self.layout)
+        return sv.large_magnitude * np.cos(np.pi / len(sv.large)) * u_dc

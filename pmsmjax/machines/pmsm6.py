@@ -1,0 +1,109 @@
+"""The six-phase (dual three-phase) PMSM in double-dq coordinates (BOOK.md chapters 7 and 9).
+
+Each three-phase set has its own Park transform, ABC at ``th`` and UVW at ``th - pi/6``
+(:func:`pmsmjax.multiphase_frames.double_dq`); both dq frames lie on the rotor. State
+``[i_d1, i_q1, i_d2, i_q2]``, A. From the natural-frame inductances (``L_ls`` leakage, ``L_0m``, ``L_2m``
+magnetising, :mod:`.pmsm_multiphase`), a set's own dq inductance is ``L_ls + L_m{d,q}`` and the mutual
+inductance between the sets ``L_m{d,q}``, with ``L_md = 1.5 (L_0m + L_2m)`` and
+``L_mq = 1.5 (L_0m - L_2m)``; each set links the magnet flux ``psi_f`` on its d axis::
+
+    psi_d1 = (L_ls + L_md) i_d1 + L_md i_d2 + psi_f,   psi_q1 = (L_ls + L_mq) i_q1 + L_mq i_q2
+    psi_d2 = (L_ls + L_md) i_d2 + L_md i_d1 + psi_f,   psi_q2 = (L_ls + L_mq) i_q2 + L_mq i_q1
+    u_dk = R i_dk + dpsi_dk/dt - w_e psi_qk,            u_qk = R i_qk + dpsi_qk/dt + w_e psi_dk
+    T_e = 1.5 p_n sum_k (psi_dk i_qk - psi_qk i_dk)
+
+(``L_md = (L_d - L_ls)/2``, ``L_mq = (L_q - L_ls)/2`` in terms of the VSD inductances.) The mutual terms
+couple the two sets' current loops: the cross-coupling that the double-dq controller of chapter 9
+compensates (:mod:`pmsmjax.controllers.six_phase`).
+"""
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from .._types import Array
+from ..frames import inverse_park, park
+from ..multiphase_frames import SIX_PHASE, PhaseLayout, double_dq_to_vsd, vsd_to_double_dq
+from ..validation import ParameterError
+from .base import MachineInput, Mechanics
+from .multiphase_motor import MultiPhaseParameters
+from .pmsm_multiphase import AbstractMultiPhaseMachine, _as_scale
+
+__all__ = ["PMSM6DoubleDQ"]
+
+
+class PMSM6DoubleDQ(AbstractMultiPhaseMachine):
+    """Six-phase PMSM in double-dq coordinates; state ``(4,)`` [i_d1, i_q1, i_d2, i_q2], A.
+
+    **Arguments:** `motor` (six-phase :class:`MultiPhaseParameters`), `mechanics`, `resistance_scale`
+    (``(6,)`` phase resistance factors or None).
+    """
+
+    motor: MultiPhaseParameters
+    mechanics: Mechanics = eqx.field(static=True, default="dynamic")
+    resistance_scale: Array | None = eqx.field(default=None, converter=_as_scale)
+    layout: PhaseLayout = eqx.field(static=True, default=SIX_PHASE)
+
+    def __check_init__(self):
+        if self.layout != SIX_PHASE:
+            raise ParameterError("PMSM6DoubleDQ models the dual three-phase winding only (layout SIX_PHASE).")
+        self._check()
+
+    def magnetising(self):
+        """``(L_md, L_mq)``, H: the mutual dq inductances between the sets."""
+        m = self.motor
+        return 0.5 * (m.L_d - m.L_ls), 0.5 * (m.L_q - m.L_ls)
+
+    def flux(self, currents: Array) -> Array:
+        """``(4,)`` [psi_d1, psi_q1, psi_d2, psi_q2], Wb."""
+        m = self.motor
+        L_md, L_mq = self.magnetising()
+        i_d1, i_q1, i_d2, i_q2 = currents[0], currents[1], currents[2], currents[3]
+        return jnp.stack(
+            [
+                (m.L_ls + L_md) * i_d1 + L_md * i_d2 + m.psi_f,
+                (m.L_ls + L_mq) * i_q1 + L_mq * i_q2,
+                (m.L_ls + L_md) * i_d2 + L_md * i_d1 + m.psi_f,
+                (m.L_ls + L_mq) * i_q2 + L_mq * i_q1,
+            ]
+        )
+
+    def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
+        m = self.motor
+        L_md, L_mq = self.magnetising()
+        u_vsd = u.alpha_beta(theta_e)
+        u_dd = vsd_to_double_dq(jnp.concatenate([park(u_vsd[:2], theta_e), u_vsd[2:]]), theta_e)
+        if self.resistance_scale is None:
+            r = m.R * currents
+        else:
+            r_vsd = self.resistive_voltage_vsd(self.currents_to_vsd(currents, theta_e))
+            r = vsd_to_double_dq(jnp.concatenate([park(r_vsd[:2], theta_e), r_vsd[2:]]), theta_e)
+        psi = self.flux(currents)
+        # dpsi/dt = u - R i - w_e J psi, per set; J psi = [-psi_q, psi_d].
+        rotational = jnp.stack([-psi[1], psi[0], -psi[3], psi[2]])
+        dpsi = u_dd - r - omega_e * rotational
+        # Per axis, [[Ls, M], [M, Ls]] [di_1, di_2] = [dpsi_1, dpsi_2]; det = (Ls - M)(Ls + M) = L_ls L_{d,q}.
+        Ls_d, Ls_q = m.L_ls + L_md, m.L_ls + L_mq
+        det_d, det_q = m.L_ls * m.L_d, m.L_ls * m.L_q
+        return jnp.stack(
+            [
+                (Ls_d * dpsi[0] - L_md * dpsi[2]) / det_d,
+                (Ls_q * dpsi[1] - L_mq * dpsi[3]) / det_q,
+                (Ls_d * dpsi[2] - L_md * dpsi[0]) / det_d,
+                (Ls_q * dpsi[3] - L_mq * dpsi[1]) / det_q,
+            ]
+        )
+
+    def torque(self, currents, theta_e):
+        psi = self.flux(currents)
+        return (
+            1.5
+            * self.motor.pole_pairs
+            * (psi[0] * currents[1] - psi[1] * currents[0] + psi[2] * currents[3] - psi[3] * currents[2])
+        )
+
+    def currents_to_vsd(self, currents, theta_e):
+        x = double_dq_to_vsd(currents, theta_e)
+        return jnp.concatenate([inverse_park(x[:2], theta_e), x[2:]])
+
+    def currents_from_vsd(self, i_vsd, theta_e):
+        return vsd_to_double_dq(jnp.concatenate([park(i_vsd[:2], theta_e), i_vsd[2:]]), theta_e)
