@@ -172,7 +172,9 @@ def test_observer_tuning_resumes_exactly_and_the_command_writes_its_outputs(tmp_
 
 
 def test_estimator_needs_the_foc_control(tmp_path):
-    with pytest.raises(ParameterError, match="--estimator ekf tunes an observer on the three-phase FOC drive"):
+    with pytest.raises(
+        ParameterError, match="--estimator ekf tunes an observer on the three-phase FOC drive"
+    ):
         run_tune_job(tmp_path, estimator="ekf", control="smc", n_train=1, n_heldout=1)
 
 
