@@ -1,6 +1,7 @@
 """Selecting a drive's tunable array leaves by name, their positive parameterisation, and gains files.
 
-Names are dotted attribute paths from the drive, e.g. ``controller.speed.kp``. Tuning works on
+Names are dotted attribute paths from the drive, e.g. ``controller.speed.kp``; an element of a vector leaf
+is named with its index, e.g. ``estimator.observer.q[2]`` (the EKF's speed process noise). Tuning works on
 ``theta = log(p / p0)``: every gain stays positive, all parameters are on the same scale whatever their
 units, and theta = 0 is the starting point (the design-rule gains). Bounds are factors on ``p0``.
 """
@@ -47,20 +48,48 @@ ALIASES = {
 }
 
 
+def _split_index(name: str) -> tuple[str, int | None]:
+    """``"a.b[2]"`` -> ``("a.b", 2)``; ``"a.b"`` -> ``("a.b", None)``."""
+    if name.endswith("]") and "[" in name:
+        path, index = name[:-1].rsplit("[", 1)
+        if index.isdigit():
+            return path, int(index)
+    return name, None
+
+
 def get_leaf(drive, name: str):
-    """The leaf of ``drive`` at the dotted path ``name`` (e.g. ``controller.speed.kp``)."""
+    """The leaf of ``drive`` at the dotted path ``name`` (e.g. ``controller.speed.kp``), or the element of a
+    vector leaf (``estimator.observer.q[2]``)."""
+    path, index = _split_index(name)
     node = drive
-    for part in name.split("."):
+    for part in path.split("."):
         node = getattr(node, part)
-    return node
+    return node if index is None else node[index]
+
+
+def set_leaves(drive, names, values):
+    """``drive`` with the leaves (or vector-leaf elements) ``names`` set to ``values`` (traceable)."""
+    updates: dict[str, object] = {}
+    for name, value in zip(names, values, strict=True):
+        path, index = _split_index(name)
+        if index is None:
+            updates[path] = value
+        else:
+            leaf = updates.get(path, get_leaf(drive, path))
+            updates[path] = jnp.asarray(leaf).at[index].set(value)
+    paths = list(updates)
+    getters = [lambda d, n=n: get_leaf(d, n) for n in paths]
+    return eqx.tree_at(lambda d: [g(d) for g in getters], drive, [updates[n] for n in paths])
 
 
 def array_leaf_names(drive: Drive) -> list[str]:
-    """Dotted names of every scalar floating-point array leaf of ``drive``."""
+    """Dotted names of every scalar floating-point array leaf of ``drive``, and ``name[i]`` for each
+    element of a vector (1-D) one."""
     names = []
     for path, leaf in jax.tree_util.tree_flatten_with_path(drive)[0]:
-        if eqx.is_inexact_array(leaf) and leaf.shape == ():
-            names.append(".".join(str(getattr(k, "name", k)) for k in path))
+        if eqx.is_inexact_array(leaf) and leaf.ndim <= 1:
+            name = ".".join(str(getattr(k, "name", k)) for k in path)
+            names.extend([name] if leaf.ndim == 0 else [f"{name}[{i}]" for i in range(leaf.shape[0])])
     return names
 
 
@@ -121,8 +150,7 @@ class LogParameterisation(eqx.Module):
     def apply(self, drive: Drive, theta) -> Drive:
         """``drive`` with the named leaves set to ``p0 exp(theta)``."""
         p = self.values(theta)
-        getters = [lambda d, n=n: get_leaf(d, n) for n in self.names]
-        return eqx.tree_at(lambda d: [g(d) for g in getters], drive, [p[i] for i in range(len(self.names))])
+        return set_leaves(drive, self.names, [p[i] for i in range(len(self.names))])
 
 
 def write_gains_toml(path, names, values, header: str = "") -> Path:
@@ -148,8 +176,5 @@ def apply_gains(drive: Drive, gains) -> Drive:
     if not isinstance(gains, dict):
         gains = read_gains_toml(gains)
     names = resolve_names(drive, list(gains))
-    getters = [lambda d, n=n: get_leaf(d, n) for n in names]
     dtype = drive.machine.motor.R.dtype
-    return eqx.tree_at(
-        lambda d: [g(d) for g in getters], drive, [jnp.asarray(gains[n], dtype) for n in names]
-    )
+    return set_leaves(drive, names, [jnp.asarray(gains[n], dtype) for n in names])

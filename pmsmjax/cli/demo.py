@@ -380,9 +380,10 @@ def run(args) -> int:
         else:
             motor = presets.load_motor(args.motor, check_units=not args.trust_units)
             drive = control_drive_from_flags(args, motor)
-        drive = apply_gains_flag(drive, read_gains_flag(args.gains), args.control)
         if args.estimator:  # three-phase only (check_machine_flags)
             drive = presets.with_observer(drive, args.estimator, motor)
+        # after the observer is in: a gains.toml of pmsmjax tune --estimator names estimator.observer.*
+        drive = apply_gains_flag(drive, read_gains_flag(args.gains), args.control)
         scenario = presets.book_scenario(args.speed_rpm, args.load_nm, args.load_time_s, args.duration_s)
         n = args.duration_s / drive.Ts
         if abs(n - round(n)) > 1e-6 * max(n, 1.0):

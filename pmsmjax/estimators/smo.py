@@ -143,7 +143,10 @@ class SlidingModeObserver(AbstractEstimator):
     k: Array = eqx.field(converter=as_float)
     width: Array = eqx.field(converter=as_float)
     omega_c: Array = eqx.field(converter=as_float)
-    speed_bandwidth: Array | None = None
+    # an array when given (like every gain: tunable, vmappable; pmsmjax tune --estimator tunes it)
+    speed_bandwidth: Array | None = eqx.field(
+        default=None, converter=lambda x: None if x is None else as_float(x)
+    )
     pll: PLL | None = None
     emf_floor: Array | None = None
     switching: Switching = eqx.field(static=True, default="sigmoid")

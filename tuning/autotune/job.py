@@ -12,6 +12,12 @@ when ``weights`` is None).
 ``vsd``, ``double-dq``, ``conventional`` or ``pr`` (default ``vsd``); ``machine="five-phase"``: the
 five-phase drive (:func:`pmsmjax.presets_five_phase.five_phase_drive`) under ``vsd`` or ``conventional``.
 
+Observers (``estimator``: ``smo``, ``smo-pll``, ``adaptive-smo``, ``dq-smo``, ``mras``, ``ekf``;
+:mod:`tuning.autotune.observers`): the book FOC drive on that observer behind a sensored warm-up, its
+default parameters, the observer batches (start at speed, steps down to 5 % of rated, load steps;
+``kinds=("step", "reversal")`` adds reversals) and the objective speed ITAE plus angle-error RMS; the
+tuned gains' stability is checked with the observer's own ``check_period``.
+
 Surrogate and exact model: tuning runs the drive with ``tune_substeps`` RK4 steps per period (1 by
 default: 4e-7 of peak current from the exact solution at 10 kHz, and a 4x cheaper gradient) and with the
 control's smooth surrogate (the SMC's ``tanh`` switching instead of ``sign``); every before/after figure is
@@ -42,6 +48,7 @@ else:  # pragma: no cover
 from ..parameters import apply_gains, get_leaf, write_gains_toml
 from .controls import control_tuning
 from .objectives import ObjectiveWeights, aggregate, batch_metrics, scenario_cost
+from .observers import OBSERVER_CONFIG, make_observer_batch, observer_drive, observer_tuning
 from .scenario_batches import ScenarioBatch, make_batch
 from .tuner import TuneConfig, tune
 
@@ -64,6 +71,7 @@ JOB_KEYS = (
     "control",
     "start_gains",
     "machine",
+    "estimator",
 )
 
 
@@ -130,7 +138,7 @@ def run_tune_job(
     n_heldout: int = 64,
     train_seed: int = 0,
     heldout_seed: int = 1,
-    duration_s: tuple[float, float] = (0.3, 0.5),
+    duration_s: tuple[float, float] | None = None,
     kinds: tuple[str, ...] = ("step",),
     plant_spread: dict | None = None,
     tune_substeps: int = 1,
@@ -138,6 +146,7 @@ def run_tune_job(
     control: str | None = None,
     start_gains: str | None = None,
     machine: str = "three-phase",
+    estimator: str | None = None,
     weights: ObjectiveWeights | None = None,
     config: TuneConfig = DEFAULT_CONFIG,
     progress: bool = True,
@@ -146,22 +155,48 @@ def run_tune_job(
     """Tune the gains of the book drive under ``control`` and write the outputs into ``out_dir``; returns
     result.json's content. `start_gains`: a gains TOML (an earlier run's gains.toml) to start from
     instead of the design-rule gains. `machine`: ``three-phase`` (the book motor), ``six-phase`` or
-    ``five-phase``."""
+    ``five-phase``. `estimator`: tune that chapter 5 observer's parameters instead (module docstring; the
+    three-phase FOC drive, control ``pi``); `duration_s` defaults to (0.3, 0.5) s for a control and
+    (0.15, 0.25) s for an observer."""
     if machine not in ("three-phase", "six-phase", "five-phase"):
         raise ParameterError(f"machine must be 'three-phase', 'six-phase' or 'five-phase', got {machine!r}.")
-    if control is None:
-        control = "pi" if machine == "three-phase" else "vsd"
-    tuning = control_tuning(control, machine)
+    if estimator is not None:
+        if machine != "three-phase" or control not in (None, "pi"):
+            raise ParameterError(
+                f"--estimator {estimator} tunes an observer on the three-phase FOC drive (control pi); drop "
+                f"--control {control} / --machine {machine} or tune the control's gains without --estimator."
+            )
+        control = "pi"
+        tuning = observer_tuning(estimator)
+        # no settings given: the observers' optimiser (observers.OBSERVER_CONFIG)
+        if config is DEFAULT_CONFIG:
+            config = dataclasses.replace(DEFAULT_CONFIG, **OBSERVER_CONFIG)
+
+        def build(substeps, options):
+            return observer_drive(estimator, n_substeps=substeps, observer_options=options)
+
+        batch_maker = make_observer_batch
+        duration_s = (0.15, 0.25) if duration_s is None else duration_s
+    else:
+        if control is None:
+            control = "pi" if machine == "three-phase" else "vsd"
+        tuning = control_tuning(control, machine)
+
+        def build(substeps, options):
+            return _drive(machine, control, n_substeps=substeps, **options)
+
+        batch_maker = make_batch
+        duration_s = (0.3, 0.5) if duration_s is None else duration_s
     weights = ObjectiveWeights(**tuning.weights) if weights is None else weights
     if config.names is None:
         config = dataclasses.replace(config, names=tuning.names)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     batch_options = dict(duration_s=duration_s, kinds=kinds, plant_spread=plant_spread)
-    train = make_batch(n_train, train_seed, **batch_options)
-    heldout = make_batch(n_heldout, heldout_seed, **batch_options)
-    surrogate = _drive(machine, control, n_substeps=tune_substeps, **tuning.surrogate)
-    exact = _drive(machine, control, n_substeps=eval_substeps)
+    train = batch_maker(n_train, train_seed, **batch_options)
+    heldout = batch_maker(n_heldout, heldout_seed, **batch_options)
+    surrogate = build(tune_substeps, tuning.surrogate)
+    exact = build(eval_substeps, {})
     if start_gains is not None:
         surrogate, exact = apply_gains(surrogate, start_gains), apply_gains(exact, start_gains)
 
@@ -183,7 +218,7 @@ def run_tune_job(
         },
     }
     if tuning.surrogate:  # the smoothed law at the exact model's sub-steps: what the optimiser saw
-        smoothed = _drive(machine, control, n_substeps=eval_substeps, **tuning.surrogate)
+        smoothed = build(eval_substeps, tuning.surrogate)
         if start_gains is not None:
             smoothed = apply_gains(smoothed, start_gains)
         report["heldout"]["after_surrogate"] = evaluate(apply_gains(smoothed, result.gains), heldout, weights)
@@ -195,6 +230,7 @@ def run_tune_job(
         },
         "control": control,
         "machine": machine,
+        "estimator": estimator,
         "gains": {"before": before_gains, "after": result.gains},
         "surrogate": {
             "options": dict(tuning.surrogate),
@@ -223,11 +259,14 @@ def run_tune_job(
         },
         "seeds": {"train": train_seed, "heldout": heldout_seed},
     }
+    if estimator is not None:
+        data["stability"] = _stability(tuned_exact)
+    what = f"--estimator {estimator}" if estimator is not None else f"--control {control}"
     write_gains_toml(
         out / "gains.toml",
         list(result.gains),
         list(result.gains.values()),
-        header=f"{control} gains tuned by pmsmjax tune --control {control} ({time.strftime('%Y-%m-%d')}); "
+        header=f"{estimator or control} gains tuned by pmsmjax tune {what} ({time.strftime('%Y-%m-%d')}); "
         "SI units.",
     )
     atomic_write(out / "result.json", lambda f: f.write(json.dumps(data, indent=2).encode()))
@@ -246,6 +285,16 @@ def _drive(machine: str, control: str, **options):
 
         return six_phase_drive(control=control, **options)
     return control_drive(control, **options)
+
+
+def _stability(drive) -> str:
+    """``"stable"``, or the observer's own ``check_period`` refusal of the tuned gains (a tuned point
+    outside the linearised stability region is reported, not hidden)."""
+    try:
+        drive.estimator.check_period(drive.Ts)
+    except ParameterError as err:
+        return f"refused by check_period: {err}"
+    return "stable"
 
 
 def _figures(out: Path, before, after, batch: ScenarioBatch, history) -> None:
@@ -278,7 +327,10 @@ def _figures(out: Path, before, after, batch: ScenarioBatch, history) -> None:
     for col, k in enumerate(picks):
         scenario = jax.tree.map(lambda a, k=k: a[k], batch.scenarios)
         for drive, label, fmt in ((before, "design rules", "-"), (after, "tuned", "-")):
-            tr = pmsmjax.simulate(drive, scenario)
+            start = None
+            if batch.initial_speed_m is not None:  # observer batches start at speed
+                start = drive.init(batch.initial_speed_m[k], batch.initial_theta_e[k])
+            tr = pmsmjax.simulate(drive, scenario, initial_state=start)
             t, end = np.asarray(tr.t), float(batch.duration_s[k])
             keep = t < end
             axes[0, col].plot(t[keep], rad_s_to_rpm(np.asarray(tr.omega_m))[keep], fmt, label=label)

@@ -27,6 +27,11 @@ class ScenarioBatch(eqx.Module):
     - `plant_scale`: ``{motor parameter: (B,) factor}``: each scenario runs a plant whose parameter is
       the drive's times this factor (robust tuning over parameter spreads; empty for the nominal plant).
       The controller's own motor model stays nominal, as it would on a real drive.
+    - `initial_speed_m`, `initial_theta_e`: ``(B,)`` mechanical speed (rad/s) and electrical angle (rad)
+      each scenario starts at (``None``: at rest, angle 0); the observer batches of
+      :mod:`tuning.autotune.observers` start at speed.
+    - `observe_from_s`: ``(B,)`` start of the window of the angle-error metric, s (``None``: from 0); the
+      observer batches start it when the observer takes over from the sensor.
     """
 
     scenarios: Scenario
@@ -34,6 +39,9 @@ class ScenarioBatch(eqx.Module):
     load_time_s: jnp.ndarray
     kind: tuple[str, ...] = eqx.field(static=True)
     plant_scale: dict = eqx.field(default_factory=dict)
+    initial_speed_m: jnp.ndarray | None = None
+    initial_theta_e: jnp.ndarray | None = None
+    observe_from_s: jnp.ndarray | None = None
 
     @property
     def size(self) -> int:
