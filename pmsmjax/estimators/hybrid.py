@@ -25,8 +25,8 @@ derivative is zero almost everywhere): it only selects one of two branches of th
 The band ``(w_low, w_high, w_off)`` and the filter are parameters (tunable; differentiable: the weight
 and the fade are smooth in them). Defaults (:func:`hybrid_design`): 5 % to 15 % of the book drive's
 1000 r/min (50 to 150 r/min), the carrier gone at 25 %; measured on the book scenario and a -1000 -> 1000
-r/min reversal (benchmarks/hybrid_table.py): 30/100/200 r/min holds as well, 80/200/300 r/min too but with
-17 degrees peak error in the reversal.
+r/min reversal (benchmarks/hybrid_table.py): 30/100/200 and 80/200/300 r/min hold as well (peak errors
+6.4 and 10.5 degrees after the 60 ms start-up, against 7.9 for the default; notes/issue-15-hybridfix.md).
 
 Slaving. A fundamental-model observer sees no back-EMF at standstill and runs wherever its equations take
 it; left alone it would have to converge while the drive accelerates through the band (a few ms at the
@@ -233,7 +233,9 @@ def hybrid_design(
 
     The default observer is the EKF: with the smo-pll the book scenario lost lock at every band tried
     (50-150, 100-200, 150-250 r/min; the SMO is not reliable below about 150 r/min and the injection lags
-    by 20 degrees and more at the current limit's acceleration above that; notes/issue-15-polarity.md)."""
+    by 20 degrees and more at the current limit's acceleration above that; notes/issue-15-polarity.md).
+    Since the pulls move the estimates (notes/issue-15-hybridfix.md) the smo-pll with a 150/250/350 r/min
+    band holds the book scenario (8 of 8 starts, 32 degrees peak) but still not the reversal."""
     from .polarity import polarity_detector
     from .registry import make_observer
 
