@@ -12,7 +12,9 @@ process noise), ``dth/dt = w``. Sampled exactly over the period as in :mod:`.sta
 (``th_w``: the angle of the period's weighted back-EMF, about the period's middle). The filter predicts
 with this model and its Jacobian (``jax.jacfwd``: exact for the model as written), then corrects with the
 sampled current; the covariance update is Joseph's form (stays symmetric positive definite in float32).
-``L`` is the model's ``L_q`` (active flux, :mod:`.stator_model`).
+``L`` is the model's ``L_q`` and ``psi_f`` is the active flux ``psi_f + (L_d - L_q) i_d`` with ``i_d`` the
+state's current in the state's rotor frame (:func:`active_flux`; :mod:`.stator_model`): the salient
+machine's EMF in steady state (the transient term ``(L_d - L_q) di_d/dt`` is left to the process noise).
 
 Design rule (:func:`ekf_design`, following the physical reading of Bolognani, Tubiana, Zigliotto,
 "Extended Kalman filter tuning in sensorless PMSM drives", IEEE TIA 39(6), 2003,
@@ -75,7 +77,7 @@ class EKF(AbstractEstimator):
         m = self.model
         phi, gamma = rl_coefficients(m.R, m.L_q, Ts)
         i, w, th = x[:2], x[2], x[3]
-        e = w * m.psi_f * emf_direction(th + w * Ts - period_weight_phase(w, m.R, m.L_q, Ts))
+        e = w * active_flux(m, i, th) * emf_direction(th + w * Ts - period_weight_phase(w, m.R, m.L_q, Ts))
         i_next = phi * i + gamma * (u_ab - e)
         return jnp.concatenate([i_next, jnp.stack([w, th + w * Ts])])
 
@@ -101,8 +103,24 @@ class EKF(AbstractEstimator):
         theta = wrap_angle(x[3])
         x = x.at[3].set(theta)
         w = x[2]
-        emf = w * m.psi_f * emf_direction(theta)
+        emf = w * active_flux(m, x[:2], theta) * emf_direction(theta)
         return EKFState(x, P), Estimate(theta, w / m.pole_pairs, back_emf_ab=emf)
+
+
+def active_flux(model: PMSMParameters, i_ab, theta) -> Array:
+    """The active flux ``psi_f + (L_d - L_q) i_d`` (Wb) of ``model`` for the stationary-frame current
+    ``i_ab (2,)`` (A) seen in a rotor frame at angle ``theta`` (rad): the flux whose rotation drives the
+    back-EMF of the salient machine written with ``L = L_q`` (:mod:`.stator_model`; Boldea et al. 2008).
+    ``psi_f`` exactly for ``L_d = L_q``.
+
+    Why it is in the filter's model and not taken as ``psi_f``: ``i_d = 0`` is held in the *estimated*
+    frame, so an angle error ``d`` gives the machine ``i_d = -i_q sin d`` and an EMF ``w (L_d - L_q) i_d``
+    the ``psi_f`` model does not have. The filter reads that EMF as a speed and angle error, which moves
+    ``d`` further: a loop whose gain grows with ``w i_q (L_q - L_d) / psi_f``. On the salient book motor
+    (L_d 5.25, L_q 12 mH) it went unstable at 2000 r/min under 2 N m (a growing ~30 Hz oscillation of
+    the speed loop, lock lost; notes/issue-15-hybridfix.md); the non-salient motor holds that point."""
+    i_d = i_ab[0] * jnp.cos(theta) + i_ab[1] * jnp.sin(theta)
+    return model.psi_f + (model.L_d - model.L_q) * i_d
 
 
 def _mm(a, b):

@@ -25,19 +25,23 @@ derivative is zero almost everywhere): it only selects one of two branches of th
 The band ``(w_low, w_high, w_off)`` and the filter are parameters (tunable; differentiable: the weight
 and the fade are smooth in them). Defaults (:func:`hybrid_design`): 5 % to 15 % of the book drive's
 1000 r/min (50 to 150 r/min), the carrier gone at 25 %; measured on the book scenario and a -1000 -> 1000
-r/min reversal (benchmarks/hybrid_table.py): 30/100/200 r/min holds as well, 80/200/300 r/min too but with
-17 degrees peak error in the reversal.
+r/min reversal (benchmarks/hybrid_table.py): 30/100/200 and 80/200/300 r/min hold as well (peak errors
+6.4 and 10.5 degrees after the 60 ms start-up, against 7.9 for the default; notes/issue-15-hybridfix.md).
 
 Slaving. A fundamental-model observer sees no back-EMF at standstill and runs wherever its equations take
 it; left alone it would have to converge while the drive accelerates through the band (a few ms at the
 book drive's current limit). So below the band the hybrid pulls the observer's angle and speed to its own
-estimate: after each step the observer's angle and speed states move by ``(1 - w)`` of their difference
-to the hybrid's (:func:`pull_observer`: fully slaved at ``w = 0``, free at ``w = 1``). It knows the states
-of :class:`.smo.SlidingModeObserver` with a PLL (the PLL tracks the back-EMF angle: rotor angle, plus pi
-below zero speed) and :class:`.ekf.EKF` (``x = [i_a, i_b, w_e, th_e]``); other observers run free.
-Likewise above the band the injection estimator's PLL is pulled by ``w`` to the hybrid's estimate (less
-the polarity correction; :func:`pull_injection`), so that when the carrier fades back in (a reversal) it
-is already locked on the right pole at the right speed instead of re-acquiring during the deceleration.
+estimate: after each step the observer's angle and speed states move so that its estimate goes
+``(1 - w)`` of its difference to the hybrid's (:func:`pull_observer`: fully slaved at ``w = 0``, free at
+``w = 1``). It knows the states of :class:`.smo.SlidingModeObserver` with a PLL (the PLL tracks the
+back-EMF angle: rotor angle, plus pi below zero speed) and :class:`.ekf.EKF` (``x = [i_a, i_b, w_e,
+th_e]``); other observers run free. Likewise above the band the injection estimator's PLL is pulled so
+that its estimate goes ``w`` of the way to the hybrid's (less the polarity correction;
+:func:`pull_injection`), so that when the carrier fades back in (a reversal) it is already locked on the
+right pole at the right speed instead of re-acquiring during the deceleration. Both pulls shift the
+states by the *estimate's* distance to the target: an estimator's output can be its state plus a
+compensation (the rotating injection adds half its filters' lag to its PLL angle, 13 degrees at 335 r/min),
+and setting the state to the target instead biased the blend inside the band (notes/issue-15-hybridfix.md).
 
 Start-up fields (``startup_weight``, ``startup_i_dq``) and the carrier-free current
 (``i_ab_fundamental``) come from the injection estimate (the polarity pulses, the carrier filter).
@@ -57,43 +61,53 @@ from .pll import PLLState
 from .stability import concrete_values
 
 
-def pull_observer(observer: AbstractEstimator, state, theta_e, omega_m, strength):
-    """``state`` of ``observer`` with its angle and speed moved by ``strength`` (in [0, 1]) of the way to
-    ``theta_e`` (rad) and ``omega_m`` (mechanical rad/s); unchanged for observers it does not know."""
+def pull_observer(observer: AbstractEstimator, state, estimate, theta_e, omega_m, strength):
+    """``state`` of ``observer``, whose estimate is ``estimate`` (this step's output), moved so that its
+    angle and speed go ``strength`` (in [0, 1]) of the way to ``theta_e`` (rad) and ``omega_m``
+    (mechanical rad/s); unchanged for observers it does not know.
+
+    The states are shifted by the *estimate's* distance to the target, not set from the target: an
+    observer's output may be its state plus a compensation (the smo-pll adds its filter chain's lag to
+    the PLL angle), and setting the state to the target would leave the output off by that compensation."""
     from .ekf import EKF
     from .smo import SlidingModeObserver
 
+    d_theta = strength * wrap_angle(theta_e - estimate.theta_e)
+    d_omega = strength * (omega_m - estimate.omega_m)
     if isinstance(observer, SlidingModeObserver) and observer.angle == "pll":
-        omega_e = observer.model.pole_pairs * omega_m
-        phi = theta_e + jnp.where(omega_e < 0, jnp.pi, 0.0)  # the back-EMF's angle the PLL tracks
-        theta = wrap_angle(state.theta + strength * wrap_angle(phi - state.theta))
-        omega = state.omega + strength * (omega_e - state.omega)
+        # the PLL tracks the back-EMF's angle (rotor angle, plus pi below zero): the same increment
+        theta = wrap_angle(state.theta + d_theta)
+        omega = state.omega + observer.model.pole_pairs * d_omega
         return eqx.tree_at(lambda s: (s.theta, s.omega), state, (theta, omega))
     if isinstance(observer, EKF):
         x = state.x
-        omega_e = observer.model.pole_pairs * omega_m
-        theta = wrap_angle(x[3] + strength * wrap_angle(theta_e - x[3]))
-        x = x.at[2].set(x[2] + strength * (omega_e - x[2])).at[3].set(theta)
+        x = x.at[2].add(observer.model.pole_pairs * d_omega).at[3].set(wrap_angle(x[3] + d_theta))
         return eqx.tree_at(lambda s: s.x, state, x)
     return state
 
 
-def pull_injection(injection: AbstractEstimator, state, theta_e, omega_m, strength):
-    """``state`` of the injection estimator with its PLL moved by ``strength`` of the way to ``theta_e``
-    (rad, the angle its estimate should give) and ``omega_m`` (mechanical rad/s). Knows the injection
-    estimators with a ``pll`` state (:mod:`.hfi_rotating`, :mod:`.hfi_pulsating`) and looks through a
-    :class:`.polarity.PolarityDetector` (less its flip); others run free."""
+def pull_injection(injection: AbstractEstimator, state, estimate, theta_e, omega_m, strength):
+    """``state`` of the injection estimator, whose estimate is ``estimate`` (this step's output, flip
+    included), with its PLL moved so that the estimate goes ``strength`` of the way to ``theta_e`` (rad)
+    and ``omega_m`` (mechanical rad/s). Knows the injection estimators with a ``pll`` state
+    (:mod:`.hfi_rotating`, :mod:`.hfi_pulsating`) and looks through a :class:`.polarity.PolarityDetector`
+    (its flip is in both ``theta_e`` and ``estimate``, so it cancels); others run free.
+
+    Shifted by the estimate's distance to the target, not set to it: the rotating injection's output is
+    its PLL angle plus half its filters' lag of the ``2 th`` image (``~ 2 w_e / B``: 13 electrical
+    degrees at 335 r/min on the book drive). Setting the PLL to the target left the output off by that
+    lag, and inside the crossover band, where the blend feeds back into both estimators, the two pulls
+    settled on an estimate off by up to twice it; that lost the hand-down under load
+    (notes/issue-15-hybridfix.md)."""
     from .polarity import PolarityDetector
 
     if isinstance(injection, PolarityDetector):
-        theta_inner = theta_e - injection.flip(state, state.t)
-        inner = pull_injection(injection.observer, state.observer, theta_inner, omega_m, strength)
+        inner = pull_injection(injection.observer, state.observer, estimate, theta_e, omega_m, strength)
         return eqx.tree_at(lambda s: s.observer, state, inner)
     pll = getattr(state, "pll", None)
     if isinstance(pll, PLLState) and hasattr(injection, "pole_pairs"):
-        omega_e = injection.pole_pairs * omega_m
-        theta = wrap_angle(pll.theta + strength * wrap_angle(theta_e - pll.theta))
-        omega = pll.omega + strength * (omega_e - pll.omega)
+        theta = wrap_angle(pll.theta + strength * wrap_angle(theta_e - estimate.theta_e))
+        omega = pll.omega + strength * injection.pole_pairs * (omega_m - estimate.omega_m)
         return eqx.tree_at(lambda s: s.pll, state, PLLState(theta, omega))
     return state
 
@@ -179,8 +193,8 @@ class HybridEstimator(AbstractEstimator):
         g = 1.0 - jnp.exp(-self.speed_filter * Ts)
         speed = state.speed + g * (jnp.abs(omega) - state.speed)
         u_inj = self.injection_scale(state.speed) * inj.u_injection_ab
-        obs_state = pull_observer(self.observer, obs_state, theta, omega, 1.0 - w)
-        inj_state = pull_injection(self.injection, inj_state, wrap_angle(theta - correction), omega, w)
+        obs_state = pull_observer(self.observer, obs_state, obs, theta, omega, 1.0 - w)
+        inj_state = pull_injection(self.injection, inj_state, inj, wrap_angle(theta - correction), omega, w)
         estimate = eqx.tree_at(
             lambda e: (e.theta_e, e.omega_m, e.u_injection_ab),
             inj,
@@ -219,7 +233,9 @@ def hybrid_design(
 
     The default observer is the EKF: with the smo-pll the book scenario lost lock at every band tried
     (50-150, 100-200, 150-250 r/min; the SMO is not reliable below about 150 r/min and the injection lags
-    by 20 degrees and more at the current limit's acceleration above that; notes/issue-15-polarity.md)."""
+    by 20 degrees and more at the current limit's acceleration above that; notes/issue-15-polarity.md).
+    Since the pulls move the estimates (notes/issue-15-hybridfix.md) the smo-pll with a 150/250/350 r/min
+    band holds the book scenario (8 of 8 starts, 32 degrees peak) but still not the reversal."""
     from .polarity import polarity_detector
     from .registry import make_observer
 
