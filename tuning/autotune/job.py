@@ -179,9 +179,10 @@ def run_tune_job(
 
         batch_maker = make_observer_batch
         if tuning.chapter6:  # injection estimators, hybrid: the low-speed batches, scored modulo pi
-            from .hfi_tuning import injection_batch_maker
+            from .hfi_tuning import INJECTION_KINDS, injection_batch_maker
 
             batch_maker = injection_batch_maker(estimator)
+            kinds = INJECTION_KINDS if tuple(kinds) == ("step",) else tuple(kinds)
         duration_s = (0.15, 0.25) if duration_s is None else duration_s
     else:
         if control is None:
