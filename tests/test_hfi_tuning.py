@@ -114,3 +114,25 @@ def test_careless_input_is_refused_in_one_line(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["tune", "--estimator", "hfi-pulsating", "--train", "0", "--out", str(tmp_path / "y")])
     assert "--train" in capsys.readouterr().err.strip().splitlines()[-1]
+
+
+def test_command_writes_its_outputs_with_angles_modulo_pi(tmp_path):
+    """``pmsmjax tune --estimator hfi-pulsating``: gains.toml (the tuned names), result.json (angle errors
+    modulo pi, the injection kinds, the stability verdict), the figures and the checkpoint."""
+    import json
+
+    from tuning.parameters import read_gains_toml
+
+    out = tmp_path / "tune"
+    args = ["tune", "--estimator", "hfi-pulsating", "--out", str(out), "--train", "1", "--heldout", "1"]
+    args += ["--iterations", "1", "--duration-s", "0.12", "0.12", "--eval-substeps", "1", "--no-progress"]
+    assert main(args) == 0
+    data = json.loads((out / "result.json").read_text())
+    assert data["estimator"] == "hfi-pulsating" and data["stability"] == "stable"
+    assert data["config"]["kinds"] == ["standstill", "slow"]
+    for part in ("train", "heldout"):
+        for when in ("before", "after"):
+            assert 0 < data[part][when]["angle_error_rms_rad"] < np.pi / 2  # modulo pi
+    assert set(read_gains_toml(out / "gains.toml")) == set(observer_tuning("hfi-pulsating").names)
+    for name in ("cost.png", "responses.png", "checkpoint.npz"):
+        assert (out / name).stat().st_size > 0
