@@ -46,7 +46,9 @@ BATCH = make_observer_batch(1, 3, duration_s=(0.12, 0.12), speed_rpm=(300.0, 150
 
 
 def test_every_observer_has_a_table_entry():
-    assert set(TUNABLE_OBSERVERS) == set(OBSERVERS)
+    from pmsmjax.estimators.registry import HYBRID_OBSERVERS, INJECTION_OBSERVERS
+
+    assert set(TUNABLE_OBSERVERS) == set(OBSERVERS) | set(INJECTION_OBSERVERS) | set(HYBRID_OBSERVERS)
 
 
 def _stable_draws(drive, param, rng, n):

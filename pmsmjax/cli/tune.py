@@ -43,9 +43,21 @@ def add_parser(sub):
     )
     p.add_argument(
         "--estimator",
-        choices=("smo", "smo-pll", "adaptive-smo", "dq-smo", "mras", "ekf"),
+        choices=(
+            "smo",
+            "smo-pll",
+            "adaptive-smo",
+            "dq-smo",
+            "mras",
+            "ekf",
+            "hfi-rotating",
+            "hfi-pulsating",
+            "hybrid",
+        ),
         help="tune this chapter 5 observer's parameters instead (on the FOC drive; objective: speed ITAE "
         "plus angle-error RMS over scenarios started at speed, steps down to 5 %% of rated, load steps; "
+        "chapter 6 hfi-rotating, hfi-pulsating, hybrid: filter and PLL gains (and the hybrid's crossover) "
+        "on the salient motor at standstill and within +-100 r/min (hybrid +-300), angle modulo pi; "
         "default: none)",
     )
     p.add_argument(

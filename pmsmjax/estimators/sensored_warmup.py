@@ -22,6 +22,9 @@ pole -0.97, gave 20 degrees RMS on the 0.5 % noise logs where the design rule gi
 fixed function of the period index and of the initial rotor angle (so each scenario of a batch gets
 its own stream), never of a gain: the loss stays a smooth, deterministic function of the gains.
 
+An injecting estimator (chapter 6) keeps injecting through the wrapper (``injects_voltage`` is the
+wrapped one's), and its carrier-free current for the controller is taken from the clean sample.
+
 The path of the wrapped observer is ``estimator.observer``, as in :class:`.startup.StartupEstimator`, so
 gains tuned on a warm-up drive (``estimator.observer.k``) apply unchanged to a drive with the I/f start.
 """
@@ -71,6 +74,10 @@ class SensoredWarmup(AbstractEstimator):
             if jnp.any(jnp.asarray(value) < 0):
                 raise ParameterError(f"SensoredWarmup.{name} must be >= 0 {unit} (0: no noise), got {value}.")
 
+    @property
+    def injects_voltage(self) -> bool:  # the wrapped estimator's carrier (HF injection) passes through
+        return self.observer.injects_voltage
+
     def check_period(self, Ts: float) -> None:
         self.observer.check_period(Ts)
 
@@ -102,4 +109,9 @@ class SensoredWarmup(AbstractEstimator):
                 jnp.where(on_observer, obs.omega_m, sample.sensor_omega_m),
             ),
         )
+        if obs.i_ab_fundamental is not None:
+            # the carrier-free current for the controller (HF injection): from the clean sample, as the
+            # controller keeps the clean sample (the observer filtered the noisy one)
+            fundamental = obs.i_ab_fundamental - (noisy.i_ab - sample.i_ab)
+            estimate = eqx.tree_at(lambda e: e.i_ab_fundamental, estimate, fundamental)
         return SensoredWarmupState(obs_state, state.t + Ts, jax.random.key_data(key)), estimate

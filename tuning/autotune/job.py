@@ -16,7 +16,9 @@ Observers (``estimator``: ``smo``, ``smo-pll``, ``adaptive-smo``, ``dq-smo``, ``
 :mod:`tuning.autotune.observers`): the book FOC drive on that observer behind a sensored warm-up, its
 default parameters, the observer batches (start at speed, steps down to 5 % of rated, load steps;
 ``kinds=("step", "reversal")`` adds reversals) and the objective speed ITAE plus angle-error RMS; the
-tuned gains' stability is checked with the observer's own ``check_period``.
+tuned gains' stability is checked with the observer's own ``check_period``. ``hfi-rotating``,
+``hfi-pulsating``, ``hybrid`` (chapter 6, :mod:`tuning.autotune.hfi_tuning`): the salient, saturated drive
+and low-speed batches (standstill, +-100 r/min), the angle error scored modulo pi.
 
 Surrogate and exact model: tuning runs the drive with ``tune_substeps`` RK4 steps per period (1 by
 default: 4e-7 of peak current from the exact solution at 10 kHz, and a 4x cheaper gradient) and with the
@@ -176,6 +178,11 @@ def run_tune_job(
             return observer_drive(estimator, n_substeps=substeps, observer_options=options)
 
         batch_maker = make_observer_batch
+        if tuning.chapter6:  # injection estimators, hybrid: the low-speed batches, scored modulo pi
+            from .hfi_tuning import INJECTION_KINDS, injection_batch_maker
+
+            batch_maker = injection_batch_maker(estimator)
+            kinds = INJECTION_KINDS if tuple(kinds) == ("step",) else tuple(kinds)
         duration_s = (0.15, 0.25) if duration_s is None else duration_s
     else:
         if control is None:

@@ -13,6 +13,7 @@ from typing import Literal
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 import pmsmjax
 from pmsmjax import metrics
@@ -94,9 +95,12 @@ def scenario_metrics(
     u_max,
     soft_width: float = 0.005,
     observe_from_s=0.0,
+    angle_modulo: float = 2.0 * np.pi,
 ) -> dict:
     """Figures of merit of one scenario's trace (see :data:`METRIC_NAMES`), over its own duration; the
-    angle error from ``observe_from_s`` (s) on."""
+    angle error from ``observe_from_s`` (s) on, modulo ``angle_modulo`` (electrical rad: ``2 pi``, or
+    ``pi`` for the injection estimators, whose error is wrapped to +-pi/2 and whose chord is
+    ``sin(e)``, i.e. the chord of ``2e`` halved)."""
     t = trace.t
     active = (t < duration_s - 1e-12).astype(t.dtype)
     n_active = jnp.sum(active)
@@ -127,11 +131,13 @@ def scenario_metrics(
     ripple = jnp.sqrt(jnp.sum((trace.torque - torque_mean) ** 2 * tail) / n_tail)
     observed = active * (t >= observe_from_s - 1e-12).astype(t.dtype)
     n_observed = jnp.maximum(jnp.sum(observed), 1.0)
-    angle_error = trace.theta_e_est - trace.theta_e
-    angle_ms = jnp.sum(wrap_angle(angle_error) ** 2 * observed) / n_observed
+    # in units of the metric's period scaled to 2 pi (m = 2 for modulo pi), then scaled back by 1/m
+    m = 2.0 * np.pi / angle_modulo
+    angle_error = m * (trace.theta_e_est - trace.theta_e)
+    angle_ms = jnp.sum(wrap_angle(angle_error) ** 2 * observed) / n_observed / m**2
     # 2 - 2 cos e = (2 sin(e/2))^2: e^2 to within e^4/12, periodic and smooth, where the wrapped error
     # jumps at +-pi (a lost lock would put jumps into the cost the optimiser follows)
-    chord_ms = jnp.sum((2.0 - 2.0 * jnp.cos(angle_error)) * observed) / n_observed
+    chord_ms = jnp.sum((2.0 - 2.0 * jnp.cos(angle_error)) * observed) / n_observed / m**2
     return {
         "itae": metrics.itae(t, e),
         "iae": metrics.iae(t, e),
@@ -216,7 +222,15 @@ def batch_metrics(drive: Drive, batch: ScenarioBatch) -> dict:
         start = None if speed0 is None else start_at_speed(plant, speed0, theta0)
         trace = pmsmjax.simulate(plant, scenario, initial_state=start)
         observe_from = 0.0 if observe_from is None else observe_from
-        return scenario_metrics(trace, duration, t_load, limit, u_max, observe_from_s=observe_from)
+        return scenario_metrics(
+            trace,
+            duration,
+            t_load,
+            limit,
+            u_max,
+            observe_from_s=observe_from,
+            angle_modulo=batch.angle_modulo,
+        )
 
     return jax.vmap(one)(
         batch.scenarios,

@@ -105,6 +105,8 @@ class ObserverTuning:
     weights: dict = dataclasses.field(
         default_factory=lambda: dict(itae=1.0, angle_error=ANGLE_WEIGHT, overshoot=0.0, current_penalty=0.0)
     )
+    #: chapter 6 (HF injection, hybrid): the salient, saturated drive and the low-speed batches
+    chapter6: bool = False
 
 
 TUNABLE_OBSERVERS = {
@@ -114,6 +116,26 @@ TUNABLE_OBSERVERS = {
     "dq-smo": ObserverTuning(_paths(*_SMO, "omega_c", "pll.kp", "pll.ki")),
     "mras": ObserverTuning(_paths("kp", "ki")),
     "ekf": ObserverTuning(_paths(*(f"q[{i}]" for i in range(4)), "r[0]", "r[1]")),
+    # chapter 6 (issue 15): filter cut-offs and PLL gains (rad/s, 1/s, 1/s^2); tuning.autotune.hfi_tuning
+    "hfi-rotating": ObserverTuning(
+        _paths("bandpass_bandwidth", "sequence_cutoff", "error_cutoff", "pll.kp", "pll.ki"), chapter6=True
+    ),
+    "hfi-pulsating": ObserverTuning(
+        _paths("bandpass_bandwidth", "error_cutoff", "pll.kp", "pll.ki"), chapter6=True
+    ),
+    "hybrid": ObserverTuning(
+        _paths(
+            "injection.bandpass_bandwidth",
+            "injection.sequence_cutoff",
+            "injection.error_cutoff",
+            "injection.pll.kp",
+            "injection.pll.ki",
+            "low_speed",
+            "high_speed",
+            "injection_off_speed",
+        ),
+        chapter6=True,
+    ),
 }
 
 
@@ -139,7 +161,12 @@ def observer_drive(
     sensored warm-up of ``warmup_s`` (s), with the measurement noise ``NOISE_CURRENT_A``,
     ``NOISE_VOLTAGE_V`` on the observer's samples unless ``noise=False``; ``kw`` go to
     :func:`pmsmjax.presets.sensorless_drive`."""
-    drive = presets.sensorless_drive(name, observer_options=observer_options, n_substeps=n_substeps, **kw)
+    if observer_tuning(name).chapter6:
+        from .hfi_tuning import injection_sensorless_drive
+
+        drive = injection_sensorless_drive(name, observer_options, n_substeps=n_substeps, **kw)
+    else:
+        drive = presets.sensorless_drive(name, observer_options=observer_options, n_substeps=n_substeps, **kw)
     levels = (NOISE_CURRENT_A, NOISE_VOLTAGE_V) if noise else (0.0, 0.0)
     drive = eqx.tree_at(lambda d: d.estimator, drive, SensoredWarmup(drive.estimator, warmup_s, *levels))
     # A gain stored as a Python float (the SMO's speed_bandwidth) is not an array leaf: make the tunable

@@ -32,6 +32,9 @@ class ScenarioBatch(eqx.Module):
       :mod:`tuning.autotune.observers` start at speed.
     - `observe_from_s`: ``(B,)`` start of the window of the angle-error metric, s (``None``: from 0); the
       observer batches start it when the observer takes over from the sensor.
+    - `angle_modulo`: static, the period of the angle-error metric, electrical rad: ``2 pi``, or ``pi`` for
+      the HF-injection estimators, which find the d axis modulo pi (their batches,
+      :func:`tuning.autotune.observers.make_injection_batch`).
     """
 
     scenarios: Scenario
@@ -42,6 +45,7 @@ class ScenarioBatch(eqx.Module):
     initial_speed_m: jnp.ndarray | None = None
     initial_theta_e: jnp.ndarray | None = None
     observe_from_s: jnp.ndarray | None = None
+    angle_modulo: float = eqx.field(static=True, default=2.0 * np.pi)
 
     @property
     def size(self) -> int:

@@ -1,0 +1,146 @@
+"""The chapter 6 estimators in ``pmsmjax tune --estimator`` (issue 15, item 6): their drive and their
+low-speed scenario batches. The tuner, objective, outputs and resume are those of the chapter 5 observers
+(:mod:`tuning.autotune.observers`, whose ``TUNABLE_OBSERVERS`` lists what is tuned).
+
+Drive (:func:`injection_sensorless_drive`): the book FOC drive on the salient book motor
+(``L_d`` 5.25 mH, ``L_q`` 12 mH) with the estimator's design rule, on the plant with d-axis saturation
+(:func:`pmsmjax.machines.saturated_machine`, defaults), as :func:`pmsmjax.controller_compare.chapter6_drive`
+builds it for ``compare --estimator``; :func:`tuning.autotune.observers.observer_drive` puts it behind the
+same sensored warm-up and measurement noise as the chapter 5 observers.
+
+Polarity. The injection estimators find the d axis modulo pi: the estimator starts at ``theta0 = 0`` and
+locks to the pole within +-90 degrees of it. The batches therefore start the rotor within
+``INITIAL_ANGLE_DEG`` of 0 (polarity known, as after the start-up detection of
+:mod:`pmsmjax.estimators.polarity`), and the angle error is scored modulo pi
+(``ScenarioBatch.angle_modulo``); a lock on the wrong pole would turn the torque around and show in the
+ITAE. The hybrid is tuned without its polarity detector (``polarity=False``): its current pulses at
+the start would run during the sensored warm-up, and the polarity is known here. Its tuned names are
+therefore ``estimator.observer.injection.*`` (with the detector the injection sits one level deeper,
+``injection.observer.*``).
+
+Scenarios (:func:`make_injection_batch`), chosen for the methods' range, standstill and low speed:
+
+- ``"standstill"``: the reference is 0 throughout; a load step of 2-10 N m (either sign) at 55-70 % of
+  the scenario;
+- ``"slow"``: start at a speed drawn uniformly within +-``max_rpm`` (100 r/min for the injection
+  estimators: slow speed changes within +-100 r/min), the reference steps 20 ms after the warm-up to
+  another such speed (so reversals through zero are among them), and a 0-10 N m load (opposing the final
+  motion) steps in at 55-70 %. For the hybrid ``max_rpm`` is 300 r/min, so that the scenarios cross its
+  crossover band (50-150 r/min, carrier off at 250 r/min) whose edges are tuned.
+"""
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from pmsmjax import Profile, Scenario, presets, stack_scenarios
+from pmsmjax.units import rpm_to_rad_s
+from pmsmjax.validation import ParameterError
+
+from .scenario_batches import ScenarioBatch
+
+#: Scenario kinds of the injection batches.
+INJECTION_KINDS = ("standstill", "slow")
+#: Largest initial rotor angle off the estimators' initial estimate, electrical degrees (polarity known).
+INITIAL_ANGLE_DEG = 60.0
+#: Speed range of the "slow" scenarios, r/min, per estimator (module docstring).
+MAX_RPM = {"hfi-rotating": 100.0, "hfi-pulsating": 100.0, "hybrid": 300.0}
+
+
+def injection_sensorless_drive(name: str, observer_options: dict | None = None, **kw):
+    """The book drive on the salient book motor with the chapter 6 estimator ``name`` (design rule, overridden
+    by ``observer_options``; the hybrid without its polarity detector), on the saturated plant; ``kw`` go
+    to :func:`pmsmjax.presets.book_drive` (``n_substeps``, ...)."""
+    from pmsmjax.machines.saturation import saturated_machine
+
+    motor = presets.book_motor(salient=True)
+    options = dict(observer_options or {})
+    if name == "hybrid":
+        options = {"polarity": False, **options}
+    drive = presets.sensorless_drive(name, motor, observer_options=options, startup=False, **kw)
+    return eqx.tree_at(lambda d: d.machine, drive, saturated_machine(motor))
+
+
+def make_injection_batch(
+    n: int,
+    seed: int,
+    *,
+    max_rpm: float = 100.0,
+    load_nm: tuple[float, float] = (0.0, 10.0),
+    duration_s: tuple[float, float] = (0.15, 0.25),
+    kinds=INJECTION_KINDS,
+    plant_spread: dict | None = None,
+    warmup_s: float | None = None,
+    Ts: float = 1e-4,
+) -> ScenarioBatch:
+    """``n`` low-speed scenarios drawn reproducibly from ``seed`` (module docstring), scored modulo pi.
+    ``plant_spread`` as in :func:`tuning.autotune.scenario_batches.make_batch`."""
+    from .observers import WARMUP_S
+
+    warmup_s = WARMUP_S if warmup_s is None else warmup_s
+    if n < 1:
+        raise ParameterError(f"a scenario batch needs n >= 1 scenarios, got {n}.")
+    bad = [k for k in kinds if k not in INJECTION_KINDS]
+    if bad or not kinds:
+        raise ParameterError(f"kinds must be a non-empty subset of {INJECTION_KINDS}, got {list(kinds)}.")
+    if not (np.isfinite(max_rpm) and max_rpm > 0):
+        raise ParameterError(f"max_rpm must be a positive speed in r/min, got {max_rpm}.")
+    if not 0 < duration_s[0] <= duration_s[1]:
+        raise ParameterError(f"duration_s must be positive with low <= high, got {duration_s}.")
+    t_step = round((warmup_s + 0.02) / Ts) * Ts
+    if duration_s[0] * 0.55 <= t_step + 0.02:
+        raise ParameterError(
+            f"duration_s {duration_s} too short: the load step (at 55 % of it) must come 20 ms after the "
+            f"speed step at {t_step:.3f} s; make the shortest duration at least "
+            f"{(t_step + 0.02) / 0.55:.3f} s."
+        )
+    rng = np.random.default_rng(seed)
+    w_max = rpm_to_rad_s(max_rpm)
+    horizon = round(duration_s[1] / Ts) * Ts
+    rows, durations, load_times, kind_list, w0s, th0s = [], [], [], [], [], []
+    for _ in range(n):
+        kind = str(rng.choice(list(kinds)))
+        if kind == "standstill":
+            w0 = w1 = 0.0
+            load = rng.choice([-1.0, 1.0]) * rng.uniform(max(load_nm[0], 2.0), max(load_nm[1], 2.0))
+        else:
+            w0, w1 = rng.uniform(-w_max, w_max, 2)
+            sign = np.sign(w1) if w1 != 0 else 1.0
+            load = sign * rng.uniform(*load_nm)
+        duration = round(rng.uniform(*duration_s) / Ts) * Ts
+        t_load = round(rng.uniform(0.55, 0.70) * duration / Ts) * Ts
+        rows.append(
+            Scenario(
+                horizon,
+                speed_ref=Profile.step(t_step, float(w0), float(w1)),
+                load_torque=Profile.step(t_load, 0.0, float(load)),
+            )
+        )
+        durations.append(duration)
+        load_times.append(t_load)
+        kind_list.append(kind)
+        w0s.append(float(w0))
+        th0s.append(np.radians(rng.uniform(-INITIAL_ANGLE_DEG, INITIAL_ANGLE_DEG)))
+    scale = {k: jnp.asarray(1.0 + rng.uniform(-f, f, n)) for k, f in dict(plant_spread or {}).items()}
+    return ScenarioBatch(
+        stack_scenarios(rows),
+        jnp.asarray(durations),
+        jnp.asarray(load_times),
+        tuple(kind_list),
+        scale,
+        initial_speed_m=jnp.asarray(w0s),
+        initial_theta_e=jnp.asarray(th0s),
+        observe_from_s=jnp.full((n,), warmup_s),
+        angle_modulo=float(np.pi),
+    )
+
+
+def injection_batch_maker(name: str):
+    """The batch maker of chapter 6 estimator ``name`` for the tune job: :func:`make_injection_batch` at its
+    :data:`MAX_RPM`; the job's default kinds (the chapter 5 ``("step",)``) mean :data:`INJECTION_KINDS`."""
+
+    def make(n, seed, *, kinds=INJECTION_KINDS, **options):
+        kinds = INJECTION_KINDS if tuple(kinds) == ("step",) else tuple(kinds)
+        return make_injection_batch(n, seed, max_rpm=MAX_RPM[name], kinds=kinds, **options)
+
+    return make
