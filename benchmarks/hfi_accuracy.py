@@ -1,5 +1,5 @@
 """Angle accuracy of the HF-injection drives (chapter 6) on the salient book motor: the table of
-notes/issue-15-hfi.md, in float64.
+README.md, in float64.
 
 Sensorless closed loop (speed-loop bandwidth 50 rad/s, design-rule estimators), the rotor starting
 ``--offset`` electrical degrees away from the estimator's initial angle:

@@ -410,7 +410,7 @@ def dtc_drive(
     comparator sample ``sample_period_s``; the speed loop every ``round(speed_period_s /
     sample_period_s)`` samples (4 at 25 us: the book's 10 kHz).
 
-    Choices (measured on the book scenario, tests/test_dtc.py and notes/issue-13.md):
+    Choices (measured on the book scenario, tests/test_dtc.py and README.md):
 
     - `sample_period_s` = 25 us (40 kHz), inside the usual 20-50 us of DTC implementations.
     - `torque_band_nm` = 1 N m and `flux_band_wb` = 10 mWb (5.5 % of psi_f): about twice what one 25 us

@@ -1,4 +1,4 @@
-"""The hybrid's weak points of issue 15 (notes/issue-15-hybridfix.md), each with the run that showed it.
+"""The hybrid's weak points of issue 15 (README.md), each with the run that showed it.
 
 1. The EKF on the salient book motor (L_d 5.25 mH, L_q 12 mH) under a load step at 2000 r/min: with the
    back-EMF flux taken as ``psi_f`` the angle error fed back through the machine's ``(L_d - L_q) i_d``

@@ -118,7 +118,7 @@ def active_flux(model: PMSMParameters, i_ab, theta) -> Array:
     the ``psi_f`` model does not have. The filter reads that EMF as a speed and angle error, which moves
     ``d`` further: a loop whose gain grows with ``w i_q (L_q - L_d) / psi_f``. On the salient book motor
     (L_d 5.25, L_q 12 mH) it went unstable at 2000 r/min under 2 N m (a growing ~30 Hz oscillation of
-    the speed loop, lock lost; notes/issue-15-hybridfix.md); the non-salient motor holds that point."""
+    the speed loop, lock lost; README.md); the non-salient motor holds that point."""
     i_d = i_ab[0] * jnp.cos(theta) + i_ab[1] * jnp.sin(theta)
     return model.psi_f + (model.L_d - model.L_q) * i_d
 

@@ -41,7 +41,7 @@ bandwidth ``w_l / 7`` (299 rad/s, double pole; the continuous loop with the in-l
 for a bandwidth below ``2 w_l`` by Routh, and a seventh keeps its damping). Measured on the salient book
 drive (speed-loop bandwidth 50 rad/s): a PLL bandwidth of 105 rad/s, twice the speed loop's, let the
 speed loop and the estimator oscillate and lose lock under a 10 N m load at standstill; 200-300 rad/s
-hold it (notes/issue-15-hfi.md).
+hold it (README.md).
 ``V_h`` such that ``I_n = 0.25 A`` (30 V on the salient book motor). The angle is modulo pi: the
 estimator starts at ``theta0`` and locks to the d axis within +-90 degrees of it.
 

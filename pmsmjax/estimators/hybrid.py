@@ -26,7 +26,7 @@ The band ``(w_low, w_high, w_off)`` and the filter are parameters (tunable; diff
 and the fade are smooth in them). Defaults (:func:`hybrid_design`): 5 % to 15 % of the book drive's
 1000 r/min (50 to 150 r/min), the carrier gone at 25 %; measured on the book scenario and a -1000 -> 1000
 r/min reversal (benchmarks/hybrid_table.py): 30/100/200 and 80/200/300 r/min hold as well (peak errors
-6.4 and 10.5 degrees after the 60 ms start-up, against 7.9 for the default; notes/issue-15-hybridfix.md).
+6.4 and 10.5 degrees after the 60 ms start-up, against 7.9 for the default; README.md).
 
 Slaving. A fundamental-model observer sees no back-EMF at standstill and runs wherever its equations take
 it; left alone it would have to converge while the drive accelerates through the band (a few ms at the
@@ -41,7 +41,7 @@ that its estimate goes ``w`` of the way to the hybrid's (less the polarity corre
 right pole at the right speed instead of re-acquiring during the deceleration. Both pulls shift the
 states by the *estimate's* distance to the target: an estimator's output can be its state plus a
 compensation (the rotating injection adds half its filters' lag to its PLL angle, 13 degrees at 335 r/min),
-and setting the state to the target instead biased the blend inside the band (notes/issue-15-hybridfix.md).
+and setting the state to the target instead biased the blend inside the band (README.md).
 
 Start-up fields (``startup_weight``, ``startup_i_dq``) and the carrier-free current
 (``i_ab_fundamental``) come from the injection estimate (the polarity pulses, the carrier filter).
@@ -98,7 +98,7 @@ def pull_injection(injection: AbstractEstimator, state, estimate, theta_e, omega
     degrees at 335 r/min on the book drive). Setting the PLL to the target left the output off by that
     lag, and inside the crossover band, where the blend feeds back into both estimators, the two pulls
     settled on an estimate off by up to twice it; that lost the hand-down under load
-    (notes/issue-15-hybridfix.md)."""
+    (README.md)."""
     from .polarity import PolarityDetector
 
     if isinstance(injection, PolarityDetector):
@@ -233,8 +233,8 @@ def hybrid_design(
 
     The default observer is the EKF: with the smo-pll the book scenario lost lock at every band tried
     (50-150, 100-200, 150-250 r/min; the SMO is not reliable below about 150 r/min and the injection lags
-    by 20 degrees and more at the current limit's acceleration above that; notes/issue-15-polarity.md).
-    Since the pulls move the estimates (notes/issue-15-hybridfix.md) the smo-pll with a 150/250/350 r/min
+    by 20 degrees and more at the current limit's acceleration above that; README.md).
+    Since the pulls move the estimates (README.md) the smo-pll with a 150/250/350 r/min
     band holds the book scenario (8 of 8 starts, 32 degrees peak) but still not the reversal."""
     from .polarity import polarity_detector
     from .registry import make_observer

@@ -263,7 +263,7 @@ def smo_design(
       filter lags the load step's speed dip, and the compensation with it); ``pll_bandwidth`` (rad/s,
       ``"pll"``, :func:`pmsmjax.estimators.pll.pll_design`: a type-2 loop's error under acceleration
       falls as 1/bw^2). Each default was chosen on the design-sensitivity table of
-      benchmarks/observer_accuracy.py (book drive logs, 0.5 % noise; notes/issue-14-observers.md).
+      benchmarks/observer_accuracy.py (book drive logs, 0.5 % noise; README.md).
     - ``emf_floor = emf_floor_fraction psi_f p_n w_max`` (V): the PLL's detector normalisation floor.
 
     `model`: the observer's motor model (default ``motor``: no mismatch).
