@@ -63,9 +63,7 @@ def angle_error_modulo_pi(theta_est, theta) -> np.ndarray:
     return 0.5 * angle_error(2.0 * np.asarray(theta_est, np.float64), 2.0 * np.asarray(theta, np.float64))
 
 
-def out_of_lock(
-    e_theta, e_speed, speed_ref, modulo_pi: bool = False, speed_lock: bool = True
-) -> np.ndarray:
+def out_of_lock(e_theta, e_speed, speed_ref, modulo_pi: bool = False, speed_lock: bool = True) -> np.ndarray:
     """Per-period out-of-lock flags (see the module docstring); arrays of one shape."""
     limit = LOCK_SPEED_FRACTION * np.abs(speed_ref) + LOCK_SPEED_FLOOR_RAD_S
     angle_limit = LOCK_ANGLE_MODULO_PI_RAD if modulo_pi else LOCK_ANGLE_RAD
