@@ -24,6 +24,7 @@ near zero next to the hysteresis controller's, which switches in the model itsel
 """
 
 import dataclasses
+import importlib
 import math
 import re
 
@@ -101,8 +102,30 @@ class ControllerCompareSettings:
             )
 
 
-def compared_drive(name: str, motor: PMSMParameters | None = None, bridge: str = "averaged") -> Drive:
-    """The drive of control ``name`` (:data:`pmsmjax.controls.CONTROLS`) for ``motor``, on ``bridge``."""
+#: Machines ``compare --control`` takes besides the three-phase one: name -> (preset module, drive
+#: function, its control registry), all in the multi-phase presets (book chapters 7-10).
+MULTIPHASE_PRESETS = {
+    "six-phase": ("presets_six_phase", "six_phase_drive", "SIX_PHASE_CONTROLS"),
+    "five-phase": ("presets_five_phase", "five_phase_drive", "FIVE_PHASE_CONTROLS"),
+}
+
+
+def machine_controls(machine: str) -> tuple[str, ...]:
+    """The control names ``compare`` takes on ``machine`` (``three-phase``, ``six-phase``, ``five-phase``)."""
+    if machine == "three-phase":
+        return tuple(CONTROLS)
+    module, _, registry = MULTIPHASE_PRESETS[machine]
+    return tuple(getattr(importlib.import_module(f"pmsmjax.{module}"), registry))
+
+
+def compared_drive(name: str, motor=None, bridge: str = "averaged", machine: str = "three-phase") -> Drive:
+    """The drive of control ``name`` for ``motor`` on ``bridge``: :data:`pmsmjax.controls.CONTROLS` for the
+    three-phase machine, the six- or five-phase presets' schemes (``vsd``, ...) for ``machine``; ``motor``
+    is then a :class:`pmsmjax.machines.MultiPhaseParameters` (None: the preset's rewind of the book motor)."""
+    if machine != "three-phase":
+        module, function, _ = MULTIPHASE_PRESETS[machine]
+        preset = getattr(importlib.import_module(f"pmsmjax.{module}"), function)
+        return preset(motor, control=name, bridge=bridge)
     drive = control_drive(name, motor)
     if bridge == "switching" and drive.controller.command_kind == "voltage":
         drive = eqx.tree_at(lambda d: d.bridge, drive, SwitchingBridge(drive.bridge.u_dc))
@@ -195,8 +218,10 @@ def compare_controllers(
     settings=ControllerCompareSettings(),
     progress=None,
     adjust=None,
+    machine: str = "three-phase",
 ) -> dict:
-    """Run each named controller (keys of :data:`pmsmjax.controls.CONTROLS`) on the book scenario.
+    """Run each named controller (keys of :data:`pmsmjax.controls.CONTROLS`, or of the six- or five-phase
+    schemes with ``machine``: :func:`machine_controls`) on the book scenario.
 
     With ``settings.equal_switching_hz`` each controller with bands is also run with its bands matched
     to that mean switching frequency (``0``: the PWM frequency of the voltage-commanding controllers,
@@ -208,10 +233,18 @@ def compare_controllers(
     optional ``(drive, name) -> drive`` applied to each drive before anything runs (tuned gains, say).
     """
     settings.check()
-    unknown = [n for n in names if n not in CONTROLS]
+    if machine != "three-phase" and machine not in MULTIPHASE_PRESETS:
+        raise ParameterError(f"machine {machine!r}: choose three-phase, {', '.join(MULTIPHASE_PRESETS)}.")
+    known = machine_controls(machine)
+    unknown = [n for n in names if n not in known]
     if unknown:
-        raise ParameterError(f"unknown controls {unknown}: choose from {', '.join(CONTROLS)}.")
-    drives = {name: compared_drive(name, motor, settings.bridge) for name in names}
+        raise ParameterError(f"unknown {machine} controls {unknown}: choose from {', '.join(known)}.")
+    if machine != "three-phase" and settings.equal_switching_hz is not None:
+        raise ParameterError(
+            "equal switching frequency matches hysteresis/DTC bands; the multi-phase schemes are all PWM: "
+            "drop it."
+        )
+    drives = {name: compared_drive(name, motor, settings.bridge, machine) for name in names}
     if adjust is not None:
         drives = {name: adjust(drive, name) for name, drive in drives.items()}
     for drive in drives.values():  # every check before the first compile

@@ -58,6 +58,13 @@ def add_parser(sub):
         help="with chapter 6 estimators: initial rotor angle, electrical degrees off their initial estimate "
         "(default 30; the injection methods without polarity lock to the wrong pole beyond 90)",
     )
+    p.add_argument(
+        "--machine",
+        choices=("three-phase", "six-phase", "five-phase"),
+        default="three-phase",
+        help="with --control: the book motor (default), or its six-phase (controls vsd, double-dq, "
+        "conventional, pr) or five-phase rewind (vsd, conventional, pr), book ch. 7-10",
+    )
     p.add_argument("--out", default="compare_out", help="output folder (created), default: compare_out")
     p.add_argument(
         "--motor",
@@ -106,8 +113,23 @@ def precheck(args) -> list[str]:
     """Checks that need no model (before JAX starts); returns the control (or observer) names."""
     from ..motor_files import motor_values
     from ..operating_point import refuse_unreachable
-    from .demo import BOOK_CURRENT_LIMIT_A, BOOK_TS_S, BOOK_U_DC_V, CONTROL_NAMES, ESTIMATOR_NAMES
+    from .demo import (
+        BOOK_CURRENT_LIMIT_A,
+        BOOK_TS_S,
+        BOOK_U_DC_V,
+        CONTROL_NAMES,
+        ESTIMATOR_NAMES,
+        MULTIPHASE_NAMES,
+    )
 
+    multiphase = args.machine != "three-phase"
+    if multiphase:
+        for flag, value in (("--estimator", args.estimator), ("--equal-switching", args.equal_switching)):
+            if value is not None:
+                raise ParameterError(
+                    f"{flag} applies to the three-phase drive; with --machine {args.machine} compare its "
+                    "control schemes (--control), or drop --machine."
+                )
     chapter6 = False
     if args.estimator is not None:
         names = _estimator_names(args, (*ESTIMATOR_NAMES, *CHAPTER6_NAMES), ESTIMATOR_NAMES)
@@ -138,8 +160,9 @@ def precheck(args) -> list[str]:
                 f"{flag} sets the book scenario; --scenario {args.scenario} is a fixed run (only --load-nm "
                 "applies): drop it or give --scenario book."
             )
-    known = CONTROL_NAMES
-    control_list = args.control if args.control is not None else (control or "pi,smc,pr,hysteresis")
+    known = MULTIPHASE_NAMES[args.machine][0] if multiphase else CONTROL_NAMES
+    default = ",".join(known) if multiphase else (control or "pi,smc,pr,hysteresis")
+    control_list = args.control if args.control is not None else default
     controls = [n.strip() for n in control_list.split(",") if n.strip()]
     names = names if names is not None else controls
     unknown = [n for n in controls if n not in known]
@@ -160,6 +183,8 @@ def precheck(args) -> list[str]:
             f"--gains {args.gains}: tuned gains belong to one control method; compare it alone with the "
             "design-rule version of another by running pmsmjax demo, or pass a single --control."
         )
+    if multiphase:  # the multi-phase motor files are read (and checked) by their presets' loaders
+        return names
     motor = motor_values(args.motor, check_units=not args.trust_units, Ts=BOOK_TS_S)
     if chapter6 and motor is not None and not motor["L_q"] > motor["L_d"]:
         raise ParameterError(
@@ -253,13 +278,21 @@ def run(args) -> int:
         equal_switching_hz=args.equal_switching,
     )
     settings.check()
-    motor = presets.load_motor(args.motor, check_units=not args.trust_units)
+    if args.machine == "three-phase":
+        motor = presets.load_motor(args.motor, check_units=not args.trust_units)
+    else:
+        from ..presets_five_phase import load_five_phase_motor
+        from ..presets_six_phase import load_six_phase_motor
+
+        loader = load_six_phase_motor if args.machine == "six-phase" else load_five_phase_motor
+        motor = loader(args.motor)
     out = checks.output_folder(args.out)
     gains = read_gains_flag(args.gains)
     tune = None if gains is None else (lambda drive, name: apply_gains_flag(drive, gains, name))
     t0 = time.perf_counter()
-    result = compare_controllers(names, motor, settings, progress=print, adjust=tune)
+    result = compare_controllers(names, motor, settings, progress=print, adjust=tune, machine=args.machine)
     report = {"settings": result["settings"], "controllers": result["controllers"]}
+    report["settings"]["machine"] = args.machine
     report["settings"]["gains"] = args.gains
     report["wall_time_s"] = time.perf_counter() - t0
     out.mkdir(parents=True, exist_ok=True)
