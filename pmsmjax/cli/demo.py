@@ -329,8 +329,8 @@ def precheck(args) -> dict | None:
     if not args.load_time_s < args.duration_s:
         raise ParameterError(
             f"--load-time-s {plain(args.load_time_s)} s is not inside the run (--duration-s "
-            f"{plain(args.duration_s)} s): the load step would never happen; give a time below "
-            f"{plain(args.duration_s)} s, or --load-nm 0 for no load."
+            f"{plain(args.duration_s)} s): the summary's load-step window would lie outside the run; give "
+            f"a time below {plain(args.duration_s)} s (also with --load-nm 0)."
         )
     read_gains_flag(args.gains)
     if args.machine in MULTIPHASE_NAMES:  # its motor file is read and checked when the drive is built
