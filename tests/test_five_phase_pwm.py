@@ -8,6 +8,9 @@ different constructions that must give the same duties inside the linear range; 
 geometric values (``U_dc / (2 cos 18 deg)``: a balanced five-phase set's largest spread; the L decagon's
 inscribed circle for the large-vector method; ``U_dc/2`` for sinusoidal PWM), found by bisection on the
 modulators. The generic space-vector tables reproduce the six-phase ones.
+
+Modules: pmsmjax/inverters/multiphase_vectors.py, multiphase_svpwm.py, multiphase_carrier.py,
+multiphase_bridges.py.
 """
 
 import itertools

@@ -6,6 +6,8 @@ continuous-time HF model worked out by hand for the demodulated error signal, ``
 ``I_n = (L_q - L_d) V_h / (2 L_d L_q w_h)``, with the rotor held at known offsets; a DFT of the current
 loop's command at the carrier frequency, with and without the carrier kept out of the feedback; and
 central finite differences for the gradients of a closed-loop angle-error loss.
+
+Modules: pmsmjax/estimators/hfi_rotating.py, hfi_pulsating.py, hfi_signal.py.
 """
 
 import functools

@@ -7,6 +7,8 @@ the design-rule point; and finiteness of the gradient over 1000 random draws of 
 factor 2 of the design rule (draws the observer's own stability check refuses are redrawn: outside its
 linearised stability region the observer is not a candidate). One compiled, vmapped value-and-gradient
 per observer evaluates the design point, the 2n finite-difference points and the 1000 draws in one call.
+
+The warm-up wrapper is pmsmjax/estimators/sensored_warmup.py.
 """
 
 import json

@@ -4,6 +4,8 @@
 
 Independent references: the demo's summary against a direct ``simulate`` of the same preset; the motor
 file against the preset it documents; the Monte Carlo kernel's peak current against the full trace.
+
+The figures come from pmsmjax/plotting_six_phase.py.
 """
 
 import json

@@ -6,6 +6,9 @@ duties with the VSD table written out (pole voltages, each star's mean removed);
 book SVPWMs) and double zero-sequence carrier PWM are two different constructions that must give the same
 duties; the linear limits are the geometric values (inscribed circles), checked by bisection on the
 modulators.
+
+Modules: pmsmjax/inverters/six_phase_vectors.py, six_phase_svpwm.py, six_phase_carrier.py,
+multiphase_bridges.py.
 """
 
 import itertools
