@@ -155,8 +155,9 @@ def field_weakening_top_speed_rpm(
 
 
 def max_load_nm(motor: Mapping, current_limit_a: float) -> float:
-    """Largest load torque (N m) i_d = 0 control holds at standstill within the current limit."""
-    return 1.5 * motor["pole_pairs"] * motor["psi_f"] * current_limit_a
+    """Largest load torque (N m) i_d = 0 control holds at standstill within the current limit (torque
+    factor n/2: 1.5 for three phases, from the dict's ``n_phases`` otherwise)."""
+    return 0.5 * motor.get("n_phases", 3) * motor["pole_pairs"] * motor["psi_f"] * current_limit_a
 
 
 def _window_mean(x, t, start, end):

@@ -57,3 +57,18 @@ def test_bad_multiphase_flags_are_refused_before_writing(extra, message, tmp_pat
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "machine, extra, message",
+    [
+        ("six-phase", ["--speed-rpm", "5000"], "--speed-rpm 5000: at 10 N m the drive needs 209 V"),
+        # the same torque constant as the book motor: 15 A hold 0.95 x 16.4 N m at standstill
+        ("five-phase", ["--load-nm", "30"], "give a load of at most 15.6 N m"),
+    ],
+)
+def test_unreachable_multiphase_points_are_refused_before_running(machine, extra, message, tmp_path, capsys):
+    out = tmp_path / "never"
+    assert main(["compare", "--machine", machine, *extra, "--out", str(out)]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()

@@ -183,7 +183,28 @@ def precheck(args) -> list[str]:
             f"--gains {args.gains}: tuned gains belong to one control method; compare it alone with the "
             "design-rule version of another by running pmsmjax demo, or pass a single --control."
         )
-    if multiphase:  # the multi-phase motor files are read (and checked) by their presets' loaders
+    if multiphase:  # the motor from its preset's loader; the voltage limit of the default PWM's linear range
+        import math
+
+        from ..operating_point import motor_dict
+
+        if args.machine == "six-phase":
+            from ..presets_six_phase import load_six_phase_motor as load
+
+            u_limit = BOOK_U_DC_V / math.sqrt(3.0)  # four-vector SVPWM
+        else:
+            from ..presets_five_phase import load_five_phase_motor as load
+
+            u_limit = BOOK_U_DC_V / (2.0 * math.cos(math.pi / 10))  # near-four-vector SVPWM
+        refuse_unreachable(
+            motor_dict(load(args.motor)),
+            args.speed_rpm,
+            args.load_nm,
+            BOOK_U_DC_V,
+            u_limit,
+            BOOK_CURRENT_LIMIT_A,
+            what="the comparison of ripple and THD",
+        )
         return names
     motor = motor_values(args.motor, check_units=not args.trust_units, Ts=BOOK_TS_S)
     if chapter6 and motor is not None and not motor["L_q"] > motor["L_d"]:
