@@ -33,20 +33,20 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import metrics, presets
-from .controls import CONTROLS, control_drive
-from .drive import Drive
-from .frames import inverse_park
-from .intra_period import dense_window
-from .inverters.switching import SwitchingBridge
-from .machines.motor import PMSMParameters
-from .observer_metrics import observer_errors, speed_held
-from .operating_point import run_flags
-from .simulate import check_simulation, simulate
-from .spectra import sampled_spectrum, thd
-from .summary import speed_step_summary
-from .switching_match import BAND_LEAVES, match_switching_frequency
-from .validation import ParameterError
+from pmsmjax import metrics, presets
+from pmsmjax.controls import CONTROLS, control_drive
+from pmsmjax.drive import Drive
+from pmsmjax.frames import inverse_park
+from pmsmjax.intra_period import dense_window
+from pmsmjax.inverters.switching import SwitchingBridge
+from pmsmjax.machines.motor import PMSMParameters
+from pmsmjax.observer_metrics import observer_errors, speed_held
+from pmsmjax.operating_point import run_flags
+from pmsmjax.simulate import check_simulation, simulate
+from pmsmjax.spectra import sampled_spectrum, thd
+from pmsmjax.summary import speed_step_summary
+from pmsmjax.switching_match import BAND_LEAVES, match_switching_frequency
+from pmsmjax.validation import ParameterError
 
 SUMMARY_KEYS = {
     "rise_time_s": "rise_time_s",
@@ -318,8 +318,8 @@ class LowSpeedSweep:
     hot_r_factor: float | None = 1.3
 
     def scenario(self, speed_rpm: float):
-        from .scenarios import Profile, Scenario
-        from .units import rpm_to_rad_s
+        from pmsmjax.scenarios import Profile, Scenario
+        from pmsmjax.units import rpm_to_rad_s
 
         return Scenario(
             duration_s=self.duration_s,
@@ -345,7 +345,7 @@ def low_speed_sweep(drive: Drive, sweep: LowSpeedSweep = LowSpeedSweep(), r_fact
     """Run ``drive`` (its plant's R times ``r_factor``) through every speed of ``sweep`` (one batched
     simulation); returns ``{"runs": [{speed_rpm, held, ...}], "lowest_held_rpm"}``: the lowest swept
     speed such that it and every higher swept speed were held (None if the highest was not)."""
-    from .scenarios import stack_scenarios
+    from pmsmjax.scenarios import stack_scenarios
 
     if r_factor != 1.0:
         drive = eqx.tree_at(lambda d: d.machine.motor.R, drive, drive.machine.motor.R * r_factor)
@@ -393,7 +393,7 @@ CHAPTER6_INITIAL_ANGLE_DEG = 30.0
 def estimator_family(name: str) -> str:
     """``"ch5"`` (:data:`pmsmjax.estimators.OBSERVERS`), ``"injection"`` (``INJECTION_OBSERVERS``: angle
     modulo pi) or ``"hybrid"`` (``HYBRID_OBSERVERS``)."""
-    from .estimators.registry import HYBRID_OBSERVERS, INJECTION_OBSERVERS, check_observer_name
+    from pmsmjax.estimators.registry import HYBRID_OBSERVERS, INJECTION_OBSERVERS, check_observer_name
 
     check_observer_name(name)
     return "injection" if name in INJECTION_OBSERVERS else "hybrid" if name in HYBRID_OBSERVERS else "ch5"
@@ -434,9 +434,9 @@ def check_estimator_scenario(names, scenario: str) -> None:
 def estimator_scenario(scenario: str, load_nm: float):
     """The fixed chapter 6 scenarios of :data:`ESTIMATOR_SCENARIOS` (all but ``book``) with the load
     ``load_nm`` (N m; ``reversal`` keeps its 5 N m)."""
-    from .hybrid_study import hybrid_scenarios
-    from .scenarios import Profile, Scenario
-    from .units import rpm_to_rad_s
+    from pmsmjax.hybrid_study import hybrid_scenarios
+    from pmsmjax.scenarios import Profile, Scenario
+    from pmsmjax.units import rpm_to_rad_s
 
     w60 = rpm_to_rad_s(60.0)
     load = Profile.step(0.1, 0.0, load_nm)
@@ -453,7 +453,7 @@ def chapter6_drive(name: str, motor: PMSMParameters | None = None, bridge: str =
     default the salient book motor), no I/f start (injection sees the rotor at standstill), on the plant
     with d-axis saturation (:func:`pmsmjax.machines.saturated_machine`, defaults), which the hybrid's
     polarity pulses read (at ``i_d = 0`` its inductance is the linear machine's), on ``bridge``."""
-    from .machines.saturation import saturated_machine
+    from pmsmjax.machines.saturation import saturated_machine
 
     motor = presets.book_motor(salient=True) if motor is None else motor
     drive = presets.sensorless_drive(name, motor, startup=False)
@@ -467,7 +467,7 @@ def run_estimator_scenario(drive: Drive, scenario, initial_state) -> dict:
     """Simulate ``drive`` through a fixed scenario (:func:`estimator_scenario`) from ``initial_state``;
     its figures (ITAE of the speed error, rad s; largest speed deviation from the reference, r/min, after
     :data:`pmsmjax.observer_metrics.CONVERGED_AFTER_S`; peak phase current, A) and its trace."""
-    from .observer_metrics import CONVERGED_AFTER_S
+    from pmsmjax.observer_metrics import CONVERGED_AFTER_S
 
     check_simulation(drive, scenario)
     trace = jax.block_until_ready(simulate(drive, scenario, initial_state=initial_state))

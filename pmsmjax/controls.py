@@ -7,10 +7,10 @@ chapter adds its method here and every command gains it.
 
 import inspect
 
-from . import presets
-from .drive import Drive
-from .machines.motor import PMSMParameters
-from .validation import ParameterError
+from pmsmjax import presets
+from pmsmjax.drive import Drive
+from pmsmjax.machines.motor import PMSMParameters
+from pmsmjax.validation import ParameterError
 
 #: Control name -> (preset building its drive, one-line description).
 CONTROLS = {

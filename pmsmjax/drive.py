@@ -22,14 +22,14 @@ work on any combination without a second engine.
 import equinox as eqx
 import jax.numpy as jnp
 
-from ._types import Array
-from .controllers.base import AbstractController
-from .estimators.base import AbstractEstimator
-from .estimators.position_sensors import ExactSensor
-from .inverters.base import AbstractBridge, AbstractModulator
-from .machines.base import AbstractMachine, MachineState
-from .signals import References, Sample
-from .validation import ParameterError, check_positive
+from pmsmjax._types import Array
+from pmsmjax.controllers.base import AbstractController
+from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.position_sensors import ExactSensor
+from pmsmjax.inverters.base import AbstractBridge, AbstractModulator
+from pmsmjax.machines.base import AbstractMachine, MachineState
+from pmsmjax.signals import References, Sample
+from pmsmjax.validation import ParameterError, check_positive
 
 
 class PeriodInputs(eqx.Module):

@@ -19,7 +19,7 @@ All functions act on the last axis, so they broadcast over leading batch/time ax
 
 import jax.numpy as jnp
 
-from ._types import Array, ArrayLike
+from pmsmjax._types import Array, ArrayLike
 
 SQRT3 = 3.0**0.5
 

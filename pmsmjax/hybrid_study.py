@@ -14,12 +14,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .frames import wrap_angle
-from .machines.saturation import saturated_machine
-from .presets import book_drive, book_motor, book_scenario
-from .scenarios import Profile, Scenario
-from .simulate import simulate
-from .units import rpm_to_rad_s
+from pmsmjax.frames import wrap_angle
+from pmsmjax.machines.saturation import saturated_machine
+from pmsmjax.presets import book_drive, book_motor, book_scenario
+from pmsmjax.scenarios import Profile, Scenario
+from pmsmjax.simulate import simulate
+from pmsmjax.units import rpm_to_rad_s
 
 #: Start-up is over (polarity pulses, hand-over) by this time, s; errors are judged after it.
 STARTUP_S = 0.06
@@ -27,7 +27,7 @@ STARTUP_S = 0.06
 
 def hybrid_book_drive(**hybrid_options):
     """The book drive (salient, saturating machine) with the hybrid estimator (options: its design rule's)."""
-    from .estimators.hybrid import hybrid_design
+    from pmsmjax.estimators.hybrid import hybrid_design
 
     motor = book_motor(salient=True)
     drive = book_drive(motor)

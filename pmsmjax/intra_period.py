@@ -11,13 +11,13 @@ import equinox as eqx
 import jax
 import numpy as np
 
-from .drive import Drive
-from .frames import abc_to_alpha_beta
-from .inverters.averaged import phase_voltages
-from .inverters.switching import SwitchingBridge
-from .machines.base import MachineInput, MachineState
-from .machines.integrate import advance
-from .trace import Trace
+from pmsmjax.drive import Drive
+from pmsmjax.frames import abc_to_alpha_beta
+from pmsmjax.inverters.averaged import phase_voltages
+from pmsmjax.inverters.switching import SwitchingBridge
+from pmsmjax.machines.base import MachineInput, MachineState
+from pmsmjax.machines.integrate import advance
+from pmsmjax.trace import Trace
 
 
 @eqx.filter_jit
@@ -54,7 +54,7 @@ def dense_window(drive: Drive, window: Trace, n_samples: int):
     if machine.n_phases == 3:
         currents = jax.vmap(machine.currents_from_dq)(window.i_dq, window.theta_e)
     else:
-        from .multiphase_frames import vsd
+        from pmsmjax.multiphase_frames import vsd
 
         i_vsd = vsd(window.i_abc, machine.layout)[:, : machine.layout.n_active]
         currents = jax.vmap(machine.currents_from_vsd)(i_vsd, window.theta_e)

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .validation import ParameterError
+from pmsmjax.validation import ParameterError
 
 __all__ = [
     "read_log",

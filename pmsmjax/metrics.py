@@ -8,9 +8,9 @@ Quantities that are undefined for a given signal (never rises, never settles) ar
 
 import jax.numpy as jnp
 
-from ._types import Array
-from .frames import dq_to_abc
-from .validation import ParameterError
+from pmsmjax._types import Array
+from pmsmjax.frames import dq_to_abc
+from pmsmjax.validation import ParameterError
 
 
 def _dt(t: Array) -> Array:

@@ -13,8 +13,8 @@ motor outside its ranges.
 import sys
 from pathlib import Path
 
-from .plausibility import check_motor_units
-from .validation import ParameterError
+from pmsmjax.plausibility import check_motor_units
+from pmsmjax.validation import ParameterError
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -53,9 +53,9 @@ from typing import NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-from ._types import Array, ArrayLike
-from .frames import abc_to_alpha_beta, alpha_beta_to_abc, inverse_park, park
-from .validation import ParameterError
+from pmsmjax._types import Array, ArrayLike
+from pmsmjax.frames import abc_to_alpha_beta, alpha_beta_to_abc, inverse_park, park
+from pmsmjax.validation import ParameterError
 
 __all__ = [
     "PhaseLayout",

@@ -16,10 +16,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._types import Array
-from .estimators.base import AbstractEstimator
-from .frames import alpha_beta_to_abc, wrap_angle
-from .signals import Sample
+from pmsmjax._types import Array
+from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.frames import alpha_beta_to_abc, wrap_angle
+from pmsmjax.signals import Sample
 
 __all__ = ["ObserverOutput", "observe", "angle_error", "angle_error_modulo_pi", "error_statistics"]
 

@@ -13,11 +13,11 @@ currents (the convention of ``tuning/identify/synthetic_log.py``); the truth col
 
 import numpy as np
 
-from .drive import Drive
-from .frames import abc_to_alpha_beta
-from .scenarios import Profile, Scenario
-from .simulate import simulate
-from .units import rpm_to_rad_s
+from pmsmjax.drive import Drive
+from pmsmjax.frames import abc_to_alpha_beta
+from pmsmjax.scenarios import Profile, Scenario
+from pmsmjax.simulate import simulate
+from pmsmjax.units import rpm_to_rad_s
 
 __all__ = ["LOG_COLUMNS", "drive_log", "add_measurement_noise", "speed_scenario"]
 

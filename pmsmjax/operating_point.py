@@ -24,7 +24,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .validation import ParameterError, plain
+from pmsmjax.validation import ParameterError, plain
 
 __all__ = [
     "steady_point",

@@ -7,9 +7,9 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from .logs import atomic_write
-from .trace import Trace
-from .units import rad_s_to_rpm
+from pmsmjax.logs import atomic_write
+from pmsmjax.trace import Trace
+from pmsmjax.units import rad_s_to_rpm
 
 
 def save_figure(fig, path: Path) -> Path:

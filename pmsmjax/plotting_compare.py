@@ -3,7 +3,7 @@
 import matplotlib.pyplot as plt
 import numpy as np
 
-from .units import rad_s_to_rpm
+from pmsmjax.units import rad_s_to_rpm
 
 
 def speed_figure(

@@ -4,8 +4,8 @@ angle and speed, and the angle error."""
 import matplotlib.pyplot as plt
 import numpy as np
 
-from .frames import wrap_angle
-from .units import rad_s_to_rpm
+from pmsmjax.frames import wrap_angle
+from pmsmjax.units import rad_s_to_rpm
 
 __all__ = ["observer_log_figure", "angle_error_figure"]
 

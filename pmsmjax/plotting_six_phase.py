@@ -4,7 +4,7 @@ trajectories in alpha-beta and z1-z2, its harmonic table, and a six-phase run's 
 import matplotlib.pyplot as plt
 import numpy as np
 
-from .inverters.six_phase_vectors import LARGE, MEDIUM_LARGE, VECTORS
+from pmsmjax.inverters.six_phase_vectors import LARGE, MEDIUM_LARGE, VECTORS
 
 
 def vectors_figure(u_dc: float = 1.0):
@@ -93,7 +93,7 @@ def harmonics_figure(result: dict):
 def z_currents_figure(trace, title: str = "", layout=None):
     """A six-phase run: the phase currents of both sets and the z1-z2 currents against time; with
     ``layout=FIVE_PHASE`` a five-phase run's phase currents and x-y currents."""
-    from .multiphase_frames import SIX_PHASE, vsd
+    from pmsmjax.multiphase_frames import SIX_PHASE, vsd
 
     layout = SIX_PHASE if layout is None else layout
     six = layout == SIX_PHASE

@@ -10,25 +10,25 @@ from pathlib import Path
 
 import equinox as eqx
 
-from .controllers.base import AbstractDAxisReference
-from .controllers.design import current_loop_imc, speed_loop_active_damping
-from .controllers.dtc import SwitchingTableDTC
-from .controllers.field_weakening import VoltageFeedbackFieldWeakening
-from .controllers.foc import FOC
-from .controllers.hysteresis import HysteresisCurrentControl
-from .controllers.pr import pr_design
-from .controllers.smc import smc_design
-from .controllers.smc_dtc import SlidingModeDTC, smc_dtc_design
-from .drive import Drive
-from .estimators.flux_observer import StatorFluxObserver
-from .inverters.averaged import AveragedBridge
-from .inverters.svpwm import SVPWM
-from .machines.motor import PMSMParameters
-from .machines.pmsm3 import PMSMabc, PMSMAlphaBeta, PMSMdq
-from .motor_files import MOTOR_FIELDS, PRESET_VALUES, read_motor_file  # noqa: F401 (MOTOR_FIELDS: public here)
-from .scenarios import Profile, Scenario
-from .units import rpm_to_rad_s
-from .validation import ParameterError, check_positive
+from pmsmjax.controllers.base import AbstractDAxisReference
+from pmsmjax.controllers.design import current_loop_imc, speed_loop_active_damping
+from pmsmjax.controllers.dtc import SwitchingTableDTC
+from pmsmjax.controllers.field_weakening import VoltageFeedbackFieldWeakening
+from pmsmjax.controllers.foc import FOC
+from pmsmjax.controllers.hysteresis import HysteresisCurrentControl
+from pmsmjax.controllers.pr import pr_design
+from pmsmjax.controllers.smc import smc_design
+from pmsmjax.controllers.smc_dtc import SlidingModeDTC, smc_dtc_design
+from pmsmjax.drive import Drive
+from pmsmjax.estimators.flux_observer import StatorFluxObserver
+from pmsmjax.inverters.averaged import AveragedBridge
+from pmsmjax.inverters.svpwm import SVPWM
+from pmsmjax.machines.motor import PMSMParameters
+from pmsmjax.machines.pmsm3 import PMSMabc, PMSMAlphaBeta, PMSMdq
+from pmsmjax.motor_files import MOTOR_FIELDS, PRESET_VALUES, read_motor_file  # noqa: F401 (MOTOR_FIELDS: public here)
+from pmsmjax.scenarios import Profile, Scenario
+from pmsmjax.units import rpm_to_rad_s
+from pmsmjax.validation import ParameterError, check_positive
 
 #: Book current-loop bandwidth (rad/s) used by reproductions, speed-loop bandwidth (rad/s).
 BOOK_CURRENT_BANDWIDTH = 1100.0
@@ -319,7 +319,7 @@ def with_observer(
     period, overridden by ``observer_options``) as its estimator, wrapped in the I/f start from standstill
     if ``startup`` (:data:`STARTUP_DEFAULTS` overridden by ``startup_options``). The controller must be a
     :class:`~pmsmjax.controllers.FOC` (it holds the start-up current)."""
-    from .estimators.registry import HYBRID_OBSERVERS, INJECTION_OBSERVERS, make_observer
+    from pmsmjax.estimators.registry import HYBRID_OBSERVERS, INJECTION_OBSERVERS, make_observer
 
     observer_options = dict(observer_options or {})
     if observer_name in INJECTION_OBSERVERS or observer_name in HYBRID_OBSERVERS:
@@ -327,7 +327,7 @@ def with_observer(
         observer_options.setdefault("delay_periods", 1.5 if drive.computation_delay else 0.5)
     observer = make_observer(observer_name, model, drive.Ts, **observer_options)
     if startup:
-        from .estimators.startup import StartupEstimator
+        from pmsmjax.estimators.startup import StartupEstimator
 
         opts = {**STARTUP_DEFAULTS, **(startup_options or {})}
         observer = StartupEstimator(observer, model.pole_pairs, **opts)

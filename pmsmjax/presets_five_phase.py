@@ -43,16 +43,16 @@ cascade :class:`~pmsmjax.controllers.six_phase.MultiPhaseFOC` with the five-phas
 
 from pathlib import Path
 
-from .controllers.design import current_loop_imc
-from .controllers.pr import pr_design
-from .controllers.six_phase import VSDCurrentControl, vsd_current_design, z_pr_design
-from .drive import Drive
-from .inverters.multiphase_carrier import ZeroSequencePWM
-from .inverters.multiphase_svpwm import LargeVectorSVPWM, NearFourVectorSVPWM
-from .machines.multiphase_motor import MultiPhaseParameters
-from .machines.pmsm_multiphase import MultiPhasePMSMdq, MultiPhasePMSMNatural, MultiPhasePMSMVSD
-from .multiphase_frames import FIVE_PHASE
-from .presets import (
+from pmsmjax.controllers.design import current_loop_imc
+from pmsmjax.controllers.pr import pr_design
+from pmsmjax.controllers.six_phase import VSDCurrentControl, vsd_current_design, z_pr_design
+from pmsmjax.drive import Drive
+from pmsmjax.inverters.multiphase_carrier import ZeroSequencePWM
+from pmsmjax.inverters.multiphase_svpwm import LargeVectorSVPWM, NearFourVectorSVPWM
+from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
+from pmsmjax.machines.pmsm_multiphase import MultiPhasePMSMdq, MultiPhasePMSMNatural, MultiPhasePMSMVSD
+from pmsmjax.multiphase_frames import FIVE_PHASE
+from pmsmjax.presets import (
     BOOK_CURRENT_BANDWIDTH,
     BOOK_CURRENT_LIMIT,
     BOOK_DC_LINK,
@@ -61,12 +61,12 @@ from .presets import (
     PR_W_C,
     book_motor,
 )
-from .presets_six_phase import (
+from pmsmjax.presets_six_phase import (
     THREE_PHASE_LEAKAGE_FRACTION,
     assemble_multiphase_drive,
     read_multiphase_motor_file,
 )
-from .validation import ParameterError
+from pmsmjax.validation import ParameterError
 
 __all__ = [
     "FIVE_PHASE_CONTROLS",

@@ -35,23 +35,23 @@ delay, design-rule gains at a_c = 1100 rad/s and beta = 50 rad/s, 15 A limit) wi
 import sys
 from pathlib import Path
 
-from .controllers.design import current_loop_imc, speed_loop_active_damping
-from .controllers.six_phase import (
+from pmsmjax.controllers.design import current_loop_imc, speed_loop_active_damping
+from pmsmjax.controllers.six_phase import (
     SixPhaseFOC,
     VSDCurrentControl,
     double_dq_design,
     pr_current_design,
     vsd_current_design,
 )
-from .drive import Drive
-from .inverters.multiphase_bridges import MultiPhaseAveragedBridge, MultiPhaseSwitchingBridge
-from .inverters.six_phase_carrier import DecoupledSVPWM, DoubleZeroSequencePWM
-from .inverters.six_phase_svpwm import FourVectorSVPWM, TwoVectorSVPWM
-from .machines.multiphase_motor import MultiPhaseParameters
-from .machines.pmsm6 import PMSM6DoubleDQ
-from .machines.pmsm_multiphase import MultiPhasePMSMdq, MultiPhasePMSMNatural, MultiPhasePMSMVSD
-from .multiphase_frames import SIX_PHASE
-from .presets import (
+from pmsmjax.drive import Drive
+from pmsmjax.inverters.multiphase_bridges import MultiPhaseAveragedBridge, MultiPhaseSwitchingBridge
+from pmsmjax.inverters.six_phase_carrier import DecoupledSVPWM, DoubleZeroSequencePWM
+from pmsmjax.inverters.six_phase_svpwm import FourVectorSVPWM, TwoVectorSVPWM
+from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
+from pmsmjax.machines.pmsm6 import PMSM6DoubleDQ
+from pmsmjax.machines.pmsm_multiphase import MultiPhasePMSMdq, MultiPhasePMSMNatural, MultiPhasePMSMVSD
+from pmsmjax.multiphase_frames import SIX_PHASE
+from pmsmjax.presets import (
     BOOK_CURRENT_BANDWIDTH,
     BOOK_CURRENT_LIMIT,
     BOOK_DC_LINK,
@@ -60,7 +60,7 @@ from .presets import (
     PR_W_C,
     book_motor,
 )
-from .validation import ParameterError
+from pmsmjax.validation import ParameterError
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -27,10 +27,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .drive import Drive
-from .frames import alpha_beta_to_abc, dq_to_abc
-from .intra_period import dense_window
-from .inverters import (
+from pmsmjax.drive import Drive
+from pmsmjax.frames import alpha_beta_to_abc, dq_to_abc
+from pmsmjax.intra_period import dense_window
+from pmsmjax.inverters import (
     SVPWM,
     AveragedBridge,
     MinMaxPWM,
@@ -38,12 +38,12 @@ from .inverters import (
     SwitchingBridge,
     ThirdHarmonicPWM,
 )
-from .presets import book_drive, book_scenario
-from .scenarios import Profile, Scenario
-from .simulate import period_inputs, simulate
-from .spectra import piecewise_constant_spectrum, sampled_spectrum, thd
-from .units import rpm_to_rad_s
-from .validation import ParameterError
+from pmsmjax.presets import book_drive, book_scenario
+from pmsmjax.scenarios import Profile, Scenario
+from pmsmjax.simulate import period_inputs, simulate
+from pmsmjax.spectra import piecewise_constant_spectrum, sampled_spectrum, thd
+from pmsmjax.units import rpm_to_rad_s
+from pmsmjax.validation import ParameterError
 
 MODULATORS = {
     "sinusoidal": SinusoidalPWM,

@@ -37,17 +37,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .drive import Drive
-from .intra_period import dense_window
-from .inverters.multiphase_bridges import MultiPhaseAveragedBridge, MultiPhaseSwitchingBridge
-from .multiphase_frames import inverse_vsd, vsd
-from .presets_six_phase import SIX_PHASE_PWMS, six_phase_drive
-from .pwm_compare import steady_state
-from .scenarios import Profile, Scenario
-from .simulate import simulate
-from .spectra import piecewise_constant_spectrum, sampled_spectrum, thd
-from .units import rpm_to_rad_s
-from .validation import ParameterError
+from pmsmjax.drive import Drive
+from pmsmjax.intra_period import dense_window
+from pmsmjax.inverters.multiphase_bridges import MultiPhaseAveragedBridge, MultiPhaseSwitchingBridge
+from pmsmjax.multiphase_frames import inverse_vsd, vsd
+from pmsmjax.presets_six_phase import SIX_PHASE_PWMS, six_phase_drive
+from pmsmjax.pwm_compare import steady_state
+from pmsmjax.scenarios import Profile, Scenario
+from pmsmjax.simulate import simulate
+from pmsmjax.spectra import piecewise_constant_spectrum, sampled_spectrum, thd
+from pmsmjax.units import rpm_to_rad_s
+from pmsmjax.validation import ParameterError
 
 __all__ = ["SixPhaseCompareSettings", "compare_six_phase", "run_variant", "analyse"]
 
@@ -77,7 +77,7 @@ class SixPhaseCompareSettings:
     def table(self) -> dict:
         """The modulators of the phase count (name -> constructor)."""
         if self.phases == 5:
-            from .presets_five_phase import FIVE_PHASE_PWMS
+            from pmsmjax.presets_five_phase import FIVE_PHASE_PWMS
 
             return FIVE_PHASE_PWMS
         return SIX_PHASE_PWMS
@@ -203,7 +203,7 @@ def compare_six_phase(
     :func:`pmsmjax.pwm_compare.compare`. `base`: the drive (default: six-phase, conventional control,
     four-vector SVPWM, averaged bridge)."""
     if base is None and settings.phases == 5:
-        from .presets_five_phase import five_phase_drive
+        from pmsmjax.presets_five_phase import five_phase_drive
 
         base = five_phase_drive(control="conventional", pwm="near-four-vector")
     base = six_phase_drive(control="conventional", pwm="four-vector") if base is None else base

@@ -36,15 +36,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .frames import inverse_park, wrap_angle
-from .logs import check_columns, misspelt_columns, read_log, write_csv_atomic
-from .machines.base import MachineInput, MachineState
-from .machines.integrate import advance, max_stable_substep
-from .machines.motor import PMSMParameters
-from .machines.pmsm3 import PMSMdq
-from .plausibility import check_time_step
-from .presets import load_motor
-from .validation import ParameterError
+from pmsmjax.frames import inverse_park, wrap_angle
+from pmsmjax.logs import check_columns, misspelt_columns, read_log, write_csv_atomic
+from pmsmjax.machines.base import MachineInput, MachineState
+from pmsmjax.machines.integrate import advance, max_stable_substep
+from pmsmjax.machines.motor import PMSMParameters
+from pmsmjax.machines.pmsm3 import PMSMdq
+from pmsmjax.plausibility import check_time_step
+from pmsmjax.presets import load_motor
+from pmsmjax.validation import ParameterError
 
 __all__ = [
     "replay",

@@ -14,9 +14,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._types import Array
-from .machines.motor import as_float
-from .validation import ParameterError, check_finite, check_positive, is_concrete
+from pmsmjax._types import Array
+from pmsmjax.machines.motor import as_float
+from pmsmjax.validation import ParameterError, check_finite, check_positive, is_concrete
 
 
 class Profile(eqx.Module):

@@ -10,7 +10,7 @@ from typing import Literal
 
 import equinox as eqx
 
-from ._types import Array
+from pmsmjax._types import Array
 
 #: What a controller commands: a stationary-frame voltage for a modulator (``"voltage"``), or the leg
 #: switch states directly (``"switches"``: hysteresis current control, table DTC).

@@ -18,14 +18,14 @@ import jax.numpy as jnp
 import numpy as np
 from jax.flatten_util import ravel_pytree
 
-from ._types import Array
-from .drive import Drive, DriveState, PeriodInputs, PeriodRecord
-from .frames import dq_to_abc
-from .inverters.averaged import phase_voltages
-from .machines.integrate import max_stable_substep
-from .scenarios import Scenario
-from .trace import Trace
-from .validation import ParameterError, is_concrete
+from pmsmjax._types import Array
+from pmsmjax.drive import Drive, DriveState, PeriodInputs, PeriodRecord
+from pmsmjax.frames import dq_to_abc
+from pmsmjax.inverters.averaged import phase_voltages
+from pmsmjax.machines.integrate import max_stable_substep
+from pmsmjax.scenarios import Scenario
+from pmsmjax.trace import Trace
+from pmsmjax.validation import ParameterError, is_concrete
 
 __all__ = ["simulate", "check_simulation", "period_inputs"]
 

@@ -2,9 +2,9 @@
 
 import numpy as np
 
-from . import metrics
-from .trace import Trace
-from .units import rad_s_to_rpm
+from pmsmjax import metrics
+from pmsmjax.trace import Trace
+from pmsmjax.units import rad_s_to_rpm
 
 
 def speed_step_summary(

@@ -21,12 +21,12 @@ import equinox as eqx
 import jax
 import numpy as np
 
-from . import metrics
-from .controllers.dtc import SwitchingTableDTC
-from .controllers.hysteresis import HysteresisCurrentControl
-from .drive import Drive
-from .simulate import simulate
-from .validation import ParameterError
+from pmsmjax import metrics
+from pmsmjax.controllers.dtc import SwitchingTableDTC
+from pmsmjax.controllers.hysteresis import HysteresisCurrentControl
+from pmsmjax.drive import Drive
+from pmsmjax.simulate import simulate
+from pmsmjax.validation import ParameterError
 
 #: Controller class -> the band leaves scaled together.
 BAND_LEAVES = {

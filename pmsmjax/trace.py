@@ -3,8 +3,8 @@
 import equinox as eqx
 import numpy as np
 
-from ._types import Array
-from .units import rad_s_to_rpm
+from pmsmjax._types import Array
+from pmsmjax.units import rad_s_to_rpm
 
 # Column name -> (Trace attribute, index into the last axis or None), for CSV/NPZ export.
 _COLUMNS = {

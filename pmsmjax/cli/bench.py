@@ -1,6 +1,6 @@
 """``pmsmjax bench``: the speed benchmark of :mod:`benchmarks.bench_core`."""
 
-from . import checks
+from pmsmjax.cli import checks
 
 
 def add_parser(sub):

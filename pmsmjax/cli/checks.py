@@ -27,7 +27,7 @@ import math
 import os
 from pathlib import Path
 
-from ..validation import ParameterError, plain
+from pmsmjax.validation import ParameterError, plain
 
 __all__ = [
     "Parser",
@@ -120,7 +120,7 @@ def output_folder(path, name: str = "--out") -> Path:
     """Refuse an output folder that cannot be made or written, before any work: an existing file (not a
     folder) at ``path`` or on its way, or a nearest existing folder the user may not write into.
     Nothing is created. Returns ``Path(path)``."""
-    from ..logs import check_output_folder
+    from pmsmjax.logs import check_output_folder
 
     path = check_output_folder(path, name)
     existing = next((p for p in (path, *path.parents) if p.exists()), Path("."))

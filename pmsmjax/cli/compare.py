@@ -4,9 +4,9 @@
 import json
 import time
 
-from ..validation import ParameterError, plain
-from . import checks
-from .gains import add_gains_flag, apply_gains_flag, read_gains_flag
+from pmsmjax.cli import checks
+from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
+from pmsmjax.validation import ParameterError, plain
 
 
 def add_parser(sub):
@@ -111,9 +111,7 @@ def add_parser(sub):
 
 def precheck(args) -> list[str]:
     """Checks that need no model (before JAX starts); returns the control (or observer) names."""
-    from ..motor_files import motor_values
-    from ..operating_point import refuse_unreachable
-    from .demo import (
+    from pmsmjax.cli.demo import (
         BOOK_CURRENT_LIMIT_A,
         BOOK_TS_S,
         BOOK_U_DC_V,
@@ -121,6 +119,8 @@ def precheck(args) -> list[str]:
         ESTIMATOR_NAMES,
         MULTIPHASE_NAMES,
     )
+    from pmsmjax.motor_files import motor_values
+    from pmsmjax.operating_point import refuse_unreachable
 
     multiphase = args.machine != "three-phase"
     if multiphase:
@@ -136,7 +136,7 @@ def precheck(args) -> list[str]:
         chapter6 = any(n in CHAPTER6_NAMES for n in names)
         _chapter6_flags(args, names, chapter6)
         if chapter6:
-            from ..controller_compare import check_estimator_scenario
+            from pmsmjax.controller_compare import check_estimator_scenario
 
             check_estimator_scenario(names, args.scenario)
         control = "pi"
@@ -186,14 +186,14 @@ def precheck(args) -> list[str]:
     if multiphase:  # the motor from its preset's loader; the voltage limit of the default PWM's linear range
         import math
 
-        from ..operating_point import motor_dict
+        from pmsmjax.operating_point import motor_dict
 
         if args.machine == "six-phase":
-            from ..presets_six_phase import load_six_phase_motor as load
+            from pmsmjax.presets_six_phase import load_six_phase_motor as load
 
             u_limit = BOOK_U_DC_V / math.sqrt(3.0)  # four-vector SVPWM
         else:
-            from ..presets_five_phase import load_five_phase_motor as load
+            from pmsmjax.presets_five_phase import load_five_phase_motor as load
 
             u_limit = BOOK_U_DC_V / (2.0 * math.cos(math.pi / 10))  # near-four-vector SVPWM
         refuse_unreachable(
@@ -286,9 +286,9 @@ def run(args) -> int:
     if args.estimator is not None:
         return run_estimators(args, names)
 
-    from .. import presets
-    from ..controller_compare import ControllerCompareSettings, compare_controllers
-    from ..logs import atomic_write
+    from pmsmjax import presets
+    from pmsmjax.controller_compare import ControllerCompareSettings, compare_controllers
+    from pmsmjax.logs import atomic_write
 
     settings = ControllerCompareSettings(
         speed_rpm=args.speed_rpm,
@@ -302,8 +302,8 @@ def run(args) -> int:
     if args.machine == "three-phase":
         motor = presets.load_motor(args.motor, check_units=not args.trust_units)
     else:
-        from ..presets_five_phase import load_five_phase_motor
-        from ..presets_six_phase import load_six_phase_motor
+        from pmsmjax.presets_five_phase import load_five_phase_motor
+        from pmsmjax.presets_six_phase import load_six_phase_motor
 
         loader = load_six_phase_motor if args.machine == "six-phase" else load_five_phase_motor
         motor = loader(args.motor)
@@ -320,8 +320,8 @@ def run(args) -> int:
     atomic_write(out / "compare.json", lambda f: f.write(json.dumps(report, indent=2).encode()))
     written = ["compare.json"]
     if not args.no_figures:
-        from ..plotting import save_figure
-        from ..plotting_compare import flux_figure, ripple_figure, speed_figure
+        from pmsmjax.plotting import save_figure
+        from pmsmjax.plotting_compare import flux_figure, ripple_figure, speed_figure
 
         for name, fig in (
             ("compare_speed.png", speed_figure(result)),
@@ -342,16 +342,16 @@ def run_estimators(args, names: list[str]) -> int:
     compare_estimators`); writes compare.json, compare_estimators.md and figures."""
     import numpy as np
 
-    from .. import presets
-    from ..controller_compare import (
+    from pmsmjax import presets
+    from pmsmjax.controller_compare import (
         ESTIMATOR_COLUMNS,
         ControllerCompareSettings,
         LowSpeedSweep,
         compare_estimators,
         estimator_table,
     )
-    from ..logs import atomic_write
-    from ..observer_metrics import angle_error, angle_error_modulo_pi
+    from pmsmjax.logs import atomic_write
+    from pmsmjax.observer_metrics import angle_error, angle_error_modulo_pi
 
     settings = ControllerCompareSettings(
         speed_rpm=args.speed_rpm,
@@ -382,9 +382,9 @@ def run_estimators(args, names: list[str]) -> int:
     atomic_write(out / "compare_estimators.md", lambda f: f.write(table.encode()))
     written = ["compare.json", "compare_estimators.md"]
     if not args.no_figures:
-        from ..plotting import save_figure
-        from ..plotting_compare import speed_figure
-        from ..plotting_observers import angle_error_figure
+        from pmsmjax.plotting import save_figure
+        from pmsmjax.plotting_compare import speed_figure
+        from pmsmjax.plotting_observers import angle_error_figure
 
         first = next(iter(result["traces"].values()))
         entries = result["controllers"]

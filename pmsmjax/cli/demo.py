@@ -13,9 +13,9 @@ import json
 import math
 import time
 
-from ..validation import ParameterError, plain
-from . import checks
-from .gains import add_gains_flag, apply_gains_flag, read_gains_flag
+from pmsmjax.cli import checks
+from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
+from pmsmjax.validation import ParameterError, plain
 
 CONTROL_NAMES = ("pi", "smc", "pr", "hysteresis", "dtc", "smc-dtc")
 #: ``--machine six-phase``: the schemes of pmsmjax.presets_six_phase.SIX_PHASE_CONTROLS (listed here so
@@ -100,11 +100,11 @@ MAX_SPEED_FACTOR = 3.0
 def six_phase_drive_from_flags(args):
     """``--machine six-phase`` (or ``five-phase``): the multi-phase drive of ``args.control`` with the flags
     the user set; flags of the three-phase controls are refused."""
-    from ..presets_six_phase import load_six_phase_motor, six_phase_drive
+    from pmsmjax.presets_six_phase import load_six_phase_motor, six_phase_drive
 
     if args.machine == "five-phase":
-        from ..presets_five_phase import five_phase_drive as six_phase_drive  # noqa: F811
-        from ..presets_five_phase import load_five_phase_motor as load_six_phase_motor  # noqa: F811
+        from pmsmjax.presets_five_phase import five_phase_drive as six_phase_drive  # noqa: F811
+        from pmsmjax.presets_five_phase import load_five_phase_motor as load_six_phase_motor  # noqa: F811
     options = {}
     for flag in FLAG_OPTIONS.keys() | SIX_PHASE_FLAG_OPTIONS.keys():
         value = getattr(args, flag, None)
@@ -164,8 +164,8 @@ def check_machine_flags(args) -> None:
 def control_drive_from_flags(args, motor):
     """The drive of ``args.control`` with the options the user set; a flag that does not apply to the
     chosen control is refused (``--band-a`` with ``--control pi``, say) instead of silently ignored."""
-    from .. import presets
-    from ..controls import control_drive, control_options
+    from pmsmjax import presets
+    from pmsmjax.controls import control_drive, control_options
 
     allowed = control_options(args.control)
     options = {}
@@ -315,8 +315,8 @@ def add_parser(sub):
 
 def precheck(args) -> dict | None:
     """Every check that needs no model (pure Python, before JAX starts); returns the motor's values."""
-    from ..motor_files import motor_values
-    from ..operating_point import top_speed_rpm
+    from pmsmjax.motor_files import motor_values
+    from pmsmjax.operating_point import top_speed_rpm
 
     checks.output_folder(args.out)
     check_machine_flags(args)
@@ -364,13 +364,13 @@ def run(args) -> int:
     import jax
     import numpy as np
 
-    from .. import presets
-    from ..logs import atomic_write, write_csv_atomic
-    from ..operating_point import run_flags
-    from ..plotting import save_demo_figures
-    from ..simulate import check_simulation, simulate
-    from ..summary import speed_step_summary
-    from ..trace import COLUMN_UNITS
+    from pmsmjax import presets
+    from pmsmjax.logs import atomic_write, write_csv_atomic
+    from pmsmjax.operating_point import run_flags
+    from pmsmjax.plotting import save_demo_figures
+    from pmsmjax.simulate import check_simulation, simulate
+    from pmsmjax.summary import speed_step_summary
+    from pmsmjax.trace import COLUMN_UNITS
 
     out = checks.output_folder(args.out)
     six_phase = args.machine in MULTIPHASE_NAMES  # six- or five-phase
@@ -445,7 +445,7 @@ def run(args) -> int:
     }
 
     if six_phase:
-        from ..trace import FIVE_PHASE_COLUMN_UNITS, SIX_PHASE_COLUMN_UNITS
+        from pmsmjax.trace import FIVE_PHASE_COLUMN_UNITS, SIX_PHASE_COLUMN_UNITS
 
         five = args.machine == "five-phase"
         extra = FIVE_PHASE_COLUMN_UNITS if five else SIX_PHASE_COLUMN_UNITS
@@ -475,8 +475,8 @@ def run(args) -> int:
         )
     )
     if six_phase and not args.no_figures:
-        from ..plotting import save_figure
-        from ..plotting_six_phase import z_currents_figure
+        from pmsmjax.plotting import save_figure
+        from pmsmjax.plotting_six_phase import z_currents_figure
 
         fig = z_currents_figure(trace, f"{args.machine} drive, {args.control}", drive.machine.layout)
         name = "currents_xy.png" if args.machine == "five-phase" else "currents_z.png"
@@ -528,7 +528,7 @@ def z_current_peak(trace, layout=None) -> float:
     """Largest |z1-z2| current (A) of a six-phase trace (|x-y| of a five-phase one: ``layout``)."""
     import numpy as np
 
-    from ..multiphase_frames import SIX_PHASE, vsd
+    from pmsmjax.multiphase_frames import SIX_PHASE, vsd
 
     i_z = np.asarray(vsd(trace.i_abc, SIX_PHASE if layout is None else layout))[:, 2:4]
     return float(np.max(np.hypot(i_z[:, 0], i_z[:, 1])))

@@ -1,7 +1,7 @@
 """``pmsmjax identify``: motor parameters with error bars from a logged run (:mod:`tuning.identify`)."""
 
-from ..validation import ParameterError
-from . import checks
+from pmsmjax.cli import checks
+from pmsmjax.validation import ParameterError
 
 
 def add_parser(sub):

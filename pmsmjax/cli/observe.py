@@ -11,7 +11,7 @@ record.
 import json
 import time
 
-from ..validation import ParameterError
+from pmsmjax.validation import ParameterError
 
 
 def add_parser(sub):
@@ -116,14 +116,14 @@ def _number_or_text(value: str):
 def run(args) -> int:
     import numpy as np
 
+    from pmsmjax import presets
+    from pmsmjax.estimators.registry import INJECTION_OBSERVERS, check_observer_name, make_observer
+    from pmsmjax.logs import atomic_write, check_output_folder, write_csv_atomic
+    from pmsmjax.observe import error_statistics, observe
+
     # The command line is the one place where pmsmjax reaches up into the tuning workflows (the log reader
     # is shared with `pmsmjax identify`).
     from tuning.identify.log import load_stator_log, read_log_config
-
-    from .. import presets
-    from ..estimators.registry import INJECTION_OBSERVERS, check_observer_name, make_observer
-    from ..logs import atomic_write, check_output_folder, write_csv_atomic
-    from ..observe import error_statistics, observe
 
     check_observer_name(args.observer)
     injection = args.observer in INJECTION_OBSERVERS
@@ -209,8 +209,8 @@ def run(args) -> int:
     atomic_write(out / "observe.json", lambda f: f.write(json.dumps(summary, indent=2).encode()))
     written = ["estimate.csv", "observe.json"]
     if not args.no_figures:
-        from ..plotting import save_figure
-        from ..plotting_observers import observer_log_figure
+        from pmsmjax.plotting import save_figure
+        from pmsmjax.plotting_observers import observer_log_figure
 
         save_figure(
             observer_log_figure(

@@ -1,6 +1,6 @@
 """``pmsmjax replay``: run the machine under a recorded voltage sequence."""
 
-from . import checks
+from pmsmjax.cli import checks
 
 
 def add_parser(sub):
@@ -44,10 +44,10 @@ def add_parser(sub):
 def run(args) -> int:
     checks.existing_file(args.log, "log", "log file")
     checks.output_folder(args.out)
-    from ..motor_files import motor_values
+    from pmsmjax.motor_files import motor_values
 
     motor_values(args.motor, check_units=not args.trust_units)
-    from ..replay import replay_file
+    from pmsmjax.replay import replay_file
 
     notes: list[str] = []
     path = replay_file(

@@ -6,8 +6,8 @@ the same command resumes from it.
 
 from pathlib import Path
 
-from ..validation import ParameterError, plain
-from . import checks
+from pmsmjax.cli import checks
+from pmsmjax.validation import ParameterError, plain
 
 
 def add_parser(sub):
@@ -115,7 +115,7 @@ def add_parser(sub):
 
 def precheck(args) -> None:
     """Checks that need no model (before JAX starts)."""
-    from .gains import read_gains_flag
+    from pmsmjax.cli.gains import read_gains_flag
 
     checks.output_folder(args.out)
     if args.config is not None:

@@ -3,28 +3,33 @@ sliding-mode speed loops; dq PI or proportional-resonant current loops; MTPA and
 hysteresis current control; switching-table and sliding-mode direct torque control; the six-phase
 cascade (VSD, double dq, PR current loops)."""
 
-from .base import (
+from pmsmjax.controllers.base import (
     AbstractController,
     AbstractCurrentController,
     AbstractDAxisReference,
     AbstractSpeedController,
     CurrentLoopContext,
 )
-from .design import (
+from pmsmjax.controllers.design import (
     CurrentLoopGains,
     SpeedLoopGains,
     current_loop_imc,
     first_order_rise_time,
     speed_loop_active_damping,
 )
-from .dtc import SwitchingTableDTC, torque_current_limit
-from .field_weakening import VoltageFeedbackFieldWeakening
-from .foc import FOC, FOCState
-from .hysteresis import HysteresisCurrentControl, HysteresisState, hysteresis_comparator
-from .mtpa import MTPA, mtpa_id_from_iq, mtpa_id_from_magnitude
-from .pi import clip_magnitude, clip_symmetric, pi_update, realisable_reference_tracking
-from .pr import ProportionalResonant, ResonantCoefficients, pr_design, resonant_coefficients
-from .six_phase import (
+from pmsmjax.controllers.dtc import SwitchingTableDTC, torque_current_limit
+from pmsmjax.controllers.field_weakening import VoltageFeedbackFieldWeakening
+from pmsmjax.controllers.foc import FOC, FOCState
+from pmsmjax.controllers.hysteresis import HysteresisCurrentControl, HysteresisState, hysteresis_comparator
+from pmsmjax.controllers.mtpa import MTPA, mtpa_id_from_iq, mtpa_id_from_magnitude
+from pmsmjax.controllers.pi import clip_magnitude, clip_symmetric, pi_update, realisable_reference_tracking
+from pmsmjax.controllers.pr import (
+    ProportionalResonant,
+    ResonantCoefficients,
+    pr_design,
+    resonant_coefficients,
+)
+from pmsmjax.controllers.six_phase import (
     DoubleDQCurrentPI,
     MultiPhaseFOC,
     SixPhaseFOC,
@@ -37,8 +42,8 @@ from .six_phase import (
     z_current_imc,
     z_pr_design,
 )
-from .smc import SlidingModeSpeed, SlidingModeState, smc_design, switching_function
-from .smc_dtc import SlidingModeDTC, smc_dtc_design
+from pmsmjax.controllers.smc import SlidingModeSpeed, SlidingModeState, smc_design, switching_function
+from pmsmjax.controllers.smc_dtc import SlidingModeDTC, smc_dtc_design
 
 __all__ = [
     "FOC",

@@ -21,9 +21,9 @@ from typing import ClassVar, NamedTuple
 
 import equinox as eqx
 
-from .._types import Array
-from ..machines.motor import PMSMParameters
-from ..signals import CommandKind, ControlOutput, Estimate, References, Sample
+from pmsmjax._types import Array
+from pmsmjax.machines.motor import PMSMParameters
+from pmsmjax.signals import CommandKind, ControlOutput, Estimate, References, Sample
 
 
 class AbstractController(eqx.Module):

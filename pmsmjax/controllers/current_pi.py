@@ -17,10 +17,10 @@ loop: the usual industrial remedy (predictive current control with delay compens
 
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import inverse_park, park
-from .base import AbstractCurrentController, CurrentLoopContext
-from .pi import clip_magnitude, pi_update
+from pmsmjax._types import Array
+from pmsmjax.controllers.base import AbstractCurrentController, CurrentLoopContext
+from pmsmjax.controllers.pi import clip_magnitude, pi_update
+from pmsmjax.frames import inverse_park, park
 
 
 class CurrentLoopGains(AbstractCurrentController):

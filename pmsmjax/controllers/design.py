@@ -12,10 +12,10 @@ import math
 
 import jax.numpy as jnp
 
-from ..machines.motor import PMSMParameters
-from ..validation import check_positive
-from .current_pi import CurrentLoopGains
-from .speed_pi import SpeedLoopGains
+from pmsmjax.controllers.current_pi import CurrentLoopGains
+from pmsmjax.controllers.speed_pi import SpeedLoopGains
+from pmsmjax.machines.motor import PMSMParameters
+from pmsmjax.validation import check_positive
 
 __all__ = [
     "CurrentLoopGains",

@@ -82,14 +82,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._types import Array
-from ..frames import abc_to_alpha_beta, park
-from ..machines.motor import PMSMParameters, as_float
-from ..signals import CommandKind, ControlOutput, Estimate, References, Sample
-from ..validation import ParameterError, check_positive
-from .base import AbstractController, AbstractSpeedController
-from .design import speed_loop_active_damping
-from .hysteresis import hysteresis_comparator
+from pmsmjax._types import Array
+from pmsmjax.controllers.base import AbstractController, AbstractSpeedController
+from pmsmjax.controllers.design import speed_loop_active_damping
+from pmsmjax.controllers.hysteresis import hysteresis_comparator
+from pmsmjax.frames import abc_to_alpha_beta, park
+from pmsmjax.machines.motor import PMSMParameters, as_float
+from pmsmjax.signals import CommandKind, ControlOutput, Estimate, References, Sample
+from pmsmjax.validation import ParameterError, check_positive
 
 DTCMode = Literal["speed", "torque"]
 

@@ -37,11 +37,11 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from .._types import Array
-from ..machines.motor import as_float
-from ..validation import ParameterError, check_positive, is_concrete
-from .base import AbstractDAxisReference, CurrentLoopContext
-from .mtpa import mtpa_id_from_iq
+from pmsmjax._types import Array
+from pmsmjax.controllers.base import AbstractDAxisReference, CurrentLoopContext
+from pmsmjax.controllers.mtpa import mtpa_id_from_iq
+from pmsmjax.machines.motor import as_float
+from pmsmjax.validation import ParameterError, check_positive, is_concrete
 
 
 class VoltageFeedbackFieldWeakening(AbstractDAxisReference):

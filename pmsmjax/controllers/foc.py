@@ -20,17 +20,17 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .._types import Array
-from ..machines.motor import PMSMParameters, as_float
-from ..signals import ControlOutput, Estimate, References, Sample
-from ..validation import ParameterError, check_positive
-from .base import (
+from pmsmjax._types import Array
+from pmsmjax.controllers.base import (
     AbstractController,
     AbstractCurrentController,
     AbstractDAxisReference,
     AbstractSpeedController,
     CurrentLoopContext,
 )
+from pmsmjax.machines.motor import PMSMParameters, as_float
+from pmsmjax.signals import ControlOutput, Estimate, References, Sample
+from pmsmjax.validation import ParameterError, check_positive
 
 ControlMode = Literal["speed", "current"]
 

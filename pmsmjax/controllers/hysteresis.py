@@ -49,14 +49,19 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import abc_to_alpha_beta, dq_to_abc, park
-from ..machines.motor import PMSMParameters, as_float
-from ..signals import CommandKind, ControlOutput, Estimate, References, Sample
-from ..validation import ParameterError, check_positive
-from .base import AbstractController, AbstractDAxisReference, AbstractSpeedController, CurrentLoopContext
-from .design import speed_loop_active_damping
-from .foc import ControlMode, cascade_references
+from pmsmjax._types import Array
+from pmsmjax.controllers.base import (
+    AbstractController,
+    AbstractDAxisReference,
+    AbstractSpeedController,
+    CurrentLoopContext,
+)
+from pmsmjax.controllers.design import speed_loop_active_damping
+from pmsmjax.controllers.foc import ControlMode, cascade_references
+from pmsmjax.frames import abc_to_alpha_beta, dq_to_abc, park
+from pmsmjax.machines.motor import PMSMParameters, as_float
+from pmsmjax.signals import CommandKind, ControlOutput, Estimate, References, Sample
+from pmsmjax.validation import ParameterError, check_positive
 
 ComparatorKind = Literal["exact", "smooth"]
 

@@ -22,9 +22,9 @@ guarded with the double-where pattern so the gradient stays finite there.
 
 import jax.numpy as jnp
 
-from .._types import Array
-from ..machines.motor import PMSMParameters
-from .base import AbstractDAxisReference, CurrentLoopContext
+from pmsmjax._types import Array
+from pmsmjax.controllers.base import AbstractDAxisReference, CurrentLoopContext
+from pmsmjax.machines.motor import PMSMParameters
 
 
 def _rationalised(psi_f, dL, c, current):

@@ -27,7 +27,7 @@ penalise separately.
 
 import jax.numpy as jnp
 
-from .._types import Array
+from pmsmjax._types import Array
 
 
 def pi_update(

@@ -89,13 +89,13 @@ from typing import Literal, NamedTuple
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import inverse_park, park
-from ..machines.motor import PMSMParameters, as_float
-from ..validation import ParameterError, check_nonnegative, check_positive
-from .base import AbstractCurrentController, CurrentLoopContext
-from .current_pi import angle_lead
-from .pi import clip_magnitude
+from pmsmjax._types import Array
+from pmsmjax.controllers.base import AbstractCurrentController, CurrentLoopContext
+from pmsmjax.controllers.current_pi import angle_lead
+from pmsmjax.controllers.pi import clip_magnitude
+from pmsmjax.frames import inverse_park, park
+from pmsmjax.machines.motor import PMSMParameters, as_float
+from pmsmjax.validation import ParameterError, check_nonnegative, check_positive
 
 Discretisation = Literal["tustin-prewarp", "sogi"]
 DISCRETISATIONS = ("tustin-prewarp", "sogi")

@@ -68,10 +68,28 @@ from typing import Literal
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import inverse_park, park
-from ..machines.motor import as_float
-from ..multiphase_frames import (
+from pmsmjax._types import Array
+from pmsmjax.controllers.base import (
+    AbstractController,
+    AbstractCurrentController,
+    AbstractDAxisReference,
+    AbstractSpeedController,
+    CurrentLoopContext,
+)
+from pmsmjax.controllers.current_pi import angle_lead
+from pmsmjax.controllers.design import current_loop_imc
+from pmsmjax.controllers.foc import FOCState, cascade_references
+from pmsmjax.controllers.pi import clip_magnitude
+from pmsmjax.controllers.pr import (
+    DISCRETISATIONS,
+    Discretisation,
+    ProportionalResonant,
+    pr_design,
+    resonant_coefficients,
+)
+from pmsmjax.frames import inverse_park, park
+from pmsmjax.machines.motor import as_float
+from pmsmjax.multiphase_frames import (
     SIX_PHASE,
     PhaseLayout,
     double_dq,
@@ -80,20 +98,8 @@ from ..multiphase_frames import (
     z_from_counter_rotating,
     z_to_counter_rotating,
 )
-from ..signals import ControlOutput, Estimate, References, Sample
-from ..validation import ParameterError, check_nonnegative, check_positive
-from .base import (
-    AbstractController,
-    AbstractCurrentController,
-    AbstractDAxisReference,
-    AbstractSpeedController,
-    CurrentLoopContext,
-)
-from .current_pi import angle_lead
-from .design import current_loop_imc
-from .foc import FOCState, cascade_references
-from .pi import clip_magnitude
-from .pr import DISCRETISATIONS, Discretisation, ProportionalResonant, pr_design, resonant_coefficients
+from pmsmjax.signals import ControlOutput, Estimate, References, Sample
+from pmsmjax.validation import ParameterError, check_nonnegative, check_positive
 
 __all__ = [
     "AbstractSixPhaseCurrentController",

@@ -59,10 +59,10 @@ from typing import Literal
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..machines.motor import PMSMParameters, as_float
-from ..validation import ParameterError, check_nonnegative, check_positive, is_concrete
-from .base import AbstractSpeedController
+from pmsmjax._types import Array
+from pmsmjax.controllers.base import AbstractSpeedController
+from pmsmjax.machines.motor import PMSMParameters, as_float
+from pmsmjax.validation import ParameterError, check_nonnegative, check_positive, is_concrete
 
 Switching = Literal["sign", "saturation", "tanh"]
 SWITCHING = ("sign", "saturation", "tanh")

@@ -54,23 +54,23 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import park, rotation
-from ..machines.motor import PMSMParameters, as_float
-from ..signals import CommandKind, ControlOutput, Estimate, References, Sample
-from ..validation import ParameterError, check_positive, is_concrete
-from .base import AbstractController, AbstractSpeedController
-from .current_pi import angle_lead
-from .design import speed_loop_active_damping
-from .dtc import (
+from pmsmjax._types import Array
+from pmsmjax.controllers.base import AbstractController, AbstractSpeedController
+from pmsmjax.controllers.current_pi import angle_lead
+from pmsmjax.controllers.design import speed_loop_active_damping
+from pmsmjax.controllers.dtc import (
     DTCMode,
     check_flux_estimate,
     flux_magnitude,
     implied_current_reference,
     speed_torque_reference,
 )
-from .pi import clip_magnitude
-from .smc import SWITCHING, Switching, switching_function
+from pmsmjax.controllers.pi import clip_magnitude
+from pmsmjax.controllers.smc import SWITCHING, Switching, switching_function
+from pmsmjax.frames import park, rotation
+from pmsmjax.machines.motor import PMSMParameters, as_float
+from pmsmjax.signals import CommandKind, ControlOutput, Estimate, References, Sample
+from pmsmjax.validation import ParameterError, check_positive, is_concrete
 
 __all__ = ["SlidingModeDTC", "SlidingModeDTCState", "smc_dtc_design"]
 

@@ -24,10 +24,10 @@ from typing import Literal
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..validation import ParameterError
-from .base import AbstractSpeedController
-from .pi import clip_symmetric, pi_update, realisable_reference_tracking
+from pmsmjax._types import Array
+from pmsmjax.controllers.base import AbstractSpeedController
+from pmsmjax.controllers.pi import clip_symmetric, pi_update, realisable_reference_tracking
+from pmsmjax.validation import ParameterError
 
 AntiWindup = Literal["realisable_reference", "reset"]
 

@@ -9,21 +9,27 @@ estimators of chapter 6 (:class:`HFIRotating`, :class:`HFIPulsating`; ``hfi-rota
 read the saliency at standstill and low speed.
 """
 
-from .adaptive_smo import AdaptiveSMO, adaptive_smo_design
-from .base import AbstractEstimator
-from .dq_smo import DQSlidingModeObserver, dq_smo_design
-from .ekf import EKF, ekf_design
-from .flux_observer import StatorFluxObserver, StatorFluxObserverState
-from .hfi_pulsating import HFIPulsating, hfi_pulsating_design
-from .hfi_rotating import HFIRotating, hfi_rotating_design
-from .hybrid import HybridEstimator, HybridState, hybrid_design
-from .mras import MRAS, mras_design
-from .pll import PLL, pll_design
-from .polarity import PolarityDetector, PolarityState, polarity_detector
-from .position_sensors import Encoder, EncoderState, ExactSensor
-from .registry import HYBRID_OBSERVERS, INJECTION_OBSERVERS, OBSERVERS, make_observer, observer_options
-from .smo import SlidingModeObserver, smo_design
-from .startup import StartupEstimator, StartupState
+from pmsmjax.estimators.adaptive_smo import AdaptiveSMO, adaptive_smo_design
+from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.dq_smo import DQSlidingModeObserver, dq_smo_design
+from pmsmjax.estimators.ekf import EKF, ekf_design
+from pmsmjax.estimators.flux_observer import StatorFluxObserver, StatorFluxObserverState
+from pmsmjax.estimators.hfi_pulsating import HFIPulsating, hfi_pulsating_design
+from pmsmjax.estimators.hfi_rotating import HFIRotating, hfi_rotating_design
+from pmsmjax.estimators.hybrid import HybridEstimator, HybridState, hybrid_design
+from pmsmjax.estimators.mras import MRAS, mras_design
+from pmsmjax.estimators.pll import PLL, pll_design
+from pmsmjax.estimators.polarity import PolarityDetector, PolarityState, polarity_detector
+from pmsmjax.estimators.position_sensors import Encoder, EncoderState, ExactSensor
+from pmsmjax.estimators.registry import (
+    HYBRID_OBSERVERS,
+    INJECTION_OBSERVERS,
+    OBSERVERS,
+    make_observer,
+    observer_options,
+)
+from pmsmjax.estimators.smo import SlidingModeObserver, smo_design
+from pmsmjax.estimators.startup import StartupEstimator, StartupState
 
 __all__ = [
     "EKF",

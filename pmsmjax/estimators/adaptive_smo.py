@@ -30,16 +30,17 @@ import math
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import wrap_angle
-from ..machines.motor import PMSMParameters, as_float
-from ..signals import Estimate, Sample
-from ..units import rpm_to_rad_s
-from ..validation import ParameterError, check_positive
-from .base import AbstractEstimator
-from .smo import SMO_K_MARGIN, SMO_POLE, check_observer_pole, observer_pole, sliding_current_update
-from .stability import check_loop, concrete_values, tracking_loop_matrix
-from .stator_model import (
+from pmsmjax._types import Array
+from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.smo import (
+    SMO_K_MARGIN,
+    SMO_POLE,
+    check_observer_pole,
+    observer_pole,
+    sliding_current_update,
+)
+from pmsmjax.estimators.stability import check_loop, concrete_values, tracking_loop_matrix
+from pmsmjax.estimators.stator_model import (
     cross,
     emf_angle,
     first_order_lag,
@@ -47,7 +48,12 @@ from .stator_model import (
     rl_coefficients,
     rotate,
 )
-from .switching import SWITCHING, Switching
+from pmsmjax.estimators.switching import SWITCHING, Switching
+from pmsmjax.frames import wrap_angle
+from pmsmjax.machines.motor import PMSMParameters, as_float
+from pmsmjax.signals import Estimate, Sample
+from pmsmjax.units import rpm_to_rad_s
+from pmsmjax.validation import ParameterError, check_positive
 
 
 class AdaptiveSMOState(eqx.Module):

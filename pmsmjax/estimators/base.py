@@ -17,7 +17,7 @@ from typing import ClassVar
 
 import equinox as eqx
 
-from ..signals import Estimate, Sample
+from pmsmjax.signals import Estimate, Sample
 
 
 class AbstractEstimator(eqx.Module):

@@ -31,14 +31,14 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import wrap_angle
-from ..machines.motor import PMSMParameters, as_float
-from ..signals import Estimate, Sample
-from ..units import rpm_to_rad_s
-from ..validation import ParameterError, check_positive
-from .base import AbstractEstimator
-from .stator_model import emf_direction, period_weight_phase, rl_coefficients
+from pmsmjax._types import Array
+from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.stator_model import emf_direction, period_weight_phase, rl_coefficients
+from pmsmjax.frames import wrap_angle
+from pmsmjax.machines.motor import PMSMParameters, as_float
+from pmsmjax.signals import Estimate, Sample
+from pmsmjax.units import rpm_to_rad_s
+from pmsmjax.validation import ParameterError, check_positive
 
 
 class EKFState(eqx.Module):

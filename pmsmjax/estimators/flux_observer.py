@@ -59,13 +59,13 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import inverse_park, park
-from ..machines.motor import PMSMParameters, as_float
-from ..signals import Estimate, Sample
-from ..validation import ParameterError, check_nonnegative
-from .base import AbstractEstimator
-from .position_sensors import ExactSensor
+from pmsmjax._types import Array
+from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.position_sensors import ExactSensor
+from pmsmjax.frames import inverse_park, park
+from pmsmjax.machines.motor import PMSMParameters, as_float
+from pmsmjax.signals import Estimate, Sample
+from pmsmjax.validation import ParameterError, check_nonnegative
 
 __all__ = ["StatorFluxObserver", "StatorFluxObserverState", "current_model_flux", "flux_torque"]
 

@@ -42,14 +42,14 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import inverse_park, park, wrap_angle
-from ..machines.motor import PMSMParameters, as_float
-from ..signals import Estimate, Sample
-from ..validation import check_positive
-from . import hfi_signal as hs
-from .base import AbstractEstimator
-from .pll import PLL, PLLState, pll_design
+from pmsmjax._types import Array
+from pmsmjax.estimators import hfi_signal as hs
+from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.pll import PLL, PLLState, pll_design
+from pmsmjax.frames import inverse_park, park, wrap_angle
+from pmsmjax.machines.motor import PMSMParameters, as_float
+from pmsmjax.signals import Estimate, Sample
+from pmsmjax.validation import check_positive
 
 
 class HFIPulsatingState(eqx.Module):

@@ -55,14 +55,14 @@ from typing import ClassVar, Literal
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import wrap_angle
-from ..machines.motor import PMSMParameters, as_float
-from ..signals import Estimate, Sample
-from ..validation import ParameterError, check_positive
-from . import hfi_signal as hs
-from .base import AbstractEstimator
-from .pll import PLL, PLLState, pll_design
+from pmsmjax._types import Array
+from pmsmjax.estimators import hfi_signal as hs
+from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.pll import PLL, PLLState, pll_design
+from pmsmjax.frames import wrap_angle
+from pmsmjax.machines.motor import PMSMParameters, as_float
+from pmsmjax.signals import Estimate, Sample
+from pmsmjax.validation import ParameterError, check_positive
 
 CarrierSource = Literal["internal", "measured"]
 

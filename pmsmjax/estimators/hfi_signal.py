@@ -39,9 +39,9 @@ import math
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import wrap_angle
-from ..validation import ParameterError, check_positive, is_concrete
+from pmsmjax._types import Array
+from pmsmjax.frames import wrap_angle
+from pmsmjax.validation import ParameterError, check_positive, is_concrete
 
 #: Default carrier frequency as a fraction of the sampling frequency: 10 samples per carrier period, far
 #: below the 5 kHz Nyquist frequency of 10 kHz control, far above the ~175 Hz current-loop bandwidth.

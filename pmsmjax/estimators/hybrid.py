@@ -50,15 +50,15 @@ Start-up fields (``startup_weight``, ``startup_i_dq``) and the carrier-free curr
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import wrap_angle
-from ..machines.motor import PMSMParameters, as_float
-from ..signals import Sample
-from ..units import rpm_to_rad_s
-from ..validation import ParameterError, check_positive
-from .base import AbstractEstimator
-from .pll import PLLState
-from .stability import concrete_values
+from pmsmjax._types import Array
+from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.pll import PLLState
+from pmsmjax.estimators.stability import concrete_values
+from pmsmjax.frames import wrap_angle
+from pmsmjax.machines.motor import PMSMParameters, as_float
+from pmsmjax.signals import Sample
+from pmsmjax.units import rpm_to_rad_s
+from pmsmjax.validation import ParameterError, check_positive
 
 
 def pull_observer(observer: AbstractEstimator, state, estimate, theta_e, omega_m, strength):
@@ -69,8 +69,8 @@ def pull_observer(observer: AbstractEstimator, state, estimate, theta_e, omega_m
     The states are shifted by the *estimate's* distance to the target, not set from the target: an
     observer's output may be its state plus a compensation (the smo-pll adds its filter chain's lag to
     the PLL angle), and setting the state to the target would leave the output off by that compensation."""
-    from .ekf import EKF
-    from .smo import SlidingModeObserver
+    from pmsmjax.estimators.ekf import EKF
+    from pmsmjax.estimators.smo import SlidingModeObserver
 
     d_theta = strength * wrap_angle(theta_e - estimate.theta_e)
     d_omega = strength * (omega_m - estimate.omega_m)
@@ -99,7 +99,7 @@ def pull_injection(injection: AbstractEstimator, state, estimate, theta_e, omega
     lag, and inside the crossover band, where the blend feeds back into both estimators, the two pulls
     settled on an estimate off by up to twice it; that lost the hand-down under load
     (README.md)."""
-    from .polarity import PolarityDetector
+    from pmsmjax.estimators.polarity import PolarityDetector
 
     if isinstance(injection, PolarityDetector):
         inner = pull_injection(injection.observer, state.observer, estimate, theta_e, omega_m, strength)
@@ -236,8 +236,8 @@ def hybrid_design(
     by 20 degrees and more at the current limit's acceleration above that; README.md).
     Since the pulls move the estimates (README.md) the smo-pll with a 150/250/350 r/min
     band holds the book scenario (8 of 8 starts, 32 degrees peak) but still not the reversal."""
-    from .polarity import polarity_detector
-    from .registry import make_observer
+    from pmsmjax.estimators.polarity import polarity_detector
+    from pmsmjax.estimators.registry import make_observer
 
     low, high, off = (rpm_to_rad_s(x) for x in (low_rpm, high_rpm, off_rpm))
     inj_opts = {"delay_periods": delay_periods, **(injection_options or {})}

@@ -33,14 +33,14 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from .._types import Array
-from ..frames import wrap_angle
-from ..machines.motor import PMSMParameters, as_float
-from ..signals import Estimate, Sample
-from ..validation import check_positive
-from .base import AbstractEstimator
-from .stability import check_loop, concrete_values
-from .stator_model import cross, emf_direction, period_weight_phase, rl_coefficients
+from pmsmjax._types import Array
+from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.stability import check_loop, concrete_values
+from pmsmjax.estimators.stator_model import cross, emf_direction, period_weight_phase, rl_coefficients
+from pmsmjax.frames import wrap_angle
+from pmsmjax.machines.motor import PMSMParameters, as_float
+from pmsmjax.signals import Estimate, Sample
+from pmsmjax.validation import check_positive
 
 
 class MRASState(eqx.Module):

@@ -21,11 +21,11 @@ shrink the stable gains several-fold.
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import wrap_angle
-from ..machines.motor import as_float
-from ..validation import check_positive
-from .stability import check_loop, concrete_values, tracking_loop_matrix
+from pmsmjax._types import Array
+from pmsmjax.estimators.stability import check_loop, concrete_values, tracking_loop_matrix
+from pmsmjax.frames import wrap_angle
+from pmsmjax.machines.motor import as_float
+from pmsmjax.validation import check_positive
 
 
 class PLLState(eqx.Module):

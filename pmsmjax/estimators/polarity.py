@@ -39,12 +39,12 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import park, wrap_angle
-from ..machines.motor import as_float
-from ..signals import Sample
-from ..validation import ParameterError, check_nonnegative, check_positive
-from .base import AbstractEstimator
+from pmsmjax._types import Array
+from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.frames import park, wrap_angle
+from pmsmjax.machines.motor import as_float
+from pmsmjax.signals import Sample
+from pmsmjax.validation import ParameterError, check_nonnegative, check_positive
 
 Decision = Literal["exact", "sigmoid"]
 

@@ -18,11 +18,11 @@ import math
 import equinox as eqx
 import jax.numpy as jnp
 
-from ..frames import wrap_angle
-from ..machines.motor import as_float
-from ..signals import Estimate, Sample
-from ..validation import ParameterError, check_nonnegative, check_positive, is_concrete
-from .base import AbstractEstimator
+from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.frames import wrap_angle
+from pmsmjax.machines.motor import as_float
+from pmsmjax.signals import Estimate, Sample
+from pmsmjax.validation import ParameterError, check_nonnegative, check_positive, is_concrete
 
 
 class ExactSensor(AbstractEstimator):

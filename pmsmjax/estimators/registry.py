@@ -14,17 +14,17 @@ import difflib
 import functools
 import inspect
 
-from ..machines.motor import PMSMParameters
-from ..validation import ParameterError
-from .adaptive_smo import adaptive_smo_design
-from .base import AbstractEstimator
-from .dq_smo import dq_smo_design
-from .ekf import ekf_design
-from .hfi_pulsating import hfi_pulsating_design
-from .hfi_rotating import hfi_rotating_design
-from .hybrid import hybrid_design
-from .mras import mras_design
-from .smo import smo_design
+from pmsmjax.estimators.adaptive_smo import adaptive_smo_design
+from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.dq_smo import dq_smo_design
+from pmsmjax.estimators.ekf import ekf_design
+from pmsmjax.estimators.hfi_pulsating import hfi_pulsating_design
+from pmsmjax.estimators.hfi_rotating import hfi_rotating_design
+from pmsmjax.estimators.hybrid import hybrid_design
+from pmsmjax.estimators.mras import mras_design
+from pmsmjax.estimators.smo import smo_design
+from pmsmjax.machines.motor import PMSMParameters
+from pmsmjax.validation import ParameterError
 
 #: Observer name -> (design rule ``f(motor, Ts, **options)``, one-line description).
 OBSERVERS = {

@@ -33,11 +33,11 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .._types import Array
-from ..machines.motor import as_float
-from ..signals import Sample
-from ..validation import ParameterError, check_positive
-from .base import AbstractEstimator
+from pmsmjax._types import Array
+from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.machines.motor import as_float
+from pmsmjax.signals import Sample
+from pmsmjax.validation import ParameterError, check_positive
 
 
 class SensoredWarmupState(eqx.Module):

@@ -47,16 +47,11 @@ from typing import Literal
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import wrap_angle
-from ..machines.motor import PMSMParameters, as_float
-from ..signals import Estimate, Sample
-from ..units import rpm_to_rad_s
-from ..validation import ParameterError, check_positive
-from .base import AbstractEstimator
-from .pll import PLL, PLLState, pll_design
-from .stability import check_loop, concrete_values
-from .stator_model import (
+from pmsmjax._types import Array
+from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.pll import PLL, PLLState, pll_design
+from pmsmjax.estimators.stability import check_loop, concrete_values
+from pmsmjax.estimators.stator_model import (
     cross,
     emf_angle,
     first_order_lag,
@@ -67,7 +62,12 @@ from .stator_model import (
     rotor_angle,
     safe_atan2,
 )
-from .switching import SWITCHING, Switching, linear_gain, switching_function
+from pmsmjax.estimators.switching import SWITCHING, Switching, linear_gain, switching_function
+from pmsmjax.frames import wrap_angle
+from pmsmjax.machines.motor import PMSMParameters, as_float
+from pmsmjax.signals import Estimate, Sample
+from pmsmjax.units import rpm_to_rad_s
+from pmsmjax.validation import ParameterError, check_positive
 
 AngleMethod = Literal["arctan", "pll"]
 

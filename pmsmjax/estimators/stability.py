@@ -14,7 +14,7 @@ from collections.abc import Callable
 import jax
 import numpy as np
 
-from ..validation import ParameterError, is_concrete
+from pmsmjax.validation import ParameterError, is_concrete
 
 
 def concrete_values(*xs) -> list[np.ndarray] | None:

@@ -25,12 +25,12 @@ back-EMF to be observable (about 10 % of rated speed for the book drive).
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import wrap_angle
-from ..machines.motor import as_float
-from ..signals import Sample
-from ..validation import check_positive
-from .base import AbstractEstimator
+from pmsmjax._types import Array
+from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.frames import wrap_angle
+from pmsmjax.machines.motor import as_float
+from pmsmjax.signals import Sample
+from pmsmjax.validation import check_positive
 
 
 class StartupState(eqx.Module):

@@ -30,7 +30,7 @@ stationary-frame observers use ``L_q`` and are exact for salient machines run wi
 
 import jax.numpy as jnp
 
-from .._types import Array
+from pmsmjax._types import Array
 
 
 def rl_coefficients(R, L, Ts: float) -> tuple[Array, Array]:

@@ -1,15 +1,15 @@
 """Modulators and inverter bridge models (three-phase; six-phase modulators and n-leg bridges)."""
 
-from .averaged import AveragedBridge, phase_voltages
-from .base import AbstractBridge, AbstractModulator
-from .multiphase_bridges import MultiPhaseAveragedBridge, MultiPhaseSwitchingBridge
-from .multiphase_carrier import ZeroSequencePWM
-from .multiphase_svpwm import LargeVectorSVPWM, NearFourVectorSVPWM
-from .six_phase_carrier import DecoupledSVPWM, DoubleZeroSequencePWM
-from .six_phase_svpwm import FourVectorSVPWM, TwoVectorSVPWM
-from .spwm import MinMaxPWM, SinusoidalPWM, ThirdHarmonicPWM, third_harmonic
-from .svpwm import SVPWM, sector_code, switching_times
-from .switching import SwitchingBridge
+from pmsmjax.inverters.averaged import AveragedBridge, phase_voltages
+from pmsmjax.inverters.base import AbstractBridge, AbstractModulator
+from pmsmjax.inverters.multiphase_bridges import MultiPhaseAveragedBridge, MultiPhaseSwitchingBridge
+from pmsmjax.inverters.multiphase_carrier import ZeroSequencePWM
+from pmsmjax.inverters.multiphase_svpwm import LargeVectorSVPWM, NearFourVectorSVPWM
+from pmsmjax.inverters.six_phase_carrier import DecoupledSVPWM, DoubleZeroSequencePWM
+from pmsmjax.inverters.six_phase_svpwm import FourVectorSVPWM, TwoVectorSVPWM
+from pmsmjax.inverters.spwm import MinMaxPWM, SinusoidalPWM, ThirdHarmonicPWM, third_harmonic
+from pmsmjax.inverters.svpwm import SVPWM, sector_code, switching_times
+from pmsmjax.inverters.switching import SwitchingBridge
 
 __all__ = [
     "AbstractBridge",

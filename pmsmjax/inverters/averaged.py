@@ -8,13 +8,13 @@ voltage is held in the stator frame over the period, as the real inverter holds 
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import abc_to_alpha_beta
-from ..machines.base import MachineInput
-from ..machines.integrate import advance
-from ..machines.motor import as_float
-from ..validation import check_positive
-from .base import AbstractBridge
+from pmsmjax._types import Array
+from pmsmjax.frames import abc_to_alpha_beta
+from pmsmjax.inverters.base import AbstractBridge
+from pmsmjax.machines.base import MachineInput
+from pmsmjax.machines.integrate import advance
+from pmsmjax.machines.motor import as_float
+from pmsmjax.validation import check_positive
 
 
 def phase_voltages(duties: Array, u_dc: Array) -> Array:

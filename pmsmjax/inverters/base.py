@@ -9,9 +9,9 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import abc_to_alpha_beta
-from ..machines.base import AbstractMachine, MachineState
+from pmsmjax._types import Array
+from pmsmjax.frames import abc_to_alpha_beta
+from pmsmjax.machines.base import AbstractMachine, MachineState
 
 
 class AbstractModulator(eqx.Module):

@@ -22,14 +22,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._types import Array
-from ..machines.base import MachineInput
-from ..machines.integrate import advance
-from ..machines.motor import as_float
-from ..multiphase_frames import SIX_PHASE, PhaseLayout, vsd_matrix
-from ..validation import ParameterError, check_nonnegative, check_positive, is_concrete
-from .base import AbstractBridge
-from .switching import CurrentSign, pwm_segments
+from pmsmjax._types import Array
+from pmsmjax.inverters.base import AbstractBridge
+from pmsmjax.inverters.switching import CurrentSign, pwm_segments
+from pmsmjax.machines.base import MachineInput
+from pmsmjax.machines.integrate import advance
+from pmsmjax.machines.motor import as_float
+from pmsmjax.multiphase_frames import SIX_PHASE, PhaseLayout, vsd_matrix
+from pmsmjax.validation import ParameterError, check_nonnegative, check_positive, is_concrete
 
 __all__ = [
     "MultiPhaseAveragedBridge",

@@ -24,11 +24,11 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from .._types import Array
-from ..multiphase_frames import FIVE_PHASE, PhaseLayout, inverse_vsd
-from ..validation import ParameterError
-from .base import AbstractModulator
-from .multiphase_svpwm import padded_reference
+from pmsmjax._types import Array
+from pmsmjax.inverters.base import AbstractModulator
+from pmsmjax.inverters.multiphase_svpwm import padded_reference
+from pmsmjax.multiphase_frames import FIVE_PHASE, PhaseLayout, inverse_vsd
+from pmsmjax.validation import ParameterError
 
 __all__ = ["ZeroSequencePWM"]
 

@@ -38,11 +38,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._types import Array
-from ..multiphase_frames import FIVE_PHASE, PhaseLayout
-from ..validation import ParameterError
-from .base import AbstractModulator
-from .multiphase_vectors import space_vectors
+from pmsmjax._types import Array
+from pmsmjax.inverters.base import AbstractModulator
+from pmsmjax.inverters.multiphase_vectors import space_vectors
+from pmsmjax.multiphase_frames import FIVE_PHASE, PhaseLayout
+from pmsmjax.validation import ParameterError
 
 __all__ = ["LargeVectorSVPWM", "NearFourVectorSVPWM", "four_vector_tables", "padded_reference"]
 

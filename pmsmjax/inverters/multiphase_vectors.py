@@ -37,8 +37,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..multiphase_frames import PhaseLayout, vsd_matrix
-from ..validation import ParameterError
+from pmsmjax.multiphase_frames import PhaseLayout, vsd_matrix
+from pmsmjax.validation import ParameterError
 
 __all__ = ["SpaceVectors", "space_vectors"]
 

@@ -23,12 +23,12 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from .._types import Array
-from ..frames import abc_to_alpha_beta
-from ..multiphase_frames import SIX_PHASE, inverse_vsd
-from .base import AbstractModulator
-from .six_phase_svpwm import six_phase_reference
-from .svpwm import switching_times
+from pmsmjax._types import Array
+from pmsmjax.frames import abc_to_alpha_beta
+from pmsmjax.inverters.base import AbstractModulator
+from pmsmjax.inverters.six_phase_svpwm import six_phase_reference
+from pmsmjax.inverters.svpwm import switching_times
+from pmsmjax.multiphase_frames import SIX_PHASE, inverse_vsd
 
 __all__ = ["DecoupledSVPWM", "DoubleZeroSequencePWM", "set_references"]
 

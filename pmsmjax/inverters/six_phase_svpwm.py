@@ -34,10 +34,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._types import Array
-from ..validation import ParameterError
-from .base import AbstractModulator
-from .six_phase_vectors import BISECTORS, LARGE, LARGE_MAGNITUDE, MEDIUM_LARGE, STATES, VECTORS
+from pmsmjax._types import Array
+from pmsmjax.inverters.base import AbstractModulator
+from pmsmjax.inverters.six_phase_vectors import (
+    BISECTORS,
+    LARGE,
+    LARGE_MAGNITUDE,
+    MEDIUM_LARGE,
+    STATES,
+    VECTORS,
+)
+from pmsmjax.validation import ParameterError
 
 __all__ = ["TwoVectorSVPWM", "FourVectorSVPWM", "six_phase_reference", "sector"]
 

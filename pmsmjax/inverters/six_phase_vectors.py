@@ -28,7 +28,7 @@ import itertools
 
 import numpy as np
 
-from ..multiphase_frames import SIX_PHASE, vsd_matrix
+from pmsmjax.multiphase_frames import SIX_PHASE, vsd_matrix
 
 __all__ = [
     "STATES",

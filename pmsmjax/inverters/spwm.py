@@ -21,10 +21,10 @@ is what a carrier comparison does by itself, so it is the defined behaviour, not
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import alpha_beta_to_abc
-from ..validation import ParameterError
-from .base import AbstractModulator
+from pmsmjax._types import Array
+from pmsmjax.frames import alpha_beta_to_abc
+from pmsmjax.inverters.base import AbstractModulator
+from pmsmjax.validation import ParameterError
 
 SQRT3 = 3.0**0.5
 

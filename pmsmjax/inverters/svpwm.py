@@ -14,8 +14,8 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from .._types import Array
-from .base import AbstractModulator
+from pmsmjax._types import Array
+from pmsmjax.inverters.base import AbstractModulator
 
 SQRT3 = 3.0**0.5
 

@@ -11,9 +11,9 @@ from typing import ClassVar, Literal
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import dq_to_abc, inverse_park, park
-from .motor import PMSMParameters
+from pmsmjax._types import Array
+from pmsmjax.frames import dq_to_abc, inverse_park, park
+from pmsmjax.machines.motor import PMSMParameters
 
 Mechanics = Literal["dynamic", "imposed"]
 HoldFrame = Literal["stator", "rotor"]

@@ -13,8 +13,8 @@ import jax
 import jax.numpy as jnp
 from jax.flatten_util import ravel_pytree
 
-from .._types import Array
-from .base import AbstractMachine, MachineInput, MachineState
+from pmsmjax._types import Array
+from pmsmjax.machines.base import AbstractMachine, MachineInput, MachineState
 
 
 def solve_adaptive(

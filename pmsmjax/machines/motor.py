@@ -3,8 +3,8 @@
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..validation import ParameterError, check_nonnegative, check_positive
+from pmsmjax._types import Array
+from pmsmjax.validation import ParameterError, check_nonnegative, check_positive
 
 
 def as_float(x) -> Array:

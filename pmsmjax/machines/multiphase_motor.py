@@ -27,9 +27,9 @@ import equinox as eqx
 import jax
 import numpy as np
 
-from .._types import Array
-from ..validation import ParameterError, check_nonnegative, check_positive, is_concrete
-from .motor import as_float
+from pmsmjax._types import Array
+from pmsmjax.machines.motor import as_float
+from pmsmjax.validation import ParameterError, check_nonnegative, check_positive, is_concrete
 
 
 def _optional_float(x):

@@ -25,10 +25,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._types import Array
-from ..frames import abc_to_alpha_beta, alpha_beta_to_abc, inverse_park, park
-from .base import AbstractMachine, MachineInput, Mechanics
-from .motor import PMSMParameters, as_float
+from pmsmjax._types import Array
+from pmsmjax.frames import abc_to_alpha_beta, alpha_beta_to_abc, inverse_park, park
+from pmsmjax.machines.base import AbstractMachine, MachineInput, Mechanics
+from pmsmjax.machines.motor import PMSMParameters, as_float
 
 # NumPy float64 at import; converted where used so the JAX precision mode of that moment applies.
 _PHASE_AXES = np.array([0.0, 2.0 * np.pi / 3.0, -2.0 * np.pi / 3.0])

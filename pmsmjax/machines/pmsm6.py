@@ -20,13 +20,13 @@ compensates (:mod:`pmsmjax.controllers.six_phase`).
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..frames import inverse_park, park
-from ..multiphase_frames import SIX_PHASE, PhaseLayout, double_dq_to_vsd, vsd_to_double_dq
-from ..validation import ParameterError
-from .base import MachineInput, Mechanics
-from .multiphase_motor import MultiPhaseParameters
-from .pmsm_multiphase import AbstractMultiPhaseMachine, _as_scale
+from pmsmjax._types import Array
+from pmsmjax.frames import inverse_park, park
+from pmsmjax.machines.base import MachineInput, Mechanics
+from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
+from pmsmjax.machines.pmsm_multiphase import AbstractMultiPhaseMachine, _as_scale
+from pmsmjax.multiphase_frames import SIX_PHASE, PhaseLayout, double_dq_to_vsd, vsd_to_double_dq
+from pmsmjax.validation import ParameterError
 
 __all__ = ["PMSM6DoubleDQ"]
 

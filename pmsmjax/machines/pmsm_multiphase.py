@@ -49,13 +49,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._types import Array
-from ..frames import inverse_park, park
-from ..multiphase_frames import SIX_PHASE, PhaseLayout, inverse_vsd_matrix, vsd_matrix
-from ..validation import ParameterError, check_positive
-from .base import AbstractMachine, MachineInput, MachineState, Mechanics
-from .multiphase_motor import MultiPhaseParameters
-from .pmsm3 import _solve2
+from pmsmjax._types import Array
+from pmsmjax.frames import inverse_park, park
+from pmsmjax.machines.base import AbstractMachine, MachineInput, MachineState, Mechanics
+from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
+from pmsmjax.machines.pmsm3 import _solve2
+from pmsmjax.multiphase_frames import SIX_PHASE, PhaseLayout, inverse_vsd_matrix, vsd_matrix
+from pmsmjax.validation import ParameterError, check_positive
 
 __all__ = [
     "AbstractMultiPhaseMachine",
@@ -346,7 +346,7 @@ class MultiPhasePMSMdq(AbstractMultiPhaseMachine):
             return None
 
         def advance_split(state: MachineState, inputs: MachineInput, duration, n_substeps: int):
-            from .integrate import advance
+            from pmsmjax.machines.integrate import advance
 
             fundamental = _Fundamental(self.motor, self.mechanics)
             u = inputs.u

@@ -30,11 +30,11 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._types import Array
-from ..validation import ParameterError, check_positive, is_concrete, plain
-from .base import MachineInput, Mechanics
-from .motor import as_float
-from .pmsm3 import PMSMdq
+from pmsmjax._types import Array
+from pmsmjax.machines.base import MachineInput, Mechanics
+from pmsmjax.machines.motor import as_float
+from pmsmjax.machines.pmsm3 import PMSMdq
+from pmsmjax.validation import ParameterError, check_positive, is_concrete, plain
 
 
 def _log_cosh(x):

@@ -10,11 +10,11 @@
 The gains themselves (names, ``log(p/p0)`` parameterisation, gains files) are :mod:`tuning.parameters`.
 """
 
-from .baselines import BaselineResult, cma_available, cma_es, design_rule_cost, nelder_mead
-from .job import DEFAULT_CONFIG, read_tune_toml, run_tune_job
-from .objectives import ObjectiveWeights, batch_cost, batch_metrics
-from .scenario_batches import ScenarioBatch, make_batch
-from .tuner import TuneConfig, TuneResult, tune
+from tuning.autotune.baselines import BaselineResult, cma_available, cma_es, design_rule_cost, nelder_mead
+from tuning.autotune.job import DEFAULT_CONFIG, read_tune_toml, run_tune_job
+from tuning.autotune.objectives import ObjectiveWeights, batch_cost, batch_metrics
+from tuning.autotune.scenario_batches import ScenarioBatch, make_batch
+from tuning.autotune.tuner import TuneConfig, TuneResult, tune
 
 __all__ = [
     "TuneConfig",

@@ -29,10 +29,9 @@ import scipy.optimize
 
 from pmsmjax.drive import Drive
 from pmsmjax.validation import ParameterError
-
-from ..parameters import LogParameterisation
-from .objectives import ObjectiveWeights, batch_cost
-from .scenario_batches import ScenarioBatch
+from tuning.autotune.objectives import ObjectiveWeights, batch_cost
+from tuning.autotune.scenario_batches import ScenarioBatch
+from tuning.parameters import LogParameterisation
 
 __all__ = ["BaselineResult", "design_rule_cost", "nelder_mead", "cma_es", "cma_available", "make_cost"]
 

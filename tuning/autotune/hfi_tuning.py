@@ -36,8 +36,7 @@ import numpy as np
 from pmsmjax import Profile, Scenario, presets, stack_scenarios
 from pmsmjax.units import rpm_to_rad_s
 from pmsmjax.validation import ParameterError
-
-from .scenario_batches import ScenarioBatch
+from tuning.autotune.scenario_batches import ScenarioBatch
 
 #: Scenario kinds of the injection batches.
 INJECTION_KINDS = ("standstill", "slow")
@@ -75,7 +74,7 @@ def make_injection_batch(
 ) -> ScenarioBatch:
     """``n`` low-speed scenarios drawn reproducibly from ``seed`` (module docstring), scored modulo pi.
     ``plant_spread`` as in :func:`tuning.autotune.scenario_batches.make_batch`."""
-    from .observers import WARMUP_S
+    from tuning.autotune.observers import WARMUP_S
 
     warmup_s = WARMUP_S if warmup_s is None else warmup_s
     if n < 1:

@@ -47,12 +47,12 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-from ..parameters import apply_gains, get_leaf, write_gains_toml
-from .controls import control_tuning
-from .objectives import ObjectiveWeights, aggregate, batch_metrics, scenario_cost
-from .observers import OBSERVER_CONFIG, make_observer_batch, observer_drive, observer_tuning
-from .scenario_batches import ScenarioBatch, make_batch
-from .tuner import TuneConfig, tune
+from tuning.autotune.controls import control_tuning
+from tuning.autotune.objectives import ObjectiveWeights, aggregate, batch_metrics, scenario_cost
+from tuning.autotune.observers import OBSERVER_CONFIG, make_observer_batch, observer_drive, observer_tuning
+from tuning.autotune.scenario_batches import ScenarioBatch, make_batch
+from tuning.autotune.tuner import TuneConfig, tune
+from tuning.parameters import apply_gains, get_leaf, write_gains_toml
 
 #: The must-show configuration: 64 + 64 scenarios, 0.3-0.5 s, steps of 200-1500 r/min both ways, 0-10 N m;
 #: BFGS (its rounded-penalty default), which gets a 3x lower cost than Adam in fewer iterations. ``names``
@@ -179,7 +179,7 @@ def run_tune_job(
 
         batch_maker = make_observer_batch
         if tuning.chapter6:  # injection estimators, hybrid: the low-speed batches, scored modulo pi
-            from .hfi_tuning import INJECTION_KINDS, injection_batch_maker
+            from tuning.autotune.hfi_tuning import INJECTION_KINDS, injection_batch_maker
 
             batch_maker = injection_batch_maker(estimator)
             kinds = INJECTION_KINDS if tuple(kinds) == ("step",) else tuple(kinds)

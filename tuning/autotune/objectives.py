@@ -21,8 +21,7 @@ from pmsmjax.drive import Drive
 from pmsmjax.frames import wrap_angle
 from pmsmjax.trace import Trace
 from pmsmjax.validation import ParameterError
-
-from .scenario_batches import ScenarioBatch
+from tuning.autotune.scenario_batches import ScenarioBatch
 
 METRIC_NAMES = (
     "itae",  # rad s (speed error in rad/s, weighted by time)

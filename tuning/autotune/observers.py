@@ -58,9 +58,8 @@ from pmsmjax.estimators.registry import check_observer_name
 from pmsmjax.estimators.sensored_warmup import SensoredWarmup
 from pmsmjax.units import rpm_to_rad_s
 from pmsmjax.validation import ParameterError
-
-from ..parameters import get_leaf, set_leaves
-from .scenario_batches import ScenarioBatch
+from tuning.autotune.scenario_batches import ScenarioBatch
+from tuning.parameters import get_leaf, set_leaves
 
 #: Rated speed of the book drive for the observer batches, r/min (the top of the observer accuracy bands;
 #: the book motor reaches it under the 10 N m load with the 560 V link); 5 % of it is 100 r/min.
@@ -162,7 +161,7 @@ def observer_drive(
     ``NOISE_VOLTAGE_V`` on the observer's samples unless ``noise=False``; ``kw`` go to
     :func:`pmsmjax.presets.sensorless_drive`."""
     if observer_tuning(name).chapter6:
-        from .hfi_tuning import injection_sensorless_drive
+        from tuning.autotune.hfi_tuning import injection_sensorless_drive
 
         drive = injection_sensorless_drive(name, observer_options, n_substeps=n_substeps, **kw)
     else:

@@ -36,11 +36,10 @@ from tqdm.auto import tqdm
 from pmsmjax.drive import Drive
 from pmsmjax.logs import atomic_write
 from pmsmjax.validation import ParameterError
-
-from ..parameters import LogParameterisation
-from .objectives import ObjectiveWeights, batch_cost, smoothed_batch_cost
-from .quasi_newton import bfgs_init, bfgs_tell
-from .scenario_batches import ScenarioBatch
+from tuning.autotune.objectives import ObjectiveWeights, batch_cost, smoothed_batch_cost
+from tuning.autotune.quasi_newton import bfgs_init, bfgs_tell
+from tuning.autotune.scenario_batches import ScenarioBatch
+from tuning.parameters import LogParameterisation
 
 
 @dataclasses.dataclass(frozen=True)

@@ -11,10 +11,10 @@
   every parameter identifiable, and simulated logs of it (for tests, notebooks and benchmarks).
 """
 
-from .excitation import identification_scenario, prbs
-from .log import DriveLog, drive_log_from_columns, load_drive_log, read_log_config
-from .pipeline import NAMES, UNITS, IdentifyOptions, IdentifyResult, identify, identify_file
-from .synthetic_log import ID_TEST_MOTOR, add_noise, simulate_log
+from tuning.identify.excitation import identification_scenario, prbs
+from tuning.identify.log import DriveLog, drive_log_from_columns, load_drive_log, read_log_config
+from tuning.identify.pipeline import NAMES, UNITS, IdentifyOptions, IdentifyResult, identify, identify_file
+from tuning.identify.synthetic_log import ID_TEST_MOTOR, add_noise, simulate_log
 
 __all__ = [
     "IdentifyOptions",

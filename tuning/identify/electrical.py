@@ -35,9 +35,8 @@ import numpy as np
 
 from pmsmjax._types import Array
 from pmsmjax.frames import SQRT3, abc_to_alpha_beta, dq_to_abc, park
-
-from .parameters import ParameterMap
-from .windows import interval_windows, sample_windows, window_layout
+from tuning.identify.parameters import ParameterMap
+from tuning.identify.windows import interval_windows, sample_windows, window_layout
 
 __all__ = ["ELECTRICAL_NAMES", "ElectricalData", "electrical_residuals", "simulate_windows", "warm_start"]
 

@@ -26,10 +26,10 @@ import numpy as np
 import optimistix as optx
 from jax.flatten_util import ravel_pytree
 
-from . import electrical as el
-from . import mechanical as me
-from .parameters import ParameterMap
-from .uncertainty import covariance, interval_dof
+from tuning.identify import electrical as el
+from tuning.identify import mechanical as me
+from tuning.identify.parameters import ParameterMap
+from tuning.identify.uncertainty import covariance, interval_dof
 
 __all__ = ["FitResult", "fit", "noise_level", "joint_residuals"]
 

@@ -13,7 +13,7 @@ choice is noted as such.
 
 import dataclasses
 
-from . import electrical as el
+from tuning.identify import electrical as el
 
 __all__ = ["detect_hold", "AMBIGUOUS_RATIO"]
 

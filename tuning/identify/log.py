@@ -278,7 +278,7 @@ def drive_log_from_columns(
         notes=tuple(notes),
     )
     if hold == "auto":
-        from .hold import detect_hold
+        from tuning.identify.hold import detect_hold
 
         log = detect_hold(log, pole_pairs)[0]
     return log

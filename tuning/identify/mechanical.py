@@ -22,9 +22,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-
-from .parameters import ParameterMap
-from .windows import interval_windows, sample_windows, window_layout
+from tuning.identify.parameters import ParameterMap
+from tuning.identify.windows import interval_windows, sample_windows, window_layout
 
 __all__ = ["MECHANICAL_NAMES", "MechanicalData", "mechanical_residuals", "simulate_speed", "warm_start"]
 

@@ -34,13 +34,18 @@ from scipy import stats
 from pmsmjax.logs import atomic_write, check_output_folder
 from pmsmjax.replay import DEFAULT_HOLD
 from pmsmjax.validation import ParameterError
-
-from . import electrical as el
-from . import fit as id_fit
-from . import mechanical as me
-from .fit import FitResult
-from .log import DriveLog, load_drive_log, read_log_config
-from .uncertainty import ADVICE, EXCITATION_AVERAGE_S, MIN_EXCITATION, excitation, weak_directions
+from tuning.identify import electrical as el
+from tuning.identify import fit as id_fit
+from tuning.identify import mechanical as me
+from tuning.identify.fit import FitResult
+from tuning.identify.log import DriveLog, load_drive_log, read_log_config
+from tuning.identify.uncertainty import (
+    ADVICE,
+    EXCITATION_AVERAGE_S,
+    MIN_EXCITATION,
+    excitation,
+    weak_directions,
+)
 
 __all__ = ["IdentifyOptions", "identify", "identify_file", "NAMES", "UNITS"]
 
@@ -383,7 +388,7 @@ def identify_file(
     out.mkdir(parents=True, exist_ok=True)
     atomic_write(out / "params.json", lambda f: f.write(json.dumps(result.summary, indent=2).encode()))
     if figures:
-        from .plots import save_fit_figure
+        from tuning.identify.plots import save_fit_figure
 
         save_fit_figure(result, out / "fit.png")
     return result

@@ -8,9 +8,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from pmsmjax.plotting import save_figure
-
-from . import electrical as el
-from . import mechanical as me
+from tuning.identify import electrical as el
+from tuning.identify import mechanical as me
 
 __all__ = ["fit_figure", "save_fit_figure"]
 

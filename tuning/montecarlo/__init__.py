@@ -12,10 +12,10 @@
 imports below: none of them may touch a device at import time (no module-level arrays).
 """
 
-from .cpu_devices import split_cpu
-from .distributions import Distribution, sample
-from .runner import VOLATILE_KEYS, StudyRunner, chunk_layout, load_results, run_study
-from .study import Study, read_study_toml
+from tuning.montecarlo.cpu_devices import split_cpu
+from tuning.montecarlo.distributions import Distribution, sample
+from tuning.montecarlo.runner import VOLATILE_KEYS, StudyRunner, chunk_layout, load_results, run_study
+from tuning.montecarlo.study import Study, read_study_toml
 
 __all__ = [
     "Study",

@@ -6,8 +6,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from pmsmjax.plotting import save_figure
-
-from .kernel import METRICS, UNITS
+from tuning.montecarlo.kernel import METRICS, UNITS
 
 #: Percentile bands of the fan chart, outermost first.
 BANDS = ((5, 95), (25, 75))

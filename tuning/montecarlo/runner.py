@@ -51,13 +51,12 @@ from pmsmjax.machines.integrate import max_stable_substep
 from pmsmjax.simulate import check_simulation, period_inputs
 from pmsmjax.units import rpm_to_rad_s
 from pmsmjax.validation import ParameterError
-
-from . import study as mc_study
-from .chunking import auto_chunk_size, bytes_per_run
-from .distributions import sample
-from .kernel import METRICS, OBSERVER_METRICS, run_metrics
-from .study import Study
-from .summary import sensitivity_summary, summarise
+from tuning.montecarlo import study as mc_study
+from tuning.montecarlo.chunking import auto_chunk_size, bytes_per_run
+from tuning.montecarlo.distributions import sample
+from tuning.montecarlo.kernel import METRICS, OBSERVER_METRICS, run_metrics
+from tuning.montecarlo.study import Study
+from tuning.montecarlo.summary import sensitivity_summary, summarise
 
 #: Bump when the kernel's metric definitions change: chunks written by another version are recomputed.
 KERNEL_VERSION = 1
@@ -459,7 +458,7 @@ def run_study(
     }
     summary = _finite_or_none(summary)
     if figures:
-        from .figures import save_study_figures
+        from tuning.montecarlo.figures import save_study_figures
 
         t = np.arange(results["speed_rpm"].shape[1]) * study.decimate * runner.drive.Ts
         summary["figures"] = [p.name for p in save_study_figures(results, summary, t, out)]

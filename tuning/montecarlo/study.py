@@ -52,9 +52,8 @@ from pmsmjax.inverters.averaged import AveragedBridge
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.units import rpm_to_rad_s
 from pmsmjax.validation import ParameterError
-
-from ..parameters import apply_gains, array_leaf_names, get_leaf
-from .distributions import KINDS, SAMPLING, Distribution
+from tuning.montecarlo.distributions import KINDS, SAMPLING, Distribution
+from tuning.parameters import apply_gains, array_leaf_names, get_leaf
 
 if sys.version_info >= (3, 11):
     import tomllib

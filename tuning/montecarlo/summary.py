@@ -20,7 +20,7 @@ values (not on the device count or the chunking that produced them).
 
 import numpy as np
 
-from .kernel import METRICS, OBSERVER_METRICS, UNITS
+from tuning.montecarlo.kernel import METRICS, OBSERVER_METRICS, UNITS
 
 PERCENTILES = (1, 5, 25, 50, 75, 95, 99)
 
