@@ -1,7 +1,7 @@
 """Cost of every control method's drive relative to the PI drive, in one run.
 
-Each drive of :data:`pmsmjax.controls.CONTROLS` (its preset defaults: averaged bridge, float32 as the
-command line runs) simulates the same book scenario; the calls are timed interleaved
+Each drive of :data:`pmsmjax.presets.control_methods.CONTROLS` (its preset defaults: averaged bridge, float32
+as the command line runs) simulates the same book scenario; the calls are timed interleaved
 (:func:`benchmarks.bench_core.time_interleaved`), so their ratios hold under a varying machine load.
 Figures per drive: control period, periods simulated, best run time, compile time, cost per period and
 per simulated second, and both relative to the PI drive. The issue's goal is <= 1.5x per period for the
@@ -17,7 +17,7 @@ import jax
 
 from benchmarks.bench_core import compile_time, machine_info, publish, time_interleaved
 from pmsmjax import presets, simulate
-from pmsmjax.controls import CONTROLS, control_drive
+from pmsmjax.presets.control_methods import CONTROLS, control_drive
 
 __all__ = ["run", "main", "format_table", "REQUIRED_KEYS"]
 

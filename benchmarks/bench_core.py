@@ -13,7 +13,7 @@ What it measures, every figure from one process so the ratios are taken in the s
    controller gains against the forward pass of the same loss, and the gradient's compile time;
 6. forward- vs reverse-mode time of the ITAE gradient with respect to n parameters, for one scenario
    (n up to all 21 array leaves of the drive) and for the batch loss of 5 (n up to the 7 gains), and
-   the crossover n of each (what :data:`pmsmjax.gradients.FORWARD_MODE_MAX_PARAMS` is chosen from).
+   the crossover n of each (what :data:`pmsmjax.analysis.gradients.FORWARD_MODE_MAX_PARAMS` is chosen from).
    The two differ: in a batch each extra tangent costs about one more forward pass, while for one
    scenario extra tangents cost far less (scalar arithmetic leaves vector units idle, most likely);
 7. the machine: CPU, core count, JAX version, backend.
@@ -38,11 +38,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from benchmarks.minimal_loop import BOOK, make_minimal_loop
+from pmsmjax.analysis.gradients import value_and_grad
+from pmsmjax.analysis.metrics import itae
 from pmsmjax.drive import Drive
-from pmsmjax.gradients import value_and_grad
-from pmsmjax.logs import atomic_write
-from pmsmjax.metrics import itae
-from pmsmjax.presets import book_drive, book_scenario
+from pmsmjax.io.logs import atomic_write
+from pmsmjax.presets.three_phase import book_drive, book_scenario
 from pmsmjax.scenarios import Scenario, stack_scenarios
 from pmsmjax.simulate import period_inputs, simulate
 from pmsmjax.units import rad_s_to_rpm
@@ -308,8 +308,8 @@ def measure_modes(loss: Callable, drive: Drive, scenario: Scenario, n_params: in
     """Forward- and reverse-mode gradient of ``loss`` w.r.t. the first ``n_params`` leaves of PARAMETERS.
 
     ``loss(params, drive, scenario)`` is :func:`parameter_itae` or :func:`parameter_batch_itae`. Times
-    (s) via :func:`pmsmjax.gradients.value_and_grad`; ``grad_rel_diff`` is the largest difference between
-    the two gradients relative to the largest reverse-mode component.
+    (s) via :func:`pmsmjax.analysis.gradients.value_and_grad`; ``grad_rel_diff`` is the largest difference
+    between the two gradients relative to the largest reverse-mode component.
     """
     params = get_parameters(drive, tuple(PARAMETERS)[:n_params])
     fns = {
@@ -512,7 +512,7 @@ def _mode_table(title: str, rows: list[dict]) -> list[str]:
 
 
 def write_json_atomic(path: str, data: dict) -> None:
-    """Write ``data`` as JSON to ``path`` atomically (:func:`pmsmjax.logs.atomic_write`)."""
+    """Write ``data`` as JSON to ``path`` atomically (:func:`pmsmjax.io.logs.atomic_write`)."""
     text = json.dumps(data, indent=2) + "\n"
     atomic_write(path, lambda f: f.write(text.encode()))
 

@@ -5,7 +5,7 @@ enabled, as the command line runs), timed interleaved (:func:`benchmarks.bench_c
 the ratios hold under a varying machine load:
 
 - ``three-phase``: :func:`pmsmjax.presets.book_drive` (dq machine, SVPWM, averaged bridge, PI FOC);
-- ``five-phase <scheme>``: :func:`pmsmjax.presets_five_phase.five_phase_drive` with each control scheme
+- ``five-phase <scheme>``: :func:`pmsmjax.presets.five_phase.five_phase_drive` with each control scheme
   (dq + x-y machine integrated split, near-four-vector SVPWM, averaged bridge); ``five-phase vsd
   carrier``: min-max carrier PWM instead;
 - ``five-phase vsd third-harmonic``: the preset with ``psi_f3 = 0.1 psi_f`` (the angle then drives x-y:
@@ -20,7 +20,7 @@ import argparse
 
 from benchmarks.bench_core import publish
 from benchmarks.multiphase_cost import REQUIRED_KEYS, format_cost_table, time_against_three_phase
-from pmsmjax.presets_five_phase import FIVE_PHASE_CONTROLS, five_phase_drive, five_phase_motor
+from pmsmjax.presets.five_phase import FIVE_PHASE_CONTROLS, five_phase_drive, five_phase_motor
 
 __all__ = ["run", "main", "format_table", "REQUIRED_KEYS"]
 

@@ -19,7 +19,8 @@ import dataclasses
 import jax
 
 from benchmarks.bench_core import compile_time, machine_info, publish, time_interleaved
-from pmsmjax import metrics, presets, simulate
+from pmsmjax import presets, simulate
+from pmsmjax.analysis import metrics
 
 __all__ = ["run", "main", "format_table", "REQUIRED_KEYS"]
 

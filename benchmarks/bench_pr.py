@@ -26,8 +26,8 @@ import numpy as np
 
 from benchmarks.bench_core import machine_info, publish
 from pmsmjax import Profile, Scenario, presets, simulate
-from pmsmjax.frames import inverse_park
-from pmsmjax.summary import speed_step_summary
+from pmsmjax.analysis.speed_step_summary import speed_step_summary
+from pmsmjax.frames.three_phase import inverse_park
 from pmsmjax.units import rpm_to_rad_s
 
 __all__ = ["run", "main", "format_table"]

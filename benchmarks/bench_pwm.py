@@ -27,8 +27,8 @@ from benchmarks.bench_core import compile_time, machine_info, publish, time_inte
 from benchmarks.pwm_reference import CarrierReferenceBridge, dense_phase_currents
 from pmsmjax import Profile, Scenario, simulate
 from pmsmjax.inverters import SwitchingBridge
-from pmsmjax.presets import book_drive
-from pmsmjax.pwm_compare import CompareSettings, steady_state
+from pmsmjax.presets.three_phase import book_drive
+from pmsmjax.studies.pwm_comparison import CompareSettings, steady_state
 
 __all__ = ["run", "main", "format_table", "REQUIRED_KEYS"]
 

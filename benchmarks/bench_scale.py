@@ -163,7 +163,7 @@ def tuning_row(n_scenarios: int, iterations: int, duration_s=TUNE_DURATION_S) ->
     import jax
     import numpy as np
 
-    from pmsmjax.presets import book_drive
+    from pmsmjax.presets.three_phase import book_drive
     from tuning.autotune import TuneConfig, tune
     from tuning.autotune.objectives import ObjectiveWeights
     from tuning.autotune.scenario_batches import make_batch

@@ -5,7 +5,7 @@ enabled, as the command line runs), timed interleaved (:func:`benchmarks.bench_c
 the ratios hold under a varying machine load:
 
 - ``three-phase``: :func:`pmsmjax.presets.book_drive` (dq machine, SVPWM, averaged bridge, PI FOC);
-- ``six-phase <scheme>``: :func:`pmsmjax.presets_six_phase.six_phase_drive` with each control scheme
+- ``six-phase <scheme>``: :func:`pmsmjax.presets.six_phase.six_phase_drive` with each control scheme
   (dq + z1-z2 machine, four-vector SVPWM, averaged bridge);
 - the same two with the switching-resolved bridges (7 segments against 13 per period); the six-phase PR
   scheme against the three-phase PR drive (:func:`pmsmjax.presets.pr_drive`);
@@ -22,7 +22,7 @@ import argparse
 from benchmarks.bench_core import publish
 from benchmarks.multiphase_cost import REQUIRED_KEYS, format_cost_table, time_against_three_phase
 from pmsmjax import presets
-from pmsmjax.presets_six_phase import SIX_PHASE_CONTROLS, six_phase_drive
+from pmsmjax.presets.six_phase import SIX_PHASE_CONTROLS, six_phase_drive
 
 __all__ = ["run", "main", "format_table", "REQUIRED_KEYS"]
 

@@ -34,7 +34,7 @@ import math
 import time
 
 from benchmarks.bench_core import machine_info, publish
-from pmsmjax.presets import book_drive
+from pmsmjax.presets.three_phase import book_drive
 from tuning.autotune import TuneConfig, tune
 from tuning.autotune.baselines import (
     BaselineResult,

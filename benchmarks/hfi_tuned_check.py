@@ -4,13 +4,14 @@ tuner saw.
 
 The tuning drive (:mod:`tuning.autotune.hfi_tuning`) wraps the estimator in a sensored warm-up (path
 ``estimator.observer.*``) and the hybrid there has no polarity detector; the compare drive
-(:func:`pmsmjax.controller_compare.chapter6_drive`) holds the estimator at ``estimator.*`` and the hybrid's
-injection inside its polarity detector (``estimator.injection.observer.*``). The gains are moved to those
+(:func:`pmsmjax.studies.control_comparison.chapter6_drive`) holds the estimator at ``estimator.*`` and the
+hybrid's injection inside its polarity detector (``estimator.injection.observer.*``). The gains are moved to
+those
 paths (:func:`compare_paths`). The hybrid also runs ``compare``'s book scenario (1000 r/min from
 standstill, 10 N m step). Each run starts 30 electrical degrees off the estimate, no noise, on the
 saturated salient plant (averaged bridge by default), and is scored by
-:func:`pmsmjax.observer_metrics.observer_errors` (modulo pi for the injection estimators), as ``compare``
-does.
+:func:`pmsmjax.analysis.observer_errors.observer_errors` (modulo pi for the injection estimators), as
+``compare`` does.
 
     python -m benchmarks.hfi_tuned_check hfi-rotating=tune_hfi-rotating/gains.toml \
         hfi-pulsating=tune_hfi-pulsating/gains.toml [--bridge switching] [--json out.json]
@@ -23,7 +24,8 @@ import sys
 
 import jax
 
-from pmsmjax.controller_compare import (
+from pmsmjax.analysis.observer_errors import observer_errors
+from pmsmjax.studies.control_comparison import (
     CHAPTER6_INITIAL_ANGLE_DEG,
     ESTIMATOR_SCENARIOS,
     ControllerCompareSettings,
@@ -34,7 +36,6 @@ from pmsmjax.controller_compare import (
     run_estimator_scenario,
     window_periods,
 )
-from pmsmjax.observer_metrics import observer_errors
 from tuning.parameters import read_gains_toml, set_leaves
 
 

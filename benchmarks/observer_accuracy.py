@@ -1,8 +1,8 @@
 """Accuracy of the chapter 5 observers on logs made by the project's own drive (the issue's must-show).
 
 Logs: the sensored book drive (design-rule FOC, SVPWM, averaged bridge, 10 kHz) with 0.5 % white noise
-on voltages and currents (:mod:`pmsmjax.observer_logs`); each observer runs offline on them with its
-design-rule gains and starts cold (:func:`pmsmjax.observe.observe`).
+on voltages and currents (:mod:`pmsmjax.studies.synthetic_logs`); each observer runs offline on them with its
+design-rule gains and starts cold (:func:`pmsmjax.studies.offline_observer.observe`).
 
 1. **Speed bands**: speed steps from rest to 400, 1000, 2000 and -1000 r/min with a 10 N m load step at
    0.15 s (0.3 s); the samples after convergence (20 ms after |speed| first reaches 300 r/min) pooled by
@@ -33,10 +33,10 @@ import numpy as np
 from pmsmjax import presets
 from pmsmjax.controllers import MTPA
 from pmsmjax.estimators import OBSERVERS, make_observer
-from pmsmjax.logs import atomic_write
-from pmsmjax.observe import angle_error, observe
-from pmsmjax.observer_logs import drive_log, speed_scenario
+from pmsmjax.io.logs import atomic_write
 from pmsmjax.scenarios import Profile, Scenario
+from pmsmjax.studies.offline_observer import angle_error, observe
+from pmsmjax.studies.synthetic_logs import drive_log, speed_scenario
 from pmsmjax.units import rpm_to_rad_s
 
 TS = presets.BOOK_TS
@@ -271,8 +271,8 @@ def format_tables(r: dict) -> str:
 
 
 def save_figures(figures: dict, out: Path) -> list[Path]:
-    from pmsmjax.plotting import save_figure
-    from pmsmjax.plotting_observers import angle_error_figure
+    from pmsmjax.plotting.observers import angle_error_figure
+    from pmsmjax.plotting.traces import save_figure
 
     written = []
     titles = {

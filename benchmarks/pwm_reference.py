@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.frames import abc_to_alpha_beta, dq_to_abc, wrap_angle
+from pmsmjax.frames.three_phase import abc_to_alpha_beta, dq_to_abc, wrap_angle
 from pmsmjax.inverters.base import AbstractBridge
 from pmsmjax.machines.base import MachineInput, MachineState
 from pmsmjax.machines.integrate import rk4_step

@@ -20,18 +20,25 @@ __version__ = "0.1.0"
 
 #: Public name -> (module, attribute or None for the module itself).
 _LAZY = {
+    "analysis": ("analysis", None),
+    "checks": ("checks", None),
     "controllers": ("controllers", None),
+    "estimators": ("estimators", None),
     "frames": ("frames", None),
     "inverters": ("inverters", None),
-    "logs": ("logs", None),
+    "io": ("io", None),
     "machines": ("machines", None),
-    "metrics": ("metrics", None),
-    "multiphase_frames": ("multiphase_frames", None),
+    "plotting": ("plotting", None),
     "presets": ("presets", None),
-    "presets_six_phase": ("presets_six_phase", None),
-    "presets_five_phase": ("presets_five_phase", None),
-    "replay": ("replay", None),
     "scenarios": ("scenarios", None),
+    "studies": ("studies", None),
+    # Short names for modules that live in the folders above.
+    "logs": ("io.logs", None),
+    "metrics": ("analysis.metrics", None),
+    "multiphase_frames": ("frames.multiphase", None),
+    "presets_six_phase": ("presets.six_phase", None),
+    "presets_five_phase": ("presets.five_phase", None),
+    "replay": ("studies.replay", None),
     "Drive": ("drive", "Drive"),
     "DriveState": ("drive", "DriveState"),
     "PeriodInputs": ("drive", "PeriodInputs"),
@@ -40,7 +47,7 @@ _LAZY = {
     "stack_scenarios": ("scenarios", "stack_scenarios"),
     "simulate": ("simulate", "simulate"),
     "Trace": ("trace", "Trace"),
-    "ParameterError": ("validation", "ParameterError"),
+    "ParameterError": ("checks.validation", "ParameterError"),
 }
 
 __all__ = sorted(_LAZY)

@@ -19,13 +19,13 @@ import numpy as np
 from jax.flatten_util import ravel_pytree
 
 from pmsmjax._types import Array
+from pmsmjax.checks.validation import ParameterError, is_concrete
 from pmsmjax.drive import Drive, DriveState, PeriodInputs, PeriodRecord
-from pmsmjax.frames import dq_to_abc
+from pmsmjax.frames.three_phase import dq_to_abc
 from pmsmjax.inverters.averaged import phase_voltages
 from pmsmjax.machines.integrate import max_stable_substep
 from pmsmjax.scenarios import Scenario
 from pmsmjax.trace import Trace
-from pmsmjax.validation import ParameterError, is_concrete
 
 __all__ = ["simulate", "check_simulation", "period_inputs"]
 

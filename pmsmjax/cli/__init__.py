@@ -24,8 +24,8 @@ import os
 import sys
 import warnings
 
+from pmsmjax.checks.validation import ParameterError
 from pmsmjax.cli.checks import Parser
-from pmsmjax.validation import ParameterError
 
 #: The subcommands' modules, in the order ``pmsmjax --help`` lists them.
 SUBCOMMANDS = (

@@ -1,12 +1,12 @@
 """``pmsmjax compare``: control methods side by side on the book scenario
-(:mod:`pmsmjax.controller_compare`)."""
+(:mod:`pmsmjax.studies.control_comparison`)."""
 
 import json
 import time
 
+from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.cli import checks
 from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
-from pmsmjax.validation import ParameterError, plain
 
 
 def add_parser(sub):
@@ -111,6 +111,7 @@ def add_parser(sub):
 
 def precheck(args) -> list[str]:
     """Checks that need no model (before JAX starts); returns the control (or observer) names."""
+    from pmsmjax.analysis.operating_point import refuse_unreachable
     from pmsmjax.cli.demo import (
         BOOK_CURRENT_LIMIT_A,
         BOOK_TS_S,
@@ -119,8 +120,7 @@ def precheck(args) -> list[str]:
         ESTIMATOR_NAMES,
         MULTIPHASE_NAMES,
     )
-    from pmsmjax.motor_files import motor_values
-    from pmsmjax.operating_point import refuse_unreachable
+    from pmsmjax.io.motor_files import motor_values
 
     multiphase = args.machine != "three-phase"
     if multiphase:
@@ -136,7 +136,7 @@ def precheck(args) -> list[str]:
         chapter6 = any(n in CHAPTER6_NAMES for n in names)
         _chapter6_flags(args, names, chapter6)
         if chapter6:
-            from pmsmjax.controller_compare import check_estimator_scenario
+            from pmsmjax.studies.control_comparison import check_estimator_scenario
 
             check_estimator_scenario(names, args.scenario)
         control = "pi"
@@ -186,14 +186,14 @@ def precheck(args) -> list[str]:
     if multiphase:  # the motor from its preset's loader; the voltage limit of the default PWM's linear range
         import math
 
-        from pmsmjax.operating_point import motor_dict
+        from pmsmjax.analysis.operating_point import motor_dict
 
         if args.machine == "six-phase":
-            from pmsmjax.presets_six_phase import load_six_phase_motor as load
+            from pmsmjax.presets.six_phase import load_six_phase_motor as load
 
             u_limit = BOOK_U_DC_V / math.sqrt(3.0)  # four-vector SVPWM
         else:
-            from pmsmjax.presets_five_phase import load_five_phase_motor as load
+            from pmsmjax.presets.five_phase import load_five_phase_motor as load
 
             u_limit = BOOK_U_DC_V / (2.0 * math.cos(math.pi / 10))  # near-four-vector SVPWM
         refuse_unreachable(
@@ -235,7 +235,7 @@ CHAPTER6_NAMES = ("hfi-rotating", "hfi-pulsating", "hybrid")
 def _chapter6_flags(args, names: list[str], chapter6: bool) -> None:
     """Fill in --scenario (book; standstill when an injection method is compared) and refuse what does
     not fit before JAX starts (the scenario-estimator pairs themselves:
-    :func:`pmsmjax.controller_compare.check_estimator_scenario`)."""
+    :func:`pmsmjax.studies.control_comparison.check_estimator_scenario`)."""
     if args.scenario is None:
         injection = any(n.startswith("hfi-") for n in names)
         args.scenario = "standstill" if injection else "book"
@@ -287,8 +287,8 @@ def run(args) -> int:
         return run_estimators(args, names)
 
     from pmsmjax import presets
-    from pmsmjax.controller_compare import ControllerCompareSettings, compare_controllers
-    from pmsmjax.logs import atomic_write
+    from pmsmjax.io.logs import atomic_write
+    from pmsmjax.studies.control_comparison import ControllerCompareSettings, compare_controllers
 
     settings = ControllerCompareSettings(
         speed_rpm=args.speed_rpm,
@@ -302,8 +302,8 @@ def run(args) -> int:
     if args.machine == "three-phase":
         motor = presets.load_motor(args.motor, check_units=not args.trust_units)
     else:
-        from pmsmjax.presets_five_phase import load_five_phase_motor
-        from pmsmjax.presets_six_phase import load_six_phase_motor
+        from pmsmjax.presets.five_phase import load_five_phase_motor
+        from pmsmjax.presets.six_phase import load_six_phase_motor
 
         loader = load_six_phase_motor if args.machine == "six-phase" else load_five_phase_motor
         motor = loader(args.motor)
@@ -320,8 +320,8 @@ def run(args) -> int:
     atomic_write(out / "compare.json", lambda f: f.write(json.dumps(report, indent=2).encode()))
     written = ["compare.json"]
     if not args.no_figures:
-        from pmsmjax.plotting import save_figure
-        from pmsmjax.plotting_compare import flux_figure, ripple_figure, speed_figure
+        from pmsmjax.plotting.compare import flux_figure, ripple_figure, speed_figure
+        from pmsmjax.plotting.traces import save_figure
 
         for name, fig in (
             ("compare_speed.png", speed_figure(result)),
@@ -338,20 +338,20 @@ def run(args) -> int:
 
 
 def run_estimators(args, names: list[str]) -> int:
-    """``pmsmjax compare --estimator``: the observers side by side (:func:`pmsmjax.controller_compare.
+    """``pmsmjax compare --estimator``: the observers side by side (:func:`pmsmjax.studies.control_comparison.
     compare_estimators`); writes compare.json, compare_estimators.md and figures."""
     import numpy as np
 
     from pmsmjax import presets
-    from pmsmjax.controller_compare import (
+    from pmsmjax.analysis.observer_errors import angle_error, angle_error_modulo_pi
+    from pmsmjax.io.logs import atomic_write
+    from pmsmjax.studies.control_comparison import (
         ESTIMATOR_COLUMNS,
         ControllerCompareSettings,
         LowSpeedSweep,
         compare_estimators,
         estimator_table,
     )
-    from pmsmjax.logs import atomic_write
-    from pmsmjax.observer_metrics import angle_error, angle_error_modulo_pi
 
     settings = ControllerCompareSettings(
         speed_rpm=args.speed_rpm,
@@ -382,9 +382,9 @@ def run_estimators(args, names: list[str]) -> int:
     atomic_write(out / "compare_estimators.md", lambda f: f.write(table.encode()))
     written = ["compare.json", "compare_estimators.md"]
     if not args.no_figures:
-        from pmsmjax.plotting import save_figure
-        from pmsmjax.plotting_compare import speed_figure
-        from pmsmjax.plotting_observers import angle_error_figure
+        from pmsmjax.plotting.compare import speed_figure
+        from pmsmjax.plotting.observers import angle_error_figure
+        from pmsmjax.plotting.traces import save_figure
 
         first = next(iter(result["traces"].values()))
         entries = result["controllers"]

@@ -3,9 +3,9 @@ trace, summary.json and figures; ``--machine six-phase`` runs the dual three-pha
 ``--machine five-phase`` the five-phase drive (book ch. 10).
 
 Before any work: the flags (:mod:`pmsmjax.cli.checks`), ``--out``, the motor file (its units,
-:mod:`pmsmjax.plausibility`), the gains file, the load step inside the run, and a speed the drive could
+:mod:`pmsmjax.checks.plausibility`), the gains file, the load step inside the run, and a speed the drive could
 reach at all. After the run, ``summary.json`` says whether the speed reached its reference and how much
-of the run sat at the voltage or current limit (:func:`pmsmjax.operating_point.run_flags`), and the
+of the run sat at the voltage or current limit (:func:`pmsmjax.analysis.operating_point.run_flags`), and the
 console repeats every such flag with its cause and remedy.
 """
 
@@ -13,18 +13,18 @@ import json
 import math
 import time
 
+from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.cli import checks
 from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
-from pmsmjax.validation import ParameterError, plain
 
 CONTROL_NAMES = ("pi", "smc", "pr", "hysteresis", "dtc", "smc-dtc")
-#: ``--machine six-phase``: the schemes of pmsmjax.presets_six_phase.SIX_PHASE_CONTROLS (listed here so
+#: ``--machine six-phase``: the schemes of pmsmjax.presets.six_phase.SIX_PHASE_CONTROLS (listed here so
 #: that ``--help`` needs no JAX import), its modulators and model frames.
 SIX_PHASE_CONTROL_NAMES = ("vsd", "double-dq", "conventional", "pr")
 SIX_PHASE_PWM_NAMES = ("four-vector", "two-vector", "decoupled", "double-zs")
 THREE_PHASE_FRAMES = ("dq", "alpha_beta", "abc")
 SIX_PHASE_FRAME_NAMES = ("dq", "vsd", "double-dq", "natural")
-#: ``--machine five-phase``: pmsmjax.presets_five_phase.FIVE_PHASE_CONTROLS, _PWMS, _FRAMES.
+#: ``--machine five-phase``: pmsmjax.presets.five_phase.FIVE_PHASE_CONTROLS, _PWMS, _FRAMES.
 FIVE_PHASE_CONTROL_NAMES = ("vsd", "conventional", "pr")
 FIVE_PHASE_PWM_NAMES = ("near-four-vector", "carrier", "sinusoidal", "large-vector")
 FIVE_PHASE_FRAME_NAMES = ("dq", "vsd", "natural")
@@ -100,11 +100,11 @@ MAX_SPEED_FACTOR = 3.0
 def six_phase_drive_from_flags(args):
     """``--machine six-phase`` (or ``five-phase``): the multi-phase drive of ``args.control`` with the flags
     the user set; flags of the three-phase controls are refused."""
-    from pmsmjax.presets_six_phase import load_six_phase_motor, six_phase_drive
+    from pmsmjax.presets.six_phase import load_six_phase_motor, six_phase_drive
 
     if args.machine == "five-phase":
-        from pmsmjax.presets_five_phase import five_phase_drive as six_phase_drive  # noqa: F811
-        from pmsmjax.presets_five_phase import load_five_phase_motor as load_six_phase_motor  # noqa: F811
+        from pmsmjax.presets.five_phase import five_phase_drive as six_phase_drive  # noqa: F811
+        from pmsmjax.presets.five_phase import load_five_phase_motor as load_six_phase_motor  # noqa: F811
     options = {}
     for flag in FLAG_OPTIONS.keys() | SIX_PHASE_FLAG_OPTIONS.keys():
         value = getattr(args, flag, None)
@@ -165,7 +165,7 @@ def control_drive_from_flags(args, motor):
     """The drive of ``args.control`` with the options the user set; a flag that does not apply to the
     chosen control is refused (``--band-a`` with ``--control pi``, say) instead of silently ignored."""
     from pmsmjax import presets
-    from pmsmjax.controls import control_drive, control_options
+    from pmsmjax.presets.control_methods import control_drive, control_options
 
     allowed = control_options(args.control)
     options = {}
@@ -304,7 +304,7 @@ def add_parser(sub):
     p.add_argument(
         "--trust-units",
         action="store_true",
-        help="accept motor values outside the plausible ranges of pmsmjax.plausibility (an inductance "
+        help="accept motor values outside the plausible ranges of pmsmjax.checks.plausibility (an inductance "
         "above 1 H, say) instead of refusing them as a likely unit mistake",
     )
     p.add_argument("--decimate", type=checks.count(), default=1, help="record every N-th period (default 1)")
@@ -315,8 +315,8 @@ def add_parser(sub):
 
 def precheck(args) -> dict | None:
     """Every check that needs no model (pure Python, before JAX starts); returns the motor's values."""
-    from pmsmjax.motor_files import motor_values
-    from pmsmjax.operating_point import top_speed_rpm
+    from pmsmjax.analysis.operating_point import top_speed_rpm
+    from pmsmjax.io.motor_files import motor_values
 
     checks.output_folder(args.out)
     check_machine_flags(args)
@@ -365,11 +365,11 @@ def run(args) -> int:
     import numpy as np
 
     from pmsmjax import presets
-    from pmsmjax.logs import atomic_write, write_csv_atomic
-    from pmsmjax.operating_point import run_flags
-    from pmsmjax.plotting import save_demo_figures
+    from pmsmjax.analysis.operating_point import run_flags
+    from pmsmjax.analysis.speed_step_summary import speed_step_summary
+    from pmsmjax.io.logs import atomic_write, write_csv_atomic
+    from pmsmjax.plotting.traces import save_demo_figures
     from pmsmjax.simulate import check_simulation, simulate
-    from pmsmjax.summary import speed_step_summary
     from pmsmjax.trace import COLUMN_UNITS
 
     out = checks.output_folder(args.out)
@@ -475,8 +475,8 @@ def run(args) -> int:
         )
     )
     if six_phase and not args.no_figures:
-        from pmsmjax.plotting import save_figure
-        from pmsmjax.plotting_six_phase import z_currents_figure
+        from pmsmjax.plotting.six_phase import z_currents_figure
+        from pmsmjax.plotting.traces import save_figure
 
         fig = z_currents_figure(trace, f"{args.machine} drive, {args.control}", drive.machine.layout)
         name = "currents_xy.png" if args.machine == "five-phase" else "currents_z.png"
@@ -528,7 +528,7 @@ def z_current_peak(trace, layout=None) -> float:
     """Largest |z1-z2| current (A) of a six-phase trace (|x-y| of a five-phase one: ``layout``)."""
     import numpy as np
 
-    from pmsmjax.multiphase_frames import SIX_PHASE, vsd
+    from pmsmjax.frames.multiphase import SIX_PHASE, vsd
 
     i_z = np.asarray(vsd(trace.i_abc, SIX_PHASE if layout is None else layout))[:, 2:4]
     return float(np.max(np.hypot(i_z[:, 0], i_z[:, 1])))

@@ -10,7 +10,7 @@ import math
 import sys
 from pathlib import Path
 
-from pmsmjax.validation import ParameterError
+from pmsmjax.checks.validation import ParameterError
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -1,7 +1,7 @@
 """``pmsmjax identify``: motor parameters with error bars from a logged run (:mod:`tuning.identify`)."""
 
+from pmsmjax.checks.validation import ParameterError
 from pmsmjax.cli import checks
-from pmsmjax.validation import ParameterError
 
 
 def add_parser(sub):
@@ -15,7 +15,7 @@ def add_parser(sub):
             "stderr, ci95, identifiable per parameter; residuals; wall time) and DIR/fit.png. A parameter "
             "the log does not determine (L_d when i_d is held at zero, say) is reported NOT IDENTIFIABLE, "
             'without an interval. To try it, make a log with: python -c "from tuning.identify import '
-            "identification_scenario, simulate_log, add_noise; from pmsmjax.logs import write_csv_atomic; "
+            "identification_scenario, simulate_log, add_noise; from pmsmjax.io.logs import write_csv_atomic; "
             "write_csv_atomic('log.csv', add_noise(simulate_log(identification_scenario())))\" then "
             "pmsmjax identify log.csv --pole-pairs 4 --out id_out."
         ),

@@ -1,5 +1,5 @@
 """``pmsmjax observe``: run a chapter 5 observer, or the rotating HF-injection estimator of chapter 6, offline
-on a recorded drive log (:mod:`pmsmjax.observe`).
+on a recorded drive log (:mod:`pmsmjax.studies.offline_observer`).
 
 ``hfi-rotating`` reads the carrier from the log's voltages (``carrier="measured"``: the log's drive
 injected it, this run does not), and its angle is the d axis modulo pi: ``estimate.csv`` gives it in
@@ -11,7 +11,7 @@ record.
 import json
 import time
 
-from pmsmjax.validation import ParameterError
+from pmsmjax.checks.validation import ParameterError
 
 
 def add_parser(sub):
@@ -118,8 +118,8 @@ def run(args) -> int:
 
     from pmsmjax import presets
     from pmsmjax.estimators.registry import INJECTION_OBSERVERS, check_observer_name, make_observer
-    from pmsmjax.logs import atomic_write, check_output_folder, write_csv_atomic
-    from pmsmjax.observe import error_statistics, observe
+    from pmsmjax.io.logs import atomic_write, check_output_folder, write_csv_atomic
+    from pmsmjax.studies.offline_observer import error_statistics, observe
 
     # The command line is the one place where pmsmjax reaches up into the tuning workflows (the log reader
     # is shared with `pmsmjax identify`).
@@ -209,8 +209,8 @@ def run(args) -> int:
     atomic_write(out / "observe.json", lambda f: f.write(json.dumps(summary, indent=2).encode()))
     written = ["estimate.csv", "observe.json"]
     if not args.no_figures:
-        from pmsmjax.plotting import save_figure
-        from pmsmjax.plotting_observers import observer_log_figure
+        from pmsmjax.plotting.observers import observer_log_figure
+        from pmsmjax.plotting.traces import save_figure
 
         save_figure(
             observer_log_figure(

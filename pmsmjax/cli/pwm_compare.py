@@ -1,17 +1,17 @@
 """``pmsmjax pwm-compare``: the PWM methods compared at one steady operating point
-(:mod:`pmsmjax.pwm_compare`)."""
+(:mod:`pmsmjax.studies.pwm_comparison`)."""
 
 import json
 import time
 
+from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.cli import checks
 from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
-from pmsmjax.validation import ParameterError, plain
 
 MODULATOR_NAMES = ("sinusoidal", "third_harmonic", "min_max", "svpwm")
-#: ``--phases 6``: the dual three-phase modulators (pmsmjax.presets_six_phase.SIX_PHASE_PWMS).
+#: ``--phases 6``: the dual three-phase modulators (pmsmjax.presets.six_phase.SIX_PHASE_PWMS).
 SIX_PHASE_MODULATOR_NAMES = ("four-vector", "two-vector", "decoupled", "double-zs")
-#: ``--phases 5``: the five-phase modulators (pmsmjax.presets_five_phase.FIVE_PHASE_PWMS).
+#: ``--phases 5``: the five-phase modulators (pmsmjax.presets.five_phase.FIVE_PHASE_PWMS).
 FIVE_PHASE_MODULATOR_NAMES = ("near-four-vector", "carrier", "sinusoidal", "large-vector")
 
 
@@ -87,9 +87,9 @@ def add_parser(sub):
 
 def precheck(args) -> None:
     """Checks that need no model (before JAX starts)."""
+    from pmsmjax.analysis.operating_point import refuse_unreachable
     from pmsmjax.cli.demo import BOOK_CURRENT_LIMIT_A, BOOK_TS_S, BOOK_U_DC_V
-    from pmsmjax.motor_files import PRESET_VALUES
-    from pmsmjax.operating_point import refuse_unreachable
+    from pmsmjax.io.motor_files import PRESET_VALUES
 
     checks.output_folder(args.out)
     read_gains_flag(args.gains)
@@ -137,9 +137,9 @@ def run(args) -> int:
 
     import numpy as np
 
-    from pmsmjax.logs import atomic_write
-    from pmsmjax.presets import book_drive
-    from pmsmjax.pwm_compare import CompareSettings, compare
+    from pmsmjax.io.logs import atomic_write
+    from pmsmjax.presets.three_phase import book_drive
+    from pmsmjax.studies.pwm_comparison import CompareSettings, compare
 
     settings = CompareSettings(
         speed_rpm=args.speed_rpm,
@@ -162,8 +162,8 @@ def run(args) -> int:
     atomic_write(out / "waveforms.npz", lambda f: np.savez(f, **arrays))
     written = ["pwm.json", "waveforms.npz"]
     if not args.no_figures:
-        from pmsmjax.plotting import save_figure
-        from pmsmjax.plotting_pwm import spectrum_figure, thd_figure, waveform_figure
+        from pmsmjax.plotting.pwm import spectrum_figure, thd_figure, waveform_figure
+        from pmsmjax.plotting.traces import save_figure
 
         shown = [m + "_switching" for m in ("sinusoidal", "svpwm") if m in settings.modulators]
         for name, fig in (
@@ -178,12 +178,13 @@ def run(args) -> int:
 
 
 def run_six_phase(args) -> int:
-    """``pwm-compare --phases 6`` (or ``5``): :func:`pmsmjax.pwm_compare_six.compare_six_phase`."""
+    """``pwm-compare --phases 6`` (or ``5``):
+    :func:`pmsmjax.studies.pwm_comparison_multiphase.compare_six_phase`."""
     import numpy as np
 
-    from pmsmjax.logs import atomic_write
-    from pmsmjax.presets_six_phase import six_phase_drive
-    from pmsmjax.pwm_compare_six import SixPhaseCompareSettings, compare_six_phase
+    from pmsmjax.io.logs import atomic_write
+    from pmsmjax.presets.six_phase import six_phase_drive
+    from pmsmjax.studies.pwm_comparison_multiphase import SixPhaseCompareSettings, compare_six_phase
 
     settings = SixPhaseCompareSettings(
         speed_rpm=args.speed_rpm,
@@ -196,7 +197,7 @@ def run_six_phase(args) -> int:
         phases=args.phases,
     )
     if args.phases == 5:
-        from pmsmjax.presets_five_phase import five_phase_drive
+        from pmsmjax.presets.five_phase import five_phase_drive
 
         base = five_phase_drive(control="conventional", pwm="near-four-vector")
     else:
@@ -214,8 +215,8 @@ def run_six_phase(args) -> int:
     atomic_write(out / "waveforms.npz", lambda f: np.savez(f, **arrays))
     written = ["pwm.json", "waveforms.npz"]
     if not args.no_figures:
-        from pmsmjax.plotting import save_figure
-        from pmsmjax.plotting_six_phase import harmonics_figure, trajectories_figure, vectors_figure
+        from pmsmjax.plotting.six_phase import harmonics_figure, trajectories_figure, vectors_figure
+        from pmsmjax.plotting.traces import save_figure
 
         shown = [m + "_switching" for m in settings.modulators if m + "_switching" in result["waves"]]
         figs = [

@@ -44,10 +44,10 @@ def add_parser(sub):
 def run(args) -> int:
     checks.existing_file(args.log, "log", "log file")
     checks.output_folder(args.out)
-    from pmsmjax.motor_files import motor_values
+    from pmsmjax.io.motor_files import motor_values
 
     motor_values(args.motor, check_units=not args.trust_units)
-    from pmsmjax.replay import replay_file
+    from pmsmjax.studies.replay import replay_file
 
     notes: list[str] = []
     path = replay_file(

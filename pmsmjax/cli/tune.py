@@ -6,8 +6,8 @@ the same command resumes from it.
 
 from pathlib import Path
 
+from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.cli import checks
-from pmsmjax.validation import ParameterError, plain
 
 
 def add_parser(sub):

@@ -20,7 +20,7 @@ import jax.numpy as jnp
 from pmsmjax._types import Array
 from pmsmjax.controllers.base import AbstractCurrentController, CurrentLoopContext
 from pmsmjax.controllers.pi import clip_magnitude, pi_update
-from pmsmjax.frames import inverse_park, park
+from pmsmjax.frames.three_phase import inverse_park, park
 
 
 class CurrentLoopGains(AbstractCurrentController):

@@ -21,6 +21,7 @@ import jax
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
+from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.controllers.base import (
     AbstractController,
     AbstractCurrentController,
@@ -30,7 +31,6 @@ from pmsmjax.controllers.base import (
 )
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import ControlOutput, Estimate, References, Sample
-from pmsmjax.validation import ParameterError, check_positive
 
 ControlMode = Literal["speed", "current"]
 

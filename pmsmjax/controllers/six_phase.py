@@ -14,18 +14,18 @@ take (:mod:`pmsmjax.inverters.six_phase_svpwm`). Its current blocks
   limited only by ``R + j w L_ls``). With :class:`ZCurrentPI` it is the **VSD** scheme; with
   :class:`ZProportionalResonant` (and the PR fundamental block) the **stationary-frame PR** scheme.
 - :class:`DoubleDQCurrentPI`: the **double dq** scheme: four PIs on ``[i_d1, i_q1, i_d2, i_q2]``
-  (each set's own Park, :func:`pmsmjax.multiphase_frames.double_dq`) with cross-coupling compensation.
+  (each set's own Park, :func:`pmsmjax.frames.multiphase.double_dq`) with cross-coupling compensation.
 
 **z1-z2 PI frame.** Unbalance between the two sets (unequal resistances, gains, dead times) puts a
 fundamental-frequency current in z1-z2 that rotates *backwards* (``conj(i_ab1 - i_ab2)/2``). In the frame
-rotating at ``-w_e`` (:func:`~pmsmjax.multiphase_frames.z_to_counter_rotating`) it is constant, so a PI
+rotating at ``-w_e`` (:func:`~pmsmjax.frames.multiphase.z_to_counter_rotating`) it is constant, so a PI
 there removes it with zero steady-state error (Che et al., "Current control methods for an asymmetrical
 six-phase induction motor drive", IEEE TPEL 29(1), 2014). Its plant in that frame is
 ``u' = R i' + L_ls di'/dt - j w_e L_ls i'``: internal-model gains ``Kp = a_z L_ls``, ``Ki = a_z R`` and
 the decoupling ``-j w_e L_ls i'``, the same structure as the dq loop.
 
 **Equivalence (book 9.5).** By the linear relation ``[dq, z'] = M [dq1, dq2]``
-(:data:`~pmsmjax.multiphase_frames.DOUBLE_DQ_TO_VSD`), the VSD scheme with dq gains ``(Kp_dq, Ki)`` and
+(:data:`~pmsmjax.frames.multiphase.DOUBLE_DQ_TO_VSD`), the VSD scheme with dq gains ``(Kp_dq, Ki)`` and
 z' gains ``(Kp_z, Ki)`` *is* a double-dq controller whose set-k output is
 ``((Kp_dq + Kp_z)/2) e_k + ((Kp_dq - Kp_z)/2) e_other + integral + decoupling``. With the internal-model
 gains the self gain is ``a_c (L_d + L_ls)/2 = a_c L_self`` (the set's own inductance: the double-dq loop's
@@ -48,7 +48,7 @@ and the predicted mean (the dq loop of the VSD scheme, :class:`~.current_pi.Curr
 its prediction, as for three phases).
 
 **Five phases (BOOK.md chapter 10).** The same cascade drives the five-phase machine: the VSD current block
-takes the winding ``layout`` (:data:`~pmsmjax.multiphase_frames.FIVE_PHASE`: the second plane is x-y), and
+takes the winding ``layout`` (:data:`~pmsmjax.frames.multiphase.FIVE_PHASE`: the second plane is x-y), and
 the x-y PI's frame is a static choice, ``rotation``: the frame at ``rotation theta_e``. Six phases use
 ``-1`` (the counter-rotating frame above); five phases ``+3``, the third-harmonic synchronous frame, in
 which the x-y disturbances of a five-phase drive are constant: a third-harmonic back-EMF
@@ -69,6 +69,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
+from pmsmjax.checks.validation import ParameterError, check_nonnegative, check_positive
 from pmsmjax.controllers.base import (
     AbstractController,
     AbstractCurrentController,
@@ -87,9 +88,7 @@ from pmsmjax.controllers.pr import (
     pr_design,
     resonant_coefficients,
 )
-from pmsmjax.frames import inverse_park, park
-from pmsmjax.machines.motor import as_float
-from pmsmjax.multiphase_frames import (
+from pmsmjax.frames.multiphase import (
     SIX_PHASE,
     PhaseLayout,
     double_dq,
@@ -98,8 +97,9 @@ from pmsmjax.multiphase_frames import (
     z_from_counter_rotating,
     z_to_counter_rotating,
 )
+from pmsmjax.frames.three_phase import inverse_park, park
+from pmsmjax.machines.motor import as_float
 from pmsmjax.signals import ControlOutput, Estimate, References, Sample
-from pmsmjax.validation import ParameterError, check_nonnegative, check_positive
 
 __all__ = [
     "AbstractSixPhaseCurrentController",
@@ -458,7 +458,7 @@ def vsd_current_design(
     """VSD current control from the internal-model rules: the dq PI (:func:`current_loop_imc`) and, with
     ``z=True``, the second plane's PI (:func:`z_current_imc`, bandwidth default the dq loop's, frame at
     ``rotation theta_e``); ``z=False`` is the conventional scheme. `layout`: the winding (five phases:
-    :data:`~pmsmjax.multiphase_frames.FIVE_PHASE` with ``rotation=3``)."""
+    :data:`~pmsmjax.frames.multiphase.FIVE_PHASE` with ``rotation=3``)."""
     z_block = z_current_imc(motor, z_bandwidth_rad_s or bandwidth_rad_s, rotation=rotation) if z else None
     return VSDCurrentControl(current_loop_imc(motor, bandwidth_rad_s), z_block, layout)
 

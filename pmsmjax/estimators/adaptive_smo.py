@@ -31,6 +31,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
+from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.smo import (
     SMO_K_MARGIN,
@@ -49,11 +50,10 @@ from pmsmjax.estimators.stator_model import (
     rotate,
 )
 from pmsmjax.estimators.switching import SWITCHING, Switching
-from pmsmjax.frames import wrap_angle
+from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Estimate, Sample
 from pmsmjax.units import rpm_to_rad_s
-from pmsmjax.validation import ParameterError, check_positive
 
 
 class AdaptiveSMOState(eqx.Module):

@@ -41,17 +41,17 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
+from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.pll import PLL, PLLState, pll_design
 from pmsmjax.estimators.smo import SMO_K_MARGIN, SMO_POLE, check_observer_pole, sliding_current_update
 from pmsmjax.estimators.stability import check_loop, concrete_values
 from pmsmjax.estimators.stator_model import rl_coefficients, rotate, rotor_angle
 from pmsmjax.estimators.switching import SWITCHING, Switching
-from pmsmjax.frames import inverse_park, park, wrap_angle
+from pmsmjax.frames.three_phase import inverse_park, park, wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Estimate, Sample
 from pmsmjax.units import rpm_to_rad_s
-from pmsmjax.validation import ParameterError, check_positive
 
 
 def dq_loop_matrix(a: float, b: float, p: float, f: float) -> np.ndarray:

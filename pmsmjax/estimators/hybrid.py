@@ -51,14 +51,14 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
+from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.pll import PLLState
 from pmsmjax.estimators.stability import concrete_values
-from pmsmjax.frames import wrap_angle
+from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Sample
 from pmsmjax.units import rpm_to_rad_s
-from pmsmjax.validation import ParameterError, check_positive
 
 
 def pull_observer(observer: AbstractEstimator, state, estimate, theta_e, omega_m, strength):

@@ -14,6 +14,7 @@ import difflib
 import functools
 import inspect
 
+from pmsmjax.checks.validation import ParameterError
 from pmsmjax.estimators.adaptive_smo import adaptive_smo_design
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.dq_smo import dq_smo_design
@@ -24,7 +25,6 @@ from pmsmjax.estimators.hybrid import hybrid_design
 from pmsmjax.estimators.mras import mras_design
 from pmsmjax.estimators.smo import smo_design
 from pmsmjax.machines.motor import PMSMParameters
-from pmsmjax.validation import ParameterError
 
 #: Observer name -> (design rule ``f(motor, Ts, **options)``, one-line description).
 OBSERVERS = {

@@ -48,6 +48,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
+from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.pll import PLL, PLLState, pll_design
 from pmsmjax.estimators.stability import check_loop, concrete_values
@@ -63,11 +64,10 @@ from pmsmjax.estimators.stator_model import (
     safe_atan2,
 )
 from pmsmjax.estimators.switching import SWITCHING, Switching, linear_gain, switching_function
-from pmsmjax.frames import wrap_angle
+from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Estimate, Sample
 from pmsmjax.units import rpm_to_rad_s
-from pmsmjax.validation import ParameterError, check_positive
 
 AngleMethod = Literal["arctan", "pll"]
 

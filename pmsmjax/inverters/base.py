@@ -10,7 +10,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.frames import abc_to_alpha_beta
+from pmsmjax.frames.three_phase import abc_to_alpha_beta
 from pmsmjax.machines.base import AbstractMachine, MachineState
 
 

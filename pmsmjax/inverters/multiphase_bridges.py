@@ -3,7 +3,7 @@
 Phase-to-neutral voltage of phase ``x`` in star ``S``: ``u_xN = v_x - mean_{y in S} v_y`` with ``v`` the
 pole voltages (each star's common mode does not reach its windings). The machine is driven by the
 stationary VSD voltage of those phase voltages, ``(2 n_planes,)`` = [alpha, beta, z1, z2, ...]
-(:mod:`pmsmjax.multiphase_frames`); the zero sequences of isolated stars are 0.
+(:mod:`pmsmjax.frames.multiphase`); the zero sequences of isolated stars are 0.
 
 - :class:`MultiPhaseAveragedBridge`: the period-average voltage held over the period (``d`` the duties:
   ``v = U_dc d``).
@@ -23,13 +23,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
+from pmsmjax.checks.validation import ParameterError, check_nonnegative, check_positive, is_concrete
+from pmsmjax.frames.multiphase import SIX_PHASE, PhaseLayout, vsd_matrix
 from pmsmjax.inverters.base import AbstractBridge
 from pmsmjax.inverters.switching import CurrentSign, pwm_segments
 from pmsmjax.machines.base import MachineInput
 from pmsmjax.machines.integrate import advance
 from pmsmjax.machines.motor import as_float
-from pmsmjax.multiphase_frames import SIX_PHASE, PhaseLayout, vsd_matrix
-from pmsmjax.validation import ParameterError, check_nonnegative, check_positive, is_concrete
 
 __all__ = [
     "MultiPhaseAveragedBridge",

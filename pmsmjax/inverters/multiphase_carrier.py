@@ -3,7 +3,7 @@ for the six-phase layout with min-max injection this is
 :class:`~pmsmjax.inverters.six_phase_carrier.DoubleZeroSequencePWM`).
 
 The VSD reference (``(2,)`` alpha-beta, the other planes 0, or the full ``(2 n_planes,)``) becomes phase
-references by the inverse VSD (:func:`pmsmjax.multiphase_frames.inverse_vsd`, each star's zero sequence
+references by the inverse VSD (:func:`pmsmjax.frames.multiphase.inverse_vsd`, each star's zero sequence
 0); each star then gets one zero sequence, which its isolated neutral removes from the windings, and each
 leg is compared with the centre-aligned carrier: ``d_x = 1/2 + (u_x + u_0,S)/U_dc``, clipped to [0, 1].
 
@@ -25,10 +25,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
+from pmsmjax.checks.validation import ParameterError
+from pmsmjax.frames.multiphase import FIVE_PHASE, PhaseLayout, inverse_vsd
 from pmsmjax.inverters.base import AbstractModulator
 from pmsmjax.inverters.multiphase_svpwm import padded_reference
-from pmsmjax.multiphase_frames import FIVE_PHASE, PhaseLayout, inverse_vsd
-from pmsmjax.validation import ParameterError
 
 __all__ = ["ZeroSequencePWM"]
 

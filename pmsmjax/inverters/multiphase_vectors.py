@@ -1,5 +1,5 @@
 """The ``2^n`` switching states of an n-leg inverter feeding a multi-phase machine with isolated star points,
-projected on the VSD planes, for any :class:`~pmsmjax.multiphase_frames.PhaseLayout` (BOOK.md chapters 8
+projected on the VSD planes, for any :class:`~pmsmjax.frames.multiphase.PhaseLayout` (BOOK.md chapters 8
 and 10).
 
 State index ``s = sum_x b_x 2^x`` (``b_x`` the upper switch of leg ``x``, leg order of the layout). Each
@@ -13,7 +13,7 @@ SVPWM uses (:mod:`.multiphase_svpwm`):
   alpha-beta magnitude. Its vector in the second plane is opposite to the L state's, so a mix of the two
   nulls that plane's average.
 
-Five phases (:data:`~pmsmjax.multiphase_frames.FIVE_PHASE`), per unit of ``U_dc``:
+Five phases (:data:`~pmsmjax.frames.multiphase.FIVE_PHASE`), per unit of ``U_dc``:
 
 ==========  =====  ========================================  ===========  ==================
 alpha-beta  count  name                                      x-y          direction
@@ -37,8 +37,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from pmsmjax.multiphase_frames import PhaseLayout, vsd_matrix
-from pmsmjax.validation import ParameterError
+from pmsmjax.checks.validation import ParameterError
+from pmsmjax.frames.multiphase import PhaseLayout, vsd_matrix
 
 __all__ = ["SpaceVectors", "space_vectors"]
 

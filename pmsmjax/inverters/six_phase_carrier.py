@@ -1,7 +1,7 @@
 """Dual three-phase PWM built from three-phase methods, one per star (BOOK.md chapter 8).
 
 The reference ``[alpha, beta, z1, z2]`` (z1-z2 zero for a ``(2,)`` reference) is split into the two
-sets' phase references by the inverse VSD (:func:`pmsmjax.multiphase_frames.inverse_vsd`; each star's
+sets' phase references by the inverse VSD (:func:`pmsmjax.frames.multiphase.inverse_vsd`; each star's
 zero sequence 0): equivalently each set's stationary vector is ``u_ab +- conj(u_z)`` in the common frame.
 Each set is then modulated on its own:
 
@@ -24,11 +24,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.frames import abc_to_alpha_beta
+from pmsmjax.frames.multiphase import SIX_PHASE, inverse_vsd
+from pmsmjax.frames.three_phase import abc_to_alpha_beta
 from pmsmjax.inverters.base import AbstractModulator
 from pmsmjax.inverters.six_phase_svpwm import six_phase_reference
 from pmsmjax.inverters.svpwm import switching_times
-from pmsmjax.multiphase_frames import SIX_PHASE, inverse_vsd
 
 __all__ = ["DecoupledSVPWM", "DoubleZeroSequencePWM", "set_references"]
 

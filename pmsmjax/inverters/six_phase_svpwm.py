@@ -35,6 +35,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
+from pmsmjax.checks.validation import ParameterError
 from pmsmjax.inverters.base import AbstractModulator
 from pmsmjax.inverters.six_phase_vectors import (
     BISECTORS,
@@ -44,7 +45,6 @@ from pmsmjax.inverters.six_phase_vectors import (
     STATES,
     VECTORS,
 )
-from pmsmjax.validation import ParameterError
 
 __all__ = ["TwoVectorSVPWM", "FourVectorSVPWM", "six_phase_reference", "sector"]
 

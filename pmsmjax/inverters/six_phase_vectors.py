@@ -3,7 +3,7 @@ projected on alpha-beta and z1-z2 (BOOK.md chapter 8; Zhao & Lipo, IEEE TIA 31(5
 
 State index ``s = sum_x b_x 2^x`` with ``b_x`` the upper switch of leg ``x`` in the order A, B, C, U, V,
 W. Each state's phase voltages are ``U_dc (b_x - mean of its star)``; their VSD (amplitude-invariant,
-:func:`pmsmjax.multiphase_frames.vsd`) gives one alpha-beta and one z1-z2 vector. Per unit of ``U_dc``:
+:func:`pmsmjax.frames.multiphase.vsd`) gives one alpha-beta and one z1-z2 vector. Per unit of ``U_dc``:
 
 ============  =====  ==========================================  ===========
 alpha-beta    count  name                                         z1-z2
@@ -28,7 +28,7 @@ import itertools
 
 import numpy as np
 
-from pmsmjax.multiphase_frames import SIX_PHASE, vsd_matrix
+from pmsmjax.frames.multiphase import SIX_PHASE, vsd_matrix
 
 __all__ = [
     "STATES",

@@ -12,7 +12,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.frames import dq_to_abc, inverse_park, park
+from pmsmjax.frames.three_phase import dq_to_abc, inverse_park, park
 from pmsmjax.machines.motor import PMSMParameters
 
 Mechanics = Literal["dynamic", "imposed"]

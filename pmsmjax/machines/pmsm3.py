@@ -26,7 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.frames import abc_to_alpha_beta, alpha_beta_to_abc, inverse_park, park
+from pmsmjax.frames.three_phase import abc_to_alpha_beta, alpha_beta_to_abc, inverse_park, park
 from pmsmjax.machines.base import AbstractMachine, MachineInput, Mechanics
 from pmsmjax.machines.motor import PMSMParameters, as_float
 

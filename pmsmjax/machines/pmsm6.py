@@ -1,7 +1,7 @@
 """The six-phase (dual three-phase) PMSM in double-dq coordinates (BOOK.md chapters 7 and 9).
 
 Each three-phase set has its own Park transform, ABC at ``th`` and UVW at ``th - pi/6``
-(:func:`pmsmjax.multiphase_frames.double_dq`); both dq frames lie on the rotor. State
+(:func:`pmsmjax.frames.multiphase.double_dq`); both dq frames lie on the rotor. State
 ``[i_d1, i_q1, i_d2, i_q2]``, A. From the natural-frame inductances (``L_ls`` leakage, ``L_0m``, ``L_2m``
 magnetising, :mod:`.pmsm_multiphase`), a set's own dq inductance is ``L_ls + L_m{d,q}`` and the mutual
 inductance between the sets ``L_m{d,q}``, with ``L_md = 1.5 (L_0m + L_2m)`` and
@@ -21,12 +21,12 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.frames import inverse_park, park
+from pmsmjax.checks.validation import ParameterError
+from pmsmjax.frames.multiphase import SIX_PHASE, PhaseLayout, double_dq_to_vsd, vsd_to_double_dq
+from pmsmjax.frames.three_phase import inverse_park, park
 from pmsmjax.machines.base import MachineInput, Mechanics
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
 from pmsmjax.machines.pmsm_multiphase import AbstractMultiPhaseMachine, _as_scale
-from pmsmjax.multiphase_frames import SIX_PHASE, PhaseLayout, double_dq_to_vsd, vsd_to_double_dq
-from pmsmjax.validation import ParameterError
 
 __all__ = ["PMSM6DoubleDQ"]
 

@@ -1,5 +1,5 @@
 """n-phase PMSM models in the natural frame and in VSD coordinates (BOOK.md chapter 7; five phases:
-chapter 10), for any :class:`~pmsmjax.multiphase_frames.PhaseLayout` (six phases by default).
+chapter 10), for any :class:`~pmsmjax.frames.multiphase.PhaseLayout` (six phases by default).
 
 Each model is written from its own frame's equations so that comparing them checks each:
 
@@ -50,12 +50,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.frames import inverse_park, park
+from pmsmjax.checks.validation import ParameterError, check_positive
+from pmsmjax.frames.multiphase import SIX_PHASE, PhaseLayout, inverse_vsd_matrix, vsd_matrix
+from pmsmjax.frames.three_phase import inverse_park, park
 from pmsmjax.machines.base import AbstractMachine, MachineInput, MachineState, Mechanics
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
 from pmsmjax.machines.pmsm3 import _solve2
-from pmsmjax.multiphase_frames import SIX_PHASE, PhaseLayout, inverse_vsd_matrix, vsd_matrix
-from pmsmjax.validation import ParameterError, check_positive
 
 __all__ = [
     "AbstractMultiPhaseMachine",

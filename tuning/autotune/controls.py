@@ -1,6 +1,6 @@
 """What ``pmsmjax tune --control NAME`` tunes for each control method, and on which surrogate.
 
-Per control (:data:`pmsmjax.controls.CONTROLS`):
+Per control (:data:`pmsmjax.presets.control_methods.CONTROLS`):
 
 - the gains tuned by default (dotted names or the aliases of :data:`tuning.parameters.ALIASES`):
   PI: the speed and current PIs; SMC: the surface and reaching-law gains ``c, eps, q`` and the current
@@ -18,7 +18,7 @@ Per control (:data:`pmsmjax.controls.CONTROLS`):
 
 import dataclasses
 
-from pmsmjax.validation import ParameterError
+from pmsmjax.checks.validation import ParameterError
 
 
 @dataclasses.dataclass(frozen=True)
@@ -51,7 +51,7 @@ TUNABLE_CONTROLS = {
 _VSD_DQ = tuple(f"controller.current.dq.{k}" for k in ("kp_d", "kp_q", "ki_d", "ki_q"))
 _PR_DQ = tuple(f"controller.current.dq.{k}" for k in ("kp", "kr", "w_c"))
 
-#: The six-phase schemes (:data:`pmsmjax.presets_six_phase.SIX_PHASE_CONTROLS`): the speed PI and the
+#: The six-phase schemes (:data:`pmsmjax.presets.six_phase.SIX_PHASE_CONTROLS`): the speed PI and the
 #: fundamental-subspace current gains (double dq: its four PIs and the cross-coupling compensation). The
 #: z1-z2 gains are left out by default: on the balanced nominal plant with the averaged bridge no z1-z2
 #: current flows, so the speed objectives give them no gradient (name them, e.g.
@@ -64,7 +64,7 @@ SIX_PHASE_TUNABLE_CONTROLS = {
 }
 
 
-#: The five-phase schemes (:data:`pmsmjax.presets_five_phase.FIVE_PHASE_CONTROLS`): the speed PI and the dq
+#: The five-phase schemes (:data:`pmsmjax.presets.five_phase.FIVE_PHASE_CONTROLS`): the speed PI and the dq
 #: current gains (the x-y gains left out as the six-phase z1-z2 ones, for the same reason).
 FIVE_PHASE_TUNABLE_CONTROLS = {
     "vsd": ControlTuning(("speed",) + _VSD_DQ),

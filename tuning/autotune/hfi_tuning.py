@@ -4,8 +4,9 @@ low-speed scenario batches. The tuner, objective, outputs and resume are those o
 
 Drive (:func:`injection_sensorless_drive`): the book FOC drive on the salient book motor
 (``L_d`` 5.25 mH, ``L_q`` 12 mH) with the estimator's design rule, on the plant with d-axis saturation
-(:func:`pmsmjax.machines.saturated_machine`, defaults), as :func:`pmsmjax.controller_compare.chapter6_drive`
-builds it for ``compare --estimator``; :func:`tuning.autotune.observers.observer_drive` puts it behind the
+(:func:`pmsmjax.machines.saturated_machine`, defaults), as
+:func:`pmsmjax.studies.control_comparison.chapter6_drive` builds it for ``compare --estimator``;
+:func:`tuning.autotune.observers.observer_drive` puts it behind the
 same sensored warm-up and measurement noise as the chapter 5 observers.
 
 Polarity. The injection estimators find the d axis modulo pi: the estimator starts at ``theta0 = 0`` and
@@ -34,8 +35,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax import Profile, Scenario, presets, stack_scenarios
+from pmsmjax.checks.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
-from pmsmjax.validation import ParameterError
 from tuning.autotune.scenario_batches import ScenarioBatch
 
 #: Scenario kinds of the injection batches.

@@ -6,11 +6,11 @@ scenarios before and after) and ``checkpoint.npz`` (resume point; running the sa
 continues from it and ends at the same result).
 
 Control methods (``control``: ``pi``, ``smc``, ``pr``, ``smc-dtc``; :mod:`tuning.autotune.controls`): the
-drive of :func:`pmsmjax.controls.control_drive`, its default gains and its default objective weights (used
-when ``weights`` is None).
-``machine="six-phase"``: the six-phase drive (:func:`pmsmjax.presets_six_phase.six_phase_drive`) under
+drive of :func:`pmsmjax.presets.control_methods.control_drive`, its default gains and its default objective
+weights (used when ``weights`` is None).
+``machine="six-phase"``: the six-phase drive (:func:`pmsmjax.presets.six_phase.six_phase_drive`) under
 ``vsd``, ``double-dq``, ``conventional`` or ``pr`` (default ``vsd``); ``machine="five-phase"``: the
-five-phase drive (:func:`pmsmjax.presets_five_phase.five_phase_drive`) under ``vsd`` or ``conventional``.
+five-phase drive (:func:`pmsmjax.presets.five_phase.five_phase_drive`) under ``vsd`` or ``conventional``.
 
 Observers (``estimator``: ``smo``, ``smo-pll``, ``adaptive-smo``, ``dq-smo``, ``mras``, ``ekf``;
 :mod:`tuning.autotune.observers`): the book FOC drive on that observer behind a sensored warm-up, its
@@ -37,10 +37,10 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from pmsmjax.controls import control_drive
-from pmsmjax.logs import atomic_write
+from pmsmjax.checks.validation import ParameterError
+from pmsmjax.io.logs import atomic_write
+from pmsmjax.presets.control_methods import control_drive
 from pmsmjax.units import rad_s_to_rpm
-from pmsmjax.validation import ParameterError
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -284,11 +284,11 @@ def run_tune_job(
 def _drive(machine: str, control: str, **options):
     """The drive of ``control`` on the book motor (``three-phase``) or its six- or five-phase rewind."""
     if machine == "five-phase":
-        from pmsmjax.presets_five_phase import five_phase_drive
+        from pmsmjax.presets.five_phase import five_phase_drive
 
         return five_phase_drive(control=control, **options)
     if machine == "six-phase":
-        from pmsmjax.presets_six_phase import six_phase_drive
+        from pmsmjax.presets.six_phase import six_phase_drive
 
         return six_phase_drive(control=control, **options)
     return control_drive(control, **options)
@@ -308,7 +308,7 @@ def _figures(out: Path, before, after, batch: ScenarioBatch, history) -> None:
     import matplotlib.pyplot as plt
 
     import pmsmjax
-    from pmsmjax.plotting import save_figure
+    from pmsmjax.plotting.traces import save_figure
 
     fig, ax = plt.subplots(figsize=(7.5, 3.4))
     it = np.arange(1, len(history) + 1)

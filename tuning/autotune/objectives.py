@@ -16,11 +16,11 @@ import jax.numpy as jnp
 import numpy as np
 
 import pmsmjax
-from pmsmjax import metrics
+from pmsmjax.analysis import metrics
+from pmsmjax.checks.validation import ParameterError
 from pmsmjax.drive import Drive
-from pmsmjax.frames import wrap_angle
+from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.trace import Trace
-from pmsmjax.validation import ParameterError
 from tuning.autotune.scenario_batches import ScenarioBatch
 
 METRIC_NAMES = (

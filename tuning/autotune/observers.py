@@ -54,10 +54,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax import Profile, Scenario, presets, stack_scenarios
+from pmsmjax.checks.validation import ParameterError
 from pmsmjax.estimators.registry import check_observer_name
 from pmsmjax.estimators.sensored_warmup import SensoredWarmup
 from pmsmjax.units import rpm_to_rad_s
-from pmsmjax.validation import ParameterError
 from tuning.autotune.scenario_batches import ScenarioBatch
 from tuning.parameters import get_leaf, set_leaves
 

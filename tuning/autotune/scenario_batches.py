@@ -11,8 +11,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax import Profile, Scenario, stack_scenarios
+from pmsmjax.checks.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
-from pmsmjax.validation import ParameterError
 
 KINDS = ("step", "reversal", "ramp")
 

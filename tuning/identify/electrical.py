@@ -7,8 +7,9 @@ depends on the electrical parameters only (:mod:`tuning.identify.fit` solves it 
 ``L_d di_d/dt = u_d - R i_d + w_e L_q i_q``,  ``L_q di_q/dt = u_q - R i_q - w_e (L_d i_d + psi_f)``,
 
 with ``w_e = p_n w_m`` interpolated linearly between the measured samples. The voltage of row k is held
-over interval k as :mod:`pmsmjax.replay` holds it: ``hold="stator"`` (a real inverter: the stator-frame
-voltage is constant, so its dq components turn by ``-(theta_e(t) - theta_e(t_k))``) or ``"rotor"``.
+over interval k as :mod:`pmsmjax.studies.replay` holds it: ``hold="stator"`` (a real inverter: the
+stator-frame voltage is constant, so its dq components turn by ``-(theta_e(t) - theta_e(t_k))``) or
+``"rotor"``.
 An optional dead-time term subtracts ``V_dt * tanh(i_x / eps)`` from each phase voltage (the voltage an
 inverter loses while its legs are both off, smoothed at zero current so it stays differentiable).
 
@@ -34,7 +35,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.frames import SQRT3, abc_to_alpha_beta, dq_to_abc, park
+from pmsmjax.frames.three_phase import SQRT3, abc_to_alpha_beta, dq_to_abc, park
 from tuning.identify.parameters import ParameterMap
 from tuning.identify.windows import interval_windows, sample_windows, window_layout
 

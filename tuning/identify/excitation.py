@@ -19,9 +19,9 @@ each level settles, and its amplitude (default 3 A) is a fraction of the current
 
 import numpy as np
 
+from pmsmjax.checks.validation import ParameterError
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.units import rpm_to_rad_s
-from pmsmjax.validation import ParameterError
 
 __all__ = ["identification_scenario", "prbs"]
 

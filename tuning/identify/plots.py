@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import matplotlib.pyplot as plt
 import numpy as np
 
-from pmsmjax.plotting import save_figure
+from pmsmjax.plotting.traces import save_figure
 from tuning.identify import electrical as el
 from tuning.identify import mechanical as me
 

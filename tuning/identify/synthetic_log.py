@@ -5,7 +5,7 @@ currents, mechanical speed and electrical angle, and the dq voltage applied over
 starts there. With the averaged bridge the applied voltage is the period-average inverter voltage
 (the commanded voltage one period late, because of the computational delay), held in the stator frame;
 it is logged in dq with the angle at ``t_k``, so ``inverse_park(u_dq[k], theta_e[k])`` is exactly the
-held stator voltage (``hold="stator"`` in :mod:`pmsmjax.replay`).
+held stator voltage (``hold="stator"`` in :mod:`pmsmjax.studies.replay`).
 
 ``hold="rotor"`` imitates another simulator (a dq-model block fed by a sampled controller): its bridge
 holds the period voltage constant in the rotor frame, and the log holds that dq voltage.
@@ -18,12 +18,12 @@ with a good speed estimate).
 import equinox as eqx
 import numpy as np
 
-from pmsmjax.frames import abc_to_alpha_beta, park
+from pmsmjax.frames.three_phase import abc_to_alpha_beta, park
 from pmsmjax.inverters.averaged import AveragedBridge, phase_voltages
 from pmsmjax.machines.base import MachineInput
 from pmsmjax.machines.integrate import advance
 from pmsmjax.machines.motor import PMSMParameters
-from pmsmjax.presets import book_drive
+from pmsmjax.presets.three_phase import book_drive
 from pmsmjax.scenarios import Scenario
 from pmsmjax.simulate import simulate
 

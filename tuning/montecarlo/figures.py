@@ -5,7 +5,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from pmsmjax.plotting import save_figure
+from pmsmjax.plotting.traces import save_figure
 from tuning.montecarlo.kernel import METRICS, UNITS
 
 #: Percentile bands of the fan chart, outermost first.

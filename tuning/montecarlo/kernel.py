@@ -6,9 +6,9 @@ and only every ``decimate``-th period's speed and q-axis current are kept for th
 every per-period scan output is a separate write that costs about as much as a fair part of the drive
 step, so this is what makes 10,000 runs of 4000 periods affordable.
 
-The definitions equal those of :func:`pmsmjax.summary.speed_step_summary` and
+The definitions equal those of :func:`pmsmjax.analysis.speed_step_summary.speed_step_summary` and
 :func:`tuning.autotune.objectives.scenario_metrics` on the period-start samples (tests/test_montecarlo.py
-checks them against :mod:`pmsmjax.metrics` applied to a full trace from :func:`pmsmjax.simulate`):
+checks them against :mod:`pmsmjax.analysis.metrics` applied to a full trace from :func:`pmsmjax.simulate`):
 
 - ``itae``: ``sum_k t_k |w*_k - w_k| Ts``, rad s (speed error in rad/s, whole run).
 - ``overshoot_pct``: ``100 max(0, max_k sign(w*) (w_k - w*_k) / |w*_k|)`` over the periods before the load
@@ -22,7 +22,7 @@ checks them against :mod:`pmsmjax.metrics` applied to a full trace from :func:`p
 - ``finite``: 1.0 if every sampled state stayed finite, else 0.0 (a run that diverged).
 
 With an observer in the drive (``drive.records_estimate``), also :data:`OBSERVER_METRICS`, defined as in
-:func:`pmsmjax.observer_metrics.observer_errors` (periods from ``converged_after_s`` on):
+:func:`pmsmjax.analysis.observer_errors.observer_errors` (periods from ``converged_after_s`` on):
 
 - ``angle_error_rms_deg``, ``angle_error_max_deg``: RMS and largest ``|wrap(theta_est - theta)|``,
   electrical degrees;
@@ -34,9 +34,9 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from pmsmjax import observer_metrics as om
+from pmsmjax.analysis import observer_errors as om
 from pmsmjax.drive import Drive
-from pmsmjax.frames import dq_to_abc, wrap_angle
+from pmsmjax.frames.three_phase import dq_to_abc, wrap_angle
 from pmsmjax.scenarios import Scenario
 from pmsmjax.simulate import period_inputs
 from pmsmjax.units import rad_s_to_rpm

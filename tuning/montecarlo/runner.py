@@ -46,11 +46,11 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from tqdm import tqdm
 
-from pmsmjax.logs import atomic_write
+from pmsmjax.checks.validation import ParameterError
+from pmsmjax.io.logs import atomic_write
 from pmsmjax.machines.integrate import max_stable_substep
 from pmsmjax.simulate import check_simulation, period_inputs
 from pmsmjax.units import rpm_to_rad_s
-from pmsmjax.validation import ParameterError
 from tuning.montecarlo import study as mc_study
 from tuning.montecarlo.chunking import auto_chunk_size, bytes_per_run
 from tuning.montecarlo.distributions import sample

@@ -28,7 +28,7 @@ The TOML file (every table and key optional; defaults below)::
     [drive]        motor (preset or TOML file), gains (gains TOML from pmsmjax tune), current_bandwidth,
                    speed_bandwidth, current_limit, u_dc, n_substeps, unroll_substeps, estimator,
                    machine ("three-phase" | "six-phase" | "five-phase"), control and pwm
-                   (pmsmjax.presets_six_phase, pmsmjax.presets_five_phase)
+                   (pmsmjax.presets.six_phase, pmsmjax.presets.five_phase)
     [scenario]     speed_rpm, load_nm, load_time_s, duration_s
     [thresholds]   current_a, tracking_rpm
     [parameters."motor.R"]  distribution = "uniform", tolerance = 0.2, sigmas = 3.0, nominal = ...
@@ -47,11 +47,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax import presets
+from pmsmjax.checks.validation import ParameterError
 from pmsmjax.drive import Drive
 from pmsmjax.inverters.averaged import AveragedBridge
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.units import rpm_to_rad_s
-from pmsmjax.validation import ParameterError
 from tuning.montecarlo.distributions import KINDS, SAMPLING, Distribution
 from tuning.parameters import apply_gains, array_leaf_names, get_leaf
 
@@ -105,8 +105,8 @@ class Study:
     - thresholds: `current_threshold_a` (None: 1.05 times the current limit), `tracking_threshold_rpm`
       (mean speed error over the last 10 % of the run).
     - `machine`: ``three-phase`` (the book drive), ``six-phase``
-      (:func:`pmsmjax.presets_six_phase.six_phase_drive` on the six-phase rewind of `motor`) or
-      ``five-phase`` (:func:`pmsmjax.presets_five_phase.five_phase_drive`); `control` and `pwm`: the
+      (:func:`pmsmjax.presets.six_phase.six_phase_drive` on the six-phase rewind of `motor`) or
+      ``five-phase`` (:func:`pmsmjax.presets.five_phase.five_phase_drive`); `control` and `pwm`: the
       scheme and modulator (None: ``vsd`` and ``four-vector`` / ``near-four-vector``; three phases take
       only the PI drive).
     """
@@ -246,8 +246,8 @@ def _check_number(name, v, positive=False):
 def build_drive(study: Study) -> Drive:
     """The nominal drive of ``study`` (book drive, the study's motor and settings, tuned gains if given)."""
     if study.machine in ("six-phase", "five-phase"):
-        from pmsmjax.presets_five_phase import five_phase_drive, load_five_phase_motor
-        from pmsmjax.presets_six_phase import load_six_phase_motor, six_phase_drive
+        from pmsmjax.presets.five_phase import five_phase_drive, load_five_phase_motor
+        from pmsmjax.presets.six_phase import load_six_phase_motor, six_phase_drive
 
         five = study.machine == "five-phase"
         drive = (five_phase_drive if five else six_phase_drive)(

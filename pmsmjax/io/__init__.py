@@ -1,0 +1,1 @@
+"""Files in and out: logged data (CSV, NPZ, MAT), motor files, atomic writes."""

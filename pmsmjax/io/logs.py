@@ -1,0 +1,383 @@
+"""Logged data in and out: CSV, NumPy ``.npz`` and MATLAB ``.mat`` logs, checked before anything compiles.
+
+A log is a set of equally long 1-D numeric columns, one of which is usually the time in seconds:
+
+- CSV: the first line that is not empty and does not start with ``#`` is a header naming the columns,
+  comma separated; every following line is one row. Whitespace around names and values is ignored, an
+  empty field reads as NaN (and is then reported as such).
+- ``.npz``: one array per column, the key is the column name (``np.savez(path, time=t, u_d=...)``).
+- ``.mat``: one variable per column (``save log.mat time u_d u_q`` in MATLAB); row or column vectors.
+
+:func:`read_log` returns the requested columns as float64 NumPy arrays after :func:`check_columns` has
+checked them: required columns present, no NaN/inf, at least two rows, equal lengths, time strictly
+increasing. Every failure is a :class:`~pmsmjax.checks.validation.ParameterError` naming the column, the row
+and the fix. Extra columns are allowed and ignored.
+
+Writers go through :func:`atomic_write`: the data is written to a temporary file in the destination
+folder and renamed over the target only once complete, so an interrupted or failed run never leaves a
+half-written file (``os.replace`` is atomic within one file system).
+"""
+
+import difflib
+import io
+import os
+import tempfile
+from collections.abc import Callable, Iterable, Mapping
+from pathlib import Path
+
+import numpy as np
+
+from pmsmjax.checks.validation import ParameterError
+
+__all__ = [
+    "read_log",
+    "check_columns",
+    "column_names",
+    "misspelt_columns",
+    "atomic_write",
+    "write_csv_atomic",
+    "LOG_SUFFIXES",
+]
+
+#: File suffixes :func:`read_log` understands.
+LOG_SUFFIXES = (".csv", ".txt", ".npz", ".mat")
+
+
+# --------------------------------------------------------------------------------------------------
+# reading
+# --------------------------------------------------------------------------------------------------
+def read_log(
+    path: str | os.PathLike,
+    required: Iterable[str] = ("time",),
+    optional: Iterable[str] = (),
+    *,
+    time: str | None = "time",
+    unused: list | None = None,
+) -> dict[str, np.ndarray]:
+    """Read and check a logged data file; returns ``{column: (N,) float64 array}``.
+
+    **Arguments:**
+
+    - `path`: a ``.csv`` (or ``.txt``), ``.npz`` or ``.mat`` file (see the module docstring for layouts).
+    - `required`: column names that must be present.
+    - `optional`: column names returned when present.
+    - `time`: name of the time column (s) that must be strictly increasing, or ``None`` for no such check.
+
+    Only the required and the present optional columns are returned (in that order); other columns are
+    ignored, and their names appended to `unused` when a list is given (to report them, or to catch a
+    misspelt optional column with :func:`misspelt_columns`). Raises :class:`ParameterError` for a
+    missing file, an unknown format, a missing required
+    column, NaN/inf values, fewer than two rows, unequal lengths or a time column that does not increase.
+    """
+    path = Path(path)
+    required, optional = tuple(required), tuple(optional)
+    if not path.is_file():
+        raise ParameterError(f"log file {str(path)!r} does not exist: check the path.")
+    suffix = path.suffix.lower()
+    line_offset = None
+    if suffix in (".csv", ".txt"):
+        raw, line_offset = _read_csv(path)
+    elif suffix == ".npz":
+        raw = _read_npz(path)
+    elif suffix == ".mat":
+        raw = _read_mat(path)
+    else:
+        raise ParameterError(
+            f"log file {path}: unknown format {path.suffix!r}; use one of {', '.join(LOG_SUFFIXES)} "
+            "(CSV with a header row, NumPy .npz with one key per column, MATLAB .mat with one variable "
+            "per column)."
+        )
+    if unused is not None:
+        unused.extend(c for c in raw if c not in required and c not in optional)
+    return check_columns(raw, required, optional, time=time, source=f"log {path}", line_offset=line_offset)
+
+
+def column_names(path: str | os.PathLike) -> list[str]:
+    """Every column name in the log at ``path`` (for hints about misspelt columns); ``[]`` if it cannot be
+    read (:func:`read_log` reports why)."""
+    path = Path(path)
+    readers = {".csv": _read_csv, ".txt": _read_csv, ".npz": _read_npz, ".mat": _read_mat}
+    reader = readers.get(path.suffix.lower())
+    if reader is None or not path.is_file():
+        return []
+    try:
+        raw = reader(path)
+    except ParameterError:
+        return []
+    return list(raw[0] if isinstance(raw, tuple) else raw)
+
+
+def misspelt_columns(unused, absent, cutoff: float = 0.75) -> list[tuple[str, str]]:
+    """``[(column, known name)]`` for each unused column that looks like a known column the log lacks
+    (``omega`` for ``omega_m``, ``omgea_m``): a misspelt optional column silently changes what is computed,
+    so callers refuse it with the hint. Case-insensitive, :func:`difflib.get_close_matches` at `cutoff`."""
+    absent = list(absent)
+    lower = {a.lower(): a for a in absent}
+    out = []
+    for col in unused:
+        match = difflib.get_close_matches(col.lower(), list(lower), n=1, cutoff=cutoff)
+        if match:
+            out.append((col, lower[match[0]]))
+    return out
+
+
+def check_columns(
+    columns: Mapping[str, object],
+    required: Iterable[str] = ("time",),
+    optional: Iterable[str] = (),
+    *,
+    time: str | None = "time",
+    source: str = "log",
+    line_offset: Mapping[int, int] | int | None = None,
+) -> dict[str, np.ndarray]:
+    """Check a mapping of columns as :func:`read_log` does and return the selected float64 columns.
+
+    `source` names the data in messages; `line_offset` maps a row index to its line in a text file (an
+    ``int`` offset or a mapping from row to line) so messages can point at the file line as well.
+    """
+    required, optional = tuple(required), tuple(optional)
+    missing = [c for c in required if c not in columns]
+    if missing:
+        present = ", ".join(sorted(columns)) or "none"
+        hints = []
+        for c in missing:
+            close = difflib.get_close_matches(c, list(columns), n=1, cutoff=0.6)
+            if close:
+                hints.append(f"{close[0]!r} looks like {c!r}: rename it")
+        raise ParameterError(
+            f"{source}: missing column(s) {', '.join(missing)}; present: {present}. "
+            f"Add the missing column(s) (needed: {', '.join(required)}"
+            + (f"; optional: {', '.join(optional)}" if optional else "")
+            + ")"
+            + (f"; {'; '.join(hints)}" if hints else "")
+            + "."
+        )
+    names = list(required) + [c for c in optional if c in columns and c not in required]
+    out: dict[str, np.ndarray] = {}
+    for name in names:
+        out[name] = _as_column(columns[name], name, source)
+
+    lengths = {name: v.shape[0] for name, v in out.items()}
+    if len(set(lengths.values())) > 1:
+        detail = ", ".join(f"{n}: {k}" for n, k in lengths.items())
+        raise ParameterError(
+            f"{source}: columns have different lengths ({detail}); every column needs one value per row."
+        )
+    n_rows = next(iter(lengths.values()), 0)
+    if names and n_rows < 2:
+        raise ParameterError(
+            f"{source}: {n_rows} row(s); a log needs at least 2 rows (the value of row k is held until row "
+            "k+1): record more samples."
+        )
+
+    for name, v in out.items():
+        bad = ~np.isfinite(v)
+        if bad.any():
+            row = int(np.argmax(bad))
+            raise ParameterError(
+                f"{source}: column {name!r} is {_describe(v[row])} at row {row}{_where(row, line_offset)}: "
+                "every value must be a finite number; fill the gap (interpolate) or cut the log before it."
+            )
+
+    if time is not None and time in out:
+        t = out[time]
+        dt = np.diff(t)
+        bad = ~(dt > 0)
+        if bad.any():
+            row = int(np.argmax(bad)) + 1
+            raise ParameterError(
+                f"{source}: time column {time!r} must be strictly increasing but row {row}"
+                f"{_where(row, line_offset)} has {time} = {float(t[row])!r} after {float(t[row - 1])!r} "
+                f"at row {row - 1}: "
+                "sort the rows by time and drop duplicate samples."
+            )
+    return out
+
+
+def _as_column(value, name: str, source: str) -> np.ndarray:
+    try:
+        arr = np.asarray(value)
+    except Exception as err:  # pragma: no cover - exotic objects
+        raise ParameterError(f"{source}: column {name!r} cannot be read as numbers ({err}).") from err
+    if arr.dtype.kind not in "biuf":
+        raise ParameterError(
+            f"{source}: column {name!r} holds {arr.dtype} values, not real numbers: store it as a numeric "
+            "vector (no text, no complex values)."
+        )
+    arr = np.squeeze(arr)
+    if arr.ndim == 0:
+        arr = arr.reshape(1)
+    if arr.ndim != 1:
+        raise ParameterError(
+            f"{source}: column {name!r} has shape {np.shape(value)}; a column must be a vector (one value "
+            "per row): store each signal as its own 1-D column."
+        )
+    return arr.astype(np.float64)
+
+
+def _describe(x: float) -> str:
+    return "NaN (empty or not a number)" if np.isnan(x) else f"{x} (infinite)"
+
+
+def _where(row: int, line_offset) -> str:
+    if line_offset is None:
+        return ""
+    line = line_offset.get(row) if isinstance(line_offset, Mapping) else row + line_offset
+    return "" if line is None else f" (file line {line})"
+
+
+def _read_csv(path: Path) -> tuple[dict[str, np.ndarray], dict[int, int]]:
+    """Header + comma-separated rows -> ``({name: column}, {row index: 1-based file line})``."""
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as err:
+        raise ParameterError(f"log file {path}: not a text CSV file ({err}).") from err
+    lines = text.splitlines()
+    header_at = next((k for k, s in enumerate(lines) if s.strip() and not s.lstrip().startswith("#")), None)
+    if header_at is None:
+        raise ParameterError(f"log file {path} is empty: it needs a header row and data rows.")
+    names = [n.strip().strip("\"'").strip() for n in lines[header_at].split(",")]
+    if all(_is_number(n) for n in names):
+        raise ParameterError(
+            f"log file {path}: the first line {lines[header_at].strip()!r} is data, not a header: add a "
+            "header row naming the columns, e.g. 'time,u_d,u_q'."
+        )
+    if any(not n for n in names):
+        raise ParameterError(
+            f"log file {path}: the header {lines[header_at].strip()!r} has an empty column name (check for "
+            "a trailing comma); name every column."
+        )
+    dupes = sorted({n for n in names if names.count(n) > 1})
+    if dupes:
+        raise ParameterError(f"log file {path}: column(s) {', '.join(dupes)} appear twice in the header.")
+
+    data_lines, line_of_row = [], {}
+    for k in range(header_at + 1, len(lines)):
+        s = lines[k]
+        if not s.strip() or s.lstrip().startswith("#"):
+            continue
+        fields = s.split(",")
+        if len(fields) != len(names):
+            raise ParameterError(
+                f"log file {path}, line {k + 1}: {len(fields)} fields but the header names {len(names)} "
+                f"columns ({', '.join(names)}): every row needs one value per column."
+            )
+        line_of_row[len(data_lines)] = k + 1
+        data_lines.append(s)
+    if not data_lines:
+        return {n: np.zeros(0) for n in names}, line_of_row
+    # genfromtxt turns empty or unparsable fields into NaN, which check_columns then locates.
+    data = np.genfromtxt(
+        io.StringIO("\n".join(data_lines)), delimiter=",", dtype=np.float64, comments=None, ndmin=2
+    )
+    return {n: data[:, j] for j, n in enumerate(names)}, line_of_row
+
+
+def _is_number(s: str) -> bool:
+    try:
+        float(s)
+    except ValueError:
+        return False
+    return True
+
+
+def _read_npz(path: Path) -> dict[str, np.ndarray]:
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            return {k: f[k] for k in f.files}
+    except Exception as err:
+        raise ParameterError(
+            f"log file {path}: cannot read it as NumPy .npz ({err}); write it with "
+            "np.savez(path, time=t, u_d=...)."
+        ) from err
+
+
+def _read_mat(path: Path) -> dict[str, np.ndarray]:
+    import scipy.io
+
+    try:
+        data = scipy.io.loadmat(path, squeeze_me=True)
+    except Exception as err:
+        raise ParameterError(
+            f"log file {path}: cannot read it as a MATLAB .mat file ({err}); save one variable per column "
+            "(v7 or earlier; v7.3/HDF5 files need save(..., '-v7'))."
+        ) from err
+    return {k: v for k, v in data.items() if not k.startswith("__")}
+
+
+# --------------------------------------------------------------------------------------------------
+# writing
+# --------------------------------------------------------------------------------------------------
+def atomic_write(path: str | os.PathLike, writer: Callable[[io.IOBase], None], mode: str = "wb") -> Path:
+    """Write ``path`` atomically: ``writer(f)`` fills a temporary file in the same folder, then it is renamed.
+
+    On any exception (or interrupt) the temporary file is removed and an existing ``path`` is left as it
+    was. `mode` is ``"wb"`` (binary, e.g. ``np.savez``, ``scipy.io.savemat``) or ``"w"`` (text, UTF-8).
+    The folder must exist. Returns ``Path(path)``.
+    """
+    if mode not in ("w", "wb"):
+        raise ValueError(f"mode must be 'w' or 'wb', got {mode!r}")
+    path = Path(path)
+    folder = path.parent
+    if not folder.is_dir():
+        raise ParameterError(f"cannot write {path}: folder {folder} does not exist; create it first.")
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        kwargs = {"encoding": "utf-8", "newline": ""} if mode == "w" else {}
+        with os.fdopen(fd, mode, **kwargs) as f:
+            writer(f)
+            f.flush()
+            os.fsync(f.fileno())
+        # mkstemp creates the file 0600; give it the permissions a plain open() would have.
+        os.chmod(tmp, _default_mode(path))
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    return path
+
+
+def check_output_folder(path: str | os.PathLike, flag: str = "--out") -> Path:
+    """Refuse an output folder that cannot be one, before any work: an existing file (not a folder) at
+    ``path``, or on its way. Returns ``Path(path)``; the folder is created by the caller when it writes."""
+    path = Path(path)
+    for p in (path, *path.parents):
+        if p.exists() and not p.is_dir():
+            raise ParameterError(
+                f"{flag} {path}: {p} is an existing file, not a folder; give a folder name (it is created)."
+            )
+    return path
+
+
+def _default_mode(path: Path) -> int:
+    if path.exists():
+        return path.stat().st_mode & 0o777
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+def write_csv_atomic(path: str | os.PathLike, columns: Mapping[str, object], *, fmt: str = "%.17g") -> Path:
+    """Write equally long 1-D columns as a CSV file (header row, comma separated), atomically.
+
+    `fmt` is the number format (default ``%.17g``: float64 values survive the round trip exactly).
+    """
+    if not columns:
+        raise ParameterError(f"nothing to write to {path}: give at least one column.")
+    names = list(columns)
+    bad = [n for n in names if not n or "," in n or "\n" in n]
+    if bad:
+        raise ParameterError(f"column names {bad!r} cannot be written to CSV: use names without commas.")
+    arrays = [np.asarray(columns[n], dtype=np.float64).reshape(-1) for n in names]
+    lengths = {n: a.shape[0] for n, a in zip(names, arrays, strict=True)}
+    if len(set(lengths.values())) > 1:
+        raise ParameterError(f"cannot write {path}: columns have different lengths {lengths}.")
+    table = np.stack(arrays, axis=1)
+
+    def writer(f):
+        np.savetxt(f, table, fmt=fmt, delimiter=",", header=",".join(names), comments="")
+
+    return atomic_write(path, writer, mode="wb")
