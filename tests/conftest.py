@@ -1,18 +1,31 @@
-"""Test configuration: float64 everywhere (accuracy is compared against scipy references)."""
+"""Test configuration: float64 everywhere (accuracy is compared against scipy references), and JAX's
+persistent compilation cache, so that a program compiled by one test module (or one pytest-xdist worker)
+is loaded from disk by the next instead of compiled again."""
+
+import os
+from pathlib import Path
 
 import jax
 import pytest
 
 jax.config.update("jax_enable_x64", True)
 
+#: Where compiled programs are kept between test modules, workers and runs (``PMSMJAX_TEST_CACHE`` moves
+#: it; an empty value turns the cache off). Inside the checkout, ignored by git.
+_CACHE = os.environ.get("PMSMJAX_TEST_CACHE", str(Path(__file__).resolve().parents[1] / ".jax_cache" / "tests"))
+if _CACHE:
+    jax.config.update("jax_compilation_cache_dir", _CACHE)
+    # Cache every program: the suite's are many and small, each costing well under a second to compile.
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+
 
 @pytest.fixture(autouse=True, scope="module")
 def _release_compiled_programs():
-    """Drop JAX's compiled programs after each test module.
+    """Drop JAX's in-memory compiled programs after each test module.
 
-    The suite compiles several hundred closed-loop programs; kept for the whole session they only grow
-    the process (modules share fixtures within a file, not across files), and one full run on a loaded
-    2-core machine ended in a segmentation fault inside XLA's compiler late in the session.
+    Kept for the whole session they only grow the process (modules share fixtures within a file, not across
+    files); a program needed again is loaded from the persistent cache above rather than compiled.
     """
     yield
     jax.clear_caches()
