@@ -27,7 +27,9 @@ METRIC_NAMES = (
     "iae",  # rad
     "ise",  # rad^2/s
     "overshoot_pct",  # % of the step, in the window before the load change
-    "overshoot_signed_pct",  # the same before clipping at 0 (negative: the speed stays below the step)
+    # the same before clipping at 0: negative (the speed stays below the step) only when the pre-load
+    # window spans the whole record, since the samples after it count as 0 (scenario_metrics)
+    "overshoot_signed_pct",
     "settling_time_s",  # s, 2 % band, in the window before the load change
     "peak_current_a",  # A, largest phase current
     "rms_current_a",  # A
@@ -108,7 +110,7 @@ def scenario_metrics(
     pre = (t < load_time_s - 1e-12).astype(t.dtype)
     k_end = jnp.maximum(jnp.sum(pre).astype(jnp.int32) - 1, 0)
     w_final = trace.speed_ref[k_end]
-    # masked samples count as 0, so the signed value is floored at 0 whenever the window ends early
+    # the samples after the window count as 0: the signed value is floored at 0 when there are any
     excess = jnp.max(metrics.excess_over_reference(trace.omega_m, w_final) * pre)
     overshoot_signed = metrics.percent_of_reference(excess, w_final)
     settling = metrics.settling_time_to_reference(t, trace.omega_m, w_final, 0.02, pre)
