@@ -25,10 +25,10 @@ jax.config.update("jax_enable_x64", True)
 import numpy as np  # noqa: E402
 
 from pmsmjax import presets  # noqa: E402
+from pmsmjax.analysis.observer_errors import angle_error_modulo_pi  # noqa: E402
 from pmsmjax.estimators import INJECTION_OBSERVERS  # noqa: E402
 from pmsmjax.scenarios import Profile, Scenario  # noqa: E402
 from pmsmjax.simulate import simulate  # noqa: E402
-from pmsmjax.studies.offline_observer import angle_error_modulo_pi  # noqa: E402
 from pmsmjax.units import rpm_to_rad_s  # noqa: E402
 
 MOTOR = presets.book_motor(salient=True)

@@ -18,7 +18,7 @@ def main():
     jax.config.update("jax_enable_x64", True)
     import equinox as eqx
 
-    from pmsmjax.frames.three_phase import wrap_angle
+    from pmsmjax.analysis.observer_errors import angle_error
     from pmsmjax.scenarios import Profile, Scenario
     from pmsmjax.simulate import simulate
     from pmsmjax.studies.hybrid_runs import hybrid_book_drive
@@ -29,7 +29,7 @@ def main():
     def loss(p):
         d = eqx.tree_at(lambda d: (d.estimator.low_speed, d.estimator.high_speed), drive, (p[0], p[1]))
         tr = simulate(d, sc, initial_state=d.init(theta_e=0.3))
-        e = wrap_angle(tr.theta_e_est - tr.theta_e)
+        e = angle_error(tr.theta_e_est, tr.theta_e)
         return jnp.mean(jnp.where(tr.t > 0.05, e, 0.0) ** 2)
 
     p0 = jnp.array([float(drive.estimator.low_speed), float(drive.estimator.high_speed)])

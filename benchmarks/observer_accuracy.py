@@ -31,11 +31,12 @@ import jax
 import numpy as np
 
 from pmsmjax import presets
+from pmsmjax.analysis.observer_errors import angle_error
 from pmsmjax.controllers import MTPA
 from pmsmjax.estimators import OBSERVERS, make_observer
 from pmsmjax.io.logs import atomic_write
 from pmsmjax.scenarios import Profile, Scenario
-from pmsmjax.studies.offline_observer import angle_error, observe
+from pmsmjax.studies.offline_observer import observe
 from pmsmjax.studies.synthetic_logs import drive_log, speed_scenario
 from pmsmjax.units import rpm_to_rad_s
 

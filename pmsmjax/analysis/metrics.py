@@ -1,25 +1,57 @@
-"""Figures of merit of drive responses, as jnp functions of sampled signals.
+"""Figures of merit of drive responses, as jnp functions of sampled signals (NumPy arrays are accepted).
 
 All take uniformly sampled signals (``t (N,)`` s). Integral criteria (ITAE, IAE, ISE) and RMS values are
 differentiable; times and extrema (rise, settling, overshoot, dip) are differentiable almost everywhere
 (crossings are linearly interpolated between samples, so they move smoothly with the signal).
 Quantities that are undefined for a given signal (never rises, never settles) are NaN.
+
+Step figures come in two families:
+
+- **of a step response** (:func:`rise_time`, :func:`overshoot`, :func:`settling_time`): relative to the
+  step from ``y_start`` to ``y_final``, as read off one step (:mod:`pmsmjax.analysis.speed_step_summary`);
+- **against the reference** (:func:`excess_over_reference`, :func:`settling_time_to_reference`):
+  relative to the reference's magnitude sample by sample, so they apply to any scenario (reversals,
+  ramps) and to one period at a time (:mod:`tuning.autotune.objectives`, :mod:`tuning.montecarlo.kernel`).
+
+For a step from rest the two coincide. Figures that a scan accumulates period by period
+(:mod:`tuning.montecarlo.kernel`) use the per-sample terms defined here (:func:`tracking_error`,
+:func:`itae_term`, :func:`excess_over_reference`, :func:`outside_reference_band`,
+:func:`peak_phase_current` of one period) and sum them or keep their maximum.
+
+``active`` arguments are ``(N,)`` weights, 1.0 for the samples that count and 0.0 for the others (a
+scenario's own duration inside a batch's common horizon): traced, so windows can differ across a ``vmap``.
 """
 
+import jax
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
 from pmsmjax.checks.validation import ParameterError
 from pmsmjax.frames.three_phase import dq_to_abc
 
+#: Floor of ``|reference|`` in the figures against the reference (units of the reference), so that a
+#: zero reference gives finite numbers.
+REFERENCE_FLOOR = 1e-6
+
 
 def _dt(t: Array) -> Array:
     return t[1] - t[0]
 
 
+def tracking_error(reference: Array, y: Array) -> Array:
+    """``reference - y`` (units of y): positive while ``y`` falls short of a positive reference. The error
+    of every integral criterion, dip and steady-state figure here."""
+    return reference - y
+
+
+def itae_term(t: Array, error: Array) -> Array:
+    """The per-sample term of ITAE, ``t |e|`` (units of e times s); :func:`itae` is its sum times ``dt``."""
+    return t * jnp.abs(error)
+
+
 def itae(t: Array, error: Array) -> Array:
     """Integral of time-weighted absolute error, ``sum t |e| dt`` (units of e times s^2)."""
-    return jnp.sum(t * jnp.abs(error), axis=-1) * _dt(t)
+    return jnp.sum(itae_term(t, error), axis=-1) * _dt(t)
 
 
 def iae(t: Array, error: Array) -> Array:
@@ -47,6 +79,13 @@ def _first_crossing(t, z, level):
     return jnp.where(jnp.any(above), t_cross, jnp.nan)
 
 
+def first_sample_after_last(flags: Array) -> Array:
+    """Index of the first sample after the last ``True`` of ``flags (..., N)``: 0 when none is set, ``N``
+    when the last sample is set. Where a settling or recovery time starts to hold."""
+    n = flags.shape[-1]
+    return jnp.max(jnp.where(flags, jnp.arange(1, n + 1), 0), axis=-1)
+
+
 def rise_time(t: Array, y: Array, y_start, y_final, low: float = 0.1, high: float = 0.9) -> Array:
     """``low``-``high`` rise time (s) of a step response from ``y_start`` to ``y_final`` (either sign)."""
     z = _normalised(y, y_start, y_final)
@@ -62,16 +101,47 @@ def overshoot(y: Array, y_start, y_final) -> Array:
 def settling_time(t: Array, y: Array, y_start, y_final, band: float = 0.02) -> Array:
     """Time (s, from ``t[0]``) after which ``y`` stays within ``band`` of the step; NaN if never."""
     z = _normalised(y, y_start, y_final)
-    outside = jnp.abs(z - 1.0) > band
     n = t.shape[0]
-    last_outside = n - 1 - jnp.argmax(outside[::-1])
-    settled_at = jnp.where(jnp.any(outside), t[jnp.minimum(last_outside + 1, n - 1)], t[0]) - t[0]
-    return jnp.where(outside[-1], jnp.nan, settled_at)
+    k = first_sample_after_last(jnp.abs(z - 1.0) > band)
+    return jnp.where(k == n, jnp.nan, t[jnp.minimum(k, n - 1)] - t[0])
+
+
+def _reference_scale(reference):
+    return jnp.maximum(jnp.abs(reference), REFERENCE_FLOOR)
+
+
+def excess_over_reference(y: Array, reference: Array) -> Array:
+    """``sign(reference) (y - reference)``: how far ``y`` lies beyond the reference in its direction
+    (units of y; negative: short of it); per sample, same shapes. Its largest value over a step's window,
+    in :func:`percent_of_reference` and floored at 0, is the overshoot against the reference; for a step
+    from rest it equals :func:`overshoot`."""
+    return jnp.sign(reference) * (y - reference)
+
+
+def percent_of_reference(x: Array, reference: Array) -> Array:
+    """``100 x / |reference|``, with ``|reference|`` floored at :data:`REFERENCE_FLOOR`."""
+    return 100.0 * x / _reference_scale(reference)
+
+
+def outside_reference_band(y: Array, reference: Array, band: float) -> Array:
+    """``True`` where ``|y - reference| > band |reference|`` (``band`` a fraction, ``|reference|`` floored
+    at :data:`REFERENCE_FLOOR`); per sample."""
+    return jnp.abs(y - reference) > band * _reference_scale(reference)
+
+
+def settling_time_to_reference(t: Array, y: Array, reference: Array, band: float, active: Array) -> Array:
+    """Time (s, from ``t[0]``) of the first sample after the last ``active`` one outside ``band`` of the
+    reference (:func:`outside_reference_band`); ``0`` when none is.
+
+    Censored rather than NaN, so that it stays usable in a cost: a window that ends unsettled gives the
+    time of the sample after it (the record's last sample when the window reaches the end)."""
+    k = first_sample_after_last(outside_reference_band(y, reference, band) & (active > 0))
+    return t[jnp.minimum(k, t.shape[-1] - 1)] - t[0]
 
 
 def steady_state_error(y: Array, reference: Array, window: int) -> Array:
-    """Mean of ``reference - y`` over the last ``window`` samples."""
-    return jnp.mean(reference[..., -window:] - y[..., -window:], axis=-1)
+    """Mean :func:`tracking_error` ``reference - y`` over the last ``window`` samples."""
+    return jnp.mean(tracking_error(reference[..., -window:], y[..., -window:]), axis=-1)
 
 
 def disturbance_dip(t: Array, y: Array, t_event: float, y_nominal, band: float) -> tuple[Array, Array]:
@@ -82,22 +152,50 @@ def disturbance_dip(t: Array, y: Array, t_event: float, y_nominal, band: float) 
     units) of ``y_nominal``; NaN if it does not recover.
     """
     after = t >= t_event
-    dip = jnp.max(jnp.where(after, y_nominal - y, -jnp.inf))
-    outside = after & (jnp.abs(y - y_nominal) > band)
+    dip = jnp.max(jnp.where(after, tracking_error(y_nominal, y), -jnp.inf))
     n = t.shape[0]
-    last_outside = n - 1 - jnp.argmax(outside[::-1])
-    recovered_at = jnp.where(jnp.any(outside), t[jnp.minimum(last_outside + 1, n - 1)], t_event)
-    return dip, jnp.where(outside[-1], jnp.nan, recovered_at - t_event)
+    k = first_sample_after_last(after & (jnp.abs(y - y_nominal) > band))
+    recovered_at = jnp.where(k > 0, t[jnp.minimum(k, n - 1)], t_event)
+    return dip, jnp.where(k == n, jnp.nan, recovered_at - t_event)
 
 
 def peak_phase_current(i_abc: Array) -> Array:
-    """Largest absolute phase current (A) over ``i_abc (N, 3)``."""
+    """Largest absolute phase current (A) over ``i_abc (N, n_phases)`` (one period: ``(1, n_phases)``).
+    Over a window: pass ``i_abc * active[:, None]``."""
     return jnp.max(jnp.abs(i_abc), axis=(-2, -1))
 
 
-def rms_phase_current(i_abc: Array) -> Array:
-    """RMS phase current (A) over the record, averaged over the three phases."""
-    return jnp.sqrt(jnp.mean(i_abc * i_abc, axis=(-2, -1)))
+def rms_phase_current(i_abc: Array, active: Array | None = None) -> Array:
+    """RMS phase current (A) over the record (or the ``active`` samples), averaged over the phases."""
+    if active is None:
+        return jnp.sqrt(jnp.mean(i_abc * i_abc, axis=(-2, -1)))
+    squares = jnp.sum(i_abc * i_abc * active[..., None], axis=(-2, -1))
+    return jnp.sqrt(squares / (i_abc.shape[-1] * jnp.sum(active, axis=-1)))
+
+
+def voltage_use(u_dq_ref: Array, u_max) -> Array:
+    """``|u_dq*| / u_max`` per sample (``u_dq_ref (N, 2)`` V, ``u_max`` V, the modulator's linear limit)."""
+    return jnp.sqrt(jnp.sum(u_dq_ref**2, axis=-1) + 1e-12) / u_max
+
+
+def voltage_saturation(u_dq_ref: Array, u_max, active: Array, soft_width: float = 0.005) -> Array:
+    """Fraction of the ``active`` periods with the voltage command on its limit, counted softly (a
+    sigmoid of :func:`voltage_use` about 0.999 of width ``soft_width``) so that it has a gradient."""
+    on_limit = jax.nn.sigmoid((voltage_use(u_dq_ref, u_max) - 0.999) / soft_width)
+    return jnp.sum(on_limit * active) / jnp.sum(active)
+
+
+def control_effort(u_dq_ref: Array, u_max, active: Array) -> Array:
+    """Mean of ``(|u_dq*| / u_max)^2`` over the ``active`` periods (:func:`voltage_use`)."""
+    return jnp.sum(voltage_use(u_dq_ref, u_max) ** 2 * active) / jnp.sum(active)
+
+
+def ripple_rms_about_mean(y: Array, active: Array) -> Array:
+    """RMS deviation of ``y (N,)`` about its mean over the ``active`` samples (0 if none): the torque
+    ripple of a steady window (units of y)."""
+    n = jnp.maximum(jnp.sum(active), 1.0)
+    mean = jnp.sum(y * active) / n
+    return jnp.sqrt(jnp.sum((y - mean) ** 2 * active) / n)
 
 
 def switching_frequency_hz(duties: Array, Ts: float) -> Array:

@@ -1,9 +1,18 @@
-"""Figures of merit of a sensorless drive's observer (issue 14, BOOK.md chapter 5): angle and speed
-estimation error, loss of lock, and whether a speed is held under load.
+"""Figures of merit of a sensorless drive's observer (BOOK.md chapter 5): angle and speed estimation
+error, loss of lock, and whether a speed is held under load.
 
-One definition serves :func:`pmsmjax.studies.control_comparison.compare_estimators` (NumPy, on a full trace)
-and the Monte Carlo kernel (:mod:`tuning.montecarlo.kernel`, accumulated inside the scan); the tests check
-one against the other.
+The definitions below serve every user, in three forms:
+
+- **Per sample**, on NumPy or JAX arrays alike (traceable): :func:`angle_error`, :func:`out_of_lock`,
+  :func:`out_of_lock_run`, :func:`lock_lost`. The Monte Carlo kernel (:mod:`tuning.montecarlo.kernel`)
+  accumulates them period by period inside its scan (sums of squares, maxima, the run length).
+- **Over a full record**, in NumPy: :func:`observer_errors` (``pmsmjax compare --estimator``) and
+  :func:`speed_held` in float64 whatever the precision of the run, :func:`error_statistics` (``pmsmjax
+  observe``) in that of its inputs.
+- **Over a traced window**, in jnp and differentiable: :func:`angle_error_rms`, :func:`angle_chord_rms`
+  (the tuning objectives, :mod:`tuning.autotune.objectives`).
+
+Definitions:
 
 - **Angle error** ``e_theta = wrap(theta_e_est - theta_e)``, electrical rad wrapped to [-pi, pi), at each
   period start (the sampling instant, where the observer's estimate and the plant's angle belong together).
@@ -29,11 +38,19 @@ one against the other.
   no loss of lock.
 - **Held** (:func:`speed_held`): over a judging window, ``max |omega* - omega| <= 0.1 |omega*|`` and
   ``max |e_theta| <= 30 deg el``, and the run lost no lock.
+- **Chord** (:func:`angle_chord_rms`): each error ``e`` counted as ``2 sin(e/2)``, whose square
+  ``2 - 2 cos e`` is ``e^2`` to within ``e^4/12`` and is periodic and smooth where the wrapped error jumps
+  by a turn (a lost lock would otherwise put jumps into a cost an optimiser follows).
 """
 
 import math
 
+import jax.numpy as jnp
 import numpy as np
+
+from pmsmjax.analysis.metrics import tracking_error
+from pmsmjax.frames.three_phase import wrap_angle
+from pmsmjax.units import rad_s_to_rpm
 
 #: Periods before this time (s) are not counted (I/f start and hand-over of the book drive, then 24 ms).
 CONVERGED_AFTER_S = 0.05
@@ -50,34 +67,64 @@ LOCK_SPEED_FLOOR_RAD_S = 1.0
 HELD_SPEED_FRACTION = 0.1
 HELD_ANGLE_RAD = math.radians(30.0)
 
-
-def angle_error(theta_est, theta) -> np.ndarray:
-    """``wrap(theta_est - theta)`` in [-pi, pi), rad (same shapes)."""
-    d = np.asarray(theta_est, np.float64) - np.asarray(theta, np.float64)
-    return (d + np.pi) % (2.0 * np.pi) - np.pi
+# --- per sample (NumPy or JAX) ------------------------------------------------------------------------
 
 
-def angle_error_modulo_pi(theta_est, theta) -> np.ndarray:
-    """``wrap(2 (theta_est - theta)) / 2`` in [-pi/2, pi/2), rad: the error of an estimate of the d axis
-    without its polarity (same shapes)."""
-    return 0.5 * angle_error(2.0 * np.asarray(theta_est, np.float64), 2.0 * np.asarray(theta, np.float64))
+def angle_error(theta_est, theta, period: float = 2.0 * math.pi):
+    """``theta_est - theta`` wrapped to [-period/2, period/2), rad (same shapes; NumPy in, NumPy out in
+    its precision; JAX in, JAX out). ``period`` ``pi``: the error of an estimate of the d axis without its
+    polarity, ``wrap(2 (theta_est - theta)) / 2``."""
+    m = 2.0 * math.pi / period
+    if m == 1.0:
+        return wrap_angle(theta_est - theta)
+    return wrap_angle(m * (theta_est - theta)) / m
 
 
-def out_of_lock(e_theta, e_speed, speed_ref, modulo_pi: bool = False, speed_lock: bool = True) -> np.ndarray:
-    """Per-period out-of-lock flags (see the module docstring); arrays of one shape."""
-    limit = LOCK_SPEED_FRACTION * np.abs(speed_ref) + LOCK_SPEED_FLOOR_RAD_S
+def angle_error_modulo_pi(theta_est, theta):
+    """``wrap(2 (theta_est - theta)) / 2`` in [-pi/2, pi/2), rad: :func:`angle_error` with period pi."""
+    return angle_error(theta_est, theta, math.pi)
+
+
+def out_of_lock(e_theta, e_speed, speed_ref, modulo_pi: bool = False, speed_lock: bool = True):
+    """Per-period out-of-lock flags (see the module docstring) from the angle error (rad), the speed
+    estimation error and the speed reference (rad/s); arrays of one shape, NumPy or JAX."""
+    limit = LOCK_SPEED_FRACTION * abs(speed_ref) + LOCK_SPEED_FLOOR_RAD_S
     angle_limit = LOCK_ANGLE_MODULO_PI_RAD if modulo_pi else LOCK_ANGLE_RAD
-    out = np.abs(e_theta) > angle_limit
-    return out | (np.abs(e_speed) > limit) if speed_lock else out
+    out = abs(e_theta) > angle_limit
+    return out | (abs(e_speed) > limit) if speed_lock else out
+
+
+def out_of_lock_run(run, out):
+    """Length (periods) of the current run of out-of-lock periods after one more period whose flag is
+    ``out``: ``run + 1``, or 0 when that period is in lock. A scan carries it from 0."""
+    return (run + 1) * out
+
+
+def lock_lost(longest_run_periods, Ts: float):
+    """Whether a run of ``longest_run_periods`` out-of-lock periods of ``Ts`` s loses lock (lasts longer
+    than :data:`LOCK_WINDOW_S`)."""
+    return longest_run_periods * Ts > LOCK_WINDOW_S
+
+
+# --- over a full record (NumPy float64) -------------------------------------------------------------
+
+
+def _f64(x) -> np.ndarray:
+    return np.asarray(x, np.float64)
+
+
+def rms_and_max_abs(x, axis=None) -> tuple[np.ndarray, np.ndarray]:
+    """``(sqrt(mean(x^2)), max |x|)`` of the samples of ``x`` along ``axis`` (all when None), NumPy."""
+    return np.sqrt(np.mean(x**2, axis=axis)), np.max(np.abs(x), axis=axis)
 
 
 def longest_run(flags) -> int:
     """Length of the longest run of consecutive True in ``flags (N,)``."""
     best = run = 0
     for f in np.asarray(flags, bool):
-        run = run + 1 if f else 0
+        run = out_of_lock_run(run, f)
         best = max(best, run)
-    return best
+    return int(best)
 
 
 def observer_errors(
@@ -95,22 +142,24 @@ def observer_errors(
     ``speed_error_rms_rpm`` (estimate against the plant), ``speed_tracking_rms_rpm`` (plant against
     the reference), all after convergence; ``lock_lost`` (bool) and ``longest_out_of_lock_s``.
     """
-    t = np.asarray(trace.t, np.float64)
+    t = _f64(trace.t)
     after = t >= converged_after_s - 0.5 * Ts
     error = angle_error_modulo_pi if modulo_pi else angle_error
-    e_theta = error(trace.theta_e_est, trace.theta_e)[after]
-    w = np.asarray(trace.omega_m, np.float64)[after]
-    e_speed = np.asarray(trace.omega_m_est, np.float64)[after] - w
-    ref = np.asarray(trace.speed_ref, np.float64)[after]
+    e_theta = error(_f64(trace.theta_e_est), _f64(trace.theta_e))[after]
+    w = _f64(trace.omega_m)[after]
+    e_speed = _f64(trace.omega_m_est)[after] - w
+    ref = _f64(trace.speed_ref)[after]
     longest = longest_run(out_of_lock(e_theta, e_speed, ref, modulo_pi, speed_lock))
-    rpm = 30.0 / np.pi
+    angle_rms, angle_max = rms_and_max_abs(e_theta)
+    speed_rms, speed_max = rms_and_max_abs(e_speed)
+    tracking_rms, _ = rms_and_max_abs(tracking_error(ref, w))
     return {
-        "angle_error_rms_deg": float(np.degrees(np.sqrt(np.mean(e_theta**2)))),
-        "angle_error_max_deg": float(np.degrees(np.max(np.abs(e_theta)))),
-        "speed_error_rms_rpm": float(rpm * np.sqrt(np.mean(e_speed**2))),
-        "speed_error_max_rpm": float(rpm * np.max(np.abs(e_speed))),
-        "speed_tracking_rms_rpm": float(rpm * np.sqrt(np.mean((ref - w) ** 2))),
-        "lock_lost": bool(longest * Ts > LOCK_WINDOW_S),
+        "angle_error_rms_deg": float(np.degrees(angle_rms)),
+        "angle_error_max_deg": float(np.degrees(angle_max)),
+        "speed_error_rms_rpm": float(rad_s_to_rpm(speed_rms)),
+        "speed_error_max_rpm": float(rad_s_to_rpm(speed_max)),
+        "speed_tracking_rms_rpm": float(rad_s_to_rpm(tracking_rms)),
+        "lock_lost": bool(lock_lost(longest, Ts)),
         "longest_out_of_lock_s": float(longest * Ts),
         "angle_modulo": "pi" if modulo_pi else "2pi",
     }
@@ -119,19 +168,70 @@ def observer_errors(
 def speed_held(trace, Ts: float, judge_from_s: float, converged_after_s: float = CONVERGED_AFTER_S) -> dict:
     """Whether the run held its final speed reference from ``judge_from_s`` (s) to its end (see the
     module docstring); returns ``held`` and the figures it is judged on (r/min, electrical degrees)."""
-    t = np.asarray(trace.t, np.float64)
+    t = _f64(trace.t)
     window = t >= judge_from_s - 0.5 * Ts
-    ref = np.asarray(trace.speed_ref, np.float64)[window]
-    w = np.asarray(trace.omega_m, np.float64)[window]
-    e_theta = angle_error(trace.theta_e_est, trace.theta_e)[window]
-    speed_err = float(np.max(np.abs(ref - w)))
-    limit = float(HELD_SPEED_FRACTION * np.min(np.abs(ref)))
-    angle_max = float(np.max(np.abs(e_theta)))
+    ref = _f64(trace.speed_ref)[window]
+    _, speed_err = rms_and_max_abs(tracking_error(ref, _f64(trace.omega_m)[window]))
+    _, angle_max = rms_and_max_abs(angle_error(_f64(trace.theta_e_est), _f64(trace.theta_e))[window])
+    limit = HELD_SPEED_FRACTION * np.min(np.abs(ref))
     lost = observer_errors(trace, Ts, converged_after_s)["lock_lost"]
-    rpm = 30.0 / np.pi
     return {
         "held": bool(speed_err <= limit and angle_max <= HELD_ANGLE_RAD and not lost),
-        "speed_error_max_rpm": rpm * speed_err,
+        "speed_error_max_rpm": float(rad_s_to_rpm(speed_err)),
         "angle_error_max_deg": float(np.degrees(angle_max)),
         "lock_lost": lost,
     }
+
+
+def error_statistics(
+    time, theta_est, omega_est, theta_true, omega_true, settle_s: float = 0.0, modulo_pi: bool = False
+) -> dict:
+    """Angle and speed error figures of an estimate against the truth after ``settle_s`` (s from the first
+    row), NumPy floats computed in the precision of the inputs (a log's float64); with ``modulo_pi`` the
+    angle error is taken modulo pi (:func:`angle_error`).
+
+    Keys: ``angle_rms_deg``, ``angle_mean_deg``, ``angle_max_deg`` (electrical degrees),
+    ``speed_rms_rpm``, ``speed_max_rpm`` (mechanical r/min), ``samples``.
+    """
+    t = np.asarray(time)
+    keep = t >= t[0] + settle_s
+    error = angle_error_modulo_pi if modulo_pi else angle_error
+    e = error(np.asarray(theta_est), np.asarray(theta_true))[keep]
+    w = (np.asarray(omega_est) - np.asarray(omega_true))[keep]
+    angle_rms, angle_max = rms_and_max_abs(e)
+    speed_rms, speed_max = rms_and_max_abs(w)
+    return {
+        "angle_rms_deg": float(np.degrees(angle_rms)),
+        "angle_mean_deg": float(np.degrees(np.mean(e))),
+        "angle_max_deg": float(np.degrees(angle_max)),
+        "speed_rms_rpm": float(rad_s_to_rpm(speed_rms)),
+        "speed_max_rpm": float(rad_s_to_rpm(speed_max)),
+        "samples": int(keep.sum()),
+    }
+
+
+# --- over a traced window (jnp, differentiable) -------------------------------------------------------
+
+
+def _safe_sqrt(x):
+    """``sqrt(x)`` with a zero derivative at ``x = 0`` (double where: the exact sensor's angle error is 0,
+    where sqrt's derivative is infinite)."""
+    positive = ~(x <= 0)  # NaN (a diverged run) counts as positive, so it propagates instead of reading 0
+    return jnp.where(positive, jnp.sqrt(jnp.where(positive, x, 1.0)), 0.0)
+
+
+def angle_error_rms(theta_est, theta, weight, period: float = 2.0 * math.pi):
+    """RMS (electrical rad) of :func:`angle_error` over the samples weighted by ``weight`` (``(N,)``, 1.0
+    where they count, e.g. after the observer takes over and inside the scenario), with ``period``;
+    differentiable, with a zero derivative where the error is exactly 0."""
+    n = jnp.maximum(jnp.sum(weight), 1.0)
+    return _safe_sqrt(jnp.sum(angle_error(theta_est, theta, period) ** 2 * weight) / n)
+
+
+def angle_chord_rms(theta_est, theta, weight, period: float = 2.0 * math.pi):
+    """:func:`angle_error_rms` with each error ``e`` counted as its chord ``2 sin(e/2)`` (module
+    docstring); with period pi the chord of ``2e`` halved, ``sin(e)``."""
+    m = 2.0 * math.pi / period
+    chord_squared = (2.0 - 2.0 * jnp.cos(m * (theta_est - theta))) / m**2
+    n = jnp.maximum(jnp.sum(weight), 1.0)
+    return _safe_sqrt(jnp.sum(chord_squared * weight) / n)

@@ -4,7 +4,7 @@ import numpy as np
 
 from pmsmjax.analysis import metrics
 from pmsmjax.trace import Trace
-from pmsmjax.units import rad_s_to_rpm
+from pmsmjax.units import rad_s_to_rpm, rpm_to_rad_s
 
 
 def speed_step_summary(
@@ -36,14 +36,14 @@ def speed_step_summary(
         "settling_time_s": float(metrics.settling_time(ts, ws, w_start, w_final, settle_band)),
         "steady_state_error_rpm": float(rad_s_to_rpm(metrics.steady_state_error(ws, ref[:n_step], window))),
         "final_error_rpm": float(rad_s_to_rpm(metrics.steady_state_error(w, ref, window))),
-        "itae_rad_s": float(metrics.itae(t, ref - w)),
+        "itae_rad_s": float(metrics.itae(t, metrics.tracking_error(ref, w))),
         "peak_phase_current_a": float(metrics.peak_phase_current(np.asarray(trace.i_abc))),
         "rms_phase_current_a": float(metrics.rms_phase_current(np.asarray(trace.i_abc))),
         "current_limit_a": float(current_limit_a),
     }
     out["current_limit_respected"] = bool(out["peak_phase_current_a"] <= current_limit_a * 1.001)
     if load_time_s is not None:
-        band = recovery_band_rpm * 2 * np.pi / 60
+        band = rpm_to_rad_s(recovery_band_rpm)
         dip, recovery = metrics.disturbance_dip(t, w, load_time_s, float(ref[n_step - 1]), band)
         out["load_time_s"] = float(load_time_s)
         out["speed_dip_rpm"] = float(rad_s_to_rpm(dip))

@@ -385,22 +385,23 @@ def run_estimators(args, names: list[str]) -> int:
         from pmsmjax.plotting.compare import speed_figure
         from pmsmjax.plotting.observers import angle_error_figure
         from pmsmjax.plotting.traces import save_figure
+        from pmsmjax.units import rad_s_to_rpm
 
         first = next(iter(result["traces"].values()))
         entries = result["controllers"]
         errors = {}
         for n, tr in result["traces"].items():
-            if entries[n]["angle_modulo"] == "pi":  # injection without polarity
-                errors[f"{n} (mod pi)"] = np.degrees(angle_error_modulo_pi(tr.theta_e_est, tr.theta_e))
-            else:
-                errors[n] = np.degrees(angle_error(tr.theta_e_est, tr.theta_e))
+            modulo_pi = entries[n]["angle_modulo"] == "pi"  # injection without polarity
+            error = angle_error_modulo_pi if modulo_pi else angle_error
+            theta_est, theta = (np.asarray(a, np.float64) for a in (tr.theta_e_est, tr.theta_e))
+            errors[f"{n} (mod pi)" if modulo_pi else n] = np.degrees(error(theta_est, theta))
         angle0 = result["settings"]["initial_angle_deg"]
         start = f"rotor {angle0:g} el. deg off" if chapter6_run(names) else "I/f"
         title = f"Angle error, sensorless from standstill ({start}), {args.scenario} scenario"
         angle = angle_error_figure(
             np.asarray(first.t),
             errors,
-            speed_rpm=np.asarray(first.omega_m) * 30.0 / np.pi,
+            speed_rpm=rad_s_to_rpm(np.asarray(first.omega_m)),
             title=title,
             ylim=20.0 if chapter6_run(names) else 5.0,
         )

@@ -117,9 +117,11 @@ def run(args) -> int:
     import numpy as np
 
     from pmsmjax import presets
+    from pmsmjax.analysis.observer_errors import error_statistics
     from pmsmjax.estimators.registry import INJECTION_OBSERVERS, check_observer_name, make_observer
+    from pmsmjax.frames.three_phase import wrap_angle
     from pmsmjax.io.logs import atomic_write, check_output_folder, write_csv_atomic
-    from pmsmjax.studies.offline_observer import error_statistics, observe
+    from pmsmjax.studies.offline_observer import observe
 
     # The command line is the one place where pmsmjax reaches up into the tuning workflows (the log reader
     # is shared with `pmsmjax identify`).
@@ -181,7 +183,7 @@ def run(args) -> int:
     wall = time.perf_counter() - t0
     modulo_pi = injection and not args.polarity_known
     if modulo_pi:
-        theta = 0.5 * ((2.0 * theta + np.pi) % (2.0 * np.pi) - np.pi)  # the d axis modulo pi, [-pi/2, pi/2)
+        theta = 0.5 * wrap_angle(2.0 * theta)  # the d axis modulo pi, [-pi/2, pi/2)
     bad_rows = ~(np.isfinite(theta) & np.isfinite(omega))
     if bad_rows.any():
         row = int(np.argmax(bad_rows))

@@ -4,6 +4,7 @@ angle and speed, and the angle error."""
 import matplotlib.pyplot as plt
 import numpy as np
 
+from pmsmjax.analysis.observer_errors import angle_error, angle_error_modulo_pi
 from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.units import rad_s_to_rpm
 
@@ -35,8 +36,8 @@ def observer_log_figure(
     ax.plot(t, rad_s_to_rpm(np.asarray(omega_m)), "-", lw=0.8, label="estimated")
     ax.set(ylabel="n / (r/min)")
     if "theta_e" in truth:
-        diff = np.asarray(theta_e) - np.asarray(truth["theta_e"])
-        err = np.degrees(np.asarray(0.5 * wrap_angle(2.0 * diff) if modulo_pi else wrap_angle(diff)))
+        error = angle_error_modulo_pi if modulo_pi else angle_error
+        err = np.degrees(error(np.asarray(theta_e), np.asarray(truth["theta_e"])))
         axes[2].plot(t, err, "-", lw=0.8)
         axes[2].set(ylabel="angle error (modulo pi) / el. deg" if modulo_pi else "angle error / el. deg")
     for ax in axes:

@@ -51,6 +51,7 @@ from pmsmjax.machines.motor import PMSMParameters
 from pmsmjax.presets.control_methods import CONTROLS, control_drive
 from pmsmjax.simulate import check_simulation, simulate
 from pmsmjax.studies.equal_switching import BAND_LEAVES, match_switching_frequency
+from pmsmjax.units import rad_s_to_rpm
 
 SUMMARY_KEYS = {
     "rise_time_s": "rise_time_s",
@@ -176,7 +177,9 @@ def run_control(name: str, drive: Drive, settings: ControllerCompareSettings, in
     entry["operating_point"] = run_flags(trace, drive, load_time_s=settings.load_time_s)
     entry.update(
         {
-            "peak_current_a": float(max(np.abs(i_abc).max(), np.abs(np.asarray(trace.i_abc)).max())),
+            "peak_current_a": float(
+                max(metrics.peak_phase_current(i_abc), metrics.peak_phase_current(trace.i_abc))
+            ),
             "current_thd_pct": 100.0 * float(thd(spectrum, settings.thd_max_frequency_hz)),
             "switching_frequency_hz": float(metrics.switching_frequency_hz(window.duties, drive.Ts)),
             "torque_ripple_nm": float(np.std(torque)),
@@ -481,11 +484,12 @@ def run_estimator_scenario(drive: Drive, scenario, initial_state) -> dict:
     w = np.asarray(trace.omega_m, np.float64)
     ref = np.asarray(trace.speed_ref, np.float64)
     after = t >= CONVERGED_AFTER_S - 0.5 * drive.Ts
+    error = metrics.tracking_error(ref, w)
     entry = {
-        "itae": float(metrics.itae(t, ref - w)),
-        "speed_deviation_max_rpm": float(30.0 / np.pi * np.max(np.abs(ref - w)[after])),
-        "final_speed_rpm": float(30.0 / np.pi * w[-1]),
-        "peak_current_a": float(np.abs(np.asarray(trace.i_abc)).max()),
+        "itae": float(metrics.itae(t, error)),
+        "speed_deviation_max_rpm": float(rad_s_to_rpm(np.max(np.abs(error[after])))),
+        "final_speed_rpm": float(rad_s_to_rpm(w[-1])),
+        "peak_current_a": float(metrics.peak_phase_current(trace.i_abc)),
         "current_limit_a": float(drive.controller.current_limit),
         "control_period_s": drive.Ts,
         "bridge": type(drive.bridge).__name__,

@@ -1,4 +1,4 @@
-"""The hybrid estimator's two must-show runs (issue 15 item 4), shared by tests/test_hybrid.py and
+"""The hybrid estimator's two must-show runs, shared by tests/estimators/test_hybrid.py and
 benchmarks/hybrid_table.py: the book drive on the salient book motor with d-axis saturation
 (:func:`pmsmjax.machines.saturated_machine`), sensorless with :func:`pmsmjax.estimators.hybrid.hybrid_design`
 from standstill at several initial rotor angles.
@@ -14,12 +14,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from pmsmjax.frames.three_phase import wrap_angle
+from pmsmjax.analysis.observer_errors import LOCK_ANGLE_RAD, angle_error, rms_and_max_abs
 from pmsmjax.machines.saturation import saturated_machine
 from pmsmjax.presets.three_phase import book_drive, book_motor, book_scenario
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.simulate import simulate
-from pmsmjax.units import rpm_to_rad_s
+from pmsmjax.units import rad_s_to_rpm, rpm_to_rad_s
 
 #: Start-up is over (polarity pulses, hand-over) by this time, s; errors are judged after it.
 STARTUP_S = 0.06
@@ -51,7 +51,7 @@ def run_from_angles(drive, scenario, angles) -> dict:
 
     def run(theta0):
         tr = simulate(drive, scenario, initial_state=drive.init(theta_e=theta0))
-        return tr.t, tr.omega_m, tr.omega_m_est, tr.speed_ref, wrap_angle(tr.theta_e_est - tr.theta_e)
+        return tr.t, tr.omega_m, tr.omega_m_est, tr.speed_ref, angle_error(tr.theta_e_est, tr.theta_e)
 
     t, w, w_est, ref, err = jax.jit(jax.vmap(run))(jnp.asarray(angles))
     return dict(
@@ -65,13 +65,16 @@ def run_from_angles(drive, scenario, angles) -> dict:
 
 def summary(result: dict) -> dict:
     """Per initial angle: max and RMS angle error after start-up (electrical degrees), final speed error
-    (r/min), and whether lock held (``max < 90`` degrees: a slip by a pole would show as 180)."""
+    (r/min, plant minus reference), and whether lock held: no period out of lock by angle
+    (:data:`pmsmjax.analysis.observer_errors.LOCK_ANGLE_RAD`, 90 degrees; a slip by a pole would show as
+    180)."""
     after = result["t"] >= STARTUP_S
-    err = np.rad2deg(np.abs(result["angle_error"][:, after]))
-    final = (result["omega_m"][:, -1] - result["speed_ref"][:, -1]) * 60.0 / (2.0 * np.pi)
+    err = result["angle_error"][:, after]
+    rms, largest = rms_and_max_abs(err, axis=1)
+    final = rad_s_to_rpm(result["omega_m"][:, -1] - result["speed_ref"][:, -1])
     return dict(
-        max_deg=err.max(axis=1),
-        rms_deg=np.sqrt((err**2).mean(axis=1)),
+        max_deg=np.degrees(largest),
+        rms_deg=np.degrees(rms),
         final_speed_error_rpm=final,
-        locked=err.max(axis=1) < 90.0,
+        locked=largest < LOCK_ANGLE_RAD,
     )

@@ -14,14 +14,17 @@ Pure JAX: :func:`observe` composes with ``jax.vmap`` (batches of logs or of obse
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 from pmsmjax._types import Array
+
+# The estimate's figures of merit are defined in pmsmjax.analysis.observer_errors; the angle errors are
+# re-exported here beside the runner that produces the estimates they score.
+from pmsmjax.analysis.observer_errors import angle_error, angle_error_modulo_pi
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.frames.three_phase import alpha_beta_to_abc, wrap_angle
 from pmsmjax.signals import Sample
 
-__all__ = ["ObserverOutput", "observe", "angle_error", "angle_error_modulo_pi", "error_statistics"]
+__all__ = ["ObserverOutput", "observe", "angle_error", "angle_error_modulo_pi"]
 
 
 class ObserverOutput(eqx.Module):
@@ -55,38 +58,3 @@ def observe(estimator: AbstractEstimator, u_ab: Array, i_ab: Array, Ts: float, u
 
     _, (theta, omega, emf) = jax.lax.scan(body, state, (i_ab, u_last))
     return ObserverOutput(theta, omega, emf)
-
-
-def angle_error(theta_est, theta_true) -> Array:
-    """``wrap(theta_est - theta_true)``, rad in [-pi, pi)."""
-    return wrap_angle(jnp.asarray(theta_est) - jnp.asarray(theta_true))
-
-
-def angle_error_modulo_pi(theta_est, theta_true) -> Array:
-    """The angle error modulo pi, rad in [-pi/2, pi/2): ``wrap(2 (theta_est - theta_true)) / 2``; what
-    an HF-injection estimator (the d axis without its polarity) is scored by."""
-    return 0.5 * wrap_angle(2.0 * (jnp.asarray(theta_est) - jnp.asarray(theta_true)))
-
-
-def error_statistics(
-    time, theta_est, omega_est, theta_true, omega_true, settle_s: float = 0.0, modulo_pi: bool = False
-) -> dict:
-    """Angle and speed error figures after ``settle_s`` (s from the first row), NumPy floats; with
-    ``modulo_pi`` the angle error is taken modulo pi (:func:`angle_error_modulo_pi`).
-
-    Keys: ``angle_rms_deg``, ``angle_mean_deg``, ``angle_max_deg`` (electrical degrees),
-    ``speed_rms_rpm``, ``speed_max_rpm`` (mechanical r/min), ``samples``.
-    """
-    t = np.asarray(time)
-    keep = t >= t[0] + settle_s
-    error = angle_error_modulo_pi if modulo_pi else angle_error
-    e = np.degrees(np.asarray(error(theta_est, theta_true)))[keep]
-    w = (np.asarray(omega_est) - np.asarray(omega_true))[keep] * 30.0 / np.pi
-    return {
-        "angle_rms_deg": float(np.sqrt(np.mean(e**2))),
-        "angle_mean_deg": float(np.mean(e)),
-        "angle_max_deg": float(np.max(np.abs(e))),
-        "speed_rms_rpm": float(np.sqrt(np.mean(w**2))),
-        "speed_max_rpm": float(np.max(np.abs(w))),
-        "samples": int(keep.sum()),
-    }

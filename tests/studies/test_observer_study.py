@@ -1,10 +1,9 @@
-"""Issue 14 studies of the chapter 5 observers: the observer figures (hand-computed cases), the Monte Carlo
-kernel's in-scan figures against the NumPy definitions on a full trace, ``compare --estimator`` and a
-sensorless Monte Carlo study. Short runs keep it quick."""
+"""Studies of the chapter 5 observers: the Monte Carlo kernel's in-scan figures against the NumPy
+definitions on a full trace, ``compare --estimator`` and a sensorless Monte Carlo study (the figures
+themselves on hand-computed cases: tests/analysis/test_observer_errors.py). Short runs keep it quick."""
 
 import json
 import math
-from types import SimpleNamespace
 
 import equinox as eqx
 import numpy as np
@@ -26,68 +25,6 @@ from tuning.montecarlo import run_study
 from tuning.montecarlo import study as mc_study
 from tuning.montecarlo.kernel import run_metrics
 from tuning.montecarlo.study import SENSORLESS_TOLERANCES, Study
-
-TS = 1e-4
-
-
-def fake_trace(angle_error_rad, speed_error, speed_ref=100.0):
-    """A trace whose estimate is off the plant by the given per-period errors (NumPy, period TS)."""
-    n = len(angle_error_rad)
-    theta = np.linspace(0.0, 40.0, n)
-    omega = np.full(n, speed_ref)
-    return SimpleNamespace(
-        t=np.arange(n) * TS,
-        theta_e=theta,
-        theta_e_est=theta + np.asarray(angle_error_rad),
-        omega_m=omega,
-        omega_m_est=omega + np.asarray(speed_error),
-        speed_ref=np.full(n, speed_ref),
-    )
-
-
-def test_observer_errors_of_a_hand_made_trace():
-    n = 1500  # 0.15 s; periods from 0.05 s (k = 500) count
-    e = np.zeros(n)
-    e[:500] = 3.0  # before convergence: ignored, although out of lock
-    e[600:700] = 0.2  # 100 periods of 0.2 rad
-    e[800:901] = -2.0  # 101 periods out of lock: 10.1 ms > 10 ms
-    trace = fake_trace(e, np.zeros(n))
-    out = om.observer_errors(trace, TS)
-    rms = math.sqrt((100 * 0.2**2 + 101 * 2.0**2) / 1000)
-    assert out["angle_error_rms_deg"] == pytest.approx(math.degrees(rms), rel=1e-9)
-    assert out["angle_error_max_deg"] == pytest.approx(math.degrees(2.0), rel=1e-9)
-    assert out["lock_lost"] and out["longest_out_of_lock_s"] == pytest.approx(101 * TS)
-    e[900] = 0.0  # now exactly 100 periods (10 ms): not longer than the window
-    assert not om.observer_errors(fake_trace(e, np.zeros(n)), TS)["lock_lost"]
-    # the speed criterion alone: 0.5 * 100 + 1 = 51 rad/s
-    w = np.zeros(n)
-    w[1000:1200] = 52.0
-    out = om.observer_errors(fake_trace(np.zeros(n), w), TS)
-    assert out["lock_lost"] and out["speed_error_rms_rpm"] == pytest.approx(
-        30 / math.pi * math.sqrt(200 * 52.0**2 / 1000), rel=1e-9
-    )
-    w[1000:1200] = 50.0
-    assert not om.observer_errors(fake_trace(np.zeros(n), w), TS)["lock_lost"]
-
-
-def test_angle_error_wraps():
-    e = om.angle_error(np.array([3.1, -3.1, 0.1]), np.array([-3.1, 3.1, 2 * math.pi]))
-    np.testing.assert_allclose(e, [6.2 - 2 * math.pi, 2 * math.pi - 6.2, 0.1], atol=1e-12)
-
-
-def test_speed_held_definition():
-    n = 1000
-    trace = fake_trace(np.zeros(n), np.zeros(n), speed_ref=10.0)
-    trace.omega_m = trace.omega_m.copy()
-    trace.omega_m[-1] = 10.0 - 0.99  # error 0.99 <= 10 % of 10 rad/s
-    assert om.speed_held(trace, TS, 0.08)["held"]
-    trace.omega_m[-1] = 10.0 - 1.01
-    assert not om.speed_held(trace, TS, 0.08)["held"]
-    trace.omega_m[-1] = 10.0
-    trace.theta_e_est = trace.theta_e.copy()
-    trace.theta_e_est[-1] += math.radians(31.0)
-    assert not om.speed_held(trace, TS, 0.08)["held"]
-
 
 # ---------------------------------------------------------------- the kernel against the full trace
 

@@ -16,10 +16,9 @@ import jax.numpy as jnp
 import numpy as np
 
 import pmsmjax
-from pmsmjax.analysis import metrics
+from pmsmjax.analysis import metrics, observer_errors
 from pmsmjax.checks.validation import ParameterError
 from pmsmjax.drive import Drive
-from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.trace import Trace
 from tuning.autotune.scenario_batches import ScenarioBatch
 
@@ -28,7 +27,9 @@ METRIC_NAMES = (
     "iae",  # rad
     "ise",  # rad^2/s
     "overshoot_pct",  # % of the step, in the window before the load change
-    "overshoot_signed_pct",  # the same before clipping at 0 (negative: the speed stays below the step)
+    # the same before clipping at 0: negative (the speed stays below the step) only when the pre-load
+    # window spans the whole record, since the samples after it count as 0 (scenario_metrics)
+    "overshoot_signed_pct",
     "settling_time_s",  # s, 2 % band, in the window before the load change
     "peak_current_a",  # A, largest phase current
     "rms_current_a",  # A
@@ -99,68 +100,42 @@ def scenario_metrics(
     """Figures of merit of one scenario's trace (see :data:`METRIC_NAMES`), over its own duration; the
     angle error from ``observe_from_s`` (s) on, modulo ``angle_modulo`` (electrical rad: ``2 pi``, or
     ``pi`` for the injection estimators, whose error is wrapped to +-pi/2 and whose chord is
-    ``sin(e)``, i.e. the chord of ``2e`` halved)."""
+    ``sin(e)``, i.e. the chord of ``2e`` halved). The figures are those of :mod:`pmsmjax.analysis`; here
+    they get their windows."""
     t = trace.t
     active = (t < duration_s - 1e-12).astype(t.dtype)
-    n_active = jnp.sum(active)
-    e = (trace.speed_ref - trace.omega_m) * active
+    e = metrics.tracking_error(trace.speed_ref, trace.omega_m) * active
 
-    # Overshoot beyond the reference value reached at the end of the pre-load window, in its direction.
+    # Overshoot and settling against the reference reached at the end of the pre-load window.
     pre = (t < load_time_s - 1e-12).astype(t.dtype)
     k_end = jnp.maximum(jnp.sum(pre).astype(jnp.int32) - 1, 0)
     w_final = trace.speed_ref[k_end]
-    excess = jnp.sign(w_final) * (trace.omega_m - w_final) * pre
-    scale = jnp.maximum(jnp.abs(w_final), 1e-6)
-    overshoot_signed = 100.0 * jnp.max(excess) / scale
-    overshoot = jnp.maximum(overshoot_signed, 0.0)
-    # Settling: the first sample after the last one outside the 2 % band (pre-load window).
-    outside = (jnp.abs(trace.omega_m - w_final) > 0.02 * scale) & (pre > 0)
-    last_outside = jnp.max(jnp.where(outside, jnp.arange(t.shape[0]), -1))
-    settling = t[jnp.minimum(last_outside + 1, t.shape[0] - 1)]
+    # the samples after the window count as 0: the signed value is floored at 0 when there are any
+    excess = jnp.max(metrics.excess_over_reference(trace.omega_m, w_final) * pre)
+    overshoot_signed = metrics.percent_of_reference(excess, w_final)
+    settling = metrics.settling_time_to_reference(t, trace.omega_m, w_final, 0.02, pre)
 
-    i_abs = jnp.abs(trace.i_abc) * active[:, None]
-    peak = jnp.max(i_abs)
-    rms = jnp.sqrt(jnp.sum(trace.i_abc**2 * active[:, None]) / (trace.i_abc.shape[-1] * n_active))
-    u_norm = jnp.sqrt(jnp.sum(trace.u_dq_ref**2, axis=-1) + 1e-12) / u_max
-    # A smooth count of the periods on the voltage limit: sigmoid of the distance to it.
-    saturation = jnp.sum(jax.nn.sigmoid((u_norm - 0.999) / soft_width) * active) / n_active
+    peak = metrics.peak_phase_current(trace.i_abc * active[:, None])
     tail = active * (t >= 0.8 * duration_s).astype(t.dtype)
-    n_tail = jnp.maximum(jnp.sum(tail), 1.0)
-    torque_mean = jnp.sum(trace.torque * tail) / n_tail
-    ripple = jnp.sqrt(jnp.sum((trace.torque - torque_mean) ** 2 * tail) / n_tail)
     observed = active * (t >= observe_from_s - 1e-12).astype(t.dtype)
-    n_observed = jnp.maximum(jnp.sum(observed), 1.0)
-    # in units of the metric's period scaled to 2 pi (m = 2 for modulo pi), then scaled back by 1/m
-    m = 2.0 * np.pi / angle_modulo
-    angle_error = m * (trace.theta_e_est - trace.theta_e)
-    angle_ms = jnp.sum(wrap_angle(angle_error) ** 2 * observed) / n_observed / m**2
-    # 2 - 2 cos e = (2 sin(e/2))^2: e^2 to within e^4/12, periodic and smooth, where the wrapped error
-    # jumps at +-pi (a lost lock would put jumps into the cost the optimiser follows)
-    chord_ms = jnp.sum((2.0 - 2.0 * jnp.cos(angle_error)) * observed) / n_observed / m**2
+    angles = (trace.theta_e_est, trace.theta_e, observed, angle_modulo)
     return {
         "itae": metrics.itae(t, e),
         "iae": metrics.iae(t, e),
         "ise": metrics.ise(t, e),
-        "overshoot_pct": overshoot,
+        "overshoot_pct": jnp.maximum(overshoot_signed, 0.0),
         "overshoot_signed_pct": overshoot_signed,
         "settling_time_s": settling,
         "peak_current_a": peak,
-        "rms_current_a": rms,
+        "rms_current_a": metrics.rms_phase_current(trace.i_abc, active),
         "current_excess_a": jnp.maximum(peak - current_limit, 0.0),
         "current_over_limit_a": peak - current_limit,
-        "voltage_saturation": saturation,
-        "control_effort": jnp.sum(u_norm**2 * active) / n_active,
-        "torque_ripple_nm": ripple,
-        "angle_error_rms_rad": _safe_sqrt(angle_ms),
-        "angle_chord_rms_rad": _safe_sqrt(chord_ms),
+        "voltage_saturation": metrics.voltage_saturation(trace.u_dq_ref, u_max, active, soft_width),
+        "control_effort": metrics.control_effort(trace.u_dq_ref, u_max, active),
+        "torque_ripple_nm": metrics.ripple_rms_about_mean(trace.torque, tail),
+        "angle_error_rms_rad": observer_errors.angle_error_rms(*angles),
+        "angle_chord_rms_rad": observer_errors.angle_chord_rms(*angles),
     }
-
-
-def _safe_sqrt(x):
-    """``sqrt(x)`` with a zero derivative at ``x = 0`` (double where: the exact sensor's angle error is 0,
-    where sqrt's derivative is infinite)."""
-    positive = ~(x <= 0)  # NaN (a diverged run) counts as positive, so it propagates instead of reading 0
-    return jnp.where(positive, jnp.sqrt(jnp.where(positive, x, 1.0)), 0.0)
 
 
 def smoothed_penalty(x, width: float):

@@ -6,37 +6,43 @@ and only every ``decimate``-th period's speed and q-axis current are kept for th
 every per-period scan output is a separate write that costs about as much as a fair part of the drive
 step, so this is what makes 10,000 runs of 4000 periods affordable.
 
-The definitions equal those of :func:`pmsmjax.analysis.speed_step_summary.speed_step_summary` and
-:func:`tuning.autotune.objectives.scenario_metrics` on the period-start samples (tests/test_montecarlo.py
-checks them against :mod:`pmsmjax.analysis.metrics` applied to a full trace from :func:`pmsmjax.simulate`):
+The per-period terms are those of :mod:`pmsmjax.analysis.metrics` and
+:mod:`pmsmjax.analysis.observer_errors`; this module only sums them or keeps their maximum over the
+periods (tests/tuning/test_montecarlo.py and tests/studies/test_observer_study.py check the results
+against the full-record figures of a trace from :func:`pmsmjax.simulate`):
 
-- ``itae``: ``sum_k t_k |w*_k - w_k| Ts``, rad s (speed error in rad/s, whole run).
-- ``overshoot_pct``: ``100 max(0, max_k sign(w*) (w_k - w*_k) / |w*_k|)`` over the periods before the load
-  step, percent of the reference.
-- ``settling_time_s``: start of the period after the last one before the load step whose speed is
-  outside ``settle_band`` (fraction) of the reference; censored at the load step time when the speed has
-  not settled by then.
-- ``dip_rpm``: largest ``w* - w`` after the load step, r/min.
-- ``peak_current_a``: largest absolute sampled phase current, A.
-- ``final_error_rpm``: mean ``w* - w`` over the last ``tail_fraction`` of the run, r/min.
+- ``itae``: sum of :func:`~pmsmjax.analysis.metrics.itae_term` ``t_k |w*_k - w_k|`` times ``Ts``, rad s
+  (speed error in rad/s, whole run).
+- ``overshoot_pct``: largest :func:`~pmsmjax.analysis.metrics.excess_over_reference` over the periods
+  before the load step, each in :func:`~pmsmjax.analysis.metrics.percent_of_reference`, floored at 0.
+- ``settling_time_s``: start of the period after the last one before the load step that is
+  :func:`~pmsmjax.analysis.metrics.outside_reference_band` (``settle_band``, a fraction of the reference);
+  censored at the load step time when the speed has not settled by then
+  (:func:`~pmsmjax.analysis.metrics.settling_time_to_reference`).
+- ``dip_rpm``: largest :func:`~pmsmjax.analysis.metrics.tracking_error` ``w* - w`` after the load step,
+  r/min.
+- ``peak_current_a``: largest :func:`~pmsmjax.analysis.metrics.peak_phase_current` of the periods, A.
+- ``final_error_rpm``: mean tracking error over the last ``tail_fraction`` of the run, r/min
+  (:func:`~pmsmjax.analysis.metrics.steady_state_error`).
 - ``finite``: 1.0 if every sampled state stayed finite, else 0.0 (a run that diverged).
 
 With an observer in the drive (``drive.records_estimate``), also :data:`OBSERVER_METRICS`, defined as in
 :func:`pmsmjax.analysis.observer_errors.observer_errors` (periods from ``converged_after_s`` on):
 
-- ``angle_error_rms_deg``, ``angle_error_max_deg``: RMS and largest ``|wrap(theta_est - theta)|``,
-  electrical degrees;
+- ``angle_error_rms_deg``, ``angle_error_max_deg``: RMS and largest ``|angle_error|``, electrical degrees;
 - ``speed_error_rms_rpm``: RMS of ``omega_est - omega``, r/min;
-- ``lock_lost``: 1.0 if a run of out-of-lock periods lasted longer than ``LOCK_WINDOW_S``, else 0.0.
+- ``lock_lost``: 1.0 if a run of :func:`~pmsmjax.analysis.observer_errors.out_of_lock` periods lasted
+  longer than ``LOCK_WINDOW_S`` (:func:`~pmsmjax.analysis.observer_errors.lock_lost`), else 0.0.
 """
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from pmsmjax.analysis import metrics
 from pmsmjax.analysis import observer_errors as om
 from pmsmjax.drive import Drive
-from pmsmjax.frames.three_phase import dq_to_abc, wrap_angle
+from pmsmjax.frames.three_phase import dq_to_abc
 from pmsmjax.scenarios import Scenario
 from pmsmjax.simulate import period_inputs
 from pmsmjax.units import rad_s_to_rpm
@@ -70,7 +76,7 @@ class Accumulators(eqx.Module):
     """Running figures of merit carried through the scan (scalars)."""
 
     itae: jax.Array  # sum of t |e| (rad/s s), times Ts at the end
-    excess: jax.Array  # largest sign(w*) (w - w*) / |w*| before the load step
+    excess: jax.Array  # largest excess over the reference before the load step, % of |w*|
     last_outside: jax.Array  # int32 index of the last pre-load period outside the band, -1 if none
     dip: jax.Array  # largest w* - w after the load step, rad/s
     peak: jax.Array  # largest |phase current|, A
@@ -106,11 +112,9 @@ def _init(dtype, observer: bool) -> Accumulators:
 
 def _observer_update(acc: ObserverAccumulators, after, ms, estimate, speed_ref) -> ObserverAccumulators:
     """One period of the observer figures (``estimate``: ``(2,)`` angle rad, speed rad/s)."""
-    e_theta = wrap_angle(estimate[0] - ms.theta_e)
+    e_theta = om.angle_error(estimate[0], ms.theta_e)
     e_speed = estimate[1] - ms.omega_m
-    limit = om.LOCK_SPEED_FRACTION * jnp.abs(speed_ref) + om.LOCK_SPEED_FLOOR_RAD_S
-    bad = after & ((jnp.abs(e_theta) > om.LOCK_ANGLE_RAD) | (jnp.abs(e_speed) > limit))
-    run = jnp.where(bad, acc.run + 1, 0)
+    run = om.out_of_lock_run(acc.run, after & om.out_of_lock(e_theta, e_speed, speed_ref))
     return ObserverAccumulators(
         angle_sq=acc.angle_sq + jnp.where(after, e_theta**2, 0.0),
         angle_max=jnp.where(after, jnp.maximum(acc.angle_max, jnp.abs(e_theta)), acc.angle_max),
@@ -165,22 +169,22 @@ def run_metrics(
         ms = s.machine
         t = k.astype(dtype) * Ts
         w, ref = ms.omega_m, x.speed_ref
-        e = ref - w
+        e = metrics.tracking_error(ref, w)
         i_dq = drive.machine.currents_dq(ms)
         pre = t < load_time_s
-        rel = jnp.sign(ref) * (w - ref) / jnp.maximum(jnp.abs(ref), 1e-6)
-        outside = pre & (jnp.abs(e) > settle_band * jnp.abs(ref))
+        excess = metrics.percent_of_reference(metrics.excess_over_reference(w, ref), ref)
+        outside = pre & metrics.outside_reference_band(w, ref, settle_band)
         finite = jnp.isfinite(w) & jnp.all(jnp.isfinite(ms.currents))
         s, rec = drive.step(s, x)
         obs = None
         if observed:
             obs = _observer_update(acc.observer, k >= k_converged, ms, rec.estimate, ref)
         acc = Accumulators(
-            itae=acc.itae + t * jnp.abs(e),
-            excess=jnp.where(pre, jnp.maximum(acc.excess, rel), acc.excess),
+            itae=acc.itae + metrics.itae_term(t, e),
+            excess=jnp.where(pre, jnp.maximum(acc.excess, excess), acc.excess),
             last_outside=jnp.where(outside, k, acc.last_outside),
             dip=jnp.where(pre, acc.dip, jnp.maximum(acc.dip, e)),
-            peak=jnp.maximum(acc.peak, jnp.max(jnp.abs(phase_currents(ms)))),
+            peak=jnp.maximum(acc.peak, metrics.peak_phase_current(phase_currents(ms)[None])),
             tail_error=acc.tail_error + jnp.where(k >= k_tail, e, 0.0),
             finite=acc.finite & finite,
             observer=obs,
@@ -199,9 +203,9 @@ def run_metrics(
     (_, acc), (w_rec, iq_rec) = jax.lax.scan(block, (state, _init(dtype, observed)), blocks)
     n_pre = jnp.sum((ks.astype(dtype) * Ts < load_time_s).astype(jnp.int32))
     settle_index = jnp.minimum(acc.last_outside + 1, n_pre)
-    metrics = {
+    figures = {
         "itae": acc.itae * Ts,
-        "overshoot_pct": 100.0 * jnp.maximum(acc.excess, 0.0),
+        "overshoot_pct": jnp.maximum(acc.excess, 0.0),
         "settling_time_s": settle_index.astype(dtype) * Ts,
         "dip_rpm": rad_s_to_rpm(acc.dip),
         "peak_current_a": acc.peak,
@@ -210,11 +214,11 @@ def run_metrics(
     }
     if observed:
         o, n_after = acc.observer, max(n - k_converged, 1)
-        metrics["angle_error_rms_deg"] = jnp.degrees(jnp.sqrt(o.angle_sq / n_after))
-        metrics["angle_error_max_deg"] = jnp.degrees(o.angle_max)
-        metrics["speed_error_rms_rpm"] = rad_s_to_rpm(jnp.sqrt(o.speed_sq / n_after))
-        metrics["lock_lost"] = (o.longest.astype(dtype) * Ts > om.LOCK_WINDOW_S).astype(dtype)
-    return metrics, {"speed_rpm": rad_s_to_rpm(w_rec), "i_q_a": iq_rec}
+        figures["angle_error_rms_deg"] = jnp.degrees(jnp.sqrt(o.angle_sq / n_after))
+        figures["angle_error_max_deg"] = jnp.degrees(o.angle_max)
+        figures["speed_error_rms_rpm"] = rad_s_to_rpm(jnp.sqrt(o.speed_sq / n_after))
+        figures["lock_lost"] = om.lock_lost(o.longest.astype(dtype), Ts).astype(dtype)
+    return figures, {"speed_rpm": rad_s_to_rpm(w_rec), "i_q_a": iq_rec}
 
 
 __all__ = ["run_metrics", "METRICS", "OBSERVER_METRICS", "UNITS"]
