@@ -36,6 +36,7 @@ import numpy as np
 
 from pmsmjax import Profile, Scenario, presets, stack_scenarios
 from pmsmjax.checks.validation import ParameterError
+from pmsmjax.presets.book_constants import BOOK_TS
 from pmsmjax.units import rpm_to_rad_s
 from tuning.autotune.scenario_batches import ScenarioBatch
 
@@ -71,7 +72,7 @@ def make_injection_batch(
     kinds=INJECTION_KINDS,
     plant_spread: dict | None = None,
     warmup_s: float | None = None,
-    Ts: float = 1e-4,
+    Ts: float = BOOK_TS,
 ) -> ScenarioBatch:
     """``n`` low-speed scenarios drawn reproducibly from ``seed`` (module docstring), scored modulo pi.
     ``plant_spread`` as in :func:`tuning.autotune.scenario_batches.make_batch`."""

@@ -57,6 +57,7 @@ from pmsmjax import Profile, Scenario, presets, stack_scenarios
 from pmsmjax.checks.validation import ParameterError
 from pmsmjax.estimators.registry import check_observer_name
 from pmsmjax.estimators.sensored_warmup import SensoredWarmup
+from pmsmjax.presets.book_constants import BOOK_TS
 from pmsmjax.units import rpm_to_rad_s
 from tuning.autotune.scenario_batches import ScenarioBatch
 from tuning.parameters import get_leaf, set_leaves
@@ -186,7 +187,7 @@ def make_observer_batch(
     kinds=OBSERVER_KINDS,
     plant_spread: dict | None = None,
     warmup_s: float = WARMUP_S,
-    Ts: float = 1e-4,
+    Ts: float = BOOK_TS,
 ) -> ScenarioBatch:
     """``n`` observer scenarios drawn reproducibly from ``seed``.
 

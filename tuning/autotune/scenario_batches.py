@@ -12,6 +12,7 @@ import numpy as np
 
 from pmsmjax import Profile, Scenario, stack_scenarios
 from pmsmjax.checks.validation import ParameterError
+from pmsmjax.presets.book_constants import BOOK_TS
 from pmsmjax.units import rpm_to_rad_s
 
 KINDS = ("step", "reversal", "ramp")
@@ -69,7 +70,7 @@ def make_batch(
     duration_s: tuple[float, float] = (0.3, 0.5),
     kinds: Sequence[str] = ("step",),
     plant_spread: dict | None = None,
-    Ts: float = 1e-4,
+    Ts: float = BOOK_TS,
 ) -> ScenarioBatch:
     """``n`` scenarios drawn reproducibly from ``seed``.
 
