@@ -1,4 +1,4 @@
-"""Every command survives a careless user (issue 18).
+"""Every command survives a careless user.
 
 Each refusal case asserts: exit status 2, exactly one line on stderr that names the flag or file field and
 the fix, no traceback, no NumPy repr, and no output file written. Most refusals happen before JAX starts
