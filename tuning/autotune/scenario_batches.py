@@ -16,6 +16,9 @@ from pmsmjax.presets.book_constants import BOOK_TS
 from pmsmjax.units import rpm_to_rad_s
 
 KINDS = ("step", "reversal", "ramp")
+#: Time the observer batches (:mod:`tuning.autotune.observers`, :mod:`tuning.autotune.hfi_tuning`) run on
+#: the sensor before the observer takes over, s (each observer converges within a few ms at speed).
+WARMUP_S = 0.02
 
 
 class ScenarioBatch(eqx.Module):
@@ -35,7 +38,7 @@ class ScenarioBatch(eqx.Module):
       observer batches start it when the observer takes over from the sensor.
     - `angle_modulo`: static, the period of the angle-error metric, electrical rad: ``2 pi``, or ``pi`` for
       the HF-injection estimators, which find the d axis modulo pi (their batches,
-      :func:`tuning.autotune.observers.make_injection_batch`).
+      :func:`tuning.autotune.hfi_tuning.make_injection_batch`).
     """
 
     scenarios: Scenario
