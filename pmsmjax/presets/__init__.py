@@ -43,22 +43,23 @@ _THREE_PHASE = (
     "dtc_drive",
     "smc_dtc_drive",
 )
-#: Public name -> the module that defines it.
-_HOME = {
-    **{name: "book_constants" for name in _BOOK_CONSTANTS},
-    **{name: "three_phase" for name in _THREE_PHASE},
+#: Public name -> (module, attribute), the layout of ``pmsmjax._LAZY``.
+_LAZY = {
+    **{name: ("book_constants", name) for name in _BOOK_CONSTANTS},
+    **{name: ("three_phase", name) for name in _THREE_PHASE},
 }
 
 __all__ = [*_BOOK_CONSTANTS, *_THREE_PHASE]
 
 
 def __getattr__(name):
-    if name not in _HOME:
+    if name not in _LAZY:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{_HOME[name]}"), name)
+    module, attr = _LAZY[name]
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), attr)
     globals()[name] = value
     return value
 
 
 def __dir__():
-    return sorted(set(globals()) | set(_HOME))
+    return sorted(set(globals()) | set(_LAZY))
