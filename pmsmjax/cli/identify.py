@@ -17,8 +17,9 @@ def add_parser(sub):
             'without an interval. To try it, make a log with: python -c "from tuning.identify import '
             "identification_scenario; from pmsmjax.studies.synthetic_logs import ID_LOG_NOISE, "
             "add_measurement_noise, identification_log; from pmsmjax.io.logs import write_csv_atomic; "
-            "write_csv_atomic('log.csv', add_measurement_noise(identification_log(identification_scenario()), "
-            "ID_LOG_NOISE))\" then pmsmjax identify log.csv --pole-pairs 4 --out id_out."
+            "write_csv_atomic('log.csv', "
+            'add_measurement_noise(identification_log(identification_scenario()), ID_LOG_NOISE))" '
+            "then pmsmjax identify log.csv --pole-pairs 4 --out id_out."
         ),
     )
     p.add_argument("log", help="log file (.csv, .npz or .mat)")
