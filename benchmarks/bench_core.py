@@ -1,514 +1,97 @@
-"""Core speed benchmark of the simulator on the book drive (10 kHz, 10 RK4 sub-steps), float32 by default.
+"""Core speed benchmark: the simulator's own figures (:mod:`pmsmjax.studies.engine_timing`, what
+``pmsmjax bench`` reports: compile time, one run, a vmapped batch, gradients, forward- vs reverse-mode
+crossover, the machine) and, timed in the same rounds as the single run, the hand-written minimal loop
+(:mod:`benchmarks.minimal_loop`) it is measured against: with literal constants and with run-time
+parameters, the library/minimal time ratio of each, and the largest difference between the library's and
+the minimal loop's speed trajectories (r/min).
 
-What it measures, every figure from one process so the ratios are taken in the same run:
-
-1. compile time of ``simulate`` (first call minus a steady call), separately from run time;
-2. control periods per second of one run (best of several repetitions, ``block_until_ready``);
-3. periods per second over a ``vmap``'d batch of scenarios (speed steps 200-1500 r/min, loads 0-10 N m),
-   and its compile time;
-4. the hand-written minimal loop (:mod:`benchmarks.minimal_loop`), with literal constants and with
-   run-time parameters, the library/minimal time ratios for both, and the largest speed difference
-   between the library's and the minimal loop's trajectories (r/min);
-5. the reverse-mode gradient of a batch loss (mean ITAE of the speed error) with respect to the 7
-   controller gains against the forward pass of the same loss, and the gradient's compile time;
-6. forward- vs reverse-mode time of the ITAE gradient with respect to n parameters, for one scenario
-   (n up to all 21 array leaves of the drive) and for the batch loss of 5 (n up to the 7 gains), and
-   the crossover n of each (what :data:`pmsmjax.analysis.gradients.FORWARD_MODE_MAX_PARAMS` is chosen from).
-   The two differ: in a batch each extra tangent costs about one more forward pass, while for one
-   scenario extra tangents cost far less (scalar arithmetic leaves vector units idle, most likely);
-7. the machine: CPU, core count, JAX version, backend.
-
-``main(json_path)`` prints a table and writes the figures as JSON (atomically). ``quick=True`` shrinks
-every size so the whole benchmark runs in seconds (for smoke tests); its timings mean nothing.
+``python -m benchmarks.bench_core [--quick] [--json FILE]`` prints a table and writes the figures as JSON
+(atomically). ``--quick`` shrinks every size so the whole benchmark runs in seconds (for smoke tests); its
+timings mean nothing. The other benchmarks report through :func:`publish` and take the timing helpers
+(:func:`time_interleaved`, :func:`compile_time`, :func:`machine_info`) from here.
 """
 
 import argparse
-import dataclasses
 import json
-import math
-import os
-import platform
-import sys
-import time
-from collections.abc import Callable
 
-import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from benchmarks.minimal_loop import BOOK, make_minimal_loop
-from pmsmjax.analysis.gradients import value_and_grad
-from pmsmjax.analysis.metrics import itae
-from pmsmjax.drive import Drive
 from pmsmjax.io.logs import atomic_write
-from pmsmjax.presets.three_phase import book_drive, book_scenario
-from pmsmjax.scenarios import Scenario, stack_scenarios
 from pmsmjax.simulate import period_inputs, simulate
+from pmsmjax.studies import engine_timing
+from pmsmjax.studies.engine_timing import compile_time, machine_info, row, time_interleaved
 from pmsmjax.units import rad_s_to_rpm
 
-__all__ = ["run", "main", "format_table", "REQUIRED_KEYS"]
+__all__ = [
+    "REQUIRED_KEYS",
+    "compile_time",
+    "format_table",
+    "machine_info",
+    "main",
+    "publish",
+    "run",
+    "time_interleaved",
+    "write_json_atomic",
+]
 
-
-@dataclasses.dataclass(frozen=True)
-class Sizes:
-    """How much work each measurement does.
-
-    - `duration_s`: scenario length, s (4000 control periods at 0.4 s).
-    - `batch`: scenarios in the throughput batch.
-    - `grad_batch`: scenarios in the batch-gradient loss.
-    - `reps`: timed rounds of the cheap calls (single runs, minimal loops) after the compiling call.
-    - `slow_reps`: timed rounds of the batch run and the batch gradient.
-    - `n_params`: parameter counts for the single-scenario forward- vs reverse-mode comparison.
-    - `mode_reps`: timed rounds per count of that comparison.
-    - `n_params_batch`: parameter counts (controller gains, so at most 7) for the same comparison on the
-      ``grad_batch`` loss.
-    - `batch_mode_reps`: timed rounds per count of the batch comparison.
-    """
-
-    duration_s: float
-    batch: int
-    grad_batch: int
-    reps: int
-    slow_reps: int
-    n_params: tuple[int, ...]
-    mode_reps: int
-    n_params_batch: tuple[int, ...]
-    batch_mode_reps: int
-
-
-FULL = Sizes(
-    duration_s=0.4,
-    batch=256,
-    grad_batch=64,
-    reps=100,
-    slow_reps=5,
-    n_params=(1, 2, 3, 7, 13, 21),
-    mode_reps=10,
-    n_params_batch=(1, 2, 3, 4, 5, 7),
-    batch_mode_reps=4,
-)
-# Compiling dominates the quick run, so it compares the modes at one parameter count, single scenario.
-QUICK = Sizes(
-    duration_s=0.05,
-    batch=16,
-    grad_batch=4,
-    reps=3,
-    slow_reps=2,
-    n_params=(3,),
-    mode_reps=2,
-    n_params_batch=(),
-    batch_mode_reps=2,
-)
-
-#: Keys every benchmark JSON holds (checked by the smoke test and relied on by ``pmsmjax bench``).
+#: Keys every benchmark JSON holds: the simulator's own, then the comparison with the minimal loop.
 REQUIRED_KEYS = (
-    "periods_per_s_single",
-    "periods_per_s_batch256",
-    "compile_time_s",
-    "batch_compile_time_s",
+    *engine_timing.REQUIRED_KEYS,
     "minimal_loop_literal_ms",
     "minimal_loop_runtime_params_ms",
-    "library_ms",
     "ratio_vs_minimal_literal",
     "ratio_vs_minimal_runtime_params",
-    "grad_batch64_s",
-    "forward_batch64_s",
-    "grad_over_forward_ratio",
-    "grad_compile_time_s",
-    "forward_vs_reverse",
-    "mode_crossover_n_params",
-    "machine",
+    "max_speed_diff_rpm_literal",
+    "max_speed_diff_rpm_runtime_params",
 )
 
-# Every array leaf of the book drive, in the order subsets are taken for the forward/reverse comparison:
-# the 7 controller gains, the plant's motor parameters, then the rest (limits, the controller's model;
-# FOC does not use the model's J and B, so their gradients are zero, but they are still carried).
-PARAMETERS: dict[str, Callable[[Drive], jax.Array]] = {
-    "speed.kp": lambda d: d.controller.speed.kp,
-    "speed.ki": lambda d: d.controller.speed.ki,
-    "speed.active_damping": lambda d: d.controller.speed.active_damping,
-    "current.kp_d": lambda d: d.controller.current.kp_d,
-    "current.kp_q": lambda d: d.controller.current.kp_q,
-    "current.ki_d": lambda d: d.controller.current.ki_d,
-    "current.ki_q": lambda d: d.controller.current.ki_q,
-    "motor.R": lambda d: d.machine.motor.R,
-    "motor.L_d": lambda d: d.machine.motor.L_d,
-    "motor.L_q": lambda d: d.machine.motor.L_q,
-    "motor.psi_f": lambda d: d.machine.motor.psi_f,
-    "motor.J": lambda d: d.machine.motor.J,
-    "motor.B": lambda d: d.machine.motor.B,
-    "current_limit": lambda d: d.controller.current_limit,
-    "bridge.u_dc": lambda d: d.bridge.u_dc,
-    "model.R": lambda d: d.controller.model.R,
-    "model.L_d": lambda d: d.controller.model.L_d,
-    "model.L_q": lambda d: d.controller.model.L_q,
-    "model.psi_f": lambda d: d.controller.model.psi_f,
-    "model.J": lambda d: d.controller.model.J,
-    "model.B": lambda d: d.controller.model.B,
-}
-CONTROLLER_GAINS = tuple(PARAMETERS)[:7]
 
-
-# ---------------------------------------------------------------------------------------------- timing
-
-
-def _time_once(fn: Callable[[], object]) -> float:
-    """Wall time (s) of ``fn()`` including waiting for its device results."""
-    start = time.perf_counter()
-    jax.block_until_ready(fn())
-    return time.perf_counter() - start
-
-
-def time_interleaved(calls: dict[str, Callable[[], object]], reps: int) -> tuple[dict, dict]:
-    """Time each call once (compile + run), then ``reps`` rounds taking the calls in turn.
-
-    Interleaving puts the calls being compared under the same machine load, so their ratio holds even
-    when another process steals the CPU for a while. **Returns:** ``(first_s, best_s)`` dicts by name.
-    """
-    first = {name: _time_once(fn) for name, fn in calls.items()}
-    best = dict.fromkeys(calls, math.inf)
-    for _ in range(reps):
-        for name, fn in calls.items():
-            best[name] = min(best[name], _time_once(fn))
-    return first, best
-
-
-def compile_time(first_s: float, steady_s: float) -> float:
-    """Compile (and trace) time, s: the first call minus a steady call."""
-    return max(first_s - steady_s, 0.0)
-
-
-# ---------------------------------------------------------------------------------- problem definition
-
-
-def batch_of_scenarios(n: int, duration_s: float, seed: int = 0) -> Scenario:
-    """``n`` book scenarios stacked: speed steps uniform in 200-1500 r/min, loads uniform in 0-10 N m.
-
-    The load steps at half of ``duration_s`` (s).
-    """
-    rng = np.random.default_rng(seed)
-    speeds = rng.uniform(200.0, 1500.0, n)
-    loads = rng.uniform(0.0, 10.0, n)
-    return stack_scenarios(
-        [
-            book_scenario(float(w), float(tl), load_time_s=duration_s / 2, duration_s=duration_s)
-            for w, tl in zip(speeds, loads, strict=True)
-        ]
-    )
-
-
-def get_parameters(drive: Drive, names) -> dict[str, jax.Array]:
-    """The named leaves of ``drive`` (keys of :data:`PARAMETERS`) as a dict of scalar arrays."""
-    return {name: PARAMETERS[name](drive) for name in names}
-
-
-def with_parameters(drive: Drive, params: dict[str, jax.Array]) -> Drive:
-    """``drive`` with the named leaves replaced by the values in ``params``."""
-    getters = [PARAMETERS[name] for name in params]
-    return eqx.tree_at(lambda d: [g(d) for g in getters], drive, list(params.values()))
-
-
-def speed_itae(drive: Drive, scenario: Scenario) -> jax.Array:
-    """ITAE of the speed error over one scenario, rad/s * s^2."""
-    trace = simulate(drive, scenario)
-    return itae(trace.t, trace.speed_ref - trace.omega_m)
-
-
-def batch_speed_itae(drive: Drive, scenarios: Scenario) -> jax.Array:
-    """Mean speed-error ITAE over a stacked batch of scenarios, rad/s * s^2."""
-    return jnp.mean(jax.vmap(lambda s: speed_itae(drive, s))(scenarios))
-
-
-def parameter_itae(params: dict, drive: Drive, scenario: Scenario) -> jax.Array:
-    """Speed ITAE (rad/s * s^2) of ``drive`` with the leaves in ``params`` substituted."""
-    return speed_itae(with_parameters(drive, params), scenario)
-
-
-def parameter_batch_itae(params: dict, drive: Drive, scenarios: Scenario) -> jax.Array:
-    """Mean speed ITAE (rad/s * s^2) over ``scenarios`` of ``drive`` with ``params`` substituted."""
-    return batch_speed_itae(with_parameters(drive, params), scenarios)
-
-
-# ---------------------------------------------------------------------------------------- measurements
-
-
-def measure_single_and_minimal(drive: Drive, scenario: Scenario, reps: int) -> dict:
-    """One ``simulate`` call against the minimal loop (literal constants; run-time parameters).
-
-    The three are timed interleaved. Times in ms, compile time in s, rate in periods/s. Both minimal
-    loops get the scenario sampled on the period grid; their speed trajectories are compared with the
-    library's (largest absolute difference, r/min).
-    """
+def run(quick: bool = False) -> dict:
+    """:func:`pmsmjax.studies.engine_timing.run` with the two minimal loops timed alongside the single run
+    (same drive settings and scenario sampled on the period grid), their ratios and speed differences."""
+    drive, scenario = engine_timing.book_problem(engine_timing.QUICK if quick else engine_timing.FULL)
     xs = period_inputs(scenario, drive.Ts)
     literal = make_minimal_loop(Ts=drive.Ts, n_sub=drive.n_substeps)
     runtime = make_minimal_loop(Ts=drive.Ts, n_sub=drive.n_substeps, runtime_parameters=True)
     params = {k: jnp.asarray(v, xs.speed_ref.dtype) for k, v in BOOK.items()}
-    calls = {
-        "library": lambda: simulate(drive, scenario),
+    loops = {
         "literal": lambda: literal(xs.speed_ref, xs.load_torque),
-        "runtime": lambda: runtime(xs.speed_ref, xs.load_torque, params),
+        "runtime_params": lambda: runtime(xs.speed_ref, xs.load_torque, params),
     }
-    first, best = time_interleaved(calls, reps)
-    omega_library = np.asarray(calls["library"]().omega_m)
-    diff_rpm = lambda name: float(rad_s_to_rpm(np.max(np.abs(omega_library - np.asarray(calls[name]()[0])))))
-    return {
-        "compile_time_s": compile_time(first["library"], best["library"]),
-        "library_ms": 1e3 * best["library"],
-        "periods_per_s_single": scenario.n_periods(drive.Ts) / best["library"],
-        "minimal_loop_literal_ms": 1e3 * best["literal"],
-        "minimal_loop_runtime_params_ms": 1e3 * best["runtime"],
-        "ratio_vs_minimal_literal": best["library"] / best["literal"],
-        "ratio_vs_minimal_runtime_params": best["library"] / best["runtime"],
-        "max_speed_diff_rpm_literal": diff_rpm("literal"),
-        "max_speed_diff_rpm_runtime_params": diff_rpm("runtime"),
-        "peak_speed_rpm": float(rad_s_to_rpm(np.max(np.abs(omega_library)))),
-    }
-
-
-def measure_batch(drive: Drive, scenarios: Scenario, reps: int) -> dict:
-    """Compile time (s) and periods/s (total over the batch) of ``vmap(simulate)`` with a fixed drive.
-
-    The whole Trace of every scenario is returned, as a user of ``vmap(simulate)`` gets it.
-    """
-    batched = eqx.filter_jit(eqx.filter_vmap(simulate, in_axes=(None, 0)))
-    first, best = time_interleaved({"batch": lambda: batched(drive, scenarios)}, reps)
-    size = scenarios.speed_ref.values.shape[0]
-    return {
-        "batch_size": size,
-        "batch_compile_time_s": compile_time(first["batch"], best["batch"]),
-        "batch_run_s": best["batch"],
-        "periods_per_s_batch256": size * scenarios.n_periods(drive.Ts) / best["batch"],
-    }
-
-
-def measure_batch_gradient(drive: Drive, scenarios: Scenario, reps: int) -> dict:
-    """Reverse-mode gradient of the batch ITAE w.r.t. the 7 controller gains vs the loss alone, s."""
-    forward = jax.jit(parameter_batch_itae)
-    gradient = jax.jit(lambda p, d, s: value_and_grad(parameter_batch_itae, p, d, s, mode="reverse"))
-    gains = get_parameters(drive, CONTROLLER_GAINS)
-    calls = {
-        "forward": lambda: forward(gains, drive, scenarios),
-        "grad": lambda: gradient(gains, drive, scenarios),
-    }
-    first, best = time_interleaved(calls, reps)
-    _, grads = gradient(gains, drive, scenarios)
-    return {
-        "grad_batch_size": scenarios.speed_ref.values.shape[0],
-        "forward_batch64_s": best["forward"],
-        "forward_batch64_compile_time_s": compile_time(first["forward"], best["forward"]),
-        "grad_batch64_s": best["grad"],
-        "grad_compile_time_s": compile_time(first["grad"], best["grad"]),
-        "grad_over_forward_ratio": best["grad"] / best["forward"],
-        "grad_all_finite": bool(all(np.isfinite(np.asarray(g)) for g in grads.values())),
-    }
-
-
-def measure_modes(loss: Callable, drive: Drive, scenario: Scenario, n_params: int, reps: int) -> dict:
-    """Forward- and reverse-mode gradient of ``loss`` w.r.t. the first ``n_params`` leaves of PARAMETERS.
-
-    ``loss(params, drive, scenario)`` is :func:`parameter_itae` or :func:`parameter_batch_itae`. Times
-    (s) via :func:`pmsmjax.analysis.gradients.value_and_grad`; ``grad_rel_diff`` is the largest difference
-    between the two gradients relative to the largest reverse-mode component.
-    """
-    params = get_parameters(drive, tuple(PARAMETERS)[:n_params])
-    fns = {
-        mode: jax.jit(lambda p, d, s, mode=mode: value_and_grad(loss, p, d, s, mode=mode))
-        for mode in ("forward", "reverse")
-    }
-    calls = {mode: (lambda fn=fn: fn(params, drive, scenario)) for mode, fn in fns.items()}
-    first, best = time_interleaved(calls, reps)
-    g_fwd, g_rev = (np.array(list(calls[mode]()[1].values())) for mode in ("forward", "reverse"))
-    return {
-        "n_params": n_params,
-        "forward_s": best["forward"],
-        "reverse_s": best["reverse"],
-        "forward_compile_s": compile_time(first["forward"], best["forward"]),
-        "reverse_compile_s": compile_time(first["reverse"], best["reverse"]),
-        "grad_rel_diff": float(np.max(np.abs(g_fwd - g_rev)) / np.max(np.abs(g_rev))),
-    }
-
-
-def mode_crossover(rows: list[dict]) -> int:
-    """Largest measured parameter count up to which forward mode beat reverse mode at every count.
-
-    0 when reverse mode wins already at the smallest count. When forward mode wins at every measured
-    count the true crossover lies above the largest one (see ``crossover_bracketed`` in :func:`run`).
-    """
-    crossover = 0
-    for row in sorted(rows, key=lambda r: r["n_params"]):
-        if row["forward_s"] >= row["reverse_s"]:
-            break
-        crossover = row["n_params"]
-    return crossover
-
-
-def machine_info() -> dict:
-    """Where the figures were taken: CPU, core count, Python/JAX versions, backend and device."""
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as f:
-            names = [line.split(":", 1)[1].strip() for line in f if line.startswith("model name")]
-        cpu = names[0] if names else cpu
-    except OSError:
-        pass
-    return {
-        "cpu": cpu,
-        "cpu_count": os.cpu_count(),
-        "platform": platform.platform(),
-        "python": sys.version.split()[0],
-        "jax": jax.__version__,
-        "backend": jax.default_backend(),
-        "device": str(jax.devices()[0].device_kind),
-    }
-
-
-# ------------------------------------------------------------------------------------------ the report
-
-
-def run(quick: bool = False) -> dict:
-    """Run every measurement and return the figures (see the module docstring).
-
-    Runs in the process's default precision: float32 unless x64 is enabled (as the test suite does);
-    ``dtype`` records which. The precision is not switched here because modules build constant tables
-    at import in the precision of that moment.
-
-    Times in s unless the key ends in ``_ms``; rates in control periods per second. The batch keys keep
-    their full-size names (``..._batch256``, ``..._batch64_s``) in quick mode; ``batch_size`` and
-    ``grad_batch_size`` give the sizes used.
-    """
-    sizes = QUICK if quick else FULL
-    drive = book_drive()
-    scenario = book_scenario(load_time_s=sizes.duration_s / 2, duration_s=sizes.duration_s)
-    single = measure_single_and_minimal(drive, scenario, sizes.reps)
-    batch = measure_batch(drive, batch_of_scenarios(sizes.batch, sizes.duration_s), sizes.slow_reps)
-    grad_scenarios = batch_of_scenarios(sizes.grad_batch, sizes.duration_s, seed=1)
-    grad = measure_batch_gradient(drive, grad_scenarios, sizes.slow_reps)
-    modes = [measure_modes(parameter_itae, drive, scenario, n, sizes.mode_reps) for n in sizes.n_params]
-    batch_modes = [
-        measure_modes(parameter_batch_itae, drive, grad_scenarios, n, sizes.batch_mode_reps)
-        for n in sizes.n_params_batch
-    ]
-    # The sub-step loop dominates the reverse pass (its transposed scan costs ~7x its forward per
-    # iteration on XLA:CPU), so the ratio is also measured at the sub-step counts RK4 needs for accuracy
-    # at 10 kHz (1 sub-step: 4e-7 of peak current against scipy, tests/test_machines.py).
-    by_substeps = []
-    for n_sub in (1, 2):
-        g = measure_batch_gradient(book_drive(n_substeps=n_sub), grad_scenarios, sizes.slow_reps)
-        by_substeps.append(
-            {
-                "n_substeps": n_sub,
-                "forward_s": g["forward_batch64_s"],
-                "grad_s": g["grad_batch64_s"],
-                "ratio": g["grad_over_forward_ratio"],
-            }
-        )
-    crossover = mode_crossover(modes)
-    return {
-        "quick": quick,
-        "dtype": str(drive.machine.motor.R.dtype),
-        "drive": {"Ts_s": drive.Ts, "n_substeps": drive.n_substeps, "duration_s": sizes.duration_s},
-        "n_periods": scenario.n_periods(drive.Ts),
-        **single,
-        **batch,
-        **grad,
-        "grad_over_forward_by_substeps": by_substeps,
-        "forward_vs_reverse": modes,
-        "mode_crossover_n_params": crossover,
-        "crossover_bracketed": crossover < max(sizes.n_params),
-        "forward_vs_reverse_batch64": batch_modes,
-        "mode_crossover_n_params_batch64": mode_crossover(batch_modes) if batch_modes else None,
-        "machine": machine_info(),
-    }
-
-
-def _row(label: str, value: str, note: str = "") -> str:
-    return f"{label:<46}{value:>14}  {note}".rstrip()
+    results = engine_timing.run(quick, references=loops)
+    minimal_ms = results.pop("references_ms")
+    omega = np.asarray(simulate(drive, scenario).omega_m)
+    for name, loop in loops.items():
+        results[f"minimal_loop_{name}_ms"] = minimal_ms[name]
+        results[f"ratio_vs_minimal_{name}"] = results["library_ms"] / minimal_ms[name]
+        speed_diff = np.max(np.abs(omega - np.asarray(loop()[0])))
+        results[f"max_speed_diff_rpm_{name}"] = float(rad_s_to_rpm(speed_diff))
+    return results
 
 
 def format_table(r: dict) -> str:
-    """A readable plain-text table of the figures returned by :func:`run`."""
-    m = r["machine"]
-    quick = "  [QUICK: sizes shrunk, timings not meaningful]" if r["quick"] else ""
-    n_batch_loss = r["grad_batch_size"] * r["n_periods"] / r["forward_batch64_s"]
+    """The simulator's table (:func:`pmsmjax.studies.engine_timing.format_table`) and the minimal loops."""
     lines = [
-        f"pmsmjax core benchmark ({r['dtype']}, book drive: {r['n_periods']} periods of "
-        f"{1e6 * r['drive']['Ts_s']:.0f} us, {r['drive']['n_substeps']} RK4 sub-steps each){quick}",
-        f"machine: {m['cpu']}, {m['cpu_count']} cores, jax {m['jax']}, {m['backend']} ({m['device']})",
+        engine_timing.format_table(r),
         "",
-        _row(
-            "single run (simulate)",
-            f"{r['library_ms']:.2f} ms",
-            f"{r['periods_per_s_single']:,.0f} periods/s",
-        ),
-        _row("  compile time", f"{r['compile_time_s']:.2f} s"),
-        _row(
-            "minimal loop, literal constants",
-            f"{r['minimal_loop_literal_ms']:.2f} ms",
-            f"library / minimal = {r['ratio_vs_minimal_literal']:.2f}",
-        ),
-        _row(
-            "minimal loop, run-time parameters",
-            f"{r['minimal_loop_runtime_params_ms']:.2f} ms",
-            f"library / minimal = {r['ratio_vs_minimal_runtime_params']:.2f}",
-        ),
-        _row("  max |speed library - minimal|, literal", f"{r['max_speed_diff_rpm_literal']:.2e} r/min"),
-        _row(
-            "  max |speed library - minimal|, run-time", f"{r['max_speed_diff_rpm_runtime_params']:.2e} r/min"
-        ),
-        _row(
-            f"vmap batch of {r['batch_size']}, full traces",
-            f"{r['batch_run_s']:.3f} s",
-            f"{r['periods_per_s_batch256']:,.0f} periods/s",
-        ),
-        _row("  compile time", f"{r['batch_compile_time_s']:.2f} s"),
-        _row(
-            f"batch-{r['grad_batch_size']} mean ITAE, forward pass",
-            f"{r['forward_batch64_s']:.3f} s",
-            f"{n_batch_loss:,.0f} periods/s",
-        ),
-        _row(
-            "  reverse gradient w.r.t. 7 gains",
-            f"{r['grad_batch64_s']:.3f} s",
-            f"gradient / forward = {r['grad_over_forward_ratio']:.2f}",
-        ),
-        _row("  gradient compile time", f"{r['grad_compile_time_s']:.2f} s"),
+        "hand-written minimal loop, timed in the same rounds as the single run:",
     ]
-    for row in r["grad_over_forward_by_substeps"]:
-        lines.append(
-            _row(
-                f"  same with {row['n_substeps']} sub-step(s) per period",
-                f"{row['grad_s']:.3f} s",
-                f"gradient / forward = {row['ratio']:.2f}",
-            )
-        )
-    lines += _mode_table("single-scenario ITAE gradient", r["forward_vs_reverse"])
-    if r["forward_vs_reverse_batch64"]:
-        title = f"batch-{r['grad_batch_size']} mean ITAE gradient w.r.t. controller gains"
-        lines += _mode_table(title, r["forward_vs_reverse_batch64"])
+    loops = (
+        ("literal", "literal constants", "literal"),
+        ("runtime_params", "run-time parameters", "run-time"),
+    )
+    for name, label, short in loops:
+        lines += [
+            row(
+                f"minimal loop, {label}",
+                f"{r[f'minimal_loop_{name}_ms']:.2f} ms",
+                f"library / minimal = {r[f'ratio_vs_minimal_{name}']:.2f}",
+            ),
+            row(f"  max |speed library - minimal|, {short}", f"{r[f'max_speed_diff_rpm_{name}']:.2e} r/min"),
+        ]
     return "\n".join(lines)
-
-
-def _mode_table(title: str, rows: list[dict]) -> list[str]:
-    """Lines of a forward- vs reverse-mode table (times in s) ending with the crossover it shows."""
-    lines = [
-        "",
-        f"{title}: best times and compile times, s",
-        "".join(f"{h:>10}" for h in ("n params", "forward", "reverse", "fwd/rev", "|dg|/|g|"))
-        + f"{'comp fwd':>10}{'comp rev':>10}",
-    ]
-    for row in rows:
-        lines.append(
-            f"{row['n_params']:>10}{row['forward_s']:>10.4f}{row['reverse_s']:>10.4f}"
-            f"{row['forward_s'] / row['reverse_s']:>10.2f}{row['grad_rel_diff']:>10.1e}"
-            f"{row['forward_compile_s']:>10.2f}{row['reverse_compile_s']:>10.2f}"
-        )
-    n = mode_crossover(rows)
-    if n < max(row["n_params"] for row in rows):
-        lines.append(f"  forward mode is faster up to n = {n} parameters")
-    else:
-        lines.append(f"  forward mode is faster at every measured n (<= {n}): the crossover lies above")
-    return lines
 
 
 def write_json_atomic(path: str, data: dict) -> None:

@@ -1,8 +1,8 @@
 """Identification benchmark: accuracy, 95 % interval coverage and speed against SciPy.
 
-The log: the book drive (design-rule gains) on :data:`tuning.identify.synthetic_log.ID_TEST_MOTOR`
+The log: the book drive (design-rule gains) on :data:`pmsmjax.studies.synthetic_logs.ID_TEST_MOTOR`
 running :func:`tuning.identify.excitation.identification_scenario` (2 s at 10 kHz), plus 1 % current and
-0.5 % voltage noise (:func:`tuning.identify.synthetic_log.add_noise`), one noise seed per fit. Every
+0.5 % voltage noise (:data:`pmsmjax.studies.synthetic_logs.ID_LOG_NOISE`), one noise seed per fit. Every
 figure from one process:
 
 1. ``identify`` on seed 0: wall time of the first call (compile included) and of a second call on
@@ -28,11 +28,16 @@ import numpy as np
 import scipy.optimize
 
 from benchmarks.bench_core import machine_info, publish
+from pmsmjax.studies.synthetic_logs import (
+    ID_LOG_NOISE,
+    ID_TEST_MOTOR,
+    add_measurement_noise,
+    identification_log,
+)
 from tuning.identify import NAMES, IdentifyOptions, identify
 from tuning.identify.excitation import identification_scenario
 from tuning.identify.fit import _solve_and_linearise
 from tuning.identify.log import drive_log_from_columns
-from tuning.identify.synthetic_log import ID_TEST_MOTOR, add_noise, simulate_log
 
 __all__ = ["run", "main", "format_table", "numpy_residuals"]
 
@@ -93,7 +98,9 @@ def numpy_residuals(theta: np.ndarray, pmap, ed: dict, md: dict) -> np.ndarray:
 
 
 def _log(clean, seed):
-    return drive_log_from_columns({k: v for k, v in add_noise(clean, seed=seed).items() if k in _COLUMNS}, 4)
+    return drive_log_from_columns(
+        {k: v for k, v in add_measurement_noise(clean, ID_LOG_NOISE, seed=seed).items() if k in _COLUMNS}, 4
+    )
 
 
 def run(n_seeds: int = 50, first_seed: int = 0) -> dict:
@@ -101,7 +108,7 @@ def run(n_seeds: int = 50, first_seed: int = 0) -> dict:
     (the timing and SciPy figures always use seeds 0 and 1)."""
     with jax.enable_x64(True):
         t0 = time.perf_counter()
-        clean = simulate_log(identification_scenario())
+        clean = identification_log(identification_scenario())
         sim_s = time.perf_counter() - t0
     opts = IdentifyOptions(pole_pairs=4)
     first = identify(_log(clean, 0), opts)

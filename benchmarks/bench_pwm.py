@@ -27,6 +27,7 @@ from benchmarks.bench_core import compile_time, machine_info, publish, time_inte
 from benchmarks.pwm_reference import CarrierReferenceBridge, dense_phase_currents
 from pmsmjax import Profile, Scenario, simulate
 from pmsmjax.inverters import SwitchingBridge
+from pmsmjax.presets.book_constants import BOOK_DC_LINK
 from pmsmjax.presets.three_phase import book_drive
 from pmsmjax.studies.pwm_comparison import CompareSettings, steady_state
 
@@ -62,11 +63,11 @@ def _run(sizes: Sizes) -> dict:
     )
     bridges = {
         "averaged": base.bridge,
-        "segments": SwitchingBridge(311.0),
-        "segments_deadtime": SwitchingBridge(311.0, dead_time=2e-6),
+        "segments": SwitchingBridge(BOOK_DC_LINK),
+        "segments_deadtime": SwitchingBridge(BOOK_DC_LINK, dead_time=2e-6),
     }
     for n in sizes.fine:
-        bridges[f"carrier{n}"] = CarrierReferenceBridge(311.0, n_fine=n)
+        bridges[f"carrier{n}"] = CarrierReferenceBridge(BOOK_DC_LINK, n_fine=n)
     drives = {name: eqx.tree_at(lambda d: d.bridge, base, b) for name, b in bridges.items()}
     calls = {name: (lambda d=d: simulate(d, scenario, initial_state=start)) for name, d in drives.items()}
     first, best = time_interleaved(calls, sizes.reps)

@@ -9,25 +9,30 @@ written as one flat function with no library abstractions. It records speed and 
 import jax
 import jax.numpy as jnp
 
+from pmsmjax.presets import book_constants as book
+
 SQRT3 = 3.0**0.5
 
 
-BOOK = dict(R=0.958, L=5.25e-3, psi=0.1827, J=0.003, B=0.008)
+#: The motor parameters the ``runtime_parameters`` variant takes at run time (the book motor).
+BOOK = dict(
+    R=book.BOOK_R_OHM, L=book.BOOK_L_H, psi=book.BOOK_PSI_F_WB, J=book.BOOK_J_KG_M2, B=book.BOOK_B_NM_S
+)
 
 
 def make_minimal_loop(
-    R=0.958,
-    L=5.25e-3,
-    psi=0.1827,
-    p=4,
-    J=0.003,
-    B=0.008,
-    u_dc=311.0,
-    Ts=1e-4,
+    R=book.BOOK_R_OHM,
+    L=book.BOOK_L_H,
+    psi=book.BOOK_PSI_F_WB,
+    p=book.BOOK_POLE_PAIRS,
+    J=book.BOOK_J_KG_M2,
+    B=book.BOOK_B_NM_S,
+    u_dc=book.BOOK_DC_LINK,
+    Ts=book.BOOK_TS,
     n_sub=10,
-    a_c=1100.0,
-    beta=50.0,
-    i_max=15.0,
+    a_c=book.BOOK_CURRENT_BANDWIDTH,
+    beta=book.BOOK_SPEED_BANDWIDTH,
+    i_max=book.BOOK_CURRENT_LIMIT,
     runtime_parameters=False,
 ):
     """Return ``run(speed_ref (N,), load (N,)) -> (omega (N,), i_dq (N, 2))``, jit-compiled.

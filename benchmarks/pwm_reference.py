@@ -25,6 +25,7 @@ from pmsmjax.inverters.base import AbstractBridge
 from pmsmjax.machines.base import MachineInput, MachineState
 from pmsmjax.machines.integrate import rk4_step
 from pmsmjax.machines.motor import as_float
+from pmsmjax.presets.book_constants import BOOK_DC_LINK
 
 __all__ = ["CarrierReferenceBridge", "dense_phase_currents"]
 
@@ -37,7 +38,7 @@ class CarrierReferenceBridge(AbstractBridge):
     device_drop: Array
     n_fine: int = eqx.field(static=True)
 
-    def __init__(self, u_dc=311.0, dead_time=0.0, device_drop=0.0, n_fine: int = 2000):
+    def __init__(self, u_dc=BOOK_DC_LINK, dead_time=0.0, device_drop=0.0, n_fine: int = 2000):
         self.u_dc = as_float(u_dc)
         self.dead_time = as_float(dead_time)
         self.device_drop = as_float(device_drop)

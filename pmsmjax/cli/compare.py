@@ -7,6 +7,15 @@ import time
 from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.cli import checks
 from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
+from pmsmjax.presets.book_constants import (
+    BOOK_CURRENT_LIMIT,
+    BOOK_DC_LINK,
+    BOOK_DURATION_S,
+    BOOK_LOAD_NM,
+    BOOK_LOAD_TIME_S,
+    BOOK_SPEED_STEP_RPM,
+    BOOK_TS,
+)
 
 
 def add_parser(sub):
@@ -73,17 +82,28 @@ def add_parser(sub):
         "chapter 6 estimators)",
     )
     p.add_argument(
-        "--speed-rpm", type=checks.positive("r/min"), default=None, help="speed step, r/min (default 1000)"
+        "--speed-rpm",
+        type=checks.positive("r/min"),
+        default=None,
+        help=f"speed step, r/min (default {plain(BOOK_SPEED_STEP_RPM)})",
     )
-    p.add_argument("--load-nm", type=checks.real("N m"), default=10.0, help="load step, N m (default 10)")
+    p.add_argument(
+        "--load-nm",
+        type=checks.real("N m"),
+        default=BOOK_LOAD_NM,
+        help=f"load step, N m (default {plain(BOOK_LOAD_NM)})",
+    )
     p.add_argument(
         "--load-time-s",
         type=checks.positive("s"),
         default=None,
-        help="time of the load step, s (default 0.2)",
+        help=f"time of the load step, s (default {plain(BOOK_LOAD_TIME_S)})",
     )
     p.add_argument(
-        "--duration-s", type=checks.positive("s"), default=None, help="simulated time, s (default 0.4)"
+        "--duration-s",
+        type=checks.positive("s"),
+        default=None,
+        help=f"simulated time, s (default {plain(BOOK_DURATION_S)})",
     )
     p.add_argument(
         "--bridge",
@@ -112,14 +132,7 @@ def add_parser(sub):
 def precheck(args) -> list[str]:
     """Checks that need no model (before JAX starts); returns the control (or observer) names."""
     from pmsmjax.analysis.operating_point import refuse_unreachable
-    from pmsmjax.cli.demo import (
-        BOOK_CURRENT_LIMIT_A,
-        BOOK_TS_S,
-        BOOK_U_DC_V,
-        CONTROL_NAMES,
-        ESTIMATOR_NAMES,
-        MULTIPHASE_NAMES,
-    )
+    from pmsmjax.cli.demo import CONTROL_NAMES, ESTIMATOR_NAMES, MULTIPHASE_NAMES
     from pmsmjax.io.motor_files import motor_values
 
     multiphase = args.machine != "three-phase"
@@ -149,9 +162,9 @@ def precheck(args) -> list[str]:
         args.motor = "book_salient" if chapter6 else "book"
     fixed = args.scenario not in (None, "book")
     for flag, key, default in (
-        ("--speed-rpm", "speed_rpm", 1000.0),
-        ("--load-time-s", "load_time_s", 0.2),
-        ("--duration-s", "duration_s", 0.4),
+        ("--speed-rpm", "speed_rpm", BOOK_SPEED_STEP_RPM),
+        ("--load-time-s", "load_time_s", BOOK_LOAD_TIME_S),
+        ("--duration-s", "duration_s", BOOK_DURATION_S),
     ):
         if getattr(args, key) is None:
             setattr(args, key, default)
@@ -191,22 +204,22 @@ def precheck(args) -> list[str]:
         if args.machine == "six-phase":
             from pmsmjax.presets.six_phase import load_six_phase_motor as load
 
-            u_limit = BOOK_U_DC_V / math.sqrt(3.0)  # four-vector SVPWM
+            u_limit = BOOK_DC_LINK / math.sqrt(3.0)  # four-vector SVPWM
         else:
             from pmsmjax.presets.five_phase import load_five_phase_motor as load
 
-            u_limit = BOOK_U_DC_V / (2.0 * math.cos(math.pi / 10))  # near-four-vector SVPWM
+            u_limit = BOOK_DC_LINK / (2.0 * math.cos(math.pi / 10))  # near-four-vector SVPWM
         refuse_unreachable(
             motor_dict(load(args.motor)),
             args.speed_rpm,
             args.load_nm,
-            BOOK_U_DC_V,
+            BOOK_DC_LINK,
             u_limit,
-            BOOK_CURRENT_LIMIT_A,
+            BOOK_CURRENT_LIMIT,
             what="the comparison of ripple and THD",
         )
         return names
-    motor = motor_values(args.motor, check_units=not args.trust_units, Ts=BOOK_TS_S)
+    motor = motor_values(args.motor, check_units=not args.trust_units, Ts=BOOK_TS)
     if chapter6 and motor is not None and not motor["L_q"] > motor["L_d"]:
         raise ParameterError(
             f"--motor {args.motor}: L_q = {plain(motor['L_q'])} H is not above L_d = "
@@ -218,9 +231,9 @@ def precheck(args) -> list[str]:
             motor,
             args.speed_rpm,
             args.load_nm,
-            BOOK_U_DC_V,
-            BOOK_U_DC_V / 3**0.5,
-            BOOK_CURRENT_LIMIT_A,
+            BOOK_DC_LINK,
+            BOOK_DC_LINK / 3**0.5,
+            BOOK_CURRENT_LIMIT,
             what="the comparison of ripple and THD",
         )
     return names

@@ -16,6 +16,15 @@ import time
 from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.cli import checks
 from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
+from pmsmjax.presets.book_constants import (
+    BOOK_CURRENT_LIMIT,
+    BOOK_DC_LINK,
+    BOOK_DURATION_S,
+    BOOK_LOAD_NM,
+    BOOK_LOAD_TIME_S,
+    BOOK_SPEED_STEP_RPM,
+    BOOK_TS,
+)
 
 CONTROL_NAMES = ("pi", "smc", "pr", "hysteresis", "dtc", "smc-dtc")
 #: ``--machine six-phase``: the schemes of pmsmjax.presets.six_phase.SIX_PHASE_CONTROLS (listed here so
@@ -87,10 +96,6 @@ OPERATING_FLAGS = {
     "field_weakening": "--field-weakening",
     "current_limit": "--current-limit",
 }
-
-#: The book drive's DC link (V), current limit (A) and control period (s), for the checks made before JAX
-#: starts (tests/test_careless.py checks them against pmsmjax.presets).
-BOOK_U_DC_V, BOOK_CURRENT_LIMIT_A, BOOK_TS_S = 311.0, 15.0, 1e-4
 
 #: A reference beyond this many times the top speed the drive could reach at no load is refused: the run
 #: would only show saturation (up to it, the run is made and its saturation reported).
@@ -248,17 +253,28 @@ def add_parser(sub):
         "motor TOML file (default book)",
     )
     p.add_argument(
-        "--speed-rpm", type=checks.real("r/min"), default=1000.0, help="speed step, r/min (default 1000)"
+        "--speed-rpm",
+        type=checks.real("r/min"),
+        default=BOOK_SPEED_STEP_RPM,
+        help=f"speed step, r/min (default {plain(BOOK_SPEED_STEP_RPM)})",
     )
-    p.add_argument("--load-nm", type=checks.real("N m"), default=10.0, help="load step, N m (default 10)")
+    p.add_argument(
+        "--load-nm",
+        type=checks.real("N m"),
+        default=BOOK_LOAD_NM,
+        help=f"load step, N m (default {plain(BOOK_LOAD_NM)})",
+    )
     p.add_argument(
         "--load-time-s",
         type=checks.nonnegative("s"),
-        default=0.2,
-        help="time of the load step, s (default 0.2)",
+        default=BOOK_LOAD_TIME_S,
+        help=f"time of the load step, s (default {plain(BOOK_LOAD_TIME_S)})",
     )
     p.add_argument(
-        "--duration-s", type=checks.positive("s"), default=0.4, help="simulated time, s (default 0.4)"
+        "--duration-s",
+        type=checks.positive("s"),
+        default=BOOK_DURATION_S,
+        help=f"simulated time, s (default {plain(BOOK_DURATION_S)})",
     )
     p.add_argument(
         "--frame",
@@ -335,10 +351,10 @@ def precheck(args) -> dict | None:
     read_gains_flag(args.gains)
     if args.machine in MULTIPHASE_NAMES:  # its motor file is read and checked when the drive is built
         return None
-    motor = motor_values(args.motor, check_units=not args.trust_units, Ts=BOOK_TS_S)
+    motor = motor_values(args.motor, check_units=not args.trust_units, Ts=BOOK_TS)
     if motor is None:
         return None
-    u_dc, limit = BOOK_U_DC_V, args.current_limit or BOOK_CURRENT_LIMIT_A
+    u_dc, limit = BOOK_DC_LINK, args.current_limit or BOOK_CURRENT_LIMIT
     top = abs(top_speed_rpm(motor, u_dc / math.sqrt(3.0), 0.0))
     if args.field_weakening:  # no-load top speed with i_d = -limit, resistance neglected
         excess = motor["psi_f"] - motor["L_d"] * limit

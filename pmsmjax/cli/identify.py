@@ -15,9 +15,11 @@ def add_parser(sub):
             "stderr, ci95, identifiable per parameter; residuals; wall time) and DIR/fit.png. A parameter "
             "the log does not determine (L_d when i_d is held at zero, say) is reported NOT IDENTIFIABLE, "
             'without an interval. To try it, make a log with: python -c "from tuning.identify import '
-            "identification_scenario, simulate_log, add_noise; from pmsmjax.io.logs import write_csv_atomic; "
-            "write_csv_atomic('log.csv', add_noise(simulate_log(identification_scenario())))\" then "
-            "pmsmjax identify log.csv --pole-pairs 4 --out id_out."
+            "identification_scenario; from pmsmjax.studies.synthetic_logs import ID_LOG_NOISE, "
+            "add_measurement_noise, identification_log; from pmsmjax.io.logs import write_csv_atomic; "
+            "write_csv_atomic('log.csv', "
+            'add_measurement_noise(identification_log(identification_scenario()), ID_LOG_NOISE))" '
+            "then pmsmjax identify log.csv --pole-pairs 4 --out id_out."
         ),
     )
     p.add_argument("log", help="log file (.csv, .npz or .mat)")

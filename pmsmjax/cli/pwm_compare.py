@@ -7,6 +7,14 @@ import time
 from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.cli import checks
 from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
+from pmsmjax.presets.book_constants import (
+    BOOK_CURRENT_LIMIT,
+    BOOK_DC_LINK,
+    BOOK_LOAD_NM,
+    BOOK_POLE_PAIRS,
+    BOOK_SPEED_STEP_RPM,
+    BOOK_TS,
+)
 
 MODULATOR_NAMES = ("sinusoidal", "third_harmonic", "min_max", "svpwm")
 #: ``--phases 6``: the dual three-phase modulators (pmsmjax.presets.six_phase.SIX_PHASE_PWMS).
@@ -50,10 +58,16 @@ def add_parser(sub):
     p.add_argument(
         "--speed-rpm",
         type=checks.positive("r/min"),
-        default=1000.0,
-        help="speed, r/min; f_sw / f_1 must be whole: 1000 r/min (default) gives 150",
+        default=BOOK_SPEED_STEP_RPM,
+        help=f"speed, r/min; f_sw / f_1 must be whole: {plain(BOOK_SPEED_STEP_RPM)} r/min (default) gives "
+        f"{plain(60.0 / (BOOK_SPEED_STEP_RPM * BOOK_POLE_PAIRS * BOOK_TS))}",
     )
-    p.add_argument("--load-nm", type=checks.real("N m"), default=10.0, help="load torque, N m (default 10)")
+    p.add_argument(
+        "--load-nm",
+        type=checks.real("N m"),
+        default=BOOK_LOAD_NM,
+        help=f"load torque, N m (default {plain(BOOK_LOAD_NM)})",
+    )
     p.add_argument(
         "--dead-time-us",
         type=checks.nonnegative("us", maximum=50.0),
@@ -88,7 +102,6 @@ def add_parser(sub):
 def precheck(args) -> None:
     """Checks that need no model (before JAX starts)."""
     from pmsmjax.analysis.operating_point import refuse_unreachable
-    from pmsmjax.cli.demo import BOOK_CURRENT_LIMIT_A, BOOK_TS_S, BOOK_U_DC_V
     from pmsmjax.io.motor_files import PRESET_VALUES
 
     checks.output_folder(args.out)
@@ -106,12 +119,12 @@ def precheck(args) -> None:
         raise ParameterError("--dead-time-variants with --dead-time-us 0 compares nothing: give a dead time.")
     motor = PRESET_VALUES["book"]  # the six- and five-phase rewinds have the same pole pairs
     f1 = args.speed_rpm / 60.0 * motor["pole_pairs"]
-    per_cycle = 1.0 / (f1 * BOOK_TS_S)
+    per_cycle = 1.0 / (f1 * BOOK_TS)
     if abs(per_cycle - round(per_cycle)) > 1e-9 * per_cycle:
         good = [n for n in (250, 300, 375, 500, 600, 750, 1000, 1250, 1500) if n <= 2 * args.speed_rpm]
         raise ParameterError(
             f"--speed-rpm {plain(args.speed_rpm)}: a fundamental period ({1e3 / f1:.4g} ms) is not a whole "
-            f"number of {plain(BOOK_TS_S * 1e6)} us PWM periods, so the spectra would leak: pick a speed "
+            f"number of {plain(BOOK_TS * 1e6)} us PWM periods, so the spectra would leak: pick a speed "
             f"with f_sw / f_1 whole, e.g. {', '.join(str(n) for n in good[-4:])} r/min."
         )
     if args.phases in (5, 6):
@@ -123,9 +136,9 @@ def precheck(args) -> None:
         motor,
         args.speed_rpm,
         args.load_nm,
-        BOOK_U_DC_V,
-        BOOK_U_DC_V / 3**0.5,
-        BOOK_CURRENT_LIMIT_A,
+        BOOK_DC_LINK,
+        BOOK_DC_LINK / 3**0.5,
+        BOOK_CURRENT_LIMIT,
         what="the PWM comparison",
     )
 

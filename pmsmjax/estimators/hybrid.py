@@ -53,7 +53,11 @@ import jax.numpy as jnp
 from pmsmjax._types import Array
 from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.catalogue import INJECTION_OBSERVERS, OBSERVERS, build
+from pmsmjax.estimators.ekf import EKF
 from pmsmjax.estimators.pll import PLLState
+from pmsmjax.estimators.polarity import PolarityDetector, polarity_detector
+from pmsmjax.estimators.smo import SlidingModeObserver
 from pmsmjax.estimators.stability import concrete_values
 from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
@@ -69,9 +73,6 @@ def pull_observer(observer: AbstractEstimator, state, estimate, theta_e, omega_m
     The states are shifted by the *estimate's* distance to the target, not set from the target: an
     observer's output may be its state plus a compensation (the smo-pll adds its filter chain's lag to
     the PLL angle), and setting the state to the target would leave the output off by that compensation."""
-    from pmsmjax.estimators.ekf import EKF
-    from pmsmjax.estimators.smo import SlidingModeObserver
-
     d_theta = strength * wrap_angle(theta_e - estimate.theta_e)
     d_omega = strength * (omega_m - estimate.omega_m)
     if isinstance(observer, SlidingModeObserver) and observer.angle == "pll":
@@ -99,8 +100,6 @@ def pull_injection(injection: AbstractEstimator, state, estimate, theta_e, omega
     lag, and inside the crossover band, where the blend feeds back into both estimators, the two pulls
     settled on an estimate off by up to twice it; that lost the hand-down under load
     (README.md)."""
-    from pmsmjax.estimators.polarity import PolarityDetector
-
     if isinstance(injection, PolarityDetector):
         inner = pull_injection(injection.observer, state.observer, estimate, theta_e, omega_m, strength)
         return eqx.tree_at(lambda s: s.observer, state, inner)
@@ -225,8 +224,9 @@ def hybrid_design(
     observer_options: dict | None = None,
     polarity_options: dict | None = None,
 ) -> HybridEstimator:
-    """The hybrid for ``motor`` at period ``Ts`` (s): injection ``injection`` (registry name), inside a
-    :class:`.polarity.PolarityDetector` if ``polarity``, and the observer ``observer`` (registry name),
+    """The hybrid for ``motor`` at period ``Ts`` (s): injection ``injection`` (a name of
+    :data:`.catalogue.INJECTION_OBSERVERS`), inside a :class:`.polarity.PolarityDetector` if ``polarity``,
+    and the observer ``observer`` (a name of :data:`.catalogue.OBSERVERS`),
     crossover band in r/min, scheduling-speed filter in rad/s (200 rad/s: well below the injection's
     error filter, above the speed loop's 50 rad/s). ``delay_periods``: the drive's command delay for the
     injection's carrier phase (1.5 periods with a computational delay, 0.5 without).
@@ -236,13 +236,10 @@ def hybrid_design(
     by 20 degrees and more at the current limit's acceleration above that; README.md).
     Since the pulls move the estimates (README.md) the smo-pll with a 150/250/350 r/min
     band holds the book scenario (8 of 8 starts, 32 degrees peak) but still not the reversal."""
-    from pmsmjax.estimators.polarity import polarity_detector
-    from pmsmjax.estimators.registry import make_observer
-
     low, high, off = (rpm_to_rad_s(x) for x in (low_rpm, high_rpm, off_rpm))
     inj_opts = {"delay_periods": delay_periods, **(injection_options or {})}
-    inj = make_observer(injection, motor, Ts, **inj_opts)
+    inj = build(INJECTION_OBSERVERS, injection, motor, Ts, "injection estimator", **inj_opts)
     if polarity:
         inj = polarity_detector(inj, motor.R, **(polarity_options or {}))
-    obs = make_observer(observer, motor, Ts, **(observer_options or {}))
+    obs = build(OBSERVERS, observer, motor, Ts, **(observer_options or {}))
     return HybridEstimator(inj, obs, low, high, off, speed_filter)

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from pmsmjax.checks.plausibility import check_motor_units
 from pmsmjax.checks.validation import ParameterError
+from pmsmjax.presets.book_constants import BOOK_MOTOR, BOOK_SALIENT_MOTOR
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -25,12 +26,9 @@ __all__ = ["MOTOR_FIELDS", "PRESET_VALUES", "motor_values", "read_motor_file"]
 
 MOTOR_FIELDS = ("R", "L_d", "L_q", "psi_f", "pole_pairs", "J", "B")
 
-#: The book's motors (BOOK.md chapters 1-6): surface, and the salient variant (L_q = 12 mH) for HF
-#: injection. :func:`pmsmjax.presets.book_motor` builds them from these values.
-PRESET_VALUES = {
-    "book": dict(R=0.958, L_d=5.25e-3, L_q=5.25e-3, psi_f=0.1827, pole_pairs=4, J=0.003, B=0.008),
-    "book_salient": dict(R=0.958, L_d=5.25e-3, L_q=12e-3, psi_f=0.1827, pole_pairs=4, J=0.003, B=0.008),
-}
+#: The motors by preset name: the book's surface motor and its salient variant (L_q = 12 mH) for HF
+#: injection (:mod:`pmsmjax.presets.book_constants`); read-only.
+PRESET_VALUES = {"book": BOOK_MOTOR, "book_salient": BOOK_SALIENT_MOTOR}
 
 
 def motor_values(name_or_path, *, check_units: bool = True, Ts: float | None = None) -> dict | None:

@@ -53,20 +53,19 @@ from pmsmjax.inverters.multiphase_carrier import ZeroSequencePWM
 from pmsmjax.inverters.multiphase_svpwm import LargeVectorSVPWM, NearFourVectorSVPWM
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
 from pmsmjax.machines.pmsm_multiphase import MultiPhasePMSMdq, MultiPhasePMSMNatural, MultiPhasePMSMVSD
-from pmsmjax.presets.six_phase import (
-    THREE_PHASE_LEAKAGE_FRACTION,
-    assemble_multiphase_drive,
-    read_multiphase_motor_file,
-)
-from pmsmjax.presets.three_phase import (
+from pmsmjax.presets.book_constants import (
     BOOK_CURRENT_BANDWIDTH,
     BOOK_CURRENT_LIMIT,
     BOOK_DC_LINK,
     BOOK_SPEED_BANDWIDTH,
     BOOK_TS,
-    PR_W_C,
-    book_motor,
 )
+from pmsmjax.presets.six_phase import (
+    THREE_PHASE_LEAKAGE_FRACTION,
+    assemble_multiphase_drive,
+    read_multiphase_motor_file,
+)
+from pmsmjax.presets.three_phase import PR_W_C, book_motor
 
 __all__ = [
     "FIVE_PHASE_CONTROLS",

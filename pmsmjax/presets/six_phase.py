@@ -52,15 +52,14 @@ from pmsmjax.inverters.six_phase_svpwm import FourVectorSVPWM, TwoVectorSVPWM
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
 from pmsmjax.machines.pmsm6 import PMSM6DoubleDQ
 from pmsmjax.machines.pmsm_multiphase import MultiPhasePMSMdq, MultiPhasePMSMNatural, MultiPhasePMSMVSD
-from pmsmjax.presets.three_phase import (
+from pmsmjax.presets.book_constants import (
     BOOK_CURRENT_BANDWIDTH,
     BOOK_CURRENT_LIMIT,
     BOOK_DC_LINK,
     BOOK_SPEED_BANDWIDTH,
     BOOK_TS,
-    PR_W_C,
-    book_motor,
 )
+from pmsmjax.presets.three_phase import PR_W_C, book_motor
 
 if sys.version_info >= (3, 11):
     import tomllib

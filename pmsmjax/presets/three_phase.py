@@ -1,8 +1,7 @@
 """The book's reference motor, drive and scenario, and motor files.
 
-Reference motor (BOOK.md, chapters 1-6): p_n = 4, R = 0.958 ohm, L_d = L_q = 5.25 mH, psi_f = 0.1827 Wb,
-J = 0.003 kg m^2, B = 0.008 N m s; the salient variant for HF injection has L_q = 12 mH. DC link 311 V,
-10 kHz PWM and control. Book scenario: 1000 r/min step at t = 0, 10 N m load step at 0.2 s, 0.4 s.
+Their numbers (BOOK.md, chapters 1-6: the surface motor and its salient variant for HF injection, 311 V,
+10 kHz, the 1000 r/min step with a 10 N m load at 0.2 s) are :mod:`pmsmjax.presets.book_constants`.
 Drives: :func:`book_drive` (FOC, SVPWM) and :func:`hysteresis_drive` (hysteresis current control).
 """
 
@@ -24,21 +23,25 @@ from pmsmjax.drive import Drive
 from pmsmjax.estimators.flux_observer import StatorFluxObserver
 from pmsmjax.inverters.averaged import AveragedBridge
 from pmsmjax.inverters.svpwm import SVPWM
-from pmsmjax.io.motor_files import MOTOR_FIELDS, PRESET_VALUES, read_motor_file  # noqa: F401 (MOTOR_FIELDS: public here)
+from pmsmjax.io.motor_files import MOTOR_FIELDS, read_motor_file  # noqa: F401 (MOTOR_FIELDS: public here)
 from pmsmjax.machines.motor import PMSMParameters
 from pmsmjax.machines.pmsm3 import PMSMabc, PMSMAlphaBeta, PMSMdq
+from pmsmjax.presets.book_constants import (
+    BOOK_CURRENT_BANDWIDTH,
+    BOOK_CURRENT_LIMIT,
+    BOOK_DC_LINK,
+    BOOK_DURATION_S,
+    BOOK_LOAD_NM,
+    BOOK_LOAD_TIME_S,
+    BOOK_MOTOR,
+    BOOK_SALIENT_MOTOR,
+    BOOK_SPEED_BANDWIDTH,
+    BOOK_SPEED_STEP_RPM,
+    BOOK_TS,
+)
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.units import rpm_to_rad_s
 
-#: Book current-loop bandwidth (rad/s) used by reproductions, speed-loop bandwidth (rad/s).
-BOOK_CURRENT_BANDWIDTH = 1100.0
-BOOK_SPEED_BANDWIDTH = 50.0
-#: Peak phase-current limit of the book drive, A. The design-rule speed loop asks for
-#: Kp_w * 104.7 rad/s = 14.3 A at the 1000 r/min step; 15 A leaves that linear and 1.6x the 9.1 A the
-#: 10 N m load needs.
-BOOK_CURRENT_LIMIT = 15.0
-BOOK_DC_LINK = 311.0
-BOOK_TS = 1e-4
 #: Resonator damping of the PR drive, rad/s: Kr = a_c R / w_c = 527 V/A, a peak gain Kp + Kr = 533 V/A,
 #: which keeps the 1000 r/min, 10 N m fundamental error near 0.5 % (pmsmjax.controllers.pr.pr_design).
 PR_W_C = 2.0
@@ -46,8 +49,8 @@ PR_W_C = 2.0
 
 def book_motor(salient: bool = False) -> PMSMParameters:
     """The book's three-phase PMSM (surface; ``salient=True``: L_q = 12 mH for HF injection); the values
-    are :data:`pmsmjax.io.motor_files.PRESET_VALUES`."""
-    return PMSMParameters(**PRESET_VALUES["book_salient" if salient else "book"])
+    are :data:`pmsmjax.presets.book_constants.BOOK_MOTOR` and ``BOOK_SALIENT_MOTOR``."""
+    return PMSMParameters(**(BOOK_SALIENT_MOTOR if salient else BOOK_MOTOR))
 
 
 MOTORS = {"book": lambda: book_motor(False), "book_salient": lambda: book_motor(True)}
@@ -145,7 +148,7 @@ def smc_drive(
 #: 10 kHz). See :func:`hysteresis_drive` for why.
 HYSTERESIS_BAND_A = 0.5
 HYSTERESIS_SAMPLE_PERIOD_S = 10e-6
-HYSTERESIS_SPEED_PERIOD_S = 1e-4
+HYSTERESIS_SPEED_PERIOD_S = BOOK_TS
 
 
 def hysteresis_drive(
@@ -341,10 +344,10 @@ STARTUP_DEFAULTS = dict(i_start=8.0, accel=1000.0, handover_speed=15.7, blend_sp
 
 
 def book_scenario(
-    speed_rpm: float = 1000.0,
-    load_nm: float = 10.0,
-    load_time_s: float = 0.2,
-    duration_s: float = 0.4,
+    speed_rpm: float = BOOK_SPEED_STEP_RPM,
+    load_nm: float = BOOK_LOAD_NM,
+    load_time_s: float = BOOK_LOAD_TIME_S,
+    duration_s: float = BOOK_DURATION_S,
 ) -> Scenario:
     """Speed step to ``speed_rpm`` at t = 0, load step 0 -> ``load_nm`` at ``load_time_s``."""
     return Scenario(
@@ -379,7 +382,7 @@ def load_motor(name_or_path: str | Path, *, check_units: bool = True) -> PMSMPar
 DTC_SAMPLE_PERIOD_S = 25e-6
 DTC_TORQUE_BAND_NM = 1.0
 DTC_FLUX_BAND_WB = 0.01
-DTC_SPEED_PERIOD_S = 1e-4
+DTC_SPEED_PERIOD_S = BOOK_TS
 FLUX_OBSERVER_CROSSOVER = 50.0
 
 

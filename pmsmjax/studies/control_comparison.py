@@ -27,7 +27,6 @@ near zero next to the hysteresis controller's, which switches in the model itsel
 """
 
 import dataclasses
-import importlib
 import math
 import re
 
@@ -49,6 +48,8 @@ from pmsmjax.frames.three_phase import inverse_park
 from pmsmjax.inverters.switching import SwitchingBridge
 from pmsmjax.machines.motor import PMSMParameters
 from pmsmjax.presets.control_methods import CONTROLS, control_drive
+from pmsmjax.presets.five_phase import FIVE_PHASE_CONTROLS, five_phase_drive
+from pmsmjax.presets.six_phase import SIX_PHASE_CONTROLS, six_phase_drive
 from pmsmjax.simulate import check_simulation, simulate
 from pmsmjax.studies.equal_switching import BAND_LEAVES, match_switching_frequency
 from pmsmjax.units import rad_s_to_rpm
@@ -107,11 +108,11 @@ class ControllerCompareSettings:
             )
 
 
-#: Machines ``compare --control`` takes besides the three-phase one: name -> (preset module, drive
-#: function, its control registry), all in the multi-phase presets (book chapters 7-10).
+#: Machines ``compare --control`` takes besides the three-phase one: name -> (drive function, its control
+#: registry), both from the multi-phase presets (book chapters 7-10).
 MULTIPHASE_PRESETS = {
-    "six-phase": ("presets.six_phase", "six_phase_drive", "SIX_PHASE_CONTROLS"),
-    "five-phase": ("presets.five_phase", "five_phase_drive", "FIVE_PHASE_CONTROLS"),
+    "six-phase": (six_phase_drive, SIX_PHASE_CONTROLS),
+    "five-phase": (five_phase_drive, FIVE_PHASE_CONTROLS),
 }
 
 
@@ -119,8 +120,7 @@ def machine_controls(machine: str) -> tuple[str, ...]:
     """The control names ``compare`` takes on ``machine`` (``three-phase``, ``six-phase``, ``five-phase``)."""
     if machine == "three-phase":
         return tuple(CONTROLS)
-    module, _, registry = MULTIPHASE_PRESETS[machine]
-    return tuple(getattr(importlib.import_module(f"pmsmjax.{module}"), registry))
+    return tuple(MULTIPHASE_PRESETS[machine][1])
 
 
 def compared_drive(name: str, motor=None, bridge: str = "averaged", machine: str = "three-phase") -> Drive:
@@ -129,8 +129,7 @@ def compared_drive(name: str, motor=None, bridge: str = "averaged", machine: str
     three-phase machine, the six- or five-phase presets' schemes (``vsd``, ...) for ``machine``; ``motor``
     is then a :class:`pmsmjax.machines.MultiPhaseParameters` (None: the preset's rewind of the book motor)."""
     if machine != "three-phase":
-        module, function, _ = MULTIPHASE_PRESETS[machine]
-        preset = getattr(importlib.import_module(f"pmsmjax.{module}"), function)
+        preset = MULTIPHASE_PRESETS[machine][0]
         return preset(motor, control=name, bridge=bridge)
     drive = control_drive(name, motor)
     if bridge == "switching" and drive.controller.command_kind == "voltage":

@@ -1,26 +1,52 @@
-"""Smoke test of the core benchmark (benchmarks/bench_core.py) at its quick sizes.
+"""Smoke test of the core benchmark, run as the script it is (``python -m benchmarks.bench_core --quick
+--json FILE`` from the repository root), and of the library timing behind it and ``pmsmjax bench``
+(pmsmjax/studies/engine_timing.py).
 
 It checks that every figure is present, positive and finite, that the library and the hand-written
-minimal loop it is timed against simulate the same trajectory, and that the report is written
-atomically. Timings are never asserted (timed tests are forbidden; quick-size timings mean nothing).
+minimal loop it is timed against simulate the same trajectory, that forward- and reverse-mode gradients
+agree, and that the report is written whole. Timings are never asserted (timed tests are forbidden;
+quick-size timings mean nothing).
 """
 
 import json
 import math
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
-from benchmarks import bench_core
-from benchmarks.bench_core import REQUIRED_KEYS, mode_crossover, run
+from pmsmjax.studies.engine_timing import REQUIRED_KEYS, mode_crossover
 
+ROOT = Path(__file__).resolve().parents[2]
+#: The comparison with the minimal loop that the benchmark adds to the library's figures.
+MINIMAL_KEYS = (
+    "minimal_loop_literal_ms",
+    "minimal_loop_runtime_params_ms",
+    "ratio_vs_minimal_literal",
+    "ratio_vs_minimal_runtime_params",
+    "max_speed_diff_rpm_literal",
+    "max_speed_diff_rpm_runtime_params",
+)
 # Largest speed difference (r/min) allowed between the library and the minimal loop: both run the same
 # float32 arithmetic in a different order, so they agree to rounding (about 1e-4 r/min is observed).
 SPEED_AGREEMENT_RPM = 1e-2
 
 
 @pytest.fixture(scope="module")
-def results() -> dict:
-    return run(quick=True)
+def bench(tmp_path_factory):
+    """The script's stdout, the folder it wrote into, and the figures it wrote."""
+    out = tmp_path_factory.mktemp("bench")
+    path = out / "bench.json"
+    command = [sys.executable, "-m", "benchmarks.bench_core", "--quick", "--json", str(path)]
+    r = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, check=False)
+    assert r.returncode == 0, r.stderr[-3000:]
+    return r.stdout, out, json.loads(path.read_text())
+
+
+@pytest.fixture(scope="module")
+def results(bench) -> dict:
+    return bench[2]
 
 
 def _is_positive_finite(x) -> bool:
@@ -28,13 +54,15 @@ def _is_positive_finite(x) -> bool:
 
 
 def test_every_required_key_is_reported(results):
-    missing = [key for key in REQUIRED_KEYS if key not in results]
+    missing = [key for key in (*REQUIRED_KEYS, *MINIMAL_KEYS) if key not in results]
     assert not missing
 
 
 def test_figures_are_positive_and_finite(results):
     scalars = [
-        k for k in REQUIRED_KEYS if k not in ("forward_vs_reverse", "machine", "mode_crossover_n_params")
+        k
+        for k in (*REQUIRED_KEYS, *MINIMAL_KEYS)
+        if k not in ("forward_vs_reverse", "machine", "mode_crossover_n_params")
     ]
     bad = {k: results[k] for k in scalars if not _is_positive_finite(results[k])}
     assert not bad
@@ -81,8 +109,8 @@ def test_machine_is_described(results):
     assert machine["cpu_count"] >= 1
     for key in ("cpu", "jax", "backend", "device"):
         assert isinstance(machine[key], str) and machine[key], key
-    # The suite runs in float64 (conftest); the benchmark reports the precision it ran in.
-    assert results["dtype"] == "float64"
+    # Run as a script the benchmark keeps JAX's default precision, and says so.
+    assert results["dtype"] == "float32"
 
 
 def test_mode_crossover_is_last_count_where_forward_mode_wins():
@@ -93,19 +121,24 @@ def test_mode_crossover_is_last_count_where_forward_mode_wins():
     assert mode_crossover([row(1, 1.0, 3.0), row(13, 2.0, 3.0)]) == 13  # not bracketed
 
 
-def test_main_writes_the_results_as_json(results, tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(bench_core, "run", lambda quick=False: results)
-    path = tmp_path / "bench.json"
-    bench_core.main(str(path), quick=True)
-    assert json.loads(path.read_text()) == results
-    assert "library / minimal" in capsys.readouterr().out
-    assert [p.name for p in tmp_path.iterdir()] == ["bench.json"]
+def test_the_table_is_printed_and_only_the_json_is_written(bench):
+    stdout, out, _ = bench
+    assert "library / minimal" in stdout and "compile time" in stdout
+    assert stdout.rstrip().endswith(f"wrote {out / 'bench.json'}")
+    assert [p.name for p in out.iterdir()] == ["bench.json"]  # no temporary left
 
 
-def test_failed_write_leaves_the_old_file_and_no_temporary(tmp_path):
+def test_pmsmjax_bench_prints_and_writes_the_library_figures(results, tmp_path, monkeypatch, capsys):
+    """``pmsmjax bench`` reports what :func:`pmsmjax.studies.engine_timing.run` measures (here the
+    script's own figures without the minimal loop, so the command's compiles are not paid twice)."""
+    from pmsmjax.cli import main
+    from pmsmjax.studies import engine_timing
+
+    library = {k: v for k, v in results.items() if k not in MINIMAL_KEYS}
+    monkeypatch.setattr(engine_timing, "run", lambda quick=False: library)
     path = tmp_path / "bench.json"
-    path.write_text('{"old": 1}')
-    with pytest.raises(TypeError):
-        bench_core.write_json_atomic(str(path), {"not serialisable": object()})
-    assert path.read_text() == '{"old": 1}'
+    assert main(["bench", "--quick", "--json", str(path)]) == 0
+    assert json.loads(path.read_text()) == library
+    out = capsys.readouterr().out
+    assert "single run (simulate)" in out and "minimal" not in out
     assert [p.name for p in tmp_path.iterdir()] == ["bench.json"]

@@ -14,20 +14,25 @@ from pmsmjax.checks.validation import ParameterError
 from pmsmjax.cli import main
 from pmsmjax.frames.three_phase import dq_to_abc, inverse_park
 from pmsmjax.io.logs import write_csv_atomic
+from pmsmjax.studies.synthetic_logs import (
+    ID_LOG_NOISE,
+    ID_TEST_MOTOR,
+    add_measurement_noise,
+    identification_log,
+)
 from tuning.identify import IdentifyOptions, identify
 from tuning.identify.excitation import identification_scenario, prbs
 from tuning.identify.log import drive_log_from_columns
-from tuning.identify.synthetic_log import ID_TEST_MOTOR, add_noise, simulate_log
 from tuning.identify.uncertainty import interval_dof
 
-#: Accuracy the issue asks for (relative).
+#: Accuracy asked of identification on these logs (relative).
 TOLERANCE = {"R": 0.01, "L_d": 0.02, "L_q": 0.02, "psi_f": 0.005, "J": 0.03, "B": 0.10}
 COLUMNS = ("time", "u_d", "u_q", "i_d", "i_q", "omega_m", "theta_e")
 
 
 @pytest.fixture(scope="module")
 def clean():
-    return simulate_log(identification_scenario())
+    return identification_log(identification_scenario())
 
 
 def _fit(columns, hold="stator", **options):
@@ -40,7 +45,7 @@ def _errors(summary):
 
 
 def test_accuracy_and_intervals_on_a_noisy_closed_loop_log(clean):
-    s = _fit(add_noise(clean, seed=0))
+    s = _fit(add_measurement_noise(clean, ID_LOG_NOISE, seed=0))
     err = _errors(s)
     for name, tol in TOLERANCE.items():
         p = s["parameters"][name]
@@ -60,7 +65,7 @@ def test_intervals_cover_the_truth_over_seeds(clean):
     """A small version of benchmarks/bench_identify.py's 50-seed coverage: 8 seeds, 6 parameters."""
     covered = {n: 0 for n in TOLERANCE}
     for seed in range(1, 9):
-        s = _fit(add_noise(clean, seed=seed))
+        s = _fit(add_measurement_noise(clean, ID_LOG_NOISE, seed=seed))
         for n in TOLERANCE:
             lo, hi = s["parameters"][n]["ci95"]
             covered[n] += lo <= ID_TEST_MOTOR[n] <= hi
@@ -91,7 +96,9 @@ def test_interval_dof_matches_the_spread_of_the_variance_estimate():
 
 
 def test_d_current_zero_reports_L_d_not_identifiable():
-    log = add_noise(simulate_log(identification_scenario(), id_zero=True), seed=0)
+    log = add_measurement_noise(
+        identification_log(identification_scenario(), id_zero=True), ID_LOG_NOISE, seed=0
+    )
     assert np.max(np.abs(log["i_d"])) < 0.5  # i_d = 0 control: nothing but noise and small transients
     s = _fit(log)
     ld = s["parameters"]["L_d"]
@@ -105,8 +112,10 @@ def test_d_current_zero_reports_L_d_not_identifiable():
 
 
 def test_log_of_a_rotor_frame_hold_simulator_fits_as_well_as_our_own(clean):
-    own = _fit(add_noise(clean, seed=0))
-    other = add_noise(simulate_log(identification_scenario(), hold="rotor"), seed=0)
+    own = _fit(add_measurement_noise(clean, ID_LOG_NOISE, seed=0))
+    other = add_measurement_noise(
+        identification_log(identification_scenario(), hold="rotor"), ID_LOG_NOISE, seed=0
+    )
     s = _fit(other, hold="rotor")
     for name, tol in TOLERANCE.items():
         assert abs(_errors(s)[name]) < tol, name
@@ -239,7 +248,7 @@ def test_options_are_checked():
 
 
 def test_cli_with_a_column_map_and_units_writes_params_json(clean, tmp_path):
-    log = add_noise(clean, seed=0)
+    log = add_measurement_noise(clean, ID_LOG_NOISE, seed=0)
     renamed = {"t_ms": log["time"] * 1e3, "Ud": log["u_d"], "Uq": log["u_q"], "Id": log["i_d"],
                "Iq": log["i_q"], "rpm": log["omega_m"] * 30 / np.pi, "theta": log["theta_e"]}  # fmt: skip
     write_csv_atomic(tmp_path / "log.csv", renamed)
@@ -292,7 +301,9 @@ def test_benchmark_smoke_and_the_numpy_residuals_agree_with_jax(clean, tmp_path)
     assert json.loads((tmp_path / "bench.json").read_text())["n_seeds"] == 3
     assert r["scipy"]["max_difference_in_stderr"] < 0.01
     assert set(r["coverage"]) == set(TOLERANCE)
-    log = drive_log_from_columns({k: v for k, v in add_noise(clean, seed=0).items() if k in COLUMNS}, 4)
+    log = drive_log_from_columns(
+        {k: v for k, v in add_measurement_noise(clean, ID_LOG_NOISE, seed=0).items() if k in COLUMNS}, 4
+    )
     fit = identify(log, IdentifyOptions(pole_pairs=4)).fit
     ed = {k: np.asarray(getattr(fit.electrical, k)) for k in ("i", "dt", "u", "w_e", "sigma")}
     md = {k: np.asarray(getattr(fit.mechanical, k)) for k in ("i", "dt", "w", "load", "sigma")}
@@ -314,7 +325,9 @@ def test_dead_time_voltage_is_recovered(clean):
     th = clean["theta_e"]
     sgn = np.sign(np.asarray(dq_to_abc(np.column_stack([clean["i_d"], clean["i_q"]]), th)))
     drop = 2.0 * np.asarray(park(abc_to_alpha_beta(sgn), th))
-    log = add_noise({**clean, "u_d": clean["u_d"] + drop[:, 0], "u_q": clean["u_q"] + drop[:, 1]}, seed=0)
+    log = add_measurement_noise(
+        {**clean, "u_d": clean["u_d"] + drop[:, 0], "u_q": clean["u_q"] + drop[:, 1]}, ID_LOG_NOISE, seed=0
+    )
     s = _fit(log, dead_time=True)
     v = s["extra_parameters"]["V_dt"]
     assert v["identifiable"] and abs(v["value"] - 2.0) < 0.1, v

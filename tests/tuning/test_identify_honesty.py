@@ -1,15 +1,15 @@
-"""Identification must be honest on logs it did not make (issue 18).
+"""Identification must be honest on logs it did not make.
 
 The logs here come from an independent closed-loop simulator written below in NumPy/SciPy from the
 machine equations (Dormand-Prince ``scipy.integrate.ode`` per control period, not pmsmjax's RK4): a PI
 speed loop, dq PI current loops with i_d* = 0, 1 % current noise *inside* the loop (the PIs act on the
 noisy measurement, as a real drive's do) and 0.5 % voltage noise on the logged voltages. With a fast
 current loop (3000 rad/s, no computational delay) the loop's reaction to its own noise moves i_d enough
-for the output-error fit to return a confident L_d 1.4-2x off (measured on the previous main: reported
+for the output-error fit to return a confident L_d 1.4-2x off (before the excitation check it was reported
 identifiable); the excitation check (tuning.identify.uncertainty.excitation) must flag it for every seed.
 
 The voltage hold: a log held in the rotor frame must be recognised without ``--hold`` and identified to
-the accuracy of the identification issue (TOLERANCE); so must an inverter (stator-held) log.
+the accuracy of tests/tuning/test_identify.py (TOLERANCE); so must an inverter (stator-held) log.
 """
 
 import json
@@ -20,11 +20,16 @@ from scipy.integrate import ode
 
 from pmsmjax.cli import main
 from pmsmjax.io.logs import write_csv_atomic
+from pmsmjax.studies.synthetic_logs import (
+    ID_LOG_NOISE,
+    ID_TEST_MOTOR,
+    add_measurement_noise,
+    identification_log,
+)
 from tuning.identify import IdentifyOptions, identify
 from tuning.identify.excitation import identification_scenario
 from tuning.identify.hold import detect_hold
 from tuning.identify.log import drive_log_from_columns
-from tuning.identify.synthetic_log import ID_TEST_MOTOR, add_noise, simulate_log
 from tuning.identify.uncertainty import MIN_EXCITATION, excitation
 
 TOLERANCE = {"R": 0.01, "L_d": 0.02, "L_q": 0.02, "psi_f": 0.005, "J": 0.03, "B": 0.10}
@@ -173,7 +178,9 @@ def test_the_hold_of_a_scipy_log_is_detected(hold):
 
 
 def test_identify_without_hold_picks_the_rotor_hold_and_meets_the_accuracy(tmp_path):
-    rotor = add_noise(simulate_log(identification_scenario(), hold="rotor"), seed=0)
+    rotor = add_measurement_noise(
+        identification_log(identification_scenario(), hold="rotor"), ID_LOG_NOISE, seed=0
+    )
     write_csv_atomic(tmp_path / "rotor.csv", rotor)
     out = tmp_path / "out"
     assert (

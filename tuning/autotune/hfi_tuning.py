@@ -1,4 +1,4 @@
-"""The chapter 6 estimators in ``pmsmjax tune --estimator`` (issue 15, item 6): their drive and their
+"""The chapter 6 estimators in ``pmsmjax tune --estimator``: their drive and their
 low-speed scenario batches. The tuner, objective, outputs and resume are those of the chapter 5 observers
 (:mod:`tuning.autotune.observers`, whose ``TUNABLE_OBSERVERS`` lists what is tuned).
 
@@ -36,8 +36,10 @@ import numpy as np
 
 from pmsmjax import Profile, Scenario, presets, stack_scenarios
 from pmsmjax.checks.validation import ParameterError
+from pmsmjax.machines.saturation import saturated_machine
+from pmsmjax.presets.book_constants import BOOK_TS
 from pmsmjax.units import rpm_to_rad_s
-from tuning.autotune.scenario_batches import ScenarioBatch
+from tuning.autotune.scenario_batches import WARMUP_S, ScenarioBatch
 
 #: Scenario kinds of the injection batches.
 INJECTION_KINDS = ("standstill", "slow")
@@ -51,8 +53,6 @@ def injection_sensorless_drive(name: str, observer_options: dict | None = None, 
     """The book drive on the salient book motor with the chapter 6 estimator ``name`` (design rule, overridden
     by ``observer_options``; the hybrid without its polarity detector), on the saturated plant; ``kw`` go
     to :func:`pmsmjax.presets.book_drive` (``n_substeps``, ...)."""
-    from pmsmjax.machines.saturation import saturated_machine
-
     motor = presets.book_motor(salient=True)
     options = dict(observer_options or {})
     if name == "hybrid":
@@ -70,14 +70,11 @@ def make_injection_batch(
     duration_s: tuple[float, float] = (0.15, 0.25),
     kinds=INJECTION_KINDS,
     plant_spread: dict | None = None,
-    warmup_s: float | None = None,
-    Ts: float = 1e-4,
+    warmup_s: float = WARMUP_S,
+    Ts: float = BOOK_TS,
 ) -> ScenarioBatch:
     """``n`` low-speed scenarios drawn reproducibly from ``seed`` (module docstring), scored modulo pi.
     ``plant_spread`` as in :func:`tuning.autotune.scenario_batches.make_batch`."""
-    from tuning.autotune.observers import WARMUP_S
-
-    warmup_s = WARMUP_S if warmup_s is None else warmup_s
     if n < 1:
         raise ParameterError(f"a scenario batch needs n >= 1 scenarios, got {n}.")
     bad = [k for k in kinds if k not in INJECTION_KINDS]

@@ -57,15 +57,15 @@ from pmsmjax import Profile, Scenario, presets, stack_scenarios
 from pmsmjax.checks.validation import ParameterError
 from pmsmjax.estimators.registry import check_observer_name
 from pmsmjax.estimators.sensored_warmup import SensoredWarmup
+from pmsmjax.presets.book_constants import BOOK_TS
 from pmsmjax.units import rpm_to_rad_s
-from tuning.autotune.scenario_batches import ScenarioBatch
+from tuning.autotune.hfi_tuning import injection_sensorless_drive
+from tuning.autotune.scenario_batches import WARMUP_S, ScenarioBatch
 from tuning.parameters import get_leaf, set_leaves
 
 #: Rated speed of the book drive for the observer batches, r/min (the top of the observer accuracy bands;
 #: the book motor reaches it under the 10 N m load with the 560 V link); 5 % of it is 100 r/min.
 RATED_SPEED_RPM = 2000.0
-#: Time on the sensor before the observer takes over, s (each observer converges within a few ms at speed).
-WARMUP_S = 0.02
 #: Measurement noise on the observer's samples while tuning, per axis: 0.05 A (0.5 % of the book drive's
 #: 10 A, the EKF design rule's current noise) and 0.25 V (0.5 % of the 50 V phase voltage at about
 #: 600 r/min; the 0.5 % logs of benchmarks/observer_accuracy.py have 0.17-0.85 V from 400 to 2000 r/min).
@@ -115,7 +115,7 @@ TUNABLE_OBSERVERS = {
     "dq-smo": ObserverTuning(_paths(*_SMO, "omega_c", "pll.kp", "pll.ki")),
     "mras": ObserverTuning(_paths("kp", "ki")),
     "ekf": ObserverTuning(_paths(*(f"q[{i}]" for i in range(4)), "r[0]", "r[1]")),
-    # chapter 6 (issue 15): filter cut-offs and PLL gains (rad/s, 1/s, 1/s^2); tuning.autotune.hfi_tuning
+    # chapter 6: filter cut-offs and PLL gains (rad/s, 1/s, 1/s^2); tuning.autotune.hfi_tuning
     "hfi-rotating": ObserverTuning(
         _paths("bandpass_bandwidth", "sequence_cutoff", "error_cutoff", "pll.kp", "pll.ki"), chapter6=True
     ),
@@ -161,8 +161,6 @@ def observer_drive(
     ``NOISE_VOLTAGE_V`` on the observer's samples unless ``noise=False``; ``kw`` go to
     :func:`pmsmjax.presets.sensorless_drive`."""
     if observer_tuning(name).chapter6:
-        from tuning.autotune.hfi_tuning import injection_sensorless_drive
-
         drive = injection_sensorless_drive(name, observer_options, n_substeps=n_substeps, **kw)
     else:
         drive = presets.sensorless_drive(name, observer_options=observer_options, n_substeps=n_substeps, **kw)
@@ -186,7 +184,7 @@ def make_observer_batch(
     kinds=OBSERVER_KINDS,
     plant_spread: dict | None = None,
     warmup_s: float = WARMUP_S,
-    Ts: float = 1e-4,
+    Ts: float = BOOK_TS,
 ) -> ScenarioBatch:
     """``n`` observer scenarios drawn reproducibly from ``seed``.
 

@@ -12,9 +12,13 @@ import numpy as np
 
 from pmsmjax import Profile, Scenario, stack_scenarios
 from pmsmjax.checks.validation import ParameterError
+from pmsmjax.presets.book_constants import BOOK_TS
 from pmsmjax.units import rpm_to_rad_s
 
 KINDS = ("step", "reversal", "ramp")
+#: Time the observer batches (:mod:`tuning.autotune.observers`, :mod:`tuning.autotune.hfi_tuning`) run on
+#: the sensor before the observer takes over, s (each observer converges within a few ms at speed).
+WARMUP_S = 0.02
 
 
 class ScenarioBatch(eqx.Module):
@@ -34,7 +38,7 @@ class ScenarioBatch(eqx.Module):
       observer batches start it when the observer takes over from the sensor.
     - `angle_modulo`: static, the period of the angle-error metric, electrical rad: ``2 pi``, or ``pi`` for
       the HF-injection estimators, which find the d axis modulo pi (their batches,
-      :func:`tuning.autotune.observers.make_injection_batch`).
+      :func:`tuning.autotune.hfi_tuning.make_injection_batch`).
     """
 
     scenarios: Scenario
@@ -69,7 +73,7 @@ def make_batch(
     duration_s: tuple[float, float] = (0.3, 0.5),
     kinds: Sequence[str] = ("step",),
     plant_spread: dict | None = None,
-    Ts: float = 1e-4,
+    Ts: float = BOOK_TS,
 ) -> ScenarioBatch:
     """``n`` scenarios drawn reproducibly from ``seed``.
 

@@ -7,14 +7,14 @@
 - :mod:`~tuning.identify.fit`: warm starts and the Levenberg-Marquardt solve.
 - :mod:`~tuning.identify.uncertainty`: standard errors, 95 % intervals, identifiability.
 - :mod:`~tuning.identify.plots`: measured against fitted signals.
-- :mod:`~tuning.identify.excitation`, :mod:`~tuning.identify.synthetic_log`: an experiment that makes
-  every parameter identifiable, and simulated logs of it (for tests, notebooks and benchmarks).
+- :mod:`~tuning.identify.excitation`: an experiment that makes every parameter identifiable; simulated
+  logs of it (for tests, notebooks and benchmarks) are
+  :func:`pmsmjax.studies.synthetic_logs.identification_log`.
 """
 
 from tuning.identify.excitation import identification_scenario, prbs
 from tuning.identify.log import DriveLog, drive_log_from_columns, load_drive_log, read_log_config
 from tuning.identify.pipeline import NAMES, UNITS, IdentifyOptions, IdentifyResult, identify, identify_file
-from tuning.identify.synthetic_log import ID_TEST_MOTOR, add_noise, simulate_log
 
 __all__ = [
     "IdentifyOptions",
@@ -29,7 +29,4 @@ __all__ = [
     "read_log_config",
     "identification_scenario",
     "prbs",
-    "ID_TEST_MOTOR",
-    "simulate_log",
-    "add_noise",
 ]
