@@ -1,5 +1,5 @@
-"""``pmsmjax pwm-compare``: the PWM methods compared at one steady operating point
-(:mod:`pmsmjax.studies.pwm_comparison`)."""
+"""``pmsmjax pwm-compare``: the PWM methods of a three-, six- or five-phase drive compared at one steady
+operating point (:mod:`pmsmjax.studies.pwm_comparison`)."""
 
 import json
 import time
@@ -145,14 +145,11 @@ def precheck(args) -> None:
 
 def run(args) -> int:
     precheck(args)
-    if args.phases in (5, 6):
-        return run_six_phase(args)
 
     import numpy as np
 
     from pmsmjax.io.logs import atomic_write
-    from pmsmjax.presets.three_phase import book_drive
-    from pmsmjax.studies.pwm_comparison import CompareSettings, compare
+    from pmsmjax.studies.pwm_comparison import PHASE_COUNTS, CompareSettings, compare
 
     settings = CompareSettings(
         speed_rpm=args.speed_rpm,
@@ -161,8 +158,14 @@ def run(args) -> int:
         settle_cycles=args.settle_cycles,
         window_cycles=args.window_cycles,
         modulators=tuple(dict.fromkeys(args.modulators)),
+        # Three phases always include the dead-time variants; more phases with --dead-time-variants.
+        bridges=None
+        if args.phases == 3
+        else ("averaged", "switching") + (("deadtime",) if args.dead_time_variants else ()),
+        phases=args.phases,
     )
-    base = apply_gains_flag(book_drive(), read_gains_flag(args.gains), "pi")
+    gains_block = "pi" if args.phases == 3 else "conventional"
+    base = apply_gains_flag(PHASE_COUNTS[args.phases].base_drive(), read_gains_flag(args.gains), gains_block)
     out = checks.output_folder(args.out)
     t0 = time.perf_counter()
     result = compare(settings, base=base, progress=print)
@@ -175,70 +178,10 @@ def run(args) -> int:
     atomic_write(out / "waveforms.npz", lambda f: np.savez(f, **arrays))
     written = ["pwm.json", "waveforms.npz"]
     if not args.no_figures:
-        from pmsmjax.plotting.pwm import spectrum_figure, thd_figure, waveform_figure
+        from pmsmjax.plotting.pwm import comparison_figures
         from pmsmjax.plotting.traces import save_figure
 
-        shown = [m + "_switching" for m in ("sinusoidal", "svpwm") if m in settings.modulators]
-        for name, fig in (
-            ("pwm_waveforms.png", waveform_figure(result, shown)),
-            ("pwm_spectra.png", spectrum_figure(result, shown)),
-            ("pwm_thd.png", thd_figure(result)),
-        ):
-            save_figure(fig, out / name)
-            written.append(name)
-    print(f"wrote {', '.join(f'{out}/{w}' for w in written)} in {report['wall_time_s']:.1f} s")
-    return 0
-
-
-def run_six_phase(args) -> int:
-    """``pwm-compare --phases 6`` (or ``5``):
-    :func:`pmsmjax.studies.pwm_comparison_multiphase.compare_six_phase`."""
-    import numpy as np
-
-    from pmsmjax.io.logs import atomic_write
-    from pmsmjax.presets.six_phase import six_phase_drive
-    from pmsmjax.studies.pwm_comparison_multiphase import SixPhaseCompareSettings, compare_six_phase
-
-    settings = SixPhaseCompareSettings(
-        speed_rpm=args.speed_rpm,
-        load_nm=args.load_nm,
-        dead_time_s=args.dead_time_us * 1e-6,
-        settle_cycles=args.settle_cycles,
-        window_cycles=args.window_cycles,
-        modulators=tuple(dict.fromkeys(args.modulators)),
-        bridges=("averaged", "switching") + (("deadtime",) if args.dead_time_variants else ()),
-        phases=args.phases,
-    )
-    if args.phases == 5:
-        from pmsmjax.presets.five_phase import five_phase_drive
-
-        base = five_phase_drive(control="conventional", pwm="near-four-vector")
-    else:
-        base = six_phase_drive(control="conventional", pwm="four-vector")
-    base = apply_gains_flag(base, read_gains_flag(args.gains), "conventional")
-    out = checks.output_folder(args.out)
-    t0 = time.perf_counter()
-    result = compare_six_phase(settings, base=base, progress=print)
-    out.mkdir(parents=True, exist_ok=True)
-    report = {"settings": result["settings"], "entries": result["entries"]}
-    report["settings"]["gains"] = args.gains
-    report["wall_time_s"] = time.perf_counter() - t0
-    atomic_write(out / "pwm.json", lambda f: f.write(json.dumps(report, indent=2).encode()))
-    arrays = {f"{name}/{key}": v for name, w in result["waves"].items() for key, v in w.items()}
-    atomic_write(out / "waveforms.npz", lambda f: np.savez(f, **arrays))
-    written = ["pwm.json", "waveforms.npz"]
-    if not args.no_figures:
-        from pmsmjax.plotting.six_phase import harmonics_figure, trajectories_figure, vectors_figure
-        from pmsmjax.plotting.traces import save_figure
-
-        shown = [m + "_switching" for m in settings.modulators if m + "_switching" in result["waves"]]
-        figs = [
-            (f"pwm{args.phases}_trajectories.png", trajectories_figure(result, shown)),
-            (f"pwm{args.phases}_harmonics.png", harmonics_figure(result)),
-        ]
-        if args.phases == 6:  # the 64 vectors' figure is six-phase
-            figs.insert(0, ("pwm6_vectors.png", vectors_figure(result["settings"]["u_dc_v"])))
-        for name, fig in figs:
+        for name, fig in comparison_figures(result):
             save_figure(fig, out / name)
             written.append(name)
     print(f"wrote {', '.join(f'{out}/{w}' for w in written)} in {report['wall_time_s']:.1f} s")

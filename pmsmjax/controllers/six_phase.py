@@ -4,7 +4,7 @@ loop.
 :class:`SixPhaseFOC` is the cascade of :class:`~pmsmjax.controllers.foc.FOC` (the same d-axis reference
 and speed loop, :func:`~pmsmjax.controllers.foc.cascade_references`) whose current loop reads all six phase
 currents and commands the four-vector ``[u_alpha, u_beta, u_z1, u_z2]`` (V) that the six-phase modulators
-take (:mod:`pmsmjax.inverters.six_phase_svpwm`). Its current blocks
+take (:mod:`pmsmjax.inverters.multiphase_svpwm`). Its current blocks
 (:class:`AbstractSixPhaseCurrentController`):
 
 - :class:`VSDCurrentControl`: the fundamental (alpha-beta -> dq) loop is any three-phase current block

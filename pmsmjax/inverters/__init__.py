@@ -1,12 +1,12 @@
-"""Modulators and inverter bridge models (three-phase; six-phase modulators and n-leg bridges)."""
+"""Modulators and inverter bridge models: three-phase; n-phase modulators and n-leg bridges for any
+:class:`~pmsmjax.frames.multiphase.PhaseLayout` (the six- and five-phase presets name them)."""
 
 from pmsmjax.inverters.averaged import AveragedBridge, phase_voltages
 from pmsmjax.inverters.base import AbstractBridge, AbstractModulator
+from pmsmjax.inverters.decoupled_svpwm import DecoupledSVPWM
 from pmsmjax.inverters.multiphase_bridges import MultiPhaseAveragedBridge, MultiPhaseSwitchingBridge
 from pmsmjax.inverters.multiphase_carrier import ZeroSequencePWM
 from pmsmjax.inverters.multiphase_svpwm import LargeVectorSVPWM, NearFourVectorSVPWM
-from pmsmjax.inverters.six_phase_carrier import DecoupledSVPWM, DoubleZeroSequencePWM
-from pmsmjax.inverters.six_phase_svpwm import FourVectorSVPWM, TwoVectorSVPWM
 from pmsmjax.inverters.spwm import MinMaxPWM, SinusoidalPWM, ThirdHarmonicPWM, third_harmonic
 from pmsmjax.inverters.svpwm import SVPWM, sector_code, switching_times
 from pmsmjax.inverters.switching import SwitchingBridge
@@ -27,9 +27,6 @@ __all__ = [
     "MultiPhaseAveragedBridge",
     "MultiPhaseSwitchingBridge",
     "DecoupledSVPWM",
-    "DoubleZeroSequencePWM",
-    "FourVectorSVPWM",
-    "TwoVectorSVPWM",
     "LargeVectorSVPWM",
     "NearFourVectorSVPWM",
     "ZeroSequencePWM",

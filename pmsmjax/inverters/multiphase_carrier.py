@@ -1,20 +1,25 @@
-"""Carrier PWM with zero-sequence injection for any multi-phase layout (BOOK.md chapter 10: five phases;
-for the six-phase layout with min-max injection this is
-:class:`~pmsmjax.inverters.six_phase_carrier.DoubleZeroSequencePWM`).
+"""Carrier PWM with zero-sequence injection for any multi-phase layout (BOOK.md chapter 8: six phases, one
+min-max zero sequence per three-phase set, preset name ``double-zs``; chapter 10: five phases).
 
 The VSD reference (``(2,)`` alpha-beta, the other planes 0, or the full ``(2 n_planes,)``) becomes phase
 references by the inverse VSD (:func:`pmsmjax.frames.multiphase.inverse_vsd`, each star's zero sequence
-0); each star then gets one zero sequence, which its isolated neutral removes from the windings, and each
-leg is compared with the centre-aligned carrier: ``d_x = 1/2 + (u_x + u_0,S)/U_dc``, clipped to [0, 1].
+0; six phases: each set's stationary vector is ``u_ab +- conj(u_z)`` in the common frame); each star then
+gets one zero sequence, which its isolated neutral removes from the windings, and each leg is compared
+with the centre-aligned carrier: ``d_x = 1/2 + (u_x + u_0,S)/U_dc``, clipped to [0, 1].
 
 - ``injection="min-max"`` (default): ``u_0,S = -(max_S u + min_S u)/2`` centres each star's references
   in the DC link. For a balanced star of ``m`` phases (``m`` odd) the spread ``max - min`` of a set of
   amplitude ``U`` peaks at ``2 U cos(pi/(2m))``, so the linear range is ``U_dc / (2 cos(pi/(2m)))``:
-  five phases ``0.5257 U_dc`` (5.15 % above sinusoidal PWM), three ``U_dc/sqrt(3)``.
+  five phases ``0.5257 U_dc`` (5.15 % above sinusoidal PWM), three-phase stars ``U_dc/sqrt(3)``. On a
+  three-phase star min-max injection is the three-phase :class:`~pmsmjax.inverters.MinMaxPWM`, which is
+  SVPWM inside the linear range (BOOK.md chapter 2): for six phases these duties equal those of
+  :class:`~pmsmjax.inverters.decoupled_svpwm.DecoupledSVPWM` (one book SVPWM per set), two different
+  constructions checked against each other in the tests.
 - ``injection="none"``: sinusoidal PWM, linear to ``U_dc/2``.
 
-With a nonzero x-y reference the phase references are no longer one balanced set and the limit applies
-to their actual spread (duties clip beyond it).
+With a nonzero second-plane reference the phase references are no longer one balanced set and the limit
+applies to their actual spread (duties clip beyond it; six phases: a commanded ``u_z`` is exact while
+``|u_ab +- conj(u_z)|`` stays inside both hexagons).
 """
 
 import math
@@ -86,4 +91,8 @@ class ZeroSequencePWM(AbstractModulator):
         if self.injection == "none":
             return 0.5 * u_dc
         m = max(len(g) for g in self.layout.neutrals)
+        if m == 3:
+            # The three-phase hexagon's U_dc/sqrt(3), written as MinMaxPWM and SVPWM write it
+            # (2 cos(pi/6) rounds one ulp above sqrt(3)).
+            return u_dc / np.sqrt(3.0)
         return u_dc / (2.0 * math.cos(math.pi / (2 * m)))

@@ -1,34 +1,47 @@
-"""Near-four-vector SVPWM for any multi-phase layout with two VSD planes (BOOK.md chapter 10: five phases;
-the construction of :class:`~pmsmjax.inverters.six_phase_svpwm.FourVectorSVPWM` for six).
+"""Space-vector PWM for any multi-phase layout with two VSD planes: near-four-vector and large-vector SVPWM
+(BOOK.md chapter 8: the six-phase four-vector and two-vector methods; chapter 10: five phases).
 
 In the sector ``k`` of the alpha-beta reference (between the large vectors L_k and L_k+1,
-:mod:`.multiphase_vectors`) it applies L_k, L_k+1 and the two collinear vectors of the next group (five
-phases: the medium vectors M_k, M_k+1) for the dwell fractions that solve
+:mod:`.multiphase_vectors`) :class:`NearFourVectorSVPWM` applies L_k, L_k+1 and the two collinear vectors
+of the next group (six phases: the medium-large vectors ML_k, ML_k+1; five phases: the medium vectors
+M_k, M_k+1) for the dwell fractions that solve
 
-    [L_k  L_k+1  M_k  M_k+1] t = [u_alpha, u_beta, u_x, u_y] / U_dc
+    [L_k  L_k+1  S_k  S_k+1] t = [u_alpha, u_beta, u_x, u_y] / U_dc
 
-(all four planes' components of each state), so the second plane's (x-y's) period average is the commanded
-one, zero for a ``(2,)`` reference (Iqbal & Levi, "Space vector PWM techniques for sinusoidal output
-voltage generation with a five-phase voltage source inverter", Electric Power Components and Systems
-34(2), 2006: the "near-four-vector" method). The rest of the period is shared equally by the zero states,
-leg ``x``'s duty ``d_x = sum_i t_i b_{i,x} + t_0/2``; the bridge realises it by centre-aligned carrier
-comparison, so the period average of the applied voltage is exactly ``sum_i t_i V_i``.
+(all four planes' components of each state), so the second plane's (z1-z2's, x-y's) period average is the
+commanded one, zero for a ``(2,)`` reference. Six phases: the four-vector SVPWM of Zhao & Lipo, IEEE TIA
+31(5), 1995 (preset name ``four-vector``); five phases: the "near-four-vector" method of Iqbal & Levi,
+"Space vector PWM techniques for sinusoidal output voltage generation with a five-phase voltage source
+inverter", Electric Power Components and Systems 34(2), 2006. The rest of the period is shared equally
+by the zero states, leg ``x``'s duty ``d_x = sum_i t_i b_{i,x} + t_0/2``; the bridge realises it by
+centre-aligned carrier comparison, so the period average of the applied voltage is exactly
+``sum_i t_i V_i`` (volt-second balance).
 
-**Linear range** (x-y reference 0): the dwell times sum to one at the sector bisectors at
+**Linear range** (second-plane reference 0): the dwell times sum to one at the sector bisectors, at
 ``|u| = U_dc / (2 cos(pi/10)) = 0.5257 U_dc`` for five phases (:meth:`NearFourVectorSVPWM.linear_limit`
 computes it from the tables: ``1 / sum(t)`` for a unit reference along a bisector). That is the same
-limit as carrier PWM with min-max zero-sequence injection (:mod:`.multiphase_carrier`), and inside it
-the two give the same duties (the zero states split equally is min-max injection): a check of each
-against the other. Six phases: the same tables give ``U_dc/sqrt(3)``.
+limit as carrier PWM with min-max zero-sequence injection (:mod:`.multiphase_carrier`), and on one star
+(five phases) the two give the same duties inside it (the zero states split equally is min-max
+injection): a check of each against the other. Six phases: each three-phase star then carries the
+reference itself, so its hexagon limits it, ``U_dc/sqrt(3)``, as each set's own SVPWM; the carrier's
+two zero sequences (one per star) give other duties than the dwell times' common one, with the same
+period average.
 
-:class:`LargeVectorSVPWM` is the contrast (the six-phase two-vector method's counterpart): only L_k, L_k+1,
-``[L_k L_k+1]_ab t = u_ab / U_dc``, the x-y average left as it falls (five phases: ``0.2472 U_dc`` per unit
-of dwell time, driving third and seventh harmonic currents through the leakage); linear to the inscribed
-circle of the L polygon, ``|L| cos(pi/K)`` (five phases: ``(4/5) cos 36 deg cos 18 deg = 0.6155 U_dc``).
+:class:`LargeVectorSVPWM` is the contrast (six phases: the two-vector method, preset name
+``two-vector``): only L_k, L_k+1, ``[L_k L_k+1]_ab t = u_ab / U_dc``, the second plane's average left as
+it falls (per unit of dwell time: six phases ``0.1725 U_dc``, driving 5th and 7th harmonic currents
+through the small z1-z2 leakage impedance; five phases ``0.2472 U_dc``, third and seventh); linear to the
+inscribed circle of the L polygon, ``|L| cos(pi/K)`` (six phases ``(2/3) cos^2(15 deg) = 0.6220 U_dc``;
+five phases ``(4/5) cos 36 deg cos 18 deg = 0.6155 U_dc``).
 
-Over-modulation: as the six-phase method, dwell times beyond the period are scaled to it (direction kept,
-x-y average still as commanded up to that scale), negative dwell times (an unreachable x-y command) set
-to zero. Reference: ``(2,)`` [alpha, beta] or ``(4,)`` [alpha, beta, x, y], V.
+Sequence. The four vectors of a sector do not form a chain of nested states (no centre-aligned order
+switches them one leg at a time), so the carrier realisation passes through other intermediate states
+inside the period; its period average is the method's exactly. This is the usual DSP implementation
+(leg compare values from the dwell times).
+
+Over-modulation: dwell times beyond the period are scaled to it (direction kept, second-plane average
+still as commanded up to that scale); negative dwell times (an unreachable second-plane command) are set
+to zero. Reference: ``(2,)`` [alpha, beta] or ``(4,)`` [alpha, beta, x, y] (six phases: z1, z2), V.
 """
 
 import functools
@@ -146,8 +159,11 @@ class NearFourVectorSVPWM(AbstractModulator):
         return _duties(t, _select(states, k, t.dtype))
 
     def linear_limit(self, u_dc):
-        """``U_dc / sum(t)`` for a unit reference along a bisector (x-y 0), V peak (five phases:
-        ``U_dc / (2 cos 18 deg)``)."""
+        """``U_dc / sum(t)`` for a unit reference along a bisector (second plane 0), V peak (five phases:
+        ``U_dc / (2 cos 18 deg)``); stars of three phases: ``U_dc/sqrt(3)`` in closed form (module
+        docstring; the tables give it to 2 ulp)."""
+        if all(len(g) == 3 for g in self.layout.neutrals):
+            return u_dc / np.sqrt(3.0)
         inv, _, bisectors = four_vector_tables(self.layout)
         total = np.sum(inv[0] @ np.concatenate([bisectors[0], np.zeros(2)]))
         return u_dc / total
@@ -155,7 +171,7 @@ class NearFourVectorSVPWM(AbstractModulator):
 
 class LargeVectorSVPWM(AbstractModulator):
     """SVPWM with the two adjacent large vectors only (module docstring): the second plane's average is
-    not controlled. `layout` (static), default five phases. Linear to ``|L| cos(pi/K) U_dc``."""
+    not controlled. `layout` (static), default five phases. Linear to ``|L| cos(pi/K) U_dc`` (peak, V)."""
 
     layout: PhaseLayout = eqx.field(static=True, default=FIVE_PHASE)
     name: str = eqx.field(static=True, default="large-vector")

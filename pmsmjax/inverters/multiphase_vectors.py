@@ -1,6 +1,6 @@
 """The ``2^n`` switching states of an n-leg inverter feeding a multi-phase machine with isolated star points,
 projected on the VSD planes, for any :class:`~pmsmjax.frames.multiphase.PhaseLayout` (BOOK.md chapters 8
-and 10).
+and 10; Zhao & Lipo, IEEE TIA 31(5), 1995, for the dual three-phase machine).
 
 State index ``s = sum_x b_x 2^x`` (``b_x`` the upper switch of leg ``x``, leg order of the layout). Each
 state's phase voltages are ``U_dc (b_x - mean of its star)``; their amplitude-invariant VSD gives one
@@ -13,6 +13,21 @@ SVPWM uses (:mod:`.multiphase_svpwm`):
   alpha-beta magnitude. Its vector in the second plane is opposite to the L state's, so a mix of the two
   nulls that plane's average.
 
+Six phases (:data:`~pmsmjax.frames.multiphase.SIX_PHASE`, two stars 30 deg apart), per unit of ``U_dc``:
+
+==========  =====  ========================================  ===========  ==================
+alpha-beta  count  name                                      z1-z2        direction
+==========  =====  ========================================  ===========  ==================
+0           4      zero (each star all-high or all-low)      0
+0.1725      12     small                                     0.6440
+1/3         24     medium                                    1/3
+0.4714      12     medium-large (ML, the second group)       0.4714       collinear with L
+0.6440      12     large (L), at 15 + 30 k deg               0.1725
+==========  =====  ========================================  ===========  ==================
+
+``|L| = (2/3) cos 15 deg``: an L state puts each star on one of its own hexagon's vertices, the two 30 deg
+apart. 12 sectors of 30 deg, sector ``k`` between the L vectors at ``15 + 30 k`` and ``45 + 30 k`` deg.
+
 Five phases (:data:`~pmsmjax.frames.multiphase.FIVE_PHASE`), per unit of ``U_dc``:
 
 ==========  =====  ========================================  ===========  ==================
@@ -20,13 +35,12 @@ alpha-beta  count  name                                      x-y          direct
 ==========  =====  ========================================  ===========  ==================
 0           2      zero (00000, 11111)                       0
 0.2472      10     small                                     0.6472
-0.4000      10     medium (M), collinear with L              0.4000       x-y opposite to L's
+0.4000      10     medium (M, the second group)              0.4000       collinear with L
 0.6472      10     large (L), at 36 k deg                    0.2472
 ==========  =====  ========================================  ===========  ==================
 
 ``|L| = (4/5) cos 36 deg``, ``|M| = 2/5``, ``|small| = (4/5) cos 72 deg``: the golden ratio links them
-(``|L|/|M| = |M|/|small| = 1.618``). Six phases: the same construction returns the L and ML vectors of
-:mod:`.six_phase_vectors` (tests/test_five_phase_pwm.py checks it).
+(``|L|/|M| = |M|/|small| = 1.618``).
 
 All tables are NumPy float64 built once per layout (they must not depend on the JAX precision mode).
 """
@@ -40,7 +54,7 @@ import numpy as np
 from pmsmjax.checks.validation import ParameterError
 from pmsmjax.frames.multiphase import PhaseLayout, vsd_matrix
 
-__all__ = ["SpaceVectors", "space_vectors"]
+__all__ = ["SpaceVectors", "large_magnitude", "space_vectors"]
 
 
 class SpaceVectors(NamedTuple):
@@ -49,7 +63,7 @@ class SpaceVectors(NamedTuple):
     `states` ``(2^n, n)`` leg states; `vectors` ``(2^n, 2 n_planes)`` their VSD voltages per unit of
     ``U_dc``; `large`, `second` ``(K,)`` indices of the L states and of the next group at the same
     directions (``K`` sectors); `bisectors` ``(K, 2)`` unit vectors halfway between L_k and L_k+1;
-    `large_magnitude` ``|L|`` per unit.
+    `large_magnitude` ``|L|`` per unit (:func:`large_magnitude`).
     """
 
     states: np.ndarray
@@ -58,6 +72,22 @@ class SpaceVectors(NamedTuple):
     second: np.ndarray
     bisectors: np.ndarray
     large_magnitude: float
+
+
+def large_magnitude(layout: PhaseLayout, largest_in_table: float) -> float:
+    """``|L|`` per unit of ``U_dc``: in closed form for two three-phase stars, else ``largest_in_table``.
+
+    Two three-phase stars: an L state puts each star on a vertex of its own hexagon (``2/3`` in the star's
+    frame, vertices every 60 deg from its first phase axis), the two vertices ``gap`` apart, the smallest
+    angle between the two stars' vertex directions; the alpha-beta vector is their mean,
+    ``(2/3) cos(gap/2)`` (six phases: ``(2/3) cos 15 deg``, which the table's magnitudes give to 1 ulp).
+    """
+    if len(layout.neutrals) == 2 and all(len(g) == 3 for g in layout.neutrals):
+        first, other = (layout.angles[g[0]] for g in layout.neutrals)
+        offset = np.mod(other - first, np.pi / 3)
+        gap = min(offset, np.pi / 3 - offset)
+        return float((2.0 / 3.0) * np.cos(gap / 2))
+    return float(largest_in_table)
 
 
 @functools.lru_cache(maxsize=8)
@@ -97,7 +127,8 @@ def space_vectors(layout: PhaseLayout) -> SpaceVectors:
     unit = vectors[large, :2] / large_mag
     mid = unit + np.roll(unit, -1, axis=0)
     bisectors = mid / np.linalg.norm(mid, axis=1, keepdims=True)
-    out = SpaceVectors(states, vectors, large, np.array(second), bisectors, float(large_mag))
+    magnitude = large_magnitude(layout, large_mag)
+    out = SpaceVectors(states, vectors, large, np.array(second), bisectors, magnitude)
     for a in out[:5]:
         a.setflags(write=False)
     return out

@@ -1,5 +1,6 @@
 """Figures of the PWM comparison (:mod:`pmsmjax.studies.pwm_comparison`): waveforms, spectra and the THD
-table.
+table of the three-phase comparison; :func:`comparison_figures` picks those of any phase count (the six- and
+five-phase ones are in :mod:`.six_phase`).
 
 The variants differ only in the switching ripple, which is a few per cent of the current: drawn on top of
 each other they are indistinguishable. So every figure gives each variant its own panel or its own
@@ -136,3 +137,32 @@ def thd_figure(result: dict):
     ax.grid(alpha=0.3, axis="y")
     fig.tight_layout()
     return fig
+
+
+def comparison_figures(result: dict) -> list:
+    """``[(file name, figure)]`` of a :func:`pmsmjax.studies.pwm_comparison.compare` result.
+
+    Three phases: ``pwm_waveforms.png`` and ``pwm_spectra.png`` (sinusoidal PWM and SVPWM on the switching
+    bridge, those compared) and ``pwm_thd.png``. ``n`` = 6 or 5 phases: ``pwm<n>_trajectories.png`` (every
+    switching variant on both VSD planes) and ``pwm<n>_harmonics.png``, for six phases also
+    ``pwm6_vectors.png`` (the 64 switching states) first.
+    """
+    from pmsmjax.plotting.six_phase import harmonics_figure, trajectories_figure, vectors_figure
+
+    settings = result["settings"]
+    modulators, phases = settings["modulators"], settings.get("phases", 3)
+    if phases == 3:
+        shown = [m + "_switching" for m in ("sinusoidal", "svpwm") if m in modulators]
+        return [
+            ("pwm_waveforms.png", waveform_figure(result, shown)),
+            ("pwm_spectra.png", spectrum_figure(result, shown)),
+            ("pwm_thd.png", thd_figure(result)),
+        ]
+    shown = [m + "_switching" for m in modulators if m + "_switching" in result["waves"]]
+    figures = [
+        (f"pwm{phases}_trajectories.png", trajectories_figure(result, shown)),
+        (f"pwm{phases}_harmonics.png", harmonics_figure(result)),
+    ]
+    if phases == 6:  # the 64 vectors' figure is six-phase
+        figures.insert(0, ("pwm6_vectors.png", vectors_figure(settings["u_dc_v"])))
+    return figures

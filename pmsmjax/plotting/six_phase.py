@@ -4,16 +4,18 @@ trajectories in alpha-beta and z1-z2, its harmonic table, and a six-phase run's 
 import matplotlib.pyplot as plt
 import numpy as np
 
-from pmsmjax.inverters.six_phase_vectors import LARGE, MEDIUM_LARGE, VECTORS
+from pmsmjax.frames.multiphase import SIX_PHASE, vsd
+from pmsmjax.inverters.multiphase_vectors import space_vectors
 
 
 def vectors_figure(u_dc: float = 1.0):
     """The 64 switching states' voltages on alpha-beta and z1-z2 (per unit of ``u_dc`` if it is 1)."""
-    v = u_dc * VECTORS
+    sv = space_vectors(SIX_PHASE)
+    v = u_dc * sv.vectors
     mag = np.round(np.hypot(v[:, 0], v[:, 1]) / u_dc, 4)
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.8))
-    groups = [("L", LARGE, "C3"), ("ML", MEDIUM_LARGE, "C1")]
-    rest = np.setdiff1d(np.arange(64), np.concatenate([LARGE, MEDIUM_LARGE]))
+    groups = [("L", sv.large, "C3"), ("ML", sv.second, "C1")]
+    rest = np.setdiff1d(np.arange(64), np.concatenate([sv.large, sv.second]))
     for ax, (i, j), title in zip(axes, ((0, 1), (2, 3)), ("alpha-beta", "z1-z2"), strict=True):
         ax.plot(v[rest, i], v[rest, j], "o", color="0.6", ms=4, label="medium, small, zero")
         for name, idx, color in groups:
@@ -93,8 +95,6 @@ def harmonics_figure(result: dict):
 def z_currents_figure(trace, title: str = "", layout=None):
     """A six-phase run: the phase currents of both sets and the z1-z2 currents against time; with
     ``layout=FIVE_PHASE`` a five-phase run's phase currents and x-y currents."""
-    from pmsmjax.frames.multiphase import SIX_PHASE, vsd
-
     layout = SIX_PHASE if layout is None else layout
     six = layout == SIX_PHASE
     t = np.asarray(trace.t)

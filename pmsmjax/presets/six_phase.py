@@ -46,9 +46,10 @@ from pmsmjax.controllers.six_phase import (
 )
 from pmsmjax.drive import Drive
 from pmsmjax.frames.multiphase import SIX_PHASE
+from pmsmjax.inverters.decoupled_svpwm import DecoupledSVPWM
 from pmsmjax.inverters.multiphase_bridges import MultiPhaseAveragedBridge, MultiPhaseSwitchingBridge
-from pmsmjax.inverters.six_phase_carrier import DecoupledSVPWM, DoubleZeroSequencePWM
-from pmsmjax.inverters.six_phase_svpwm import FourVectorSVPWM, TwoVectorSVPWM
+from pmsmjax.inverters.multiphase_carrier import ZeroSequencePWM
+from pmsmjax.inverters.multiphase_svpwm import LargeVectorSVPWM, NearFourVectorSVPWM
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
 from pmsmjax.machines.pmsm6 import PMSM6DoubleDQ
 from pmsmjax.machines.pmsm_multiphase import MultiPhasePMSMdq, MultiPhasePMSMNatural, MultiPhasePMSMVSD
@@ -160,12 +161,28 @@ SIX_PHASE_FRAMES = {
     "natural": MultiPhasePMSMNatural,
 }
 
-#: Modulators (BOOK.md chapter 8).
+
+def _four_vector():
+    return NearFourVectorSVPWM(SIX_PHASE, name="four-vector")
+
+
+def _two_vector():
+    return LargeVectorSVPWM(SIX_PHASE, name="two-vector")
+
+
+def _double_zs():
+    return ZeroSequencePWM(SIX_PHASE, "min-max", name="double-zs")
+
+
+#: Modulators (BOOK.md chapter 8), name -> constructor: four-vector SVPWM (Zhao & Lipo 1995: the L and ML
+#: vectors, z1-z2 average nulled; the n-phase near-four-vector method), two-vector SVPWM (the L vectors
+#: only, z1-z2 uncontrolled), decoupled SVPWM (the book's SVPWM on each set) and carrier PWM with one
+#: min-max zero sequence per set (the same duties as decoupled SVPWM inside the linear range).
 SIX_PHASE_PWMS = {
-    "four-vector": FourVectorSVPWM,
-    "two-vector": TwoVectorSVPWM,
+    "four-vector": _four_vector,
+    "two-vector": _two_vector,
     "decoupled": DecoupledSVPWM,
-    "double-zs": DoubleZeroSequencePWM,
+    "double-zs": _double_zs,
 }
 
 #: Control schemes (BOOK.md chapter 9): name -> one-line description.
