@@ -132,6 +132,7 @@ def test_bad_parameters_are_refused():
         presets.hysteresis_drive(sample_period_s=-1e-5)
 
 
+@pytest.mark.slow
 def test_band_is_a_vmappable_leaf():
     """A batch of two bands under ``jax.vmap`` gives the two single runs (one program, array leaf)."""
     drive, _ = steady_run(2.0)
@@ -186,6 +187,7 @@ def steady_cases():
     return cases
 
 
+@pytest.mark.slow
 def test_comparator_law_holds_at_every_sample():
     """At every sample the applied states are: 1 where ``e > h/2``, 0 where ``e < -h/2``, else the last ones.
 
@@ -356,6 +358,7 @@ def test_matches_scipy_reference(delay):
 # --- (d) the book scenario ----------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_book_scenario_follows_the_ideal_speed_loop():
     """1000 r/min at t = 0, 10 N m at 0.2 s, 0.4 s: the speed follows the design rule's closed loop.
 
@@ -402,6 +405,7 @@ def test_book_scenario_follows_the_ideal_speed_loop():
 # --- (e) gradients of the smooth surrogate ----------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_smooth_surrogate_gradient_matches_finite_differences():
     """d/d(band_a, speed kp) of ``ITAE(speed error) + RMS(phase-current error)`` over a 20 ms speed step
     from rest, sigmoid comparator (width 0.05 A), against central differences ``h = 1e-6 |p|``, float64.
@@ -429,6 +433,7 @@ def test_smooth_surrogate_gradient_matches_finite_differences():
 # --- the benchmark's quick run ------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_benchmark_quick_run_reports_every_figure():
     """benchmarks/bench_hysteresis.py at its quick sizes: every figure present, positive and finite.
 

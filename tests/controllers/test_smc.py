@@ -140,6 +140,7 @@ def test_anti_windup_leaves_the_limit_at_once():
 # --- (a) the book scenario --------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_book_scenario_reaches_speed_and_recovers_from_the_load():
     """1000 r/min step, 10 N m at 0.2 s, 0.4 s, design-rule gains, sign switching (the book's law).
 
@@ -233,6 +234,7 @@ def test_ripple_metric_on_known_signals():
         metrics.current_ripple_rms_a(y, 0)
 
 
+@pytest.mark.slow
 def test_boundary_layer_removes_the_chattering():
     """i_q* ripple about its 10 ms moving mean, loaded steady state of the book scenario (0.3-0.4 s).
 
@@ -297,6 +299,7 @@ def itae(params, scenario=SHORT):
 itae_jit = jax.jit(itae)
 
 
+@pytest.mark.slow
 def test_grad_matches_central_differences():
     """jax.grad of the ITAE (metrics.itae of speed_ref - omega_m) w.r.t. c, eps, q vs central differences.
 

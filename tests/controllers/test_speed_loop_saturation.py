@@ -197,6 +197,7 @@ def test_tracking_gain_guard():
         SpeedLoopGains(0.1, 5.0, 0.1, anti_windup="clamp")
 
 
+@pytest.mark.slow
 def test_gradient_through_the_saturated_step():
     """d ITAE / d (kp, ki, B_a) over the saturated step (0.06 s) vs central differences (float64, step
     1e-5 of each gain, within 1e-4)."""

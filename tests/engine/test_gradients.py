@@ -105,6 +105,7 @@ def demo_id_gradients():
     }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", NAMES)
 def test_grad_matches_finite_differences_on_the_demo(name):
     """jax.grad of the demo ITAE vs central differences, within 1e-4 relative (measured <= 2e-5).
@@ -125,6 +126,7 @@ def test_grad_matches_finite_differences_on_the_demo(name):
         assert_gradient_close([g], [fd], names=[name], x=[p], rtol=GRAD_RTOL, value=f)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", NAMES)
 def test_grad_matches_finite_differences_with_d_axis_reference(name):
     """Demo with i_d* = -3 A, objective ITAE(speed) + ISE(i_d): all within 1e-4."""
@@ -132,6 +134,7 @@ def test_grad_matches_finite_differences_with_d_axis_reference(name):
     assert_gradient_close([r["grad"][name]], [r["fd"][name]], names=[name], x=[P0[name]], rtol=GRAD_RTOL)
 
 
+@pytest.mark.slow
 def test_forward_and_reverse_modes_agree():
     """pmsmjax.analysis.gradients.value_and_grad in both modes equals jax.grad (and so the finite
     differences)."""
@@ -149,6 +152,7 @@ def test_forward_and_reverse_modes_agree():
             assert_gradient_close([g_fwd[k]], [r["fd"][k]], names=[k], x=[P0[k]], rtol=GRAD_RTOL)
 
 
+@pytest.mark.slow
 def test_value_and_grad_on_a_whole_drive():
     """value_and_grad over a Drive pytree: the plant J derivative equals the one from the parameter dict."""
     r = demo_gradients()
@@ -196,6 +200,7 @@ def test_gradients_finite_for_1000_random_draws():
             assert abs(float(g[k]) - float(grads[k][i])) <= 1e-9 * scale, (i, k)
 
 
+@pytest.mark.slow
 def test_batch_loss_gradient_is_mean_of_single_gradients():
     """d/dp mean_i ITAE_i over a vmapped batch of scenarios == mean_i dITAE_i/dp from single runs."""
     rpm = 2 * np.pi / 60

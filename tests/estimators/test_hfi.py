@@ -78,6 +78,7 @@ def closed_loop(method: str) -> dict:
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", METHODS)
 def test_angle_error_standstill_load_and_reversal(method):
     for name, tr in closed_loop(method).items():
@@ -128,6 +129,7 @@ def held(method: str, filter_feedback=True, n=400):
     return run(jnp.asarray(OFFSETS))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", METHODS)
 def test_error_signal_matches_small_angle_model(method):
     """``eps = I_n sin(2 dth)``, ``I_n`` from L_d, L_q, V_h, w_h (the book's continuous HF model)."""
@@ -169,6 +171,7 @@ def test_current_loop_keeps_the_carrier_out():
     assert raw > 0.05 * v_h and raw > 20 * filtered, (raw, filtered)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", METHODS)
 def test_gradients_of_filter_and_pll_gains(method):
     """d(mean squared angle error)/d(gain), closed loop from 20 degrees off, against central differences."""
@@ -201,6 +204,7 @@ def test_gradients_of_filter_and_pll_gains(method):
     assert np.all(np.abs(r.fd) > 0.0), r.names  # the loss does depend on every gain
 
 
+@pytest.mark.slow
 def test_observe_cli_on_a_rotating_injection_log(tmp_path):
     """``pmsmjax observe --observer hfi-rotating`` on the reversal log of the rotating-injection drive:
     the carrier is read from the logged voltages, the angle is scored modulo pi."""
@@ -239,6 +243,7 @@ def test_refusals(method):
         make_observer(method, MOTOR, TS, hf_frequency=-1.0)
 
 
+@pytest.mark.slow
 def test_carrier_delay_bookkeeping_without_computational_delay():
     """Without the computational delay the held carrier's flux lags its command by half a period, not 1.5
     (hfi_signal docstring): ``with_observer`` sets ``delay_periods = 0.5`` and the rotating method is

@@ -88,6 +88,7 @@ def band_rms(name, **options):
 # --- accuracy on noisy logs of the project's own drive ---------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", NAMES)
 def test_angle_error_after_convergence_is_within_the_issue_limits(name):
     """At >= 300 r/min, after convergence, with 0.5 % noise on voltages and currents: < 2 electrical
@@ -285,6 +286,7 @@ def test_registry_names_options_and_design_rules():
 # --- closed loop: the observer in the loop, started at speed ----------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", NAMES)
 def test_sensorless_closed_loop_started_at_speed_rides_through_the_load_step(name):
     """The book drive on the observer's estimate, started at 1000 r/min with the observer cold (a flying
@@ -337,6 +339,7 @@ def _objective_of_flat(name):
     return objective, flat
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", NAMES)
 def test_gradient_of_the_angle_objective_matches_central_differences(name):
     """d(mean(1 - cos(angle error)))/d(every observer parameter: gains and the observer's motor model)
@@ -374,6 +377,7 @@ def test_gradient_of_the_angle_objective_matches_central_differences(name):
     assert np.sum(np.abs(x0 * fd) > floor) >= 3  # the gains matter
 
 
+@pytest.mark.slow
 def test_benchmark_smoke():
     """benchmarks/bench_observers.py at quick sizes (one observer): every figure present and positive."""
     from benchmarks import bench_observers

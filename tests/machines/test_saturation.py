@@ -56,6 +56,7 @@ def _short_scenario():
     )
 
 
+@pytest.mark.slow
 def test_off_is_the_linear_machine():
     drive = book_drive(book_motor(salient=True))
     linear = simulate(drive, _short_scenario())
@@ -112,6 +113,7 @@ def test_torque_from_coenergy(machine, i_dq):
     assert abs(T - T_ref) < 1e-6 * abs(T_ref)
 
 
+@pytest.mark.slow
 def test_flux_map(machine):
     i_d = np.linspace(-20.0, 20.0, 9)
     sat = machine.saturation
@@ -127,6 +129,7 @@ def test_flux_map(machine):
         DAxisSaturation(1.0, I_S)
 
 
+@pytest.mark.slow
 def test_gradient_wrt_depth():
     motor = book_motor(salient=True)
 

@@ -404,6 +404,7 @@ def test_read_log_errors(tmp_path):
     assert read_log(tmp_path / "notime.csv", ("a",), time=None)["a"].tolist() == [2.0, 1.0]
 
 
+@pytest.mark.slow
 def test_replay_scan_gradient_matches_finite_differences():
     """The core scan is differentiable in the motor parameters (what identification from logs needs)."""
     import equinox as eqx

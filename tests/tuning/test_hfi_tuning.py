@@ -35,6 +35,7 @@ H = {"hfi-rotating": 1e-5, "hfi-pulsating": 1e-5, "hybrid": 1e-6}
 SEEDS = {"hfi-rotating": 0, "hfi-pulsating": 0, "hybrid": 1}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(SEEDS))
 def test_gradient_matches_central_differences(name):
     batch = make_injection_batch(
@@ -60,6 +61,7 @@ def test_gradient_matches_central_differences(name):
     assert np.all(np.abs(g) > 1e-6 * values[0]), (name, dict(zip(param.names, g, strict=True)))
 
 
+@pytest.mark.slow
 def test_angle_metric_modulo_pi_matches_numpy():
     """Modulo pi: the error wrapped to +-pi/2 and the chord ``sin(e)``; an estimate off by pi scores 0."""
     rng = np.random.default_rng(0)
@@ -116,6 +118,7 @@ def test_careless_input_is_refused_in_one_line(tmp_path, capsys):
     assert "--train" in capsys.readouterr().err.strip().splitlines()[-1]
 
 
+@pytest.mark.slow
 def test_command_writes_its_outputs_with_angles_modulo_pi(tmp_path):
     """``pmsmjax tune --estimator hfi-pulsating``: gains.toml (the tuned names), result.json (angle errors
     modulo pi, the injection kinds, the stability verdict), the figures and the checkpoint."""

@@ -40,6 +40,7 @@ def results_of(summary: dict) -> dict:
 # ------------------------------------------------------------------------------------------ the kernel
 
 
+@pytest.mark.slow
 def test_online_metrics_equal_metrics_of_the_full_trace():
     # A light plant and a weakly damped speed loop, so that the speed overshoots and settles before the load.
     drive = book_drive(PMSMParameters(1.1, 5e-3, 5.5e-3, 0.17, 0.0015, 0.01))
@@ -201,6 +202,7 @@ def test_chunk_layout_pads_to_the_devices():
     assert chunk_layout(5, 3, 1) == (4, 2)
 
 
+@pytest.mark.slow
 def test_chunked_equals_unchunked(chunked, tmp_path):
     _, summary = chunked
     assert summary["chunks"] == {"size": 4, "count": 3, "computed_now": 3, "loaded": 0}
@@ -212,6 +214,7 @@ def test_chunked_equals_unchunked(chunked, tmp_path):
     assert summary["metrics"]["itae"]["n"] == 10 and summary["failures"]["unstable"]["count"] == 0
 
 
+@pytest.mark.slow
 def test_interrupted_study_resumes_without_recomputing(chunked, tmp_path):
     _, reference = chunked
 
@@ -238,6 +241,7 @@ def test_interrupted_study_resumes_without_recomputing(chunked, tmp_path):
     assert other["chunks"]["computed_now"] == 3
 
 
+@pytest.mark.slow
 def test_four_forced_cpu_devices_give_the_same_summary(chunked, tmp_path):
     _, reference = chunked
     code = (
@@ -262,6 +266,7 @@ def test_four_forced_cpu_devices_give_the_same_summary(chunked, tmp_path):
 # ---------------------------------------------------------------------------------------- sensitivities
 
 
+@pytest.mark.slow
 def test_ad_sensitivities_match_central_differences():
     # Plant, inverter, controller and scenario parameters; a weakly damped speed loop and a light rotor
     # give every compared metric a non-zero derivative.
@@ -297,6 +302,7 @@ def test_ad_sensitivities_match_central_differences():
 # ----------------------------------------------------------------------------------- command and files
 
 
+@pytest.mark.slow
 def test_command_writes_summary_and_figures_and_resumes(tmp_path, capsys):
     from pmsmjax.cli import main
 
