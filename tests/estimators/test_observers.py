@@ -16,6 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers.gradient_check import CentralDifferences, assert_gradient_close
 from jax.flatten_util import ravel_pytree
 from scipy.integrate import solve_ivp
 
@@ -87,6 +88,7 @@ def band_rms(name, **options):
 # --- accuracy on noisy logs of the project's own drive ---------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", NAMES)
 def test_angle_error_after_convergence_is_within_the_issue_limits(name):
     """At >= 300 r/min, after convergence, with 0.5 % noise on voltages and currents: < 2 electrical
@@ -284,6 +286,7 @@ def test_registry_names_options_and_design_rules():
 # --- closed loop: the observer in the loop, started at speed ----------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", NAMES)
 def test_sensorless_closed_loop_started_at_speed_rides_through_the_load_step(name):
     """The book drive on the observer's estimate, started at 1000 r/min with the observer cold (a flying
@@ -336,6 +339,7 @@ def _objective_of_flat(name):
     return objective, flat
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", NAMES)
 def test_gradient_of_the_angle_objective_matches_central_differences(name):
     """d(mean(1 - cos(angle error)))/d(every observer parameter: gains and the observer's motor model)
@@ -343,35 +347,37 @@ def test_gradient_of_the_angle_objective_matches_central_differences(name):
     random draws of all parameters (factors log-uniform in [0.7, 1.4], all accepted by check_period). One
     vmapped value-and-gradient call evaluates the nominal point, the difference steps and the draws."""
     objective, x0 = _objective_of_flat(name)
+    x0 = np.asarray(x0)
     n = x0.size
+    params, static = eqx.partition(observer(name), eqx.is_inexact_array)
     # Central differences at steps h and h/2 (relative 1e-3), Richardson-combined to O(h^4): the step is
     # large enough that rounding in the objective stays far below the smallest sensitivities (the EKF's P0
     # entries move the objective by 1e-5 of itself) and the truncation error is ~1e-12 relative.
-    h = 1e-3 * np.abs(np.asarray(x0))
-    steps = np.concatenate([np.diag(h), np.diag(h / 2)])
+    stencil = CentralDifferences.around(
+        x0, rel_step=1e-3, step_floor=0.0, richardson=True, labels=CentralDifferences.around(params).names
+    )
     rng = np.random.default_rng(1)
     factors = np.exp(rng.uniform(math.log(0.7), math.log(1.4), (N_DRAWS, n)))
-    points = np.concatenate([np.asarray(x0)[None], x0 + steps, x0 - steps, x0 * factors])
+    points = np.concatenate([x0[None], np.asarray(stencil.points()), x0 * factors])
     values, grads = jax.jit(jax.vmap(jax.value_and_grad(objective)))(jnp.asarray(points))
     values, grads = np.asarray(values), np.asarray(grads)
 
-    draws = grads[1 + 4 * n :]
+    draws = grads[1 + stencil.size :]
     assert draws.shape == (N_DRAWS, n) and np.all(np.isfinite(draws)) and np.all(np.isfinite(values))
-    _, unravel = ravel_pytree(eqx.partition(observer(name), eqx.is_inexact_array)[0])
-    static = eqx.partition(observer(name), eqx.is_inexact_array)[1]
+    _, unravel = ravel_pytree(params)
     eqx.combine(jax.vmap(unravel)(jnp.asarray(x0 * factors)), static).check_period(TS)  # all stable
 
-    plus, minus = values[1 : 1 + 2 * n], values[1 + 2 * n : 1 + 4 * n]
-    central = (plus - minus) / (2 * np.concatenate([h, h / 2]))
-    fd = (4.0 * central[n:] - central[:n]) / 3.0
-    g = grads[0]
-    # Compare sensitivities to a relative change of each parameter (x dJ/dx): units drop out.
-    sens, sens_fd = np.asarray(x0) * g, np.asarray(x0) * fd
+    fd = stencil.quotients(values[1 : 1 + stencil.size])
+    # Compared as sensitivities to a relative change of each parameter (x dJ/dx, units drop out), with a
+    # floor of 1e-9 of the objective: |x| |g - fd| <= 1e-4 |x fd| + 1e-9 J.
     floor = 1e-9 * values[0]
-    assert np.all(np.abs(sens - sens_fd) <= 1e-4 * np.abs(sens_fd) + floor), (sens, sens_fd)
-    assert np.sum(np.abs(sens_fd) > floor) >= 3  # the gains matter
+    assert_gradient_close(
+        grads[0], fd, names=stencil.names, x=x0, rtol=1e-4, atol=floor / np.abs(x0), value=values[0]
+    )
+    assert np.sum(np.abs(x0 * fd) > floor) >= 3  # the gains matter
 
 
+@pytest.mark.slow
 def test_benchmark_smoke():
     """benchmarks/bench_observers.py at quick sizes (one observer): every figure present and positive."""
     from benchmarks import bench_observers

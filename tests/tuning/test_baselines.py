@@ -66,12 +66,14 @@ def _assert_search_result(result, problem, design, max_evaluations, bounds=(0.05
     assert 0 <= result.time_to_best_s <= result.wall_time_s
 
 
+@pytest.mark.slow
 def test_design_rule_cost_is_the_batch_cost_of_the_drive(problem, design):
     drive, batch, weights = problem
     assert math.isfinite(design) and design > 0
     assert design == pytest.approx(float(batch_cost(drive, batch, weights)[0]), rel=1e-12)
 
 
+@pytest.mark.slow
 def test_nelder_mead_improves_on_the_design_rules_within_a_few_evaluations(problem, design, nm):
     _assert_search_result(nm, problem, design, EVALUATIONS)
     assert nm.method == "nelder-mead"
@@ -80,6 +82,7 @@ def test_nelder_mead_improves_on_the_design_rules_within_a_few_evaluations(probl
     assert nm.best_cost < 0.9 * design
 
 
+@pytest.mark.slow
 def test_nelder_mead_evaluates_only_inside_the_bounds(problem, design, monkeypatch):
     # The initial simplex (log-step 0.5) and the search both reach beyond +-10 %: every point evaluated
     # must still lie inside.
@@ -116,16 +119,65 @@ def test_search_arguments_are_checked_before_compiling(problem):
         nelder_mead(*problem, max_evaluations=5, initial_step=0.0)
 
 
-def test_cma_es_runs_when_installed_and_names_the_fix_when_not(problem, design):
-    if cma_available():
-        result = cma_es(*problem, max_evaluations=20, seed=3)
-        _assert_search_result(result, problem, design, 20)
-        assert result.method == "cma-es"
-        again = cma_es(*problem, max_evaluations=20, seed=3)
-        assert again.best_cost == result.best_cost  # seeded: reproducible
-    else:
-        with pytest.raises(ImportError, match="pip install cma"):
-            cma_es(*problem, max_evaluations=20)
+def test_cma_es_finds_the_minimum_of_a_known_quadratic(problem, monkeypatch):
+    """CMA-ES on a cost whose minimiser is known: a rotated quadratic in the 7 log-factors with condition
+    number 100 (the covariance must adapt), minimum 1 at ``target`` inside the bounds; then the same with
+    one coordinate's minimum beyond the upper bound, where the answer is that coordinate on the bound.
+
+    The cost replaces the simulation (``make_cost``): what is tested is the search, its bounds, its
+    evaluation count and its seed. Measured at 1500 evaluations: theta within 7e-7 of the minimiser,
+    cost 4e-12 above the minimum; on the bound within 1e-7.
+    """
+    n = len(SPEED_GAINS + CURRENT_GAINS)
+    rng = np.random.default_rng(0)
+    rotation, _ = np.linalg.qr(rng.normal(size=(n, n)))
+    hessian = rotation @ np.diag(np.logspace(0, 2, n)) @ rotation.T
+    target = np.array([0.4, -0.3, 0.2, -0.5, 0.1, 0.6, -0.2])
+
+    def quadratic(theta):
+        d = np.asarray(theta) - target
+        return 1.0 + float(d @ hessian @ d)
+
+    monkeypatch.setattr(baselines, "make_cost", lambda *args: quadratic)
+    result = cma_es(*problem, max_evaluations=1500, seed=3)
+    assert result.method == "cma-es" and result.evaluations == 1500
+    assert result.initial_cost == pytest.approx(quadratic(np.zeros(n)), rel=1e-15)
+    np.testing.assert_allclose(result.theta, target, atol=1e-5)
+    assert result.best_cost - 1.0 < 1e-9
+    assert result.best_cost == pytest.approx(quadratic(result.theta), rel=1e-15)
+    again = cma_es(*problem, max_evaluations=1500, seed=3)
+    path = lambda r: [(evaluations, cost) for evaluations, _, cost in r.trace]  # wall times differ
+    assert path(again) == path(result) and again.theta.tolist() == result.theta.tolist()  # seeded
+    other = cma_es(*problem, max_evaluations=1500, seed=4)
+    assert other.theta.tolist() != result.theta.tolist()  # the seed is used
+
+    beyond = target.copy()
+    beyond[0] = 4.0  # log-factor 4: e^4 = 55 times the design gain, beyond the upper bound 20
+
+    def bowl_beyond_the_bound(theta):
+        return 1.0 + float(np.sum((np.asarray(theta) - beyond) ** 2))
+
+    monkeypatch.setattr(baselines, "make_cost", lambda *args: bowl_beyond_the_bound)
+    bounded = cma_es(*problem, max_evaluations=1500, seed=3)
+    upper = math.log(20.0)
+    assert bounded.theta[0] == pytest.approx(upper, abs=1e-6)
+    np.testing.assert_allclose(bounded.theta[1:], beyond[1:], atol=1e-5)
+    assert bounded.best_cost == pytest.approx(1.0 + (4.0 - upper) ** 2, rel=1e-9)
+
+
+@pytest.mark.slow
+def test_cma_es_improves_on_the_design_rules_within_a_few_evaluations(problem, design):
+    """On the simulated problem, seeded: 20 evaluations (two generations of 9 after the start point).
+
+    Measured 0.0554 -> 0.0209 with seed 3; two generations are a draw (seeds 0 and 1 reached 0.78 and
+    1.0 times the design cost), so convergence itself is the known-quadratic test's.
+    """
+    result = cma_es(*problem, max_evaluations=20, seed=3)
+    _assert_search_result(result, problem, design, 20)
+    assert result.method == "cma-es" and result.evaluations == 20
+    assert result.best_cost < 0.5 * design
+    again = cma_es(*problem, max_evaluations=20, seed=3)
+    assert again.best_cost == result.best_cost and again.gains == result.gains  # seeded: reproducible
 
 
 def test_cma_es_without_cma_raises_a_clear_error(problem, monkeypatch):
@@ -152,6 +204,7 @@ def _numbers(x):
     return [x] if isinstance(x, (int, float)) and not isinstance(x, bool) else []
 
 
+@pytest.mark.slow
 def test_bench_tuning_quick_run_reports_every_key_with_finite_values(problem, design, nm):
     r = bench_tuning.run(quick=True)
     assert [k for k in bench_tuning.REQUIRED_KEYS if k not in r] == []
@@ -187,6 +240,7 @@ def test_bench_tuning_quick_run_reports_every_key_with_finite_values(problem, de
     assert "Nelder-Mead" in bench_tuning.format_table(r)
 
 
+@pytest.mark.slow
 def test_lbfgs_b_improves_with_gradients_and_respects_bounds():
     """L-BFGS-B on JAX gradients lowers the cost in a few evaluations and stays inside the bounds."""
     from tuning.autotune.baselines import lbfgs_b

@@ -12,6 +12,7 @@ from pathlib import Path
 import equinox as eqx
 import numpy as np
 import pytest
+from helpers.gradient_check import CentralDifferences, assert_gradient_close
 
 import pmsmjax
 from pmsmjax.analysis import metrics
@@ -39,6 +40,7 @@ def results_of(summary: dict) -> dict:
 # ------------------------------------------------------------------------------------------ the kernel
 
 
+@pytest.mark.slow
 def test_online_metrics_equal_metrics_of_the_full_trace():
     # A light plant and a weakly damped speed loop, so that the speed overshoots and settles before the load.
     drive = book_drive(PMSMParameters(1.1, 5e-3, 5.5e-3, 0.17, 0.0015, 0.01))
@@ -200,6 +202,7 @@ def test_chunk_layout_pads_to_the_devices():
     assert chunk_layout(5, 3, 1) == (4, 2)
 
 
+@pytest.mark.slow
 def test_chunked_equals_unchunked(chunked, tmp_path):
     _, summary = chunked
     assert summary["chunks"] == {"size": 4, "count": 3, "computed_now": 3, "loaded": 0}
@@ -211,6 +214,7 @@ def test_chunked_equals_unchunked(chunked, tmp_path):
     assert summary["metrics"]["itae"]["n"] == 10 and summary["failures"]["unstable"]["count"] == 0
 
 
+@pytest.mark.slow
 def test_interrupted_study_resumes_without_recomputing(chunked, tmp_path):
     _, reference = chunked
 
@@ -237,6 +241,7 @@ def test_interrupted_study_resumes_without_recomputing(chunked, tmp_path):
     assert other["chunks"]["computed_now"] == 3
 
 
+@pytest.mark.slow
 def test_four_forced_cpu_devices_give_the_same_summary(chunked, tmp_path):
     _, reference = chunked
     code = (
@@ -261,6 +266,7 @@ def test_four_forced_cpu_devices_give_the_same_summary(chunked, tmp_path):
 # ---------------------------------------------------------------------------------------- sensitivities
 
 
+@pytest.mark.slow
 def test_ad_sensitivities_match_central_differences():
     # Plant, inverter, controller and scenario parameters; a weakly damped speed loop and a light rotor
     # give every compared metric a non-zero derivative.
@@ -273,23 +279,22 @@ def test_ad_sensitivities_match_central_differences():
     base = nominal * factors
     jac, finite = runner.jacobian(base)
     assert np.all(finite == 1.0)
-    eps = 1e-6
-    rows = []
-    for r in range(2):
-        for j in range(len(nominal)):
-            for sign in (1.0, -1.0):
-                v = base[r].copy()
-                v[j] *= 1.0 + sign * eps
-                rows.append(v)
-    m, _ = runner.forward(np.array(rows))
+    # steps of 1e-6 of each parameter around each of the two base points, all in one forward batch
+    stencils = [CentralDifferences.around(b, rel_step=1e-6, step_floor=0.0, labels=names) for b in base]
+    m, _ = runner.forward(np.concatenate([np.asarray(s.points()) for s in stencils]))
     compared = ("itae", "overshoot_pct", "dip_rpm", "peak_current_a", "final_error_rpm")
     for name in compared:
         i = METRICS.index(name)
-        fd = (m[name][0::2] - m[name][1::2]).reshape(2, -1) / (2 * eps * base)
         ad = jac[:, i, :]
         scale = np.max(np.abs(ad * base))  # compare metric changes per relative parameter change
-        np.testing.assert_allclose(ad * base, fd * base, rtol=0, atol=1e-5 * scale, err_msg=name)
         assert scale > 0, name
+        for r, stencil in enumerate(stencils):
+            fd = stencil.quotients(m[name][r * stencil.size : (r + 1) * stencil.size])
+            # |ad - fd| |p| <= 1e-5 scale: the absolute floor in the metric's change per relative change
+            atol = 1e-5 * scale / np.abs(base[r])
+            assert_gradient_close(
+                ad[r], fd, names=[f"{name} / {n}" for n in names], x=base[r], rtol=0, atol=atol
+            )
     # Settling time is piecewise constant in the parameters: AD gives 0 (the tornado shows it as such).
     assert np.all(jac[:, METRICS.index("settling_time_s"), :] == 0.0)
 
@@ -297,6 +302,7 @@ def test_ad_sensitivities_match_central_differences():
 # ----------------------------------------------------------------------------------- command and files
 
 
+@pytest.mark.slow
 def test_command_writes_summary_and_figures_and_resumes(tmp_path, capsys):
     from pmsmjax.cli import main
 

@@ -11,12 +11,15 @@ per observer evaluates the design point, the 2n finite-difference points and the
 The warm-up wrapper is pmsmjax/estimators/sensored_warmup.py.
 """
 
+import importlib
 import json
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers.gradient_check import CentralDifferences, assert_gradient_close
 
 import pmsmjax
 from pmsmjax.checks.validation import ParameterError
@@ -42,7 +45,7 @@ from tuning.parameters import (
 )
 
 N_DRAWS = 1000
-H = 1e-5  # log-space step of the central differences
+H = 1e-5  # log-space step of the central differences (the design point is theta = 0)
 # one step and one speed (1200 periods: warm-up 20 ms, step at 40 ms, load step at 66-84 ms)
 BATCH = make_observer_batch(1, 3, duration_s=(0.12, 0.12), speed_rpm=(300.0, 1500.0), kinds=("step",))
 
@@ -67,6 +70,7 @@ def _stable_draws(drive, param, rng, n):
     return np.stack(draws), refused
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(OBSERVERS))
 def test_gradient_matches_central_differences_and_is_finite_over_draws(name):
     tuning = observer_tuning(name)
@@ -79,19 +83,18 @@ def test_gradient_matches_central_differences_and_is_finite_over_draws(name):
         return smoothed_batch_cost(param.apply(drive, theta), BATCH, weights)[0]
 
     draws, refused = _stable_draws(drive, param, np.random.default_rng(0), N_DRAWS)
-    eye = np.eye(n)
-    points = np.concatenate([np.zeros((1, n)), H * eye, -H * eye, draws])
+    stencil = CentralDifferences.around(np.zeros(n), rel_step=H, labels=param.names)
+    points = np.concatenate([np.zeros((1, n)), stencil.points(), draws])
     values, grads = jax.jit(jax.vmap(jax.value_and_grad(loss)))(jnp.asarray(points))
     values, grads = np.asarray(values), np.asarray(grads)
 
     g = grads[0]
-    fd = (values[1 : 1 + n] - values[1 + n : 1 + 2 * n]) / (2 * H)
-    rel = np.abs(g - fd) / np.abs(fd)
-    assert np.all(rel < 1e-4), (name, dict(zip(param.names, rel, strict=True)), g, fd)
+    fd = stencil.quotients(values[1 : 1 + stencil.size])
+    assert_gradient_close(g, fd, names=stencil.names, x=stencil.x, rtol=1e-4, value=values[0])
     # every parameter moves the loss (a zero gradient would make the check above vacuous)
     assert np.all(np.abs(g) > 1e-6 * values[0]), (name, g)
-    draw_grads = grads[1 + 2 * n :]
-    assert np.all(np.isfinite(values[1 + 2 * n :])) and np.all(np.isfinite(draw_grads)), name
+    draw_grads = grads[1 + stencil.size :]
+    assert np.all(np.isfinite(values[1 + stencil.size :])) and np.all(np.isfinite(draw_grads)), name
     assert refused < N_DRAWS, (name, refused)
 
 
@@ -114,6 +117,7 @@ def mras_run():
     return drive, batch, pmsmjax.simulate(drive, scenario, initial_state=start)
 
 
+@pytest.mark.slow
 def test_warmup_hands_over_at_its_time_and_the_angle_metric_matches_numpy(mras_run):
     drive, batch, tr = mras_run
     t = np.asarray(tr.t)
@@ -132,6 +136,7 @@ def test_warmup_hands_over_at_its_time_and_the_angle_metric_matches_numpy(mras_r
     assert 0 < float(m["angle_error_rms_rad"]) < np.radians(10)  # locked
 
 
+@pytest.mark.slow
 def test_observer_tuning_resumes_exactly_and_the_command_writes_its_outputs(tmp_path):
     """``tune`` on an observer: an interrupted run resumes to the same history and gains; ``pmsmjax tune
     --estimator`` writes gains.toml (observer paths), result.json with angle errors, figures."""
@@ -182,24 +187,38 @@ def test_estimator_needs_the_foc_control(tmp_path):
         run_tune_job(tmp_path, estimator="ekf", control="smc", n_train=1, n_heldout=1)
 
 
-def test_tuned_observer_gains_apply_in_demo(tmp_path):
+@pytest.mark.slow
+def test_tuned_observer_gains_apply_in_demo(tmp_path, monkeypatch):
     """``pmsmjax demo --estimator smo --gains`` takes a gains.toml of ``tune --estimator smo`` (observer
-    paths, speed_bandwidth included) on the I/f-start drive."""
+    paths, speed_bandwidth included) on the I/f-start drive: the drive it simulates is the design-rule
+    drive with exactly the file's values in place, and the run follows the design-rule run to the bit
+    through the I/f ramp (where the observer's output is not used) and departs from it once the observer
+    takes over."""
     names = observer_tuning("smo").names
-    drive = observer_drive("smo", n_substeps=1)
-    values = [1.1 * float(get_leaf(drive, n)) for n in names]
-    write_gains_toml(tmp_path / "gains.toml", names, values)
-    out = tmp_path / "demo"
-    args = [
-        "demo",
-        "--estimator",
-        "smo",
-        "--gains",
-        str(tmp_path / "gains.toml"),
-        "--duration-s",
-        "0.05",
-        "--load-time-s",
-        "0.04",
-    ]
-    assert main([*args, "--out", str(out)]) == 0
-    assert (out / "summary.json").stat().st_size > 0
+    values = [1.1 * float(get_leaf(observer_drive("smo", n_substeps=1), n)) for n in names]
+    gains = tmp_path / "gains.toml"
+    write_gains_toml(gains, names, values)
+    engine = importlib.import_module("pmsmjax.simulate")  # the module (pmsmjax.simulate is the function)
+    simulated, simulate = [], engine.simulate
+    monkeypatch.setattr(engine, "simulate", lambda d, *a, **k: (simulated.append(d), simulate(d, *a, **k))[1])
+    args = ["demo", "--estimator", "smo", "--duration-s", "0.05", "--load-time-s", "0.04", "--no-figures"]
+    runs = {}
+    for label, extra in (("design", []), ("tuned", ["--gains", str(gains)])):
+        out = tmp_path / label
+        assert main([*args, *extra, "--out", str(out)]) == 0
+        trace = np.genfromtxt(out / "trace.csv", delimiter=",", names=True)
+        runs[label] = (simulated[-1], trace, json.loads((out / "summary.json").read_text()))
+    (design, a, summary_a), (tuned, b, summary_b) = runs["design"], runs["tuned"]
+    assert summary_b["drive"]["gains"] == str(gains) and summary_a["drive"]["gains"] is None
+    # the simulated drive: the file's values, and nothing else changed
+    assert [float(get_leaf(tuned, n)) for n in names] == values
+    assert [float(get_leaf(design, n)) for n in names] == pytest.approx([v / 1.1 for v in values], rel=1e-14)
+    assert bool(eqx.tree_equal(tuned, set_leaves(design, names, [jnp.asarray(v) for v in values])))
+    # the runs: equal before the observer starts to take over (t = handover speed / ramp acceleration)
+    handover_s = float(tuned.estimator.handover_speed / tuned.estimator.accel)
+    before = a["time"] < handover_s - 1e-9
+    assert 0.1 < before.mean() < 0.9  # the hand-over lies inside the run
+    np.testing.assert_array_equal(a["theta_e_est"][before], b["theta_e_est"][before])
+    np.testing.assert_array_equal(a["omega_m"][before], b["omega_m"][before])
+    assert np.max(np.abs(a["theta_e_est"] - b["theta_e_est"])[~before]) > 1e-3  # rad: the gains act
+    assert summary_b["metrics"]["itae_rad_s"] != pytest.approx(summary_a["metrics"]["itae_rad_s"], rel=1e-3)
