@@ -12,7 +12,9 @@ jax.config.update("jax_enable_x64", True)
 
 #: Where compiled programs are kept between test modules, workers and runs (``PMSMJAX_TEST_CACHE`` moves
 #: it; an empty value turns the cache off). Inside the checkout, ignored by git.
-_CACHE = os.environ.get("PMSMJAX_TEST_CACHE", str(Path(__file__).resolve().parents[1] / ".jax_cache" / "tests"))
+_CACHE = os.environ.get(
+    "PMSMJAX_TEST_CACHE", str(Path(__file__).resolve().parents[1] / ".jax_cache" / "tests")
+)
 if _CACHE:
     jax.config.update("jax_compilation_cache_dir", _CACHE)
     # Cache every program: the suite's are many and small, each costing well under a second to compile.
