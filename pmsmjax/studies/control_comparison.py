@@ -109,8 +109,8 @@ class ControllerCompareSettings:
 #: Machines ``compare --control`` takes besides the three-phase one: name -> (preset module, drive
 #: function, its control registry), all in the multi-phase presets (book chapters 7-10).
 MULTIPHASE_PRESETS = {
-    "six-phase": ("presets_six_phase", "six_phase_drive", "SIX_PHASE_CONTROLS"),
-    "five-phase": ("presets_five_phase", "five_phase_drive", "FIVE_PHASE_CONTROLS"),
+    "six-phase": ("presets.six_phase", "six_phase_drive", "SIX_PHASE_CONTROLS"),
+    "five-phase": ("presets.five_phase", "five_phase_drive", "FIVE_PHASE_CONTROLS"),
 }
 
 

@@ -48,7 +48,7 @@ T_INV = np.linalg.inv(T_TABLE)
 
 
 def numbers(salient: bool, third: float = 0.0) -> dict:
-    # Written out from the derivation in presets_five_phase (book motor, 3/5 of the turns per phase).
+    # Written out from the derivation in pmsmjax/presets/five_phase.py (book motor, 3/5 of the turns per phase).
     L_ls3, k = 0.525e-3, 0.6
     Lls = k * k * L_ls3
     return dict(

@@ -51,7 +51,7 @@ T_INV = np.linalg.inv(T_TABLE)
 
 
 def numbers(salient: bool) -> dict:
-    # Written out from the derivation in presets_six_phase (book motor, same-copper rewind).
+    # Written out from the derivation in pmsmjax/presets/six_phase.py (book motor, same-copper rewind).
     L_ls3 = 0.525e-3
     return dict(
         R=0.479,
