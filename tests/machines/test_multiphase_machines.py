@@ -345,6 +345,7 @@ def solved():
     return get
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("c", CASES, ids=str)
 def test_every_frame_matches_the_natural_frame_reference(solved, c):
     s = solved(c)
@@ -362,6 +363,7 @@ def test_every_frame_matches_the_natural_frame_reference(solved, c):
         assert np.ptp(s.ref[:, n]) > 20.0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("c", CONVERGENCE_CASES, ids=str)
 def test_the_error_falls_as_the_fourth_power_of_the_sub_step(solved, c):
     """RK4 and the rotating hold are fourth order: halving the sub-step divides the error by about 16
@@ -375,6 +377,7 @@ def test_the_error_falls_as_the_fourth_power_of_the_sub_step(solved, c):
         assert e_fine > 2e-11  # well above the reference's own error
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("c", CASES, ids=str)
 def test_torque_matches_the_reference_coenergy_torque(solved, c):
     s = solved(c)
@@ -499,7 +502,9 @@ def test_power_balance(ph, salient, third):
 
 
 @pytest.mark.parametrize(
-    "ph, r_scale", [(SIX, (1.0, 1.4, 0.8, 1.0, 1.3, 0.9)), (FIVE, (1.0, 1.4, 0.8, 1.3, 0.9))], ids=str
+    "ph, r_scale",
+    [(SIX, (1.0, 1.4, 0.8, 1.0, 1.3, 0.9)), (FIVE, (1.0, 1.4, 0.8, 1.3, 0.9))],
+    ids=("six-phase", "five-phase"),
 )
 def test_isolated_stars_hold_zero_star_currents_under_unbalance(ph, r_scale):
     m = MultiPhasePMSMNatural(ph.motor(), layout=ph.layout, resistance_scale=r_scale)
