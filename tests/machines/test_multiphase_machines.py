@@ -54,7 +54,8 @@ SPEED = 1000.0 * 2 * math.pi / 60
 THETA0 = 0.3
 I_VSD0 = (1.0, -0.5, 0.3, 0.2)
 SUBSTEPS = 10  # the drives' RK4 sub-steps per period
-# Largest errors allowed, as fractions of the peak phase current (see the module docstring).
+# Largest errors allowed, as fractions of the peak phase current, the largest speed and the largest torque
+# (measured errors in the module docstring).
 CURRENT_TOL = 8e-8
 EXACT_PLANE_CURRENT_TOL = 2e-10
 SPEED_TOL = 1e-10
