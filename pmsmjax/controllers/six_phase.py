@@ -32,8 +32,8 @@ gains the self gain is ``a_c (L_d + L_ls)/2 = a_c L_self`` (the set's own induct
 own design) and the cross gain ``a_c (L_d - L_ls)/2 = a_c M`` is the cross-coupling compensation: the
 mutual voltage ``M di_other/dt`` with the other loop's demand ``di_other/dt = a_c e_other``. The speed
 voltages ``w_e psi_k`` of each set, mutual flux included, are the decoupling. :func:`double_dq_design`
-builds that controller; tests/test_six_phase_control.py shows both give the same response (and that
-without the cross-coupling compensation they do not).
+builds that controller; tests/controllers/test_multiphase_control.py shows both give the same response (and
+that without the cross-coupling compensation they do not).
 
 **Prediction and integral action in z1-z2.** With a computational delay the loops act on the current
 predicted one period ahead by the controller's model (delay compensation, as :mod:`.current_pi`). Any

@@ -20,8 +20,8 @@ Each model is written from its own frame's equations so that comparing them chec
 
 The block structure (the non-fundamental planes decoupled, leakage only) is a property of the natural
 model, not an assumption of the test: the VSD of ``L(th)`` is block-diagonal because
-``sum_k e^{j m g_k} = 0`` for the orders ``m`` that would couple the planes (tests/test_six_phase_machines.py
-checks it for six phases).
+``sum_k e^{j m g_k} = 0`` for the orders ``m`` that would couple the planes
+(tests/machines/test_multiphase_machines.py checks it for six and five phases).
 
 Asymmetric phase resistances (``resistance_scale``, ``(n,)`` factors of ``R``, default None: balanced)
 model the unbalance that the z1-z2 current loops of chapter 9 exist to remove. The resistive voltage is
