@@ -26,7 +26,7 @@ from pmsmjax.cli import main
 from pmsmjax.presets.five_phase import five_phase_drive, five_phase_motor
 from pmsmjax.presets.six_phase import six_phase_drive, six_phase_motor
 from pmsmjax.presets.three_phase import book_scenario
-from pmsmjax.studies.pwm_comparison_multiphase import SixPhaseCompareSettings, compare_six_phase
+from pmsmjax.studies.pwm_comparison import CompareSettings, compare
 from tuning.montecarlo import run_study
 from tuning.montecarlo.kernel import run_metrics
 from tuning.montecarlo.study import Study
@@ -224,7 +224,7 @@ def test_second_plane_current_is_its_voltage_over_the_leakage_impedance(ph):
     """The leaky modulator's second-plane current at each order h (a Fourier component of the period-average
     voltage and of the current, complex, stationary frame) is ``u_h sinc / |R + j h w_e L_ls|``: measured
     within 2e-4, bound 1e-3."""
-    settings = SixPhaseCompareSettings(
+    settings = CompareSettings(
         phases=ph.phases,
         modulators=(ph.leaky_pwm,),
         bridges=("averaged",),
@@ -233,7 +233,7 @@ def test_second_plane_current_is_its_voltage_over_the_leakage_impedance(ph):
         samples_per_period=16,
         thd_max_carriers=2.0,
     )
-    wave = compare_six_phase(settings)["waves"][ph.leaky_pwm]
+    wave = compare(settings)["waves"][ph.leaky_pwm]
     motor = ph.motor()
     u = wave["u_vsd_period"][:, 2] + 1j * wave["u_vsd_period"][:, 3]
     i = wave["i_vsd"][:, 2] + 1j * wave["i_vsd"][:, 3]
