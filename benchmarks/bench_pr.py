@@ -7,7 +7,7 @@ What it measures (every figure from one process):
    back-EMF feed-forward, w_c = 5 rad/s): speed rise time, dip, recovery, ITAE, peak current, and the
    fundamental alpha-beta current error over the last five electrical periods (% of |i_dq*|);
 2. the steady state on a dynamometer at 1000 r/min with i_q* = 10 N m / K_t: the fundamental error, and
-   for the PR variants the exact sampled-data prediction it should equal (tests/test_pr.py);
+   for the PR variants the exact sampled-data prediction it should equal (tests/controllers/test_pr.py);
 3. a current step 0 -> 5 A on the dynamometer at 1000 and 2000 r/min: 10-90 % rise, overshoot, time to
    stay within 2 % (|i_dq - i_dq*| < 0.1 A), largest |i_d| excursion: the current loop's own dynamics,
    where the phase lead and the missing dq decoupling of a stationary-frame controller show;
@@ -57,7 +57,7 @@ def fundamental_error_pct(trace, t_start: float, n_periods: int) -> float:
 
 
 def predicted_error_pct(drive, w: float, i_dq_ref: complex) -> float | None:
-    """Exact sampled-data steady-state error of a PR drive (tests/test_pr.py), % of |i_dq*|."""
+    """Exact sampled-data steady-state error of a PR drive (tests/controllers/test_pr.py), % of |i_dq*|."""
     c = drive.controller.current
     if not hasattr(c, "kr"):
         return None

@@ -7,7 +7,7 @@ duty (``g_x = c < d_x`` at the step's midpoint). Dead time is modelled as a real
 switch turns on only when its gate has been on for ``t_d`` (``g(t)`` and ``g(t - t_d)``); while both
 switches are off the diode picked by the *instantaneous* phase-current sign sets the pole voltage; a
 conducting device drops ``sign(i) U_f``. The machine model is the library's (validated against scipy in
-tests/test_machines.py); what is under test is the switching.
+tests/machines/test_machines.py); what is under test is the switching.
 
 Accuracy: an edge falls inside a step, so up to half a step of the wrong voltage is applied per edge: a
 current error of at most ``U_dc h / (2 L)`` per edge (1.5 mA at h = 50 ns for the book drive), halving

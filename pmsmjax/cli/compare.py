@@ -241,7 +241,7 @@ def precheck(args) -> list[str]:
 
 #: The chapter 6 estimators ``compare --estimator`` takes (the keys of
 #: :data:`pmsmjax.estimators.INJECTION_OBSERVERS` and ``HYBRID_OBSERVERS``; spelled here so that the
-#: checks run before JAX starts, tests/test_hfi_compare.py checks they agree).
+#: checks run before JAX starts, tests/studies/test_hfi_compare.py checks they agree).
 CHAPTER6_NAMES = ("hfi-rotating", "hfi-pulsating", "hybrid")
 
 

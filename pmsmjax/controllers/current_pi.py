@@ -11,8 +11,8 @@ applied (half a period for the PWM hold, one more with a computational delay).
 Delay compensation. With a one-period computational delay the command computed at sample k acts from k+1
 on, so the current loop sees a 1.5 Ts dead time that the internal-model design ignores: at a_c = 1100
 rad/s and 10 kHz the step response rises 17 % faster than ``a_c/(s + a_c)`` and overshoots
-(tests/test_design_rules.py). Predicting the current one period ahead takes the extra period out of the
-loop: the usual industrial remedy (predictive current control with delay compensation).
+(tests/controllers/test_design_rules.py). Predicting the current one period ahead takes the extra period out
+of the loop: the usual industrial remedy (predictive current control with delay compensation).
 """
 
 import jax.numpy as jnp

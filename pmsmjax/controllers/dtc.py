@@ -60,8 +60,9 @@ operating point; it is at most ``1/(2 Ts)`` per leg.
 Sampled, not analog: the comparators see the flux and torque only at the samples, so each can pass its
 threshold by up to one sample's change before the table reverses it (on the book drive at 1000 r/min
 under 10 N m, a 25 us sample moves the torque by up to 0.65 N m and the flux magnitude by up to 4.5 mWb);
-tests/test_dtc.py checks that they stay within the bands widened by that, and measures where the torque
-does not: just after ``V(k+2)`` in the first half of a sector, which lowers the flux magnitude faster than
+tests/controllers/test_dtc.py checks that they stay within the bands widened by that, and measures where the
+torque does not: just after ``V(k+2)`` in the first half of a sector, which lowers the flux magnitude faster
+than
 it advances the load angle.
 
 Flux reference: ``flux_ref_wb`` (default the model's magnet flux ``psi_f``). A surface machine with

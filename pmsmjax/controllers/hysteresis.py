@@ -25,7 +25,7 @@ band by up to one sample's change, ``Ts |di/dt|``; and with an isolated star poi
 before the other legs react (D. M. Brod and D. W. Novotny, "Current control of VSI-PWM inverters", IEEE
 Trans. Ind. Appl. IA-21(3), 562-570, 1985). The sampled error bound is therefore ``h + Ts |di/dt|``, not
 ``h/2 + Ts |di/dt|``, wherever ``U_dc/3`` exceeds the back-EMF and the reference's ``L di*/dt``;
-tests/test_hysteresis.py derives it and measures both.
+tests/controllers/test_hysteresis.py derives it and measures both.
 
 Gradients (DESIGN.md, "Gradients"). The exact comparator is piecewise constant, so its derivative with
 respect to the band or to anything upstream is zero almost everywhere. ``comparator="smooth"`` replaces

@@ -20,11 +20,12 @@ PR is therefore the stationary-frame equivalent of a synchronous-frame PI ``Kp +
 ideal resonator ``2 Ki s / (s^2 + w_0^2) = Ki/(s - j w_0) + Ki/(s + j w_0)``, the ``w_c -> 0`` limit, is
 the synchronous PI ``Ki/s'`` for the positive sequence plus its mirror for the negative sequence; the
 synchronous PI moved to the stationary frame would need the cross-axis terms that the PR drops. The
-``w_c`` form is their "non-ideal" resonator; tests/test_pr.py checks the equivalence to 1 %.) Consequences:
+``w_c`` form is their "non-ideal" resonator; tests/controllers/test_pr.py checks the equivalence to 1 %.)
+Consequences:
 
 - the gain at ``w_0`` is ``Kp + Kr``, finite: the steady-state error is about
   ``|u_unmodelled| / |Kp + Kr|``, where ``u_unmodelled`` is the steady voltage the feed-forward does not
-  supply (tests/test_pr.py checks the measured error against the exact discrete prediction);
+  supply (tests/controllers/test_pr.py checks the measured error against the exact discrete prediction);
 - with ``Kr w_c = Ki`` held (the design rule :func:`pr_design`) the gain at a frequency mismatch
   ``delta`` is ``Ki / |w_c + j delta|``: for ``|delta| > w_c`` it does not depend on ``w_c``. ``w_c``
   raises the peak's width only when ``Kr`` is held instead; with the design rule it sets how fast the

@@ -48,10 +48,10 @@ gradient is zero almost everywhere), ``"saturation"`` ``clip(s/boundary, -1, 1)`
 book drive with the design rule the sign law's i_q* chatters as a 420 Hz triangle of +-0.7 A (it moves
 ``eps Ts / D`` = 0.11 A every period); with a 2500-line encoder's speed it also wanders, the speed
 drifting over 979-1020 r/min at 1000 r/min, where the boundary layers hold it within 1 r/min
-(tests/test_smc.py).
+(tests/controllers/test_smc.py).
 
-**Verification.** tests/test_smc.py: the book scenario, the fitted decay constant on the surface against
-``1/c``, chattering of the three switching functions, ``jax.grad`` against central differences.
+**Verification.** tests/controllers/test_smc.py: the book scenario, the fitted decay constant on the surface
+against ``1/c``, chattering of the three switching functions, ``jax.grad`` against central differences.
 """
 
 from typing import Literal

@@ -16,7 +16,7 @@ period, so while the motor accelerates at the limit the next unsaturated output 
 15 A limit 1.3 ms after the step (11.7 A at 10 ms) and rose 10-90 % in 55 ms. Tracking with
 ``T_t = Kp_w/Ki_w`` = 1/beta keeps the integral from following the falling proportional and damping terms
 period by period: the same step holds 15 A until the linear demand meets the limit
-(tests/test_speed_loop_saturation.py).
+(tests/controllers/test_speed_loop_saturation.py).
 """
 
 from typing import Literal

@@ -49,7 +49,7 @@ The rotor angle and speed come from the wrapped ``position`` estimator (the exac
 encoder, or an observer), so this block composes with any of them. The estimate carries ``psi_ab`` and
 ``torque`` besides the angle and speed.
 
-**Verification.** tests/test_dtc.py: the estimates against the plant's flux (from the alpha-beta
+**Verification.** tests/controllers/test_dtc.py: the estimates against the plant's flux (from the alpha-beta
 machine's own flux equation) and torque in closed loop, for the blend and the pure voltage model; the
 drift of the pure integrator and the bounded error of the blend under a DC offset and an initial error.
 """

@@ -6,7 +6,7 @@ period of the implementation, linearised about a rotor tracked at constant speed
 it to :func:`check_loop`, which raises :class:`~pmsmjax.checks.validation.ParameterError` naming the gains and
 the fix when an eigenvalue lies on or outside the unit circle. Batched (vmapped) gains are checked
 element by element; traced gains are skipped (checks are for the values a user passes in).
-tests/test_observers.py runs each observer just inside and just outside the boundary found here.
+tests/estimators/test_observers.py runs each observer just inside and just outside the boundary found here.
 """
 
 from collections.abc import Callable

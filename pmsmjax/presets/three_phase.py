@@ -179,8 +179,8 @@ def hysteresis_drive(
 
     - `n_substeps` = 1: one RK4 step of 10 us spans 0.004 rad of electrical angle at 1000 r/min and
       1/550 of the winding time constant, so its local error is below 1e-12 relative;
-      tests/test_hysteresis.py checks the switch sequence and currents against scipy ``solve_ivp`` at
-      rtol 1e-10.
+      tests/controllers/test_hysteresis.py checks the switch sequence and currents against scipy ``solve_ivp``
+      at rtol 1e-10.
     - `band_a` = 0.5 A: at 10 us sampling it switches at 12 kHz per leg on average (transitions / 2;
       11-14 kHz in the phases of the book scenario), about the 10 kHz carrier of :func:`book_drive`, so
       the two are compared at about equal switching losses; it keeps the phase-current error within
@@ -230,7 +230,7 @@ def field_weakening_drive(
     """:func:`book_drive` with MTPA and voltage-feedback field weakening, for speeds above base speed.
 
     With the book's 311 V link the i_d = 0 drive runs out of voltage at 1995 r/min under 15 A and at
-    2321 r/min at no load; this one reaches 3000 r/min (tests/test_field_weakening.py).
+    2321 r/min at no load; this one reaches 3000 r/min (tests/controllers/test_field_weakening.py).
     ``field_weakening_bandwidth`` (rad/s) defaults to a third of the current-loop bandwidth (367 rad/s for
     the book's 1100 rad/s; 50 to 800 rad/s all reach 2500 and 3000 r/min, the slower ones touching the
     voltage limit more often on the way). ``kwargs`` go to :func:`book_drive`.
@@ -413,7 +413,7 @@ def dtc_drive(
     comparator sample ``sample_period_s``; the speed loop every ``round(speed_period_s /
     sample_period_s)`` samples (4 at 25 us: the book's 10 kHz).
 
-    Choices (measured on the book scenario, tests/test_dtc.py and README.md):
+    Choices (measured on the book scenario, tests/controllers/test_dtc.py and README.md):
 
     - `sample_period_s` = 25 us (40 kHz), inside the usual 20-50 us of DTC implementations.
     - `torque_band_nm` = 1 N m and `flux_band_wb` = 10 mWb (5.5 % of psi_f): about twice what one 25 us

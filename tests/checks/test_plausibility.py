@@ -1,4 +1,5 @@
-"""pmsmjax/checks/plausibility.py called directly (the commands reach it through tests/test_careless.py): a
+"""pmsmjax/checks/plausibility.py called directly (the commands reach it through tests/cli/test_careless.py):
+a
 unit
 slip in a motor's values is refused in one line that names the field and gives the SI value to write; the book
 motor passes."""

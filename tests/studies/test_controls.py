@@ -62,7 +62,8 @@ def test_demo_refuses_a_flag_of_another_control_before_writing(tmp_path, capsys)
 
 
 def test_demo_with_field_weakening_runs_above_base_speed(tmp_path):
-    """The i_d = 0 drive cannot pass about 2300 r/min at 311 V (tests/test_field_weakening.py); with
+    """The i_d = 0 drive cannot pass about 2300 r/min at 311 V (tests/controllers/test_field_weakening.py);
+    with
     --field-weakening the demo reaches 2500 r/min and holds it under 5 N m within the current limit."""
     out = tmp_path / "fw"
     args = ["--speed-rpm", "2500", "--load-nm", "5", "--load-time-s", "0.3", "--duration-s", "0.5"]
@@ -103,7 +104,8 @@ def test_compare_writes_every_controller_with_its_figures(compared):
     # SVPWM inside its linear range switches every leg once per period: the carrier frequency exactly.
     for name in ("pi", "smc", "pr"):
         assert data["controllers"][name]["switching_frequency_hz"] == pytest.approx(1e4, rel=1e-12)
-    # The hysteresis band (0.5 A at 10 us) switches near the same frequency (tests/test_hysteresis.py).
+    # The hysteresis band (0.5 A at 10 us) switches near the same frequency
+    # (tests/controllers/test_hysteresis.py).
     assert 5e3 < data["controllers"]["hysteresis"]["switching_frequency_hz"] < 20e3
     for name in ("compare_speed.png", "compare_ripple.png"):
         assert (out / name).read_bytes()[:4] == b"\x89PNG"

@@ -6,7 +6,7 @@ is turned by about ``omega_e dt / 2``: the fit then returns biased values (R 2 %
 test logs) or fails. Both are cheap to try: the equation-error warm start of
 :func:`tuning.identify.electrical.warm_start` is a linear least-squares fit, and the share of the
 integrated voltage it leaves unexplained is about ten times larger for the wrong hold at speed
-(tests/test_identify_honesty.py). The hold leaving less unexplained is chosen; when the two differ by
+(tests/tuning/test_identify_honesty.py). The hold leaving less unexplained is chosen; when the two differ by
 less than :data:`AMBIGUOUS_RATIO` (a log at low speed, where the holds coincide) either fits and the
 choice is noted as such.
 """

@@ -66,8 +66,8 @@ def excitation(time: np.ndarray, i_dq: np.ndarray, average_s: float = EXCITATION
     explains noise with L_d, and because that motion is correlated with the logged voltage (and the voltage
     carries noise the plant never saw) its covariance can be small around a value far from the truth
     (measured: L_d 1.4-2.0x off, reported identifiable, on scipy-made closed-loop logs at 3000-6000 rad/s
-    current bandwidth; tests/test_identify_honesty.py). So the covariance alone cannot be trusted there;
-    this check asks the data directly.
+    current bandwidth; tests/tuning/test_identify_honesty.py). So the covariance alone cannot be trusted
+    there; this check asks the data directly.
 
     **What.** For each axis: the noise level ``sigma`` from first differences (``std(diff) / sqrt 2``, exact
     for white noise on a smooth signal, an overestimate otherwise), and the RMS variation of the signal

@@ -20,7 +20,7 @@ balances the chunks over the study's ``n`` runs).
   controller's intermediates, double-buffered carries) and, when the study varies a scenario parameter,
   the scenario's per-period inputs (``N`` values each: XLA materialises them per run then). On the book
   study (float32, 4000 periods) that is 1.9 kB per run against 1.3 kB in XLA's memory analysis of the
-  compiled chunk function, and 66 kB against 17.5 kB with the speed step varied; tests/test_scale.py
+  compiled chunk function, and 66 kB against 17.5 kB with the speed step varied; tests/tuning/test_scale.py
   checks the bound against that analysis.
 - **MEMORY_FRACTION** = 0.5: the other half is headroom for XLA's workspace, the input and output
   buffers of the next chunk (chunks are dispatched one ahead) and whatever else shares the device.

@@ -88,7 +88,7 @@ def chunk_layout(n: int, chunk_size: int, n_devices: int) -> tuple[int, int]:
 
     At least two runs per device: with a batch of one, XLA compiles scalar code whose rounding differs in
     the last bit from the vectorised code of larger batches (observed), and results would then depend on
-    the device count. From two runs up they are bitwise identical (tests/test_montecarlo.py).
+    the device count. From two runs up they are bitwise identical (tests/tuning/test_montecarlo.py).
     """
     unit = 2 * n_devices
     largest = -(-min(chunk_size, n) // unit) * unit
@@ -206,7 +206,7 @@ class StudyRunner:
     def output_shapes(self) -> tuple:
         """One run's outputs of the forward function, as shape structs: the stacked :data:`COLUMNS` and
         the decimated record (from the study's settings: tracing the kernel for them would cost as much as
-        lowering it; tests/test_scale.py checks them against ``jax.eval_shape``)."""
+        lowering it; tests/tuning/test_scale.py checks them against ``jax.eval_shape``)."""
         n_record = self.study.n_periods // self.study.decimate
         record = {k: jax.ShapeDtypeStruct((n_record,), self.dtype) for k in ("speed_rpm", "i_q_a")}
         return jax.ShapeDtypeStruct((len(self.columns),), self.dtype), record
