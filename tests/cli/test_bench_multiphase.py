@@ -15,6 +15,7 @@ ROOT = Path(__file__).resolve().parents[2]
 REQUIRED_KEYS = ("drives", "duration_s", "batch", "dtype", "machine")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("script", ["bench_six_phase", "bench_five_phase"], ids=["six", "five"])
 def test_quick_run_reports_every_drive_against_its_reference(script, tmp_path):
     path = tmp_path / "cost.json"

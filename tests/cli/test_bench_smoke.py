@@ -53,6 +53,7 @@ def _is_positive_finite(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > 0
 
 
+@pytest.mark.slow
 def test_every_required_key_is_reported(results):
     missing = [key for key in (*REQUIRED_KEYS, *MINIMAL_KEYS) if key not in results]
     assert not missing

@@ -175,6 +175,7 @@ def batch_scenarios(n=64):
     return out
 
 
+@pytest.mark.slow
 def test_vmap_over_64_scenarios_equals_single_runs():
     drive = presets.book_drive()
     scenarios = batch_scenarios()

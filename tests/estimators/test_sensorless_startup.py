@@ -81,6 +81,7 @@ def test_demo_flag_names_are_the_registry():
     assert set(ESTIMATOR_NAMES) == set(OBSERVERS)
 
 
+@pytest.mark.slow
 def test_demo_runs_sensorless_from_standstill(tmp_path):
     import json
     import subprocess

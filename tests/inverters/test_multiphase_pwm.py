@@ -406,6 +406,7 @@ def test_modulator_checks():
     assert DecoupledSVPWM().n_phases == 6
 
 
+@pytest.mark.slow
 def test_two_vector_five_and_seven_harmonics_appear_switching_resolved_and_four_vector_suppresses_them():
     settings = CompareSettings(
         phases=6,

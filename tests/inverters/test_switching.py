@@ -86,6 +86,7 @@ def ripple_pp(currents):
     return np.ptp(currents.reshape(PERIODS, SAMPLES, 3), axis=1).max()
 
 
+@pytest.mark.slow
 def test_segment_currents_match_fine_step_carrier_reference(waveforms):
     seg = waveforms[(None, "segments")]
     ref2, ref4 = waveforms[(None, "carrier2000")], waveforms[(None, "carrier4000")]
@@ -310,6 +311,7 @@ def test_idle_legs_have_no_dead_time():
 # --- gradients and input checks -----------------------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "bridge",
     # (exact sign with dead time: test_gradient_with_respect_to_bridge_parameters_matches_differences)

@@ -80,6 +80,7 @@ def compared(tmp_path_factory):
     return out, json.loads((out / "compare.json").read_text())
 
 
+@pytest.mark.slow
 def test_compare_writes_every_controller_with_its_figures(compared):
     out, data = compared
     keys = (
@@ -140,6 +141,7 @@ def test_compare_refuses_bad_input_before_any_work(tmp_path, capsys):
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
 
 
+@pytest.mark.slow
 def test_tune_smc_tunes_the_surrogate_and_reports_the_exact_law(tmp_path):
     out = tmp_path / "tune"
     args = ["tune", "--control", "smc", "--out", str(out), "--train", "2", "--heldout", "2"]
@@ -167,6 +169,7 @@ def test_tune_refuses_a_control_it_cannot_tune(tmp_path, capsys):
     assert "invalid choice" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_controller_benchmark_smoke():
     """benchmarks/bench_controllers.py at quick sizes: every control timed, ratios consistent."""
     from benchmarks import bench_controllers

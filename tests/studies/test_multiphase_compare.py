@@ -18,6 +18,7 @@ from pmsmjax.units import rpm_to_rad_s
 RUN = ["--speed-rpm", "500", "--load-nm", "5", "--load-time-s", "0.1", "--duration-s", "0.36"]
 
 
+@pytest.mark.slow
 def test_six_phase_vsd_and_double_dq_compare_equal(tmp_path):
     out = tmp_path / "six"
     args = ["compare", "--machine", "six-phase", "--control", "vsd,double-dq", "--bridge", "averaged"]

@@ -59,6 +59,7 @@ def compared():
     return compare_estimators(["smo", "ekf"], None, SHORT, SWEEP)
 
 
+@pytest.mark.slow
 def test_compare_estimators_figures(compared):
     for name in ("smo", "ekf"):
         e = compared["controllers"][name]
@@ -121,6 +122,7 @@ def test_sensorless_study_summary(tmp_path):
     assert data["study"]["estimator"] == "smo"
 
 
+@pytest.mark.slow
 def test_montecarlo_command_with_an_estimator(tmp_path, capsys):
     config = tmp_path / "study.toml"
     config.write_text(

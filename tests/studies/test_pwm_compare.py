@@ -37,6 +37,7 @@ def report(tmp_path_factory):
     return out, json.loads((out / "pwm.json").read_text())
 
 
+@pytest.mark.slow
 def test_report_has_every_variant_and_figure(report):
     out, data = report
     names = [m + s for m in ("sinusoidal", "svpwm") for s in ("", "_switching", "_switching_deadtime")]

@@ -44,6 +44,7 @@ def _errors(summary):
     return {n: summary["parameters"][n]["value"] / ID_TEST_MOTOR[n] - 1.0 for n in TOLERANCE}
 
 
+@pytest.mark.slow
 def test_accuracy_and_intervals_on_a_noisy_closed_loop_log(clean):
     s = _fit(add_measurement_noise(clean, ID_LOG_NOISE, seed=0))
     err = _errors(s)
@@ -286,6 +287,7 @@ def test_excitation_scenario_and_prbs():
         identification_scenario(speeds_rpm=[100.0])
 
 
+@pytest.mark.slow
 def test_benchmark_smoke_and_the_numpy_residuals_agree_with_jax(clean, tmp_path):
     """benchmarks/bench_identify.py at 3 seeds: its JSON, and its NumPy residuals (an independent
     implementation, the one SciPy fits) against the JAX ones at the same point."""
@@ -316,6 +318,7 @@ def test_benchmark_smoke_and_the_numpy_residuals_agree_with_jax(clean, tmp_path)
     )
 
 
+@pytest.mark.slow
 def test_dead_time_voltage_is_recovered(clean):
     """A log whose logged (commanded) voltage exceeds the applied one by a dead-time drop of 2 V per phase,
     ``u_logged = u_applied + V_dt park(clarke(sign(i_abc)))``: with ``dead_time=True`` the fit finds V_dt

@@ -132,6 +132,7 @@ def _fit(cols, hold="auto"):
     return identify(log, IdentifyOptions(pole_pairs=4)).summary
 
 
+@pytest.mark.slow
 def test_L_d_is_flagged_on_a_noisy_pi_loop_that_holds_i_d_at_zero_for_every_seed(pi_loop_logs):
     logs, sigma = pi_loop_logs
     flagged, off = 0, []

@@ -83,6 +83,7 @@ def test_free_memory_from_device_statistics_or_host_ram():
     assert abs(device_free_bytes([cpu, cpu]) - available // 2) < 0.05 * total  # shared by the CPU devices
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("vary_speed", [False, True])
 def test_bytes_per_run_bounds_xla_memory_analysis(vary_speed):
     # XLA's memory analysis of the compiled chunk function at two batch sizes: its growth per run is
@@ -166,6 +167,7 @@ def test_a_missing_middle_chunk_is_recomputed_between_loaded_ones(study_dir, tmp
     assert again["metrics"] == reference["metrics"] and again["spearman"] == reference["spearman"]
 
 
+@pytest.mark.slow
 def test_two_processes_give_the_same_summary(study_dir, tmp_path):
     # jax.distributed on one machine: two processes with one CPU device each (the multi-host path:
     # samples drawn by both, shards fed by each, results gathered, files written by process 0, the
@@ -292,6 +294,7 @@ def tuning_problem():
     return drive, batch
 
 
+@pytest.mark.slow
 def test_pipelined_tuner_follows_the_one_at_a_time_path(tuning_problem):
     # Adam written out from its definition with the tuner's cost function called through eqx.filter_jit
     # (one call after another, every result waited for), against tune(): same costs, same gains.
@@ -323,6 +326,7 @@ def test_pipelined_tuner_follows_the_one_at_a_time_path(tuning_problem):
     assert result.compile_time_s > 0
 
 
+@pytest.mark.slow
 def test_ahead_of_time_evaluation_equals_the_jit_one(tuning_problem):
     drive, batch = tuning_problem
     weights = dataclasses.replace(ObjectiveWeights(), overshoot_smoothing_pct=1.0, current_smoothing_a=0.1)
@@ -365,6 +369,7 @@ def test_unrolled_substeps_are_the_same_equations_in_one_program():
 # ------------------------------------------------------------------------------------------- benchmark
 
 
+@pytest.mark.slow
 def test_scale_benchmark_reports_every_row():
     from benchmarks.bench_scale import ROW_KEYS, format_table, run
 

@@ -135,6 +135,7 @@ def test_gains_file_round_trip(drive, tmp_path):
         apply_gains(drive, {"controller.speed.kx": 1.0})
 
 
+@pytest.mark.slow
 def test_tuning_lowers_the_cost_and_is_deterministic(drive, batch):
     cfg = TuneConfig(max_iterations=8, learning_rate=0.1)
     a = tune(drive, batch, config=cfg, progress=False)
@@ -211,6 +212,7 @@ def test_bfgs_finds_the_rosenbrock_minimum_and_stops_at_an_active_bound():
         assert np.max(np.abs(x1)) == pytest.approx(0.5)
 
 
+@pytest.mark.slow
 def test_bfgs_tuning_lowers_the_exact_cost_and_resumes_exactly(drive, batch, tmp_path):
     # Early stopping ends this run: interrupted between its last improvement and its stop, a resumed run
     # must stop at the same place, so the stopping counter has to survive the interruption.
@@ -276,6 +278,7 @@ def test_bad_batch_and_weights():
         ObjectiveWeights(itae=-1.0)
 
 
+@pytest.mark.slow
 def test_tune_command_writes_its_outputs(tmp_path):
     out = tmp_path / "tune"
     args = ["tune", "--out", str(out), "--train", "2", "--heldout", "2", "--iterations", "3"]
@@ -293,6 +296,7 @@ def test_tune_command_writes_its_outputs(tmp_path):
         assert (out / name).stat().st_size > 0
 
 
+@pytest.mark.slow
 def test_settling_time_matches_the_first_order_design(drive):
     """The design-rule speed loop is beta/(s + beta): 2 % settling at ln(50)/beta (78.2 ms at 50 rad/s)."""
     b = make_batch(3, 5, duration_s=(0.25, 0.3))
@@ -306,6 +310,7 @@ def test_settling_time_matches_the_first_order_design(drive):
     np.testing.assert_allclose(settling[small], np.log(50) / beta, rtol=0.03)
 
 
+@pytest.mark.slow
 def test_plant_spread_runs_each_scenario_on_its_own_plant(drive):
     """Scenario k of a spread batch equals the nominal scenario run on a plant with J scaled by its factor."""
     from tuning.autotune.objectives import batch_metrics
