@@ -137,6 +137,14 @@ class Trace(eqx.Module):
                 out[f"duty_{phase}"] = np.asarray(self.duties)[..., k]
         return out
 
+    def to_numpy(self) -> "Trace":
+        """The same trace with NumPy leaves: figures of merit, plots and files computed from it are plain
+        NumPy (:mod:`pmsmjax.analysis.metrics` dispatches on the array type), so post-processing a run
+        compiles nothing. Waits for the simulation to finish."""
+        import jax
+
+        return jax.tree.map(np.asarray, self)
+
     def __getitem__(self, index) -> "Trace":
         """Select along the leading (batch) axis."""
         import jax

@@ -1,4 +1,5 @@
-"""Figures of merit of drive responses, as jnp functions of sampled signals (NumPy arrays are accepted).
+"""Figures of merit of drive responses, as functions of sampled signals: JAX arrays in, JAX out (traceable,
+differentiable); NumPy arrays in, NumPy out (post-processing of a recorded run, nothing to compile).
 
 All take uniformly sampled signals (``t (N,)`` s). Integral criteria (ITAE, IAE, ISE) and RMS values are
 differentiable; times and extrema (rise, settling, overshoot, dip) are differentiable almost everywhere
@@ -24,6 +25,7 @@ scenario's own duration inside a batch's common horizon): traced, so windows can
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from pmsmjax._types import Array
 from pmsmjax.checks.validation import ParameterError
@@ -32,6 +34,13 @@ from pmsmjax.frames.three_phase import dq_to_abc
 #: Floor of ``|reference|`` in the figures against the reference (units of the reference), so that a
 #: zero reference gives finite numbers.
 REFERENCE_FLOOR = 1e-6
+
+
+def _namespace(*args):
+    """``jax.numpy`` if any argument is a JAX array (or tracer), else ``numpy``: a figure of a recorded run
+    is plain NumPy post-processing, with no program to compile, while the same function stays traceable
+    and differentiable inside tuning objectives and scans."""
+    return jnp if any(isinstance(a, jax.Array) for a in args) else np
 
 
 def _dt(t: Array) -> Array:
@@ -46,22 +55,26 @@ def tracking_error(reference: Array, y: Array) -> Array:
 
 def itae_term(t: Array, error: Array) -> Array:
     """The per-sample term of ITAE, ``t |e|`` (units of e times s); :func:`itae` is its sum times ``dt``."""
-    return t * jnp.abs(error)
+    xp = _namespace(t, error)
+    return t * xp.abs(error)
 
 
 def itae(t: Array, error: Array) -> Array:
     """Integral of time-weighted absolute error, ``sum t |e| dt`` (units of e times s^2)."""
-    return jnp.sum(itae_term(t, error), axis=-1) * _dt(t)
+    xp = _namespace(t, error)
+    return xp.sum(itae_term(t, error), axis=-1) * _dt(t)
 
 
 def iae(t: Array, error: Array) -> Array:
     """Integral of absolute error, ``sum |e| dt``."""
-    return jnp.sum(jnp.abs(error), axis=-1) * _dt(t)
+    xp = _namespace(t, error)
+    return xp.sum(xp.abs(error), axis=-1) * _dt(t)
 
 
 def ise(t: Array, error: Array) -> Array:
     """Integral of squared error, ``sum e^2 dt``."""
-    return jnp.sum(error * error, axis=-1) * _dt(t)
+    xp = _namespace(t, error)
+    return xp.sum(error * error, axis=-1) * _dt(t)
 
 
 def _normalised(y, y_start, y_final):
@@ -70,20 +83,22 @@ def _normalised(y, y_start, y_final):
 
 def _first_crossing(t, z, level):
     """Time at which ``z`` first reaches ``level`` (linear interpolation); NaN if it never does."""
+    xp = _namespace(t, z, level)
     above = z >= level
-    i = jnp.argmax(above)
-    i0 = jnp.maximum(i - 1, 0)
+    i = xp.argmax(above)
+    i0 = xp.maximum(i - 1, 0)
     dz = z[i] - z[i0]
-    frac = jnp.where(dz > 0, (level - z[i0]) / jnp.where(dz > 0, dz, 1.0), 0.0)
-    t_cross = jnp.where(i > 0, t[i0] + frac * (t[i] - t[i0]), t[0])
-    return jnp.where(jnp.any(above), t_cross, jnp.nan)
+    frac = xp.where(dz > 0, (level - z[i0]) / xp.where(dz > 0, dz, 1.0), 0.0)
+    t_cross = xp.where(i > 0, t[i0] + frac * (t[i] - t[i0]), t[0])
+    return xp.where(xp.any(above), t_cross, xp.nan)
 
 
 def first_sample_after_last(flags: Array) -> Array:
     """Index of the first sample after the last ``True`` of ``flags (..., N)``: 0 when none is set, ``N``
     when the last sample is set. Where a settling or recovery time starts to hold."""
+    xp = _namespace(flags)
     n = flags.shape[-1]
-    return jnp.max(jnp.where(flags, jnp.arange(1, n + 1), 0), axis=-1)
+    return xp.max(xp.where(flags, xp.arange(1, n + 1), 0), axis=-1)
 
 
 def rise_time(t: Array, y: Array, y_start, y_final, low: float = 0.1, high: float = 0.9) -> Array:
@@ -94,20 +109,23 @@ def rise_time(t: Array, y: Array, y_start, y_final, low: float = 0.1, high: floa
 
 def overshoot(y: Array, y_start, y_final) -> Array:
     """Peak overshoot beyond ``y_final``, percent of the step size (0 when there is none)."""
+    xp = _namespace(y, y_start, y_final)
     z = _normalised(y, y_start, y_final)
-    return 100.0 * jnp.maximum(jnp.max(z) - 1.0, 0.0)
+    return 100.0 * xp.maximum(xp.max(z) - 1.0, 0.0)
 
 
 def settling_time(t: Array, y: Array, y_start, y_final, band: float = 0.02) -> Array:
     """Time (s, from ``t[0]``) after which ``y`` stays within ``band`` of the step; NaN if never."""
+    xp = _namespace(t, y, y_start, y_final, band)
     z = _normalised(y, y_start, y_final)
     n = t.shape[0]
-    k = first_sample_after_last(jnp.abs(z - 1.0) > band)
-    return jnp.where(k == n, jnp.nan, t[jnp.minimum(k, n - 1)] - t[0])
+    k = first_sample_after_last(xp.abs(z - 1.0) > band)
+    return xp.where(k == n, xp.nan, t[xp.minimum(k, n - 1)] - t[0])
 
 
 def _reference_scale(reference):
-    return jnp.maximum(jnp.abs(reference), REFERENCE_FLOOR)
+    xp = _namespace(reference)
+    return xp.maximum(xp.abs(reference), REFERENCE_FLOOR)
 
 
 def excess_over_reference(y: Array, reference: Array) -> Array:
@@ -126,7 +144,8 @@ def percent_of_reference(x: Array, reference: Array) -> Array:
 def outside_reference_band(y: Array, reference: Array, band: float) -> Array:
     """``True`` where ``|y - reference| > band |reference|`` (``band`` a fraction, ``|reference|`` floored
     at :data:`REFERENCE_FLOOR`); per sample."""
-    return jnp.abs(y - reference) > band * _reference_scale(reference)
+    xp = _namespace(y, reference, band)
+    return xp.abs(y - reference) > band * _reference_scale(reference)
 
 
 def settling_time_to_reference(t: Array, y: Array, reference: Array, band: float, active: Array) -> Array:
@@ -135,13 +154,15 @@ def settling_time_to_reference(t: Array, y: Array, reference: Array, band: float
 
     Censored rather than NaN, so that it stays usable in a cost: a window that ends unsettled gives the
     time of the sample after it (the record's last sample when the window reaches the end)."""
+    xp = _namespace(t, y, reference, band, active)
     k = first_sample_after_last(outside_reference_band(y, reference, band) & (active > 0))
-    return t[jnp.minimum(k, t.shape[-1] - 1)] - t[0]
+    return t[xp.minimum(k, t.shape[-1] - 1)] - t[0]
 
 
 def steady_state_error(y: Array, reference: Array, window: int) -> Array:
     """Mean :func:`tracking_error` ``reference - y`` over the last ``window`` samples."""
-    return jnp.mean(tracking_error(reference[..., -window:], y[..., -window:]), axis=-1)
+    xp = _namespace(y, reference, window)
+    return xp.mean(tracking_error(reference[..., -window:], y[..., -window:]), axis=-1)
 
 
 def disturbance_dip(t: Array, y: Array, t_event: float, y_nominal, band: float) -> tuple[Array, Array]:
@@ -151,31 +172,35 @@ def disturbance_dip(t: Array, y: Array, t_event: float, y_nominal, band: float) 
     (same units as y), and the time (s, from the event) after which ``y`` stays within ``band`` (same
     units) of ``y_nominal``; NaN if it does not recover.
     """
+    xp = _namespace(t, y, t_event, y_nominal, band)
     after = t >= t_event
-    dip = jnp.max(jnp.where(after, tracking_error(y_nominal, y), -jnp.inf))
+    dip = xp.max(xp.where(after, tracking_error(y_nominal, y), -xp.inf))
     n = t.shape[0]
-    k = first_sample_after_last(after & (jnp.abs(y - y_nominal) > band))
-    recovered_at = jnp.where(k > 0, t[jnp.minimum(k, n - 1)], t_event)
-    return dip, jnp.where(k == n, jnp.nan, recovered_at - t_event)
+    k = first_sample_after_last(after & (xp.abs(y - y_nominal) > band))
+    recovered_at = xp.where(k > 0, t[xp.minimum(k, n - 1)], t_event)
+    return dip, xp.where(k == n, xp.nan, recovered_at - t_event)
 
 
 def peak_phase_current(i_abc: Array) -> Array:
     """Largest absolute phase current (A) over ``i_abc (N, n_phases)`` (one period: ``(1, n_phases)``).
     Over a window: pass ``i_abc * active[:, None]``."""
-    return jnp.max(jnp.abs(i_abc), axis=(-2, -1))
+    xp = _namespace(i_abc)
+    return xp.max(xp.abs(i_abc), axis=(-2, -1))
 
 
 def rms_phase_current(i_abc: Array, active: Array | None = None) -> Array:
     """RMS phase current (A) over the record (or the ``active`` samples), averaged over the phases."""
+    xp = _namespace(i_abc, active)
     if active is None:
-        return jnp.sqrt(jnp.mean(i_abc * i_abc, axis=(-2, -1)))
-    squares = jnp.sum(i_abc * i_abc * active[..., None], axis=(-2, -1))
-    return jnp.sqrt(squares / (i_abc.shape[-1] * jnp.sum(active, axis=-1)))
+        return xp.sqrt(xp.mean(i_abc * i_abc, axis=(-2, -1)))
+    squares = xp.sum(i_abc * i_abc * active[..., None], axis=(-2, -1))
+    return xp.sqrt(squares / (i_abc.shape[-1] * xp.sum(active, axis=-1)))
 
 
 def voltage_use(u_dq_ref: Array, u_max) -> Array:
     """``|u_dq*| / u_max`` per sample (``u_dq_ref (N, 2)`` V, ``u_max`` V, the modulator's linear limit)."""
-    return jnp.sqrt(jnp.sum(u_dq_ref**2, axis=-1) + 1e-12) / u_max
+    xp = _namespace(u_dq_ref, u_max)
+    return xp.sqrt(xp.sum(u_dq_ref**2, axis=-1) + 1e-12) / u_max
 
 
 def voltage_saturation(u_dq_ref: Array, u_max, active: Array, soft_width: float = 0.005) -> Array:
@@ -187,15 +212,17 @@ def voltage_saturation(u_dq_ref: Array, u_max, active: Array, soft_width: float 
 
 def control_effort(u_dq_ref: Array, u_max, active: Array) -> Array:
     """Mean of ``(|u_dq*| / u_max)^2`` over the ``active`` periods (:func:`voltage_use`)."""
-    return jnp.sum(voltage_use(u_dq_ref, u_max) ** 2 * active) / jnp.sum(active)
+    xp = _namespace(u_dq_ref, u_max, active)
+    return xp.sum(voltage_use(u_dq_ref, u_max) ** 2 * active) / xp.sum(active)
 
 
 def ripple_rms_about_mean(y: Array, active: Array) -> Array:
     """RMS deviation of ``y (N,)`` about its mean over the ``active`` samples (0 if none): the torque
     ripple of a steady window (units of y)."""
-    n = jnp.maximum(jnp.sum(active), 1.0)
-    mean = jnp.sum(y * active) / n
-    return jnp.sqrt(jnp.sum((y - mean) ** 2 * active) / n)
+    xp = _namespace(y, active)
+    n = xp.maximum(xp.sum(active), 1.0)
+    mean = xp.sum(y * active) / n
+    return xp.sqrt(xp.sum((y - mean) ** 2 * active) / n)
 
 
 def switching_frequency_hz(duties: Array, Ts: float) -> Array:
@@ -207,9 +234,10 @@ def switching_frequency_hz(duties: Array, Ts: float) -> Array:
     changes between periods). Transitions per leg per second, halved: one on-off pair is one switching
     period, so a carrier-based PWM at 10 kHz reads 10 kHz.
     """
-    inside = 2.0 * jnp.sum((duties > 0.0) & (duties < 1.0), axis=(-2, -1))
+    xp = _namespace(duties, Ts)
+    inside = 2.0 * xp.sum((duties > 0.0) & (duties < 1.0), axis=(-2, -1))
     high = duties >= 1.0
-    boundary = jnp.sum(high[..., 1:, :] != high[..., :-1, :], axis=(-2, -1))
+    boundary = xp.sum(high[..., 1:, :] != high[..., :-1, :], axis=(-2, -1))
     n_periods, n_legs = duties.shape[-2], duties.shape[-1]
     return (inside + boundary) / (2.0 * n_legs * n_periods * Ts)
 
@@ -224,12 +252,13 @@ def ripple_about_moving_mean(y: Array, window: int) -> Array:
     difference of cumulative sums of ``y - mean(y)`` (centred first, so float32 records of large offsets
     keep their precision).
     """
+    xp = _namespace(y, window)
     n = y.shape[-1]
     if not isinstance(window, int) or not 1 <= window <= n:
         raise ParameterError(f"window must be an int in [1, {n}] samples, got {window!r}.")
-    z = y - jnp.mean(y, axis=-1, keepdims=True)
-    cs = jnp.cumsum(z, axis=-1)
-    cs = jnp.concatenate([jnp.zeros(cs.shape[:-1] + (1,), cs.dtype), cs], axis=-1)
+    z = y - xp.mean(y, axis=-1, keepdims=True)
+    cs = xp.cumsum(z, axis=-1)
+    cs = xp.concatenate([xp.zeros(cs.shape[:-1] + (1,), cs.dtype), cs], axis=-1)
     moving_mean = (cs[..., window:] - cs[..., :-window]) / window
     half = (window - 1) // 2
     return z[..., half : half + n - window + 1] - moving_mean
@@ -241,14 +270,16 @@ def current_ripple_rms_a(i: Array, window: int) -> Array:
     `i`: ``(..., N)`` samples, A, taken in steady state (the caller slices the window); `window`: moving
     mean length in samples (see :func:`ripple_about_moving_mean`).
     """
+    xp = _namespace(i, window)
     dev = ripple_about_moving_mean(i, window)
-    return jnp.sqrt(jnp.mean(dev * dev, axis=-1))
+    return xp.sqrt(xp.mean(dev * dev, axis=-1))
 
 
 def current_ripple_peak_to_peak_a(i: Array, window: int) -> Array:
     """Peak-to-peak (A) of a current about its moving mean (see :func:`current_ripple_rms_a`)."""
+    xp = _namespace(i, window)
     dev = ripple_about_moving_mean(i, window)
-    return jnp.max(dev, axis=-1) - jnp.min(dev, axis=-1)
+    return xp.max(dev, axis=-1) - xp.min(dev, axis=-1)
 
 
 # --- current tracking of switching controllers (hysteresis current control, table DTC) --------------------
@@ -271,10 +302,12 @@ def current_error_rms_a(i_abc: Array, i_abc_ref: Array) -> Array:
     between samples the current is nearly linear between samples, so its extremes lie on the samples
     and sampled records resolve the ripple.
     """
+    xp = _namespace(i_abc, i_abc_ref)
     err = i_abc - i_abc_ref
-    return jnp.sqrt(jnp.mean(err * err, axis=(-2, -1)))
+    return xp.sqrt(xp.mean(err * err, axis=(-2, -1)))
 
 
 def current_error_peak_a(i_abc: Array, i_abc_ref: Array) -> Array:
     """Largest absolute phase-current error ``|i_abc - i_abc_ref|`` (A) over the record and the phases."""
-    return jnp.max(jnp.abs(i_abc - i_abc_ref), axis=(-2, -1))
+    xp = _namespace(i_abc, i_abc_ref)
+    return xp.max(xp.abs(i_abc - i_abc_ref), axis=(-2, -1))

@@ -25,6 +25,7 @@ import sys
 import warnings
 
 from pmsmjax.checks.validation import ParameterError
+from pmsmjax.cli import compilation_cache
 from pmsmjax.cli.checks import Parser
 
 #: The subcommands' modules, in the order ``pmsmjax --help`` lists them.
@@ -46,6 +47,13 @@ def build_parser() -> Parser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     for name in SUBCOMMANDS:
         importlib.import_module(f"{__name__}.{name}").add_parser(sub)
+    for command in {id(p): p for p in sub.choices.values()}.values():  # an alias shares its parser
+        command.add_argument(
+            "--no-compile-cache",
+            action="store_true",
+            help="compile every program afresh instead of loading it from the persistent cache "
+            "(default cache: $PMSMJAX_CACHE_DIR, else $XDG_CACHE_HOME/pmsmjax/jax or ~/.cache/pmsmjax/jax)",
+        )
     return parser
 
 
@@ -59,6 +67,7 @@ def main(argv=None) -> int:
     ``SystemExit`` (0 and 2; the refusal's one line is printed first)."""
     args = build_parser().parse_args(argv)
     prog = f"pmsmjax {args.command}"
+    compilation_cache.enable(None if args.no_compile_cache else compilation_cache.cache_dir())
 
     def show_warning(message, category, filename, lineno, file=None, line=None):
         print(f"{prog}: warning: {_one_line(message)}", file=sys.stderr)

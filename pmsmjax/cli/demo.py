@@ -422,6 +422,7 @@ def run(args) -> int:
     t0 = time.perf_counter()
     trace = jax.block_until_ready(simulate(drive, scenario, decimate=args.decimate))
     run_s = time.perf_counter() - t0
+    trace = trace.to_numpy()
 
     load_time = args.load_time_s if 0 < args.load_time_s < args.duration_s else None
     current_limit = float(np.asarray(drive.controller.current_limit))

@@ -8,7 +8,6 @@
   ``[u_1, ..., u_m, load_torque]`` with its ``m`` VSD voltage components).
 """
 
-import diffrax
 import jax
 import jax.numpy as jnp
 from jax.flatten_util import ravel_pytree
@@ -28,6 +27,10 @@ def solve_adaptive(
     max_steps: int = 100_000,
 ) -> MachineState:
     """Integrate ``machine`` over ``duration`` (s) with diffrax's Dopri8 and a PID step controller."""
+    # Imported here: diffrax takes a quarter of a second to import, and only reference solves need it,
+    # not the commands that import the machines package.
+    import diffrax
+
     term = diffrax.ODETerm(machine.vector_field)
     sol = diffrax.diffeqsolve(
         term,
