@@ -15,6 +15,8 @@ jax.config.update("jax_enable_x64", True)
 _CACHE = os.environ.get(
     "PMSMJAX_TEST_CACHE", str(Path(__file__).resolve().parents[1] / ".jax_cache" / "tests")
 )
+# The commands the tests start as subprocesses use the same folder (or none), never the user's cache.
+os.environ["PMSMJAX_CACHE_DIR"] = _CACHE or "off"
 if _CACHE:
     jax.config.update("jax_compilation_cache_dir", _CACHE)
     # Cache every program: the suite's are many and small, each costing well under a second to compile.

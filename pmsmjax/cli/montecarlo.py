@@ -106,8 +106,9 @@ def add_parser(sub):
     p.add_argument(
         "--compilation-cache",
         metavar="DIR",
-        help="keep compiled chunk functions in DIR (JAX's persistent cache): a later study of the same "
-        "shape (drive, scenario length, chunk size, devices) skips most of the compile (default: none)",
+        help="keep compiled chunk functions in DIR instead of the persistent cache every command uses "
+        "(a later study of the same shape, drive, scenario length, chunk size and devices, skips most of "
+        "the compile; default: that cache, see --no-compile-cache)",
     )
     p.add_argument(
         "--unroll-substeps",

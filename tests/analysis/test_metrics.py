@@ -229,3 +229,50 @@ def test_ripple_about_the_mean_of_a_sinusoid():
     tail = np.concatenate([np.zeros(100), window])
     assert float(metrics.ripple_rms_about_mean(spiked, tail)) == pytest.approx(ripple, rel=1e-12)
     assert float(metrics.ripple_rms_about_mean(spiked, np.zeros(500))) == 0.0
+
+
+# --- one definition, two array types ------------------------------------------------------------------------
+
+
+def _figures(t, w, ref, i_abc, duties):
+    """Every figure of a recorded run a summary reads, from arrays of one type."""
+    return {
+        "rise": metrics.rise_time(t, w, 0.0, 100.0),
+        "overshoot": metrics.overshoot(w, 0.0, 100.0),
+        "settling": metrics.settling_time(t, w, 0.0, 100.0),
+        "sse": metrics.steady_state_error(w, ref, 50),
+        "itae": metrics.itae(t, metrics.tracking_error(ref, w)),
+        "iae": metrics.iae(t, ref - w),
+        "ise": metrics.ise(t, ref - w),
+        "dip": metrics.disturbance_dip(t, w, 0.05, 100.0, 0.5),
+        "peak": metrics.peak_phase_current(i_abc),
+        "rms": metrics.rms_phase_current(i_abc),
+        "switching": metrics.switching_frequency_hz(duties, 1e-4),
+        "ripple": metrics.current_ripple_rms_a(w, 11),
+        "band": metrics.outside_reference_band(w, ref, 0.02),
+    }
+
+
+def test_numpy_input_gives_numpy_figures_equal_to_the_jax_ones():
+    """A recorded run is post-processed in NumPy (nothing compiled: the results are NumPy, not JAX
+    arrays) and the same function traced with JAX arrays gives the same figures (float64, 1e-12)."""
+    rng = np.random.default_rng(3)
+    t, w = second_order_step(0.4, 300.0, 200, 1000)
+    w = 100.0 * w + 0.2 * rng.standard_normal(t.shape)
+    w[500:] -= 5.0 * np.exp(-(t[500:] - t[500]) / 0.005)  # a load dip at t[500]
+    ref = np.full_like(t, 100.0)
+    i_abc = rng.standard_normal((1000, 3))
+    duties = rng.uniform(-0.2, 1.2, (1000, 3)).clip(0.0, 1.0)
+    by_numpy = _figures(t, w, ref, i_abc, duties)
+    by_jax = _figures(*(jnp.asarray(x) for x in (t, w, ref, i_abc, duties)))  # float64: tests/conftest.py
+    for name, value in by_numpy.items():
+        values = value if isinstance(value, tuple) else (value,)
+        assert not any(isinstance(v, jax.Array) for v in values), f"{name}: NumPy input gave a JAX array"
+        assert any(isinstance(v, jax.Array) for v in jax.tree.leaves(by_jax[name])), name
+        np.testing.assert_allclose(
+            np.asarray(value, dtype=float),
+            np.asarray(by_jax[name], dtype=float),
+            rtol=1e-12,
+            atol=1e-12,
+            err_msg=name,
+        )
