@@ -156,7 +156,7 @@ def run_control(name: str, drive: Drive, settings: ControllerCompareSettings, in
     scenario = _scenario(settings)
     check_simulation(drive, scenario)
     n_window = window_periods(drive, settings)
-    trace = jax.block_until_ready(simulate(drive, scenario, initial_state=initial_state))
+    trace = simulate(drive, scenario, initial_state=initial_state).to_numpy()  # figures in NumPy
     limit = float(drive.controller.current_limit)
     summary = speed_step_summary(trace, load_time_s=settings.load_time_s, current_limit_a=limit)
 
@@ -478,7 +478,7 @@ def run_estimator_scenario(drive: Drive, scenario, initial_state) -> dict:
     from pmsmjax.analysis.observer_errors import CONVERGED_AFTER_S
 
     check_simulation(drive, scenario)
-    trace = jax.block_until_ready(simulate(drive, scenario, initial_state=initial_state))
+    trace = simulate(drive, scenario, initial_state=initial_state).to_numpy()  # figures in NumPy
     t = np.asarray(trace.t, np.float64)
     w = np.asarray(trace.omega_m, np.float64)
     ref = np.asarray(trace.speed_ref, np.float64)
