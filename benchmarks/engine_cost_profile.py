@@ -14,9 +14,10 @@ Two tables, every call timed interleaved (:func:`benchmarks.bench_core.time_inte
    only the speed (its arithmetic); the engine's step recording the packed row in one flat scan.
 2. **block length sweep**: the sensored drive (11-element record row) and the ``--observers`` drives
    (13 elements: the estimate too) from a flying start at 1000 r/min, 10 N m load step half way, each
-   recording the packed row (:func:`pmsmjax.simulate.pack_row`) in blocks of ``--blocks`` periods; the
-   header gives ``B * row bytes`` for each. The time per period drops where that reaches 512 bytes or
-   less, and the speed-only scan (4-byte rows) is the arithmetic the record adds to.
+   recording the packed row (``ravel_pytree`` of the record, as ``simulate`` writes it) in blocks of
+   ``--blocks`` periods; the header gives ``B * row bytes`` for each. The time per period drops where
+   that reaches 512 bytes or less, and the speed-only scan (4-byte rows) is the arithmetic the record
+   adds to.
 
     python -m benchmarks.engine_cost_profile --observers smo,mras --blocks 1,8,10,20,100
 """
@@ -26,13 +27,14 @@ import argparse
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+from jax.flatten_util import ravel_pytree
 
 from benchmarks.bench_core import time_interleaved
 from benchmarks.bench_observers import running_start, speed_only
 from benchmarks.minimal_loop import make_minimal_loop
 from pmsmjax import presets, simulate
 from pmsmjax.scenarios import Profile, Scenario
-from pmsmjax.simulate import pack_row, period_inputs
+from pmsmjax.simulate import period_inputs
 from pmsmjax.studies import engine_timing
 from pmsmjax.units import rpm_to_rad_s
 
@@ -48,7 +50,7 @@ def step_scan(block: int, keep: str):
 
         def body(s, x):
             s, rec = step(drive, s, x)
-            return s, rec.machine.omega_m if keep == "speed" else pack_row(rec)
+            return s, rec.machine.omega_m if keep == "speed" else ravel_pytree(rec)[0]
 
         if block == 1:
             return jax.lax.scan(body, state, xs)[1]

@@ -21,7 +21,6 @@ import jax.numpy as jnp
 import numpy as np
 from jax.flatten_util import ravel_pytree
 
-from pmsmjax._types import Array
 from pmsmjax.checks.validation import ParameterError, is_concrete
 from pmsmjax.drive import Drive, DriveState, PeriodInputs, PeriodRecord
 from pmsmjax.frames.three_phase import dq_to_abc
@@ -117,7 +116,7 @@ def _simulate(drive: Drive, scenario: Scenario, decimate: int, initial_state) ->
     def recorded_step(s, x):
         s, record = step(drive, s, x)
         # One packed vector per period: a single output buffer instead of one per field.
-        return s, pack_row(record)
+        return s, ravel_pytree(record)[0]
 
     def unrecorded_step(s, x):
         return step(drive, s, x)[0], None
@@ -171,26 +170,6 @@ def scan_in_blocks(f, init, xs, bytes_per_step: int):
     blocks = jax.tree.map(lambda a: a.reshape((n // b, b) + a.shape[1:]), xs)
     carry, ys = jax.lax.scan(lambda c, xb: jax.lax.scan(f, c, xb), init, blocks)
     return carry, jax.tree.map(lambda y: y.reshape((n,) + y.shape[2:]), ys)
-
-
-def pack_row(record) -> Array:
-    """The leaves of ``record`` flattened into one vector, in :func:`jax.flatten_util.ravel_pytree`'s
-    layout (so its ``unravel`` unpacks it).
-
-    Written leaf by leaf into a zero vector rather than concatenated: XLA:CPU (jax 0.10) turns a
-    concatenation of more than 12 elements in the scan body into a slow path whose per-period cost grew
-    with the run length (sensored row, 11 elements: 1.6 us per period; the same row plus a 2-element
-    estimate: 4.0 us at 8000 periods, 1.64 us written this way; measured with
-    benchmarks/observer_cost_profile.py). The arithmetic is the same.
-    """
-    leaves = jax.tree.leaves(record)
-    dtype = jnp.result_type(*leaves)
-    row = jnp.zeros(sum(leaf.size for leaf in leaves), dtype)
-    offset = 0
-    for leaf in leaves:
-        row = row.at[offset : offset + leaf.size].set(jnp.ravel(leaf).astype(dtype))
-        offset += leaf.size
-    return row
 
 
 def trace_from_records(drive: Drive, rec: PeriodRecord, xs: PeriodInputs, dt: float) -> Trace:
