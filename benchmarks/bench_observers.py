@@ -25,11 +25,11 @@ from pmsmjax import presets, simulate
 from pmsmjax.estimators import OBSERVERS
 from pmsmjax.frames.three_phase import abc_to_alpha_beta
 from pmsmjax.scenarios import Profile, Scenario
-from pmsmjax.simulate import period_inputs
+from pmsmjax.simulate import period_inputs, scan_in_blocks
 from pmsmjax.studies.offline_observer import observe
 from pmsmjax.units import rpm_to_rad_s
 
-__all__ = ["run", "main", "format_table", "REQUIRED_KEYS"]
+__all__ = ["run", "main", "format_table", "speed_only", "REQUIRED_KEYS"]
 
 REQUIRED_KEYS = ("drives", "duration_s", "dtype", "machine")
 
@@ -47,12 +47,16 @@ def running_start(drive, speed_rad_s: float):
 
 
 @eqx.filter_jit
-def _speed_only(drive, state, xs):
-    """The simulate scan (checkpointed drive step) recording only the speed: the drive's arithmetic."""
+def speed_only(drive, state, xs):
+    """The simulate scan (checkpointed drive step, in the same blocks of periods:
+    :func:`pmsmjax.simulate.scan_in_blocks`) recording only the speed: the drive's arithmetic."""
     step = jax.checkpoint(lambda d, s, x: d.step(s, x))
-    return jax.lax.scan(lambda s, x: (lambda r: (r[0], r[1].machine.omega_m))(step(drive, s, x)), state, xs)[
-        1
-    ]
+
+    def body(s, x):
+        s, record = step(drive, s, x)
+        return s, record.machine.omega_m
+
+    return scan_in_blocks(body, state, xs, xs.speed_ref.dtype.itemsize)[1]
 
 
 def run(quick: bool = False, names=tuple(OBSERVERS)) -> dict:
@@ -91,7 +95,7 @@ def time_estimator_drives(drives: dict, states: dict, scenario, offline: dict, r
         for name, d in drives.items()
     }
     bare = {
-        f"{name} (speed only)": (lambda d=d, s=states[name]: jax.block_until_ready(_speed_only(d, s, xs)))
+        f"{name} (speed only)": (lambda d=d, s=states[name]: jax.block_until_ready(speed_only(d, s, xs)))
         for name, d in drives.items()
     }
     alone = {f"{name} (offline)": call for name, call in offline.items()}
