@@ -2,26 +2,7 @@
 vector space decomposition and double dq (:mod:`.multiphase`).
 """
 
-from pmsmjax.frames.three_phase import (
-    abc_to_alpha_beta,
-    abc_to_alpha_beta_zero,
-    abc_to_dq,
-    alpha_beta_to_abc,
-    dq_to_abc,
-    inverse_park,
-    park,
-    rotation,
-    wrap_angle,
-)
+from pmsmjax.frames import three_phase
+from pmsmjax.frames.three_phase import *  # noqa: F403 (its __all__ is the list re-exported here)
 
-__all__ = [
-    "abc_to_alpha_beta",
-    "abc_to_alpha_beta_zero",
-    "wrap_angle",
-    "alpha_beta_to_abc",
-    "abc_to_dq",
-    "dq_to_abc",
-    "park",
-    "inverse_park",
-    "rotation",
-]
+__all__ = list(three_phase.__all__)
