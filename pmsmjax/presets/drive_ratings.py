@@ -1,0 +1,250 @@
+"""What a drive can do and how to control it, from its motor and inverter: the ratings a drive file leaves
+out, the design-rule bandwidths, and the scenarios every command runs. Pure Python (no JAX), so the
+command line derives and checks a drive before anything compiles.
+
+Motors are dicts of SI values (``R, L_d, L_q, psi_f, pole_pairs, J, B``; a multi-phase motor adds
+``n_phases``), steady states those of :mod:`pmsmjax.analysis.operating_point`.
+
+**Torque per current** (BOOK.md chapter 1, MTPA of chapter 2): ``T = (n/2) p i_q (psi_f + (L_d - L_q)
+i_d)``, with the MTPA d-axis current for a current magnitude ``I``::
+
+    i_d = (psi_f - sqrt(psi_f^2 + 8 (L_q - L_d)^2 I^2)) / (4 (L_q - L_d))      (0 for L_d = L_q)
+
+**Current-loop bandwidth** (:func:`current_bandwidth_rule`): the internal-model PI of BOOK.md chapter 3
+makes the current loop ``a_c / s`` times the loop's delay, one period of computation plus half a period of
+the PWM's zero-order hold, ``1.5 Ts``; its phase margin is ``90 deg - 1.5 Ts a_c`` (rad). The rule keeps
+:data:`CURRENT_LOOP_PHASE_MARGIN_DEG` = 65 deg: ``a_c = (pi/2 - 65 deg) / (1.5 Ts) = 0.29 / Ts`` (2.9 krad/s
+at 10 kHz). Harnefors and Nee, "Model-based current control of AC machines using the internal model
+control method", IEEE TIA 34(1), 1998, DOI 10.1109/28.658735 (the IMC design); the delay margin is the
+usual discrete-time bound (Harnefors et al., "Speed control of electrical drives using classical control
+methods", IEEE TIA 49(2), 2013, DOI 10.1109/TIA.2012.2235185, which also asks the speed loop to stay well
+below the current loop).
+
+**Speed-loop bandwidth** (:func:`speed_bandwidth_rule`): the active-damping PI (BOOK.md chapter 3) asks
+``Kp omega = beta J omega / k_t`` of current on a speed step ``omega``; the rule takes the largest
+``beta`` that keeps a step of a fifth of the rated speed inside the current limit (linear, no wind-up),
+``beta = T_max / (J omega_rated / 5)``: five times the inverse of the time the drive needs to accelerate
+to rated speed at full torque (its mechanical time constant under the limit). Larger steps ride on the
+current limit, which the realisable-reference anti-windup of the speed PI handles. At most a tenth of the
+current loop's bandwidth. (The book's 50 rad/s keeps the whole 1000 r/min step linear:
+16.4 N m / (0.003 kg m^2 x 104.7 rad/s) = 52 rad/s.)
+
+**Scenarios** (:func:`default_scenario`, :func:`tuning_ranges`): the speed step goes to the rated speed,
+the load to 0.8 of the rated torque; the load steps in after twice the time the speed loop needs to
+settle (acceleration at full torque plus ``4 / beta``), rounded up to 1, 2, 2.5 or 5 x 10^k s, and the run
+lasts twice that. Tuning batches draw speeds from 0.2 x rated to the rated speed or the top speed the
+inverter reaches at rated torque (i_d = 0), whichever is lower, loads up to the rated torque, and
+durations of 1.5 to 2.5 x the load time. (The book drive file states the book's own ranges: steps of
+200-1500 r/min, 0-10 N m, 0.3-0.5 s.)
+"""
+
+import math
+from collections.abc import Mapping
+
+from pmsmjax.analysis.operating_point import steady_point, top_speed_rpm
+
+__all__ = [
+    "CURRENT_LOOP_PHASE_MARGIN_DEG",
+    "PEAK_TO_RATED_CURRENT",
+    "torque_factor",
+    "mtpa_d_current",
+    "torque_at_current",
+    "current_for_torque",
+    "voltage_limit_v",
+    "rated_point_voltage_v",
+    "base_speed_rpm",
+    "current_bandwidth_rule",
+    "speed_bandwidth_rule",
+    "default_scenario",
+    "tuning_ranges",
+    "round_up_nice",
+    "startup_rule",
+]
+
+RPM = math.pi / 30.0
+#: Phase margin the current-loop rule keeps against the 1.5-period loop delay, degrees.
+CURRENT_LOOP_PHASE_MARGIN_DEG = 65.0
+#: Peak current over rated current when a drive file gives only one of them (servo-class inverters
+#: allow 2-3x for seconds; 2 leaves the rated point linear with room to accelerate).
+PEAK_TO_RATED_CURRENT = 2.0
+#: Share of the voltage limit the rated point may use when the rated speed is derived (base speed).
+BASE_SPEED_VOLTAGE_SHARE = 0.95
+#: The speed step, as a share of the rated speed, that the speed-loop rule keeps linear.
+SPEED_RULE_STEP_SHARE = 0.2
+#: Speed-loop bandwidth at most this share of the current loop's (cascade separation).
+SPEED_TO_CURRENT_BANDWIDTH = 0.1
+#: Demo load as a share of the rated torque.
+DEMO_LOAD_SHARE = 0.8
+#: Tuning speed range as shares of the rated speed (steps up to the rated speed).
+TUNING_SPEED_SHARES = (0.2, 1.0)
+#: Tuning durations as multiples of the load-step time.
+TUNING_DURATION_FACTORS = (1.5, 2.5)
+
+
+def torque_factor(motor: Mapping) -> float:
+    """``(n/2) p``: torque per ampere of q current per weber of flux (``1.5 p`` for three phases)."""
+    return 0.5 * motor.get("n_phases", 3) * motor["pole_pairs"]
+
+
+def mtpa_d_current(motor: Mapping, current_a: float) -> float:
+    """The MTPA d-axis current (A, <= 0 for L_q > L_d) for a current magnitude ``current_a`` (module
+    docstring); 0 for a surface motor."""
+    saliency = motor["L_q"] - motor["L_d"]
+    if abs(saliency) < 1e-12 * max(motor["L_q"], motor["L_d"]):
+        return 0.0
+    psi = motor["psi_f"]
+    return (psi - math.sqrt(psi * psi + 8.0 * saliency * saliency * current_a * current_a)) / (4.0 * saliency)
+
+
+def torque_at_current(motor: Mapping, current_a: float) -> float:
+    """The most torque (N m) a current magnitude ``current_a`` (A, peak) gives (MTPA)."""
+    i_d = mtpa_d_current(motor, current_a)
+    i_q = math.sqrt(max(current_a * current_a - i_d * i_d, 0.0))
+    return torque_factor(motor) * i_q * (motor["psi_f"] + (motor["L_d"] - motor["L_q"]) * i_d)
+
+
+def current_for_torque(motor: Mapping, torque_nm: float) -> float:
+    """The least current magnitude (A, peak) that gives ``torque_nm`` (MTPA; bisection)."""
+    lo, hi = 0.0, max(torque_nm / (torque_factor(motor) * motor["psi_f"]), 1e-9)
+    while torque_at_current(motor, hi) < torque_nm:
+        lo, hi = hi, 2.0 * hi
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if torque_at_current(motor, mid) < torque_nm else (lo, mid)
+    return hi
+
+
+def voltage_limit_v(u_dc_v: float, n_phases: int = 3) -> float:
+    """Peak phase voltage of the default modulator's linear range, V: ``U_dc / sqrt 3`` (SVPWM; the
+    six-phase four-vector SVPWM likewise) or ``U_dc / (2 cos(pi/10))`` (five-phase near-four-vector)."""
+    if n_phases == 5:
+        return u_dc_v / (2.0 * math.cos(math.pi / 10.0))
+    return u_dc_v / math.sqrt(3.0)
+
+
+def rated_point_voltage_v(motor: Mapping, speed_rpm: float, torque_nm: float) -> float:
+    """Peak phase voltage (V) the steady state at ``speed_rpm`` under ``torque_nm`` needs with MTPA
+    currents (friction included)."""
+    w = speed_rpm * RPM
+    current = current_for_torque(motor, torque_nm + motor["B"] * w)
+    i_d = mtpa_d_current(motor, current)
+    return steady_point(motor, w, torque_nm, i_d)["voltage"]
+
+
+def base_speed_rpm(
+    motor: Mapping, torque_nm: float, u_limit_v: float, voltage_share: float = BASE_SPEED_VOLTAGE_SHARE
+) -> float:
+    """The speed (r/min) at which the MTPA steady state under ``torque_nm`` needs ``voltage_share`` of
+    ``u_limit_v``; 0 if standstill needs more."""
+    target = voltage_share * u_limit_v
+    if rated_point_voltage_v(motor, 0.0, torque_nm) > target:
+        return 0.0
+    lo, hi = 0.0, 100.0
+    while rated_point_voltage_v(motor, hi, torque_nm) <= target and hi < 1e7:
+        lo, hi = hi, 2.0 * hi
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if rated_point_voltage_v(motor, mid, torque_nm) <= target else (lo, mid)
+    return lo
+
+
+def current_bandwidth_rule(Ts: float, delay_periods: float = 1.5) -> float:
+    """Current-loop bandwidth a_c (rad/s) for control period ``Ts`` (s): the phase margin
+    :data:`CURRENT_LOOP_PHASE_MARGIN_DEG` against a loop delay of ``delay_periods`` periods (module
+    docstring)."""
+    return (math.pi / 2.0 - math.radians(CURRENT_LOOP_PHASE_MARGIN_DEG)) / (delay_periods * Ts)
+
+
+def speed_bandwidth_rule(
+    motor: Mapping, current_bandwidth_rad_s: float, max_current_a: float, rated_speed_rpm: float
+) -> float:
+    """Speed-loop bandwidth beta (rad/s): a step of :data:`SPEED_RULE_STEP_SHARE` of the rated speed reaches
+    the current limit with the P part alone; at most a tenth of the current loop's (module docstring)."""
+    k_t = torque_factor(motor) * motor["psi_f"]  # the active-damping design's linear torque constant
+    beta = k_t * max_current_a / (motor["J"] * SPEED_RULE_STEP_SHARE * rated_speed_rpm * RPM)
+    return min(beta, SPEED_TO_CURRENT_BANDWIDTH * current_bandwidth_rad_s)
+
+
+#: I/f start-up of a sensorless drive (:class:`pmsmjax.estimators.startup.StartupEstimator`): the current
+#: as a share of the maximum, the ramp's acceleration as a share of what that current's torque gives the
+#: bare rotor, the hand-over and blend speeds as shares of the rated speed (the book drive states its own:
+#: 8 A, 1000 rad/s^2, 150 and 100 r/min).
+STARTUP_SHARES = {"current": 0.5, "acceleration": 0.3, "handover": 0.15, "blend": 0.1}
+STARTUP_HOW = {
+    "startup_current_a": f"{STARTUP_SHARES['current']:g} x max_current_a",
+    "startup_acceleration_rad_s2": f"{STARTUP_SHARES['acceleration']:g} x the start current's torque / J",
+    "handover_speed_rad_s": f"{STARTUP_SHARES['handover']:g} x the rated speed",
+    "blend_speed_rad_s": f"{STARTUP_SHARES['blend']:g} x the rated speed",
+}
+
+
+def startup_rule(motor: Mapping, ratings: Mapping) -> dict:
+    """``{startup_current_a, startup_acceleration_rad_s2, handover_speed_rad_s, blend_speed_rad_s}`` of
+    the I/f start (:data:`STARTUP_SHARES`; speeds mechanical)."""
+    current = STARTUP_SHARES["current"] * ratings["max_current_a"]
+    rated = ratings["rated_speed_rpm"] * RPM
+    return {
+        "startup_current_a": current,
+        "startup_acceleration_rad_s2": STARTUP_SHARES["acceleration"]
+        * torque_at_current(motor, current)
+        / motor["J"],
+        "handover_speed_rad_s": STARTUP_SHARES["handover"] * rated,
+        "blend_speed_rad_s": STARTUP_SHARES["blend"] * rated,
+    }
+
+
+def round_up_nice(x: float) -> float:
+    """The smallest of 1, 2, 2.5, 5 x 10^k at least ``x`` (> 0), as the decimal a user would type."""
+    k = math.floor(math.log10(x))
+    for step in (1.0, 2.0, 2.5, 5.0, 10.0):
+        value = float(f"{step}e{k}")
+        if value >= x * (1.0 - 1e-12):
+            return value
+    return float(f"1e{k + 1}")  # pragma: no cover (10 x 10^k always fits)
+
+
+def load_time_s(
+    motor: Mapping, max_current_a: float, speed_rpm: float, speed_bandwidth_rad_s: float
+) -> float:
+    """When a scenario's load steps in, s: twice the time the speed loop needs to reach ``speed_rpm``
+    from rest (acceleration at the current limit's torque, then ``4 / beta``), rounded up nicely."""
+    accelerate = motor["J"] * abs(speed_rpm) * RPM / torque_at_current(motor, max_current_a)
+    return round_up_nice(2.0 * (accelerate + 4.0 / speed_bandwidth_rad_s))
+
+
+def default_scenario(
+    motor: Mapping,
+    rated_speed_rpm: float,
+    rated_torque_nm: float,
+    max_current_a: float,
+    speed_bandwidth_rad_s: float,
+) -> dict:
+    """``{speed_rpm, load_nm, load_time_s, duration_s}`` of the drive's demo run (module docstring)."""
+    t_load = load_time_s(motor, max_current_a, rated_speed_rpm, speed_bandwidth_rad_s)
+    return {
+        "speed_rpm": rated_speed_rpm,
+        "load_nm": DEMO_LOAD_SHARE * rated_torque_nm,
+        "load_time_s": t_load,
+        "duration_s": 2.0 * t_load,
+    }
+
+
+def tuning_ranges(
+    motor: Mapping,
+    rated_speed_rpm: float,
+    rated_torque_nm: float,
+    max_current_a: float,
+    u_dc_v: float,
+    speed_bandwidth_rad_s: float,
+) -> dict:
+    """``{speed_rpm: [low, high], load_nm: [0, rated], duration_s: [low, high]}`` of the tuning batches
+    (module docstring)."""
+    top = top_speed_rpm(motor, voltage_limit_v(u_dc_v, motor.get("n_phases", 3)), rated_torque_nm)
+    low, high = (share * rated_speed_rpm for share in TUNING_SPEED_SHARES)
+    high = min(high, top)
+    t_load = load_time_s(motor, max_current_a, rated_speed_rpm, speed_bandwidth_rad_s)
+    return {
+        "speed_rpm": [low, high],
+        "load_nm": [0.0, rated_torque_nm],
+        "duration_s": [float(f"{factor * t_load:.12g}") for factor in TUNING_DURATION_FACTORS],
+    }

@@ -1,0 +1,133 @@
+"""The user's drive as a simulation: the motor, inverter, ratings and design-rule gains of a drive file
+(:class:`pmsmjax.io.drive_files.DriveSpec`) put into the presets of every control method.
+
+:func:`spec_drive` builds the drive of a control method (:data:`pmsmjax.presets.control_methods.CONTROLS`,
+or a six- or five-phase scheme) at the file's DC link, control rate, current limit and bandwidths; the
+file's sensor (an encoder) becomes the drive's estimator. :func:`spec_scenario` is the file's scenario,
+:func:`startup_options` its I/f start for sensorless runs. On the book drive file (``--motor book``) all
+three are bit for bit the book presets (tests/presets/test_user_drive.py).
+"""
+
+import inspect
+
+import equinox as eqx
+
+from pmsmjax.drive import Drive
+from pmsmjax.io.drive_files import DriveSpec
+from pmsmjax.machines.motor import PMSMParameters
+from pmsmjax.scenarios import Scenario
+
+__all__ = ["spec_motor", "drive_options", "spec_drive", "spec_scenario", "startup_options", "SMC_LOAD_RISE_S"]
+
+#: The sliding-mode speed law's design load: the rated torque rising in this time, s (the book's 10 N m in
+#: 10 ms, :func:`pmsmjax.presets.smc_drive`).
+SMC_LOAD_RISE_S = 0.01
+
+_MOTOR_KEYS = ("R", "L_d", "L_q", "psi_f", "pole_pairs", "J", "B")
+
+
+def spec_motor(spec: DriveSpec):
+    """The drive file's motor: :class:`PMSMParameters`, or a six- or five-phase
+    :class:`~pmsmjax.machines.multiphase_motor.MultiPhaseParameters`."""
+    if spec.n_phases == 3:
+        return PMSMParameters(**{k: spec.motor[k] for k in _MOTOR_KEYS})
+    from pmsmjax.presets.five_phase import five_phase_motor
+    from pmsmjax.presets.six_phase import six_phase_motor
+
+    if spec.source in ("book", "book_salient"):  # the rewind presets compute their values: keep them exact
+        rewind = six_phase_motor if spec.n_phases == 6 else five_phase_motor
+        return rewind(spec.source == "book_salient")
+    from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
+
+    extra = {"psi_f3": spec.motor["psi_f3"]} if "psi_f3" in spec.motor else {}
+    values = {k: spec.motor[k] for k in _MOTOR_KEYS + ("L_ls",)}
+    return MultiPhaseParameters(**values, n_phases=spec.n_phases, **extra)
+
+
+def _accepts(preset) -> set:
+    params = inspect.signature(preset).parameters
+    return {p for p, v in params.items() if v.kind == v.KEYWORD_ONLY}
+
+
+def drive_options(spec: DriveSpec, control: str = "pi") -> dict:
+    """The preset options (:func:`pmsmjax.presets.control_methods.control_drive`, or the six- and
+    five-phase drives) that put the drive file into control ``control``'s drive: DC link, control period,
+    current limit, bandwidths (and the SMC's design load)."""
+    common = {
+        "u_dc": spec.u_dc_v,
+        "current_limit": spec.current_limit_a,
+        "speed_bandwidth": spec.control["speed_bandwidth_rad_s"],
+    }
+    if spec.n_phases != 3:
+        return {**common, "Ts": spec.Ts, "current_bandwidth": spec.control["current_bandwidth_rad_s"]}
+    from pmsmjax.presets.control_methods import control_options
+
+    allowed = set(control_options(control))
+    options = dict(common)
+    if "Ts" in allowed:
+        options["Ts"] = spec.Ts
+    if "current_bandwidth" in allowed:
+        options["current_bandwidth"] = spec.control["current_bandwidth_rad_s"]
+    if "speed_period_s" in allowed:  # comparator drives: the speed loop at the control rate
+        options["speed_period_s"] = spec.Ts
+    if "load_torque_rate_nm_s" in allowed:
+        options["load_torque_rate_nm_s"] = spec.ratings["rated_torque_nm"] / SMC_LOAD_RISE_S
+    return options
+
+
+def spec_drive(spec: DriveSpec, control: str | None = None, **options) -> Drive:
+    """The drive of ``control`` (default ``pi``, six- and five-phase ``vsd``) on the drive file ``spec``;
+    ``options`` (preset options) override the file's. An encoder in ``[sensor]`` becomes the estimator."""
+    if spec.n_phases == 3:
+        from pmsmjax.presets.control_methods import control_drive
+
+        control = control or "pi"
+        drive = control_drive(control, spec_motor(spec), **{**drive_options(spec, control), **options})
+    else:
+        if spec.n_phases == 6:
+            from pmsmjax.presets.six_phase import six_phase_drive as multiphase_drive
+        else:
+            from pmsmjax.presets.five_phase import five_phase_drive as multiphase_drive
+        merged = {**drive_options(spec, control), **options}
+        if merged.get("bridge") == "switching" and spec.inverter["dead_time_s"] > 0:
+            merged.setdefault("dead_time", spec.inverter["dead_time_s"])
+        drive = multiphase_drive(spec_motor(spec), control=control or "vsd", **merged)
+    if spec.sensor["kind"] == "encoder":
+        from pmsmjax.estimators.position_sensors import Encoder
+
+        encoder = Encoder(spec.sensor["lines"], spec.motor["pole_pairs"], spec.sensor["delay_s"])
+        drive = eqx.tree_at(lambda d: d.estimator, drive, encoder, is_leaf=lambda x: x is None)
+    return drive
+
+
+def spec_scenario(
+    spec: DriveSpec,
+    speed_rpm: float | None = None,
+    load_nm: float | None = None,
+    load_time_s: float | None = None,
+    duration_s: float | None = None,
+) -> Scenario:
+    """The drive file's scenario (``[scenario]``, derived where absent), each value overridable: a speed
+    step from rest to ``speed_rpm`` at t = 0, a load step 0 -> ``load_nm`` at ``load_time_s``."""
+    from pmsmjax.presets.three_phase import book_scenario
+
+    s = spec.scenario
+    pick = lambda value, key: s[key] if value is None else value
+    return book_scenario(
+        pick(speed_rpm, "speed_rpm"),
+        pick(load_nm, "load_nm"),
+        pick(load_time_s, "load_time_s"),
+        pick(duration_s, "duration_s"),
+    )
+
+
+def startup_options(spec: DriveSpec) -> dict:
+    """The I/f start of a sensorless drive on ``spec`` (:class:`pmsmjax.estimators.startup.StartupEstimator`
+    keywords; ``[control]`` startup values)."""
+    c = spec.control
+    return {
+        "i_start": c["startup_current_a"],
+        "accel": c["startup_acceleration_rad_s2"],
+        "handover_speed": c["handover_speed_rad_s"],
+        "blend_speed": c["blend_speed_rad_s"],
+    }
