@@ -122,7 +122,7 @@ def acquire(folder, argv: Sequence[str], attempts: int = 50) -> FolderLock:
         "time": time.strftime("%Y-%m-%d %H:%M:%S %z"),
     }
     took_over = None
-    for _ in range(attempts):
+    for attempt in range(attempts):
         if _create(path, mine):
             if took_over is not None:
                 warnings.warn(
@@ -132,6 +132,9 @@ def acquire(folder, argv: Sequence[str], attempts: int = 50) -> FolderLock:
                 )
             return FolderLock(path, took_over)
         content = read_lock(path)
+        if content is None and attempt < attempts - 1 and not _is_stale(path, None):
+            time.sleep(0.02)  # created an instant ago, its content not yet written: read it again
+            continue
         if not _is_stale(path, content):
             if content is None or content.get("host") == _host():
                 fix = "wait for it to finish or write to another --out folder"
