@@ -36,7 +36,7 @@ import sys
 from collections.abc import Mapping
 from pathlib import Path
 
-from pmsmjax.analysis.operating_point import reachable
+from pmsmjax.analysis.operating_point import reachable, steady_point
 from pmsmjax.checks.plausibility import check_motor_units
 from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.presets import drive_ratings as rules
@@ -250,7 +250,7 @@ def read_drive_file(
     _complete_inverter(inverter, derived, name_of)
     Ts = 1.0 / inverter["control_frequency_hz"]
     if check_units and not trust:
-        check_motor_units(motor, where, Ts)
+        check_motor_units(motor, f"{where} [motor]", Ts)
     _complete_ratings(motor, ratings, inverter, derived, name_of)
     notes = _check_rated_point(motor, ratings, inverter, name_of)
     _complete_control(motor, ratings, control, Ts, derived)
@@ -624,10 +624,19 @@ def _check_rated_point(motor: dict, ratings: dict, inverter: dict, name_of) -> l
         return []
     fw = reachable(motor, speed, torque, u_limit, ratings["max_current_a"], field_weakening=True)
     if fw["ok"]:
+        # reachable() gives the i_d of least voltage; the note gives the weakest field weakening that
+        # suffices (the voltage falls monotonically from i_d = 0 to that point: bisection).
+        enough, short = fw["i_d"], 0.0
+        for _ in range(60):
+            mid = 0.5 * (enough + short)
+            if steady_point(motor, speed * rules.RPM, torque, mid)["voltage"] <= u_limit:
+                enough = mid
+            else:
+                short = mid
         return [
             f"the rated point ({plain(speed)} r/min, {torque:.3g} N m) needs {need:.0f} V with MTPA, above "
             f"the {u_limit:.0f} V the inverter gives: it is reached with field weakening only (i_d = "
-            f"{fw['i_d']:.3g} A); run demo with --field-weakening"
+            f"{enough:.3g} A at least); run demo with --field-weakening"
         ]
     top = rules.base_speed_rpm(motor, torque, u_limit, voltage_share=1.0)
     u_need = math.ceil(need / rules.voltage_limit_v(1.0, n))
