@@ -238,6 +238,11 @@ def read_drive_file(
     control = _numbers(tables["control"], "control", where)
     scenario = _numbers(tables["scenario"], "scenario", where, positive=("duration_s",), signed=True)
     tolerances = _numbers(tables["tolerances"], "tolerances", where, zero_ok=True)
+    if scenario.get("load_time_s", 0.0) < 0.0:
+        raise ParameterError(
+            f"{where}: [scenario] load_time_s = {plain(scenario['load_time_s'])} s: give a time >= 0 (s "
+            "after the start of the run)."
+        )
     tuning = _ranges(tables["tuning"], where)
     sensor = _read_sensor(tables["sensor"], where)
     for key, value in (overrides or {}).items():
@@ -407,7 +412,7 @@ def _read_motor(values: dict, where: str, n_phases: int | None) -> dict:
     if not isinstance(trust, bool):
         raise ParameterError(f"{where}: [motor] trust_units must be true or false, got {trust!r}.")
     file_phases = values.get("n_phases", 3)
-    if file_phases not in (3, 5, 6) or isinstance(file_phases, bool):
+    if not isinstance(file_phases, int) or isinstance(file_phases, bool) or file_phases not in (3, 5, 6):
         raise ParameterError(f"{where}: [motor] n_phases = {file_phases!r}: give 3, 5 or 6.")
     if n_phases is not None and file_phases != n_phases:
         word = {3: "three", 5: "five", 6: "six"}

@@ -200,6 +200,18 @@ CARELESS = {
         "[sensor]\nlines = 2500\n\n[tolerances]",
         ["[sensor] lines", 'kind = "encoder" only'],
     ),
+    "load before the run": (
+        BOOK,
+        "load_time_s",
+        "load_time_s = -0.1",
+        ["[scenario] load_time_s = -0.1 s", ">= 0"],
+    ),
+    "six phases as a float": (
+        SIX,
+        "n_phases",
+        "n_phases = 6.0",
+        ["[motor] n_phases = 6.0", "give 3, 5 or 6"],
+    ),
     "four phases": (
         BOOK,
         "pole_pairs",
