@@ -4,6 +4,13 @@
 Every subcommand checks its input before compiling anything and writes each output file atomically
 (temporary file in the same folder, then rename), so an interrupted or failed run leaves no half file.
 
+One command at a time per output folder: for a command with an output folder (``--out``), :func:`main`
+takes the folder's lock ``--out/.pmsmjax.lock`` (:mod:`pmsmjax.io.folder_lock`) right after parsing the
+flags, before the command checks or writes anything, and removes it when the command ends, however it
+ends. A second command on the same folder is refused (exit 2) with the first one's command line, pid,
+host and start time; a lock left by a command that died is taken over with a warning. A command refused
+for its input leaves nothing: the folder made for the lock goes again when it is empty.
+
 Each subcommand is one module of this package with ``add_parser(subparsers)``, which adds its parser and
 sets ``func`` to its ``run(args) -> int`` (the exit status); a module imports what its ``run`` needs
 inside ``run``, so ``pmsmjax --help`` and refusals of bad flags stay quick (no JAX at start-up; the
@@ -12,13 +19,15 @@ package ``pmsmjax`` loads its names lazily). A new subcommand is a new module an
 
 What the user sees when something goes wrong, from :func:`main`, always one line on stderr:
 
-- bad input (a flag, a file, a column): ``pmsmjax CMD: error: <what, where, the fix>``, exit 2;
+- bad input (a flag, a file, a column), or an output folder in use by another command:
+  ``pmsmjax CMD: error: <what, where, the fix>``, exit 2;
 - Ctrl-C: ``pmsmjax CMD: interrupted ...`` (what was kept, how to resume), exit 130;
 - a failure of the program itself: ``pmsmjax CMD: internal error: ...``, exit 1 (the traceback only
   with the environment variable ``PMSMJAX_TRACEBACK=1``);
 - warnings: ``pmsmjax CMD: warning: ...``.
 """
 
+import contextlib
 import importlib
 import os
 import sys
@@ -65,6 +74,7 @@ def main(argv=None) -> int:
     """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit status. As with any
     argparse program, ``--help`` and a flag refused while parsing (a bad number, an unknown choice) end in
     ``SystemExit`` (0 and 2; the refusal's one line is printed first)."""
+    argv = sys.argv[1:] if argv is None else list(argv)
     args = build_parser().parse_args(argv)
     prog = f"pmsmjax {args.command}"
     compilation_cache.enable(None if args.no_compile_cache else compilation_cache.cache_dir())
@@ -75,7 +85,11 @@ def main(argv=None) -> int:
     with warnings.catch_warnings():
         warnings.showwarning = show_warning
         try:
-            return args.func(args)
+            with _output_folder_held(args, ["pmsmjax", *argv]) as lock:
+                status = args.func(args)
+                if lock is not None:
+                    lock.failed = status != 0
+                return status
         except ParameterError as err:
             print(f"{prog}: error: {_one_line(err)}", file=sys.stderr)
             return 2
@@ -96,3 +110,19 @@ def main(argv=None) -> int:
                 file=sys.stderr,
             )
             return 1
+
+
+@contextlib.contextmanager
+def _output_folder_held(args, command_line):
+    """Hold the lock of the command's output folder (``args.out``) while it runs; yields the
+    :class:`~pmsmjax.io.folder_lock.FolderLock`, or None for a command without one. The folder is checked
+    first (an existing file there is refused as by the command itself)."""
+    out = getattr(args, "out", None)
+    if not out:
+        yield None
+        return
+    from pmsmjax.cli.checks import output_folder
+    from pmsmjax.io.folder_lock import held_folder
+
+    with held_folder(output_folder(out), command_line) as lock:
+        yield lock

@@ -36,7 +36,7 @@ import sys
 from collections.abc import Mapping
 from pathlib import Path
 
-from pmsmjax.analysis.operating_point import reachable
+from pmsmjax.analysis.operating_point import reachable, steady_point
 from pmsmjax.checks.plausibility import check_motor_units
 from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.presets import drive_ratings as rules
@@ -238,6 +238,11 @@ def read_drive_file(
     control = _numbers(tables["control"], "control", where)
     scenario = _numbers(tables["scenario"], "scenario", where, positive=("duration_s",), signed=True)
     tolerances = _numbers(tables["tolerances"], "tolerances", where, zero_ok=True)
+    if scenario.get("load_time_s", 0.0) < 0.0:
+        raise ParameterError(
+            f"{where}: [scenario] load_time_s = {plain(scenario['load_time_s'])} s: give a time >= 0 (s "
+            "after the start of the run)."
+        )
     tuning = _ranges(tables["tuning"], where)
     sensor = _read_sensor(tables["sensor"], where)
     for key, value in (overrides or {}).items():
@@ -250,7 +255,7 @@ def read_drive_file(
     _complete_inverter(inverter, derived, name_of)
     Ts = 1.0 / inverter["control_frequency_hz"]
     if check_units and not trust:
-        check_motor_units(motor, where, Ts)
+        check_motor_units(motor, f"{where} [motor]", Ts)
     _complete_ratings(motor, ratings, inverter, derived, name_of)
     notes = _check_rated_point(motor, ratings, inverter, name_of)
     _complete_control(motor, ratings, control, Ts, derived)
@@ -407,7 +412,7 @@ def _read_motor(values: dict, where: str, n_phases: int | None) -> dict:
     if not isinstance(trust, bool):
         raise ParameterError(f"{where}: [motor] trust_units must be true or false, got {trust!r}.")
     file_phases = values.get("n_phases", 3)
-    if file_phases not in (3, 5, 6) or isinstance(file_phases, bool):
+    if not isinstance(file_phases, int) or isinstance(file_phases, bool) or file_phases not in (3, 5, 6):
         raise ParameterError(f"{where}: [motor] n_phases = {file_phases!r}: give 3, 5 or 6.")
     if n_phases is not None and file_phases != n_phases:
         word = {3: "three", 5: "five", 6: "six"}
@@ -624,10 +629,19 @@ def _check_rated_point(motor: dict, ratings: dict, inverter: dict, name_of) -> l
         return []
     fw = reachable(motor, speed, torque, u_limit, ratings["max_current_a"], field_weakening=True)
     if fw["ok"]:
+        # reachable() gives the i_d of least voltage; the note gives the weakest field weakening that
+        # suffices (the voltage falls monotonically from i_d = 0 to that point: bisection).
+        enough, short = fw["i_d"], 0.0
+        for _ in range(60):
+            mid = 0.5 * (enough + short)
+            if steady_point(motor, speed * rules.RPM, torque, mid)["voltage"] <= u_limit:
+                enough = mid
+            else:
+                short = mid
         return [
             f"the rated point ({plain(speed)} r/min, {torque:.3g} N m) needs {need:.0f} V with MTPA, above "
             f"the {u_limit:.0f} V the inverter gives: it is reached with field weakening only (i_d = "
-            f"{fw['i_d']:.3g} A); run demo with --field-weakening"
+            f"{enough:.3g} A at least); run demo with --field-weakening"
         ]
     top = rules.base_speed_rpm(motor, torque, u_limit, voltage_share=1.0)
     u_need = math.ceil(need / rules.voltage_limit_v(1.0, n))
