@@ -106,6 +106,8 @@ SWITCHING_RANGE_HZ = (500.0, 1e6)
 #: voltage: a unit slip, us for s).
 MAX_DEAD_TIME_SHARE = 0.1
 MAX_SPEED_RPM = 200_000.0
+#: An encoder latency beyond this many control periods is refused (a unit slip: us for s).
+MAX_SENSOR_DELAY_PERIODS = 10
 
 
 @dataclasses.dataclass(frozen=True)
@@ -258,7 +260,15 @@ def read_drive_file(
         check_motor_units(motor, f"{where} [motor]", Ts)
     _complete_ratings(motor, ratings, inverter, derived, name_of)
     notes = _check_rated_point(motor, ratings, inverter, name_of)
-    _complete_control(motor, ratings, control, Ts, derived)
+    _complete_control(motor, ratings, control, Ts, derived, where)
+    if sensor.get("delay_s", 0.0) > MAX_SENSOR_DELAY_PERIODS * Ts:
+        raise ParameterError(
+            f"{where}: [sensor] delay_s = {plain(sensor['delay_s'])} s is more than "
+            f"{MAX_SENSOR_DELAY_PERIODS} "
+            f"control periods ({plain(MAX_SENSOR_DELAY_PERIODS * Ts * 1e6)} us): encoder latencies are a few "
+            "us, "
+            "in s: write e.g. 2e-6 for 2 us."
+        )
     if not scenario.keys() >= TABLES["scenario"].keys():
         rule = rules.default_scenario(
             motor, ratings["rated_speed_rpm"], ratings["rated_torque_nm"], ratings["max_current_a"],
@@ -653,7 +663,19 @@ def _check_rated_point(motor: dict, ratings: dict, inverter: dict, name_of) -> l
     )
 
 
-def _complete_control(motor: dict, ratings: dict, control: dict, Ts: float, derived: dict) -> None:
+def _complete_control(
+    motor: dict, ratings: dict, control: dict, Ts: float, derived: dict, where: str
+) -> None:
+    given = control.get("current_bandwidth_rad_s")
+    unstable = rules.current_bandwidth_rule(Ts, phase_margin_deg=0.0)
+    if given is not None and given >= unstable:
+        raise ParameterError(
+            f"{where}: [control] current_bandwidth_rad_s = {plain(given)} rad/s leaves the current loop no "
+            "phase "
+            f"margin against its 1.5-period delay at {plain(1 / Ts)} Hz (it must stay below {unstable:.0f} "
+            f"rad/s; the design rule gives {rules.current_bandwidth_rule(Ts):.0f}): check the unit (rad/s, "
+            "not Hz x 1000) or leave it out."
+        )
     if "current_bandwidth_rad_s" not in control:
         control["current_bandwidth_rad_s"] = rules.current_bandwidth_rule(Ts)
         derived["control.current_bandwidth_rad_s"] = (
@@ -667,6 +689,14 @@ def _complete_control(motor: dict, ratings: dict, control: dict, Ts: float, deri
         derived["control.speed_bandwidth_rad_s"] = (
             "a rated-speed step reaches the current limit with the P part alone: k_t I_max / (J w_rated), "
             "at most a tenth of the current loop's"
+        )
+    if not control["speed_bandwidth_rad_s"] < control["current_bandwidth_rad_s"]:
+        raise ParameterError(
+            f"{where}: [control] speed_bandwidth_rad_s = {plain(control['speed_bandwidth_rad_s'])} rad/s is "
+            "not "
+            f"below the current loop's {control['current_bandwidth_rad_s']:.0f} rad/s: a cascade needs the "
+            "speed "
+            "loop well inside the current loop (a tenth is usual); lower it or leave it out."
         )
     startup = rules.startup_rule(motor, ratings)
     for key, value in startup.items():

@@ -148,11 +148,13 @@ def base_speed_rpm(
     return lo
 
 
-def current_bandwidth_rule(Ts: float, delay_periods: float = 1.5) -> float:
-    """Current-loop bandwidth a_c (rad/s) for control period ``Ts`` (s): the phase margin
-    :data:`CURRENT_LOOP_PHASE_MARGIN_DEG` against a loop delay of ``delay_periods`` periods (module
-    docstring)."""
-    return (math.pi / 2.0 - math.radians(CURRENT_LOOP_PHASE_MARGIN_DEG)) / (delay_periods * Ts)
+def current_bandwidth_rule(
+    Ts: float, delay_periods: float = 1.5, phase_margin_deg: float = CURRENT_LOOP_PHASE_MARGIN_DEG
+) -> float:
+    """Current-loop bandwidth a_c (rad/s) for control period ``Ts`` (s): ``phase_margin_deg`` (default
+    :data:`CURRENT_LOOP_PHASE_MARGIN_DEG`) against a loop delay of ``delay_periods`` periods (module
+    docstring); ``phase_margin_deg=0`` gives the stability bound."""
+    return (math.pi / 2.0 - math.radians(phase_margin_deg)) / (delay_periods * Ts)
 
 
 def speed_bandwidth_rule(

@@ -226,6 +226,24 @@ CARELESS = {
     ),
     "six-phase without leakage": (SIX, "L_ls", "", ["lacks L_ls in [motor]"]),
     "third harmonic on six phases": (SIX, "L_ls", "L_ls = 0.00013125\npsi_f3 = 0.01", ["[motor] psi_f3"]),
+    "current bandwidth in Hz x 1000": (
+        BOOK,
+        "current_bandwidth_rad_s",
+        "current_bandwidth_rad_s = 1.1e6",
+        ["[control] current_bandwidth_rad_s = 1.1e+06 rad/s", "below 10472", "design rule gives 2909"],
+    ),
+    "speed loop above the current loop": (
+        BOOK,
+        "speed_bandwidth_rad_s",
+        "speed_bandwidth_rad_s = 5000.0",
+        ["[control] speed_bandwidth_rad_s = 5000 rad/s", "not below the current loop's 1100"],
+    ),
+    "encoder latency in us": (
+        BOOK,
+        "[tolerances]",
+        '[sensor]\nkind = "encoder"\nlines = 2500\ndelay_s = 5.0\n\n[tolerances]',
+        ["[sensor] delay_s = 5 s", "more than 10 control periods (1000 us)", "2e-6"],
+    ),
 }
 
 
