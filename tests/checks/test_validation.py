@@ -256,13 +256,17 @@ def test_load_motor_good_file_and_table(tmp_path):
 
 def test_load_motor_missing_key(tmp_path):
     path = write(tmp_path, GOOD_TOML.replace("psi_f = 0.1827\n", ""))
-    with pytest.raises(ParameterError, match=r"lacks psi_f in \[motor\]: it needs R, L_d, L_q, psi_f, pole_pairs, J, B"):
+    with pytest.raises(
+        ParameterError, match=r"lacks psi_f in \[motor\]: it needs R, L_d, L_q, psi_f, pole_pairs, J, B"
+    ):
         presets.load_motor(path)
 
 
 def test_load_motor_unknown_key(tmp_path):
     path = write(tmp_path, GOOD_TOML + "Ld = 5e-3\n")
-    with pytest.raises(ParameterError, match=r"unknown keys \['Ld'\] in \[motor\] \('Ld' looks like 'L_d'\); allowed: R, L_d"):
+    with pytest.raises(
+        ParameterError, match=r"unknown keys \['Ld'\] in \[motor\] \('Ld' looks like 'L_d'\); allowed: R, L_d"
+    ):
         presets.load_motor(path)
 
 
@@ -286,7 +290,9 @@ def test_load_motor_bad_toml(tmp_path):
 
 
 def test_load_motor_missing_path(tmp_path):
-    with pytest.raises(ParameterError, match=r"neither a preset \(book, book_salient, servo-400w, .*\) nor a drive file"):
+    with pytest.raises(
+        ParameterError, match=r"neither a preset \(book, book_salient, servo-400w, .*\) nor a drive file"
+    ):
         presets.load_motor(tmp_path / "nope.toml")
 
 
