@@ -369,9 +369,9 @@ def load_motor(name_or_path: str | Path, *, check_units: bool = True) -> PMSMPar
     if key in MOTORS:  # the book's motors as the presets build them
         return MOTORS[key]()
     from pmsmjax.io.drive_files import drive_spec
-    from pmsmjax.presets.user_drive import spec_motor
 
-    return spec_motor(drive_spec(name_or_path, check_units=check_units))
+    values = drive_spec(name_or_path, check_units=check_units).motor
+    return PMSMParameters(**{f: values[f] for f in MOTOR_FIELDS})
 
 
 #: Table DTC defaults (see :func:`dtc_drive`): comparator sample period s, torque band N m, flux band Wb,
