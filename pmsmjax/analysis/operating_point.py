@@ -179,8 +179,9 @@ def run_flags(
     reached its reference (the mean over the last 10 % before the load step and of the run, within
     ``tolerance_pct`` % of the reference or ``tolerance_rpm``, whichever is larger).
 
-    `flags`: the command's names for ``speed``, ``load``, ``duration``, ``field_weakening`` and
-    ``current_limit`` (``{"speed": "--speed-rpm", ...}``), used in the remedies; a missing one is left out.
+    `flags`: the command's names for ``speed``, ``load``, ``duration``, ``field_weakening``,
+    ``current_limit`` and ``u_dc`` (``{"speed": "--speed-rpm", ...}``), used in the remedies; a missing
+    one is left out.
     Returns the JSON-able ``operating_point`` entry: shares, reached flags and ``flags`` (a list of
     ``{"flag", "cause", "remedy"}``; empty for a run that did what was asked).
     """
@@ -280,7 +281,8 @@ def run_flags(
                 remedies.append(f"add {fw} (MTPA and field weakening)")
             if field_weakening:
                 remedies.append("raise the current limit" + (f" ({limit_flag})" if limit_flag else ""))
-            remedies.append("raise the DC-link voltage")
+            u_dc_knob = names.get("u_dc")
+            remedies.append("raise the DC-link voltage" + (f" ({u_dc_knob})" if u_dc_knob else ""))
         elif not r["ok"]:
             flag["limit"] = "current"
             flag["cause"] = (
@@ -348,9 +350,12 @@ def refuse_unreachable(
     what: str,
     speed_flag: str = "--speed-rpm",
     load_flag: str = "--load-nm",
+    u_dc_flag: str | None = None,
+    current_limit_flag: str | None = None,
 ) -> None:
     """Raise :class:`ParameterError` when (``speed_rpm``, ``load_nm``) is not a steady point of an i_d = 0
-    drive within ``u_limit_v`` and ``current_limit_a`` (a comparison there would describe saturation)."""
+    drive within ``u_limit_v`` and ``current_limit_a`` (a comparison there would describe saturation);
+    ``u_dc_flag``, ``current_limit_flag``: the knobs that raise those limits, named in the fix."""
     r = reachable(motor, speed_rpm, load_nm, u_limit_v, current_limit_a)
     if r["ok"]:
         return
@@ -359,12 +364,16 @@ def refuse_unreachable(
             f"{load_flag} {plain(load_nm)}: the load needs {r['current']:.1f} A, more than the "
             f"{plain(current_limit_a)} A current limit, so the drive cannot hold {plain(speed_rpm)} r/min "
             f"and {what} would describe a stalled drive: give a load of at most "
-            f"{0.95 * max_load_nm(motor, current_limit_a):.1f} N m."
+            f"{0.95 * max_load_nm(motor, current_limit_a):.1f} N m"
+            + (f", or raise the current limit ({current_limit_flag})" if current_limit_flag else "")
+            + "."
         )
     top = top_speed_rpm(motor, u_limit_v, load_nm, speed_rpm)
     raise ParameterError(
         f"{speed_flag} {plain(speed_rpm)}: at {plain(load_nm)} N m the drive needs {r['voltage']:.0f} V, "
         f"more than the {u_limit_v:.0f} V (peak) the inverter gives from U_dc = {plain(u_dc_v)} V, so it "
         f"would run saturated below the reference and {what} would be meaningless: with i_d = 0 the top "
-        f"speed there is about {abs(top):.0f} r/min; give a speed below that."
+        f"speed there is about {abs(top):.0f} r/min; give a speed below that"
+        + (f", or raise the DC link ({u_dc_flag})" if u_dc_flag else "")
+        + "."
     )

@@ -1,30 +1,23 @@
-"""``pmsmjax compare``: control methods side by side on the book scenario
-(:mod:`pmsmjax.studies.control_comparison`)."""
+"""``pmsmjax compare``: control methods side by side on a drive's scenario (``--motor``: the book drive by
+default, or a drive file; :mod:`pmsmjax.studies.control_comparison`)."""
 
 import json
 import time
 
 from pmsmjax.checks.validation import ParameterError, plain
-from pmsmjax.cli import checks
+from pmsmjax.cli import checks, drive_flags
 from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
-from pmsmjax.presets.book_constants import (
-    BOOK_CURRENT_LIMIT,
-    BOOK_DC_LINK,
-    BOOK_DURATION_S,
-    BOOK_LOAD_NM,
-    BOOK_LOAD_TIME_S,
-    BOOK_SPEED_STEP_RPM,
-    BOOK_TS,
-)
 
 
 def add_parser(sub):
     p = sub.add_parser(
         "compare",
-        help="run the book scenario with several control methods and compare them (compare.json, figures)",
+        help="run a drive's scenario with several control methods and compare them (compare.json, figures)",
         description=(
-            "Each control method (pi, smc, pr, hysteresis, dtc, smc-dtc) drives the book motor through the "
-            "book scenario (speed step from rest, then a load step). Writes DIR/compare.json (per "
+            "Each control method (pi, smc, pr, hysteresis, dtc, smc-dtc) drives the motor of --motor (the "
+            "book drive by default, or a drive file: its DC link, control rate, current limit and "
+            "bandwidths) through its scenario (speed step from rest, then a load step; the drive file's "
+            "[scenario], book: 1000 r/min, 10 N m at 0.2 s, 0.4 s). Writes DIR/compare.json (per "
             "controller: rise_time_s, overshoot_pct, dip_rpm, recovery_time_s, itae, peak_current_a, "
             "current_thd_pct, switching_frequency_hz, torque_ripple_nm, flux_ripple_wb, operating_point) and "
             "side-by-side figures. Ripple, THD, torque and flux ripple come from the last electrical "
@@ -71,39 +64,29 @@ def add_parser(sub):
         "--machine",
         choices=("three-phase", "six-phase", "five-phase"),
         default="three-phase",
-        help="with --control: the book motor (default), or its six-phase (controls vsd, double-dq, "
-        "conventional, pr) or five-phase rewind (vsd, conventional, pr), book ch. 7-10",
+        help="with --control: three-phase (default), six-phase (controls vsd, double-dq, conventional, pr) "
+        "or five-phase (vsd, conventional, pr), book ch. 7-10 (--motor book: the book motor's rewinds)",
     )
     p.add_argument("--out", default="compare_out", help="output folder (created), default: compare_out")
-    p.add_argument(
-        "--motor",
-        default=None,
-        help="preset name (book, book_salient) or motor TOML file (default book; book_salient for the "
-        "chapter 6 estimators)",
-    )
+    drive_flags.add_motor_flag(p, None, "book; book_salient for the chapter 6 estimators")
+    drive_flags.add_override_flags(p)
     p.add_argument(
         "--speed-rpm",
         type=checks.positive("r/min"),
-        default=None,
-        help=f"speed step, r/min (default {plain(BOOK_SPEED_STEP_RPM)})",
+        help=drive_flags.scenario_help("speed_rpm", "speed step, r/min"),
     )
     p.add_argument(
-        "--load-nm",
-        type=checks.real("N m"),
-        default=BOOK_LOAD_NM,
-        help=f"load step, N m (default {plain(BOOK_LOAD_NM)})",
+        "--load-nm", type=checks.real("N m"), help=drive_flags.scenario_help("load_nm", "load step, N m")
     )
     p.add_argument(
         "--load-time-s",
         type=checks.positive("s"),
-        default=None,
-        help=f"time of the load step, s (default {plain(BOOK_LOAD_TIME_S)})",
+        help=drive_flags.scenario_help("load_time_s", "time of the load step, s"),
     )
     p.add_argument(
         "--duration-s",
         type=checks.positive("s"),
-        default=None,
-        help=f"simulated time, s (default {plain(BOOK_DURATION_S)})",
+        help=drive_flags.scenario_help("duration_s", "simulated time, s"),
     )
     p.add_argument(
         "--bridge",
@@ -129,11 +112,11 @@ def add_parser(sub):
     p.set_defaults(func=run)
 
 
-def precheck(args) -> list[str]:
-    """Checks that need no model (before JAX starts); returns the control (or observer) names."""
+def precheck(args):
+    """Checks that need no model (before JAX starts); returns the control (or observer) names and the
+    drive (:class:`~pmsmjax.io.drive_files.DriveSpec`), the scenario flags left unset filled from it."""
     from pmsmjax.analysis.operating_point import refuse_unreachable
     from pmsmjax.cli.demo import CONTROL_NAMES, ESTIMATOR_NAMES, MULTIPHASE_NAMES
-    from pmsmjax.io.motor_files import motor_values
 
     multiphase = args.machine != "three-phase"
     if multiphase:
@@ -160,19 +143,19 @@ def precheck(args) -> list[str]:
                 raise ParameterError(f"{flag} belongs to --estimator: give --estimator NAMES or drop it.")
     if args.motor is None:
         args.motor = "book_salient" if chapter6 else "book"
+    spec = drive_flags.resolve_drive(args, drive_flags.MACHINE_PHASES[args.machine])
     fixed = args.scenario not in (None, "book")
-    for flag, key, default in (
-        ("--speed-rpm", "speed_rpm", BOOK_SPEED_STEP_RPM),
-        ("--load-time-s", "load_time_s", BOOK_LOAD_TIME_S),
-        ("--duration-s", "duration_s", BOOK_DURATION_S),
+    for flag, key in (
+        ("--speed-rpm", "speed_rpm"),
+        ("--load-time-s", "load_time_s"),
+        ("--duration-s", "duration_s"),
     ):
-        if getattr(args, key) is None:
-            setattr(args, key, default)
-        elif fixed:
+        if getattr(args, key) is not None and fixed:
             raise ParameterError(
                 f"{flag} sets the book scenario; --scenario {args.scenario} is a fixed run (only --load-nm "
                 "applies): drop it or give --scenario book."
             )
+    drive_flags.fill_scenario(args, spec)
     known = MULTIPHASE_NAMES[args.machine][0] if multiphase else CONTROL_NAMES
     default = ",".join(known) if multiphase else (control or "pi,smc,pr,hysteresis")
     control_list = args.control if args.control is not None else default
@@ -196,47 +179,26 @@ def precheck(args) -> list[str]:
             f"--gains {args.gains}: tuned gains belong to one control method; compare it alone with the "
             "design-rule version of another by running pmsmjax demo, or pass a single --control."
         )
-    if multiphase:  # the motor from its preset's loader; the voltage limit of the default PWM's linear range
-        import math
-
-        from pmsmjax.analysis.operating_point import motor_dict
-
-        if args.machine == "six-phase":
-            from pmsmjax.presets.six_phase import load_six_phase_motor as load
-
-            u_limit = BOOK_DC_LINK / math.sqrt(3.0)  # four-vector SVPWM
-        else:
-            from pmsmjax.presets.five_phase import load_five_phase_motor as load
-
-            u_limit = BOOK_DC_LINK / (2.0 * math.cos(math.pi / 10))  # near-four-vector SVPWM
-        refuse_unreachable(
-            motor_dict(load(args.motor)),
-            args.speed_rpm,
-            args.load_nm,
-            BOOK_DC_LINK,
-            u_limit,
-            BOOK_CURRENT_LIMIT,
-            what="the comparison of ripple and THD",
-        )
-        return names
-    motor = motor_values(args.motor, check_units=not args.trust_units, Ts=BOOK_TS)
-    if chapter6 and motor is not None and not motor["L_q"] > motor["L_d"]:
+    motor = spec.motor
+    if chapter6 and not motor["L_q"] > motor["L_d"]:
         raise ParameterError(
             f"--motor {args.motor}: L_q = {plain(motor['L_q'])} H is not above L_d = "
             f"{plain(motor['L_d'])} H; HF injection needs a salient machine: give --motor book_salient or "
-            "a salient motor file."
+            "a salient drive file."
         )
-    if motor is not None and not fixed:
+    if not fixed:
         refuse_unreachable(
             motor,
             args.speed_rpm,
             args.load_nm,
-            BOOK_DC_LINK,
-            BOOK_DC_LINK / 3**0.5,
-            BOOK_CURRENT_LIMIT,
+            spec.u_dc_v,
+            spec.voltage_limit_v,  # the default modulator's linear range for the file's phase count
+            spec.current_limit_a,
             what="the comparison of ripple and THD",
+            u_dc_flag=drive_flags.U_DC_KNOB,
+            current_limit_flag="--current-limit",
         )
-    return names
+    return names, spec
 
 
 #: The chapter 6 estimators ``compare --estimator`` takes (the keys of
@@ -295,11 +257,10 @@ def chapter6_run(names) -> bool:
 
 
 def run(args) -> int:
-    names = precheck(args)
+    names, spec = precheck(args)
     if args.estimator is not None:
-        return run_estimators(args, names)
+        return run_estimators(args, names, spec)
 
-    from pmsmjax import presets
     from pmsmjax.io.logs import atomic_write
     from pmsmjax.studies.control_comparison import ControllerCompareSettings, compare_controllers
 
@@ -312,22 +273,17 @@ def run(args) -> int:
         equal_switching_hz=args.equal_switching,
     )
     settings.check()
-    if args.machine == "three-phase":
-        motor = presets.load_motor(args.motor, check_units=not args.trust_units)
-    else:
-        from pmsmjax.presets.five_phase import load_five_phase_motor
-        from pmsmjax.presets.six_phase import load_six_phase_motor
-
-        loader = load_six_phase_motor if args.machine == "six-phase" else load_five_phase_motor
-        motor = loader(args.motor)
     out = checks.output_folder(args.out)
     gains = read_gains_flag(args.gains)
     tune = None if gains is None else (lambda drive, name: apply_gains_flag(drive, gains, name))
     t0 = time.perf_counter()
-    result = compare_controllers(names, motor, settings, progress=print, adjust=tune, machine=args.machine)
+    result = compare_controllers(
+        names, None, settings, progress=print, adjust=tune, machine=args.machine, spec=spec
+    )
     report = {"settings": result["settings"], "controllers": result["controllers"]}
     report["settings"]["machine"] = args.machine
     report["settings"]["gains"] = args.gains
+    report["drive_file"] = spec.summary()
     report["wall_time_s"] = time.perf_counter() - t0
     out.mkdir(parents=True, exist_ok=True)
     atomic_write(out / "compare.json", lambda f: f.write(json.dumps(report, indent=2).encode()))
@@ -350,14 +306,14 @@ def run(args) -> int:
     return 0
 
 
-def run_estimators(args, names: list[str]) -> int:
+def run_estimators(args, names: list[str], spec) -> int:
     """``pmsmjax compare --estimator``: the observers side by side (:func:`pmsmjax.studies.control_comparison.
     compare_estimators`); writes compare.json, compare_estimators.md and figures."""
     import numpy as np
 
-    from pmsmjax import presets
     from pmsmjax.analysis.observer_errors import angle_error, angle_error_modulo_pi
     from pmsmjax.io.logs import atomic_write
+    from pmsmjax.presets.user_drive import spec_motor
     from pmsmjax.studies.control_comparison import (
         ESTIMATOR_COLUMNS,
         ControllerCompareSettings,
@@ -374,7 +330,7 @@ def run_estimators(args, names: list[str]) -> int:
         bridge=args.bridge,
     )
     settings.check()
-    motor = presets.load_motor(args.motor, check_units=not args.trust_units)
+    motor = spec_motor(spec)
     out = checks.output_folder(args.out)
     t0 = time.perf_counter()
     print("  ".join(h for h, _, _ in ESTIMATOR_COLUMNS))
@@ -388,6 +344,7 @@ def run_estimators(args, names: list[str]) -> int:
         initial_angle_deg=args.initial_angle_deg,
     )
     report = {"settings": result["settings"], "estimators": result["controllers"]}
+    report["drive_file"] = spec.summary()
     report["wall_time_s"] = time.perf_counter() - t0
     out.mkdir(parents=True, exist_ok=True)
     atomic_write(out / "compare.json", lambda f: f.write(json.dumps(report, indent=2).encode()))

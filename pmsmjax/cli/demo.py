@@ -1,12 +1,14 @@
-"""``pmsmjax demo`` (alias ``simulate``): the book scenario under a chosen control method, written as a
-trace, summary.json and figures; ``--machine six-phase`` runs the dual three-phase drive (book ch. 7-9),
-``--machine five-phase`` the five-phase drive (book ch. 10).
+"""``pmsmjax demo`` (alias ``simulate``): the drive's scenario (``--motor``: the book drive by default, or a
+drive file, :mod:`pmsmjax.io.drive_files`) under a chosen control method, written as a trace, summary.json
+and figures; ``--machine six-phase`` runs the dual three-phase drive (book ch. 7-9), ``--machine
+five-phase`` the five-phase drive (book ch. 10).
 
-Before any work: the flags (:mod:`pmsmjax.cli.checks`), ``--out``, the motor file (its units,
-:mod:`pmsmjax.checks.plausibility`), the gains file, the load step inside the run, and a speed the drive could
-reach at all. After the run, ``summary.json`` says whether the speed reached its reference and how much
-of the run sat at the voltage or current limit (:func:`pmsmjax.analysis.operating_point.run_flags`), and the
-console repeats every such flag with its cause and remedy.
+Before any work: the flags (:mod:`pmsmjax.cli.checks`), ``--out``, the drive file (its units,
+:mod:`pmsmjax.checks.plausibility`, and its ratings; :mod:`pmsmjax.cli.drive_flags`), the gains file, the
+load step inside the run, and a speed the drive could reach at all. After the run, ``summary.json`` says
+whether the speed reached its reference and how much of the run sat at the voltage or current limit
+(:func:`pmsmjax.analysis.operating_point.run_flags`), and the console repeats every such flag with its
+cause and remedy.
 """
 
 import json
@@ -14,17 +16,8 @@ import math
 import time
 
 from pmsmjax.checks.validation import ParameterError, plain
-from pmsmjax.cli import checks
+from pmsmjax.cli import checks, drive_flags
 from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
-from pmsmjax.presets.book_constants import (
-    BOOK_CURRENT_LIMIT,
-    BOOK_DC_LINK,
-    BOOK_DURATION_S,
-    BOOK_LOAD_NM,
-    BOOK_LOAD_TIME_S,
-    BOOK_SPEED_STEP_RPM,
-    BOOK_TS,
-)
 
 CONTROL_NAMES = ("pi", "smc", "pr", "hysteresis", "dtc", "smc-dtc")
 #: ``--machine six-phase``: the schemes of pmsmjax.presets.six_phase.SIX_PHASE_CONTROLS (listed here so
@@ -95,6 +88,7 @@ OPERATING_FLAGS = {
     "duration": "--duration-s",
     "field_weakening": "--field-weakening",
     "current_limit": "--current-limit",
+    "u_dc": drive_flags.U_DC_KNOB,
 }
 
 #: A reference beyond this many times the top speed the drive could reach at no load is refused: the run
@@ -102,21 +96,19 @@ OPERATING_FLAGS = {
 MAX_SPEED_FACTOR = 3.0
 
 
-def six_phase_drive_from_flags(args):
-    """``--machine six-phase`` (or ``five-phase``): the multi-phase drive of ``args.control`` with the flags
-    the user set; flags of the three-phase controls are refused."""
-    from pmsmjax.presets.six_phase import load_six_phase_motor, six_phase_drive
+def six_phase_drive_from_flags(args, spec):
+    """``--machine six-phase`` (or ``five-phase``): the multi-phase drive of ``args.control`` on the drive
+    file ``spec`` with the flags the user set (a switching bridge gets the file's dead time); flags of the
+    three-phase controls are refused (:func:`check_machine_flags`)."""
+    from pmsmjax.presets.user_drive import spec_drive
 
-    if args.machine == "five-phase":
-        from pmsmjax.presets.five_phase import five_phase_drive as six_phase_drive  # noqa: F811
-        from pmsmjax.presets.five_phase import load_five_phase_motor as load_six_phase_motor  # noqa: F811
     options = {}
-    for flag in FLAG_OPTIONS.keys() | SIX_PHASE_FLAG_OPTIONS.keys():
+    for flag in SIX_PHASE_FLAG_OPTIONS:
         value = getattr(args, flag, None)
         if value is None or value is False:
             continue
         options[SIX_PHASE_FLAG_OPTIONS[flag]] = False if flag == "no_delay" else value
-    return six_phase_drive(load_six_phase_motor(args.motor), control=args.control, **options)
+    return spec_drive(spec, args.control, **options)
 
 
 def check_machine_flags(args) -> None:
@@ -166,18 +158,26 @@ def check_machine_flags(args) -> None:
         raise ParameterError(f"--control {args.control} needs --machine {need}.")
 
 
-def control_drive_from_flags(args, motor):
-    """The drive of ``args.control`` with the options the user set; a flag that does not apply to the
-    chosen control is refused (``--band-a`` with ``--control pi``, say) instead of silently ignored."""
+def control_drive_from_flags(args, drive):
+    """The three-phase drive of ``args.control`` with the options the user set, on ``drive``: a
+    :class:`~pmsmjax.io.drive_files.DriveSpec` (its DC link, control rate, current limit and bandwidths;
+    :func:`pmsmjax.presets.user_drive.spec_drive`) or a bare motor (the preset's defaults). A flag that does
+    not apply to the chosen control is refused (``--band-a`` with ``--control pi``, say) instead of
+    silently ignored."""
     from pmsmjax import presets
+    from pmsmjax.io.drive_files import DriveSpec
     from pmsmjax.presets.control_methods import control_drive, control_options
+    from pmsmjax.presets.user_drive import spec_drive
 
+    spec = drive if isinstance(drive, DriveSpec) else None
     allowed = control_options(args.control)
     options = {}
     for flag, option in FLAG_OPTIONS.items():
         value = getattr(args, flag, None)
         if value is None or value is False or (flag == "frame" and value == "dq"):
             continue
+        if flag == "current_limit" and spec is not None:
+            continue  # already in the spec (drive_spec's max_current_a override)
         if option not in allowed:
             fits = [c for c in CONTROL_NAMES if option in control_options(c)]
             raise ParameterError(
@@ -189,31 +189,40 @@ def control_drive_from_flags(args, motor):
         elif flag == "sample_period_us":
             value = value * 1e-6
         elif flag == "field_weakening":
-            value = presets.field_weakening_block(args.current_bandwidth or presets.BOOK_CURRENT_BANDWIDTH)
+            bandwidth = getattr(args, "current_bandwidth", None) or (
+                presets.BOOK_CURRENT_BANDWIDTH if spec is None else spec.control["current_bandwidth_rad_s"]
+            )
+            value = presets.field_weakening_block(bandwidth)
         options[option] = value
-    return control_drive(args.control, motor, **options)
+    if spec is None:
+        return control_drive(args.control, drive, **options)
+    return spec_drive(spec, args.control, **options)
 
 
 def add_parser(sub):
     p = sub.add_parser(
         "demo",
         aliases=["simulate"],
-        help="run the book scenario (FOC by default) and write figures, a trace and summary.json",
+        help="run a drive's scenario (the book drive by default; FOC) and write figures, a trace and "
+        "summary.json",
         description=(
-            "Simulate the book drive (design-rule PI gains, SVPWM, averaged bridge, 10 kHz; or another "
-            "control method with --control): a speed step from rest, then a load step. Writes "
+            "Simulate a drive (--motor: the book drive by default, a preset or your drive file; design-rule "
+            "PI gains, SVPWM, averaged bridge at the file's DC link and control rate; or another control "
+            "method with --control): a speed step from rest, then a load step (the drive file's [scenario]; "
+            "book: 1000 r/min, 10 N m at 0.2 s, 0.4 s). Writes "
             "DIR/trace.csv (or .npz; speeds in rad/s as omega_m, speed_ref and in r/min as speed_rpm, "
             "speed_ref_rpm; every column's unit is listed in summary.json trace_columns), DIR/summary.json "
             "(step and load metrics; operating_point: whether the speed reached its reference and how "
-            "much of the run sat at the voltage or current limit, with cause and remedy) and PNG figures."
+            "much of the run sat at the voltage or current limit, with cause and remedy; drive_file: the "
+            "drive with every derived value and how) and PNG figures."
         ),
     )
     p.add_argument(
         "--machine",
         choices=("three-phase", "six-phase", "five-phase"),
         default="three-phase",
-        help="three-phase book motor (default), six-phase: the book motor rewound as a dual three-phase "
-        "machine (book ch. 7-9), or five-phase: rewound as a five-phase machine (book ch. 10)",
+        help="three-phase (default), six-phase: a dual three-phase machine (book ch. 7-9; --motor book: the "
+        "book motor rewound), or five-phase (book ch. 10); a drive file's n_phases must match",
     )
     p.add_argument(
         "--control",
@@ -246,35 +255,25 @@ def add_parser(sub):
         "(default: the exact position sensor); with --control pi, smc or pr",
     )
     p.add_argument("--out", default="demo_out", help="output folder (created), default: demo_out")
-    p.add_argument(
-        "--motor",
-        default="book",
-        help="preset name (book, book_salient; with --machine six-phase or five-phase their rewinds) or "
-        "motor TOML file (default book)",
-    )
+    drive_flags.add_motor_flag(p)
+    drive_flags.add_override_flags(p)
     p.add_argument(
         "--speed-rpm",
         type=checks.real("r/min"),
-        default=BOOK_SPEED_STEP_RPM,
-        help=f"speed step, r/min (default {plain(BOOK_SPEED_STEP_RPM)})",
+        help=drive_flags.scenario_help("speed_rpm", "speed step, r/min"),
     )
     p.add_argument(
-        "--load-nm",
-        type=checks.real("N m"),
-        default=BOOK_LOAD_NM,
-        help=f"load step, N m (default {plain(BOOK_LOAD_NM)})",
+        "--load-nm", type=checks.real("N m"), help=drive_flags.scenario_help("load_nm", "load step, N m")
     )
     p.add_argument(
         "--load-time-s",
         type=checks.nonnegative("s"),
-        default=BOOK_LOAD_TIME_S,
-        help=f"time of the load step, s (default {plain(BOOK_LOAD_TIME_S)})",
+        help=drive_flags.scenario_help("load_time_s", "time of the load step, s"),
     )
     p.add_argument(
         "--duration-s",
         type=checks.positive("s"),
-        default=BOOK_DURATION_S,
-        help=f"simulated time, s (default {plain(BOOK_DURATION_S)})",
+        help=drive_flags.scenario_help("duration_s", "simulated time, s"),
     )
     p.add_argument(
         "--frame",
@@ -288,13 +287,16 @@ def add_parser(sub):
     )
     p.add_argument("--no-delay", action="store_true", help="no one-period computational delay")
     p.add_argument(
-        "--current-bandwidth", type=checks.positive("rad/s"), help="current loop a_c, rad/s (default 1100)"
+        "--current-bandwidth",
+        type=checks.positive("rad/s"),
+        help="current loop a_c, rad/s (default: the drive file's [control] current_bandwidth_rad_s or its "
+        "design rule; book: 1100)",
     )
     p.add_argument(
-        "--speed-bandwidth", type=checks.positive("rad/s"), help="speed loop beta, rad/s (default 50)"
-    )
-    p.add_argument(
-        "--current-limit", type=checks.positive("A"), help="peak phase-current limit, A (default 15)"
+        "--speed-bandwidth",
+        type=checks.positive("rad/s"),
+        help="speed loop beta, rad/s (default: the drive file's [control] speed_bandwidth_rad_s or its "
+        "design rule; book: 50)",
     )
     p.add_argument("--field-weakening", action="store_true", help="MTPA and voltage-feedback field weakening")
     p.add_argument("--band-a", type=checks.positive("A"), help="hysteresis band, A (full width; default 0.5)")
@@ -321,7 +323,8 @@ def add_parser(sub):
         "--trust-units",
         action="store_true",
         help="accept motor values outside the plausible ranges of pmsmjax.checks.plausibility (an inductance "
-        "above 1 H, say) instead of refusing them as a likely unit mistake",
+        "above 1 H, say) instead of refusing them as a likely unit mistake (a drive file: trust_units = "
+        "true in [motor])",
     )
     p.add_argument("--decimate", type=checks.count(), default=1, help="record every N-th period (default 1)")
     p.add_argument("--format", choices=["csv", "npz"], default="csv", help="trace file format (default csv)")
@@ -329,10 +332,10 @@ def add_parser(sub):
     p.set_defaults(func=run)
 
 
-def precheck(args) -> dict | None:
-    """Every check that needs no model (pure Python, before JAX starts); returns the motor's values."""
+def precheck(args):
+    """Every check that needs no model (pure Python, before JAX starts); returns the drive
+    (:class:`~pmsmjax.io.drive_files.DriveSpec`) with the scenario flags left unset filled from it."""
     from pmsmjax.analysis.operating_point import top_speed_rpm
-    from pmsmjax.io.motor_files import motor_values
 
     checks.output_folder(args.out)
     check_machine_flags(args)
@@ -342,6 +345,8 @@ def precheck(args) -> dict | None:
             f"three-phase FOC cascade; choose --control {' or '.join(SENSORLESS_CONTROLS)} (three-phase), "
             "or drop --estimator."
         )
+    spec = drive_flags.resolve_drive(args, drive_flags.MACHINE_PHASES[args.machine])
+    drive_flags.fill_scenario(args, spec)
     if not args.load_time_s < args.duration_s:
         raise ParameterError(
             f"--load-time-s {plain(args.load_time_s)} s is not inside the run (--duration-s "
@@ -349,18 +354,13 @@ def precheck(args) -> dict | None:
             f"a time below {plain(args.duration_s)} s (also with --load-nm 0)."
         )
     read_gains_flag(args.gains)
-    if args.machine in MULTIPHASE_NAMES:  # its motor file is read and checked when the drive is built
-        return None
-    motor = motor_values(args.motor, check_units=not args.trust_units, Ts=BOOK_TS)
-    if motor is None:
-        return None
-    u_dc, limit = BOOK_DC_LINK, args.current_limit or BOOK_CURRENT_LIMIT
-    top = abs(top_speed_rpm(motor, u_dc / math.sqrt(3.0), 0.0))
+    if args.machine in MULTIPHASE_NAMES:
+        return spec
+    motor, u_dc, u_limit, limit = spec.motor, spec.u_dc_v, spec.voltage_limit_v, spec.current_limit_a
+    top = abs(top_speed_rpm(motor, u_limit, 0.0))
     if args.field_weakening:  # no-load top speed with i_d = -limit, resistance neglected
         excess = motor["psi_f"] - motor["L_d"] * limit
-        top = (
-            math.inf if excess <= 0 else u_dc / math.sqrt(3.0) / (motor["pole_pairs"] * excess) * 30 / math.pi
-        )
+        top = math.inf if excess <= 0 else u_limit / (motor["pole_pairs"] * excess) * 30 / math.pi
     if abs(args.speed_rpm) > MAX_SPEED_FACTOR * top:
         raise ParameterError(
             f"--speed-rpm {plain(args.speed_rpm)}: this drive cannot turn faster than about {top:.0f} r/min "
@@ -368,14 +368,14 @@ def precheck(args) -> dict | None:
             + (", field weakening" if args.field_weakening else ", i_d = 0")
             + f"); a reference beyond {MAX_SPEED_FACTOR:g}x that would only show saturation: give at most "
             f"{MAX_SPEED_FACTOR * top:.0f} r/min"
-            + ("" if args.field_weakening else " (or add --field-weakening)")
-            + "."
+            + ("" if args.field_weakening else ", add --field-weakening")
+            + f", or raise the DC link ({drive_flags.U_DC_KNOB})."
         )
-    return motor
+    return spec
 
 
 def run(args) -> int:
-    precheck(args)
+    spec = precheck(args)
 
     import jax
     import numpy as np
@@ -385,6 +385,7 @@ def run(args) -> int:
     from pmsmjax.analysis.speed_step_summary import speed_step_summary
     from pmsmjax.io.logs import atomic_write, write_csv_atomic
     from pmsmjax.plotting.traces import save_demo_figures
+    from pmsmjax.presets.user_drive import spec_motor, spec_scenario, startup_options
     from pmsmjax.simulate import check_simulation, simulate
     from pmsmjax.trace import COLUMN_UNITS
 
@@ -392,15 +393,16 @@ def run(args) -> int:
     six_phase = args.machine in MULTIPHASE_NAMES  # six- or five-phase
     try:
         if six_phase:
-            drive = six_phase_drive_from_flags(args)
+            drive = six_phase_drive_from_flags(args, spec)
         else:
-            motor = presets.load_motor(args.motor, check_units=not args.trust_units)
-            drive = control_drive_from_flags(args, motor)
-        if args.estimator:  # three-phase only (check_machine_flags)
-            drive = presets.with_observer(drive, args.estimator, motor)
+            drive = control_drive_from_flags(args, spec)
+        if args.estimator:  # three-phase only (check_machine_flags); the drive file's I/f start
+            drive = presets.with_observer(
+                drive, args.estimator, spec_motor(spec), startup_options=startup_options(spec)
+            )
         # after the observer is in: a gains.toml of pmsmjax tune --estimator names estimator.observer.*
         drive = apply_gains_flag(drive, read_gains_flag(args.gains), args.control)
-        scenario = presets.book_scenario(args.speed_rpm, args.load_nm, args.load_time_s, args.duration_s)
+        scenario = spec_scenario(spec, args.speed_rpm, args.load_nm, args.load_time_s, args.duration_s)
         n = args.duration_s / drive.Ts
         if abs(n - round(n)) > 1e-6 * max(n, 1.0):
             raise ParameterError(
@@ -453,7 +455,11 @@ def run(args) -> int:
             "gains": args.gains,
             "current_limit_a": current_limit,
             "u_dc_v": float(np.asarray(drive.bridge.u_dc)),
+            "bridge_dead_time": drive_flags.dead_time_entry(
+                spec, modelled=six_phase and args.bridge == "switching"
+            ),
         },
+        "drive_file": spec.summary(),
         "metrics": speed_step_summary(trace, load_time_s=load_time, current_limit_a=current_limit),
         "operating_point": operating,
         "definitions": DEFINITIONS,
@@ -472,6 +478,7 @@ def run(args) -> int:
         summary["metrics"]["xy_current_peak_a" if five else "z_current_peak_a"] = z_current_peak(
             trace, drive.machine.layout
         )
+    name = drive_flags.drive_name(spec) + (f" {args.machine}" if six_phase else "")
     out.mkdir(parents=True, exist_ok=True)
     columns = trace.columns()
     if args.format == "csv":
@@ -485,7 +492,7 @@ def run(args) -> int:
         else save_demo_figures(
             trace,
             out,
-            f"pmsmjax demo: {args.machine if six_phase else 'book'} drive, {args.control} control"
+            f"pmsmjax demo: {name} drive, {args.control} control"
             + (f", sensorless ({args.estimator}, I/f start)" if args.estimator else ""),
             current_limit_a=current_limit,
             voltage_limit_v=float(np.asarray(drive.voltage_limit())),
@@ -495,10 +502,14 @@ def run(args) -> int:
         from pmsmjax.plotting.six_phase import z_currents_figure
         from pmsmjax.plotting.traces import save_figure
 
-        fig = z_currents_figure(trace, f"{args.machine} drive, {args.control}", drive.machine.layout)
+        fig = z_currents_figure(trace, f"{name} drive, {args.control}", drive.machine.layout)
         name = "currents_xy.png" if args.machine == "five-phase" else "currents_z.png"
         figures.append(save_figure(fig, out / name))
     m = summary["metrics"]
+    print(
+        f"{name} drive ({args.machine}, U_dc {plain(summary['drive']['u_dc_v'])} V, current limit "
+        f"{plain(current_limit)} A, {plain(1e-3 / drive.Ts)} kHz), {args.control} control"
+    )
     print(
         f"final speed {m['final_speed_rpm']:.1f} r/min (ref {m['reference_speed_rpm']:.0f}), "
         f"rise {_fmt(m['rise_time_s'], 1e3)} ms, overshoot {m['overshoot_pct']:.2f} %, "

@@ -30,7 +30,12 @@ def add_parser(sub):
         ),
     )
     p.add_argument("log", help="log file (.csv, .npz or .mat)")
-    p.add_argument("--motor", required=True, help="preset name (book, book_salient) or motor TOML file")
+    p.add_argument(
+        "--motor",
+        required=True,
+        help="the observer's motor model and pole pairs: a preset name (book, book_salient, servo-400w, ...) "
+        "or a drive TOML file (its [motor]; a seven-value motor file is one)",
+    )
     p.add_argument(
         "--observer",
         required=True,
@@ -114,13 +119,16 @@ def _number_or_text(value: str):
 
 
 def run(args) -> int:
+    from pmsmjax.io.drive_files import drive_spec
+
+    spec = drive_spec(args.motor)  # checked before JAX starts
     import numpy as np
 
-    from pmsmjax import presets
     from pmsmjax.analysis.observer_errors import error_statistics
     from pmsmjax.estimators.registry import INJECTION_OBSERVERS, check_observer_name, make_observer
     from pmsmjax.frames.three_phase import wrap_angle
     from pmsmjax.io.logs import atomic_write, check_output_folder, write_csv_atomic
+    from pmsmjax.presets.user_drive import spec_motor
     from pmsmjax.studies.offline_observer import observe
 
     # The command line is the one place where pmsmjax reaches up into the tuning workflows (the log reader
@@ -150,7 +158,7 @@ def run(args) -> int:
             f"{', '.join(given)} apply to the HF-injection observer hfi-rotating only, not {args.observer!r}."
         )
     out = check_output_folder(args.out)
-    motor = presets.load_motor(args.motor)
+    motor = spec_motor(spec)
     if args.settle_s < 0:
         raise ParameterError(f"--settle-s must be >= 0 s, got {args.settle_s}.")
     truth = tuple(c.strip() for c in args.truth_columns.split(",") if c.strip())
@@ -196,6 +204,7 @@ def run(args) -> int:
     summary = {
         "observer": args.observer,
         "motor": str(args.motor),
+        "drive_file": spec.summary(),
         "log": str(args.log),
         "samples": int(log.n),
         "Ts_s": log.Ts,

@@ -1,26 +1,28 @@
-"""``pmsmjax pwm-compare``: the PWM methods of a three-, six- or five-phase drive compared at one steady
-operating point (:mod:`pmsmjax.studies.pwm_comparison`)."""
+"""``pmsmjax pwm-compare``: the PWM methods of a three-, six- or five-phase drive (``--motor``: the book
+drive by default, or a drive file: its motor, DC link, switching frequency and dead time) compared at one
+steady operating point (:mod:`pmsmjax.studies.pwm_comparison`)."""
 
 import json
 import time
 
 from pmsmjax.checks.validation import ParameterError, plain
-from pmsmjax.cli import checks
+from pmsmjax.cli import checks, drive_flags
 from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
-from pmsmjax.presets.book_constants import (
-    BOOK_CURRENT_LIMIT,
-    BOOK_DC_LINK,
-    BOOK_LOAD_NM,
-    BOOK_POLE_PAIRS,
-    BOOK_SPEED_STEP_RPM,
-    BOOK_TS,
-)
 
 MODULATOR_NAMES = ("sinusoidal", "third_harmonic", "min_max", "svpwm")
 #: ``--phases 6``: the dual three-phase modulators (pmsmjax.presets.six_phase.SIX_PHASE_PWMS).
 SIX_PHASE_MODULATOR_NAMES = ("four-vector", "two-vector", "decoupled", "double-zs")
 #: ``--phases 5``: the five-phase modulators (pmsmjax.presets.five_phase.FIVE_PHASE_PWMS).
 FIVE_PHASE_MODULATOR_NAMES = ("near-four-vector", "carrier", "sinusoidal", "large-vector")
+#: Dead time of the _deadtime variants when the drive file gives none (ideal switches), us.
+DEFAULT_DEAD_TIME_US = 2.0
+#: ``--phases`` -> the control whose drive reaches the operating point and its default modulator
+#: (:attr:`pmsmjax.studies.pwm_comparison.PhaseCount.base_drive`).
+BASE_CONTROL = {
+    3: ("pi", {}),
+    6: ("conventional", {"pwm": "four-vector"}),
+    5: ("conventional", {"pwm": "near-four-vector"}),
+}
 
 
 def add_parser(sub):
@@ -29,7 +31,8 @@ def add_parser(sub):
         help="compare the PWM methods (spectra, THD, DC-bus utilisation) at one steady operating point",
         description=(
             "Book chapter 2: sinusoidal PWM, third-harmonic and min-max injection and SVPWM at one steady "
-            "operating point of the book drive (reached through the book scenario), each with the averaged "
+            "operating point of the drive (--motor: the book drive by default, or a drive file; reached "
+            "through a speed step and a load step), each with the averaged "
             "bridge, the switching-resolved bridge, and the switching bridge with dead time. Writes "
             "DIR/pwm.json (per variant: linear_limit_v, fundamental, voltage and current THD, DC-bus "
             "utilisation against sinusoidal PWM), DIR/waveforms.npz and PNG figures. An operating point the "
@@ -55,24 +58,24 @@ def add_parser(sub):
         "average voltage and 3rd/7th harmonic currents",
     )
     p.add_argument("--out", default="pwm_out", help="output folder (created), default: pwm_out")
+    drive_flags.add_motor_flag(p)
+    drive_flags.add_override_flags(p)
     p.add_argument(
         "--speed-rpm",
         type=checks.positive("r/min"),
-        default=BOOK_SPEED_STEP_RPM,
-        help=f"speed, r/min; f_sw / f_1 must be whole: {plain(BOOK_SPEED_STEP_RPM)} r/min (default) gives "
-        f"{plain(60.0 / (BOOK_SPEED_STEP_RPM * BOOK_POLE_PAIRS * BOOK_TS))}",
+        help=drive_flags.scenario_help(
+            "speed_rpm", "speed, r/min; f_sw / f_1 must be whole (book: 1000 r/min gives 150)"
+        ),
     )
     p.add_argument(
-        "--load-nm",
-        type=checks.real("N m"),
-        default=BOOK_LOAD_NM,
-        help=f"load torque, N m (default {plain(BOOK_LOAD_NM)})",
+        "--load-nm", type=checks.real("N m"), help=drive_flags.scenario_help("load_nm", "load torque, N m")
     )
     p.add_argument(
         "--dead-time-us",
         type=checks.nonnegative("us", maximum=50.0),
-        default=2.0,
-        help="dead time of the _deadtime variants, us (default 2)",
+        default=None,
+        help="dead time of the _deadtime variants, us (default: the drive file's [inverter] dead_time_s "
+        f"when above 0, else {plain(DEFAULT_DEAD_TIME_US)}; book: {plain(DEFAULT_DEAD_TIME_US)})",
     )
     p.add_argument(
         "--settle-cycles", type=checks.count(), default=2, help="fundamental periods settled (default 2)"
@@ -95,14 +98,17 @@ def add_parser(sub):
         help="--phases 6 or 5: add the switching bridge with dead time (three phases always include it)",
     )
     add_gains_flag(p)
+    p.add_argument(
+        "--trust-units", action="store_true", help="accept motor values outside the plausible ranges"
+    )
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.set_defaults(func=run)
 
 
-def precheck(args) -> None:
-    """Checks that need no model (before JAX starts)."""
+def precheck(args):
+    """Checks that need no model (before JAX starts); returns the drive
+    (:class:`~pmsmjax.io.drive_files.DriveSpec`), the flags left unset filled from it."""
     from pmsmjax.analysis.operating_point import refuse_unreachable
-    from pmsmjax.io.motor_files import PRESET_VALUES
 
     checks.output_folder(args.out)
     read_gains_flag(args.gains)
@@ -115,41 +121,57 @@ def precheck(args) -> None:
             f"--modulators {' '.join(wrong)} do not drive {args.phases} phases: with --phases {args.phases} "
             f"choose from {', '.join(names)}."
         )
+    spec = drive_flags.resolve_drive(args, args.phases)
+    drive_flags.fill_scenario(args, spec, ("speed_rpm", "load_nm"))
+    if args.dead_time_us is None:
+        t_d = spec.inverter["dead_time_s"]
+        args.dead_time_us = t_d * 1e6 if t_d > 0 else DEFAULT_DEAD_TIME_US
     if args.phases in (5, 6) and args.dead_time_us == 0.0 and args.dead_time_variants:
         raise ParameterError("--dead-time-variants with --dead-time-us 0 compares nothing: give a dead time.")
-    motor = PRESET_VALUES["book"]  # the six- and five-phase rewinds have the same pole pairs
-    f1 = args.speed_rpm / 60.0 * motor["pole_pairs"]
-    per_cycle = 1.0 / (f1 * BOOK_TS)
+    f_sw, f_c = spec.inverter["switching_frequency_hz"], spec.inverter["control_frequency_hz"]
+    if f_c != f_sw:
+        raise ParameterError(
+            f"{spec.source}: [inverter] control_frequency_hz = {plain(f_c)} Hz: the PWM comparison updates "
+            f"the modulator once per switching period; give control_frequency_hz = {plain(f_sw)} (or leave "
+            "it out)."
+        )
+    Ts = spec.Ts
+    f1 = args.speed_rpm / 60.0 * spec.motor["pole_pairs"]
+    per_cycle = 1.0 / (f1 * Ts)
     if abs(per_cycle - round(per_cycle)) > 1e-9 * per_cycle:
-        good = [n for n in (250, 300, 375, 500, 600, 750, 1000, 1250, 1500) if n <= 2 * args.speed_rpm]
+        # whole r/min whose electrical period is a whole number of PWM periods, the four nearest the one asked
+        step = 60.0 / (spec.motor["pole_pairs"] * Ts)  # r/min of a one-period electrical cycle
+        whole = [
+            step / n for n in range(1, 10 * round(per_cycle) + 10) if abs(step / n - round(step / n)) < 1e-9
+        ]
+        good = sorted(sorted(whole, key=lambda v: abs(v - args.speed_rpm))[:4])
         raise ParameterError(
             f"--speed-rpm {plain(args.speed_rpm)}: a fundamental period ({1e3 / f1:.4g} ms) is not a whole "
-            f"number of {plain(BOOK_TS * 1e6)} us PWM periods, so the spectra would leak: pick a speed "
-            f"with f_sw / f_1 whole, e.g. {', '.join(str(n) for n in good[-4:])} r/min."
+            f"number of {plain(Ts * 1e6)} us PWM periods, so the spectra would leak: pick a speed "
+            f"with f_sw / f_1 whole, e.g. {', '.join(plain(round(g)) for g in good)} r/min."
         )
-    if args.phases in (5, 6):
-        # The six- and five-phase rewinds have the book motor's torque constant and 1/2 or 3/5 of its
-        # back-EMF per phase, against linear limits of 0.577 or 0.526 U_dc (not less than the book drive's
-        # 0.577 U_dc in proportion): a point the three-phase check accepts they hold too.
-        return
     refuse_unreachable(
-        motor,
+        spec.motor,
         args.speed_rpm,
         args.load_nm,
-        BOOK_DC_LINK,
-        BOOK_DC_LINK / 3**0.5,
-        BOOK_CURRENT_LIMIT,
+        spec.u_dc_v,
+        spec.voltage_limit_v,  # the default modulator's linear range for the phase count
+        spec.current_limit_a,
         what="the PWM comparison",
+        u_dc_flag=drive_flags.U_DC_KNOB,
+        current_limit_flag="--current-limit",
     )
+    return spec
 
 
 def run(args) -> int:
-    precheck(args)
+    spec = precheck(args)
 
     import numpy as np
 
     from pmsmjax.io.logs import atomic_write
-    from pmsmjax.studies.pwm_comparison import PHASE_COUNTS, CompareSettings, compare
+    from pmsmjax.presets.user_drive import spec_drive
+    from pmsmjax.studies.pwm_comparison import CompareSettings, compare
 
     settings = CompareSettings(
         speed_rpm=args.speed_rpm,
@@ -164,14 +186,15 @@ def run(args) -> int:
         else ("averaged", "switching") + (("deadtime",) if args.dead_time_variants else ()),
         phases=args.phases,
     )
-    gains_block = "pi" if args.phases == 3 else "conventional"
-    base = apply_gains_flag(PHASE_COUNTS[args.phases].base_drive(), read_gains_flag(args.gains), gains_block)
+    control, options = BASE_CONTROL[args.phases]
+    base = apply_gains_flag(spec_drive(spec, control, **options), read_gains_flag(args.gains), control)
     out = checks.output_folder(args.out)
     t0 = time.perf_counter()
     result = compare(settings, base=base, progress=print)
     out.mkdir(parents=True, exist_ok=True)
     report = {"settings": result["settings"], "entries": result["entries"]}
     report["settings"]["gains"] = args.gains
+    report["drive_file"] = spec.summary()
     report["wall_time_s"] = time.perf_counter() - t0
     atomic_write(out / "pwm.json", lambda f: f.write(json.dumps(report, indent=2).encode()))
     arrays = {f"{name}/{key}": v for name, w in result["waves"].items() for key, v in w.items()}

@@ -16,7 +16,12 @@ def add_parser(sub):
         ),
     )
     p.add_argument("log", help="log file (.csv, .npz or .mat)")
-    p.add_argument("--motor", required=True, help="preset name (book, book_salient) or motor TOML file")
+    p.add_argument(
+        "--motor",
+        required=True,
+        help="the machine: a preset name (book, book_salient, servo-400w, ...) or a drive TOML file (its "
+        "[motor]; a seven-value motor file is one)",
+    )
     p.add_argument("--out", required=True, help="output folder (created)")
     p.add_argument(
         "--hold",
@@ -44,9 +49,9 @@ def add_parser(sub):
 def run(args) -> int:
     checks.existing_file(args.log, "log", "log file")
     checks.output_folder(args.out)
-    from pmsmjax.io.motor_files import motor_values
+    from pmsmjax.io.drive_files import drive_spec
 
-    motor_values(args.motor, check_units=not args.trust_units)
+    drive_spec(args.motor, check_units=not args.trust_units)  # refused here, before JAX starts
     from pmsmjax.studies.replay import replay_file
 
     notes: list[str] = []

@@ -23,7 +23,7 @@ from pmsmjax.drive import Drive
 from pmsmjax.estimators.flux_observer import StatorFluxObserver
 from pmsmjax.inverters.averaged import AveragedBridge
 from pmsmjax.inverters.svpwm import SVPWM
-from pmsmjax.io.motor_files import MOTOR_FIELDS, read_motor_file  # noqa: F401 (MOTOR_FIELDS: public here)
+from pmsmjax.io.drive_files import MOTOR_FIELDS  # noqa: F401 (public here)
 from pmsmjax.machines.motor import PMSMParameters
 from pmsmjax.machines.pmsm3 import PMSMabc, PMSMAlphaBeta, PMSMdq
 from pmsmjax.presets.book_constants import (
@@ -358,23 +358,20 @@ def book_scenario(
 
 
 def load_motor(name_or_path: str | Path, *, check_units: bool = True) -> PMSMParameters:
-    """A motor by preset name (``book``, ``book_salient``) or from a TOML file.
+    """A three-phase motor by preset name (``book``, ``book_salient``, ``servo-400w``, ...) or from a
+    drive file (:mod:`pmsmjax.io.drive_files`; a seven-value motor file is one).
 
-    The TOML file holds ``R, L_d, L_q, psi_f, pole_pairs, J, B`` at top level (or under ``[motor]``), SI
-    units: ohm, H, H, Wb, -, kg m^2, N m s; values implausible in those units (an inductance in mH) are
-    refused unless ``check_units=False`` or the file says ``trust_units = true``
-    (:func:`pmsmjax.io.motor_files.read_motor_file`).
+    The file holds ``R, L_d, L_q, psi_f, pole_pairs, J, B`` under ``[motor]`` (or, for a motor file, at
+    top level), SI units: ohm, H, H, Wb, -, kg m^2, N m s; values implausible in those units (an
+    inductance in mH) are refused unless ``check_units=False`` or the file says ``trust_units = true``.
     """
     key = str(name_or_path)
-    if key in MOTORS:
+    if key in MOTORS:  # the book's motors as the presets build them
         return MOTORS[key]()
-    path = Path(name_or_path)
-    if not path.is_file():
-        raise ParameterError(
-            f"motor {key!r} is neither a preset ({', '.join(MOTORS)}) nor an existing TOML file: give a "
-            "preset name or the path of a motor file."
-        )
-    return PMSMParameters(**read_motor_file(path, check_units=check_units))
+    from pmsmjax.io.drive_files import drive_spec
+
+    values = drive_spec(name_or_path, check_units=check_units).motor
+    return PMSMParameters(**{f: values[f] for f in MOTOR_FIELDS})
 
 
 #: Table DTC defaults (see :func:`dtc_drive`): comparator sample period s, torque band N m, flux band Wb,

@@ -123,15 +123,27 @@ def machine_controls(machine: str) -> tuple[str, ...]:
     return tuple(MULTIPHASE_PRESETS[machine][1])
 
 
-def compared_drive(name: str, motor=None, bridge: str = "averaged", machine: str = "three-phase") -> Drive:
+def compared_drive(
+    name: str, motor=None, bridge: str = "averaged", machine: str = "three-phase", spec=None
+) -> Drive:
     """The drive of control ``name`` for ``motor`` on ``bridge``:
     :data:`pmsmjax.presets.control_methods.CONTROLS` for the
     three-phase machine, the six- or five-phase presets' schemes (``vsd``, ...) for ``machine``; ``motor``
-    is then a :class:`pmsmjax.machines.MultiPhaseParameters` (None: the preset's rewind of the book motor)."""
-    if machine != "three-phase":
+    is then a :class:`pmsmjax.machines.MultiPhaseParameters` (None: the preset's rewind of the book motor).
+    With a drive file ``spec`` (:class:`pmsmjax.io.drive_files.DriveSpec`) instead of ``motor``: its drive
+    (:func:`pmsmjax.presets.user_drive.spec_drive`; a multi-phase switching bridge with the file's dead
+    time)."""
+    if spec is not None:
+        from pmsmjax.presets.user_drive import spec_drive
+
+        if machine != "three-phase":
+            return spec_drive(spec, name, bridge=bridge)
+        drive = spec_drive(spec, name)
+    elif machine != "three-phase":
         preset = MULTIPHASE_PRESETS[machine][0]
         return preset(motor, control=name, bridge=bridge)
-    drive = control_drive(name, motor)
+    else:
+        drive = control_drive(name, motor)
     if bridge == "switching" and drive.controller.command_kind == "voltage":
         drive = eqx.tree_at(lambda d: d.bridge, drive, SwitchingBridge(drive.bridge.u_dc))
     return drive
@@ -226,6 +238,7 @@ def compare_controllers(
     progress=None,
     adjust=None,
     machine: str = "three-phase",
+    spec=None,
 ) -> dict:
     """Run each named controller (keys of :data:`pmsmjax.presets.control_methods.CONTROLS`, or of the six- or
     five-phase
@@ -238,7 +251,9 @@ def compare_controllers(
 
     Returns ``{"settings", "controllers": name -> figures, "traces": name -> Trace, "windows": name ->
     {t, i_abc, torque, psi_ab}}``; `progress`: optional callable taking a line per controller; `adjust`:
-    optional ``(drive, name) -> drive`` applied to each drive before anything runs (tuned gains, say).
+    optional ``(drive, name) -> drive`` applied to each drive before anything runs (tuned gains, say);
+    `spec`: a drive file (:class:`pmsmjax.io.drive_files.DriveSpec`) whose drives run instead of
+    ``motor``'s presets (:func:`compared_drive`).
     """
     settings.check()
     if machine != "three-phase" and machine not in MULTIPHASE_PRESETS:
@@ -252,7 +267,7 @@ def compare_controllers(
             "equal switching frequency matches hysteresis/DTC bands; the multi-phase schemes are all PWM: "
             "drop it."
         )
-    drives = {name: compared_drive(name, motor, settings.bridge, machine) for name in names}
+    drives = {name: compared_drive(name, motor, settings.bridge, machine, spec) for name in names}
     if adjust is not None:
         drives = {name: adjust(drive, name) for name, drive in drives.items()}
     for drive in drives.values():  # every check before the first compile

@@ -256,27 +256,31 @@ def test_load_motor_good_file_and_table(tmp_path):
 
 def test_load_motor_missing_key(tmp_path):
     path = write(tmp_path, GOOD_TOML.replace("psi_f = 0.1827\n", ""))
-    with pytest.raises(ParameterError, match=r"lacks psi_f: it needs R, L_d, L_q, psi_f, pole_pairs, J, B"):
+    with pytest.raises(
+        ParameterError, match=r"lacks psi_f in \[motor\]: it needs R, L_d, L_q, psi_f, pole_pairs, J, B"
+    ):
         presets.load_motor(path)
 
 
 def test_load_motor_unknown_key(tmp_path):
     path = write(tmp_path, GOOD_TOML + "Ld = 5e-3\n")
-    with pytest.raises(ParameterError, match=r"unknown keys \['Ld'\]; allowed: R, L_d"):
+    with pytest.raises(
+        ParameterError, match=r"unknown keys \['Ld'\] in \[motor\] \('Ld' looks like 'L_d'\); allowed: R, L_d"
+    ):
         presets.load_motor(path)
 
 
 @pytest.mark.parametrize("value", ["4.0", '"4"'])
 def test_load_motor_non_int_pole_pairs(tmp_path, value):
     path = write(tmp_path, GOOD_TOML.replace("pole_pairs = 4", f"pole_pairs = {value}"))
-    with pytest.raises(ParameterError, match=r"pole_pairs must be an integer"):
+    with pytest.raises(ParameterError, match=r"pole_pairs must be a whole number >= 1"):
         presets.load_motor(path)
 
 
 def test_load_motor_non_number_and_nonphysical(tmp_path):
-    with pytest.raises(ParameterError, match=r"R must be a number"):
+    with pytest.raises(ParameterError, match=r"\[motor\] R must be a finite number \(ohm\)"):
         presets.load_motor(write(tmp_path, GOOD_TOML.replace("R = 0.958", 'R = "low"')))
-    with pytest.raises(ParameterError, match=r"J \(inertia\) must be > 0"):
+    with pytest.raises(ParameterError, match=r"\[motor\] J = -0.003 kg m\^2: give a value > 0"):
         presets.load_motor(write(tmp_path, GOOD_TOML.replace("J = 0.003", "J = -0.003")))
 
 
@@ -286,7 +290,9 @@ def test_load_motor_bad_toml(tmp_path):
 
 
 def test_load_motor_missing_path(tmp_path):
-    with pytest.raises(ParameterError, match=r"neither a preset \(book, book_salient\) nor an existing TOML"):
+    with pytest.raises(
+        ParameterError, match=r"neither a preset \(book, book_salient, servo-400w, .*\) nor a drive file"
+    ):
         presets.load_motor(tmp_path / "nope.toml")
 
 

@@ -93,7 +93,7 @@ def refused(capsys, argv, *needles, outputs=()):
         (["demo", "--decimate", "7"], ["--decimate", "divisor"]),
         (["demo", "--control", "foc"], ["--control", "invalid choice"]),
         (["demo", "--band-a", "0.5"], ["--band-a", "does not apply to --control pi"]),
-        (["demo", "--motor", "nosuch"], ["motor 'nosuch'", "preset"]),
+        (["demo", "--motor", "nosuch"], ["--motor nosuch", "preset", "drive file"]),
         (["demo", "--gains", "nosuch.toml"], ["--gains nosuch.toml", "does not exist"]),
         (["pwm-compare", "--dead-time-us", "-2"], ["--dead-time-us", ">= 0 us"]),
         (["pwm-compare", "--speed-rpm", "1234"], ["--speed-rpm", "whole number", "e.g."]),
