@@ -8,6 +8,39 @@ from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.cli import checks, drive_flags
 from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
 
+#: Electrical periods of the ripple and THD window at the end of the run.
+WINDOW_CYCLES = 2
+
+
+def whole_window_speed(speed_rpm: float, spec, given: bool) -> float:
+    """The run's speed, r/min: the ripple window spans whole electrical periods at the control rate
+    (:func:`pmsmjax.studies.control_comparison.window_periods`). A speed from the drive file that does not
+    fit is lowered to the nearest one that does (said on the console); one the user gave is refused with
+    the nearest ones that fit."""
+    from pmsmjax.presets.book_constants import DTC_SAMPLE_PERIOD_S, HYSTERESIS_SAMPLE_PERIOD_S
+    from pmsmjax.presets.drive_ratings import common_period_s, whole_period_speed_rpm
+
+    cycles = WINDOW_CYCLES
+    # every control's own period: the comparator drives sample faster than the PWM ones
+    period = common_period_s((spec.Ts, HYSTERESIS_SAMPLE_PERIOD_S, DTC_SAMPLE_PERIOD_S))
+    fitting = whole_period_speed_rpm(speed_rpm, spec.motor["pole_pairs"], period, cycles)
+    if fitting == speed_rpm:
+        return speed_rpm
+    if given:
+        slower = whole_period_speed_rpm(0.999 * fitting, spec.motor["pole_pairs"], period, cycles)
+        raise ParameterError(
+            f"--speed-rpm {plain(speed_rpm)}: {cycles} electrical periods at this speed are not a whole "
+            f"number of {plain(period * 1e6)} us (every control's period), which the ripple window needs: "
+            "give "
+            "e.g. "
+            f"{fitting:.6g} or {slower:.6g} r/min."
+        )
+    print(
+        f"speed {fitting:.6g} r/min instead of the drive file's {plain(speed_rpm)} r/min: the ripple window "
+        f"needs {cycles} electrical periods to span whole {plain(period * 1e6)} us (every control's period)"
+    )
+    return fitting
+
 
 def add_parser(sub):
     p = sub.add_parser(
@@ -155,7 +188,10 @@ def precheck(args):
                 f"{flag} sets the book scenario; --scenario {args.scenario} is a fixed run (only --load-nm "
                 "applies): drop it or give --scenario book."
             )
+    speed_given = args.speed_rpm is not None
     drive_flags.fill_scenario(args, spec)
+    if not fixed:
+        args.speed_rpm = whole_window_speed(args.speed_rpm, spec, speed_given)
     known = MULTIPHASE_NAMES[args.machine][0] if multiphase else CONTROL_NAMES
     default = ",".join(known) if multiphase else (control or "pi,smc,pr,hysteresis")
     control_list = args.control if args.control is not None else default
@@ -270,6 +306,7 @@ def run(args) -> int:
         load_time_s=args.load_time_s,
         duration_s=args.duration_s,
         bridge=args.bridge,
+        window_cycles=WINDOW_CYCLES,
         equal_switching_hz=args.equal_switching,
     )
     settings.check()
@@ -328,6 +365,7 @@ def run_estimators(args, names: list[str], spec) -> int:
         load_time_s=args.load_time_s,
         duration_s=args.duration_s,
         bridge=args.bridge,
+        window_cycles=WINDOW_CYCLES,
     )
     settings.check()
     motor = spec_motor(spec)

@@ -52,6 +52,12 @@ BOOK_CURRENT_BANDWIDTH = 1100.0
 #: Speed-loop bandwidth beta of the active-damping PI design, rad/s (chapter 3).
 BOOK_SPEED_BANDWIDTH = 50.0
 
+#: Comparator sample period of the hysteresis current control drive, s (100 kHz;
+#: :func:`pmsmjax.presets.hysteresis_drive` says why).
+HYSTERESIS_SAMPLE_PERIOD_S = 10e-6
+#: Comparator sample period of the switching-table DTC drive, s (40 kHz; :func:`pmsmjax.presets.dtc_drive`).
+DTC_SAMPLE_PERIOD_S = 25e-6
+
 # The scenario.
 #: Speed step at t = 0, r/min.
 BOOK_SPEED_STEP_RPM = 1000.0

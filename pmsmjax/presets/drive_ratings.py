@@ -59,6 +59,8 @@ __all__ = [
     "tuning_ranges",
     "round_up_nice",
     "startup_rule",
+    "common_period_s",
+    "whole_period_speed_rpm",
 ]
 
 RPM = math.pi / 30.0
@@ -193,6 +195,26 @@ def startup_rule(motor: Mapping, ratings: Mapping) -> dict:
         "handover_speed_rad_s": STARTUP_SHARES["handover"] * rated,
         "blend_speed_rad_s": STARTUP_SHARES["blend"] * rated,
     }
+
+
+def whole_period_speed_rpm(speed_rpm: float, pole_pairs: int, Ts: float, cycles: int = 2) -> float:
+    """The highest speed (r/min, sign of ``speed_rpm``) at most ``|speed_rpm|`` whose ``cycles`` electrical
+    periods span a whole number of control periods ``Ts`` (s): what a ripple or spectrum window over whole
+    electrical periods sampled at the control rate needs. ``speed_rpm`` itself when it fits."""
+    periods = cycles * 60.0 / (abs(speed_rpm) * pole_pairs * Ts)
+    whole = round(periods)
+    if abs(periods - whole) > 1e-6 * periods:
+        whole = math.ceil(periods)
+    return (
+        math.copysign(cycles * 60.0 / (whole * pole_pairs * Ts), speed_rpm) if whole != periods else speed_rpm
+    )
+
+
+def common_period_s(periods_s) -> float:
+    """The shortest time (s) that is a whole number of each of ``periods_s`` (s; the least common
+    multiple, counted in nanoseconds)."""
+    ns = [round(p * 1e9) for p in periods_s]
+    return math.lcm(*ns) * 1e-9
 
 
 def round_up_nice(x: float) -> float:

@@ -38,6 +38,8 @@ from pmsmjax.presets.book_constants import (
     BOOK_SPEED_BANDWIDTH,
     BOOK_SPEED_STEP_RPM,
     BOOK_TS,
+    DTC_SAMPLE_PERIOD_S,
+    HYSTERESIS_SAMPLE_PERIOD_S,
 )
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.units import rpm_to_rad_s
@@ -147,7 +149,6 @@ def smc_drive(
 #: Hysteresis drive defaults: full band, A; comparator sample period, s; speed-loop period, s (the book's
 #: 10 kHz). See :func:`hysteresis_drive` for why.
 HYSTERESIS_BAND_A = 0.5
-HYSTERESIS_SAMPLE_PERIOD_S = 10e-6
 HYSTERESIS_SPEED_PERIOD_S = BOOK_TS
 
 
@@ -376,7 +377,6 @@ def load_motor(name_or_path: str | Path, *, check_units: bool = True) -> PMSMPar
 
 #: Table DTC defaults (see :func:`dtc_drive`): comparator sample period s, torque band N m, flux band Wb,
 #: speed-loop period s, flux-observer crossover rad/s.
-DTC_SAMPLE_PERIOD_S = 25e-6
 DTC_TORQUE_BAND_NM = 1.0
 DTC_FLUX_BAND_WB = 0.01
 DTC_SPEED_PERIOD_S = BOOK_TS

@@ -20,7 +20,8 @@ from pmsmjax.scenarios import Scenario
 __all__ = ["spec_motor", "drive_options", "spec_drive", "spec_scenario", "startup_options", "SMC_LOAD_RISE_S"]
 
 #: The sliding-mode speed law's design load: the rated torque rising in this time, s (the book's 10 N m in
-#: 10 ms, :func:`pmsmjax.presets.smc_drive`).
+#: 10 ms, :func:`pmsmjax.presets.smc_drive`). Its sliding surface's time constant is the speed loop's,
+#: ``1 / beta`` (the book's 20 ms at 50 rad/s).
 SMC_LOAD_RISE_S = 0.01
 
 _MOTOR_KEYS = ("R", "L_d", "L_q", "psi_f", "pole_pairs", "J", "B")
@@ -70,8 +71,9 @@ def drive_options(spec: DriveSpec, control: str = "pi") -> dict:
         options["current_bandwidth"] = spec.control["current_bandwidth_rad_s"]
     if "speed_period_s" in allowed:  # comparator drives: the speed loop at the control rate
         options["speed_period_s"] = spec.Ts
-    if "load_torque_rate_nm_s" in allowed:
+    if "load_torque_rate_nm_s" in allowed:  # the sliding-mode speed law: surface as fast as the PI's loop
         options["load_torque_rate_nm_s"] = spec.ratings["rated_torque_nm"] / SMC_LOAD_RISE_S
+        options["time_constant_s"] = 1.0 / spec.control["speed_bandwidth_rad_s"]
     return options
 
 
