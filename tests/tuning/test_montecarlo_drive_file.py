@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from pmsmjax import presets
+from pmsmjax.checks.validation import ParameterError
 from pmsmjax.cli import main
-from pmsmjax.io.drive_files import drive_spec
+from pmsmjax.io.drive_files import drive_spec, preset_path
 from tuning.montecarlo import study as mc_study
 from tuning.montecarlo.distributions import Distribution, sample
 from tuning.montecarlo.study import Study
@@ -115,3 +116,18 @@ def test_careless_drive_flags_are_refused_before_anything_is_written(tmp_path, c
     assert len(err.splitlines()) == 1 and not out.exists()
     for needle in needles:
         assert needle in err
+
+
+def test_a_six_phase_drive_file_gives_the_six_phase_study_its_motor_and_tolerances(tmp_path):
+    path = tmp_path / "six.toml"
+    path.write_text(
+        preset_path("book", 6).read_text().replace("R = 0.479", "R = 0.61").replace("J = 0.5", "J = 0.25")
+    )
+    study = Study(motor=str(path), machine="six-phase")
+    drive = mc_study.build_drive(study)
+    assert float(drive.machine.motor.R) == 0.61 and drive.machine.motor.n_phases == 6
+    assert (
+        study.parameters["motor.J"]["tolerance"] == 0.25 and study.parameters["motor.R"]["tolerance"] == 0.2
+    )
+    with pytest.raises(ParameterError, match="six-phase motor"):
+        Study(motor=str(path))  # a six-phase file on the three-phase study
