@@ -1,4 +1,7 @@
-"""``pmsmjax identify``: motor parameters with error bars from a logged run (:mod:`tuning.identify`)."""
+"""``pmsmjax identify``: motor parameters with error bars from a logged run (:mod:`tuning.identify`), and
+the identified motor as a drive file (:mod:`tuning.identify.motor_file`)."""
+
+import sys
 
 from pmsmjax.checks.validation import ParameterError
 from pmsmjax.cli import checks
@@ -10,21 +13,40 @@ def add_parser(sub):
         help="identify R, L_d, L_q, psi_f, J, B with error bars from a logged drive run",
         description=(
             "Fit the PMSM model to a log (CSV/NPZ/MAT; default columns time,u_d,u_q,i_d,i_q,omega_m and "
-            "optionally theta_e, T_L; alpha-beta/abc/duty voltages and alpha-beta/abc currents with theta_e) "
-            "by output-error Levenberg-Marquardt over shooting windows. Writes DIR/params.json (value, "
-            "stderr, ci95, identifiable per parameter; residuals; wall time) and DIR/fit.png. A parameter "
-            "the log does not determine (L_d when i_d is held at zero, say) is reported NOT IDENTIFIABLE, "
-            'without an interval. To try it, make a log with: python -c "from tuning.identify import '
-            "identification_scenario; from pmsmjax.studies.synthetic_logs import ID_LOG_NOISE, "
-            "add_measurement_noise, identification_log; from pmsmjax.io.logs import write_csv_atomic; "
-            "write_csv_atomic('log.csv', "
-            'add_measurement_noise(identification_log(identification_scenario()), ID_LOG_NOISE))" '
-            "then pmsmjax identify log.csv --pole-pairs 4 --out id_out."
+            "optionally theta_e, T_L; alpha-beta/abc/duty voltages and alpha-beta/abc currents with "
+            "theta_e) by output-error Levenberg-Marquardt over shooting windows. Writes DIR/params.json "
+            "(value, stderr, ci95, identifiable per parameter; residuals; wall time), DIR/fit.png and "
+            "DIR/motor.toml, a drive file every command reads (--motor DIR/motor.toml): [motor] the "
+            "identified values, [tolerances] the relative half-widths of their 95 % intervals. A "
+            "parameter the log does not determine (L_d when i_d is held at zero, psi_f at standstill, J "
+            "at constant speed, ...) is reported NOT IDENTIFIABLE, without an interval; motor.toml then "
+            "takes its value (and tolerance) from the prior drive of --motor, which also gives its "
+            "[ratings], [inverter] and [sensor]. Without --motor such a parameter has no value: "
+            "params.json is written, motor.toml is not, and the command exits with status 1 naming it and "
+            'the fix (--motor PRIOR or --fix NAME=VALUE). To try it, make a log with: python -c "from '
+            "tuning.identify import identification_scenario; from pmsmjax.studies.synthetic_logs import "
+            "ID_LOG_NOISE, add_measurement_noise, identification_log; from pmsmjax.io.logs import "
+            "write_csv_atomic; write_csv_atomic('log.csv', "
+            'add_measurement_noise(identification_log(identification_scenario()), ID_LOG_NOISE))" then '
+            "pmsmjax identify log.csv --pole-pairs 4 --out id_out."
         ),
     )
     p.add_argument("log", help="log file (.csv, .npz or .mat)")
     p.add_argument("--out", required=True, help="output folder (created)")
-    p.add_argument("--pole-pairs", type=checks.count(), required=True, help="number of pole pairs (known)")
+    p.add_argument(
+        "--pole-pairs",
+        type=checks.count(),
+        default=None,
+        help="number of pole pairs (known; default: the --motor prior's, required without it)",
+    )
+    p.add_argument(
+        "--motor",
+        metavar="PRIOR",
+        default=None,
+        help="prior drive: a preset name (book, servo-400w, ...) or a drive file; gives the pole pairs, "
+        "the values the log does not determine and motor.toml's [ratings], [inverter], [sensor] "
+        "(default: none)",
+    )
     p.add_argument(
         "--config",
         default=None,
@@ -101,11 +123,34 @@ def _pairs(items, what, convert=str):
     return out
 
 
+def prior_and_pole_pairs(args):
+    """``(prior DriveSpec or None, pole pairs)`` from ``--motor`` and ``--pole-pairs`` (checked, no JAX)."""
+    prior = None
+    if args.motor is not None:
+        from pmsmjax.io.drive_files import drive_spec
+
+        prior = drive_spec(args.motor)
+    if args.pole_pairs is None:
+        if prior is None:
+            raise ParameterError(
+                "give --pole-pairs N (the motor's pole pairs, poles / 2) or --motor PRIOR (a drive file or "
+                "preset that states them)."
+            )
+        return prior, prior.motor["pole_pairs"]
+    if prior is not None and prior.motor["pole_pairs"] != args.pole_pairs:
+        raise ParameterError(
+            f"--pole-pairs {args.pole_pairs} contradicts --motor {args.motor} (pole_pairs = "
+            f"{prior.motor['pole_pairs']}): drop --pole-pairs or correct one of them."
+        )
+    return prior, args.pole_pairs
+
+
 def run(args) -> int:
     checks.existing_file(args.log, "log", "log file")
     checks.output_folder(args.out)
     if args.config is not None:
         checks.existing_file(args.config, "--config", "config file")
+    prior, pole_pairs = prior_and_pole_pairs(args)
     fixed = _pairs(args.fix, "--fix", _finite)
     columns, units = _pairs(args.columns, "--columns"), _pairs(args.units, "--units")
     # The command line is the one place where pmsmjax reaches up into the tuning workflows.
@@ -119,7 +164,7 @@ def run(args) -> int:
     result = identify_file(
         args.log,
         args.out,
-        args.pole_pairs,
+        pole_pairs,
         config=args.config,
         columns=columns,
         units=units,
@@ -143,4 +188,31 @@ def run(args) -> int:
         f"wall time {s['wall_time_s']:.2f} s; wrote {args.out}/params.json"
         + ("" if args.no_figures else ", fit.png")
     )
+    return _write_motor_file(args, s, pole_pairs, prior)
+
+
+def _write_motor_file(args, summary: dict, pole_pairs: int, prior) -> int:
+    """Write DIR/motor.toml and read it back as every command will; without a prior, a parameter the log
+    does not determine leaves it unwritten (status 1, one line naming the parameter and the fix)."""
+    from pathlib import Path
+
+    from pmsmjax.io.drive_files import drive_spec
+    from tuning.identify.motor_file import undetermined, write_motor_file
+
+    missing = undetermined(summary)
+    if missing and prior is None:
+        name = missing[0]
+        others = f" (also {', '.join(missing[1:])})" if missing[1:] else ""
+        advice = summary["identifiability"]["advice"].get(name, "")
+        print(
+            f"pmsmjax identify: motor.toml not written: {name}{others} is not determined by this log "
+            f"(it needs {advice}): give --motor PRIOR (a drive file or preset whose value is taken) or "
+            f"--fix {name}=VALUE (SI units), or record a log with that excitation.",
+            file=sys.stderr,
+        )
+        return 1
+    path = write_motor_file(Path(args.out) / "motor.toml", summary, pole_pairs, prior)
+    drive_spec(path)  # what every command does with it: a value it refuses is reported now
+    taken = f" ({', '.join(missing)} from {prior.source})" if missing else ""
+    print(f"wrote {path}{taken}: use it with --motor {path}")
     return 0

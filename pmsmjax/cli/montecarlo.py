@@ -1,7 +1,9 @@
-"""``pmsmjax montecarlo``: a Monte Carlo robustness study of the book drive (:mod:`tuning.montecarlo`)."""
+"""``pmsmjax montecarlo``: a Monte Carlo robustness study of the user's drive (a drive file or preset,
+``--motor``; :mod:`tuning.montecarlo`)."""
 
 import argparse
 import os
+import sys
 import textwrap
 
 from pmsmjax.checks.validation import ParameterError
@@ -15,21 +17,25 @@ study TOML (--config; every table and key optional, flags win over it):
 
   [study]       n = 1000, seed = 0, sampling = "random" | "latin_hypercube", chunk_size = "auto" | N,
                 nonphysical = "refuse" | "clip", decimate = 40, sensitivity_runs = 256
-  [drive]       motor = "book" (preset or motor TOML), gains = "tune_out/gains.toml" (relative to this
-                file), current_bandwidth = 1100.0 (rad/s), speed_bandwidth = 50.0 (rad/s),
-                current_limit = 15.0 (A), u_dc = 311.0 (V), n_substeps = 10, unroll_substeps = false,
-                estimator = "smo" (a chapter 5 observer; default: the exact sensor)
-  [scenario]    speed_rpm = 1000.0, load_nm = 10.0, load_time_s = 0.2, duration_s = 0.4
-  [thresholds]  current_a = 15.75 (A; default 1.05 x current_limit), tracking_rpm = 10.0
+  [drive]       motor = "book" (preset or drive file; --motor wins), gains = "tune_out/gains.toml" (relative
+                to this file), current_bandwidth (rad/s), speed_bandwidth (rad/s), current_limit (A),
+                u_dc (V) (default: the drive file's; book: 1100, 50, 15, 311), n_substeps = 10,
+                unroll_substeps = false, estimator = "smo" (a chapter 5 observer; default: the exact
+                sensor)
+  [scenario]    speed_rpm, load_nm, load_time_s, duration_s (default: the drive file's [scenario];
+                book: 1000.0, 10.0, 0.2, 0.4)
+  [thresholds]  current_a (A; default 1.05 x the current limit), tracking_rpm = 10.0
   [parameters."motor.R"]   distribution = "uniform" | "normal" | "lognormal", tolerance = 0.2 (+-20 %),
                            sigmas = 3.0, nominal = ... (default: the drive's own value)
 
-  Parameter names: motor.R, motor.L_d, motor.L_q, motor.psi_f, motor.J, motor.B (the plant's),
-  bridge.u_dc, controller.<path> (e.g. controller.speed.kp), scenario.speed_rpm, scenario.load_nm.
-  A [parameters] table replaces the default set (R 20 %, L_d/L_q 15 %, psi_f 10 %, J/B 50 %,
-  u_dc 10 %) as a whole.
+  Parameter names: motor.R, motor.L_d, motor.L_q, motor.psi_f, motor.J, motor.B (the plant's; six- and
+  five-phase also motor.L_ls), bridge.u_dc, controller.<path> (e.g. controller.speed.kp),
+  scenario.speed_rpm, scenario.load_nm. A [parameters] table replaces the default set as a whole: the
+  drive file's [tolerances] (book: R 20 %, L_d/L_q 15 %, psi_f 10 %, J/B 50 %, u_dc 10 %), or that book
+  set for a file without one.
 
-  Sensorless (--estimator NAME): the drive runs on that observer from standstill (I/f start). The observer
+  Sensorless (--estimator NAME): the drive runs on that observer from standstill (the drive file's I/f
+  start, [control] startup_*). The observer
   and the controller keep the nominal motor; the plant's R, L_d, L_q, psi_f are drawn (default R +-30 %,
   L_d, L_q +-20 % each, psi_f +-10 %, uniform). Adds per run the angle error RMS and max and the speed
   estimation error RMS after 50 ms, and loss of lock (out of lock, |angle error| > 90 el. deg or
@@ -39,22 +45,41 @@ study TOML (--config; every table and key optional, flags win over it):
 
 def add_parser(sub):
     description = (
-        "Run N closed-loop runs of the book scenario (1000 r/min step, 10 N m load step at 0.2 s, "
-        "0.4 s, 10 kHz, 10 sub-steps) with the plant's R, L_d, L_q, psi_f, J, B and the DC link drawn "
-        "from their tolerances (default: R +-20 %, L +-15 %, psi_f +-10 %, J +-50 %, B +-50 %, "
-        "U_dc +-10 %, uniform), chunked and sharded over every device. Writes DIR/summary.json (percentiles, "
+        "Run N closed-loop runs of a drive's scenario (--motor: a drive file or preset, default book: "
+        "1000 r/min step, 10 N m load step at 0.2 s, 0.4 s, 10 kHz, 10 sub-steps; a drive file gives its "
+        "own [scenario], control rate, DC link, current limit and bandwidths, derived where absent) with "
+        "the plant's R, L_d, L_q, psi_f, J, B and the DC link drawn from their tolerances (default: the "
+        "file's [tolerances]; book: R +-20 %, L +-15 %, psi_f +-10 %, J +-50 %, B +-50 %, U_dc +-10 %, "
+        "uniform), chunked and sharded over every device. Writes DIR/summary.json (the drive file as "
+        "read, percentiles, "
         "failure rates, CVaR, AD sensitivities, Spearman ranks, run and compile time), DIR/histograms.png, "
         "DIR/fan_chart.png, DIR/tornado.png and DIR/chunks/*.npz; running it again resumes (Ctrl-C keeps "
         "every finished chunk). Settings: flags, then --config TOML (below), then built-in defaults."
     )
     p = sub.add_parser(
         "montecarlo",
-        help="Monte Carlo robustness study of the book drive over parameter tolerances",
+        help="Monte Carlo robustness study of a drive (drive file or preset) over parameter tolerances",
         description="\n".join(textwrap.wrap(description, 100)),
         epilog=STUDY_TOML,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--n", type=checks.count(), help="number of runs (default 1000)")
+    p.add_argument(
+        "--motor",
+        help="the drive: a preset (book, book_salient, servo-400w, industrial-5k6w, outer-rotor-24v; "
+        "six-/five-phase: book, book_salient) or a drive file (default: the study TOML's [drive] motor, "
+        "else book)",
+    )
+    p.add_argument(
+        "--u-dc",
+        type=checks.positive("V"),
+        help="DC-link voltage, V (default: the drive file's [inverter] u_dc_v)",
+    )
+    p.add_argument(
+        "--current-limit",
+        type=checks.positive("A"),
+        help="peak current limit, A (default: the drive file's [ratings] max_current_a)",
+    )
     p.add_argument("--out", default="montecarlo_out", help="output folder (created), default: montecarlo_out")
     p.add_argument("--config", default=None, help="study TOML, layout below (default: none)")
     p.add_argument("--seed", type=checks.count(minimum=0), help="sampling seed (default 0)")
@@ -118,8 +143,8 @@ def add_parser(sub):
     p.add_argument(
         "--machine",
         choices=("three-phase", "six-phase", "five-phase"),
-        help="three-phase book drive (default), the six-phase drive (book ch. 7-9) or the five-phase drive "
-        "(book ch. 10)",
+        help="three-phase drive (default), the six-phase drive (book ch. 7-9) or the five-phase drive "
+        "(book ch. 10); --motor then names a six- or five-phase drive file or preset",
     )
     p.add_argument(
         "--control",
@@ -152,10 +177,22 @@ def _chunk_size(text: str):
 
 
 def precheck(args) -> None:
-    """Checks that need no model (before JAX starts)."""
+    """Checks that need no model (before JAX starts), the drive file's included."""
     checks.output_folder(args.out)
     if args.config is not None:
         checks.existing_file(args.config, "--config", "study file")
+    if args.motor is not None or args.u_dc is not None or args.current_limit is not None:
+        from pmsmjax.io.drive_files import drive_spec
+
+        drive = _study_drive_table(args.config)
+        machine = args.machine or drive.get("machine", "three-phase")
+        drive_spec(
+            args.motor or drive.get("motor", "book"),
+            n_phases={"six-phase": 6, "five-phase": 5}.get(machine, 3),
+            u_dc_v=args.u_dc,
+            max_current_a=args.current_limit,
+            flags={"u_dc_v": "--u-dc", "max_current_a": "--current-limit"},
+        )
     read_gains_flag(args.gains)
     cores = os.cpu_count() or 1
     if args.devices is not None and args.devices > cores:
@@ -177,6 +214,21 @@ def precheck(args) -> None:
             f"--process-id {args.process_id}: processes are numbered 0 to {args.num_processes - 1} "
             f"(--num-processes {args.num_processes})."
         )
+
+
+def _study_drive_table(config) -> dict:
+    """The study TOML's ``[drive]`` table (empty without one; its errors are the study reader's)."""
+    if config is None:
+        return {}
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover
+        import tomli as tomllib
+    try:
+        table = tomllib.loads(open(config).read()).get("drive", {})
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError, OSError):
+        return {}
+    return table if isinstance(table, dict) else {}
 
 
 def run(args) -> int:
@@ -204,6 +256,9 @@ def run(args) -> int:
     kwargs = read_study_toml(args.config) if args.config else {}
     for key, value in (
         ("n", args.n),
+        ("motor", args.motor),
+        ("u_dc", args.u_dc),
+        ("current_limit", args.current_limit),
         ("seed", args.seed),
         ("chunk_size", args.chunk_size),
         ("sensitivity_runs", args.sensitivity_runs),
@@ -229,7 +284,8 @@ def run(args) -> int:
     f, m = s["failures"], s["metrics"]
     ch = s["chunks"]
     print(
-        f"{s['n_runs']} runs on {s['devices']['count']} device(s): run {s['run_time_s']:.2f} s "
+        f"{s['n_runs']} runs of {s['drive_file']['source']} on {s['devices']['count']} device(s): "
+        f"run {s['run_time_s']:.2f} s "
         f"({ch['computed_now']} chunks computed, {ch['loaded']} loaded), compile {s['compile_time_s']:.1f} s"
     )
     for name in ("itae", "overshoot_pct", "settling_time_s", "dip_rpm", "peak_current_a"):

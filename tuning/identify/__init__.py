@@ -7,6 +7,7 @@
 - :mod:`~tuning.identify.fit`: warm starts and the Levenberg-Marquardt solve.
 - :mod:`~tuning.identify.uncertainty`: standard errors, 95 % intervals, identifiability.
 - :mod:`~tuning.identify.plots`: measured against fitted signals.
+- :mod:`~tuning.identify.motor_file`: the identified motor as a drive file (``DIR/motor.toml``).
 - :mod:`~tuning.identify.excitation`: an experiment that makes every parameter identifiable; simulated
   logs of it (for tests, notebooks and benchmarks) are
   :func:`pmsmjax.studies.synthetic_logs.identification_log`.

@@ -214,6 +214,15 @@ def warm_start(
         if name in out and not (np.isfinite(out[name]) and out[name] > 0):
             alt = fallback[name]
             out[name] = alt if np.isfinite(alt) and alt > 0 else 1e-3
+    # An inductance whose axis carries no current (i_q = 0 at standstill, say) is fitted to noise and can
+    # come out tiny: a time constant L / R below one log interval, which the fit's RK4 steps cannot
+    # integrate. No current-controlled drive has one, so start such an inductance at the other axis's.
+    r = out.get("R", fixed.get("R", 0.0))
+    floor = r * float(np.median(dt))
+    for name, other in (("L_d", "L_q"), ("L_q", "L_d")):
+        if name in out and out[name] < floor:
+            alt = out.get(other, fixed.get(other, 0.0))
+            out[name] = alt if alt >= floor else 10.0 * floor
     if dead_time and not np.isfinite(out.get("V_dt", 0.0)):
         out["V_dt"] = 0.0
     return {k: float(v) for k, v in out.items()}, explained

@@ -104,10 +104,12 @@ def _solve_and_linearise(y0, args, max_steps: int, rtol: float):
 
 
 def fit(log, pole_pairs: int, *, hold, fixed, start, dead_time, dead_time_eps, windows, n_substeps,
-        max_steps=100, rtol=1e-6) -> FitResult:  # fmt: skip
+        max_steps=100, rtol=1e-6, held=()) -> FitResult:  # fmt: skip
     """Fit every free parameter to a :class:`~tuning.identify.log.DriveLog`.
 
-    `fixed`: ``{name: value}`` held fixed; `start`: start values replacing the warm start;
+    `fixed`: ``{name: value}`` held fixed; `held`: names held at their warm start (the log does not
+    determine them: :func:`tuning.identify.uncertainty.motion_excitation`); `start`: start values
+    replacing the warm start;
     `windows`: ``(electrical, mechanical)`` shooting-window lengths in log intervals;
     `hold`, `dead_time`, `dead_time_eps`, `n_substeps`: model options (:mod:`tuning.identify.electrical`).
     """
@@ -122,6 +124,7 @@ def fit(log, pole_pairs: int, *, hold, fixed, start, dead_time, dead_time_eps, w
 
     names = e_names + me.MECHANICAL_NAMES
     values = {**e_vals, **{n: fixed.get(n, m_start.get(n)) for n in me.MECHANICAL_NAMES}}
+    fixed = {**fixed, **{n: values[n] for n in held if n not in fixed}}
     positive = tuple(n not in ("V_dt", "T_c") for n in names)
     # Signed parameters move in steps of 1 V (V_dt) and 10 mN m (T_c).
     scale = [1.0 if n == "V_dt" else 0.01 if n == "T_c" else 1.0 for n in names]

@@ -44,6 +44,7 @@ from tuning.identify.uncertainty import (
     EXCITATION_AVERAGE_S,
     MIN_EXCITATION,
     excitation,
+    motion_excitation,
     weak_directions,
 )
 
@@ -153,8 +154,10 @@ def _identify(log: DriveLog, opt: IdentifyOptions) -> IdentifyResult:
     _, explained = el.warm_start(log, opt.pole_pairs, log.hold, el_fixed, opt.dead_time)
     _check_consistency(log, opt, explained)
     t_checked = time.perf_counter()
+    motion = motion_excitation(log.omega_m, opt.load)
+    held = tuple(n for n, m in motion.items() if not m["excited"] and n not in fixed)
     try:
-        result = _fit(log, opt, fixed, w_el, w_me)
+        result = _fit(log, opt, fixed, w_el, w_me, held)
     except np.linalg.LinAlgError as err:
         raise ParameterError(
             f"{log.source}: the fit failed numerically ({err}): the model does not describe this log as read "
@@ -162,13 +165,13 @@ def _identify(log: DriveLog, opt: IdentifyOptions) -> IdentifyResult:
             "the parameters (hold some fixed with --fix)."
         ) from None
     t_end = time.perf_counter()
-    summary = _summary(log, opt, result)
+    summary = _summary(log, opt, result, {n: motion[n] for n in held})
     summary["wall_time_s"] = time.perf_counter() - t_start
     summary["timing_s"] = {"checks": t_checked - t_start, "fit": t_end - t_checked}
     return IdentifyResult(summary, result, log)
 
 
-def _fit(log: DriveLog, opt: IdentifyOptions, fixed: dict, w_el: int, w_me: int) -> FitResult:
+def _fit(log: DriveLog, opt: IdentifyOptions, fixed: dict, w_el: int, w_me: int, held=()) -> FitResult:
     return id_fit.fit(
         log,
         opt.pole_pairs,
@@ -180,6 +183,7 @@ def _fit(log: DriveLog, opt: IdentifyOptions, fixed: dict, w_el: int, w_me: int)
         windows=(w_el, w_me),
         n_substeps=opt.n_substeps,
         max_steps=opt.max_steps,
+        held=held,
     )
 
 
@@ -207,7 +211,9 @@ def _check_consistency(log: DriveLog, opt: IdentifyOptions, explained: float) ->
             )
 
 
-def _entries(fit: FitResult, rel_tol: float, torque_rms: float, excited: dict | None = None) -> dict:
+def _entries(
+    fit: FitResult, rel_tol: float, torque_rms: float, excited: dict | None = None, held: dict | None = None
+) -> dict:
     out = {}
     se_theta = np.sqrt(np.diag(fit.cov))
     se_white = np.sqrt(np.diag(fit.cov_white))
@@ -261,7 +267,12 @@ def _entries(fit: FitResult, rel_tol: float, torque_rms: float, excited: dict | 
                 )
         out[name] = entry
     for name in fit.pmap.names:
-        if name not in out:
+        if name in (held or {}):
+            out[name] = {"value": fit.values[name], "stderr": None, "ci95": [None, None], "ci95_dof": None,
+                         "identifiable": False, "unit": UNITS[name], "fixed": False,
+                         "note": f"not determined by this log: {held[name]['reason']}; held at its warm "
+                         "start (not fitted); see identifiability.advice"}  # fmt: skip
+        elif name not in out:
             v = fit.values[name]
             out[name] = {"value": v, "stderr": 0.0, "ci95": [v, v], "identifiable": None, "unit": UNITS[name],
                          "fixed": True}  # fmt: skip
@@ -276,12 +287,12 @@ def _weak(fit: FitResult, rel_tol: float) -> list[dict]:
     return weak_directions(fit.cov[np.ix_(keep, keep)], [names[j] for j in keep], rel_tol)
 
 
-def _summary(log: DriveLog, opt: IdentifyOptions, fit: FitResult) -> dict:
+def _summary(log: DriveLog, opt: IdentifyOptions, fit: FitResult, held: dict) -> dict:
     d, md = fit.electrical, fit.mechanical
     err_i, err_w = fit.residuals["i_dq"], fit.residuals["omega_end"]
     torque = np.asarray(me.electromagnetic_torque(fit.values, log.i_dq, opt.pole_pairs))
     excited = excitation(log.time, log.i_dq)
-    params = _entries(fit, opt.rel_tol, float(np.sqrt(np.mean(torque**2))), excited)
+    params = _entries(fit, opt.rel_tol, float(np.sqrt(np.mean(torque**2))), excited, held)
     rms = lambda x, axis=None: np.sqrt(np.mean(np.square(x), axis=axis))
     unidentifiable = [n for n, p in params.items() if p["identifiable"] is False]
     lam = np.linalg.eigvalsh(fit.M)

@@ -30,6 +30,7 @@ __all__ = [
     "interval_dof",
     "weak_directions",
     "excitation",
+    "motion_excitation",
     "ADVICE",
     "MIN_EXCITATION",
     "EXCITED_BY",
@@ -93,6 +94,41 @@ def excitation(time: np.ndarray, i_dq: np.ndarray, average_s: float = EXCITATION
             "excited": bool(ratio >= MIN_EXCITATION),
         }
     return out
+
+
+def motion_excitation(omega_m: np.ndarray, load: str) -> dict:
+    """Whether the speed of a log carries what psi_f, J and B need: ``{name: {"excited", "reason"}}``.
+
+    **Why.** The mechanical residuals compare the logged speed with the speed the torque would give. On a
+    log whose speed never changes (a dynamometer holding it, or standstill) the speed carries no
+    acceleration: J multiplies ``dw/dt = 0`` and the fit runs J off to infinity, where every torque error
+    vanishes. Its weight (the speed-residual noise) then collapses, and with it the whole covariance:
+    measured on a constant-speed log of ID_TEST_MOTOR, J 1.7e8 x the truth and every parameter reported
+    not identifiable although R, L_d, L_q, psi_f were within 0.2 % (tests/tuning/test_identify_starved.py).
+    So such parameters are held at their warm start and reported not identifiable before the fit.
+
+    **What.** J needs the speed to change; B, with a constant load torque estimated beside it, needs
+    several speeds (at one speed ``B w`` is one more constant), and without one (``load = "none"``) a
+    speed other than zero; psi_f needs rotation (at standstill ``w_e psi_f = 0`` and the torque has no
+    motion to show). "Changes" means a spread (max - min) above 1e-9 of the largest speed plus the speed's
+    own noise (first differences), so that a noisy constant speed does not count.
+    """
+    w = np.asarray(omega_m, dtype=float)
+    scale = float(np.max(np.abs(w))) if w.size else 0.0
+    noise = float(np.std(np.diff(w)) / np.sqrt(2.0)) if w.size > 1 else 0.0
+    varies = float(np.ptp(w)) > MIN_EXCITATION * noise + 1e-9 * scale if w.size else False
+    turns = scale > MIN_EXCITATION * noise and scale > 0.0
+    b_ok = varies if load == "constant" else turns
+    return {
+        "J": {"excited": bool(varies), "reason": "the speed never changes (no acceleration)"},
+        "B": {
+            "excited": bool(b_ok),
+            "reason": "one constant speed: B w is one more constant beside the load torque"
+            if load == "constant"
+            else "the rotor never turns",
+        },
+        "psi_f": {"excited": bool(turns), "reason": "the rotor never turns (no back-EMF)"},
+    }
 
 
 def _inverse(M: np.ndarray) -> np.ndarray:

@@ -445,6 +445,7 @@ def run_study(
             "processes": jax.process_count(),
         },
         "study": {k: v for k, v in vars(study).items() if k != "parameters"},
+        "drive_file": study.spec.summary(),
         "parameters": {k: d.describe() for k, d in dists.items()},
         "nonphysical_samples": {"mode": study.nonphysical, "counts": nonphysical},
         "precision": str(np.dtype(runner.dtype)),

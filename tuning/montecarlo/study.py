@@ -1,8 +1,13 @@
 """What a Monte Carlo study varies and how: the study settings, their TOML file, and applying a sample.
 
-A study runs the book scenario form (speed step from rest to ``speed_rpm`` at t = 0, load step
-0 -> ``load_nm`` at ``load_time_s``, ``duration_s`` long) on a drive built by
-:func:`pmsmjax.presets.book_drive` (optionally with tuned gains from ``pmsmjax tune``). Each varied
+A study runs the scenario form of the book (speed step from rest to ``speed_rpm`` at t = 0, load step
+0 -> ``load_nm`` at ``load_time_s``, ``duration_s`` long) on the user's drive: a drive file or preset
+(``motor``, :func:`pmsmjax.io.drive_files.drive_spec`) built by
+:func:`pmsmjax.presets.user_drive.spec_drive` at the file's DC link, control rate, current limit and
+bandwidths (optionally with tuned gains from ``pmsmjax tune``). What the study leaves out comes from the
+drive file: the scenario (``[scenario]``), the current limit and with it the failure threshold
+(``[ratings] max_current_a``), the DC link, the bandwidths, and the default tolerances (``[tolerances]``,
+:func:`default_tolerances`); ``--motor book`` (the default) is the book drive, bit for bit. Each varied
 parameter is named by a dotted path:
 
 - ``motor.R``, ``motor.L_d``, ``motor.L_q``, ``motor.psi_f``, ``motor.J``, ``motor.B`` (six- and five-phase
@@ -12,14 +17,16 @@ parameter is named by a dotted path:
 - ``controller.<path>``: any scalar array leaf of the controller, e.g. ``controller.speed.kp``.
 - ``scenario.speed_rpm``, ``scenario.load_nm``: the speed step (r/min) and the load step (N m).
 
-**Sensorless studies** (``estimator``, issue 14): the drive runs on a chapter 5 observer
-(:data:`pmsmjax.estimators.OBSERVERS`) with the I/f start from standstill
-(:func:`pmsmjax.presets.with_observer`). The observer's motor model, like the controller's, is the
-*nominal* motor; the ``motor.*`` parameters perturb the *plant*, so every draw is a plant/model
-mismatch as on a drive whose motor differs from its data sheet. The default set is then
-:data:`SENSORLESS_TOLERANCES` (R +-30 %, L_d and L_q +-20 % each, drawn independently, psi_f +-10 %,
-uniform). Independent L_d and L_q make the plant slightly salient (up to about +-50 % L_q/L_d) where the
-nominal motor is not: part of the inductance error a non-salient observer model sees.
+**Sensorless studies** (``estimator``): the drive runs on a chapter 5 observer
+(:data:`pmsmjax.estimators.OBSERVERS`) with the drive file's I/f start from standstill
+(:func:`pmsmjax.presets.with_observer`, :func:`pmsmjax.presets.user_drive.startup_options`). The
+observer's motor model, like the controller's, is the *nominal* motor; the ``motor.*`` parameters perturb
+the *plant*, so every draw is a plant/model mismatch as on a drive whose motor differs from its data
+sheet. The default set is then :data:`SENSORLESS_TOLERANCES` (R +-30 %, L_d and L_q +-20 % each, drawn
+independently, psi_f +-10 %, uniform), whatever the drive file's ``[tolerances]``: they describe the
+observer's model error, not the motor's spread. Independent L_d and L_q make the plant slightly salient
+(up to about +-50 % L_q/L_d) where the nominal motor is not: part of the inductance error a non-salient
+observer model sees.
 
 The TOML file (every table and key optional; defaults below)::
 
@@ -33,8 +40,9 @@ The TOML file (every table and key optional; defaults below)::
     [thresholds]   current_a, tracking_rpm
     [parameters."motor.R"]  distribution = "uniform", tolerance = 0.2, sigmas = 3.0, nominal = ...
 
-A ``[parameters]`` table replaces the default set (:data:`DEFAULT_TOLERANCES`) as a whole; a parameter's
-nominal value defaults to the drive's (or the scenario's) own.
+A ``[parameters]`` table replaces the default set (:func:`default_tolerances`) as a whole; a parameter's
+nominal value defaults to the drive's (or the scenario's) own. Drive and scenario values left out
+(None) are the drive file's.
 """
 
 import dataclasses
@@ -50,6 +58,7 @@ from pmsmjax import presets
 from pmsmjax.checks.validation import ParameterError
 from pmsmjax.drive import Drive
 from pmsmjax.inverters.averaged import AveragedBridge
+from pmsmjax.io.drive_files import TABLES, DriveSpec, drive_spec
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.units import rpm_to_rad_s
 from tuning.montecarlo.distributions import KINDS, SAMPLING, Distribution
@@ -60,8 +69,9 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-#: The default tolerances: manufacturing spread and temperature (R), inductance tolerance, magnet
-#: ageing and temperature (psi_f), unknown load inertia (J), friction and DC-link sag, all uniform.
+#: The default tolerances of a drive file without ``[tolerances]`` (the book drive file states the same
+#: set): manufacturing spread and temperature (R), inductance tolerance, magnet ageing and temperature
+#: (psi_f), unknown load inertia (J), friction and DC-link sag, all uniform.
 DEFAULT_TOLERANCES = {
     "motor.R": 0.20,
     "motor.L_d": 0.15,
@@ -71,10 +81,16 @@ DEFAULT_TOLERANCES = {
     "motor.B": 0.50,
     "bridge.u_dc": 0.10,
 }
-#: The default set of a sensorless study: the plant/observer-model errors of issue 14, uniform.
+#: The default set of a sensorless study: the plant/observer-model errors (module docstring), uniform.
 SENSORLESS_TOLERANCES = {"motor.R": 0.30, "motor.L_d": 0.20, "motor.L_q": 0.20, "motor.psi_f": 0.10}
 MOTOR_FIELDS = ("R", "L_d", "L_q", "psi_f", "J", "B")
 SCENARIO_FIELDS = ("speed_rpm", "load_nm")
+#: A drive file's ``[tolerances]`` key -> the study parameter it spreads.
+TOLERANCE_PARAMETERS = {k: ("bridge.u_dc" if k == "u_dc_v" else f"motor.{k}") for k in TABLES["tolerances"]}
+#: The machine setting -> the drive file's phase count.
+PHASES = {"three-phase": 3, "six-phase": 6, "five-phase": 5}
+#: Periods between the fan chart's samples, at most (the largest divisor of the run's periods up to this).
+DECIMATE_AT_MOST = 40
 # Parameters that must stay > 0 (the rest of the drive's parameters must stay >= 0).
 NONNEGATIVE = ("motor.psi_f", "motor.B")
 #: Where ``nonphysical = "clip"`` puts a sample below its bound: this fraction of the nominal value
@@ -94,19 +110,21 @@ class Study:
       shorter runs; 262,144 per GPU).
     - `nonphysical`: what to do with samples outside a parameter's physical range: ``refuse`` (error) or
       ``clip`` (moved to the bound, counted in the summary).
-    - `decimate`: keep every this many periods of speed and current for the fan chart.
+    - `decimate`: keep every this many periods of speed and current for the fan chart (None: the largest
+      divisor of the run's periods up to 40).
     - `sensitivity_runs`: runs (the first ones) whose derivatives are taken by forward-mode AD.
     - `parameters`: ``{name: {"distribution", "tolerance", "sigmas", "nominal"}}`` (nominal optional).
-    - drive: `motor`, `gains` (TOML path or None), `current_bandwidth` rad/s, `speed_bandwidth` rad/s,
-      `current_limit` A, `u_dc` V, `n_substeps`, `unroll_substeps` (the RK4 sub-steps written out, not
-      looped: :class:`pmsmjax.inverters.averaged.AveragedBridge`; for GPUs), `estimator` (a chapter 5
+    - drive: `motor` (preset name or drive file), `gains` (TOML path or None), `current_bandwidth` rad/s,
+      `speed_bandwidth` rad/s, `current_limit` A, `u_dc` V (None: the drive file's), `n_substeps`,
+      `unroll_substeps` (the RK4 sub-steps written out, not looped:
+      :class:`pmsmjax.inverters.averaged.AveragedBridge`; for GPUs), `estimator` (a chapter 5
       observer name, or None for the exact sensor; see the module docstring); scenario: `speed_rpm`,
-      `load_nm`, `load_time_s`, `duration_s`.
+      `load_nm`, `load_time_s`, `duration_s` (None: the drive file's ``[scenario]``).
     - thresholds: `current_threshold_a` (None: 1.05 times the current limit), `tracking_threshold_rpm`
       (mean speed error over the last 10 % of the run).
-    - `machine`: ``three-phase`` (the book drive), ``six-phase``
-      (:func:`pmsmjax.presets.six_phase.six_phase_drive` on the six-phase rewind of `motor`) or
-      ``five-phase`` (:func:`pmsmjax.presets.five_phase.five_phase_drive`); `control` and `pwm`: the
+    - `machine`: ``three-phase``, ``six-phase`` (:func:`pmsmjax.presets.six_phase.six_phase_drive` on a
+      six-phase drive file, ``book`` its rewind of the book motor) or ``five-phase``
+      (:func:`pmsmjax.presets.five_phase.five_phase_drive`); `control` and `pwm`: the
       scheme and modulator (None: ``vsd`` and ``four-vector`` / ``near-four-vector``; three phases take
       only the PI drive).
     """
@@ -116,22 +134,22 @@ class Study:
     sampling: str = "random"
     chunk_size: int | str = "auto"
     nonphysical: str = "refuse"
-    decimate: int = 40
+    decimate: int | None = None
     sensitivity_runs: int = 256
     parameters: dict | None = None  # None: DEFAULT_TOLERANCES, or SENSORLESS_TOLERANCES with an estimator
     motor: str = "book"
     gains: str | None = None
-    current_bandwidth: float = presets.BOOK_CURRENT_BANDWIDTH
-    speed_bandwidth: float = presets.BOOK_SPEED_BANDWIDTH
-    current_limit: float = presets.BOOK_CURRENT_LIMIT
-    u_dc: float = presets.BOOK_DC_LINK
+    current_bandwidth: float | None = None
+    speed_bandwidth: float | None = None
+    current_limit: float | None = None
+    u_dc: float | None = None
     n_substeps: int = 10
     unroll_substeps: bool = False
     estimator: str | None = None
-    speed_rpm: float = 1000.0
-    load_nm: float = 10.0
-    load_time_s: float = 0.2
-    duration_s: float = 0.4
+    speed_rpm: float | None = None
+    load_nm: float | None = None
+    load_time_s: float | None = None
+    duration_s: float | None = None
     current_threshold_a: float | None = None
     tracking_threshold_rpm: float = 10.0
     machine: str = "three-phase"
@@ -143,8 +161,29 @@ class Study:
             from pmsmjax.estimators.registry import check_observer_name
 
             check_observer_name(self.estimator)
+        if self.machine not in PHASES:
+            raise ParameterError(
+                f"study machine must be 'three-phase', 'six-phase' or 'five-phase', got {self.machine!r}."
+            )
+        for f in ("current_limit", "u_dc"):
+            if getattr(self, f) is not None:
+                _check_number(f, getattr(self, f), positive=True)
+        spec = self.spec  # the drive file, checked (before anything compiles)
+        resolved = {
+            "current_bandwidth": spec.control["current_bandwidth_rad_s"],
+            "speed_bandwidth": spec.control["speed_bandwidth_rad_s"],
+            "current_limit": spec.current_limit_a,
+            "u_dc": spec.u_dc_v,
+            **spec.scenario,
+        }
+        for f, value in resolved.items():
+            if getattr(self, f) is None:
+                object.__setattr__(self, f, value)
+        if self.decimate is None and isinstance(self.duration_s, (int, float)) and self.duration_s > 0:
+            n = self.n_periods
+            object.__setattr__(self, "decimate", max(d for d in range(1, DECIMATE_AT_MOST + 1) if n % d == 0))
         if self.parameters is None:
-            tolerances = DEFAULT_TOLERANCES if self.estimator is None else SENSORLESS_TOLERANCES
+            tolerances = default_tolerances(spec) if self.estimator is None else SENSORLESS_TOLERANCES
             default = {k: {"distribution": "uniform", "tolerance": v} for k, v in tolerances.items()}
             object.__setattr__(self, "parameters", default)
         for f in ("n", "chunk_size", "decimate", "n_substeps"):
@@ -181,10 +220,6 @@ class Study:
         _check_number("tracking_threshold_rpm", self.tracking_threshold_rpm, positive=True)
         if self.current_threshold_a is not None:
             _check_number("current_threshold_a", self.current_threshold_a, positive=True)
-        if self.machine not in ("three-phase", "six-phase", "five-phase"):
-            raise ParameterError(
-                f"study machine must be 'three-phase', 'six-phase' or 'five-phase', got {self.machine!r}."
-            )
         if self.machine == "three-phase" and self.control not in (None, "pi"):
             raise ParameterError(
                 f"study control {self.control!r}: the three-phase study runs the PI book drive; other "
@@ -227,13 +262,25 @@ class Study:
                 )
 
     @property
+    def spec(self) -> DriveSpec:
+        """The study's drive file (``motor``, for its machine), ``u_dc`` and ``current_limit`` overriding
+        the file's."""
+        return drive_spec(
+            self.motor,
+            n_phases=PHASES[self.machine],
+            u_dc_v=self.u_dc,
+            max_current_a=self.current_limit,
+            flags={"u_dc_v": "study u_dc", "max_current_a": "study current_limit"},
+        )
+
+    @property
     def current_threshold(self) -> float:
         """Peak phase current counted as a failure, A."""
         return 1.05 * self.current_limit if self.current_threshold_a is None else self.current_threshold_a
 
     @property
     def n_periods(self) -> int:
-        return int(round(self.duration_s / presets.BOOK_TS))
+        return int(round(self.duration_s / self.spec.Ts))
 
 
 def _check_number(name, v, positive=False):
@@ -243,38 +290,42 @@ def _check_number(name, v, positive=False):
         raise ParameterError(f"study {name} must be > 0, got {v}.")
 
 
-def build_drive(study: Study) -> Drive:
-    """The nominal drive of ``study`` (book drive, the study's motor and settings, tuned gains if given)."""
-    if study.machine in ("six-phase", "five-phase"):
-        from pmsmjax.presets.five_phase import five_phase_drive, load_five_phase_motor
-        from pmsmjax.presets.six_phase import load_six_phase_motor, six_phase_drive
+def default_tolerances(spec: DriveSpec) -> dict[str, float]:
+    """``{study parameter: relative half-width}``: the drive file's ``[tolerances]`` (in the file layout's
+    order), or :data:`DEFAULT_TOLERANCES` for a file without one."""
+    if not spec.tolerances:
+        return dict(DEFAULT_TOLERANCES)
+    return {TOLERANCE_PARAMETERS[k]: spec.tolerances[k] for k in TABLES["tolerances"] if k in spec.tolerances}
 
-        five = study.machine == "five-phase"
-        drive = (five_phase_drive if five else six_phase_drive)(
-            (load_five_phase_motor if five else load_six_phase_motor)(study.motor),
-            control=study.control or "vsd",
-            pwm=study.pwm or ("near-four-vector" if five else "four-vector"),
-            current_bandwidth=study.current_bandwidth,
-            speed_bandwidth=study.speed_bandwidth,
-            current_limit=study.current_limit,
-            u_dc=study.u_dc,
-            n_substeps=study.n_substeps,
-        )
-        return drive if study.gains is None else apply_gains(drive, study.gains)
-    drive = presets.book_drive(
-        presets.load_motor(study.motor),
+
+def build_drive(study: Study) -> Drive:
+    """The nominal drive of ``study``: the drive file's drive (:func:`pmsmjax.presets.user_drive.spec_drive`)
+    with the study's bandwidths and sub-steps, tuned gains if given, and the observer with the file's
+    I/f start for a sensorless study."""
+    from pmsmjax.presets.user_drive import spec_drive, startup_options
+
+    spec = study.spec
+    options = dict(
         current_bandwidth=study.current_bandwidth,
         speed_bandwidth=study.speed_bandwidth,
-        current_limit=study.current_limit,
-        u_dc=study.u_dc,
         n_substeps=study.n_substeps,
     )
+    if study.machine in ("six-phase", "five-phase"):
+        five = study.machine == "five-phase"
+        drive = spec_drive(
+            spec, study.control or "vsd", pwm=study.pwm or ("near-four-vector" if five else "four-vector"),
+            **options,
+        )  # fmt: skip
+        return drive if study.gains is None else apply_gains(drive, study.gains)
+    drive = spec_drive(spec, "pi", **options)
     if study.unroll_substeps:
         unrolled = AveragedBridge(drive.bridge.u_dc, unroll_substeps=True)
         drive = eqx.tree_at(lambda d: d.bridge, drive, unrolled)
     drive = drive if study.gains is None else apply_gains(drive, study.gains)
     if study.estimator is not None:  # the observer's model: the nominal motor (the plant is varied)
-        drive = presets.with_observer(drive, study.estimator, drive.machine.motor, startup=True)
+        drive = presets.with_observer(
+            drive, study.estimator, drive.machine.motor, startup=True, startup_options=startup_options(spec)
+        )
     return drive
 
 

@@ -1,0 +1,86 @@
+"""The identified motor as a drive file (``DIR/motor.toml`` of ``pmsmjax identify``), readable by
+:func:`pmsmjax.io.drive_files.drive_spec` and so by every command (``--motor DIR/motor.toml``).
+
+- ``[motor]``: the identified values; a parameter held fixed (``--fix``) keeps its given value; a parameter
+  the log does not determine (``identifiable`` false in ``params.json``) takes the prior's value
+  (``--motor PRIOR``), with a comment saying so. Without a prior such a parameter has no value to write:
+  :func:`undetermined` names it and the file is not written (``params.json`` still is).
+- ``[tolerances]``: for an identified parameter the relative half-width of its 95 % interval, the larger
+  of its two sides (the interval is not symmetric: it is symmetric in ``log`` of the value); a prior's
+  value keeps the prior file's tolerance, if it has one; a fixed value gets none.
+- ``[ratings]``, ``[inverter]``, ``[sensor]``: copied from the prior, only the values its file states
+  (values it derived came from the prior's motor and are derived again from the identified one).
+"""
+
+from pathlib import Path
+
+from pmsmjax.io.drive_files import DriveSpec, write_drive_file
+
+__all__ = ["MOTOR_NAMES", "undetermined", "motor_file_tables", "write_motor_file"]
+
+#: The identified parameters a drive file's ``[motor]`` holds (pole pairs are given, not identified).
+MOTOR_NAMES = ("R", "L_d", "L_q", "psi_f", "J", "B")
+
+
+def undetermined(summary: dict) -> list[str]:
+    """The motor parameters of ``summary`` (``params.json``) that the log does not determine."""
+    return [n for n in MOTOR_NAMES if summary["parameters"][n]["identifiable"] is False]
+
+
+def _half_width(entry: dict) -> float:
+    """Relative half-width of an identified value's 95 % interval (the larger side)."""
+    lo, hi = entry["ci95"]
+    v = entry["value"]
+    return max(v - lo, hi - v) / abs(v)
+
+
+def motor_file_tables(summary: dict, pole_pairs: int, prior: DriveSpec | None = None) -> tuple[dict, dict]:
+    """``(tables, comments)`` of the drive file of an identification ``summary`` (``params.json``) and
+    an optional ``prior`` drive (module docstring). Raises ValueError when a parameter is undetermined
+    and there is no prior (check :func:`undetermined` first)."""
+    motor, tolerances, comments = {}, {}, {}
+    for name in MOTOR_NAMES:
+        entry = summary["parameters"][name]
+        if entry["identifiable"] is False:
+            if prior is None:
+                raise ValueError(f"{name} is not determined by the log and there is no prior")
+            motor[name] = prior.motor[name]
+            comments[f"motor.{name}"] = f"not determined by the log: the prior's value ({prior.source})"
+            if name in prior.tolerances:
+                tolerances[name] = prior.tolerances[name]
+                comments[f"tolerances.{name}"] = "the prior's tolerance"
+        elif entry["fixed"]:
+            motor[name] = entry["value"]
+            comments[f"motor.{name}"] = "held fixed (--fix), not identified"
+        else:
+            motor[name] = entry["value"]
+            tolerances[name] = _half_width(entry)
+        if name == "psi_f":
+            motor["pole_pairs"] = pole_pairs
+    tables = {"motor": motor}
+    if prior is not None:
+        for table in ("ratings", "inverter"):
+            stated = {k: v for k, v in getattr(prior, table).items() if f"{table}.{k}" not in prior.derived}
+            if stated:
+                tables[table] = stated
+        if prior.sensor["kind"] != "exact":
+            tables["sensor"] = dict(prior.sensor)
+        if "u_dc_v" in prior.tolerances:
+            tolerances["u_dc_v"] = prior.tolerances["u_dc_v"]
+    if tolerances:
+        tables["tolerances"] = tolerances
+    return tables, comments
+
+
+def write_motor_file(path, summary: dict, pole_pairs: int, prior: DriveSpec | None = None) -> Path:
+    """Write the drive file of ``summary`` (and ``prior``) to ``path``; returns the path."""
+    tables, comments = motor_file_tables(summary, pole_pairs, prior)
+    header = (
+        f"Identified by pmsmjax identify from {summary['log']['source']} (tuning.identify): [motor] the\n"
+        "fitted values (SI units), [tolerances] the relative half-widths of their 95 % intervals"
+    )
+    if prior is not None:
+        header += f";\n[ratings], [inverter], [sensor] and undetermined values from the prior {prior.source}"
+    header += "."
+    write_drive_file(path, tables, header=header, comments=comments)
+    return Path(path)
