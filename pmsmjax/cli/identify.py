@@ -211,8 +211,14 @@ def _write_motor_file(args, summary: dict, pole_pairs: int, prior) -> int:
             file=sys.stderr,
         )
         return 1
-    path = write_motor_file(Path(args.out) / "motor.toml", summary, pole_pairs, prior)
-    drive_spec(path)  # what every command does with it: a value it refuses is reported now
+    path = Path(args.out) / "motor.toml"
+    draft = write_motor_file(path.with_name(".motor.toml.draft"), summary, pole_pairs, prior)
+    try:
+        drive_spec(draft)  # what every command does with it: a value it refuses is reported, not written
+    except ParameterError as err:
+        draft.unlink()
+        raise ParameterError(f"motor.toml not written: {str(err).replace(str(draft), str(path))}") from None
+    draft.replace(path)
     taken = f" ({', '.join(missing)} from {prior.source})" if missing else ""
     print(f"wrote {path}{taken}: use it with --motor {path}")
     return 0
