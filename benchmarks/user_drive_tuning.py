@@ -10,7 +10,13 @@ before and after, its cut, the held-out scenarios over the current limit and the
 file's tolerances. The checks: at least a :data:`MIN_CUT_PCT` % cut and no held-out scenario over the
 limit.
 
-``python -m benchmarks.user_drive_tuning [--drives servo-400w,...] [--iterations 30] [--json out.json]``
+The current limit sets a floor under the ITAE that no gains can cut (:func:`current_limit_floor`): a
+step to ``w`` takes at least ``t_a = J w / T_max`` at the limit's MTPA torque ``T_max``, and its error
+falls at best linearly over it, ``ITAE >= w t_a^2 / 6`` (friction and the load step only add to it).
+The benchmark prints the floor and the cut of the ITAE above it.
+
+``python -m benchmarks.user_drive_tuning [--drives servo-400w,...] [--iterations 30] [--robust]
+[--json out.json]`` (``--robust``: trained over plant draws from the tolerances).
 """
 
 import argparse
@@ -18,7 +24,11 @@ import json
 import tempfile
 import time
 
+import numpy as np
+
 from pmsmjax.io.drive_files import drive_spec
+from pmsmjax.presets.drive_ratings import torque_at_current
+from tuning.autotune.drive_batches import drive_batches
 from tuning.autotune.job import DEFAULT_CONFIG, run_tune_job
 
 #: Per drive: train and held-out scenarios, RK4 sub-steps of the before/after figures.
@@ -28,6 +38,16 @@ SETTINGS = {
     "outer-rotor-24v": dict(n_train=16, n_heldout=32, eval_substeps=4),
 }
 MIN_CUT_PCT = 25.0
+
+
+def current_limit_floor(spec, n: int, seed: int = 1) -> float:
+    """Mean over the held-out batch (``n`` scenarios of ``seed``) of the ITAE floor of a step at the
+    current limit's torque, rad s (module docstring)."""
+    batches = drive_batches(spec)
+    batch = batches.make(n, seed, duration_s=batches.duration_s)
+    w = np.abs(np.asarray(batch.scenarios.speed_ref.values[:, -1]))
+    t_a = spec.motor["J"] * w / torque_at_current(spec.motor, spec.current_limit_a)
+    return float(np.mean(w * t_a**2 / 6.0))
 
 
 def tune_drive(name: str, iterations: int, **overrides) -> dict:
@@ -44,6 +64,7 @@ def tune_drive(name: str, iterations: int, **overrides) -> dict:
     ho = data["heldout"]
     before, after = ho["before"]["itae"], ho["after"]["itae"]
     r = data["robustness"]
+    floor = current_limit_floor(spec, settings["n_heldout"])
     return {
         "drive": name,
         **settings,
@@ -52,9 +73,14 @@ def tune_drive(name: str, iterations: int, **overrides) -> dict:
         "heldout_itae_before": before,
         "heldout_itae_after": after,
         "cut_pct": 100.0 * (1.0 - after / before),
+        "current_limit_floor_itae": floor,
+        "cut_above_floor_pct": 100.0 * (1.0 - (after - floor) / (before - floor)),
         "current_limit_a": spec.current_limit_a,
         "max_peak_current_a": {k: ho[k]["max_peak_current_a"] for k in ("before", "after")},
         "heldout_over_limit": {k: ho[k]["scenarios_over_current_limit"] for k in ("before", "after")},
+        "max_current_excess_a": {
+            k: max(s["current_excess_a"] for s in ho[k]["per_scenario"]) for k in ("before", "after")
+        },
         "heldout_overshoot_pct": {k: ho[k]["overshoot_pct"] for k in ("before", "after")},
         "voltage_saturation": {k: ho[k]["voltage_saturation"] for k in ("before", "after")},
         "nominal_cost": r["nominal_cost"],
@@ -68,20 +94,24 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--drives", default=",".join(SETTINGS))
     p.add_argument("--iterations", type=int, default=30)
+    p.add_argument("--robust", action="store_true", help="train over plant draws from the tolerances")
     p.add_argument("--json", default=None, help="write the rows to this JSON file")
     args = p.parse_args(argv)
     rows = []
     for name in args.drives.split(","):
-        row = tune_drive(name, args.iterations)
+        row = tune_drive(name, args.iterations, robust=args.robust)
         rows.append(row)
         ok = row["cut_pct"] >= MIN_CUT_PCT and row["heldout_over_limit"]["after"] == 0
         print(
             f"{name}: held-out ITAE {row['heldout_itae_before']:.5g} -> "
             f"{row['heldout_itae_after']:.5g} rad s "
-            f"({row['cut_pct']:.1f} % cut), over the {row['current_limit_a']:g} A limit "
+            f"({row['cut_pct']:.1f} % cut; current-limit floor {row['current_limit_floor_itae']:.3g}, "
+            f"{row['cut_above_floor_pct']:.1f} % of the ITAE above it cut), over the "
+            f"{row['current_limit_a']:g} A limit "
             f"{row['heldout_over_limit']['before']} -> {row['heldout_over_limit']['after']} of "
             f"{row['n_heldout']} (peak {row['max_peak_current_a']['before']:.2f} -> "
-            f"{row['max_peak_current_a']['after']:.2f} A); cost nominal "
+            f"{row['max_peak_current_a']['after']:.2f} A, largest excess "
+            f"{row['max_current_excess_a']['after']:.2g} A); cost nominal "
             f"{row['nominal_cost']['before']:.4g} -> "
             f"{row['nominal_cost']['after']:.4g}, worst decile {row['worst_decile_cost']['before']:.4g} -> "
             f"{row['worst_decile_cost']['after']:.4g}; {row['iterations']} iterations ({row['stopped']}), "

@@ -159,3 +159,18 @@ def test_worst_decile_is_the_mean_of_the_worst_tenth():
     assert drive_scaling.worst_share_mean(costs) == pytest.approx(np.sort(costs)[-k:].mean(), rel=1e-15)
     assert drive_scaling.worst_share_mean(costs) >= costs.mean()
     assert drive_scaling.worst_share_mean([2.0, 1.0]) == 2.0  # at least one scenario
+
+
+def test_penalty_weights_follow_the_drives_itae_scale():
+    """The ITAE of a step at the current limit grows as w t_a^2 (benchmarks/user_drive_tuning.py's
+    floor): the penalty weights scale with speed x time^2, exactly 1 on the book drive."""
+    from tuning.autotune.objectives import ObjectiveWeights
+
+    w = ObjectiveWeights(angle_error=10.0)
+    assert drive_scaling.scaled_weights(w, drive_spec("book")) is w
+    spec = drive_spec("industrial-5k6w")
+    scale = (1750.0 / 1000.0) * (spec.tuning["duration_s"][0] / 0.3) ** 2
+    scaled = drive_scaling.scaled_weights(w, spec)
+    for name in ("overshoot", "current_penalty", "voltage_saturation_penalty", "angle_error"):
+        assert getattr(scaled, name) == pytest.approx(getattr(w, name) * scale, rel=1e-12)
+    assert scaled.itae == w.itae and scaled.current_smoothing_a == w.current_smoothing_a

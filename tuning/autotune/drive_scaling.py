@@ -11,8 +11,18 @@ drive every factor is exactly 1, so the batches are the book's to the bit
 (tests/tuning/test_drive_scaling.py). The observer batches' top speed, twice the rated speed on the book
 drive, is capped at the speed the inverter reaches under the rated torque (i_d = 0; 2119 r/min on the
 book drive): beyond it the current loop saturates under a full load instead of testing the observer.
+
+Objective weights (:func:`scaled_weights`): the ITAE (rad s) of a step grows with the speed and the
+square of the time scale, ``w t^2``, while the penalties are priced per % of overshoot, per A over the
+limit, per unit of saturated time and per rad of angle error: weights set on the book drive would let
+its ITAE outweigh the current limit on a slow heavy drive (industrial-5k6w: ITAE 1.6 rad s a scenario,
+15 of 16 held-out scenarios over the limit after tuning) and forbid any overshoot on a fast light one
+(outer-rotor-24v: ITAE 0.005 rad s a scenario; 0.15 % overshoot cost three times the whole ITAE, and
+BFGS found no accepted step). The penalty weights are therefore scaled by the drive's ITAE scale,
+``(rated speed / 1000 r/min) (shortest tuning duration / 0.3 s)^2`` (1 on the book drive).
 """
 
+import dataclasses
 import math
 
 from pmsmjax.analysis.operating_point import top_speed_rpm
@@ -31,6 +41,8 @@ __all__ = [
     "observer_top_speed_rpm",
     "noise_scale",
     "plant_spread",
+    "itae_scale",
+    "scaled_weights",
     "worst_share_mean",
 ]
 
@@ -81,6 +93,24 @@ def noise_scale(spec: DriveSpec) -> tuple[float, float]:
     """``(current, voltage)`` factors of the observers' measurement noise: the drive's current limit over
     the book's 15 A, its DC link over the book's 311 V."""
     return spec.current_limit_a / BOOK_CURRENT_LIMIT, spec.u_dc_v / BOOK_DC_LINK
+
+
+#: The objective weights priced against the ITAE: the constraint penalties and the angle error.
+PENALTY_WEIGHTS = ("overshoot", "current_penalty", "voltage_saturation_penalty", "angle_error")
+
+
+def itae_scale(spec: DriveSpec) -> float:
+    """The drive's ITAE scale over the book drive's: ``speed_scale x time_scale^2`` (module docstring)."""
+    return speed_scale(spec) * time_scale(spec) ** 2
+
+
+def scaled_weights(weights, spec: DriveSpec):
+    """``weights`` (:class:`~tuning.autotune.objectives.ObjectiveWeights`) with :data:`PENALTY_WEIGHTS`
+    times :func:`itae_scale` (the same object on the book drive)."""
+    scale = itae_scale(spec)
+    if scale == 1.0:
+        return weights
+    return dataclasses.replace(weights, **{k: getattr(weights, k) * scale for k in PENALTY_WEIGHTS})
 
 
 #: Tolerances of a drive file that a batch's plant draws can vary (the motor's parameters and the DC link).

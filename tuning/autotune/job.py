@@ -25,7 +25,8 @@ RMS; the tuned gains' stability is checked with the observer's own ``check_perio
 ``hfi-pulsating``, ``hybrid`` (chapter 6, :mod:`tuning.autotune.hfi_tuning`): the salient, saturated drive
 and low-speed batches (standstill, +-10 % of the rated speed), the angle error scored modulo pi. The
 observer batches' speeds, loads, noise and times are the book drive's scaled to the drive
-(:mod:`tuning.autotune.drive_scaling`).
+(:mod:`tuning.autotune.drive_scaling`). Without ``weights`` the objective's penalty weights are the
+defaults scaled to the drive's ITAE (:func:`tuning.autotune.drive_scaling.scaled_weights`).
 
 Robustness (``robust``): training over plant draws from the drive file's ``[tolerances]`` (uniform
 within +-half-width per parameter, the DC link included; the controller's model stays nominal). Every
@@ -232,7 +233,8 @@ def run_tune_job(
             return spec_drive(spec, control, n_substeps=substeps, **options)
 
         batches = drive_batches(spec)
-    weights = ObjectiveWeights(**tuning.weights) if weights is None else weights
+    if weights is None:  # the control's or observer's defaults, their penalties priced for the drive
+        weights = drive_scaling.scaled_weights(ObjectiveWeights(**tuning.weights), spec)
     if config.names is None:
         config = dataclasses.replace(config, names=tuning.names)
     batch_maker = batches.make
