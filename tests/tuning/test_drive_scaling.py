@@ -71,6 +71,18 @@ def test_book_control_drives_are_the_presets(book, control):
     assert same(spec_drive(book, control, n_substeps=1), control_drive(control, n_substeps=1))
 
 
+@pytest.mark.parametrize(
+    "n_phases, control", [(6, "vsd"), (6, "double-dq"), (6, "pr"), (5, "vsd"), (5, "conventional")]
+)
+def test_book_multiphase_drives_are_the_presets(n_phases, control):
+    from pmsmjax.presets.five_phase import five_phase_drive
+    from pmsmjax.presets.six_phase import six_phase_drive
+
+    preset = six_phase_drive if n_phases == 6 else five_phase_drive
+    spec = drive_spec("book", n_phases=n_phases)
+    assert same(spec_drive(spec, control, n_substeps=1), preset(control=control, n_substeps=1))
+
+
 def _book_observer_drive(name):
     """The observer drive as built from the book presets (the sensorless preset behind the warm-up)."""
     if observer_tuning(name).chapter6:
