@@ -14,12 +14,13 @@ book drive): beyond it the current loop saturates under a full load instead of t
 
 Objective weights (:func:`scaled_weights`): the ITAE (rad s) of a step grows with the speed and the
 square of the time scale, ``w t^2``, while the penalties are priced per % of overshoot, per A over the
-limit, per unit of saturated time and per rad of angle error: weights set on the book drive would let
-its ITAE outweigh the current limit on a slow heavy drive (industrial-5k6w: ITAE 1.6 rad s a scenario,
-15 of 16 held-out scenarios over the limit after tuning) and forbid any overshoot on a fast light one
-(outer-rotor-24v: ITAE 0.005 rad s a scenario; 0.15 % overshoot cost three times the whole ITAE, and
-BFGS found no accepted step). The penalty weights are therefore scaled by the drive's ITAE scale,
-``(rated speed / 1000 r/min) (shortest tuning duration / 0.3 s)^2`` (1 on the book drive).
+limit, per unit of saturated time and per rad of angle error. Weights set on the book drive (ITAE
+0.03-0.3 rad s a scenario) price the penalties 40 times lower against the ITAE of a slow heavy drive
+(industrial-5k6w: 1.6 rad s a scenario) and 7 times higher on a fast light one (outer-rotor-24v:
+0.005 rad s; there 0.15 % of overshoot cost three times the whole ITAE, and BFGS found no accepted step
+from the design rules, benchmarks/user_drive_tuning.py). The penalty weights are therefore scaled by the
+drive's ITAE scale, ``(rated speed / 1000 r/min) (shortest tuning duration / 0.3 s)^2`` (1 on the book
+drive).
 """
 
 import dataclasses
