@@ -1,9 +1,11 @@
-"""``pmsmjax tune``: gradient auto-tuning of a control method's gains (:mod:`tuning.autotune.job`).
+"""``pmsmjax tune``: gradient auto-tuning of a control method's or an observer's gains on the book drive or
+the user's drive file (:mod:`tuning.autotune.job`), optionally robust to the file's tolerances.
 
 Ctrl-C saves the checkpoint of the last finished iteration and ends with one line saying where, exit 130;
 the same command resumes from it.
 """
 
+import sys
 from pathlib import Path
 
 from pmsmjax.checks.validation import ParameterError, plain
@@ -15,13 +17,17 @@ def add_parser(sub):
         "tune",
         help="tune a control method's gains by gradients over a batch of speed/load scenarios",
         description=(
-            "Gradient auto-tuning of the book drive's gains (BFGS or Adam in log-space from the design-rule "
-            "gains): --control pi (speed and current PIs, default), smc (c, eps, q and the current PIs; "
+            "Gradient auto-tuning of a drive's gains (--motor: the book drive, a preset or your drive file; "
+            "BFGS or Adam in log-space from the design-rule gains): --control pi (speed and current PIs, "
+            "default), smc (c, eps, q and the current PIs; "
             "tuned with tanh switching, re-evaluated with the exact sign law), pr (Kp, Kr, w_c) or "
             "smc-dtc (the speed PI and the sliding-mode DTC's K_T, phi_T, K_psi, phi_psi for ITAE plus "
             "torque ripple; tuned with tanh, re-evaluated with the saturation law), over a "
-            "seeded batch of speed steps (200-1500 r/min, both "
-            "directions) and load steps (0-10 N m), checked on a held-out batch. Writes DIR/gains.toml "
+            "seeded batch of speed steps and load steps from the drive file's [tuning] ranges (book: "
+            "200-1500 r/min both directions, 0-10 N m), checked on a held-out batch; --robust trains over "
+            "plant draws from the file's [tolerances], and every run reports the held-out nominal and "
+            "worst-decile cost over such draws (the objective's penalties are priced for the drive's ITAE "
+            "scale). Writes DIR/gains.toml "
             "(use it with --gains in demo, compare, pwm-compare and montecarlo), DIR/result.json, "
             "DIR/cost.png, DIR/responses.png and DIR/checkpoint.npz; running it again resumes (Ctrl-C keeps "
             "the last finished iteration; --fresh starts over). Settings: flags, then --config TOML "
@@ -30,10 +36,30 @@ def add_parser(sub):
     )
     p.add_argument("--out", default="tune_out", help="output folder (created), default: tune_out")
     p.add_argument(
+        "--motor",
+        default="book",
+        help="drive: a preset (book, book_salient, servo-400w, industrial-5k6w, outer-rotor-24v; with "
+        "--machine six-phase or five-phase book, book_salient) or a drive TOML file (default book)",
+    )
+    p.add_argument(
+        "--u-dc", type=checks.positive("V"), help="DC link, V (default: the drive file's [inverter] u_dc_v)"
+    )
+    p.add_argument(
+        "--current-limit",
+        type=checks.positive("A"),
+        help="peak current limit, A (default: the drive file's [ratings] max_current_a)",
+    )
+    p.add_argument(
+        "--robust",
+        action="store_true",
+        help="train over plant draws from the drive file's [tolerances] (uniform within each half-width; "
+        "default: the nominal plant)",
+    )
+    p.add_argument(
         "--machine",
         choices=("three-phase", "six-phase", "five-phase"),
-        help="three-phase book drive (default), the six-phase drive (book ch. 7-9) or the five-phase drive "
-        "(book ch. 10)",
+        help="three-phase drive (default), the six-phase drive (book ch. 7-9) or the five-phase drive "
+        "(book ch. 10); the --motor file's n_phases must match",
     )
     p.add_argument(
         "--control",
@@ -54,11 +80,12 @@ def add_parser(sub):
             "hfi-pulsating",
             "hybrid",
         ),
-        help="tune this chapter 5 observer's parameters instead (on the FOC drive; objective: speed ITAE "
-        "plus angle-error RMS over scenarios started at speed, steps down to 5 %% of rated, load steps; "
-        "chapter 6 hfi-rotating, hfi-pulsating, hybrid: filter and PLL gains (and the hybrid's crossover) "
-        "on the salient motor at standstill and within +-100 r/min (hybrid +-300), angle modulo pi; "
-        "default: none)",
+        help="tune this chapter 5 observer's parameters instead (on the drive's FOC drive; objective: speed "
+        "ITAE plus angle-error RMS over scenarios started at speed, steps down to 5 %% of the top speed "
+        "(book: 2000 r/min; twice the rated speed within the inverter's reach), load steps; chapter 6 "
+        "hfi-rotating, hfi-pulsating, hybrid: filter and PLL gains (and the hybrid's crossover) on a "
+        "salient motor (book: book_salient) at standstill and within +-10 %% of the rated speed (hybrid "
+        "+-30 %%), angle modulo pi; default: none)",
     )
     p.add_argument(
         "--config", default=None, help="TOML with [weights], [tune] and [job] tables (default: none)"
@@ -76,7 +103,8 @@ def add_parser(sub):
         type=checks.positive("s", maximum=10.0),
         nargs=2,
         metavar=("LOW", "HIGH"),
-        help="range of the scenario durations, s (default 0.3 0.5)",
+        help="range of the scenario durations, s (default: the drive file's [tuning] duration_s, book "
+        "0.3 0.5; observers half of it)",
     )
     p.add_argument(
         "--gains",
@@ -113,13 +141,31 @@ def add_parser(sub):
     p.set_defaults(func=run)
 
 
-def precheck(args) -> None:
-    """Checks that need no model (before JAX starts)."""
+MACHINE_PHASES = {None: 3, "three-phase": 3, "six-phase": 6, "five-phase": 5}
+
+
+def precheck(args):
+    """Checks that need no model (before JAX starts); returns the drive (:class:`DriveSpec`)."""
     from pmsmjax.cli.gains import read_gains_flag
+    from pmsmjax.io.drive_files import drive_spec
 
     checks.output_folder(args.out)
     if args.config is not None:
         checks.existing_file(args.config, "--config", "tuning config")
+    spec = drive_spec(
+        args.motor,
+        n_phases=MACHINE_PHASES[args.machine],
+        u_dc_v=args.u_dc,
+        max_current_a=args.current_limit,
+        flags={"u_dc_v": "--u-dc", "max_current_a": "--current-limit"},
+    )
+    robust = args.robust or _config_robust(args.config)
+    if robust and not spec.tolerances:
+        where = "--robust" if args.robust else f"--config {args.config}: [job] robust = true"
+        raise ParameterError(
+            f"{where}: the drive {spec.source} has no [tolerances] table: add one to the drive file "
+            "(relative half-widths, e.g. R = 0.1, J = 0.3) or tune without --robust."
+        )
     if args.duration_s and args.duration_s[0] > args.duration_s[1]:
         low, high = args.duration_s
         raise ParameterError(
@@ -133,10 +179,27 @@ def precheck(args) -> None:
                 f"to start from a tuned gains file use --start-gains {name}."
             )
     read_gains_flag(args.start_gains, "--start-gains")
+    return spec
+
+
+def _config_robust(path) -> bool:
+    """Whether the tuning config ``path`` (None: none) asks for ``[job] robust = true``; a file that does
+    not parse is left to the config reader's message."""
+    if path is None:
+        return False
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover
+        import tomli as tomllib
+
+    try:
+        return tomllib.loads(Path(path).read_text()).get("job", {}).get("robust", False) is True
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError, AttributeError):
+        return False
 
 
 def run(args) -> int:
-    precheck(args)
+    spec = precheck(args)
     # The command line is the one place where pmsmjax reaches up into the tuning workflows.
     import dataclasses
 
@@ -169,6 +232,7 @@ def run(args) -> int:
         ("start_gains", args.start_gains),
         ("machine", args.machine),
         ("estimator", args.estimator),
+        ("robust", args.robust or None),
     ):
         if value is not None:
             kwargs[key] = value
@@ -176,7 +240,7 @@ def run(args) -> int:
     if args.fresh and checkpoint.exists():
         checkpoint.unlink()
     try:
-        data = run_tune_job(args.out, config=config, progress=not args.no_progress, **kwargs)
+        data = run_tune_job(args.out, config=config, drive=spec, progress=not args.no_progress, **kwargs)
     except TuneInterrupted:
         raise
     except KeyboardInterrupt:
@@ -212,6 +276,17 @@ def run(args) -> int:
             f"({', '.join(f'{k}={v}' for k, v in data['surrogate']['options'].items())}): "
             f"{ho['after_surrogate']['itae']:.4f}; on the exact law (above): {ho['after']['itae']:.4f}"
         )
+    robustness = data["robustness"]
+    if robustness is not None:
+        nominal = robustness["nominal_cost"]
+        line = f"held-out cost on the nominal plant {nominal['before']:.4f} -> {nominal['after']:.4f}"
+        worst = robustness["worst_decile_cost"]
+        if worst is not None:
+            line += (
+                f"; worst decile over plant draws from the tolerances {worst['before']:.4f} -> "
+                f"{worst['after']:.4f}"
+            )
+        print(line + (" (trained robust)" if data["robust"] else ""))
     # observer scenarios start at speed and step both ways: their pre-load "overshoot" is not one
     overshoot = (
         ""

@@ -6,6 +6,8 @@
 - :mod:`~tuning.autotune.quasi_newton`: the step-capped BFGS behind ``method="bfgs"``.
 - :mod:`~tuning.autotune.baselines`: derivative-free searches (Nelder-Mead, CMA-ES) on the same cost.
 - :mod:`~tuning.autotune.job`: the ``pmsmjax tune`` job (tune, check on the held-out batch, write files).
+- :mod:`~tuning.autotune.drive_batches`, :mod:`~tuning.autotune.drive_scaling`: the job's batches,
+  observer settings and penalty weights from the user's drive file.
 
 The gains themselves (names, ``log(p/p0)`` parameterisation, gains files) are :mod:`tuning.parameters`.
 """

@@ -2,9 +2,10 @@
 low-speed scenario batches. The tuner, objective, outputs and resume are those of the chapter 5 observers
 (:mod:`tuning.autotune.observers`, whose ``TUNABLE_OBSERVERS`` lists what is tuned).
 
-Drive (:func:`injection_sensorless_drive`): the book FOC drive on the salient book motor
-(``L_d`` 5.25 mH, ``L_q`` 12 mH) with the estimator's design rule, on the plant with d-axis saturation
-(:func:`pmsmjax.machines.saturated_machine`, defaults), as
+Drive (:func:`injection_sensorless_drive`): the FOC drive of the drive file (for the book drive the
+salient book motor, ``L_d`` 5.25 mH, ``L_q`` 12 mH; any other drive file must be salient) with the
+estimator's design rule, on the plant with d-axis saturation
+(:func:`pmsmjax.machines.saturated_machine`, defaults on the book drive), as
 :func:`pmsmjax.studies.control_comparison.chapter6_drive` builds it for ``compare --estimator``;
 :func:`tuning.autotune.observers.observer_drive` puts it behind the
 same sensored warm-up and measurement noise as the chapter 5 observers.
@@ -28,6 +29,9 @@ Scenarios (:func:`make_injection_batch`), chosen for the methods' range, standst
   another such speed (so reversals through zero are among them), and a 0-10 N m load (opposing the final
   motion) steps in at 55-70 %. For the hybrid ``max_rpm`` is 300 r/min, so that the scenarios cross its
   crossover band (50-150 r/min, carrier off at 250 r/min) whose edges are tuned.
+
+These are the book drive's numbers; on another drive file each is the same share of its rated speed,
+rated torque, current limit and tuning durations (:mod:`tuning.autotune.drive_scaling`).
 """
 
 import equinox as eqx
@@ -35,10 +39,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax import Profile, Scenario, presets, stack_scenarios
-from pmsmjax.checks.validation import ParameterError
+from pmsmjax.checks.validation import ParameterError, plain
+from pmsmjax.io.drive_files import DriveSpec, drive_spec
 from pmsmjax.machines.saturation import saturated_machine
 from pmsmjax.presets.book_constants import BOOK_TS
+from pmsmjax.presets.user_drive import spec_drive, spec_motor
 from pmsmjax.units import rpm_to_rad_s
+from tuning.autotune.drive_scaling import noise_scale, speed_scale, torque_scale
 from tuning.autotune.scenario_batches import WARMUP_S, ScenarioBatch
 
 #: Scenario kinds of the injection batches.
@@ -47,18 +54,48 @@ INJECTION_KINDS = ("standstill", "slow")
 INITIAL_ANGLE_DEG = 60.0
 #: Speed range of the "slow" scenarios, r/min, per estimator (module docstring).
 MAX_RPM = {"hfi-rotating": 100.0, "hfi-pulsating": 100.0, "hybrid": 300.0}
+#: Smallest standstill load step, N m (book drive), and the hold after the warm-up, s.
+STANDSTILL_LOAD_NM = 2.0
+HOLD_S = 0.02
+#: Current scale of the plant's d-axis saturation on the book drive, A
+#: (:func:`pmsmjax.machines.saturated_machine`'s default).
+SATURATION_CURRENT_A = 8.0
+#: Least relative saturation L_q / L_d - 1 a drive needs for the injection estimators.
+MIN_SALIENCY = 0.05
 
 
-def injection_sensorless_drive(name: str, observer_options: dict | None = None, **kw):
-    """The book drive on the salient book motor with the chapter 6 estimator ``name`` (design rule, overridden
-    by ``observer_options``; the hybrid without its polarity detector), on the saturated plant; ``kw`` go
-    to :func:`pmsmjax.presets.book_drive` (``n_substeps``, ...)."""
-    motor = presets.book_motor(salient=True)
+def injection_spec(spec: DriveSpec | None) -> DriveSpec:
+    """The drive file the chapter 6 estimators run on: the salient book motor for the book drive (or
+    none), else ``spec`` itself, which must be salient (L_q > L_d: the injection finds the d axis from
+    the saliency)."""
+    if spec is None or spec.source == "book":
+        return drive_spec("book_salient")
+    L_d, L_q = spec.motor["L_d"], spec.motor["L_q"]
+    if not L_q > L_d * (1.0 + MIN_SALIENCY):
+        raise ParameterError(
+            f"--motor {spec.source}: L_q = {plain(L_q)} H is not above L_d = {plain(L_d)} H by "
+            f"{100 * MIN_SALIENCY:g} %; HF injection needs a salient machine: give --motor book_salient "
+            "or a drive file of an interior-magnet motor, or tune a back-EMF observer (--estimator smo, ...)."
+        )
+    return spec
+
+
+def injection_sensorless_drive(
+    name: str, observer_options: dict | None = None, spec: DriveSpec | None = None, **kw
+):
+    """The FOC drive of :func:`injection_spec` (the salient book motor by default) with the chapter 6
+    estimator ``name`` (design rule, overridden by ``observer_options``; the hybrid without its polarity
+    detector), on the saturated plant (its current scale the book's 8 A times the drive's current limit
+    over the book's 15 A); ``kw`` are preset options of the FOC drive (``n_substeps``, ...)."""
+    spec = injection_spec(spec)
+    motor = spec_motor(spec)
     options = dict(observer_options or {})
     if name == "hybrid":
         options = {"polarity": False, **options}
-    drive = presets.sensorless_drive(name, motor, observer_options=options, startup=False, **kw)
-    return eqx.tree_at(lambda d: d.machine, drive, saturated_machine(motor))
+    foc = spec_drive(spec, "pi", **kw)
+    drive = presets.with_observer(foc, name, motor, options, startup=False)
+    current_scale = SATURATION_CURRENT_A * noise_scale(spec)[0]
+    return eqx.tree_at(lambda d: d.machine, drive, saturated_machine(motor, current_scale=current_scale))
 
 
 def make_injection_batch(
@@ -71,10 +108,13 @@ def make_injection_batch(
     kinds=INJECTION_KINDS,
     plant_spread: dict | None = None,
     warmup_s: float = WARMUP_S,
+    hold_s: float = HOLD_S,
+    standstill_load_nm: float = STANDSTILL_LOAD_NM,
     Ts: float = BOOK_TS,
 ) -> ScenarioBatch:
-    """``n`` low-speed scenarios drawn reproducibly from ``seed`` (module docstring), scored modulo pi.
-    ``plant_spread`` as in :func:`tuning.autotune.scenario_batches.make_batch`."""
+    """``n`` low-speed scenarios drawn reproducibly from ``seed`` (module docstring), scored modulo pi;
+    the standstill load steps are at least ``standstill_load_nm``, the speed steps ``hold_s`` after the
+    warm-up. ``plant_spread`` as in :func:`tuning.autotune.scenario_batches.make_batch`."""
     if n < 1:
         raise ParameterError(f"a scenario batch needs n >= 1 scenarios, got {n}.")
     bad = [k for k in kinds if k not in INJECTION_KINDS]
@@ -84,12 +124,12 @@ def make_injection_batch(
         raise ParameterError(f"max_rpm must be a positive speed in r/min, got {max_rpm}.")
     if not 0 < duration_s[0] <= duration_s[1]:
         raise ParameterError(f"duration_s must be positive with low <= high, got {duration_s}.")
-    t_step = round((warmup_s + 0.02) / Ts) * Ts
-    if duration_s[0] * 0.55 <= t_step + 0.02:
+    t_step = round((warmup_s + hold_s) / Ts) * Ts
+    if duration_s[0] * 0.55 <= t_step + hold_s:
         raise ParameterError(
-            f"duration_s {duration_s} too short: the load step (at 55 % of it) must come 20 ms after the "
-            f"speed step at {t_step:.3f} s; make the shortest duration at least "
-            f"{(t_step + 0.02) / 0.55:.3f} s."
+            f"duration_s {duration_s} too short: the load step (at 55 % of it) must come "
+            f"{hold_s * 1e3:.3g} ms after the speed step at {t_step:.3f} s; make the shortest duration at "
+            f"least {(t_step + hold_s) / 0.55:.3f} s."
         )
     rng = np.random.default_rng(seed)
     w_max = rpm_to_rad_s(max_rpm)
@@ -99,7 +139,9 @@ def make_injection_batch(
         kind = str(rng.choice(list(kinds)))
         if kind == "standstill":
             w0 = w1 = 0.0
-            load = rng.choice([-1.0, 1.0]) * rng.uniform(max(load_nm[0], 2.0), max(load_nm[1], 2.0))
+            load = rng.choice([-1.0, 1.0]) * rng.uniform(
+                max(load_nm[0], standstill_load_nm), max(load_nm[1], standstill_load_nm)
+            )
         else:
             w0, w1 = rng.uniform(-w_max, w_max, 2)
             sign = np.sign(w1) if w1 != 0 else 1.0
@@ -132,12 +174,18 @@ def make_injection_batch(
     )
 
 
-def injection_batch_maker(name: str):
+def injection_batch_maker(name: str, spec: DriveSpec | None = None):
     """The batch maker of chapter 6 estimator ``name`` for the tune job: :func:`make_injection_batch` at its
-    :data:`MAX_RPM`; the job's default kinds (the chapter 5 ``("step",)``) mean :data:`INJECTION_KINDS`."""
+    :data:`MAX_RPM` and :data:`STANDSTILL_LOAD_NM` scaled to the drive (:func:`injection_spec`'s rated
+    speed and torque over the book's); the job's default kinds (the chapter 5 ``("step",)``) mean
+    :data:`INJECTION_KINDS`."""
+    spec = injection_spec(spec)
+    max_rpm, standstill = MAX_RPM[name] * speed_scale(spec), STANDSTILL_LOAD_NM * torque_scale(spec)
 
     def make(n, seed, *, kinds=INJECTION_KINDS, **options):
         kinds = INJECTION_KINDS if tuple(kinds) == ("step",) else tuple(kinds)
-        return make_injection_batch(n, seed, max_rpm=MAX_RPM[name], kinds=kinds, **options)
+        return make_injection_batch(
+            n, seed, max_rpm=max_rpm, kinds=kinds, standstill_load_nm=standstill, **options
+        )
 
     return make

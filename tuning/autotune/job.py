@@ -5,20 +5,34 @@ Outputs in the chosen folder: ``gains.toml`` (load with :func:`tuning.parameters
 scenarios before and after) and ``checkpoint.npz`` (resume point; running the same command again
 continues from it and ends at the same result).
 
+The drive (``drive``): a drive file or preset name (:func:`pmsmjax.io.drive_files.drive_spec`, default
+``book``) or its :class:`~pmsmjax.io.drive_files.DriveSpec`; every drive is built from it by
+:func:`pmsmjax.presets.user_drive.spec_drive`, and every batch from its ``[tuning]`` ranges and control
+period (:mod:`tuning.autotune.drive_scaling`). ``--motor book`` gives the book drive and batches bit for
+bit.
+
 Control methods (``control``: ``pi``, ``smc``, ``pr``, ``smc-dtc``; :mod:`tuning.autotune.controls`): the
-drive of :func:`pmsmjax.presets.control_methods.control_drive`, its default gains and its default objective
-weights (used when ``weights`` is None).
-``machine="six-phase"``: the six-phase drive (:func:`pmsmjax.presets.six_phase.six_phase_drive`) under
-``vsd``, ``double-dq``, ``conventional`` or ``pr`` (default ``vsd``); ``machine="five-phase"``: the
+drive of that control, its default gains and its default objective weights (used when ``weights`` is
+None). ``machine="six-phase"``: the six-phase drive (:func:`pmsmjax.presets.six_phase.six_phase_drive`)
+under ``vsd``, ``double-dq``, ``conventional`` or ``pr`` (default ``vsd``); ``machine="five-phase"``: the
 five-phase drive (:func:`pmsmjax.presets.five_phase.five_phase_drive`) under ``vsd`` or ``conventional``.
 
 Observers (``estimator``: ``smo``, ``smo-pll``, ``adaptive-smo``, ``dq-smo``, ``mras``, ``ekf``;
-:mod:`tuning.autotune.observers`): the book FOC drive on that observer behind a sensored warm-up, its
-default parameters, the observer batches (start at speed, steps down to 5 % of rated, load steps;
-``kinds=("step", "reversal")`` adds reversals) and the objective speed ITAE plus angle-error RMS; the
-tuned gains' stability is checked with the observer's own ``check_period``. ``hfi-rotating``,
+:mod:`tuning.autotune.observers`): the drive's FOC drive on that observer behind a sensored warm-up, its
+default parameters, the observer batches (start at speed, steps down to 5 % of the batches' top speed,
+load steps; ``kinds=("step", "reversal")`` adds reversals) and the objective speed ITAE plus angle-error
+RMS; the tuned gains' stability is checked with the observer's own ``check_period``. ``hfi-rotating``,
 ``hfi-pulsating``, ``hybrid`` (chapter 6, :mod:`tuning.autotune.hfi_tuning`): the salient, saturated drive
-and low-speed batches (standstill, +-100 r/min), the angle error scored modulo pi.
+and low-speed batches (standstill, +-10 % of the rated speed), the angle error scored modulo pi. The
+observer batches' speeds, loads, noise and times are the book drive's scaled to the drive
+(:mod:`tuning.autotune.drive_scaling`). Without ``weights`` the objective's penalty weights are the
+defaults scaled to the drive's ITAE (:func:`tuning.autotune.drive_scaling.scaled_weights`).
+
+Robustness (``robust``): training over plant draws from the drive file's ``[tolerances]`` (uniform
+within +-half-width per parameter, the DC link included; the controller's model stays nominal). Every
+run on a drive file with tolerances reports, for the held-out scenarios, the nominal cost (nominal
+plant) and the worst-decile cost (mean of the worst 10 % of per-scenario costs over plant draws from the
+tolerances), before and after (result.json ``robustness``).
 
 Surrogate and exact model: tuning runs the drive with ``tune_substeps`` RK4 steps per period (1 by
 default: 4e-7 of peak current from the exact solution at 10 kHz, and a 4x cheaper gradient) and with the
@@ -38,8 +52,9 @@ import jax
 import numpy as np
 
 from pmsmjax.checks.validation import ParameterError
+from pmsmjax.io.drive_files import DriveSpec, drive_spec
 from pmsmjax.io.logs import atomic_write
-from pmsmjax.presets.control_methods import control_drive
+from pmsmjax.presets.user_drive import spec_drive
 from pmsmjax.units import rad_s_to_rpm
 
 if sys.version_info >= (3, 11):
@@ -47,14 +62,17 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
+from tuning.autotune import drive_scaling
 from tuning.autotune.controls import control_tuning
+from tuning.autotune.drive_batches import drive_batches
 from tuning.autotune.objectives import ObjectiveWeights, aggregate, batch_metrics, scenario_cost
-from tuning.autotune.observers import OBSERVER_CONFIG, make_observer_batch, observer_drive, observer_tuning
-from tuning.autotune.scenario_batches import ScenarioBatch, make_batch
+from tuning.autotune.observers import OBSERVER_CONFIG, observer_drive, observer_tuning
+from tuning.autotune.scenario_batches import ScenarioBatch
 from tuning.autotune.tuner import TuneConfig, tune
 from tuning.parameters import apply_gains, get_leaf, write_gains_toml
 
-#: The must-show configuration: 64 + 64 scenarios, 0.3-0.5 s, steps of 200-1500 r/min both ways, 0-10 N m;
+#: The must-show configuration (book drive): 64 + 64 scenarios, 0.3-0.5 s, steps of 200-1500 r/min both
+#: ways, 0-10 N m;
 #: BFGS (its rounded-penalty default), which gets a 3x lower cost than Adam in fewer iterations. ``names``
 #: None: the control's own gains (:data:`tuning.autotune.controls.TUNABLE_CONTROLS`).
 DEFAULT_CONFIG = TuneConfig(names=None, method="bfgs", max_iterations=100)
@@ -74,7 +92,10 @@ JOB_KEYS = (
     "start_gains",
     "machine",
     "estimator",
+    "robust",
 )
+#: How the machine names the drive file's phase count.
+MACHINE_PHASES = {"three-phase": 3, "six-phase": 6, "five-phase": 5}
 
 
 def read_tune_toml(path) -> dict:
@@ -149,19 +170,33 @@ def run_tune_job(
     start_gains: str | None = None,
     machine: str = "three-phase",
     estimator: str | None = None,
+    drive: DriveSpec | str = "book",
+    robust: bool = False,
     weights: ObjectiveWeights | None = None,
     config: TuneConfig = DEFAULT_CONFIG,
     progress: bool = True,
     callback=None,
 ) -> dict:
-    """Tune the gains of the book drive under ``control`` and write the outputs into ``out_dir``; returns
-    result.json's content. `start_gains`: a gains TOML (an earlier run's gains.toml) to start from
-    instead of the design-rule gains. `machine`: ``three-phase`` (the book motor), ``six-phase`` or
-    ``five-phase``. `estimator`: tune that chapter 5 observer's parameters instead (module docstring; the
-    three-phase FOC drive, control ``pi``); `duration_s` defaults to (0.3, 0.5) s for a control and
-    (0.15, 0.25) s for an observer."""
-    if machine not in ("three-phase", "six-phase", "five-phase"):
+    """Tune the gains of ``drive`` (a :class:`DriveSpec`, a preset name or a drive file; default the book
+    drive) under ``control`` and write the outputs into ``out_dir``; returns result.json's content.
+    `start_gains`: a gains TOML (an earlier run's gains.toml) to start from instead of the design-rule
+    gains. `machine`: ``three-phase``, ``six-phase`` or ``five-phase`` (the drive file's phase count).
+    `estimator`: tune that observer's parameters instead (module docstring; the three-phase FOC drive,
+    control ``pi``). `duration_s` defaults to the drive file's ``[tuning] duration_s`` for a control and
+    half of it for an observer (book: 0.3-0.5 s, 0.15-0.25 s). `robust`: train over plant draws from the
+    drive file's ``[tolerances]`` (refused without them); `plant_spread` (``{parameter: half-width}``)
+    sets such draws explicitly for the train and held-out batches."""
+    if machine not in MACHINE_PHASES:
         raise ParameterError(f"machine must be 'three-phase', 'six-phase' or 'five-phase', got {machine!r}.")
+    spec = drive if isinstance(drive, DriveSpec) else drive_spec(drive, n_phases=MACHINE_PHASES[machine])
+    tolerances = drive_scaling.plant_spread(spec)
+    if robust:
+        if not tolerances:
+            raise ParameterError(
+                f"--robust: the drive {spec.source} has no [tolerances] table: add one to the drive file "
+                "(relative half-widths, e.g. R = 0.1, J = 0.3) or tune without --robust."
+            )
+        plant_spread = {**tolerances, **(plant_spread or {})}
     if estimator is not None:
         if machine != "three-phase" or control not in (None, "pi"):
             raise ParameterError(
@@ -174,34 +209,51 @@ def run_tune_job(
         if config is DEFAULT_CONFIG:
             config = dataclasses.replace(DEFAULT_CONFIG, **OBSERVER_CONFIG)
 
+        batches = drive_batches(spec, estimator)
+
         def build(substeps, options):
-            return observer_drive(estimator, n_substeps=substeps, observer_options=options)
+            return observer_drive(
+                estimator,
+                spec=spec,
+                n_substeps=substeps,
+                observer_options=options,
+                warmup_s=batches.warmup_s,
+            )
 
-        batch_maker = make_observer_batch
         if tuning.chapter6:  # injection estimators, hybrid: the low-speed batches, scored modulo pi
-            from tuning.autotune.hfi_tuning import INJECTION_KINDS, injection_batch_maker
+            from tuning.autotune.hfi_tuning import INJECTION_KINDS
 
-            batch_maker = injection_batch_maker(estimator)
             kinds = INJECTION_KINDS if tuple(kinds) == ("step",) else tuple(kinds)
-        duration_s = (0.15, 0.25) if duration_s is None else duration_s
     else:
         if control is None:
             control = "pi" if machine == "three-phase" else "vsd"
         tuning = control_tuning(control, machine)
 
         def build(substeps, options):
-            return _drive(machine, control, n_substeps=substeps, **options)
+            return spec_drive(spec, control, n_substeps=substeps, **options)
 
-        batch_maker = make_batch
-        duration_s = (0.3, 0.5) if duration_s is None else duration_s
-    weights = ObjectiveWeights(**tuning.weights) if weights is None else weights
+        batches = drive_batches(spec)
+    if weights is None:  # the control's or observer's defaults, their penalties priced for the drive
+        weights = drive_scaling.scaled_weights(ObjectiveWeights(**tuning.weights), spec)
     if config.names is None:
         config = dataclasses.replace(config, names=tuning.names)
+    batch_maker = batches.make
+    duration_s = batches.duration_s if duration_s is None else duration_s
+    batch_options = dict(duration_s=duration_s, kinds=kinds)
+    train = batch_maker(n_train, train_seed, plant_spread=plant_spread, **batch_options)
+    heldout = batch_maker(n_heldout, heldout_seed, plant_spread=plant_spread, **batch_options)
+    # The robustness figures: the held-out scenarios on the nominal plant and on draws from the tolerances
+    # (the scenarios of a seed do not depend on the draws; make_batch draws the plants after them).
+    nominal = heldout if not plant_spread else batch_maker(n_heldout, heldout_seed, **batch_options)
+    drawn = None
+    if tolerances:
+        same = dict(plant_spread or {}) == tolerances
+        if same:
+            drawn = heldout
+        else:
+            drawn = batch_maker(n_heldout, heldout_seed, plant_spread=tolerances, **batch_options)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    batch_options = dict(duration_s=duration_s, kinds=kinds, plant_spread=plant_spread)
-    train = batch_maker(n_train, train_seed, **batch_options)
-    heldout = batch_maker(n_heldout, heldout_seed, **batch_options)
     surrogate = build(tune_substeps, tuning.surrogate)
     exact = build(eval_substeps, {})
     if start_gains is not None:
@@ -224,6 +276,7 @@ def run_tune_job(
             "after": evaluate(tuned_exact, heldout, weights),
         },
     }
+    robustness = _robustness(exact, tuned_exact, heldout, nominal, drawn, report, weights, tolerances)
     if tuning.surrogate:  # the smoothed law at the exact model's sub-steps: what the optimiser saw
         smoothed = build(eval_substeps, tuning.surrogate)
         if start_gains is not None:
@@ -238,6 +291,9 @@ def run_tune_job(
         "control": control,
         "machine": machine,
         "estimator": estimator,
+        "drive_file": spec.summary(),
+        "robust": bool(robust),
+        "robustness": robustness,
         "gains": {"before": before_gains, "after": result.gains},
         "surrogate": {
             "options": dict(tuning.surrogate),
@@ -263,6 +319,7 @@ def run_tune_job(
             "duration_s": list(duration_s),
             "kinds": list(kinds),
             "plant_spread": dict(plant_spread or {}),
+            **{k: list(v) if isinstance(v, tuple) else v for k, v in batches.ranges.items()},
         },
         "seeds": {"train": train_seed, "heldout": heldout_seed},
     }
@@ -281,17 +338,37 @@ def run_tune_job(
     return data
 
 
-def _drive(machine: str, control: str, **options):
-    """The drive of ``control`` on the book motor (``three-phase``) or its six- or five-phase rewind."""
-    if machine == "five-phase":
-        from pmsmjax.presets.five_phase import five_phase_drive
+def _robustness(before, after, heldout, nominal, drawn, report, weights, tolerances) -> dict:
+    """The held-out cost of the drives ``before`` and ``after`` tuning on the nominal plant (``nominal``
+    batch) and the worst-decile cost over plant draws from the tolerances (``drawn`` batch; None without
+    tolerances); evaluations already in ``report`` (on ``heldout``) are reused."""
 
-        return five_phase_drive(control=control, **options)
-    if machine == "six-phase":
-        from pmsmjax.presets.six_phase import six_phase_drive
+    def costs(batch):
+        if batch is heldout:
+            return {k: report["heldout"][k] for k in ("before", "after")}
+        return {"before": evaluate(before, batch, weights), "after": evaluate(after, batch, weights)}
 
-        return six_phase_drive(control=control, **options)
-    return control_drive(control, **options)
+    nominal_eval = costs(nominal)
+    data = {
+        "tolerances": dict(tolerances),
+        "worst_share": drive_scaling.WORST_SHARE,
+        "nominal_cost": {k: v["summary"]["cost"] for k, v in nominal_eval.items()},
+        "nominal_itae": {k: v["summary"]["itae"] for k, v in nominal_eval.items()},
+        "worst_decile_cost": None,
+    }
+    if drawn is not None:
+        drawn_eval = costs(drawn)
+        per_scenario = {k: [s["cost"] for s in v["per_scenario"]] for k, v in drawn_eval.items()}
+        data.update(
+            worst_decile_cost={k: drive_scaling.worst_share_mean(c) for k, c in per_scenario.items()},
+            drawn_mean_cost={k: v["summary"]["cost"] for k, v in drawn_eval.items()},
+            drawn_per_scenario_cost=per_scenario,
+            drawn_scenarios_over_current_limit={
+                k: v["summary"]["scenarios_over_current_limit"] for k, v in drawn_eval.items()
+            },
+            plant_scale={k: np.asarray(v).tolist() for k, v in drawn.plant_scale.items()},
+        )
+    return data
 
 
 def _stability(drive) -> str:

@@ -181,18 +181,19 @@ def aggregate(costs, w: ObjectiveWeights):
 def batch_metrics(drive: Drive, batch: ScenarioBatch) -> dict:
     """Metrics of every scenario of ``batch`` run on ``drive``: a dict of ``(B,)`` arrays."""
     limit = drive.controller.current_limit
-    u_max = drive.modulator.linear_limit(drive.bridge.u_dc)
 
     def one(scenario, duration, t_load, scale, speed0, theta0, observe_from):
         plant = drive
-        if scale:
+        names = [n for n in scale if n != "u_dc_v"]
+        if names:
             motor = drive.machine.motor
-            names = list(scale)
             plant = eqx.tree_at(
                 lambda d: [getattr(d.machine.motor, n) for n in names],
-                drive,
+                plant,
                 [getattr(motor, n) * scale[n] for n in names],
             )
+        if "u_dc_v" in scale:  # the DC link the bridge applies and the controller measures
+            plant = eqx.tree_at(lambda d: d.bridge.u_dc, plant, drive.bridge.u_dc * scale["u_dc_v"])
         start = None if speed0 is None else start_at_speed(plant, speed0, theta0)
         trace = pmsmjax.simulate(plant, scenario, initial_state=start)
         observe_from = 0.0 if observe_from is None else observe_from
@@ -201,7 +202,7 @@ def batch_metrics(drive: Drive, batch: ScenarioBatch) -> dict:
             duration,
             t_load,
             limit,
-            u_max,
+            plant.modulator.linear_limit(plant.bridge.u_dc),  # the scenario's own DC link
             observe_from_s=observe_from,
             angle_modulo=batch.angle_modulo,
         )

@@ -57,8 +57,11 @@ from pmsmjax import Profile, Scenario, presets, stack_scenarios
 from pmsmjax.checks.validation import ParameterError
 from pmsmjax.estimators.registry import check_observer_name
 from pmsmjax.estimators.sensored_warmup import SensoredWarmup
+from pmsmjax.io.drive_files import DriveSpec, drive_spec
 from pmsmjax.presets.book_constants import BOOK_TS
+from pmsmjax.presets.user_drive import spec_drive, spec_motor
 from pmsmjax.units import rpm_to_rad_s
+from tuning.autotune.drive_scaling import noise_scale
 from tuning.autotune.hfi_tuning import injection_sensorless_drive
 from tuning.autotune.scenario_batches import WARMUP_S, ScenarioBatch
 from tuning.parameters import get_leaf, set_leaves
@@ -66,6 +69,9 @@ from tuning.parameters import get_leaf, set_leaves
 #: Rated speed of the book drive for the observer batches, r/min (the top of the observer accuracy bands;
 #: the book motor reaches it under the 10 N m load with the 560 V link); 5 % of it is 100 r/min.
 RATED_SPEED_RPM = 2000.0
+#: Time the reference holds the start speed after the warm-up, and the load step at least after the speed
+#: step, s (book drive; scaled with the drive's tuning durations, :mod:`tuning.autotune.drive_scaling`).
+HOLD_S = 0.02
 #: Measurement noise on the observer's samples while tuning, per axis: 0.05 A (0.5 % of the book drive's
 #: 10 A, the EKF design rule's current noise) and 0.25 V (0.5 % of the 50 V phase voltage at about
 #: 600 r/min; the 0.5 % logs of benchmarks/observer_accuracy.py have 0.17-0.85 V from 400 to 2000 r/min).
@@ -150,21 +156,27 @@ def observer_tuning(name: str) -> ObserverTuning:
 def observer_drive(
     name: str,
     *,
+    spec: DriveSpec | None = None,
     n_substeps: int = 10,
     warmup_s: float = WARMUP_S,
     noise: bool = True,
     observer_options=None,
     **kw,
 ):
-    """The book drive on observer ``name`` (design-rule gains, overridden by ``observer_options``) behind a
-    sensored warm-up of ``warmup_s`` (s), with the measurement noise ``NOISE_CURRENT_A``,
-    ``NOISE_VOLTAGE_V`` on the observer's samples unless ``noise=False``; ``kw`` go to
-    :func:`pmsmjax.presets.sensorless_drive`."""
+    """The FOC drive of the drive file ``spec`` (default the book drive;
+    :func:`pmsmjax.presets.user_drive.spec_drive`) on observer ``name`` (design-rule gains for the
+    drive's motor, overridden by ``observer_options``) behind a sensored warm-up of ``warmup_s`` (s), with
+    the measurement noise ``NOISE_CURRENT_A``, ``NOISE_VOLTAGE_V`` (scaled to the drive's current limit
+    and DC link, :func:`tuning.autotune.drive_scaling.noise_scale`) on the observer's samples unless
+    ``noise=False``; ``kw`` are preset options of the FOC drive (``n_substeps``, ...)."""
+    spec = drive_spec("book") if spec is None else spec
     if observer_tuning(name).chapter6:
-        drive = injection_sensorless_drive(name, observer_options, n_substeps=n_substeps, **kw)
+        drive = injection_sensorless_drive(name, observer_options, spec, n_substeps=n_substeps, **kw)
     else:
-        drive = presets.sensorless_drive(name, observer_options=observer_options, n_substeps=n_substeps, **kw)
-    levels = (NOISE_CURRENT_A, NOISE_VOLTAGE_V) if noise else (0.0, 0.0)
+        foc = spec_drive(spec, "pi", n_substeps=n_substeps, **kw)
+        drive = presets.with_observer(foc, name, spec_motor(spec), observer_options, startup=False)
+    i_scale, u_scale = noise_scale(spec)
+    levels = (NOISE_CURRENT_A * i_scale, NOISE_VOLTAGE_V * u_scale) if noise else (0.0, 0.0)
     drive = eqx.tree_at(lambda d: d.estimator, drive, SensoredWarmup(drive.estimator, warmup_s, *levels))
     # A gain stored as a Python float (the SMO's speed_bandwidth) is not an array leaf: make the tunable
     # ones arrays so they can be named, differentiated and vmapped.
@@ -184,15 +196,17 @@ def make_observer_batch(
     kinds=OBSERVER_KINDS,
     plant_spread: dict | None = None,
     warmup_s: float = WARMUP_S,
+    hold_s: float = HOLD_S,
     Ts: float = BOOK_TS,
 ) -> ScenarioBatch:
     """``n`` observer scenarios drawn reproducibly from ``seed``.
 
     Each starts at a speed ``w0`` drawn log-uniformly from ``start_rpm`` (25-100 % of rated: a cold EKF or
     MRAS does not converge within the 20 ms warm-up at 100-200 r/min, measured 20-97 degrees RMS after
-    it), either direction, at a random angle; the reference holds ``w0`` through the warm-up and 20 ms
-    after it, then steps to ``w1`` (``"step"``: same direction, drawn log-uniformly from ``speed_rpm``,
-    down to 5 % of rated, so low speeds are as common as high ones; ``"reversal"``: ``-w0``); a load of
+    it), either direction, at a random angle; the reference holds ``w0`` through the warm-up and
+    ``hold_s`` (20 ms) after it, then steps to ``w1`` (``"step"``: same direction, drawn log-uniformly
+    from ``speed_rpm``, down to 5 % of rated, so low speeds are as common as high ones; ``"reversal"``:
+    ``-w0``); a load of
     ``U(load_nm)`` opposing the final motion steps in at 55-70 % of the duration. ``plant_spread`` as in
     :func:`tuning.autotune.scenario_batches.make_batch` (the observer's motor model stays nominal: a
     model mismatch).
@@ -207,12 +221,12 @@ def make_observer_batch(
             raise ParameterError(f"{label} range must be finite with 0 < low <= high, got ({lo}, {hi}).")
     if not 0 < duration_s[0] <= duration_s[1]:
         raise ParameterError(f"duration_s must be positive with low <= high, got {duration_s}.")
-    t_step = round((warmup_s + 0.02) / Ts) * Ts
-    if duration_s[0] * 0.55 <= t_step + 0.02:
+    t_step = round((warmup_s + hold_s) / Ts) * Ts
+    if duration_s[0] * 0.55 <= t_step + hold_s:
         raise ParameterError(
-            f"duration_s {duration_s} too short: the load step (at 55 % of it) must come 20 ms after the "
-            f"speed step at {t_step:.3f} s; make the shortest duration at least "
-            f"{(t_step + 0.02) / 0.55:.3f} s."
+            f"duration_s {duration_s} too short: the load step (at 55 % of it) must come "
+            f"{hold_s * 1e3:.3g} ms after the speed step at {t_step:.3f} s; make the shortest duration at "
+            f"least {(t_step + hold_s) / 0.55:.3f} s."
         )
     rng = np.random.default_rng(seed)
     draw = lambda r: rpm_to_rad_s(np.exp(rng.uniform(np.log(r[0]), np.log(r[1]))))

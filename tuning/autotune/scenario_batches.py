@@ -30,7 +30,8 @@ class ScenarioBatch(eqx.Module):
     - `kind`: the kind of each scenario (``step``, ``reversal``, ``ramp``), for reports.
     - `plant_scale`: ``{motor parameter: (B,) factor}``: each scenario runs a plant whose parameter is
       the drive's times this factor (robust tuning over parameter spreads; empty for the nominal plant).
-      The controller's own motor model stays nominal, as it would on a real drive.
+      The controller's own motor model stays nominal, as it would on a real drive; ``u_dc_v`` scales the
+      bridge's DC link, which the controller measures (its voltage limit follows).
     - `initial_speed_m`, `initial_theta_e`: ``(B,)`` mechanical speed (rad/s) and electrical angle (rad)
       each scenario starts at (``None``: at rest, angle 0); the observer batches of
       :mod:`tuning.autotune.observers` start at speed.
@@ -83,7 +84,8 @@ def make_batch(
     duration. Durations are drawn from ``duration_s`` and rounded to whole periods ``Ts``.
 
     ``plant_spread = {"J": 0.5, "R": 0.2, ...}`` draws each scenario's plant parameter uniformly within
-    +-50 %, +-20 %, ... of nominal (see :attr:`ScenarioBatch.plant_scale`).
+    +-50 %, +-20 %, ... of nominal (see :attr:`ScenarioBatch.plant_scale`; ``u_dc_v`` scales the DC
+    link, ``L_ls`` a multi-phase motor's leakage inductance).
     """
     if n < 1:
         raise ParameterError(f"a scenario batch needs n >= 1 scenarios, got {n}.")
@@ -96,7 +98,7 @@ def make_batch(
     if duration_s[0] <= 0:
         raise ParameterError(f"duration_s must be positive, got {duration_s}.")
     spread = dict(plant_spread or {})
-    allowed = ("R", "L_d", "L_q", "psi_f", "J", "B")
+    allowed = ("R", "L_d", "L_q", "psi_f", "J", "B", "L_ls", "u_dc_v")
     for name, frac in spread.items():
         if name not in allowed:
             raise ParameterError(f"plant_spread: unknown motor parameter {name!r}; choose from {allowed}.")
