@@ -4,7 +4,8 @@ Every metric is a jnp function of one scenario's trace, evaluated only over that
 (:meth:`ScenarioBatch.active`), and vmapped over the batch. The costs are differentiable almost
 everywhere; the hard constraints of a drive (current limit, voltage saturation, overshoot) enter as
 penalties beyond their thresholds (linear; optionally rounded at the threshold for quasi-Newton
-methods, :func:`smoothed_penalty`), so a gradient pushes back as soon as they are crossed.
+methods, :func:`smoothed_penalty`; the current limit's rounding lies inside the limit), so a gradient pushes
+back as soon as they are crossed.
 """
 
 import dataclasses
@@ -154,7 +155,11 @@ def scenario_cost(m: dict, w: ObjectiveWeights, smoothed: bool = False):
     over_x = m["overshoot_signed_pct"] - w.overshoot_allowed_pct
     current_x = m["current_over_limit_a"]
     over = smoothed_penalty(over_x, w.overshoot_smoothing_pct if smoothed else 0.0)
-    current = smoothed_penalty(current_x, w.current_smoothing_a if smoothed else 0.0)
+    # The current limit is a hard one: its rounded zone lies inside the limit (the smoothed penalty an
+    # upper bound of the exact one), so the optimiser's optimum never sits past it; the overshoot's lies
+    # past its allowance (a lower bound), a soft preference.
+    current_width = w.current_smoothing_a if smoothed else 0.0
+    current = smoothed_penalty(current_x + current_width, current_width)
     return (
         w.itae * m["itae"]
         + w.iae * m["iae"]
