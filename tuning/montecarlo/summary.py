@@ -22,7 +22,7 @@ import numpy as np
 
 from tuning.montecarlo.kernel import METRICS, OBSERVER_METRICS, UNITS
 
-PERCENTILES = (1, 5, 25, 50, 75, 95, 99)
+PERCENTILES = (1, 5, 25, 50, 75, 90, 95, 99)
 
 
 def cvar(x: np.ndarray, alpha: float) -> float:
@@ -40,6 +40,7 @@ def metric_statistics(values: np.ndarray, alpha: float) -> dict:
     out["max"] = float(v.max())
     out.update({f"p{p}": float(q) for p, q in zip(PERCENTILES, np.percentile(v, PERCENTILES), strict=True)})
     out[f"cvar{int(round(100 * alpha))}"] = cvar(v, alpha)
+    out["worst_decile_mean"] = cvar(v, 0.9)
     return out
 
 
