@@ -26,8 +26,7 @@ from benchmarks.bench_core import machine_info, publish
 from pmsmjax.cli import main as pmsmjax
 from pmsmjax.io.drive_files import drive_spec
 from pmsmjax.io.logs import write_csv_atomic
-from pmsmjax.studies.synthetic_logs import ID_LOG_NOISE, add_measurement_noise
-from tuning.identify.reference_log import identification_speeds_rpm, reference_drive_log
+from tuning.identify.reference_log import commissioning_log
 
 #: The identify bars the chain must meet, relative.
 BARS = {"R": 0.01, "L_d": 0.02, "L_q": 0.02, "psi_f": 0.005, "J": 0.03}
@@ -38,21 +37,7 @@ LOG_SETTINGS = {"servo-400w": (0.4, 0.005), "outer-rotor-24v": (0.8, 0.005), "in
 
 def chain_log(name: str, seed: int = 0) -> dict:
     """The noisy identification log of preset drive ``name`` (module docstring, step 1)."""
-    spec = drive_spec(name)
-    duration, clock = LOG_SETTINGS[name]
-    log = reference_drive_log(
-        spec.motor,
-        u_dc_v=spec.u_dc_v,
-        Ts=spec.Ts,
-        max_current_a=spec.current_limit_a,
-        current_bandwidth_rad_s=spec.control["current_bandwidth_rad_s"],
-        speed_bandwidth_rad_s=spec.control["speed_bandwidth_rad_s"],
-        speeds_rpm=identification_speeds_rpm(spec.ratings["rated_speed_rpm"]),
-        duration_s=duration,
-        id_amplitude_a=0.2 * spec.current_limit_a,
-        prbs_clock_s=clock,
-    )
-    return add_measurement_noise(log, ID_LOG_NOISE, seed)
+    return commissioning_log(drive_spec(name), *LOG_SETTINGS[name], seed=seed)
 
 
 def run_chain(name: str, folder: Path, *, tune_args=(), montecarlo_runs: int = 1000) -> dict:

@@ -28,11 +28,15 @@ from scipy.integrate import solve_ivp
 
 from tuning.identify.excitation import prbs
 
-__all__ = ["reference_drive_log", "identification_speeds_rpm"]
+__all__ = ["reference_drive_log", "identification_speeds_rpm", "commissioning_log", "PRBS_SHARE"]
 
 #: The speed staircase of the identification run, as shares of the rated speed (several constant speeds,
 #: accelerations both ways and a reversal: J, B and a load separate; :mod:`tuning.identify.excitation`).
 SPEED_SHARES = (0.4, 0.9, 0.15, 0.7, -0.3, 0.5, 0.85, 0.25)
+
+
+#: PRBS amplitude on i_d as a share of the drive's maximum current.
+PRBS_SHARE = 0.2
 
 
 def identification_speeds_rpm(rated_speed_rpm: float) -> tuple[float, ...]:
@@ -126,3 +130,26 @@ def reference_drive_log(
         pending = command
     names = ("time", "u_d", "u_q", "i_d", "i_q", "omega_m", "theta_e", "T_L")
     return {name: rows[:, j].copy() for j, name in enumerate(names)}
+
+
+def commissioning_log(spec, duration_s: float, prbs_clock_s: float, noise=None, seed: int = 0) -> dict:
+    """The identification log of drive file ``spec`` (:class:`pmsmjax.io.drive_files.DriveSpec`): the
+    reference drive at the file's DC link, control rate, current limit and design-rule bandwidths, the
+    staircase of :func:`identification_speeds_rpm`, a PRBS of :data:`PRBS_SHARE` x the maximum current on
+    i_d; ``noise`` (default :data:`pmsmjax.studies.synthetic_logs.ID_LOG_NOISE`: 1 % on the currents, 0.5 %
+    on the voltages) drawn with ``seed``."""
+    from pmsmjax.studies.synthetic_logs import ID_LOG_NOISE, add_measurement_noise
+
+    log = reference_drive_log(
+        spec.motor,
+        u_dc_v=spec.u_dc_v,
+        Ts=spec.Ts,
+        max_current_a=spec.current_limit_a,
+        current_bandwidth_rad_s=spec.control["current_bandwidth_rad_s"],
+        speed_bandwidth_rad_s=spec.control["speed_bandwidth_rad_s"],
+        speeds_rpm=identification_speeds_rpm(spec.ratings["rated_speed_rpm"]),
+        duration_s=duration_s,
+        id_amplitude_a=PRBS_SHARE * spec.current_limit_a,
+        prbs_clock_s=prbs_clock_s,
+    )
+    return add_measurement_noise(log, ID_LOG_NOISE if noise is None else noise, seed)
