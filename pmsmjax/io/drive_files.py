@@ -687,8 +687,8 @@ def _complete_control(
             motor, control["current_bandwidth_rad_s"], ratings["max_current_a"], ratings["rated_speed_rpm"]
         )
         derived["control.speed_bandwidth_rad_s"] = (
-            "a rated-speed step reaches the current limit with the P part alone: k_t I_max / (J w_rated), "
-            "at most a tenth of the current loop's"
+            "a step of a fifth of the rated speed reaches the current limit with the P part alone: "
+            "k_t I_max / (J w_rated / 5), at most a tenth of the current loop's"
         )
     if not control["speed_bandwidth_rad_s"] < control["current_bandwidth_rad_s"]:
         raise ParameterError(
