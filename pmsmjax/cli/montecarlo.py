@@ -7,7 +7,7 @@ import sys
 import textwrap
 
 from pmsmjax.checks.validation import ParameterError
-from pmsmjax.cli import checks
+from pmsmjax.cli import checks, drive_flags
 from pmsmjax.cli.demo import ESTIMATOR_NAMES
 from pmsmjax.cli.gains import add_gains_flag, read_gains_flag
 
@@ -64,22 +64,8 @@ def add_parser(sub):
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--n", type=checks.count(), help="number of runs (default 1000)")
-    p.add_argument(
-        "--motor",
-        help="the drive: a preset (book, book_salient, servo-400w, industrial-5k6w, outer-rotor-24v; "
-        "six-/five-phase: book, book_salient) or a drive file (default: the study TOML's [drive] motor, "
-        "else book)",
-    )
-    p.add_argument(
-        "--u-dc",
-        type=checks.positive("V"),
-        help="DC-link voltage, V (default: the drive file's [inverter] u_dc_v)",
-    )
-    p.add_argument(
-        "--current-limit",
-        type=checks.positive("A"),
-        help="peak current limit, A (default: the drive file's [ratings] max_current_a)",
-    )
+    drive_flags.add_motor_flag(p, default=None, default_text="the study TOML's [drive] motor, else book")
+    drive_flags.add_override_flags(p)
     p.add_argument("--out", default="montecarlo_out", help="output folder (created), default: montecarlo_out")
     p.add_argument("--config", default=None, help="study TOML, layout below (default: none)")
     p.add_argument("--seed", type=checks.count(minimum=0), help="sampling seed (default 0)")

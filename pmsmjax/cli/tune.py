@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from pmsmjax.checks.validation import ParameterError, plain
-from pmsmjax.cli import checks
+from pmsmjax.cli import checks, drive_flags
 
 
 def add_parser(sub):
@@ -35,20 +35,8 @@ def add_parser(sub):
         ),
     )
     p.add_argument("--out", default="tune_out", help="output folder (created), default: tune_out")
-    p.add_argument(
-        "--motor",
-        default="book",
-        help="drive: a preset (book, book_salient, servo-400w, industrial-5k6w, outer-rotor-24v; with "
-        "--machine six-phase or five-phase book, book_salient) or a drive TOML file (default book)",
-    )
-    p.add_argument(
-        "--u-dc", type=checks.positive("V"), help="DC link, V (default: the drive file's [inverter] u_dc_v)"
-    )
-    p.add_argument(
-        "--current-limit",
-        type=checks.positive("A"),
-        help="peak current limit, A (default: the drive file's [ratings] max_current_a)",
-    )
+    drive_flags.add_motor_flag(p)
+    drive_flags.add_override_flags(p)
     p.add_argument(
         "--robust",
         action="store_true",
