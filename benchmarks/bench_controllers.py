@@ -4,7 +4,7 @@ Each drive of :data:`pmsmjax.presets.control_methods.CONTROLS` (its preset defau
 as the command line runs) simulates the same book scenario; the calls are timed interleaved
 (:func:`benchmarks.bench_core.time_interleaved`), so their ratios hold under a varying machine load.
 Figures per drive: control period, periods simulated, best run time, compile time, cost per period and
-per simulated second, and both relative to the PI drive. The issue's goal is <= 1.5x per period for the
+per simulated second, and both relative to the PI drive. The cost goal is <= 1.5x per period for the
 methods that run at the PI drive's 10 kHz; hysteresis current control samples its comparators at 100 kHz,
 so its cost is per simulated second at its own rate (ten periods for one of the PI drive's).
 

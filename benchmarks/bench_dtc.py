@@ -1,4 +1,4 @@
-"""Direct torque control (BOOK.md chapter 4): ripple against bands and sample period, equal switching
+"""Direct torque control (the book, ch. 4): ripple against bands and sample period, equal switching
 frequency, and the cost per simulated second against the FOC drive.
 
 Operating figures (float64), from :func:`pmsmjax.studies.control_comparison.run_control` (the book scenario:

@@ -1,4 +1,4 @@
-"""Per-period cost of the five-phase drive against the three-phase book drive, in one run (BOOK.md ch. 10).
+"""Per-period cost of the five-phase drive against the three-phase book drive, in one run (the book, ch. 10).
 
 Every drive simulates the same book scenario (1000 r/min, 10 N m at 0.2 s, 0.4 s; float32 unless x64 is
 enabled, as the command line runs), timed interleaved (:func:`benchmarks.bench_core.time_interleaved`) so

@@ -6,7 +6,7 @@ salient book motor, design-rule filters; the sensored :func:`pmsmjax.presets.boo
 motor; averaged bridge, 10 RK4 sub-steps, float32 as the command line runs) simulates the same scenario:
 standstill, 10 N m load step at a quarter of the run. The calls are timed interleaved
 (:func:`benchmarks.bench_core.time_interleaved`) so their ratios hold under a varying machine load. The
-issue's goal is <= 1.5x per period. Beside it, the same scan keeping only the speed per period (no Trace
+cost goal is <= 1.5x per period. Beside it, the same scan keeping only the speed per period (no Trace
 record: the drive's arithmetic alone), and each estimator alone on the rotating drive's log
 (:func:`pmsmjax.studies.offline_observer.observe`; the rotating one with the carrier read from the voltages,
 as ``pmsmjax observe`` runs it; the pulsating one for its cost only).

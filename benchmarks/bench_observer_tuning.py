@@ -1,4 +1,4 @@
-"""Observer tuning by gradients against Nelder-Mead on the same loss (issue 14, item 4): time to equal cost.
+"""Observer tuning by gradients against Nelder-Mead on the same loss: time to equal cost.
 
 Per observer (default ``smo`` and ``ekf``; ``--observers`` for others): the book FOC drive on the observer
 behind the sensored warm-up (:func:`tuning.autotune.observers.observer_drive`, 1 RK4 sub-step per period),

@@ -6,7 +6,7 @@ sub-steps, float32 as the command line runs) and the sensored :func:`pmsmjax.pre
 the same scenario: started at 1000 r/min (the observer cold, a flying start; the speed loop's integral
 set as if it had been running), 10 N m load step half way. The calls are timed interleaved
 (:func:`benchmarks.bench_core.time_interleaved`) so their ratios hold under a varying machine load. The
-issue's goal is <= 1.5x per period. Two diagnostics beside it: the same drive scan keeping only the speed
+cost goal is <= 1.5x per period. Two diagnostics beside it: the same drive scan keeping only the speed
 per period (no Trace record: what the drive's arithmetic costs), and
 :func:`pmsmjax.studies.offline_observer.observe` over the sensored run's log (the observer's own cost per
 sample, without the plant).

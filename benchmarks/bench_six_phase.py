@@ -12,7 +12,7 @@ the ratios hold under a varying machine load:
 - a ``vmap`` batch (``--batch``, default 64 runs) of the three-phase and the six-phase VSD drive: the
   per-run cost that Monte Carlo studies and tuning pay.
 
-The issue's goal: the six-phase drive's per-period cost at most 2.5 times the three-phase one's.
+The cost goal: the six-phase drive's per-period cost at most 2.5 times the three-phase one's.
 
     python -m benchmarks.bench_six_phase --json six_phase.json
 """

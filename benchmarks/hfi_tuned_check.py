@@ -1,5 +1,5 @@
 """Tuned chapter 6 gains (``pmsmjax tune --estimator hfi-rotating|hfi-pulsating|hybrid``) on the fixed
-scenarios of ``pmsmjax compare --estimator`` (issue 15): design rule against tuned, outside the batches the
+scenarios of ``pmsmjax compare --estimator``: design rule against tuned, outside the batches the
 tuner saw.
 
 The tuning drive (:mod:`tuning.autotune.hfi_tuning`) wraps the estimator in a sensored warm-up (path

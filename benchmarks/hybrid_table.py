@@ -1,4 +1,4 @@
-"""The hybrid estimator's must-show table (issue 15 item 4) and the contrasts behind its design.
+"""The hybrid estimator's reference table and the contrasts behind its design.
 
 Runs (:mod:`pmsmjax.studies.hybrid_runs`): the book drive on the salient book motor with d-axis saturation,
 sensorless with the hybrid from standstill at 8 initial rotor angles (every 45 degrees, so the injection

@@ -1,4 +1,4 @@
-"""Accuracy of the chapter 5 observers on logs made by the project's own drive (the issue's must-show).
+"""Accuracy of the chapter 5 observers on logs made by the project's own drive (2 degrees RMS is the goal).
 
 Logs: the sensored book drive (design-rule FOC, SVPWM, averaged bridge, 10 kHz) with 0.5 % white noise
 on voltages and currents (:mod:`pmsmjax.studies.synthetic_logs`); each observer runs offline on them with its

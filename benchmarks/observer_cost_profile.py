@@ -1,4 +1,4 @@
-"""Where the per-period cost of a sensorless drive goes (issue 14's cost goal, <= 1.5x the sensored drive).
+"""Where the per-period cost of a sensorless drive goes (the cost goal: <= 1.5x the sensored drive).
 
 The same drive scan (:func:`pmsmjax.simulate`'s checkpointed drive step from a flying start at 1000 r/min,
 10 N m load step half way) is timed with different per-period outputs, for run lengths of ``--durations``

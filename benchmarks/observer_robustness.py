@@ -1,4 +1,4 @@
-"""Issue 14 robustness table: a sensorless Monte Carlo study (``pmsmjax montecarlo --estimator NAME``)
+"""The observers' robustness table: a sensorless Monte Carlo study (``pmsmjax montecarlo --estimator NAME``)
 per chapter 5 observer, summarised as one Markdown table.
 
 Each study draws the plant's R (+-30 %), L_d, L_q (+-20 % each) and psi_f (+-10 %), uniform, while the

@@ -1,6 +1,6 @@
 """A drive: estimator, controller, modulator, bridge and machine composed into one sampled-data step.
 
-One step is one control period ``Ts`` (DESIGN.md, "The drive, generalised"):
+One step is one control period ``Ts``:
 
 1. With imposed speed, the shaft speed is set from the scenario (a dynamometer).
 2. **Sample** at the period start: phase currents ``(n,)`` and their alpha-beta components, the DC

@@ -1,5 +1,5 @@
-"""The values that flow between the blocks of a drive in one control period (DESIGN.md, "The drive,
-generalised").
+"""The values that flow between the blocks of a drive in one control period (the
+sampled-data step of :mod:`pmsmjax.drive`).
 
 ``Sample`` (what the controller's hardware measures at the period start) -> estimator -> ``Estimate`` ->
 controller (with the ``References``) -> ``ControlOutput``. Controllers read only these, never the plant's

@@ -28,7 +28,7 @@ if _CACHE:
 def _release_compiled_programs():
     """Drop JAX's in-memory compiled programs after each test module.
 
-    Kept for the whole session they only grow the process (modules share fixtures within a file, not across
+    Kept for the whole test run they only grow the process (modules share fixtures within a file, not across
     files); a program needed again is loaded from the persistent cache above rather than compiled.
     """
     yield

@@ -1,6 +1,6 @@
-"""The package's layering (DESIGN.md "Layout"), read from the source: every ``import`` under pmsmjax/ and
-tuning/, at module level or inside a function, parsed with :mod:`ast` (nothing is imported but the two
-lazy re-export tables), as a graph of modules.
+"""The package's layering (blocks, engine, workflows), read from the source: every ``import`` under
+pmsmjax/ and tuning/, at module level or inside a function, parsed with :mod:`ast`
+(nothing is imported but the two lazy re-export tables), as a graph of modules.
 
 Checked: no import circle, and the one-way flow of the layers: nothing in pmsmjax imports tuning (except
 the command line, inside the function that runs a subcommand), nothing imports benchmarks or tests, the

@@ -1,4 +1,4 @@
-"""Figures of merit of a sensorless drive's observer (BOOK.md chapter 5): angle and speed estimation
+"""Figures of merit of a sensorless drive's observer (the book, ch. 5): angle and speed estimation
 error, loss of lock, and whether a speed is held under load.
 
 The definitions below serve every user, in three forms:

@@ -1,6 +1,6 @@
 """Is an operating point reachable, and did a run reach it? Voltage and current limits of a PMSM drive.
 
-Steady state of the dq model (BOOK.md chapter 1) at mechanical speed ``w`` (rad/s) under load ``T_L``
+Steady state of the dq model (the book, ch. 1) at mechanical speed ``w`` (rad/s) under load ``T_L``
 (N m) with d-axis current ``i_d`` (A)::
 
     T_e = T_L + B w,  i_q = T_e / (1.5 p (psi_f + (L_d - L_q) i_d)),

@@ -1,4 +1,4 @@
-"""Controller interfaces (DESIGN.md, "The drive, generalised", step 3).
+"""Controller interfaces: the third block of the drive's sampled-data step (:mod:`pmsmjax.drive`).
 
 A drive's controller (:class:`AbstractController`) reads only the :class:`~pmsmjax.signals.Sample`, the
 estimator's :class:`~pmsmjax.signals.Estimate` and the references, and returns a

@@ -1,4 +1,4 @@
-"""dq current PIs with decoupling feed-forward and delay compensation (BOOK.md chapter 3).
+"""dq current PIs with decoupling feed-forward and delay compensation (the book, ch. 3).
 
 Per control period: Park the measured currents with the estimated angle; with a computational delay and
 ``delay_compensation``, predict the current at the next sampling instant from the voltage already

@@ -1,4 +1,4 @@
-"""Design rules for the FOC loops, as functions of the motor parameters (BOOK.md chapter 3).
+"""Design rules for the FOC loops, as functions of the motor parameters (the book, ch. 3).
 
 - Current loop, internal-model design with decoupling feed-forward: ``Kp_d = a_c L_d``,
   ``Kp_q = a_c L_q``, ``Ki = a_c R``. The PI zero cancels the winding pole ``R/L``, leaving the closed

@@ -1,4 +1,4 @@
-"""Switching-table direct torque control (BOOK.md chapter 4; I. Takahashi and T. Noguchi, "A new
+"""Switching-table direct torque control (the book, ch. 4; I. Takahashi and T. Noguchi, "A new
 quick-response and high-efficiency control strategy of an induction motor", IEEE Trans. Ind. Appl.
 IA-22(5), 820-827, 1986; for the PMSM: L. Zhong, M. F. Rahman, W. Y. Hu and K. W. Lim, "Analysis of
 direct torque control in permanent magnet synchronous motor drives", IEEE Trans. Power Electron. 12(3),

@@ -1,4 +1,4 @@
-"""Hysteresis (bang-bang) current control with a speed loop (BOOK.md chapter 3).
+"""Hysteresis (bang-bang) current control with a speed loop (the book, ch. 3).
 
 Per comparator sample (the drive's period ``Ts``, typically 5-20 us), on the estimator's angle:
 
@@ -27,7 +27,7 @@ Trans. Ind. Appl. IA-21(3), 562-570, 1985). The sampled error bound is therefore
 ``h/2 + Ts |di/dt|``, wherever ``U_dc/3`` exceeds the back-EMF and the reference's ``L di*/dt``;
 tests/controllers/test_hysteresis.py derives it and measures both.
 
-Gradients (DESIGN.md, "Gradients"). The exact comparator is piecewise constant, so its derivative with
+Gradients. The exact comparator is piecewise constant, so its derivative with
 respect to the band or to anything upstream is zero almost everywhere. ``comparator="smooth"`` replaces
 the two thresholds by sigmoids of width ``smooth_width_a`` (A)::
 

@@ -1,4 +1,4 @@
-"""Maximum torque per ampere (MTPA) d-axis reference (BOOK.md chapter 3, "MTPA for salient machines").
+"""Maximum torque per ampere (MTPA) d-axis reference (the book, ch. 3, "MTPA for salient machines").
 
 Torque (magnet flux on d, amplitude-invariant dq): ``T_e = 1.5 p_n [psi_f i_q + (L_d - L_q) i_d i_q]``.
 With ``dL = L_q - L_d`` the torque at a fixed current magnitude ``I`` is largest where the gradient of

@@ -1,4 +1,4 @@
-"""Proportional-resonant (PR) current control in the stationary frame (BOOK.md chapter 3).
+"""Proportional-resonant (PR) current control in the stationary frame (the book, ch. 3).
 
 **Theory.** One scalar filter per stationary axis (alpha and beta alike) acts on the current error
 ``e = i_ab* - i_ab``::

@@ -1,4 +1,4 @@
-"""Vector control of the dual three-phase PMSM (BOOK.md chapter 9): the FOC cascade with a six-phase current
+"""Vector control of the dual three-phase PMSM (the book, ch. 9): the FOC cascade with a six-phase current
 loop.
 
 :class:`SixPhaseFOC` is the cascade of :class:`~pmsmjax.controllers.foc.FOC` (the same d-axis reference
@@ -47,7 +47,7 @@ double-dq scheme integrates the same thing in its coordinates: the measured diff
 and the predicted mean (the dq loop of the VSD scheme, :class:`~.current_pi.CurrentLoopGains`, integrates
 its prediction, as for three phases).
 
-**Five phases (BOOK.md chapter 10).** The same cascade drives the five-phase machine: the VSD current block
+**Five phases (the book, ch. 10).** The same cascade drives the five-phase machine: the VSD current block
 takes the winding ``layout`` (:data:`~pmsmjax.frames.multiphase.FIVE_PHASE`: the second plane is x-y), and
 the x-y PI's frame is a static choice, ``rotation``: the frame at ``rotation theta_e``. Six phases use
 ``-1`` (the counter-rotating frame above); five phases ``+3``, the third-harmonic synchronous frame, in

@@ -1,4 +1,4 @@
-"""Sliding-mode speed control with the exponential reaching law (BOOK.md chapter 3).
+"""Sliding-mode speed control with the exponential reaching law (the book, ch. 3).
 
 **Theory.** With ``x1 = w* - w_m`` (rad/s), ``x2 = dx1/dt`` (rad/s^2), ``D = 1.5 p_n psi_f / J``
 (rad/(A s^2)) and the mechanics ``J dw_m/dt = K_t i_q - T_L - B w_m``, a constant reference gives
@@ -44,7 +44,7 @@ inside the switching function; the rest of the law never differentiates the meas
 
 **Switching function** ``f`` (static ``switching``): ``"sign"`` (exact, the book's; chatters, and its
 gradient is zero almost everywhere), ``"saturation"`` ``clip(s/boundary, -1, 1)`` or ``"tanh"``
-``tanh(s/boundary)`` (boundary layers; smooth surrogate for gradients: DESIGN.md "Gradients"). On the
+``tanh(s/boundary)`` (boundary layers; smooth surrogate for gradients, selectable by a field). On the
 book drive with the design rule the sign law's i_q* chatters as a 420 Hz triangle of +-0.7 A (it moves
 ``eps Ts / D`` = 0.11 A every period); with a 2500-line encoder's speed it also wanders, the speed
 drifting over 979-1020 r/min at 1000 r/min, where the boundary layers hold it within 1 r/min

@@ -1,4 +1,4 @@
-"""Sliding-mode direct torque control with space-vector modulation (BOOK.md chapter 4; the variable-structure
+"""Sliding-mode direct torque control with space-vector modulation (the book, ch. 4; the variable-structure
 DTC of C. Lascu, I. Boldea and F. Blaabjerg, "Variable-structure direct torque control - a class of fast
 and robust controllers for induction machine drives", IEEE Trans. Ind. Electron. 51(4), 785-792, 2004,
 doi:10.1109/TIE.2004.831721; for the PMSM: Z. Xu and M. F. Rahman, "Direct torque and flux regulation of
@@ -30,7 +30,7 @@ the flux magnitude to ``v_x`` as ``d|psi|/dt = v_x`` exactly.
 with switching function ``f`` (static ``switching``): ``"sign"`` (the pure sliding mode: ``v = +-K``
 every period, chattering of ``b_T K_T Ts`` per period), ``"saturation"`` ``clip(s/phi, -1, 1)``
 (boundary layer: linear with gain ``K/phi`` inside, ``+-K`` outside; the default) or ``"tanh"`` (the
-smooth surrogate for gradients, DESIGN.md "Gradients"). Outside the layer the error falls at the
+smooth surrogate for gradients). Outside the layer the error falls at the
 constant rate ``b_T K_T`` (torque) or ``K_psi`` (flux) whatever its size (the sliding condition
 ``s ds/dt < 0`` holds while ``K`` exceeds the disturbance); inside it the loop is first order with
 bandwidth ``a_T = b_T K_T / phi_T`` and ``a_psi = K_psi / phi_psi`` (rad/s). The feed-forward makes the

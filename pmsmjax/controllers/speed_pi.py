@@ -1,4 +1,4 @@
-"""Speed PI with active damping (BOOK.md chapter 3): ``i_q* = (Kp_w + Ki_w/s)(w* - w) - B_a w``.
+"""Speed PI with active damping (the book, ch. 3): ``i_q* = (Kp_w + Ki_w/s)(w* - w) - B_a w``.
 
 Discrete, once per speed-loop period, with the output limited to ``+-iq_max`` and realisable-reference
 anti-windup: back-calculation with tracking time constant ``T_t = Kp_w/Ki_w``

@@ -1,4 +1,4 @@
-"""Adaptive sliding-mode observer (``adaptive-smo``, BOOK.md chapter 5): the classic SMO's low-pass
+"""Adaptive sliding-mode observer (``adaptive-smo``, the book, ch. 5): the classic SMO's low-pass
 filter replaced by a back-EMF model with speed adaptation, so the back-EMF estimate has no phase lag.
 
 Equations (Qiao, Shi, Wang, Yan, Xia, He, "New sliding-mode observer for position sensorless control of

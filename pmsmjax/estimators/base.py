@@ -1,5 +1,5 @@
-"""The estimator interface: sampled measurements -> rotor angle and speed (DESIGN.md, "The drive,
-generalised", step 2).
+"""The estimator interface: sampled measurements -> rotor angle and speed (the
+second block of the sampled-data step of :mod:`pmsmjax.drive`).
 
 An estimator is the block between sampling and control. The exact sensor, an encoder and every observer of
 the later chapters (sliding-mode, MRAS, EKF, HF injection) implement it, so a sensorless drive is the same

@@ -1,5 +1,5 @@
-"""Sliding-mode observer in the estimated rotating frame on the extended EMF (``dq-smo``, BOOK.md
-chapter 5), for salient machines; a PLL drives the estimated EEMF's d component to zero.
+"""Sliding-mode observer in the estimated rotating frame on the extended EMF (``dq-smo``, the book,
+ch. 5.3), for salient machines; a PLL drives the estimated EEMF's d component to zero.
 
 Extended EMF model (Chen, Tomita, Doki, Okuma, "An extended electromotive force model for sensorless
 control of interior permanent-magnet synchronous motors", IEEE TIE 50(2), 2003,

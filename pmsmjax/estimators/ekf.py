@@ -1,4 +1,4 @@
-"""Extended Kalman filter (``ekf``, BOOK.md chapter 5): state ``[i_a, i_b, w_e, th_e]``, measurements
+"""Extended Kalman filter (``ekf``, the book, ch. 5): state ``[i_a, i_b, w_e, th_e]``, measurements
 ``[i_a, i_b]``, inputs ``[u_a, u_b]``; ``Q``, ``R`` and ``P0`` are the tuning knobs.
 
 Model (Bolognani, Oboe, Zigliotto, "Sensorless full-digital PMSM drive with EKF estimation of speed and

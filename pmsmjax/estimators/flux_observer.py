@@ -1,4 +1,4 @@
-"""Stator flux and torque from the sampled currents and the applied voltage (BOOK.md chapter 4).
+"""Stator flux and torque from the sampled currents and the applied voltage (the book, ch. 4).
 
 **Theory.** The voltage model of the stator flux linkage in the stationary frame,
 ``psi_ab = int (u_ab - R i_ab) dt``, and the torque ``T_e = 1.5 p_n (psi_a i_b - psi_b i_a)`` (N m), need

@@ -1,4 +1,4 @@
-"""Pulsating high-frequency injection on the estimated d axis (BOOK.md chapter 6): the rotor angle modulo pi
+"""Pulsating high-frequency injection on the estimated d axis (the book, ch. 6): the rotor angle modulo pi
 and the speed from the saliency, at standstill and low speed.
 
 Injection: ``u_dh = V_h cos(w_h t)``, ``u_qh = 0`` in the estimated rotor frame, turned to the stationary

@@ -1,4 +1,4 @@
-"""Rotating high-frequency injection (BOOK.md chapter 6): the rotor angle modulo pi and the speed from the
+"""Rotating high-frequency injection (the book, ch. 6): the rotor angle modulo pi and the speed from the
 saliency, at standstill and low speed.
 
 Injection: ``u_ab,h = V_h [cos w_h t, sin w_h t]`` added to the controller's command (``u_injection_ab``,

@@ -1,11 +1,11 @@
-"""The high-frequency carrier shared by the injection estimators (BOOK.md chapter 6): its sampled phase,
+"""The high-frequency carrier shared by the injection estimators (the book, ch. 6): its sampled phase,
 the band-pass filter that separates it from the fundamental, and the HF current a salient machine
 answers with.
 
-**HF model.** At the injection frequency ``w_h`` the resistance and back-EMF are negligible (BOOK.md ch. 6:
+**HF model.** At the injection frequency ``w_h`` the resistance and back-EMF are negligible (the book, ch. 6:
 ``u_dh = L_d di_dh/dt``, ``u_qh = L_q di_qh/dt``), so the HF current is the inverse inductance times the HF
 flux ``psi_h = int u_h dt``. In complex stationary-frame notation (``x = x_a + j x_b``) the salient
-inductance of BOOK.md ch. 1 is ``psi = L0 i + L2 e^{j 2 th} conj(i)`` with ``L0 = (L_d + L_q)/2``,
+inductance of the book, ch. 1 is ``psi = L0 i + L2 e^{j 2 th} conj(i)`` with ``L0 = (L_d + L_q)/2``,
 ``L2 = (L_d - L_q)/2``, whose inverse is
 
     i = (L0 psi - L2 e^{j 2 th} conj(psi)) / (L_d L_q).

@@ -1,5 +1,5 @@
 """Sensorless over the whole speed range: HF injection at low speed, a chapter 5 observer above a crossover
-band (BOOK.md chapter 6 with chapter 5; the weighted hand-over of e.g. Silva, Asher, Sumner, "Hybrid
+band (the book, ch. 6 with chapter 5; the weighted hand-over of e.g. Silva, Asher, Sumner, "Hybrid
 rotor position observer for wide speed-range sensorless PM motor drives including zero speed", IEEE
 Trans. Ind. Electron. 53(2), 2006, doi:10.1109/TIE.2006.870875).
 

@@ -1,4 +1,4 @@
-"""Model-reference adaptive system (``mras``, BOOK.md chapter 5): the machine is the reference model, the
+"""Model-reference adaptive system (``mras``, the book, ch. 5): the machine is the reference model, the
 current model with the estimated speed the adjustable one, and a Popov-hyperstable PI law adapts the speed.
 
 Equations (book; the PMSM form of Schauder's speed MRAS, Schauder, "Adaptive speed identification for

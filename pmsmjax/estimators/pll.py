@@ -1,4 +1,4 @@
-"""Phase-locked loop: angle and speed from a phase error (BOOK.md chapter 5: "a PLL on
+"""Phase-locked loop: angle and speed from a phase error (the book, ch. 5: "a PLL on
 ``-e_a cos th^ - e_b sin th^`` (PI -> w^, integrate -> th^)").
 
 Sampled form (ODrive, ``Firmware/MotorControl/sensorless_estimator.cpp``): each period

@@ -1,5 +1,5 @@
-"""Magnet polarity detection at start-up by two current pulses along the estimated +-d axis (BOOK.md
-chapter 6, "magnet polarity needs a saturation effect"; the secant-inductance form of the pulse method of
+"""Magnet polarity detection at start-up by two current pulses along the estimated +-d axis (the book,
+ch. 6, "magnet polarity needs a saturation effect"; the secant-inductance form of the pulse method of
 Jeong, Lorenz, Jahns, Sul, IEEE Trans. Ind. Appl. 41(1), 2005, doi:10.1109/TIA.2004.840978, and
 Noguchi, Yamada, Kondo, Takahashi, "Initial rotor position estimation method of sensorless PM synchronous
 motor with no sensitivity to armature resistance", IEEE Trans. Ind. Electron. 45(1), 1998).
@@ -30,7 +30,7 @@ at both ends.
 
 The decision is a comparator: exact by default (its derivative is zero almost everywhere, which is
 right); ``decision="sigmoid"`` replaces the flip by ``pi sigmoid((L(+) - L(-)) / decision_scale)``, a
-smooth surrogate for gradient studies (DESIGN.md "Gradients").
+smooth surrogate for gradient studies.
 """
 
 from typing import Literal

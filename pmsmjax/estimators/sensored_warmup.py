@@ -1,5 +1,5 @@
 """Sensored warm-up: the drive runs on its position sensor for a fixed time while the observer converges in
-the background, then on the observer (issue 14, observer tuning).
+the background, then on the observer (used by the observer tuning).
 
 Why: to tune an observer by gradients the loss must be a smooth function of its gains. A start from
 standstill with the I/f hand-over (:mod:`.startup`) is continuous, but whether a back-EMF observer locks

@@ -1,4 +1,4 @@
-"""Classic sliding-mode observer in the stationary frame (BOOK.md chapter 5): ``smo`` (angle by arctan)
+"""Classic sliding-mode observer in the stationary frame (the book, ch. 5): ``smo`` (angle by arctan)
 and ``smo-pll`` (angle by a PLL).
 
 Equations (book; Chi, Zhang, Xu, "Sliding-mode sensorless control of direct-drive PM synchronous motors

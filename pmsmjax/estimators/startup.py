@@ -1,5 +1,5 @@
 """Sensorless start from standstill: a current-controlled I/f start with hand-over to an observer
-(BOOK.md chapter 5, "start-up"; the I/f method of Fatu, Teodorescu, Boldea, Andreescu, Blaabjerg,
+(the book, ch. 5, "start-up"; the I/f method of Fatu, Teodorescu, Boldea, Andreescu, Blaabjerg,
 "I-F starting method with smooth transition to EMF based motion-sensorless vector control of PM
 synchronous motor/generator", IEEE PESC 2008, doi:10.1109/PESC.2008.4592384).
 

@@ -18,7 +18,7 @@ its *middle* (a little after it: the winding's decay weights the period's end mo
 either end instead costs ``omega Ts / 2`` of angle: 1.2 electrical degrees at 1000 r/min on the book motor
 (4 pole pairs, 10 kHz). This is the "half-sample bookkeeping".
 
-**Back-EMF direction.** ``e_ab = omega_e psi_f [-sin th, cos th]`` (BOOK.md chapter 1), so
+**Back-EMF direction.** ``e_ab = omega_e psi_f [-sin th, cos th]`` (the book, ch. 1), so
 ``th = atan2(-e_a, e_b)`` for positive speed and ``th = atan2(e_a, -e_b)`` for negative speed: the EMF
 alone does not tell the direction (``(omega, th)`` and ``(-omega, th + pi)`` give the same EMF).
 

@@ -1,4 +1,4 @@
-"""Switching functions of the sliding-mode observers (BOOK.md chapter 5): ``z = k F(i_hat - i)``.
+"""Switching functions of the sliding-mode observers (the book, ch. 5): ``z = k F(i_hat - i)``.
 
 - ``"sign"``: ``F(x) = sign(x)``, the book's ideal sliding mode. Sampled at 10 kHz it chatters: each
   period the observer current jumps by ``k Ts / L`` (13 A for the design-rule ``k`` on the book motor),

@@ -1,5 +1,5 @@
 """Multi-phase reference frames: vector space decomposition (VSD) of n phases, and the six-phase double dq
-(BOOK.md chapter 7); the five-phase layout of chapter 10.
+(the book, ch. 7); the five-phase layout of chapter 10.
 
 **Phase layout.** A machine's windings are described by a :class:`PhaseLayout`: the angle of each phase's
 magnetic axis (rad, from the A axis), the groups of phases that share an isolated star point, and the
@@ -130,7 +130,7 @@ SIX_PHASE = PhaseLayout(
     name="six-phase (dual three-phase, 30 deg)",
 )
 
-#: The symmetrical five-phase winding (BOOK.md chapter 10): A, B, C, D, E at 0, 72, 144, 216, 288 deg, one
+#: The symmetrical five-phase winding (the book, ch. 10): A, B, C, D, E at 0, 72, 144, 216, 288 deg, one
 #: isolated star point; subspaces alpha-beta (fundamental, order 1) and x-y (order 3). Phase harmonics of
 #: orders ``5k +- 1`` map into alpha-beta, ``5k +- 2`` (3, 7, 13, ...) into x-y, multiples of 5 into the
 #: zero sequence (no current with an isolated star).

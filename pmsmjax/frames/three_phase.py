@@ -1,6 +1,6 @@
 """Reference-frame transforms for three-phase quantities.
 
-Conventions (BOOK.md, whole project):
+Conventions (docs/book_reference.md, whole project):
 
 - Clarke, amplitude-invariant (default, factor 2/3)::
 

@@ -1,4 +1,4 @@
-"""Carrier PWM with zero-sequence injection for any multi-phase layout (BOOK.md chapter 8: six phases, one
+"""Carrier PWM with zero-sequence injection for any multi-phase layout (the book, ch. 8: six phases, one
 min-max zero sequence per three-phase set, preset name ``double-zs``; chapter 10: five phases).
 
 The VSD reference (``(2,)`` alpha-beta, the other planes 0, or the full ``(2 n_planes,)``) becomes phase
@@ -12,7 +12,7 @@ with the centre-aligned carrier: ``d_x = 1/2 + (u_x + u_0,S)/U_dc``, clipped to 
   amplitude ``U`` peaks at ``2 U cos(pi/(2m))``, so the linear range is ``U_dc / (2 cos(pi/(2m)))``:
   five phases ``0.5257 U_dc`` (5.15 % above sinusoidal PWM), three-phase stars ``U_dc/sqrt(3)``. On a
   three-phase star min-max injection is the three-phase :class:`~pmsmjax.inverters.MinMaxPWM`, which is
-  SVPWM inside the linear range (BOOK.md chapter 2): for six phases these duties equal those of
+  SVPWM inside the linear range (the book, ch. 2): for six phases these duties equal those of
   :class:`~pmsmjax.inverters.decoupled_svpwm.DecoupledSVPWM` (one book SVPWM per set), two different
   constructions checked against each other in the tests.
 - ``injection="none"``: sinusoidal PWM, linear to ``U_dc/2``.

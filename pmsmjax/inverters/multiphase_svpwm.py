@@ -1,5 +1,5 @@
 """Space-vector PWM for any multi-phase layout with two VSD planes: near-four-vector and large-vector SVPWM
-(BOOK.md chapter 8: the six-phase four-vector and two-vector methods; chapter 10: five phases).
+(the book, ch. 8: the six-phase four-vector and two-vector methods; chapter 10: five phases).
 
 In the sector ``k`` of the alpha-beta reference (between the large vectors L_k and L_k+1,
 :mod:`.multiphase_vectors`) :class:`NearFourVectorSVPWM` applies L_k, L_k+1 and the two collinear vectors

@@ -1,5 +1,5 @@
 """The ``2^n`` switching states of an n-leg inverter feeding a multi-phase machine with isolated star points,
-projected on the VSD planes, for any :class:`~pmsmjax.frames.multiphase.PhaseLayout` (BOOK.md chapters 8
+projected on the VSD planes, for any :class:`~pmsmjax.frames.multiphase.PhaseLayout` (the book, ch. 8
 and 10; Zhao & Lipo, IEEE TIA 31(5), 1995, for the dual three-phase machine).
 
 State index ``s = sum_x b_x 2^x`` (``b_x`` the upper switch of leg ``x``, leg order of the layout). Each

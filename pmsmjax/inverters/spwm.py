@@ -1,4 +1,4 @@
-"""Carrier-based sinusoidal PWM and its zero-sequence-injection variants (BOOK.md chapter 2).
+"""Carrier-based sinusoidal PWM and its zero-sequence-injection variants (the book, ch. 2).
 
 All three compare each phase's reference plus a common zero-sequence voltage ``u_0`` with a centre-aligned
 carrier sampled once per period (regular sampling): leg duty ``d_x = 1/2 + (u_x + u_0)/U_dc`` with

@@ -1,4 +1,4 @@
-"""Space-vector PWM in the book's form (BOOK.md chapter 2).
+"""Space-vector PWM in the book's form (the book, ch. 2).
 
 Sector from the signs of ``U1 = u_b``, ``U2 = (sqrt3 u_a - u_b)/2``, ``U3 = (-sqrt3 u_a - u_b)/2``:
 ``N = [U1>0] + 2[U2>0] + 4[U3>0]`` (N = 3, 1, 5, 4, 6, 2 are sectors I..VI). Dwell times of the two

@@ -24,7 +24,7 @@ Current sign. Both use the phase current at the start of each segment, carried t
 for a dead window that is the current at the gate edge, as in the real circuit (a zero crossing inside
 the ``t_d`` window itself is neglected). ``current_sign="exact"`` (default) uses ``sign(i)``; ``"smooth"``
 the surrogate ``tanh(i/eps)`` (``eps = sign_smoothing``, A), which blends the two diode states near zero
-current and makes the model differentiable with respect to the current there (DESIGN.md gradient policy).
+current and makes the model differentiable with respect to the current there.
 At exactly zero current the exact sign is 0 and a dead window puts the pole at ``U_dc/2`` (the real
 voltage is set by the machine then; the window lasts a few microseconds).
 

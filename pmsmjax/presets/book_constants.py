@@ -1,8 +1,8 @@
 """The book's reference motor, drive and scenario as plain numbers, each defined here once.
 
-BOOK.md, "Reference motor and scenario (three-phase, chapters 1-6)" and chapter 3 (the design-rule
-bandwidths). Plain Python (no JAX), so that the command line reads these for the checks it makes
-before JAX starts; every preset, command and workflow takes its book value from here.
+docs/book_reference.md, "Reference motor and scenario (three-phase, chapters 1-6)" and chapter 3
+(the design-rule bandwidths). Plain Python (no JAX), so that the command line reads these for the checks
+it makes before JAX starts; every preset, command and workflow takes its book value from here.
 """
 
 from types import MappingProxyType

@@ -5,12 +5,12 @@ command line derives and checks a drive before anything compiles.
 Motors are dicts of SI values (``R, L_d, L_q, psi_f, pole_pairs, J, B``; a multi-phase motor adds
 ``n_phases``), steady states those of :mod:`pmsmjax.analysis.operating_point`.
 
-**Torque per current** (BOOK.md chapter 1, MTPA of chapter 2): ``T = (n/2) p i_q (psi_f + (L_d - L_q)
+**Torque per current** (the book, ch. 1, MTPA of chapter 2): ``T = (n/2) p i_q (psi_f + (L_d - L_q)
 i_d)``, with the MTPA d-axis current for a current magnitude ``I``::
 
     i_d = (psi_f - sqrt(psi_f^2 + 8 (L_q - L_d)^2 I^2)) / (4 (L_q - L_d))      (0 for L_d = L_q)
 
-**Current-loop bandwidth** (:func:`current_bandwidth_rule`): the internal-model PI of BOOK.md chapter 3
+**Current-loop bandwidth** (:func:`current_bandwidth_rule`): the internal-model PI of the book, ch. 3
 makes the current loop ``a_c / s`` times the loop's delay, one period of computation plus half a period of
 the PWM's zero-order hold, ``1.5 Ts``; its phase margin is ``90 deg - 1.5 Ts a_c`` (rad). The rule keeps
 :data:`CURRENT_LOOP_PHASE_MARGIN_DEG` = 65 deg: ``a_c = (pi/2 - 65 deg) / (1.5 Ts) = 0.29 / Ts`` (2.9 krad/s
@@ -20,7 +20,7 @@ usual discrete-time bound (Harnefors et al., "Speed control of electrical drives
 methods", IEEE TIA 49(2), 2013, DOI 10.1109/TIA.2012.2235185, which also asks the speed loop to stay well
 below the current loop).
 
-**Speed-loop bandwidth** (:func:`speed_bandwidth_rule`): the active-damping PI (BOOK.md chapter 3) asks
+**Speed-loop bandwidth** (:func:`speed_bandwidth_rule`): the active-damping PI (the book, ch. 3) asks
 ``Kp omega = beta J omega / k_t`` of current on a speed step ``omega``; the rule takes the largest
 ``beta`` that keeps a step of a fifth of the rated speed inside the current limit (linear, no wind-up),
 ``beta = T_max / (J omega_rated / 5)``: five times the inverse of the time the drive needs to accelerate

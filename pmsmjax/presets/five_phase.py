@@ -1,4 +1,4 @@
-"""The five-phase reference motor and drives (BOOK.md chapter 10).
+"""The five-phase reference motor and drives (the book, ch. 10).
 
 **Motor: the book motor rewound as a symmetrical five-phase machine with the same copper.** The book's text
 gives no five-phase parameters, so the preset is derived from the three-phase book motor (p_n = 4,
@@ -139,7 +139,7 @@ def _large():
     return LargeVectorSVPWM(FIVE_PHASE)
 
 
-#: Modulators (BOOK.md chapter 10): near-four-vector SVPWM, carrier PWM with min-max zero-sequence
+#: Modulators (the book, ch. 10): near-four-vector SVPWM, carrier PWM with min-max zero-sequence
 #: injection, sinusoidal carrier PWM (no injection; the reference point for DC-link use), and the
 #: two-large-vector SVPWM (x-y uncontrolled: the contrast that shows why the near-four-vector method).
 FIVE_PHASE_PWMS = {
@@ -149,7 +149,7 @@ FIVE_PHASE_PWMS = {
     "large-vector": _large,
 }
 
-#: Control schemes (BOOK.md chapter 10): name -> one-line description.
+#: Control schemes (the book, ch. 10): name -> one-line description.
 FIVE_PHASE_CONTROLS = {
     "vsd": "i_d = 0 vector control: dq PIs and x-y PIs (3 theta_e frame), PI speed loop (ch. 10)",
     "conventional": "dq PIs only, x-y voltage zero (open loop), PI speed loop (ch. 10)",

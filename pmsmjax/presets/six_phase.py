@@ -1,4 +1,4 @@
-"""The six-phase (dual three-phase) reference motor and drives (BOOK.md chapters 7-9).
+"""The six-phase (dual three-phase) reference motor and drives (the book, ch. 7-9).
 
 **Motor: the book motor rewound as a dual three-phase machine with the same copper.** The book's text gives
 no six-phase parameters, so the preset is derived from the three-phase book motor (p_n = 4, R = 0.958 ohm,
@@ -174,7 +174,7 @@ def _double_zs():
     return ZeroSequencePWM(SIX_PHASE, "min-max", name="double-zs")
 
 
-#: Modulators (BOOK.md chapter 8), name -> constructor: four-vector SVPWM (Zhao & Lipo 1995: the L and ML
+#: Modulators (the book, ch. 8), name -> constructor: four-vector SVPWM (Zhao & Lipo 1995: the L and ML
 #: vectors, z1-z2 average nulled; the n-phase near-four-vector method), two-vector SVPWM (the L vectors
 #: only, z1-z2 uncontrolled), decoupled SVPWM (the book's SVPWM on each set) and carrier PWM with one
 #: min-max zero sequence per set (the same duties as decoupled SVPWM inside the linear range).
@@ -185,7 +185,7 @@ SIX_PHASE_PWMS = {
     "double-zs": _double_zs,
 }
 
-#: Control schemes (BOOK.md chapter 9): name -> one-line description.
+#: Control schemes (the book, ch. 9): name -> one-line description.
 SIX_PHASE_CONTROLS = {
     "vsd": "VSD: dq PIs and z1-z2 PIs (counter-rotating frame), PI speed loop (ch. 9)",
     "double-dq": "double dq: four PIs with cross-coupling compensation, PI speed loop (ch. 9)",

@@ -1,7 +1,8 @@
 """The book's reference motor, drive and scenario, and motor files.
 
-Their numbers (BOOK.md, chapters 1-6: the surface motor and its salient variant for HF injection, 311 V,
-10 kHz, the 1000 r/min step with a 10 N m load at 0.2 s) are :mod:`pmsmjax.presets.book_constants`.
+Their numbers (docs/book_reference.md, chapters 1-6: the surface motor and its salient variant for HF
+injection, 311 V, 10 kHz, the 1000 r/min step with a 10 N m load at 0.2 s) are
+:mod:`pmsmjax.presets.book_constants`.
 Drives: :func:`book_drive` (FOC, SVPWM) and :func:`hysteresis_drive` (hysteresis current control).
 """
 
@@ -122,7 +123,7 @@ def smc_drive(
     margin: float = 1.2,
     **drive_kw,
 ) -> Drive:
-    """The book's FOC drive (:func:`book_drive`) with the sliding-mode speed block (BOOK.md chapter 3).
+    """The book's FOC drive (:func:`book_drive`) with the sliding-mode speed block (the book, ch. 3).
 
     ``drive_kw`` go to :func:`book_drive` (frame, Ts, current_limit, current_bandwidth, ...; the
     ``speed_bandwidth`` there is unused). The sliding-mode gains follow
@@ -169,7 +170,7 @@ def hysteresis_drive(
     comparator: str = "exact",
     smooth_width_a: float = 0.05,
 ) -> Drive:
-    """The book's motor under hysteresis current control (BOOK.md chapter 3) with the design-rule speed PI.
+    """The book's motor under hysteresis current control (the book, ch. 3) with the design-rule speed PI.
 
     No modulator: the comparator's switch states drive the legs directly, held for one comparator sample
     ``sample_period_s``; the averaged bridge is exact for a held switch state (the period-average
@@ -263,7 +264,7 @@ def pr_drive(
     back_emf_feedforward: bool = True,
     **kw,
 ) -> Drive:
-    """The book drive with the proportional-resonant current loop in alpha-beta (BOOK.md chapter 3).
+    """The book drive with the proportional-resonant current loop in alpha-beta (the book, ch. 3).
 
     Same speed loop, limits, modulator, bridge and machine as :func:`book_drive` (``kw`` goes there);
     the current block is :func:`pmsmjax.controllers.pr.pr_design` at the same current bandwidth, with
@@ -402,7 +403,7 @@ def dtc_drive(
     n_substeps: int = 1,
     computation_delay: bool = False,
 ) -> Drive:
-    """The book's motor under switching-table DTC (BOOK.md chapter 4) with the design-rule speed PI.
+    """The book's motor under switching-table DTC (the book, ch. 4) with the design-rule speed PI.
 
     :class:`~pmsmjax.controllers.SwitchingTableDTC` on the flux and torque of a
     :class:`~pmsmjax.estimators.StatorFluxObserver` (voltage model blended with the current model below
@@ -471,7 +472,7 @@ def smc_dtc_drive(
     computation_delay: bool = True,
     speed_divider: int = 1,
 ) -> Drive:
-    """The book's motor under sliding-mode DTC with SVPWM (BOOK.md chapter 4) and the design-rule speed PI.
+    """The book's motor under sliding-mode DTC with SVPWM (the book, ch. 4) and the design-rule speed PI.
 
     :class:`~pmsmjax.controllers.SlidingModeDTC` with the gains of
     :func:`pmsmjax.controllers.smc_dtc.smc_dtc_design` (torque slew 10 N m/ms, flux slew 20 Wb/s, 2000

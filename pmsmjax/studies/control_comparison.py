@@ -1,4 +1,4 @@
-"""Controllers side by side on the book scenario (BOOK.md chapter 3; later chapters add their methods).
+"""Controllers side by side on the book scenario (the book, ch. 3; later chapters add their methods).
 
 Every controller drives the same motor through the same scenario (speed step from rest, load step). The
 step and load figures come from :func:`pmsmjax.analysis.speed_step_summary.speed_step_summary`; the ripple

@@ -1,5 +1,5 @@
 """Bands of a switching controller set for a chosen mean switching frequency (comparisons at equal
-switching losses, BOOK.md chapter 4).
+switching losses, the book, ch. 4).
 
 A hysteresis-type controller (table DTC, hysteresis current control) switches at a frequency that follows
 from its bands, its sample period and the operating point, while a PWM controller switches at its carrier

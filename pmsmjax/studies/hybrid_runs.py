@@ -1,4 +1,4 @@
-"""The hybrid estimator's two must-show runs, shared by tests/estimators/test_hybrid.py and
+"""The hybrid estimator's two reference runs, shared by tests/estimators/test_hybrid.py and
 benchmarks/hybrid_table.py: the book drive on the salient book motor with d-axis saturation
 (:func:`pmsmjax.machines.saturated_machine`), sensorless with :func:`pmsmjax.estimators.hybrid.hybrid_design`
 from standstill at several initial rotor angles.

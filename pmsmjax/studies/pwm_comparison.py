@@ -1,5 +1,5 @@
 """The PWM comparison for any phase count: every modulator of a drive at one steady operating point, with the
-averaged and the switching-resolved bridge (BOOK.md chapter 2: three phases; chapter 8: six; chapter 10:
+averaged and the switching-resolved bridge (the book, ch. 2: three phases; chapter 8: six; chapter 10:
 five).
 
 Procedure (all variants at the same operating point, so at equal fundamental voltage up to what the
@@ -84,7 +84,7 @@ __all__ = [
 ]
 
 BRIDGES = ("averaged", "switching", "deadtime")
-#: The three-phase modulators (BOOK.md chapter 2), name -> constructor.
+#: The three-phase modulators (the book, ch. 2), name -> constructor.
 MODULATORS = {
     "sinusoidal": SinusoidalPWM,
     "third_harmonic": ThirdHarmonicPWM,
@@ -99,7 +99,7 @@ THD_DEFINITION = (
 
 @dataclasses.dataclass(frozen=True)
 class SecondPlane:
-    """The VSD plane of a multi-phase winding besides alpha-beta (BOOK.md chapters 8 and 10).
+    """The VSD plane of a multi-phase winding besides alpha-beta (the book, ch. 8 and 10).
 
     `key`: its name in the figures' keys (``z``, ``xy``); `name`: in text (``z1-z2``, ``x-y``); `orders`:
     the two harmonic orders of the phase currents that live in it (six phases 5 and 7, five phases 3 and 7).
@@ -122,7 +122,7 @@ class PhaseCount:
       voltages; the waveforms name the phase currents and voltages `current_key` and `voltage_key`.
     - `second_plane`: that of a multi-phase winding (its figures of merit), with the winding's `layout`;
       None for three phases, which report the line-to-line voltages, the modulation index and the DC-bus
-      utilisation against sinusoidal PWM instead (BOOK.md chapter 2).
+      utilisation against sinusoidal PWM instead (the book, ch. 2).
     - `record`: what the report's settings add (the multi-phase drives' control scheme); `thd_definition`.
     """
 
@@ -361,7 +361,7 @@ def analyse(wave: dict, settings: CompareSettings, Ts: float, u_dc: float) -> di
 
 
 def sinusoidal(u_dc: float) -> float:
-    """Sinusoidal PWM's linear limit, V peak: the reference of the DC-bus utilisation (BOOK.md chapter 2)."""
+    """Sinusoidal PWM's linear limit, V peak: the reference of the DC-bus utilisation (the book, ch. 2)."""
     return float(SinusoidalPWM().linear_limit(u_dc))
 
 

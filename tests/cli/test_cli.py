@@ -81,8 +81,8 @@ def test_demo_npz_matches_csv(tmp_path):
 
 
 def _status(argv) -> int:
-    """main's exit status, also for a flag refused while parsing (argparse exits with SystemExit(2); since
-    issue 18 --substeps and --speed-bandwidth are checked there)."""
+    """main's exit status, also for a flag refused while parsing (argparse exits with SystemExit(2);
+    --substeps and --speed-bandwidth are checked there)."""
     try:
         return main(argv)
     except SystemExit as done:
@@ -92,7 +92,7 @@ def _status(argv) -> int:
 @pytest.mark.parametrize(
     "bad, field",
     [
-        # Messages name the flag as typed (issue 18): was "n_substeps" and "duration_s".
+        # Messages name the flag as typed, not the field ("n_substeps", "duration_s").
         (["--substeps", "0"], "--substeps"),
         (["--duration-s", "0.30005"], "--duration-s"),
         (["--motor", "no_such_motor.toml"], "no_such_motor"),

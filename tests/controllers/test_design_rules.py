@@ -1,4 +1,4 @@
-"""Design rules of the FOC loops (BOOK.md chapter 3) against their formulas and their closed-loop claims.
+"""Design rules of the FOC loops (the book, ch. 3) against their formulas and their closed-loop claims.
 
 Current loop (internal-model design): ``Kp_d = a_c L_d``, ``Kp_q = a_c L_q``, ``Ki = a_c R`` should give the
 closed loop ``a_c/(s + a_c)`` (10-90 % rise ``ln 9 / a_c``). Speed loop with active damping:

@@ -1,4 +1,4 @@
-"""Direct torque control (BOOK.md chapter 4): the flux observer, switching-table DTC and sliding-mode DTC.
+"""Direct torque control (the book, ch. 4): the flux observer, switching-table DTC and sliding-mode DTC.
 
 What each test compares with (never the code's own earlier output):
 

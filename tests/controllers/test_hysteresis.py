@@ -1,4 +1,4 @@
-"""Hysteresis current control (BOOK.md chapter 3) and its preset and metrics.
+"""Hysteresis current control (the book, ch. 3) and its preset and metrics.
 
 What each test compares with (never the code's own earlier output):
 
@@ -289,7 +289,7 @@ def test_halving_the_band_doubles_the_switching_frequency():
 def scipy_reference(n, Ts, w_m, theta0, i_dq_ref, band, delay):
     """Sampled three-phase hysteresis comparator + surface PMSM in alpha-beta, NumPy/SciPy.
 
-    BOOK.md chapter 1: ``L di_a/dt = u_a - R i_a + w_e psi_f sin th``, ``L di_b/dt = u_b - R i_b - w_e
+    the book, ch. 1: ``L di_a/dt = u_a - R i_a + w_e psi_f sin th``, ``L di_b/dt = u_b - R i_b - w_e
     psi_f cos th`` with ``th = theta0 + w_e t`` (imposed speed), integrated by ``solve_ivp`` (DOP853,
     rtol 1e-10, atol 1e-12) between comparator instants. Per sample: phase currents (inverse Clarke),
     reference ``i* = dq -> abc``, the relay with hold; the legs' voltages ``U_dc (s - mean s)``. With

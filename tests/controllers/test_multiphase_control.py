@@ -1,7 +1,7 @@
-"""Six-phase (BOOK.md chapter 9) and five-phase (chapter 10) vector control on the book scenario
+"""Six-phase (the book, ch. 9) and five-phase (chapter 10) vector control on the book scenario
 (1000 r/min, 10 N m at 0.2 s).
 
-Must-show: every scheme of either machine (conventional, VSD, stationary-frame PR; six phases also double
+Shown: every scheme of either machine (conventional, VSD, stationary-frame PR; six phases also double
 dq) runs the scenario with the three-phase book drive's speed response and ``i_q = (T_L + B w) / K_t`` in
 steady state. Six phases: the VSD scheme's z1-z2 loops drive the z1-z2 current of a set-to-set resistance
 unbalance to zero (the conventional scheme leaves it); double dq and VSD designed equivalently (book 9.5)
@@ -45,7 +45,7 @@ from pmsmjax.units import rad_s_to_rpm
 SIX_UNBALANCE = (1.0, 1.0, 1.0, 1.5, 1.5, 1.5)  # set UVW's resistance 1.5 times set ABC's
 FIVE_UNBALANCE = (1.0, 1.3, 0.8, 1.1, 1.2)  # phase resistance factors
 THIRD = 0.05  # psi_f3 / psi_f of the five-phase third-harmonic cases
-TORQUE_CONSTANT = 1.5 * 4 * 0.1827  # the book motor's, N m/A (BOOK.md, reference motor)
+TORQUE_CONSTANT = 1.5 * 4 * 0.1827  # the book motor's, N m/A (docs/book_reference.md, reference motor)
 TAIL = 500  # the last 50 ms of the book scenario: 10 N m at 1000 r/min
 
 

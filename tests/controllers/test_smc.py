@@ -1,4 +1,4 @@
-"""Sliding-mode speed control (BOOK.md chapter 3): the block, its design rule, the book drive, gradients.
+"""Sliding-mode speed control (the book, ch. 3): the block, its design rule, the book drive, gradients.
 
 References, independent of the code under test: the linear identity of the exponential reaching law
 (``i_q* = (1/D)[(c + q) x1 + q c int x1]`` when ``eps = 0``), the analytic sliding-surface decay

@@ -36,7 +36,7 @@ from pmsmjax.units import rpm_to_rad_s
 MOTOR = presets.book_motor(salient=True)
 TS = presets.BOOK_TS
 METHODS = tuple(INJECTION_OBSERVERS)
-#: The issue's limit: electrical degrees RMS, modulo pi.
+#: The accuracy limit: electrical degrees RMS, modulo pi.
 LIMIT_RMS_DEG = 5.0
 #: Loss of lock: the modulo-pi error reaching 45 degrees (half-way to the unstable equilibrium).
 LOCK_DEG = 45.0

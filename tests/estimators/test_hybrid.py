@@ -1,6 +1,6 @@
 """Hybrid estimator (pmsmjax/estimators/hybrid.py): HF injection at low speed, EKF above the crossover band.
 
-Must-show (issue 15): sensorless from standstill through the book scenario (1000 r/min, 10 N m step) and
+Shown: sensorless from standstill through the book scenario (1000 r/min, 10 N m step) and
 a reversal -1000 -> 1000 r/min under 5 N m, without loss of lock, from initial rotor angles where the
 injection alone locks to either pole (the start-up polarity pulses decide). Judged against the plant's
 true angle and speed. Plus the blend's own properties, checked with stand-in estimators.
@@ -32,7 +32,7 @@ def test_holds_lock_from_standstill(drive, name):
     result = run_from_angles(drive, scenario, angles)
     s = summary(result)
     assert np.all(s["locked"])
-    # the issue's injection accuracy criterion (5 degrees RMS) holds over the whole run, both ranges
+    # the injection accuracy criterion (5 degrees RMS) holds over the whole run, both ranges
     assert np.all(s["rms_deg"] < 5.0)
     assert np.all(np.abs(s["final_speed_error_rpm"]) < 10.0)  # 1 % of 1000 r/min
     w = result["omega_m"]

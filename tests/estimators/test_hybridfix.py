@@ -1,16 +1,16 @@
-"""The hybrid's weak points of issue 15 (README.md), each with the run that showed it.
+"""Three demanding operating points of the hybrid estimator (README.md), each with the run that checks it.
 
-1. The EKF on the salient book motor (L_d 5.25 mH, L_q 12 mH) under a load step at 2000 r/min: with the
-   back-EMF flux taken as ``psi_f`` the angle error fed back through the machine's ``(L_d - L_q) i_d``
-   grew a ~30 Hz oscillation until lock was lost (180 degrees, 180 V); with the active flux
-   (:func:`pmsmjax.estimators.ekf.active_flux`) the sensorless drive holds the point like the sensored one.
-   Judged against the plant's true angle and speed (saturating plant, as the hybrid's runs).
-2. The hybrid coming down from 500 r/min to 100 and 50 r/min under 10 N m (the chapter 5 low-speed sweep's
-   scenario): the estimate collapsed on entering the crossover band (lock lost, 150 r/min speed error).
-3. The slow reversal 0 -> 60 -> -60 r/min under 10 N m: the hybrid ended at -72 r/min, its speed estimate
-   at -60. Both came from the hybrid's pull of the injection PLL to the target angle, which ignored the
-   injection's output compensation (its estimate = PLL angle + half its filters' lag); the pull now
-   shifts the PLL by the estimate's distance to the target (checked first with a stand-in estimator).
+1. The EKF on the salient book motor (L_d 5.25 mH, L_q 12 mH) under a load step at 2000 r/min. The EKF's
+   back-EMF flux is the active flux (:func:`pmsmjax.estimators.ekf.active_flux`), which includes the
+   reluctance term ``(L_d - L_q) i_d``; with ``psi_f`` alone the angle error fed back through that term
+   grows an oscillation until lock is lost. Judged against the plant's true angle and speed (saturating
+   plant, as the hybrid's runs); the sensorless drive holds the point like the sensored one.
+2. The hybrid coming down from 500 r/min to 100 and 50 r/min under 10 N m (the chapter 5 low-speed
+   sweep's scenario), through the crossover band without losing lock.
+3. The slow reversal 0 -> 60 -> -60 r/min under 10 N m ends at -60 r/min, rotor and estimate alike: the
+   hybrid's pull of the injection PLL to the target angle shifts the PLL by the estimate's distance to the
+   target, so it respects the injection's output compensation (estimate = PLL angle + half its filters'
+   lag); :func:`pmsmjax.estimators.hybrid.pull_injection` is also checked with a stand-in estimator.
 """
 
 import math
@@ -61,9 +61,9 @@ def test_ekf_holds_a_load_step_at_2000_rpm(load_nm):
     tr = simulate(drive, scenario, initial_state=state)
     t = np.asarray(tr.t)
     err = np.degrees(np.abs(np.asarray(wrap_angle(tr.theta_e_est - tr.theta_e))))
-    assert err[t > 0.02].max() < 5.0  # before: 180 (lock lost)
+    assert err[t > 0.02].max() < 5.0  # lock kept
     final_rpm = float(tr.omega_m[-1]) * 30.0 / np.pi
-    assert abs(final_rpm - 2000.0) < 20.0  # 1 %; before: 1345 r/min and falling
+    assert abs(final_rpm - 2000.0) < 20.0  # 1 %
     u = np.hypot(*np.asarray(tr.u_dq_ref).T)
     assert u[t > 0.25].max() < float(drive.voltage_limit())  # the point is inside the voltage limit
 
@@ -114,9 +114,9 @@ def test_hybrid_comes_down_through_the_band_under_load(hybrid):
     speed_rpm = np.asarray(tr.omega_m) * 30.0 / np.pi
     err = np.degrees(np.abs(np.asarray(wrap_angle(tr.theta_e_est - tr.theta_e))))
     for k, s in enumerate(speeds):
-        # the sweep's 10 % of the held speed; before: 148 and 114 r/min off, lock lost
+        # the sweep's 10 % of the held speed
         assert np.abs(speed_rpm[k, judged] - s).max() < 0.1 * s
-        # from the ramp down on (the hand-down through the band); before: 34 and 23 degrees
+        # from the ramp down on (the hand-down through the band)
         assert err[k, t >= sweep.ramp_start_s].max() < 5.0
 
 
@@ -127,5 +127,5 @@ def test_hybrid_slow_reversal_ends_at_its_reference(hybrid):
     last = t > 0.7  # the reference has been -60 r/min since 0.6 s
     rotor = np.asarray(tr.omega_m)[last].mean() * 30.0 / np.pi
     estimate = np.asarray(tr.omega_m_est)[last].mean() * 30.0 / np.pi
-    assert abs(rotor - -60.0) < 3.0  # 5 %; before: -72.0 with the estimate at -60.2
+    assert abs(rotor - -60.0) < 3.0  # 5 %: the rotor, not only its estimate, reaches -60
     assert abs(estimate - rotor) < 1.0

@@ -38,7 +38,7 @@ NAMES = tuple(OBSERVERS)
 #: pool every log's samples by the true speed.
 TARGETS_RPM = (400.0, 1000.0, 2000.0, -1000.0)
 BANDS_RPM = ((300.0, 600.0), (600.0, 1200.0), (1200.0, 2400.0))
-#: The issue's limits: electrical degrees RMS after convergence at >= 300 r/min.
+#: The accuracy limits: electrical degrees RMS after convergence at >= 300 r/min.
 LIMIT_DEG = {name: (1.0 if name == "ekf" else 2.0) for name in NAMES}
 #: "After convergence": from 20 ms after the speed first reaches 300 r/min.
 SETTLE_S = 0.02

@@ -1,4 +1,4 @@
-"""Sensorless start from standstill (issue 14, item 2): I/f start with hand-over to each chapter 5
+"""Sensorless start from standstill: I/f start with hand-over to each chapter 5
 observer, on the book scenario (1000 r/min from rest, 10 N m at 0.2 s; shortened to 0.3 s).
 
 Independent references: the I/f angle is checked against the closed form of the ramp

@@ -1,6 +1,6 @@
 """Clarke/Park transforms (pmsmjax.frames) against hand-written matrices and physical invariants.
 
-References are NumPy matrices written from BOOK.md's conventions, not the library's formulas:
+References are NumPy matrices written from docs/book_reference.md's conventions, not the library's formulas:
 amplitude-invariant Clarke ``2/3 [[1, -1/2, -1/2], [0, sqrt3/2, -sqrt3/2], [1/2, 1/2, 1/2]]``, its
 power-invariant (orthogonal) counterpart, and Park ``d = a cos th + b sin th``, ``q = -a sin th + b cos th``.
 """

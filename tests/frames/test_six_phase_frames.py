@@ -1,4 +1,4 @@
-"""Six-phase frames (BOOK.md chapter 7): VSD and its inverse, double dq, and the linear relation between them.
+"""Six-phase frames (the book, ch. 7): VSD and its inverse, double dq, and the linear relation between them.
 
 Independent references: the VSD rows written out here from Zhao & Lipo's table (not from the library's
 harmonic-order construction), the three-phase Clarke of pmsmjax.frames for a three-phase layout,

@@ -1,4 +1,4 @@
-"""Multi-phase PWM (BOOK.md chapter 8: six phases; chapter 10: five): the switching states, volt-second
+"""Multi-phase PWM (the book, ch. 8: six phases; chapter 10: five): the switching states, volt-second
 balance on both VSD planes, the linear ranges, the n-leg bridges; each check runs on both windings.
 
 Independent references: the states' voltages and every period average are recomputed here from the leg

@@ -294,7 +294,7 @@ def test_missing_and_invalid_files(tmp_path):
 
 
 def _voltage(motor, w_e, i_d, i_q) -> float:
-    """Steady-state peak phase voltage (V) in the rotor frame, BOOK.md chapter 1."""
+    """Steady-state peak phase voltage (V) in the rotor frame, the book, ch. 1."""
     u_d = motor["R"] * i_d - w_e * motor["L_q"] * i_q
     u_q = motor["R"] * i_q + w_e * (motor["L_d"] * i_d + motor["psi_f"])
     return math.hypot(u_d, u_q)
@@ -381,7 +381,7 @@ def test_rated_current_is_the_mtpa_current_of_the_rated_torque(name):
 
 
 def test_book_file_states_the_book(tmp_path):
-    """The book drive (BOOK.md, "Reference motor and scenario"), read by name and by path alike."""
+    """The book drive (docs/book_reference.md, "Reference motor"), read by name and by path alike."""
     spec = drive_spec("book")
     assert spec.motor == dict(R=0.958, L_d=0.00525, L_q=0.00525, psi_f=0.1827, pole_pairs=4, J=0.003, B=0.008)
     assert spec.Ts == 1e-4 and spec.u_dc_v == 311.0 and spec.current_limit_a == 15.0

@@ -10,7 +10,7 @@ from pmsmjax.presets.three_phase import book_motor, make_machine
 
 @pytest.mark.parametrize("salient", [False, True])
 def test_linearised_dq_model_matches_hand_derived_jacobian(salient):
-    """A = df/dx of the dq model with rotor-frame input, derived by hand from BOOK.md chapter 1."""
+    """A = df/dx of the dq model with rotor-frame input, derived by hand from the book, ch. 1."""
     m = book_motor(salient)
     machine = make_machine(m, "dq")
     i_d, i_q, w = -1.3, 4.2, 80.0

@@ -1,10 +1,10 @@
 """The three PMSM frames (dq, alpha-beta, abc) against an independent NumPy/scipy reference and each other.
 
-Must-show: under open-loop, piecewise-constant stator-frame voltage sequences (2000 periods of 1e-4 s),
+Shown: under open-loop, piecewise-constant stator-frame voltage sequences (2000 periods of 1e-4 s),
 with the speed imposed and as a state, for the surface and the salient book motor, every frame model
 integrated by ``pmsmjax.machines.advance`` with 1, 2 or 10 RK4 sub-steps per period stays within 0.1 % of
 the peak current of a scipy ``solve_ivp`` (DOP853, rtol 1e-10, atol 1e-12) solution of the dq equations
-written here by hand from BOOK.md chapter 1.
+written here by hand from the book, ch. 1.
 
 The reference holds the voltage in the stator frame as a real inverter does: over each period the
 alpha-beta voltage is constant, so inside the ODE the dq voltage is Park(u_ab, theta(t)).
@@ -31,7 +31,7 @@ I_DQ0 = (0.5, -1.0)
 
 
 # ---------------------------------------------------------------------------------------------------
-# Independent reference: the dq equations of BOOK.md chapter 1 in NumPy, integrated by scipy.
+# Independent reference: the dq equations of the book, ch. 1 in NumPy, integrated by scipy.
 # ---------------------------------------------------------------------------------------------------
 def motor_numbers(salient: bool) -> dict:
     # Written out (not read from the library's preset) so a wrong preset would also show.
@@ -156,7 +156,7 @@ def test_frame_matches_scipy(salient, mechanics, frame, n_substeps):
     )
     # The scenario must be demanding: currents of several amperes, and a real acceleration.
     assert i_peak > 5.0
-    assert e_i < 1e-3  # the must-show: 0.1 % of the peak current
+    assert e_i < 1e-3  # the criterion: 0.1 % of the peak current
     assert e_th < 1e-4  # 1e-4 rad electrical (~0.006 deg)
     assert np.all(hist.theta_e >= -np.pi) and np.all(hist.theta_e < np.pi)
     if mechanics == "imposed":

@@ -1,7 +1,7 @@
-"""The six-phase (dual three-phase, BOOK.md chapter 7) and five-phase (chapter 10) PMSMs in every frame
+"""The six-phase (dual three-phase, the book, ch. 7) and five-phase (chapter 10) PMSMs in every frame
 against an independent scipy reference, and the physics the vector space decomposition claims.
 
-Must-show: under open-loop, piecewise-constant phase-voltage sequences (given as their VSD components: a
+Shown: under open-loop, piecewise-constant phase-voltage sequences (given as their VSD components: a
 rotating alpha-beta part steering (i_d, i_q) plus random alpha-beta and second-plane parts, 250 periods of
 1e-4 s), with the speed imposed and as a state, for the surface and the salient motor, with unbalanced phase
 resistances and (five phases) a third-harmonic back-EMF, every frame model integrated by
@@ -60,7 +60,8 @@ CURRENT_TOL = 8e-8
 EXACT_PLANE_CURRENT_TOL = 2e-10
 SPEED_TOL = 1e-10
 TORQUE_TOL = 5e-9
-BOOK = dict(R=0.958, Ld=5.25e-3, Lq_salient=12e-3, psi=0.1827, J=0.003, B=0.008, p=4)  # BOOK.md table
+# docs/book_reference.md, reference motor
+BOOK = dict(R=0.958, Ld=5.25e-3, Lq_salient=12e-3, psi=0.1827, J=0.003, B=0.008, p=4)
 L_LS3 = 0.1 * BOOK["Ld"]  # the three-phase leakage both rewinds assume (presets/six_phase.py)
 
 

@@ -1,6 +1,6 @@
-"""pmsmjax/presets/book_constants.py against BOOK.md ("Reference motor and scenario", chapter 3): the table's
-values and the derived figures printed under it, written out here; every preset and the command line's
-motor values take them from that one module, which loads without JAX."""
+"""pmsmjax/presets/book_constants.py against docs/book_reference.md ("Reference motor and scenario",
+chapter 3): the table's values and the derived figures printed under it, written out here; every preset and
+the command line's motor values take them from that one module, which loads without JAX."""
 
 import math
 import subprocess
@@ -11,7 +11,7 @@ import pytest
 from pmsmjax.io.motor_files import motor_values
 from pmsmjax.presets import book_constants as book
 
-#: BOOK.md's table, SI units.
+#: docs/book_reference.md's table, SI units.
 TABLE = dict(R=0.958, L_d=5.25e-3, L_q=5.25e-3, psi_f=0.1827, pole_pairs=4, J=0.003, B=0.008)
 
 

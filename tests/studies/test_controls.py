@@ -1,5 +1,5 @@
 """Every control method through the same commands: the registry, ``demo --control``, ``compare`` and
-``tune --control`` (issue: one engine for every method of the book).
+``tune --control`` (one engine for every method of the book).
 
 Independent references: the demo and the comparison compute their figures by different code paths from
 separate runs (they must agree on the same drive); the switching frequency of carrier PWM is its carrier
@@ -131,7 +131,7 @@ def test_compare_and_demo_agree_on_the_same_drive(compared, tmp_path):
 
 def test_compare_refuses_bad_input_before_any_work(tmp_path, capsys):
     assert main(["compare", "--control", "pi,foo", "--out", str(tmp_path / "a")]) == 2
-    assert "unknown foo" in capsys.readouterr().err  # issue 18: no Python list repr (was "unknown ['foo']")
+    assert "unknown foo" in capsys.readouterr().err  # no Python list repr
     blocker = tmp_path / "file"
     blocker.write_text("")
     assert main(["compare", "--control", "pi", "--out", str(blocker / "sub")]) == 2

@@ -1,6 +1,6 @@
-"""Issue 15 item 7: ``compare --estimator`` with the chapter 6 estimators (hfi-rotating, hfi-pulsating,
+"""``compare --estimator`` with the chapter 6 estimators (hfi-rotating, hfi-pulsating,
 hybrid) on their own scenarios. The angle figures are recomputed here from the traces with an
-independent modulo-pi formula (``np.mod``), the must-show bar of the issue (5 el. deg RMS modulo pi, no
+independent modulo-pi formula (``np.mod``), the accuracy bar (5 el. deg RMS modulo pi, no
 loss of lock) is checked on the 60 r/min reversal under load, and nonsense mixes are refused before any
 work. Short runs (0.8 s, averaged bridge) keep it quick."""
 
@@ -80,7 +80,7 @@ def test_injection_methods_through_the_slow_reversal(injection_reversal):
         assert math.degrees(float(tr.theta_e[0])) == pytest.approx(30.0)  # started 30 deg off
         assert e["angle_modulo"] == "pi"
         assert e["angle_error_rms_deg"] == pytest.approx(rms_modulo_pi_deg(tr.theta_e_est, tr.theta_e, tr.t))
-        # the issue's bar: below 5 el. deg RMS modulo pi, no loss of lock, the reversal done
+        # the accuracy bar: below 5 el. deg RMS modulo pi, no loss of lock, the reversal done
         assert e["angle_error_rms_deg"] < 5.0 and not e["lock_lost"]
         assert abs(e["final_speed_rpm"] + 60.0) < 3.0
         w = np.asarray(tr.omega_m)

@@ -33,7 +33,7 @@ def write_log(path, columns: dict) -> str:
 
 
 def to_abc(alpha, beta):
-    """Inverse amplitude-invariant Clarke, written out (BOOK.md conventions)."""
+    """Inverse amplitude-invariant Clarke, written out (the conventions of docs/book_reference.md)."""
     return alpha, -0.5 * alpha + 0.5 * SQRT3 * beta, -0.5 * alpha - 0.5 * SQRT3 * beta
 
 

@@ -65,7 +65,7 @@ def test_compare_estimators_figures(compared):
         e = compared["controllers"][name]
         ref = om.observer_errors(compared["traces"][name], 1e-4)
         assert e["angle_error_rms_deg"] == ref["angle_error_rms_deg"]
-        # the bar for a model-exact observer at speed, and the book scenario ridden through
+        # the accuracy bar for a model-exact observer at speed, and the book scenario ridden through
         assert e["angle_error_rms_deg"] < 2.0 and not e["lock_lost"]
         assert abs(e["final_speed_rpm"] - 1000.0) < 5.0
         runs = e["low_speed_runs"]

@@ -365,7 +365,7 @@ def test_motor_toml_and_dynamic_log(tmp_path):
         "[motor]\nR = 0.958\nL_d = 5.25e-3\nL_q = 5.25e-3\npsi_f = 0.1827\npole_pairs = 4\n"
         "J = 0.003\nB = 0.008\n"
     )
-    # hold="rotor" spelled out: replay_file's default became "auto" (issue 18), which has no currents in
+    # hold="rotor" spelled out: replay_file's default is "auto", which has no currents in
     # this log to decide from and falls back on "stator"; the reference below holds in the rotor frame.
     a = read_log(replay_file(log, toml, tmp_path / "a", hold="rotor"), REPLAY_COLUMNS)
     b = read_log(replay_file(log, "book", tmp_path / "b", hold="rotor"), REPLAY_COLUMNS)

@@ -1,4 +1,4 @@
-"""Gradient tuning of the chapter 6 estimators (issue 15, item 6): ``pmsmjax tune --estimator hfi-rotating |
+"""Gradient tuning of the chapter 6 estimators: ``pmsmjax tune --estimator hfi-rotating |
 hfi-pulsating | hybrid``.
 
 Independent references: central finite differences of the same loss in float64 (tests/conftest.py) for

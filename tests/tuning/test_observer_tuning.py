@@ -1,4 +1,4 @@
-"""Gradient tuning of the chapter 5 observers (issue 14, item 4): the tuning objective's gradient w.r.t.
+"""Gradient tuning of the chapter 5 observers: the tuning objective's gradient w.r.t.
 every tunable observer parameter; the sensored warm-up, the angle-error metric against NumPy, resume and
 the ``pmsmjax tune --estimator`` outputs.
 

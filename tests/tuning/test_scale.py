@@ -1,4 +1,4 @@
-"""Scale (issue 19): the chunk-size rule, the balanced chunk layout, the pipelined chunk loop, the
+"""Scale: the chunk-size rule, the balanced chunk layout, the pipelined chunk loop, the
 Spearman ranks from one sort per column, the tuner's ahead-of-time compiled and pipelined loop, and the
 scale benchmark's report. Compared with scipy, XLA's own memory analysis, brute force and the
 one-call-at-a-time paths; short scenarios and a handful of runs keep it quick."""

@@ -1,5 +1,5 @@
 """Gradient auto-tuning: scenario batches, objectives against independent computations, the tuner's
-improvement, determinism, checkpoint/resume, and its input errors. Small sizes (the must-show run of 64
+improvement, determinism, checkpoint/resume, and its input errors. Small sizes (the reference run of 64
 scenarios is `pmsmjax tune` itself; its figures are in the README)."""
 
 import json

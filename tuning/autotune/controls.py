@@ -8,7 +8,7 @@ Per control (:data:`pmsmjax.presets.control_methods.CONTROLS`):
   DTC's switching gains and boundary layers ``K_T, phi_T, K_psi, phi_psi``;
 - the preset options of the *surrogate* the optimiser differentiates: the SMC's ``sign`` switching has a
   zero derivative almost everywhere, so it is tuned with ``tanh`` (its boundary layer from the design rule)
-  and the tuned gains are re-evaluated on the exact ``sign`` law (DESIGN.md, "Gradients"); the SMC-DTC
+  and the tuned gains are re-evaluated on the exact ``sign`` law (both figures reported); the SMC-DTC
   likewise with ``tanh`` for its ``saturation`` law (continuous, but with kinks at the layer's edges); the
   others are smooth already;
 - the objective weights used when the job is given none (the SMC-DTC adds torque ripple, per N m RMS over

@@ -71,7 +71,7 @@ from tuning.autotune.scenario_batches import ScenarioBatch
 from tuning.autotune.tuner import TuneConfig, tune
 from tuning.parameters import apply_gains, get_leaf, write_gains_toml
 
-#: The must-show configuration (book drive): 64 + 64 scenarios, 0.3-0.5 s, steps of 200-1500 r/min both
+#: The reference configuration (book drive): 64 + 64 scenarios, 0.3-0.5 s, steps of 200-1500 r/min both
 #: ways, 0-10 N m;
 #: BFGS (its rounded-penalty default), which gets a 3x lower cost than Adam in fewer iterations. ``names``
 #: None: the control's own gains (:data:`tuning.autotune.controls.TUNABLE_CONTROLS`).

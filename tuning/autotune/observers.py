@@ -18,7 +18,7 @@ ekf            ``q[0..3]`` (A^2, A^2, (rad/s)^2, rad^2), ``r[0..1]`` (A^2): the 
 (``P0`` is not tuned: the filter converges during the sensored warm-up, so it hardly enters the cost.)
 
 Smooth surrogate: the SMOs' switching function is the sigmoid, which is their default as well (the
-``sign`` function chatters at 10 kHz and has no useful derivative; DESIGN.md, "Gradients"), so the tuned
+``sign`` function chatters at 10 kHz and has no useful derivative), so the tuned
 and the evaluated observer are the same and ``surrogate`` is empty (a ``{"switching": ...}`` there would
 tune on that law and re-evaluate on the default, as the controls' table does). The loss is made smooth
 by the scenarios instead: each starts at speed with the drive on its sensor for ``WARMUP_S`` while the

@@ -2,7 +2,7 @@
 NumPy, its motor integrated by SciPy's adaptive Dormand-Prince 8(5,3) (``solve_ivp``, DOP853), so that
 identification and the commissioning chain are tested on data the code under test did not make.
 
-The drive (BOOK.md chapters 1 and 3, built independently of :mod:`pmsmjax.controllers`):
+The drive (the book, ch. 1 and 3, built independently of :mod:`pmsmjax.controllers`):
 
 - speed PI with active damping at bandwidth ``beta`` (``Kp = beta J / k_t``, ``Ki = beta Kp``,
   ``B_a = (beta J - B) / k_t``), the integrator clamped while the current limit is active (conditional

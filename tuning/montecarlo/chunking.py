@@ -27,7 +27,7 @@ balances the chunks over the study's ``n`` runs).
 - **THROUGHPUT_CAP**: beyond some batch a device is saturated and a larger chunk only costs memory, a
   coarser resume and less overlap of file writing with computing. CPU: 1024 runs per device
   (``benchmarks/bench_montecarlo.py --sweep``: 2048 runs on 2 CPU devices were the fastest of 256-8192);
-  GPU and TPU: 262,144 runs per device, the largest batch measured (one H100, issue 19: 703 M periods/s,
+  GPU and TPU: 262,144 runs per device, the largest batch measured (one H100: 703 M periods/s,
   against 292 M at 65,536); larger batches are unmeasured, so not assumed to pay.
 - **Short runs on a CPU** (``MIN_RUN_PERIODS``, ``MAX_RUNS``): every chunk costs the host about 1.5 ms
   (dispatch, fetch, file), and on a CPU the host shares the cores with the computation; a chunk of 2048

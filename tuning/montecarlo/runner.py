@@ -249,7 +249,7 @@ _RUNNERS: dict = {}
 
 def _runner(study: Study, mesh: Mesh | None) -> StudyRunner:
     """A :class:`StudyRunner` for ``study``, reused (with its compiled functions) across calls that differ
-    only in sampled values, so re-running or extending a study in one session does not recompile."""
+    only in sampled values, so re-running or extending a study in one process does not recompile."""
     settings = {k: v for k, v in vars(study).items() if k not in _VALUE_SETTINGS}
     settings["parameters"] = tuple(study.parameters)
     key = (repr(sorted(settings.items())), mesh, jax.config.jax_enable_x64)
