@@ -154,8 +154,8 @@ def test_out_naming_a_file_is_refused_before_any_work(capsys, files, argv, where
 
 def test_out_naming_a_file_is_refused_before_jax_is_imported(files):
     """Before any work: in a fresh interpreter every command refuses such an ``--out`` (exit 2) without
-    importing JAX or any other of :data:`HEAVY_MODULES`, so nothing was compiled (it used to compile for
-    up to 20 s, then print a traceback)."""
+    importing JAX or any other of :data:`HEAVY_MODULES`, so nothing is compiled (rather than compiling
+    for up to 20 s and then printing a traceback)."""
     code = (
         "import json, sys\nfrom pmsmjax.cli import main\n"
         f"heavy = {HEAVY_MODULES!r}\n"

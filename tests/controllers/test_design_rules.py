@@ -10,8 +10,9 @@ Three independent references are used:
 2. for the current loop, an exact discrete-time model of the sampled-data loop written here in NumPy:
    the dq plant at constant speed with the stator-frame voltage held over each period is linear, so the
    period map is the matrix exponential of an augmented system (currents, rotating held voltage, 1);
-   the PI, decoupling, angle lead and computational delay are re-implemented from the BOOK/DESIGN
-   description. The simulator (RK4 sub-steps, SVPWM, averaged bridge) must reproduce it to 1e-9 A;
+   the PI, decoupling, angle lead and computational delay are re-implemented from the book's
+   equations (docs/book_reference.md, chapter 3). The simulator (RK4 sub-steps, SVPWM, averaged
+   bridge) must reproduce it to 1e-9 A;
 3. the continuous first-order responses ``1 - exp(-a t)`` the design rules promise, with tolerances derived
    from the sampling: see :func:`first_order_tolerance_current` and :func:`first_order_tolerance_speed`.
 
