@@ -19,7 +19,7 @@ from scipy.integrate import solve_ivp
 
 from pmsmjax.checks.validation import ParameterError
 from pmsmjax.io.flux_map_files import read_flux_map, write_flux_map_csv
-from pmsmjax.machines import MachineInput, MachineState, PMSMParameters, advance
+from pmsmjax.machines import MachineInput, MachineState, advance
 from pmsmjax.machines.flux_map import FluxMapGrid
 from pmsmjax.machines.pmsm_flux_map import FluxMap, PMSMFluxMapdq, flux_map_machine
 from pmsmjax.presets.three_phase import book_drive, book_motor
@@ -253,8 +253,9 @@ def test_gradients_through_a_run():
     grads = jax.vmap(jax.grad(final_speed, argnums=(0, 1)))(draws[:, 0], draws[:, 1])
     assert all(np.all(np.isfinite(g)) and np.all(np.abs(g) > 0) for g in grads)
     # the vmapped gradient of draw 0 against central differences of the compiled run
-    check_gradient(jax.jit(lambda x: final_speed(x[0], x[1])), np.asarray(draws[0]), grad=np.array([g[0] for g in grads]),
-                   rel_step=1e-6, rtol=1e-5, labels=["R", "u_amp"])  # fmt: skip
+    run = jax.jit(lambda x: final_speed(x[0], x[1]))
+    first = np.array([g[0] for g in grads])
+    check_gradient(run, np.asarray(draws[0]), grad=first, rel_step=1e-6, rtol=1e-5, labels=["R", "u_amp"])
 
 
 # --- checks and files -----------------------------------------------------------------------------------
