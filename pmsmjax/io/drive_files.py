@@ -4,7 +4,9 @@ checked here for every command, before JAX starts.
 Layout (SI units; every table but ``[motor]`` optional)::
 
     [motor]        R, L_d, L_q, psi_f, pole_pairs, J, B (ohm, H, H, Wb, -, kg m^2, N m s/rad);
-                   n_phases = 6 or 5 with L_ls (H) and, five-phase, psi_f3 (Wb); trust_units = true
+                   n_phases = 6 or 5 with L_ls (H) and, five-phase, psi_f3 (Wb); trust_units = true;
+                   flux_map = "map.csv" (three-phase: a measured flux map, path relative to the drive
+                   file, :mod:`pmsmjax.io.flux_map_files`; L_d, L_q, psi_f then optional)
     [ratings]      rated_speed_rpm, rated_torque_nm or rated_current_a (A peak), max_current_a (A peak)
     [inverter]     u_dc_v, switching_frequency_hz, control_frequency_hz (default: the switching
                    frequency), dead_time_s
@@ -15,6 +17,14 @@ Layout (SI units; every table but ``[motor]`` optional)::
                    startup_acceleration_rad_s2, handover_speed_rad_s, blend_speed_rad_s
     [scenario]     speed_rpm, load_nm, load_time_s, duration_s (the demo, compare and Monte Carlo run)
     [tuning]       speed_rpm = [low, high], load_nm = [low, high], duration_s = [low, high]
+
+With a flux map the simulated machine is the map's (:class:`pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq`)
+and ``L_d``, ``L_q``, ``psi_f`` are the linear model the design rules and the controller use; left out,
+they are derived from the map: ``psi_f = psi_d(0, 0)`` and ``L_d``, ``L_q`` the incremental inductances
+``dpsi_d/di_d``, ``dpsi_q/di_q`` at ``i_d = 0``, ``i_q = [ratings] rated_current_a`` when the file gives
+it, else at zero current. The rated point is the choice for a map whose q axis saturates: a current loop
+tuned on the unsaturated ``L_q`` would run several times faster than designed at rated current, one tuned
+on the rated ``L_q`` only slower near zero current.
 
 A seven-value motor file (the values at top level or under ``[motor]``) is a drive file with every
 other table left out. What a file leaves out is derived from what it gives
@@ -56,7 +66,7 @@ MOTOR_UNITS.update(B="N m s/rad", L_ls="H", psi_f3="Wb", n_phases="")
 #: Every table and its keys with their units (``"int"``: a whole number; ``"str"``: text; ``"range"``: a
 #: [low, high] pair).
 TABLES = {
-    "motor": {**MOTOR_UNITS, "trust_units": "bool"},
+    "motor": {**MOTOR_UNITS, "trust_units": "bool", "flux_map": "str"},
     "ratings": {
         "rated_speed_rpm": "r/min",
         "rated_torque_nm": "N m",
@@ -89,6 +99,7 @@ PRESET_FOLDER = Path(__file__).resolve().parents[1] / "presets" / "motors"
 PRESET_FILES = {
     "book": "book.toml",
     "book_salient": "book_salient.toml",
+    "saturated-ipm": "saturated_ipm.toml",
     "servo-400w": "servo_400w_48v.toml",
     "industrial-5k6w": "industrial_5k6w_540v.toml",
     "outer-rotor-24v": "outer_rotor_24v.toml",
@@ -233,6 +244,9 @@ def read_drive_file(
     tables = _split_tables(data, where)
     for table, values in tables.items():
         _check_keys(table, values, where)
+    flux_map_derived = {}
+    if "flux_map" in tables["motor"]:
+        flux_map_derived = _flux_map_motor(tables["motor"], tables["ratings"], path, where)
     motor = _read_motor(tables["motor"], where, n_phases)
     trust = tables["motor"].get("trust_units", False)
     ratings = _numbers(tables["ratings"], "ratings", where)
@@ -253,7 +267,7 @@ def read_drive_file(
         (inverter if table == "inverter" else ratings)[key] = float(value)
     name_of = _namer(where, flags or {}, overrides or {})
 
-    derived = {}
+    derived = dict(flux_map_derived)
     _complete_inverter(inverter, derived, name_of)
     Ts = 1.0 / inverter["control_frequency_hz"]
     if check_units and not trust:
@@ -417,6 +431,48 @@ def _ranges(values: dict, where: str) -> dict:
     return out
 
 
+#: The linear-model values a flux map stands in for.
+FLUX_MAP_DERIVES = ("L_d", "L_q", "psi_f")
+
+
+def _flux_map_motor(values: dict, ratings: dict, path: Path, where: str) -> dict:
+    """Read ``[motor] flux_map`` and put the map's linear model (module docstring) into ``values`` where the
+    file leaves it out; the map's absolute path replaces the relative one. Returns the derivation notes."""
+    from pmsmjax.io.flux_map_files import read_flux_map
+
+    name = values["flux_map"]
+    if not isinstance(name, str) or not name:
+        raise ParameterError(f'{where}: [motor] flux_map must be a file name (e.g. "map.csv"), got {name!r}.')
+    if values.get("n_phases", 3) != 3:
+        raise ParameterError(
+            f"{where}: [motor] flux_map is for a three-phase motor: drop n_phases or the map."
+        )
+    map_path = Path(name) if Path(name).is_absolute() else path.resolve().parent / name
+    if not map_path.is_file():
+        raise ParameterError(
+            f"{where}: [motor] flux_map = {name!r}: {map_path} does not exist (the path is relative to the "
+            "drive file's folder)."
+        )
+    grid = read_flux_map(map_path)
+    current = ratings.get("rated_current_a", 0.0)
+    if not isinstance(current, (int, float)) or isinstance(current, bool):
+        current = 0.0  # refused with its own message when [ratings] is read
+    at = f"i_d = 0, i_q = {current:g} A (the rated current)" if current else "zero current"
+    linear = grid.linear_model(float(current))
+    how = {
+        "psi_f": "psi_d(0, 0) of the flux map",
+        "L_d": f"the flux map's incremental dpsi_d/di_d at {at}",
+        "L_q": f"the flux map's incremental dpsi_q/di_q at {at}",
+    }
+    derived = {}
+    for key in FLUX_MAP_DERIVES:
+        if key not in values:
+            values[key] = linear[key]
+            derived[f"motor.{key}"] = how[key]
+    values["flux_map"] = str(map_path)
+    return derived
+
+
 def _read_motor(values: dict, where: str, n_phases: int | None) -> dict:
     trust = values.get("trust_units", False)
     if not isinstance(trust, bool):
@@ -444,7 +500,7 @@ def _read_motor(values: dict, where: str, n_phases: int | None) -> dict:
             f"{where}: [motor] {', '.join(extra or ['psi_f3'])} belong to a multi-phase motor (L_ls: "
             "five- or six-phase, psi_f3: five-phase): set n_phases or drop them."
         )
-    motor = {}
+    motor = {"flux_map": values["flux_map"]} if "flux_map" in values else {}
     for key in needed + tuple(k for k in ("psi_f3",) if k in values):
         v = values[key]
         if key == "pole_pairs":

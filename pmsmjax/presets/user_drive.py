@@ -6,6 +6,10 @@ or a six- or five-phase scheme) at the file's DC link, control rate, current lim
 file's sensor (an encoder) becomes the drive's estimator. :func:`spec_scenario` is the file's scenario,
 :func:`startup_options` its I/f start for sensorless runs. On the book drive file (``--motor book``) all
 three are bit for bit the book presets (tests/presets/test_user_drive.py).
+
+A drive file with a flux map (``[motor] flux_map``) gets the map's plant
+(:class:`~pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq`) in place of the linear dq machine; the controller
+keeps its linear model (the file's or the map's derived ``L_d``, ``L_q``, ``psi_f``).
 """
 
 import inspect
@@ -17,7 +21,15 @@ from pmsmjax.io.drive_files import DriveSpec
 from pmsmjax.machines.motor import PMSMParameters
 from pmsmjax.scenarios import Scenario
 
-__all__ = ["spec_motor", "drive_options", "spec_drive", "spec_scenario", "startup_options", "SMC_LOAD_RISE_S"]
+__all__ = [
+    "spec_motor",
+    "spec_flux_map",
+    "drive_options",
+    "spec_drive",
+    "spec_scenario",
+    "startup_options",
+    "SMC_LOAD_RISE_S",
+]
 
 #: The sliding-mode speed law's design load: the rated torque rising in this time, s (the book's 10 N m in
 #: 10 ms, :func:`pmsmjax.presets.smc_drive`). Its sliding surface's time constant is the speed loop's,
@@ -43,6 +55,32 @@ def spec_motor(spec: DriveSpec):
     extra = {"psi_f3": spec.motor["psi_f3"]} if "psi_f3" in spec.motor else {}
     values = {k: spec.motor[k] for k in _MOTOR_KEYS + ("L_ls",)}
     return MultiPhaseParameters(**values, n_phases=spec.n_phases, **extra)
+
+
+def spec_flux_map(spec: DriveSpec):
+    """The drive file's flux map as the plant's interpolant
+    (:class:`~pmsmjax.machines.pmsm_flux_map.FluxMap`), or None when the file has none."""
+    if "flux_map" not in spec.motor:
+        return None
+    from pmsmjax.io.flux_map_files import read_flux_map
+    from pmsmjax.machines.pmsm_flux_map import FluxMap
+
+    return FluxMap.from_grid(read_flux_map(spec.motor["flux_map"]))
+
+
+def _with_flux_map(drive: Drive, spec: DriveSpec) -> Drive:
+    """``drive`` with its linear dq plant replaced by the file's flux-map plant (same motor, mechanics)."""
+    from pmsmjax.checks.validation import ParameterError
+    from pmsmjax.machines.pmsm3 import PMSMdq
+    from pmsmjax.machines.pmsm_flux_map import PMSMFluxMapdq
+
+    if type(drive.machine) is not PMSMdq:
+        raise ParameterError(
+            f"{spec.source}: [motor] flux_map runs in the rotor-frame (dq) machine, this drive simulates a "
+            f"{type(drive.machine).__name__}: use the dq frame or drop the map."
+        )
+    plant = PMSMFluxMapdq(drive.machine.motor, spec_flux_map(spec), drive.machine.mechanics)
+    return eqx.tree_at(lambda d: d.machine, drive, plant)
 
 
 def _accepts(preset) -> set:
@@ -85,6 +123,8 @@ def spec_drive(spec: DriveSpec, control: str | None = None, **options) -> Drive:
 
         control = control or "pi"
         drive = control_drive(control, spec_motor(spec), **{**drive_options(spec, control), **options})
+        if "flux_map" in spec.motor:
+            drive = _with_flux_map(drive, spec)
     else:
         if spec.n_phases == 6:
             from pmsmjax.presets.six_phase import six_phase_drive as multiphase_drive

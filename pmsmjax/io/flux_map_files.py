@@ -1,0 +1,152 @@
+"""Flux-map files: read a measured map into a checked :class:`~pmsmjax.machines.flux_map.FluxMapGrid`.
+
+Formats (SI units: A, Wb peak phase flux linkage in the amplitude-invariant dq frame):
+
+- **CSV** with the header ``i_d,i_q,psi_d,psi_q``, one row per grid point, rows in any order (lines
+  starting with ``#`` are comments);
+- **NPZ** or **MAT** (MATLAB) with 1-D axes ``i_d (n_d,)``, ``i_q (n_q,)`` and 2-D ``psi_d``, ``psi_q``
+  ``(n_d, n_q)``;
+- **NPZ** or **MAT** with complex 2-D grids ``i_s_dq = i_d + j i_q`` and ``psi_s_dq = psi_d + j psi_q``
+  (the layout some public machine-design tools write), rows along either axis.
+
+A careless file (a missing column or array, a grid with holes or uneven steps, NaN, currents in mA) is
+refused with one :class:`~pmsmjax.checks.validation.ParameterError` naming the file and the fix.
+"""
+
+from pathlib import Path
+
+import numpy as np
+
+from pmsmjax.checks.validation import ParameterError, plain
+from pmsmjax.machines.flux_map import FluxMapGrid
+
+__all__ = ["read_flux_map", "write_flux_map_csv", "CSV_COLUMNS"]
+
+CSV_COLUMNS = ("i_d", "i_q", "psi_d", "psi_q")
+#: A map whose currents reach this far (A) with an incremental inductance below MA_INDUCTANCE_H (H) was
+#: written in mA: a real machine with kA currents has flux linkages of volts-seconds, not millivolt-seconds.
+MA_CURRENT_A = 1000.0
+MA_INDUCTANCE_H = 1e-5
+
+
+def read_flux_map(path) -> FluxMapGrid:
+    """Read and check the flux map ``path`` (``.csv``, ``.npz`` or ``.mat``; module docstring)."""
+    path = Path(path)
+    where = f"flux map {path}"
+    if not path.is_file():
+        raise ParameterError(f"{where} does not exist: check the path (relative to the drive file).")
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        axes = _read_csv(path, where)
+    elif suffix in (".npz", ".mat"):
+        axes = _grid_arrays(_load_arrays(path, suffix, where), where)
+    else:
+        raise ParameterError(f"{where}: unknown format {suffix!r}: give a .csv, .npz or .mat file.")
+    _check_units(*axes, where)
+    return FluxMapGrid(*axes, source=where)
+
+
+def _read_csv(path: Path, where: str):
+    lines = [ln for ln in path.read_text().splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    if not lines:
+        raise ParameterError(
+            f"{where} is empty: it needs the header {','.join(CSV_COLUMNS)} and one row per point."
+        )
+    header = [h.strip() for h in lines[0].split(",")]
+    missing = [c for c in CSV_COLUMNS if c not in header]
+    if missing:
+        raise ParameterError(
+            f"{where} lacks the column(s) {', '.join(missing)} (header: {','.join(header)}): the header must "
+            f"name {','.join(CSV_COLUMNS)} (A, A, Wb, Wb)."
+        )
+    try:
+        rows = np.array([[float(x) for x in ln.split(",")] for ln in lines[1:]], dtype=float)
+    except ValueError as err:
+        raise ParameterError(
+            f"{where}: a value is not a number ({err}); every row holds four numbers."
+        ) from err
+    if rows.ndim != 2 or rows.shape[1] != len(header):
+        raise ParameterError(f"{where}: every row needs {len(header)} values, as many as the header names.")
+    cols = {c: rows[:, header.index(c)] for c in CSV_COLUMNS}
+    i_d, i_q = np.unique(cols["i_d"]), np.unique(cols["i_q"])
+    if np.isnan(i_d).any() or np.isnan(i_q).any():
+        raise ParameterError(f"{where}: a current (i_d or i_q) is NaN: every row needs its grid point.")
+    if len(rows) != i_d.size * i_q.size:
+        raise ParameterError(
+            f"{where}: {len(rows)} rows do not fill the {i_d.size} x {i_q.size} grid of its distinct i_d and "
+            "i_q values: give exactly one row per grid point (a rectangular grid, no holes or repeats)."
+        )
+    j, k = np.searchsorted(i_d, cols["i_d"]), np.searchsorted(i_q, cols["i_q"])
+    if np.unique(j * i_q.size + k).size != len(rows):
+        raise ParameterError(f"{where}: a grid point appears twice: give one row per (i_d, i_q).")
+    psi_d, psi_q = np.empty((i_d.size, i_q.size)), np.empty((i_d.size, i_q.size))
+    psi_d[j, k], psi_q[j, k] = cols["psi_d"], cols["psi_q"]
+    return i_d, i_q, psi_d, psi_q
+
+
+def _load_arrays(path: Path, suffix: str, where: str) -> dict:
+    try:
+        if suffix == ".npz":
+            with np.load(path, allow_pickle=False) as data:
+                return {k: np.asarray(data[k]) for k in data.files}
+        from scipy.io import loadmat
+
+        return {k: np.asarray(v) for k, v in loadmat(path).items() if not k.startswith("__")}
+    except Exception as err:  # a corrupt or foreign file: one line, not a traceback
+        raise ParameterError(f"{where}: cannot be read as {suffix} ({' '.join(str(err).split())}).") from err
+
+
+def _grid_arrays(arrays: dict, where: str):
+    if {"i_s_dq", "psi_s_dq"} <= arrays.keys():
+        return _complex_grid(arrays["i_s_dq"], arrays["psi_s_dq"], where)
+    missing = [c for c in CSV_COLUMNS if c not in arrays]
+    if missing:
+        raise ParameterError(
+            f"{where} lacks the array(s) {', '.join(missing)} "
+            f"(it holds {', '.join(sorted(arrays)) or 'none'}): "
+            "give i_d, i_q (1-D axes, A) and psi_d, psi_q (2-D, Wb, rows along i_d), or complex i_s_dq and "
+            "psi_s_dq grids."
+        )
+    i_d, i_q = (np.asarray(arrays[k], dtype=float).reshape(-1) for k in ("i_d", "i_q"))
+    return i_d, i_q, np.asarray(arrays["psi_d"], dtype=float), np.asarray(arrays["psi_q"], dtype=float)
+
+
+def _complex_grid(i_s, psi_s, where: str):
+    i_s, psi_s = np.asarray(i_s), np.asarray(psi_s)
+    if i_s.ndim != 2 or i_s.shape != psi_s.shape:
+        raise ParameterError(
+            f"{where}: i_s_dq {i_s.shape} and psi_s_dq {psi_s.shape} must be 2-D grids of the same shape."
+        )
+    if np.allclose(i_s.real, i_s.real[:, :1]) and np.allclose(i_s.imag, i_s.imag[:1, :]):
+        pass  # rows along i_d
+    elif np.allclose(i_s.real, i_s.real[:1, :]) and np.allclose(i_s.imag, i_s.imag[:, :1]):
+        i_s, psi_s = i_s.T, psi_s.T
+    else:
+        raise ParameterError(
+            f"{where}: i_s_dq is not a rectangular grid (i_d constant along one axis, i_q along the other): "
+            "resample the map on a regular grid."
+        )
+    return i_s.real[:, 0], i_s.imag[0, :], psi_s.real.astype(float), psi_s.imag.astype(float)
+
+
+def _check_units(i_d, i_q, psi_d, psi_q, where: str) -> None:
+    top = max(np.nanmax(np.abs(i_d)), np.nanmax(np.abs(i_q)))
+    if top < MA_CURRENT_A or i_d.size < 2 or np.shape(psi_d)[:1] != (i_d.size,):
+        return
+    slope = np.nanmedian(np.abs(np.diff(psi_d, axis=0)) / np.diff(i_d)[:, None])
+    if slope < MA_INDUCTANCE_H:
+        raise ParameterError(
+            f"{where}: currents reach {plain(top)} A with an incremental inductance of {slope:.2g} H: "
+            "it looks like the currents are in mA: write them in A (divide by 1000)."
+        )
+
+
+def write_flux_map_csv(path, grid: FluxMapGrid, header: str = "") -> Path:
+    """Write ``grid`` as a flux-map CSV (one row per grid point, full precision), atomically."""
+    from pmsmjax.io.logs import atomic_write
+
+    D, Q = np.meshgrid(grid.i_d, grid.i_q, indexing="ij")
+    rows = np.column_stack([D.ravel(), Q.ravel(), grid.psi_d.ravel(), grid.psi_q.ravel()])
+    lines = [f"# {line}" for line in header.splitlines()] + [",".join(CSV_COLUMNS)]
+    lines += [",".join(repr(float(v)) for v in row) for row in rows]
+    return atomic_write(path, lambda f: f.write("\n".join(lines) + "\n"), mode="w")
