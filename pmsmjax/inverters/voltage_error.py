@@ -24,8 +24,9 @@ the duty); the parasitic capacitances that slow the pole's swing at small curren
 
 Sign. ``sgn(i)`` is replaced by ``tanh(i / i_eps)`` so that the model is differentiable in the current
 (DESIGN.md gradient policy). ``i_eps`` stands for the current ripple: near a zero crossing the real
-error moves between its two values over about the ripple's amplitude. :func:`ripple_current_scale`
-gives that amplitude; :data:`CURRENT_LIMIT_SHARE` of the current limit is the drive file's default.
+error moves between its two values over about the ripple's amplitude (largest at mid modulation, well
+under a volt-second estimate ``U_dc Ts / (8 L)`` near standstill, where all legs switch nearly together).
+:data:`CURRENT_LIMIT_SHARE` of the current limit is the drive file's default.
 
 The same error, predicted by the controller from its own estimates of ``t_d`` and ``V_f``, is what
 dead-time compensation adds back (:mod:`pmsmjax.controllers.dead_time_compensation`).
@@ -40,25 +41,16 @@ from pmsmjax._types import Array
 from pmsmjax.checks.validation import ParameterError, check_nonnegative, check_positive, is_concrete
 from pmsmjax.machines.motor import as_float
 
-__all__ = ["VoltageError", "smooth_sign", "ripple_current_scale", "check_dead_time", "CURRENT_LIMIT_SHARE"]
+__all__ = ["VoltageError", "smooth_sign", "check_dead_time", "CURRENT_LIMIT_SHARE"]
 
-#: The sign's current scale ``i_eps`` as a share of the drive's current limit (drive files): 2 %, of the
-#: order of the PWM current ripple of the example drives (:func:`ripple_current_scale`).
+#: The sign's current scale ``i_eps`` as a share of the drive's current limit (drive files): 2 %, "a few
+#: per cent" of the limit, of the order of the PWM current ripple of the example drives.
 CURRENT_LIMIT_SHARE = 0.02
 
 
 def smooth_sign(current: Array, current_scale: Array) -> Array:
     """``tanh(i / i_eps)``: the sign of ``current`` (A, any shape), smoothed over ``current_scale`` (A)."""
     return jnp.tanh(current / current_scale)
-
-
-def ripple_current_scale(u_dc, inductance, Ts) -> float:
-    """Half the peak-to-peak PWM current ripple of a leg at duty 0.5, A: ``U_dc Ts / (8 L)``.
-
-    The leg is high for ``Ts/2``; the phase voltage then departs from its average by about ``U_dc/2``
-    for ``Ts/4`` on either side, so the current swings ``U_dc Ts / (4 L)`` peak to peak (``u_dc`` V,
-    ``inductance`` H, ``Ts`` s)."""
-    return float(u_dc) * float(Ts) / (8.0 * float(inductance))
 
 
 def check_dead_time(dead_time, Ts: float, name: str) -> None:
