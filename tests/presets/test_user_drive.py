@@ -27,7 +27,12 @@ def test_book_file_scenario_and_startup_are_the_books():
     spec = drive_spec("book")
     assert eqx.tree_equal(spec_scenario(spec), presets.book_scenario())
     assert startup_options(spec) == presets.STARTUP_DEFAULTS
-    assert spec.derived.keys() == {"inverter.control_frequency_hz", "ratings.rated_current_a"}
+    assert spec.derived.keys() == {
+        "inverter.control_frequency_hz",
+        "inverter.device_drop_v",
+        "inverter.dead_time_compensation",
+        "ratings.rated_current_a",
+    }
 
 
 @pytest.mark.parametrize("n_phases, build", [(6, six_phase_drive), (5, five_phase_drive)])
