@@ -455,9 +455,7 @@ def run(args) -> int:
             "gains": args.gains,
             "current_limit_a": current_limit,
             "u_dc_v": float(np.asarray(drive.bridge.u_dc)),
-            "bridge_dead_time": drive_flags.dead_time_entry(
-                spec, modelled=six_phase and args.bridge == "switching"
-            ),
+            "bridge_dead_time": drive_flags.dead_time_entry(spec, drive),
         },
         "drive_file": spec.summary(),
         "metrics": speed_step_summary(trace, load_time_s=load_time, current_limit_a=current_limit),

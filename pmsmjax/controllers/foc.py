@@ -11,7 +11,9 @@ Sampled-data, once per control period ``Ts``, on the estimator's angle and speed
    ``mode="current"`` the scenario's ``i_q*`` instead;
 3. the current loop (:class:`~pmsmjax.controllers.base.AbstractCurrentController`: the dq PIs with
    decoupling and delay compensation of :mod:`.current_pi` by default, or proportional-resonant in
-   alpha-beta), limited to the modulator's linear range.
+   alpha-beta), limited to the modulator's linear range;
+4. optionally, dead-time compensation (:mod:`.dead_time_compensation`, not in the book): the inverter's
+   predicted voltage error added back to the command.
 """
 
 from typing import Literal
@@ -29,6 +31,8 @@ from pmsmjax.controllers.base import (
     AbstractSpeedController,
     CurrentLoopContext,
 )
+from pmsmjax.controllers.dead_time_compensation import DeadTimeCompensation
+from pmsmjax.frames.three_phase import park
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import ControlOutput, Estimate, References, Sample
 
@@ -61,6 +65,10 @@ class FOC(AbstractController):
     - `decoupling`: apply the dq decoupling feed-forward (dq PI current loop).
     - `delay_compensation`: with a computational delay, run the current loop on the current predicted
       for the next sampling instant (see :mod:`.current_pi`).
+    - `dead_time_compensation`: a :class:`DeadTimeCompensation` with the controller's estimate of the
+      inverter's dead time and device drop, its voltage added to the current loop's command (which the
+      loop's own state, ``u_dq_prev``, does not include: it is the voltage the machine should see);
+      ``None`` (default, as in the book): none.
     """
 
     model: PMSMParameters
@@ -72,6 +80,7 @@ class FOC(AbstractController):
     speed_divider: int = eqx.field(static=True, default=1)
     decoupling: bool = eqx.field(static=True, default=True)
     delay_compensation: bool = eqx.field(static=True, default=True)
+    dead_time_compensation: DeadTimeCompensation | None = None
 
     def __check_init__(self):
         check_positive("current_limit", self.current_limit, "A")
@@ -107,6 +116,11 @@ class FOC(AbstractController):
         current_state, u_ab, u_dq = self.current.step(
             state.current, i_dq_ref, sample.i_ab, estimate.theta_e, omega_e, ctx
         )
+        if self.dead_time_compensation is not None:
+            u_ab = u_ab + self.dead_time_compensation.voltage_ab(
+                i_dq_ref, park(sample.i_ab, estimate.theta_e), estimate.theta_e, omega_e, sample.u_dc, Ts,
+                delayed,
+            )  # fmt: skip
         new_state = FOCState(speed_state, current_state, d_axis_state, u_dq, iq_ref, counter)
         return new_state, ControlOutput(u_ab, u_dq, i_dq_ref)
 

@@ -10,6 +10,7 @@ from pmsmjax.inverters.multiphase_svpwm import LargeVectorSVPWM, NearFourVectorS
 from pmsmjax.inverters.spwm import MinMaxPWM, SinusoidalPWM, ThirdHarmonicPWM, third_harmonic
 from pmsmjax.inverters.svpwm import SVPWM, sector_code, switching_times
 from pmsmjax.inverters.switching import SwitchingBridge
+from pmsmjax.inverters.voltage_error import VoltageError
 
 __all__ = [
     "AbstractBridge",
@@ -30,4 +31,5 @@ __all__ = [
     "LargeVectorSVPWM",
     "NearFourVectorSVPWM",
     "ZeroSequencePWM",
+    "VoltageError",
 ]

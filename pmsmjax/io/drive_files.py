@@ -9,7 +9,9 @@ Layout (SI units; every table but ``[motor]`` optional)::
                    file, :mod:`pmsmjax.io.flux_map_files`; L_d, L_q, psi_f then optional)
     [ratings]      rated_speed_rpm, rated_torque_nm or rated_current_a (A peak), max_current_a (A peak)
     [inverter]     u_dc_v, switching_frequency_hz, control_frequency_hz (default: the switching
-                   frequency), dead_time_s
+                   frequency), dead_time_s, device_drop_v (a switch's or diode's on-state voltage, V),
+                   dead_time_compensation = true | false (default true: the controller adds the dead
+                   time's and drop's predicted error back, as drive firmware does)
     [sensor]       kind = "exact" | "encoder", lines (per mechanical revolution), delay_s
     [tolerances]   relative half-widths of the parameters' spread: R = 0.05 (+-5 %), L_d, L_q, psi_f, J, B,
                    u_dc_v (Monte Carlo draws, robust tuning)
@@ -78,6 +80,8 @@ TABLES = {
         "switching_frequency_hz": "Hz",
         "control_frequency_hz": "Hz",
         "dead_time_s": "s",
+        "device_drop_v": "V",
+        "dead_time_compensation": "bool",
     },  # fmt: skip
     "sensor": {"kind": "str", "lines": "int", "delay_s": "s"},
     "tolerances": {k: "" for k in ("R", "L_d", "L_q", "psi_f", "J", "B", "L_ls", "u_dc_v")},
@@ -116,6 +120,10 @@ SWITCHING_RANGE_HZ = (500.0, 1e6)
 #: A dead time beyond this share of the switching period is refused (it would take over a fifth of the
 #: voltage: a unit slip, us for s).
 MAX_DEAD_TIME_SHARE = 0.1
+#: A device drop above this (V), or above this share of the DC link, is refused (IGBTs and diodes drop
+#: 0.7-3 V, MOSFETs less: more is a unit slip, mV for V, or the drop of a whole string).
+MAX_DEVICE_DROP_V = 10.0
+MAX_DEVICE_DROP_SHARE = 0.1
 MAX_SPEED_RPM = 200_000.0
 #: An encoder latency beyond this many control periods is refused (a unit slip: us for s).
 MAX_SENSOR_DELAY_PERIODS = 10
@@ -128,7 +136,8 @@ class DriveSpec:
     - `source`: the preset name or file path;
     - `motor`: SI values (``n_phases`` present only for a multi-phase motor);
     - `ratings`: ``rated_speed_rpm, rated_torque_nm, rated_current_a, max_current_a``;
-    - `inverter`: ``u_dc_v, switching_frequency_hz, control_frequency_hz, dead_time_s``;
+    - `inverter`: ``u_dc_v, switching_frequency_hz, control_frequency_hz, dead_time_s, device_drop_v``
+      and ``dead_time_compensation`` (bool);
     - `sensor`: ``kind`` and, for an encoder, ``lines``, ``delay_s``;
     - `tolerances`: relative half-widths (only those the file gives);
     - `control`, `scenario`, `tuning`: as the file's tables, complete;
@@ -250,6 +259,11 @@ def read_drive_file(
     motor = _read_motor(tables["motor"], where, n_phases)
     trust = tables["motor"].get("trust_units", False)
     ratings = _numbers(tables["ratings"], "ratings", where)
+    compensation = tables["inverter"].pop("dead_time_compensation", None)
+    if compensation is not None and not isinstance(compensation, bool):
+        raise ParameterError(
+            f"{where}: [inverter] dead_time_compensation must be true or false, got {compensation!r}."
+        )
     inverter = _numbers(tables["inverter"], "inverter", where)
     control = _numbers(tables["control"], "control", where)
     scenario = _numbers(tables["scenario"], "scenario", where, positive=("duration_s",), signed=True)
@@ -269,6 +283,13 @@ def read_drive_file(
 
     derived = dict(flux_map_derived)
     _complete_inverter(inverter, derived, name_of)
+    if compensation is None:
+        compensation = True
+        derived["inverter.dead_time_compensation"] = (
+            "true: the controller adds the dead time's and device drop's predicted error back, as drive "
+            "firmware does (it acts when dead_time_s or device_drop_v > 0)"
+        )
+    inverter["dead_time_compensation"] = compensation
     Ts = 1.0 / inverter["control_frequency_hz"]
     if check_units and not trust:
         check_motor_units(motor, f"{where} [motor]", Ts)
@@ -408,7 +429,7 @@ def _numbers(values: dict, table: str, where: str, positive=(), signed=False, ze
         if not _is_number(v):
             raise ParameterError(f"{name} must be a number ({unit or 'relative'}), got {v!r}.")
         v = float(v)
-        low_ok = (zero_ok or key == "dead_time_s") and v == 0.0
+        low_ok = (zero_ok or key in ("dead_time_s", "device_drop_v")) and v == 0.0
         if not math.isfinite(v) or ((not signed or key in positive) and v <= 0 and not low_ok):
             need = "a finite number" if signed and key not in positive else "a finite number above 0"
             raise ParameterError(f"{name} = {plain(v)} {unit}: give {need}.")
@@ -603,6 +624,16 @@ def _complete_inverter(inverter: dict, derived: dict, name_of) -> None:
         raise ParameterError(
             f"{name_of('dead_time_s')} = {plain(t_d)} s is {longer} the {plain(period * 1e6)} us switching "
             f"period ({plain(f_sw / 1e3)} kHz): dead times are 0.1-5 us, in s: write e.g. 2e-6 for 2 us."
+        )
+    if "device_drop_v" not in inverter:
+        inverter["device_drop_v"] = 0.0
+        derived["inverter.device_drop_v"] = "0 (ideal switches)"
+    drop, u_dc = inverter["device_drop_v"], inverter.get("u_dc_v")
+    if drop > MAX_DEVICE_DROP_V or (u_dc is not None and drop > MAX_DEVICE_DROP_SHARE * u_dc):
+        of_link = f" or {100 * MAX_DEVICE_DROP_SHARE:g} % of the {plain(u_dc)} V DC link" if u_dc else ""
+        raise ParameterError(
+            f"{name_of('device_drop_v')} = {plain(drop)} V is above {plain(MAX_DEVICE_DROP_V)} V{of_link}: a "
+            "switch or diode drops 0.7-3 V (MOSFETs less), in V: write e.g. 1.5."
         )
 
 

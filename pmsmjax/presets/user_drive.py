@@ -3,7 +3,10 @@
 
 :func:`spec_drive` builds the drive of a control method (:data:`pmsmjax.presets.control_methods.CONTROLS`,
 or a six- or five-phase scheme) at the file's DC link, control rate, current limit and bandwidths; the
-file's sensor (an encoder) becomes the drive's estimator. :func:`spec_scenario` is the file's scenario,
+file's sensor (an encoder) becomes the drive's estimator, and a three-phase drive's averaged bridge gets
+the file's dead time and device drop (:mod:`pmsmjax.inverters.voltage_error`) with, unless the file turns
+it off, the FOC controller's dead-time compensation (:func:`with_inverter_error`). :func:`spec_scenario` is
+the file's scenario,
 :func:`startup_options` its I/f start for sensorless runs. On the book drive file (``--motor book``) all
 three are bit for bit the book presets (tests/presets/test_user_drive.py).
 
@@ -28,6 +31,7 @@ __all__ = [
     "spec_drive",
     "spec_scenario",
     "startup_options",
+    "with_inverter_error",
     "SMC_LOAD_RISE_S",
 ]
 
@@ -122,7 +126,8 @@ def spec_drive(spec: DriveSpec, control: str | None = None, **options) -> Drive:
         from pmsmjax.presets.control_methods import control_drive
 
         control = control or "pi"
-        drive = control_drive(control, spec_motor(spec), **{**drive_options(spec, control), **options})
+        merged = {**drive_options(spec, control), **options}
+        drive = with_inverter_error(spec, control_drive(control, spec_motor(spec), **merged))
         if "flux_map" in spec.motor:
             drive = _with_flux_map(drive, spec)
     else:
@@ -139,6 +144,45 @@ def spec_drive(spec: DriveSpec, control: str | None = None, **options) -> Drive:
 
         encoder = Encoder(spec.sensor["lines"], spec.motor["pole_pairs"], spec.sensor["delay_s"])
         drive = eqx.tree_at(lambda d: d.estimator, drive, encoder, is_leaf=lambda x: x is None)
+    return drive
+
+
+def with_inverter_error(spec: DriveSpec, drive: Drive) -> Drive:
+    """``drive`` (three-phase, averaged bridge) with the file's ``[inverter]`` dead time and device drop
+    in its bridge and, with ``dead_time_compensation`` (default true) and an FOC controller, the same
+    estimates compensated in the controller (the other controllers have none). Unchanged when the file
+    has neither a dead time nor a drop.
+
+    The engine runs one PWM period per control period ``Ts``; a file whose control rate differs from its
+    switching rate loses ``U_dc t_d`` per PWM period, so the dead time is scaled by ``f_sw / f_c`` to keep
+    that share of the voltage. The current sign is smoothed over
+    :data:`~pmsmjax.inverters.voltage_error.CURRENT_LIMIT_SHARE` of the controller's current limit.
+    """
+    from pmsmjax.controllers.dead_time_compensation import DeadTimeCompensation
+    from pmsmjax.controllers.foc import FOC
+    from pmsmjax.inverters.averaged import AveragedBridge
+    from pmsmjax.inverters.voltage_error import CURRENT_LIMIT_SHARE, VoltageError
+
+    inv = spec.inverter
+    t_d, drop = inv["dead_time_s"], inv["device_drop_v"]
+    if (t_d == 0.0 and drop == 0.0) or not isinstance(drive.bridge, AveragedBridge):
+        return drive
+    t_d_period = t_d * inv["switching_frequency_hz"] / inv["control_frequency_hz"]
+    limit = float(drive.controller.current_limit) if hasattr(drive.controller, "current_limit") else None
+    scale = CURRENT_LIMIT_SHARE * (spec.current_limit_a if limit is None else limit)
+    bridge = AveragedBridge(
+        drive.bridge.u_dc,
+        drive.bridge.unroll_substeps,
+        dead_time=t_d_period,
+        device_drop=drop,
+        sign_smoothing=scale,
+    )
+    drive = eqx.tree_at(lambda d: d.bridge, drive, bridge)
+    if inv["dead_time_compensation"] and isinstance(drive.controller, FOC):
+        compensation = DeadTimeCompensation(VoltageError(t_d_period, drop, scale))
+        drive = eqx.tree_at(
+            lambda d: d.controller.dead_time_compensation, drive, compensation, is_leaf=lambda x: x is None
+        )
     return drive
 
 

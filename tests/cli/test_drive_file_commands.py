@@ -55,8 +55,10 @@ def test_demo_example_drive_reaches_rated_speed_within_its_current(tmp_path, nam
     assert summary["drive"]["u_dc_v"] == spec.u_dc_v
     assert summary["drive"]["Ts_s"] == pytest.approx(1.0 / spec.inverter["switching_frequency_hz"])
     assert summary["operating_point"]["flags"] == []
-    dead = summary["drive"]["bridge_dead_time"]  # the averaged bridge says it leaves the dead time out
-    assert dead["dead_time_s"] == spec.inverter["dead_time_s"] > 0 and not dead["modelled"]
+    dead = summary["drive"]["bridge_dead_time"]  # the averaged bridge models the file's dead time
+    assert (
+        dead["dead_time_s"] == spec.inverter["dead_time_s"] > 0 and dead["modelled"] and dead["compensated"]
+    )
 
 
 def test_raised_dc_link_admits_a_refused_speed(tmp_path, capsys):

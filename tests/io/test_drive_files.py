@@ -82,6 +82,24 @@ CARELESS = {
         "dead_time_s = 5e-5",
         ["[inverter] dead_time_s", "50 % of the 100 us"],
     ),
+    "device drop in mV": (
+        SERVO,
+        "dead_time_s",
+        "dead_time_s = 5e-7\ndevice_drop_v = 700.0",
+        ["[inverter] device_drop_v = 700 V", "above 10 V", "0.7-3 V", "write e.g. 1.5"],
+    ),
+    "device drop over the DC link's tenth": (
+        SERVO,
+        "dead_time_s",
+        "dead_time_s = 5e-7\ndevice_drop_v = 6.0",
+        ["[inverter] device_drop_v = 6 V", "10 % of the 48 V DC link"],
+    ),
+    "compensation not a bool": (
+        SERVO,
+        "dead_time_s",
+        "dead_time_s = 5e-7\ndead_time_compensation = 1",
+        ["[inverter] dead_time_compensation must be true or false, got 1"],
+    ),
     "control faster than twice the PWM": (
         BOOK,
         "switching_frequency_hz",
@@ -390,7 +408,12 @@ def test_book_file_states_the_book(tmp_path):
     assert spec.tuning == dict(speed_rpm=[200.0, 1500.0], load_nm=[0.0, 10.0], duration_s=[0.3, 0.5])
     np.testing.assert_allclose(spec.voltage_limit_v, 311.0 / math.sqrt(3.0), rtol=1e-15)
     np.testing.assert_allclose(spec.ratings["rated_current_a"], 10.0 / (6 * 0.1827), rtol=1e-9)
-    assert set(spec.derived) == {"inverter.control_frequency_hz", "ratings.rated_current_a"}
+    assert set(spec.derived) == {
+        "inverter.control_frequency_hz",
+        "inverter.device_drop_v",
+        "inverter.dead_time_compensation",
+        "ratings.rated_current_a",
+    }
     path = tmp_path / "book.toml"
     path.write_text(BOOK)
     by_path = drive_spec(path)
@@ -404,7 +427,7 @@ def test_derived_rules_of_a_motor_only_file(tmp_path):
     path.write_text("R = 0.5\nL_d = 0.004\nL_q = 0.004\npsi_f = 0.1\npole_pairs = 3\nJ = 0.002\nB = 0.001\n")
     spec = drive_spec(path)
     assert spec.inverter == dict(u_dc_v=311.0, switching_frequency_hz=1e4, control_frequency_hz=1e4,
-                                 dead_time_s=0.0)  # fmt: skip
+                                 dead_time_s=0.0, device_drop_v=0.0, dead_time_compensation=True)  # fmt: skip
     a_c = math.radians(90.0 - 65.0) / (1.5 * 1e-4)
     np.testing.assert_allclose(spec.control["current_bandwidth_rad_s"], a_c, rtol=1e-12)
     assert round(a_c * 1e-4, 2) == 0.29

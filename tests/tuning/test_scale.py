@@ -354,6 +354,8 @@ def test_unrolled_substeps_are_the_same_equations_in_one_program():
     assert unrolled.bridge.unroll_substeps and not drive.bridge.unroll_substeps
     assert isinstance(unrolled.bridge, AveragedBridge)
     assert float(unrolled.bridge.u_dc) == float(drive.bridge.u_dc)
+    servo = mc_study.build_drive(Study(motor="servo-400w", unroll_substeps=True))
+    assert float(servo.bridge.voltage_error.dead_time) == 5e-7  # the file's dead time survives unrolling
     scenario = pmsmjax.presets.book_scenario(600.0, 3.0, load_time_s=0.01, duration_s=0.02)
     x = jax.tree.map(lambda a: a[0], period_inputs(scenario, drive.Ts))
     for d, expected in ((drive, {"unroll=1"}), (unrolled, {"unroll=10"})):  # the 10 RK4 sub-steps

@@ -320,6 +320,10 @@ def build_drive(study: Study) -> Drive:
     drive = spec_drive(spec, "pi", **options)
     if study.unroll_substeps:
         unrolled = AveragedBridge(drive.bridge.u_dc, unroll_substeps=True)
+        # keep the drive file's dead time and device drop (None without them)
+        unrolled = eqx.tree_at(
+            lambda b: b.voltage_error, unrolled, drive.bridge.voltage_error, is_leaf=lambda x: x is None
+        )
         drive = eqx.tree_at(lambda d: d.bridge, drive, unrolled)
     drive = drive if study.gains is None else apply_gains(drive, study.gains)
     if study.estimator is not None:  # the observer's model: the nominal motor (the plant is varied)
