@@ -460,6 +460,7 @@ def run(args) -> int:
         "drive_file": spec.summary(),
         "metrics": speed_step_summary(trace, load_time_s=load_time, current_limit_a=current_limit),
         "operating_point": operating,
+        **flux_map_entry(drive, trace),
         "definitions": DEFINITIONS,
         "trace_columns": COLUMN_UNITS,
         "timing": {"compile_s": max(first_call_s - run_s, 0.0), "run_s": run_s},
@@ -519,6 +520,8 @@ def run(args) -> int:
             f"peak current {m['peak_phase_current_a']:.2f} A (limit {m['current_limit_a']:.1f} A)"
         )
     print_flags(operating)
+    if summary.get("flux_map", {}).get("warning"):
+        print(f"WARNING flux_map: {summary['flux_map']['warning']}")
     print(f"compile {summary['timing']['compile_s']:.2f} s, run {summary['timing']['run_s'] * 1e3:.1f} ms")
     print(
         f"wrote {out}/trace.{args.format}, {out}/summary.json"
@@ -542,6 +545,13 @@ DEFINITIONS = {
     "voltage or current limit; segments: whether the mean speed over the last 10 % before the load step and "
     "of the run is within the tolerance of the reference; flags: each shortfall with cause and remedy",
 }
+
+
+def flux_map_entry(drive, trace) -> dict:
+    """``{"flux_map": ...}`` for summary.json when the plant is a flux map: how far the run's currents went
+    outside the map's grid (:func:`pmsmjax.machines.flux_map.excursion`); ``{}`` otherwise."""
+    flux_map = getattr(drive.machine, "flux_map", None)
+    return {} if flux_map is None else {"flux_map": flux_map.excursion(trace.i_dq)}
 
 
 def print_flags(operating: dict) -> None:
