@@ -24,6 +24,13 @@ class AbstractModulator(eqx.Module):
     n_phases: ClassVar[int] = 3
 
     def duties(self, u_ab_ref: Array, u_dc: Array) -> Array:
+        """Leg duty cycles that reproduce the stationary-frame reference on average over one period.
+
+        `u_ab_ref`: ``(2,)`` voltage reference, V (``(2 n_planes,)`` for the multi-phase modulators:
+        alpha-beta first, then the other planes); `u_dc`: DC-link voltage, V. Returns ``(n_phases,)`` duty
+        cycles in [0, 1] (the fraction of the period each upper switch conducts, centre-aligned); a
+        reference beyond the linear range is limited by the modulator's own overmodulation rule.
+        """
         raise NotImplementedError
 
     def linear_limit(self, u_dc) -> Array:
@@ -71,4 +78,12 @@ class AbstractBridge(eqx.Module):
         Ts: float,
         n_substeps: int,
     ) -> tuple[MachineState, Array]:
+        """Integrate `machine` over one PWM period under the bridge's output for `duties`.
+
+        `state`: the machine state at the period start; `duties`: ``(n_phases,)`` leg duty cycles in [0, 1]
+        (or switch states in {0, 1}); `load_torque`: N m, held over the period; `Ts`: the period, s
+        (static); `n_substeps`: RK4 steps per period (per segment for a switching bridge; static). Returns
+        the state at the period end and the period-average stator-frame voltage applied, ``(2,)`` V
+        (``(2 n_planes,)`` for the multi-phase bridges).
+        """
         raise NotImplementedError
