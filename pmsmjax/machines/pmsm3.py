@@ -144,6 +144,7 @@ class PMSMabc(AbstractMachine):
         return self.motor.psi_f * jnp.cos(theta_e - _PHASE_AXES)
 
     def flux(self, currents, theta_e) -> Array:
+        """``(3,)`` phase flux linkages, Wb, of phase currents ``currents (3,)`` A at ``theta_e`` rad."""
         return self.inductance(theta_e) @ currents + self.magnet_flux(theta_e)
 
     def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):

@@ -201,6 +201,7 @@ class MultiPhasePMSMNatural(AbstractMultiPhaseMachine):
         return flux
 
     def flux(self, currents, theta_e) -> Array:
+        """``(n,)`` phase flux linkages, Wb, of phase currents ``currents (n,)`` A at ``theta_e`` rad."""
         return self.inductance(theta_e) @ currents + self.magnet_flux(theta_e)
 
     def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
