@@ -1,6 +1,6 @@
 """Three-phase PMSM in the rotor (dq), stationary (alpha-beta) and natural (abc) frames.
 
-Each model is written from its own frame's equations (BOOK.md chapter 1) so that comparing them is an
+Each model is written from its own frame's equations (the book, ch. 1) so that comparing them is an
 independent check of each:
 
 - :class:`PMSMdq`: ``u_d = R i_d + L_d di_d/dt - w_e L_q i_q``,
