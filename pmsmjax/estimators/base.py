@@ -28,8 +28,9 @@ class AbstractEstimator(eqx.Module):
     def init(self, sample: Sample):
         """The estimator's state from the first period's `sample` (measurements at the start of the run).
 
-        Position sensors start from the sensor's angle; observers that cannot know it start from zero
-        or from their own initial guess. Returns a pytree (the concrete estimator's state type).
+        An encoder starts from its count of the sensor's angle (the exact sensor keeps no state:
+        ``None``); an observer, which cannot know the rotor's angle, typically starts from the measured
+        currents with angle and speed zero. Returns a pytree (the concrete estimator's state type).
         """
         raise NotImplementedError
 
