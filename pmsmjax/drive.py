@@ -143,6 +143,15 @@ class Drive(eqx.Module):
         )
 
     def step(self, state: DriveState, x: PeriodInputs) -> tuple[DriveState, PeriodRecord]:
+        """One control period (the body of the :func:`pmsmjax.simulate.simulate` scan).
+
+        Sample the machine at the period start, estimate, control, modulate, then integrate the machine
+        over the period under the duties in force (last period's with a computational delay). `state`: the
+        drive's state at the period start; `x`: this period's references (speed rad/s, currents A) and
+        load torque (N m). Returns the state at the period end and the :class:`PeriodRecord` of this
+        period (the period-start machine state, the applied duties, the dq voltage command V and current
+        reference A, and the estimate when recorded).
+        """
         ms = state.machine
         if self.machine.mechanics == "imposed":
             ms = MachineState(ms.currents, jnp.asarray(x.speed_ref, ms.omega_m.dtype), ms.theta_e)

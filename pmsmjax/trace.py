@@ -111,10 +111,12 @@ class Trace(eqx.Module):
 
     @property
     def speed_rpm(self) -> Array:
+        """Mechanical speed, r/min (``omega_m`` converted)."""
         return rad_s_to_rpm(self.omega_m)
 
     @property
     def speed_ref_rpm(self) -> Array:
+        """Speed reference, r/min (``speed_ref`` converted)."""
         return rad_s_to_rpm(self.speed_ref)
 
     def columns(self) -> dict[str, np.ndarray]:

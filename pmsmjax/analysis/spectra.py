@@ -36,6 +36,7 @@ class Spectrum:
 
     @property
     def frequencies_hz(self) -> np.ndarray:
+        """``(n_max + 1,)`` frequency of each component, Hz: ``n / window_s``."""
         return np.arange(self.amplitudes.shape[0]) / self.window_s
 
     @property

@@ -41,6 +41,10 @@ def plain(x) -> str:
 
 
 def check_finite(name: str, x, unit: str = "") -> None:
+    """Raise :class:`ParameterError` naming `name` unless every element of ``x`` is finite (no NaN or inf).
+
+    `unit` is shown after the values in the message; a traced ``x`` (inside ``jit``) is not checked.
+    """
     if not is_concrete(x):
         return
     v = _values(x)

@@ -52,6 +52,8 @@ SUBCOMMANDS = (
 
 
 def build_parser() -> Parser:
+    """The ``pmsmjax`` argument parser: one subparser per module of :data:`SUBCOMMANDS`, each with
+    ``--no-compile-cache``."""
     parser = Parser(prog="pmsmjax", description="Differentiable, batched PMSM drive simulation in JAX.")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     for name in SUBCOMMANDS:

@@ -8,6 +8,7 @@ from pmsmjax.cli import checks
 
 
 def add_parser(sub):
+    """Add the ``bench`` subcommand and its flags to the ``pmsmjax`` subparsers `sub`."""
     p = sub.add_parser(
         "bench",
         help="measure simulation speed, compile and gradient time on this machine",
@@ -20,6 +21,7 @@ def add_parser(sub):
 
 
 def run(args) -> int:
+    """Measure compile, run and gradient times of the book drive on this machine; exit status."""
     if args.json is not None:
         checks.output_file(args.json, "--json")
     import json

@@ -43,6 +43,7 @@ def whole_window_speed(speed_rpm: float, spec, given: bool) -> float:
 
 
 def add_parser(sub):
+    """Add the ``compare`` subcommand and its flags to the ``pmsmjax`` subparsers `sub`."""
     p = sub.add_parser(
         "compare",
         help="run a drive's scenario with several control methods and compare them (compare.json, figures)",
@@ -293,6 +294,8 @@ def chapter6_run(names) -> bool:
 
 
 def run(args) -> int:
+    """Run the drive's scenario under each chosen control method (or observer, ``--estimator``);
+    writes compare.json and figures to ``--out``. Returns the exit status."""
     names, spec = precheck(args)
     if args.estimator is not None:
         return run_estimators(args, names, spec)

@@ -200,6 +200,7 @@ def control_drive_from_flags(args, drive):
 
 
 def add_parser(sub):
+    """Add the ``demo`` subcommand (alias ``simulate``) and its flags to the ``pmsmjax`` subparsers `sub`."""
     p = sub.add_parser(
         "demo",
         aliases=["simulate"],
@@ -375,6 +376,8 @@ def precheck(args):
 
 
 def run(args) -> int:
+    """Simulate the drive's scenario under the chosen control method; writes the trace, summary.json
+    and figures to ``--out``. Returns the exit status."""
     spec = precheck(args)
 
     import jax

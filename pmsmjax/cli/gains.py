@@ -21,6 +21,7 @@ __all__ = ["add_gains_flag", "read_gains_flag", "apply_gains_flag"]
 
 
 def add_gains_flag(p) -> None:
+    """Add ``--gains FILE`` (a gains.toml written by ``pmsmjax tune``) to the subcommand parser `p`."""
     p.add_argument(
         "--gains",
         metavar="FILE",

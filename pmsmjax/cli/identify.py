@@ -8,6 +8,7 @@ from pmsmjax.cli import checks
 
 
 def add_parser(sub):
+    """Add the ``identify`` subcommand and its flags to the ``pmsmjax`` subparsers `sub`."""
     p = sub.add_parser(
         "identify",
         help="identify R, L_d, L_q, psi_f, J, B with error bars from a logged drive run",
@@ -146,6 +147,8 @@ def prior_and_pole_pairs(args):
 
 
 def run(args) -> int:
+    """Identify the motor parameters with error bars from the log; writes params.json, fit.png and
+    the identified drive file motor.toml to ``--out``. Returns the exit status."""
     checks.existing_file(args.log, "log", "log file")
     checks.output_folder(args.out)
     if args.config is not None:

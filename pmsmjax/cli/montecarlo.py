@@ -44,6 +44,7 @@ study TOML (--config; every table and key optional, flags win over it):
 
 
 def add_parser(sub):
+    """Add the ``montecarlo`` subcommand and its flags to the ``pmsmjax`` subparsers `sub`."""
     description = (
         "Run N closed-loop runs of a drive's scenario (--motor: a drive file or preset, default book: "
         "1000 r/min step, 10 N m load step at 0.2 s, 0.4 s, 10 kHz, 10 sub-steps; a drive file gives its "
@@ -218,6 +219,8 @@ def _study_drive_table(config) -> dict:
 
 
 def run(args) -> int:
+    """Run the Monte Carlo robustness study of the drive (resuming finished chunks); writes
+    summary.json and figures to ``--out``. Returns the exit status."""
     precheck(args)
     # Split the CPU into one device per core before anything initialises JAX's backends.
     from tuning.montecarlo.cpu_devices import split_cpu

@@ -15,6 +15,7 @@ from pmsmjax.checks.validation import ParameterError
 
 
 def add_parser(sub):
+    """Add the ``observe`` subcommand and its flags to the ``pmsmjax`` subparsers `sub`."""
     p = sub.add_parser(
         "observe",
         help="run a sensorless observer offline on a logged drive run (estimate.csv, figure)",
@@ -119,6 +120,8 @@ def _number_or_text(value: str):
 
 
 def run(args) -> int:
+    """Run the chosen observer offline on the log; writes estimate.csv, observe.json and observe.png
+    to ``--out``. Returns the exit status."""
     from pmsmjax.io.drive_files import drive_spec
 
     spec = drive_spec(args.motor)  # checked before JAX starts

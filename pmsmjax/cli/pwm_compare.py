@@ -26,6 +26,7 @@ BASE_CONTROL = {
 
 
 def add_parser(sub):
+    """Add the ``pwm-compare`` subcommand and its flags to the ``pmsmjax`` subparsers `sub`."""
     p = sub.add_parser(
         "pwm-compare",
         help="compare the PWM methods (spectra, THD, DC-bus utilisation) at one steady operating point",
@@ -165,6 +166,8 @@ def precheck(args):
 
 
 def run(args) -> int:
+    """Compare the PWM methods at the operating point; writes pwm.json, waveforms.npz and figures
+    to ``--out``. Returns the exit status."""
     spec = precheck(args)
 
     import numpy as np

@@ -4,6 +4,7 @@ from pmsmjax.cli import checks
 
 
 def add_parser(sub):
+    """Add the ``replay`` subcommand and its flags to the ``pmsmjax`` subparsers `sub`."""
     p = sub.add_parser(
         "replay",
         help="run the machine under a recorded voltage sequence",
@@ -47,6 +48,8 @@ def add_parser(sub):
 
 
 def run(args) -> int:
+    """Run the machine under the log's recorded voltages; writes the simulated dq currents, speed and
+    angle (replay.csv) to ``--out``. Returns the exit status."""
     checks.existing_file(args.log, "log", "log file")
     checks.output_folder(args.out)
     from pmsmjax.io.drive_files import drive_spec

@@ -13,6 +13,7 @@ from pmsmjax.cli import checks, drive_flags
 
 
 def add_parser(sub):
+    """Add the ``tune`` subcommand and its flags to the ``pmsmjax`` subparsers `sub`."""
     p = sub.add_parser(
         "tune",
         help="tune a control method's gains by gradients over a batch of speed/load scenarios",
@@ -187,6 +188,8 @@ def _config_robust(path) -> bool:
 
 
 def run(args) -> int:
+    """Tune the gains by gradients over a scenario batch (resuming from checkpoint.npz); writes
+    gains.toml, result.json and figures to ``--out``. Returns the exit status."""
     spec = precheck(args)
     # The command line is the one place where pmsmjax reaches up into the tuning workflows.
     import dataclasses

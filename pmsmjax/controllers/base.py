@@ -39,11 +39,26 @@ class AbstractController(eqx.Module):
     current_limit: eqx.AbstractVar[Array]
 
     def init(self, dtype):
+        """The controller's state before the first period (integrators and memories at zero).
+
+        `dtype`: the floating dtype of the state's arrays (the drive's, float32 or float64). Returns a
+        pytree (the concrete controller's own state type) that :meth:`step` takes and returns.
+        """
         raise NotImplementedError
 
     def step(
         self, state, sample: Sample, estimate: Estimate, refs: References, Ts: float, u_max, delayed: bool
     ) -> tuple[object, ControlOutput]:
+        """One control period: the command to apply from the measurements and the estimate.
+
+        `state`: as returned by :meth:`init` or the last step; `sample`: the period-start measurements;
+        `estimate`: the estimator's angle (rad) and speed (rad/s) for this period; `refs`: speed
+        (mechanical rad/s) and current (A) references; `Ts`: control period, s (static); `u_max`: the
+        modulator's linear voltage limit, V; `delayed` (static): the command is applied one period after
+        it is computed (a computational delay). Returns the new state and the
+        :class:`~pmsmjax.signals.ControlOutput` (a ``(2,)`` V stator-frame voltage or ``(n,)`` switch
+        states by ``command_kind``, with the dq voltage command and current reference).
+        """
         raise NotImplementedError
 
 
@@ -55,9 +70,16 @@ class AbstractSpeedController(eqx.Module):
     """
 
     def init(self, dtype):
+        """The speed loop's zero state (integrator, filter memories) with arrays of floating `dtype`."""
         raise NotImplementedError
 
     def step(self, state, speed_ref, omega_m, iq_max, Ts) -> tuple[object, Array]:
+        """One speed-loop period: the torque-producing current reference.
+
+        `speed_ref`, `omega_m`: reference and estimated mechanical speed, rad/s; `iq_max`: the output's
+        magnitude limit, A; `Ts`: the speed loop's period, s (a multiple of the control period). Returns
+        the new state and ``i_q*`` (scalar, A, within ``[-iq_max, iq_max]``).
+        """
         raise NotImplementedError
 
 
@@ -91,9 +113,18 @@ class AbstractCurrentController(eqx.Module):
     """
 
     def init(self, dtype):
+        """The current loop's zero state (integrators, resonators, last command) of floating `dtype`."""
         raise NotImplementedError
 
     def step(self, state, i_dq_ref, i_ab, theta_e, omega_e, ctx: CurrentLoopContext):
+        """One current-loop period: the voltage command that drives ``i_ab`` to ``i_dq_ref``.
+
+        `i_dq_ref`: ``(2,)`` dq current reference, A; `i_ab`: ``(2,)`` measured stationary-frame currents,
+        A; `theta_e`: estimated electrical angle, rad; `omega_e`: estimated electrical speed, rad/s; `ctx`:
+        the cascade's :class:`CurrentLoopContext`. Returns ``(state, u_ab (2,) V, u_dq (2,) V)``: the
+        stationary-frame command (with the angle lead of the PWM hold and delay) and the same command in
+        the estimated rotor frame, within ``ctx.u_max``.
+        """
         raise NotImplementedError
 
 
@@ -108,7 +139,14 @@ class AbstractDAxisReference(eqx.Module):
     """
 
     def init(self, dtype):
+        """The block's zero state (a field-weakening integrator, or ``None``) of floating `dtype`."""
         raise NotImplementedError
 
     def step(self, state, id_ref, iq_ref_prev, omega_e, ctx: CurrentLoopContext, current_limit):
+        """One period: the d-axis current reference.
+
+        `id_ref`: the scenario's d-axis reference, A; `iq_ref_prev`: last period's ``i_q*``, A; `omega_e`:
+        estimated electrical speed, rad/s; `ctx`: the cascade's :class:`CurrentLoopContext`;
+        `current_limit`: peak phase-current limit, A. Returns the new state and ``i_d*`` (scalar, A).
+        """
         raise NotImplementedError

@@ -129,9 +129,17 @@ class AbstractZCurrentController(eqx.Module):
     """
 
     def init(self, dtype):
+        """The z1-z2 loop's zero state (integrator or resonators, last command) of floating `dtype`."""
         raise NotImplementedError
 
     def step(self, state, i_z, theta_e, omega_e, ctx):
+        """One period: the z1-z2 voltage that drives the measured z1-z2 currents to zero.
+
+        `i_z`: ``(2,)`` measured stationary z1-z2 (five phases: x-y) currents, A; `theta_e`: estimated
+        electrical angle, rad; `omega_e`: estimated electrical speed, rad/s; `ctx`: the cascade's
+        :class:`~pmsmjax.controllers.base.CurrentLoopContext`. Returns the new state and the stationary
+        command ``u_z (2,)`` V, within the block's fraction of ``ctx.u_max``.
+        """
         raise NotImplementedError
 
 
@@ -145,9 +153,19 @@ class AbstractSixPhaseCurrentController(eqx.Module):
     """
 
     def init(self, dtype):
+        """The current loop's zero state (every sub-block's integrators and memories) of floating `dtype`."""
         raise NotImplementedError
 
     def step(self, state, i_dq_ref, i_phase, theta_e, omega_e, ctx):
+        """One period: the multi-phase voltage command from the phase currents.
+
+        `i_dq_ref`: ``(2,)`` fundamental dq current reference, A (the other planes' reference is 0);
+        `i_phase`: ``(n,)`` sampled phase currents, A; `theta_e`: estimated electrical angle, rad;
+        `omega_e`: estimated electrical speed, rad/s; `ctx`: the cascade's
+        :class:`~pmsmjax.controllers.base.CurrentLoopContext`. Returns ``(state, u_vsd (4,) V, u_dq (2,)
+        V)``: the stationary command ``[u_alpha, u_beta, u_z1, u_z2]`` (with the angle lead of the PWM hold
+        and delay) and its fundamental part in the estimated rotor frame.
+        """
         raise NotImplementedError
 
 

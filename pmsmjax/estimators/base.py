@@ -26,9 +26,23 @@ class AbstractEstimator(eqx.Module):
     injects_voltage: ClassVar[bool] = False
 
     def init(self, sample: Sample):
+        """The estimator's state from the first period's `sample` (measurements at the start of the run).
+
+        An encoder starts from its count of the sensor's angle (the exact sensor keeps no state:
+        ``None``); an observer, which cannot know the rotor's angle, typically starts from the measured
+        currents with angle and speed zero. Returns a pytree (the concrete estimator's state type).
+        """
         raise NotImplementedError
 
     def step(self, state, sample: Sample, Ts: float) -> tuple[object, Estimate]:
+        """One control period: update the estimate from this period's `sample`.
+
+        `state`: as returned by :meth:`init` or the last step; `sample`: the period-start measurements
+        (currents A, DC voltage V, last commanded voltage V, sensor angle rad); `Ts`: control period, s
+        (static). Returns the new state and the :class:`~pmsmjax.signals.Estimate` (electrical angle rad,
+        mechanical speed rad/s, and the optional fields the estimator provides) used by the controller in
+        the same period.
+        """
         raise NotImplementedError
 
     def check_period(self, Ts: float) -> None:

@@ -72,6 +72,7 @@ def bandpass_coefficients(w_h, bandwidth, Ts: float):
 
 
 def bandpass_init(dtype) -> BandpassState:
+    """The resonator's zero state (inputs and outputs of the last two samples, ``(2,)`` each) of `dtype`."""
     z = jnp.zeros(2, dtype)
     return BandpassState(z, z, z, z)
 

@@ -94,6 +94,7 @@ class PhaseLayout(NamedTuple):
 
     @property
     def n(self) -> int:
+        """Number of phases (inverter legs)."""
         return len(self.angles)
 
     @property
@@ -107,6 +108,8 @@ class PhaseLayout(NamedTuple):
         return 2 * len(self.harmonics)
 
     def check(self) -> None:
+        """Raise :class:`~pmsmjax.checks.validation.ParameterError` unless the layout is consistent:
+        ``2 n_planes + n_stars == n`` and the star-point groups cover every phase once."""
         n = self.n
         if 2 * len(self.harmonics) + len(self.neutrals) != n:
             raise ParameterError(

@@ -24,6 +24,14 @@ class AbstractModulator(eqx.Module):
     n_phases: ClassVar[int] = 3
 
     def duties(self, u_ab_ref: Array, u_dc: Array) -> Array:
+        """Leg duty cycles that reproduce the stationary-frame reference on average over one period.
+
+        `u_ab_ref`: ``(2,)`` voltage reference, V (``(2 n_planes,)`` for the multi-phase modulators:
+        alpha-beta first, then the other planes); `u_dc`: DC-link voltage, V. Returns ``(n_phases,)`` duty
+        cycles in [0, 1] (the fraction of the period each upper switch conducts, centre-aligned); beyond
+        the linear range each modulator saturates in its own way (duties clipped to [0, 1], or the vector
+        limited to the hexagon).
+        """
         raise NotImplementedError
 
     def linear_limit(self, u_dc) -> Array:
@@ -71,4 +79,13 @@ class AbstractBridge(eqx.Module):
         Ts: float,
         n_substeps: int,
     ) -> tuple[MachineState, Array]:
+        """Integrate `machine` over one PWM period under the bridge's output for `duties`.
+
+        `state`: the machine state at the period start; `duties`: ``(n_phases,)`` leg duty cycles in [0, 1]
+        (or switch states in {0, 1}); `load_torque`: N m, held over the period; `Ts`: the period, s
+        (static); `n_substeps`: RK4 steps over the period (static; a switching-resolved bridge integrates
+        each constant-voltage segment with its own ``segment_substeps`` instead). Returns
+        the state at the period end and the period-average stator-frame voltage applied, ``(2,)`` V
+        (``(2 n_planes,)`` for the multi-phase bridges).
+        """
         raise NotImplementedError

@@ -168,6 +168,8 @@ class MultiPhaseSwitchingBridge(AbstractBridge):
         return vsd_voltage(self.phase_voltages(duties), self.layout)[..., :2]
 
     def phase_current_sign(self, i_phase: Array) -> Array:
+        """``(n,)`` sign of each phase current ``i_phase (n,)`` A, which sets the dead-time and device-drop
+        voltage error: exact (``sign``) or smooth (``tanh(i / sign_smoothing)``, for gradients)."""
         if self.current_sign == "exact":
             return jnp.sign(i_phase)
         return jnp.tanh(i_phase / self.sign_smoothing)

@@ -117,9 +117,11 @@ class AbstractMachine(eqx.Module):
         return MachineState(di, domega, omega_e)
 
     def currents_dq(self, state: MachineState) -> Array:
+        """``(2,)`` dq currents of `state` (fundamental plane, at the state's rotor angle), A."""
         return self.currents_to_dq(state.currents, state.theta_e)
 
     def electromagnetic_torque(self, state: MachineState) -> Array:
+        """Electromagnetic torque of `state`, N m (positive accelerates positive rotation)."""
         return self.torque(state.currents, state.theta_e)
 
     def phase_currents(self, state: MachineState) -> Array:

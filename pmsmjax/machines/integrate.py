@@ -98,7 +98,7 @@ def advance(
     ``split_advance`` (the balanced multi-phase dq model) integrates itself.
 
     `unroll` (static): write the sub-steps out instead of looping over them: the same arithmetic, one
-    larger fused program per period. On one H100 (issue 19) it took the Monte Carlo kernel from 682 to
+    larger fused program per period. On one H100 it took the Monte Carlo kernel from 682 to
     896 M periods/s and one unbatched run from 0.58 to 0.24 s; on 2 CPU cores it is 2 % faster with
     bitwise the same results and a compile 1.1 s longer (measured), so it is off by default.
     """

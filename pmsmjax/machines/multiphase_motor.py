@@ -1,4 +1,4 @@
-"""Parameters of a multi-phase (n-phase) PMSM, SI units (BOOK.md chapters 7 and 10).
+"""Parameters of a multi-phase (n-phase) PMSM, SI units (the book, ch. 7 and 10).
 
 The same fields as :class:`pmsmjax.machines.motor.PMSMParameters` (so every design rule and controller
 written for those reads them unchanged) plus the leakage inductance ``L_ls`` and the phase count:
@@ -12,7 +12,7 @@ written for those reads them unchanged) plus the leakage inductance ``L_ls`` and
   ``L_ls < min(L_d, L_q)`` (a positive magnetising inductance).
 - ``psi_f``: PM flux linkage of one phase (peak), Wb.
 - ``torque_constant``: ``(n/2) p_n psi_f`` (amplitude-invariant VSD; 3 p_n psi_f for six phases,
-  BOOK.md chapter 7; 2.5 p_n psi_f for five, chapter 10).
+  the book, ch. 7; 2.5 p_n psi_f for five, ch. 10).
 - ``psi_f3``: optional third-harmonic PM flux linkage of one phase (peak), Wb: the phase flux
   ``psi_f cos(th - g) + psi_f3 cos(3 (th - g))``. ``None`` (default) leaves it out of the program. For five
   phases it lies in the x-y plane (order 3), where x-y currents make torque with it

@@ -1,6 +1,6 @@
 """Three-phase PMSM in the rotor (dq), stationary (alpha-beta) and natural (abc) frames.
 
-Each model is written from its own frame's equations (BOOK.md chapter 1) so that comparing them is an
+Each model is written from its own frame's equations (the book, ch. 1) so that comparing them is an
 independent check of each:
 
 - :class:`PMSMdq`: ``u_d = R i_d + L_d di_d/dt - w_e L_q i_q``,
@@ -144,6 +144,7 @@ class PMSMabc(AbstractMachine):
         return self.motor.psi_f * jnp.cos(theta_e - _PHASE_AXES)
 
     def flux(self, currents, theta_e) -> Array:
+        """``(3,)`` phase flux linkages, Wb, of phase currents ``currents (3,)`` A at ``theta_e`` rad."""
         return self.inductance(theta_e) @ currents + self.magnet_flux(theta_e)
 
     def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):

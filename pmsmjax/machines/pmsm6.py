@@ -1,4 +1,4 @@
-"""The six-phase (dual three-phase) PMSM in double-dq coordinates (BOOK.md chapters 7 and 9).
+"""The six-phase (dual three-phase) PMSM in double-dq coordinates (the book, ch. 7 and 9).
 
 Each three-phase set has its own Park transform, ABC at ``th`` and UVW at ``th - pi/6``
 (:func:`pmsmjax.frames.multiphase.double_dq`); both dq frames lie on the rotor. State

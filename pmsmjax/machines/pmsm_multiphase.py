@@ -1,5 +1,5 @@
-"""n-phase PMSM models in the natural frame and in VSD coordinates (BOOK.md chapter 7; five phases:
-chapter 10), for any :class:`~pmsmjax.frames.multiphase.PhaseLayout` (six phases by default).
+"""n-phase PMSM models in the natural frame and in VSD coordinates (the book, ch. 7; five phases:
+ch. 10), for any :class:`~pmsmjax.frames.multiphase.PhaseLayout` (six phases by default).
 
 Each model is written from its own frame's equations so that comparing them checks each:
 
@@ -28,7 +28,7 @@ model the unbalance that the z1-z2 current loops of chapter 9 exist to remove. T
 then computed through the phases, ``T_act diag(R k) T_act^-1 i`` (isolated stars: the zero-sequence rows
 are absorbed by the star-point voltages), in every model. With it, the dq model loses its fast hold.
 
-**Third-harmonic back-EMF** (``motor.psi_f3``, five phases, BOOK.md chapter 10; None: left out). The
+**Third-harmonic back-EMF** (``motor.psi_f3``, five phases, the book, ch. 10; None: left out). The
 phase magnet flux gains ``psi_f3 cos(3 (th - g_x))``. Its VSD lies in the order-3 plane (five phases:
 x-y) as ``psi_f3 [cos 3th, sin 3th]`` (``(2/n) sum_k cos(3 th - 3 g_k) e^{j 3 g_k} = e^{j 3 th}``), so that
 plane gains the back-EMF ``3 w_e psi_f3 [-sin 3th, cos 3th]`` and the torque
@@ -201,6 +201,7 @@ class MultiPhasePMSMNatural(AbstractMultiPhaseMachine):
         return flux
 
     def flux(self, currents, theta_e) -> Array:
+        """``(n,)`` phase flux linkages, Wb, of phase currents ``currents (n,)`` A at ``theta_e`` rad."""
         return self.inductance(theta_e) @ currents + self.magnet_flux(theta_e)
 
     def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):

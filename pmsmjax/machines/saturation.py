@@ -1,4 +1,4 @@
-"""d-axis saturation of a three-phase PMSM in the rotor frame (BOOK.md chapter 6, "magnet polarity needs
+"""d-axis saturation of a three-phase PMSM in the rotor frame (the book, ch. 6, "magnet polarity needs
 a saturation effect"; the flux-map picture of e.g. Jeong, Lorenz, Jahns, Sul, "Initial rotor position
 estimation of an interior permanent-magnet synchronous machine using carrier-frequency injection
 methods", IEEE Trans. Ind. Appl. 41(1), 2005, doi:10.1109/TIA.2004.840978).
@@ -124,8 +124,9 @@ def saturated_machine(
     """``motor`` as a :class:`SaturatedPMSMdq` with a d-axis flux map of ``depth`` (a) and
     ``current_scale`` (i_s, A).
 
-    Defaults for the book's salient machine (no measured flux map is available, BOOK.md "Parameters the
-    book's text is not available for"): with ``a = 0.3``, ``i_s = 8 A`` a +-8 A pulse sees secant d
-    inductances of ``L_d (1 -+ 0.13)``, a contrast of the order reported for IPM machines by Jeong et al.
+    Defaults for the book's salient machine (no measured flux map is available: docs/book_reference.md,
+    "Parameters the book's text is not available for"): with ``a = 0.3``, ``i_s = 8 A`` a +-8 A pulse
+    sees secant d inductances of ``L_d (1 -+ 0.13)``, a contrast of the order reported for IPM machines by
+    Jeong et al.
     """
     return SaturatedPMSMdq(motor, mechanics=mechanics, saturation=DAxisSaturation(depth, current_scale))

@@ -88,6 +88,8 @@ class ControllerCompareSettings:
     equal_switching_hz: float | None = None
 
     def check(self) -> None:
+        """Raise :class:`~pmsmjax.checks.validation.ParameterError` naming the first inconsistent setting
+        (unknown bridge, no speed, load step outside the run, too low a sampling rate for the THD)."""
         if self.bridge not in ("switching", "averaged"):
             raise ParameterError(f"bridge must be 'switching' or 'averaged', got {self.bridge!r}.")
         if self.speed_rpm <= 0:
@@ -341,6 +343,8 @@ class LowSpeedSweep:
     hot_r_factor: float | None = 1.3
 
     def scenario(self, speed_rpm: float):
+        """The :class:`~pmsmjax.scenarios.Scenario` of one swept speed `speed_rpm` (r/min): the ramp from
+        `start_rpm` down to it and the load step (class docstring)."""
         from pmsmjax.scenarios import Profile, Scenario
         from pmsmjax.units import rpm_to_rad_s
 

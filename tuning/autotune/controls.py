@@ -74,6 +74,9 @@ FIVE_PHASE_TUNABLE_CONTROLS = {
 
 
 def control_tuning(name: str, machine: str = "three-phase") -> ControlTuning:
+    """The default tuning job of control `name` on `machine` (``three-phase``, ``six-phase`` or
+    ``five-phase``); :class:`~pmsmjax.checks.validation.ParameterError` listing the tunable controls for
+    another name."""
     table = {"six-phase": SIX_PHASE_TUNABLE_CONTROLS, "five-phase": FIVE_PHASE_TUNABLE_CONTROLS}.get(
         machine, TUNABLE_CONTROLS
     )

@@ -145,6 +145,8 @@ TUNABLE_OBSERVERS = {
 
 
 def observer_tuning(name: str) -> ObserverTuning:
+    """The default tuning job of observer `name`; :class:`~pmsmjax.checks.validation.ParameterError`
+    listing the tunable observers for another name."""
     check_observer_name(name)
     if name not in TUNABLE_OBSERVERS:
         raise ParameterError(

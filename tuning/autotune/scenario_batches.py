@@ -54,10 +54,13 @@ class ScenarioBatch(eqx.Module):
 
     @property
     def size(self) -> int:
+        """Number of scenarios ``B`` in the batch."""
         return len(self.kind)
 
     @property
     def horizon_s(self) -> float:
+        """Simulated time shared by every scenario, s; each one's own `duration_s` ends earlier or there
+        (:meth:`active` masks the samples after it)."""
         return self.scenarios.duration_s
 
     def active(self, t: jnp.ndarray) -> jnp.ndarray:

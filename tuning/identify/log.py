@@ -118,6 +118,7 @@ class DriveLog:
 
     @property
     def n(self) -> int:
+        """Number of samples in the log."""
         return self.time.size
 
 
@@ -441,6 +442,7 @@ class StatorLog:
 
     @property
     def n(self) -> int:
+        """Number of samples in the log."""
         return self.time.size
 
 

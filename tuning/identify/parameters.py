@@ -31,10 +31,12 @@ class ParameterMap(eqx.Module):
 
     @property
     def free_names(self) -> tuple[str, ...]:
+        """Names of the free parameters, in the order of ``theta``."""
         return tuple(n for n, f in zip(self.names, self.free, strict=True) if f)
 
     @property
     def n_free(self) -> int:
+        """Number of free parameters (the length of ``theta``)."""
         return sum(self.free)
 
     def values(self, theta: Array) -> dict[str, Array]:

@@ -70,6 +70,7 @@ class Distribution:
         return self.nominal * np.exp(math.log1p(self.tolerance) / self.sigmas * z)
 
     def describe(self) -> dict:
+        """The distribution as a plain ``{field: value}`` dict (for the study's report files)."""
         return dataclasses.asdict(self)
 
 

@@ -280,6 +280,7 @@ class Study:
 
     @property
     def n_periods(self) -> int:
+        """Control periods simulated per draw: ``duration_s / Ts``, rounded."""
         return int(round(self.duration_s / self.spec.Ts))
 
 
@@ -342,6 +343,8 @@ def nominal_value(study: Study, drive: Drive, name: str) -> float:
 
 
 def check_name(drive: Drive, name: str) -> None:
+    """Raise :class:`~pmsmjax.checks.validation.ParameterError` unless `name` is a parameter a study may
+    vary on `drive` (a motor field, ``bridge.u_dc``, a scenario field or a controller leaf), listing them."""
     fields = MOTOR_FIELDS + (("L_ls",) if hasattr(drive.machine.motor, "L_ls") else ())
     allowed = [f"motor.{f}" for f in fields] + ["bridge.u_dc"] + [f"scenario.{f}" for f in SCENARIO_FIELDS]
     controller = [n for n in array_leaf_names(drive) if n.startswith("controller.") and ".model." not in n]
