@@ -1,4 +1,4 @@
-"""Cascaded field-oriented control: d-axis reference -> speed loop -> current loop (BOOK.md chapter 3).
+"""Cascaded field-oriented control: d-axis reference -> speed loop -> current loop (the book, ch. 3).
 
 Sampled-data, once per control period ``Ts``, on the estimator's angle and speed:
 

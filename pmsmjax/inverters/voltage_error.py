@@ -23,7 +23,7 @@ drop that differs between switch and diode or grows with the current (one consta
 the duty); the parasitic capacitances that slow the pole's swing at small currents.
 
 Sign. ``sgn(i)`` is replaced by ``tanh(i / i_eps)`` so that the model is differentiable in the current
-(DESIGN.md gradient policy). ``i_eps`` stands for the current ripple: near a zero crossing the real
+(gradients flow through it). ``i_eps`` stands for the current ripple: near a zero crossing the real
 error moves between its two values over about the ripple's amplitude (largest at mid modulation, well
 under a volt-second estimate ``U_dc Ts / (8 L)`` near standstill, where all legs switch nearly together).
 :data:`CURRENT_LIMIT_SHARE` of the current limit is the drive file's default.

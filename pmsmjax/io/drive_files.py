@@ -159,6 +159,7 @@ class DriveSpec:
 
     @property
     def n_phases(self) -> int:
+        """Phase count of the motor: ``[motor] n_phases``, 3 when absent."""
         return int(self.motor.get("n_phases", 3))
 
     @property
@@ -173,6 +174,7 @@ class DriveSpec:
 
     @property
     def u_dc_v(self) -> float:
+        """DC-link voltage, V: ``[inverter] u_dc_v`` (or ``--u-dc``)."""
         return self.inverter["u_dc_v"]
 
     @property
