@@ -20,12 +20,12 @@ The benchmark prints the floor and the cut of the ITAE above it.
 """
 
 import argparse
-import json
 import tempfile
 import time
 
 import numpy as np
 
+from benchmarks.bench_core import write_json_atomic
 from pmsmjax.io.drive_files import drive_spec
 from pmsmjax.presets.drive_ratings import torque_at_current
 from tuning.autotune.drive_batches import drive_batches
@@ -119,8 +119,7 @@ def main(argv=None) -> int:
             flush=True,
         )
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(rows, f, indent=2)
+        write_json_atomic(args.json, rows)
     return 0
 
 
