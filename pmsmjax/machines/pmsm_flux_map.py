@@ -18,6 +18,11 @@ gives both ``psi`` and ``L_inc`` (the interpolant's gradient, analytic), and the
 flops; ``L_inc`` is positive definite on and off the grid (the map's checks and the linear extension), so
 the solve is always well posed.
 
+**Integration.** :meth:`PMSMFluxMapdq.split_advance` runs the same classical RK4 as the linear plant
+(:func:`pmsmjax.machines.integrate.rk4_step_rotating_hold`), as a loop over stages
+(:func:`advance_by_stages`, which says why), with the map evaluated once per stage for both the current
+derivative and the torque.
+
 :class:`FluxMap` is the interpolant's data as JAX leaves; :class:`PMSMFluxMapdq` is the plant. Its
 ``motor`` keeps ``R``, ``J``, ``B``, ``pole_pairs`` and the linear model (``L_d``, ``L_q``, ``psi_f``)
 derived from the map, which the sub-step rule and a controller's design read; the electrical equations
@@ -27,11 +32,14 @@ read only the map.
 from typing import ClassVar
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.machines.base import AbstractMachine, MachineInput, Mechanics
+from pmsmjax.frames.three_phase import wrap_angle
+from pmsmjax.machines.base import AbstractMachine, MachineInput, MachineState, Mechanics
 from pmsmjax.machines.flux_map import FluxMapGrid, excursion, flux_and_inductance
+from pmsmjax.machines.integrate import rotate_back
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.machines.pmsm3 import _solve2
 
@@ -100,6 +108,102 @@ class PMSMFluxMapdq(AbstractMachine):
 
     def currents_from_dq(self, i_dq, theta_e):
         return i_dq
+
+    def packed_derivative(self, x, u_dq, load_torque) -> Array:
+        """``(4,)`` time derivative of the packed state ``x = [i_d, i_q, omega_m, theta_e]`` under the
+        rotor-frame voltage ``u_dq (2,)`` V and load torque (N m), from one evaluation of the map (the
+        current derivative and the torque share its flux)."""
+        m = self.motor
+        i = x[:2]
+        psi, L = self.flux_map(i)
+        omega_e = m.pole_pairs * x[2]
+        # the 2x2 solve written out on scalars: one fused expression (a stacked solve adds kernels)
+        b_d = u_dq[0] - m.R * i[0] + omega_e * psi[1]
+        b_q = u_dq[1] - m.R * i[1] - omega_e * psi[0]
+        det = L[0, 0] * L[1, 1] - L[0, 1] * L[1, 0]
+        di_d = (L[1, 1] * b_d - L[0, 1] * b_q) / det
+        di_q = (L[0, 0] * b_q - L[1, 0] * b_d) / det
+        if self.mechanics == "dynamic":
+            torque = 1.5 * m.pole_pairs * (psi[0] * i[1] - psi[1] * i[0])
+            domega = (torque - load_torque - m.B * x[2]) / m.J
+        else:
+            domega = jnp.zeros_like(x[2])
+        return jnp.stack([di_d, di_q, domega, omega_e])
+
+    def vector_field(self, t, state: MachineState, inputs: MachineInput) -> MachineState:
+        """Continuous-time dynamics (diffrax signature), with the map evaluated once."""
+        del t
+        x = jnp.concatenate([state.currents, jnp.stack([state.omega_m, state.theta_e])])
+        dx = self.packed_derivative(x, inputs.dq(state.theta_e), inputs.load_torque)
+        return MachineState(dx[:2], dx[2], dx[3])
+
+    @property
+    def split_advance(self):
+        """``(state, inputs, duration, n_substeps) -> state``: :func:`advance_by_stages`."""
+        return lambda state, inputs, duration, n_substeps: advance_by_stages(
+            self, state, inputs, duration, n_substeps
+        )
+
+
+#: Classical RK4 as a loop over its stages: where stage ``k + 1`` is evaluated, in steps from the
+#: sub-step's start (the last entry is unused), and the weight of stage ``k``'s slope.
+_NEXT_STAGE_AT = (0.5, 0.5, 1.0, 0.0)
+_STAGE_WEIGHT = (1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0)
+
+
+def _by_stage(stage, values):
+    """``values[stage]`` for a float stage index held in the carry (nested selects, no gather)."""
+    later = jnp.where(stage < 1.5, values[1], jnp.where(stage < 2.5, values[2], values[3]))
+    return jnp.where(stage < 0.5, values[0], later)
+
+
+def advance_by_stages(
+    machine: PMSMFluxMapdq, state: MachineState, inputs: MachineInput, duration, n_substeps: int
+) -> MachineState:
+    """Classical RK4 over ``duration`` (s) in ``n_substeps`` steps, the same arithmetic as
+    :func:`pmsmjax.machines.integrate.rk4_step_rotating_hold` (a stator-frame held voltage rotated back by
+    each stage's angle increment), written as one loop over all ``4 n_substeps`` stages with the state,
+    the stage point, the weighted slope sum and the voltage packed into one carried vector.
+
+    Why stages, not sub-steps, per loop iteration: the map lookup is a data-dependent slice of the
+    coefficient table, and XLA:CPU runs a loop body's kernels one after another (cheap) only when the
+    body has at most 8 kernels or touches no buffer over 512 bytes; otherwise it schedules them as a task
+    graph at tens of ns per kernel. A whole sub-step with four lookups compiles to about 30 kernels that
+    touch the table; one stage to 8. Measured on the book drive with the preset saturated map (float32,
+    2 cores): 20 us per period with sub-steps, 2.9 us with stages, against 0.4 us for the linear plant.
+    """
+    h = duration / n_substeps
+    rotating = inputs.frame == "stator"
+    dtype = state.currents.dtype
+    x0 = jnp.concatenate([state.currents, jnp.stack([state.omega_m, state.theta_e]).astype(dtype)])
+    u0 = inputs.dq(state.theta_e)[:2]
+    next_at = tuple(a * h for a in _NEXT_STAGE_AT)
+    weight = tuple(w * h for w in _STAGE_WEIGHT)
+
+    # carry: [x (4), stage point (4), weighted slope sum (4), voltage at x (2), stage angle advance, stage]
+    def stage(_, c):
+        x, x_stage, total, u, delta, k = c[0:4], c[4:8], c[8:12], c[12:14], c[14], c[15]
+        u_stage = rotate_back(u, delta) if rotating else u
+        slope = machine.packed_derivative(x_stage, u_stage, inputs.load_torque)
+        total = total + _by_stage(k, weight) * slope
+        last = k > 2.5
+        x_next = jnp.where(last, x + total, x)
+        u_next = jnp.where(last, rotate_back(u, total[3]), u) if rotating else u
+        step = _by_stage(k, next_at)
+        return jnp.concatenate(
+            [
+                x_next,
+                jnp.where(last, x_next, x + step * slope),
+                jnp.where(last, 0.0, total),
+                u_next,
+                jnp.where(last, 0.0, step * slope[3])[None],
+                jnp.where(last, 0.0, k + 1.0)[None],
+            ]
+        )
+
+    zeros = jnp.zeros(6, dtype)
+    c = jax.lax.fori_loop(0, 4 * n_substeps, stage, jnp.concatenate([x0, x0, zeros[:4], u0, zeros[4:]]))
+    return MachineState(c[:2], c[2], wrap_angle(c[3]))
 
 
 def flux_map_machine(

@@ -158,6 +158,31 @@ def _open_loop(machine, u_ab, Ts, n_sub, x0):
     return np.asarray(jax.lax.scan(body, s0, jnp.asarray(u_ab))[1])
 
 
+@pytest.mark.parametrize("frame", ["stator", "rotor"])
+@pytest.mark.parametrize("mechanics", ["dynamic", "imposed"])
+def test_stage_loop_is_the_classical_rk4(frame, mechanics):
+    # The plant integrates by a loop over RK4 stages (advance_by_stages); the generic RK4 of its vector
+    # field (integrate.rk4_step_rotating_hold for a stator-held voltage, rk4_step otherwise) is the reference.
+    from pmsmjax.frames.three_phase import wrap_angle
+    from pmsmjax.machines.integrate import rk4_step, rk4_step_rotating_hold
+
+    machine = flux_map_machine(analytic_grid(GRID_POINTS), R, J_ROT, B_ROT, P_N, mechanics=mechanics)
+    state = MachineState(jnp.asarray([-12.0, 25.0]), jnp.asarray(150.0), jnp.asarray(2.9))
+    inputs = MachineInput(jnp.asarray([60.0, -90.0]), jnp.asarray(3.0), frame)
+    Ts, n_sub = 1e-4, 7
+    out = advance(machine, state, inputs, Ts, n_sub)
+    ref, u = state, inputs.dq(state.theta_e)
+    for _ in range(n_sub):
+        if frame == "stator":
+            ref, u = rk4_step_rotating_hold(machine, ref, u, inputs.load_torque, Ts / n_sub)
+        else:
+            ref = rk4_step(machine, ref, inputs, Ts / n_sub)
+    assert abs(float(ref.currents[0]) - float(state.currents[0])) > 1.0  # the currents moved
+    np.testing.assert_allclose(out.currents, ref.currents, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(out.omega_m, ref.omega_m, rtol=1e-13)
+    np.testing.assert_allclose(out.theta_e, wrap_angle(ref.theta_e), rtol=1e-13)
+
+
 def test_saturated_map_against_solve_ivp():
     rng = np.random.default_rng(5)
     Ts, n = 1e-4, 200
