@@ -272,7 +272,8 @@ def _run_flux_map(args, prior, pole_pairs: int, fixed: dict, columns: dict, unit
     missing = flux_map_motor_missing(fixed, prior)
     if missing:
         print(
-            f"pmsmjax identify: motor.toml not written: {', '.join(missing)} not determined by a constant-speed "
+            f"pmsmjax identify: motor.toml not written: {', '.join(missing)} not determined by a "
+            f"constant-speed "
             f"log: give --fix {missing[0]}=VALUE (SI units) or --motor PRIOR (a drive file or preset).",
             file=sys.stderr,
         )

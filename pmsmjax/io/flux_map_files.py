@@ -91,7 +91,8 @@ def _read_csv(path: Path, where: str):
         marks = rows[:, header.index(MEASURED_COLUMN)]
         if not np.all((marks == 0) | (marks == 1)):
             raise ParameterError(
-                f"{where}: the {MEASURED_COLUMN} column holds {plain(marks[(marks != 0) & (marks != 1)][0])}: "
+                f"{where}: the {MEASURED_COLUMN} column holds "
+                f"{plain(marks[(marks != 0) & (marks != 1)][0])}: "
                 "give 1 (a measured point) or 0 (a filled one)."
             )
         measured = np.empty((i_d.size, i_q.size), dtype=bool)

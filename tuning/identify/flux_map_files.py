@@ -34,7 +34,8 @@ def identify_flux_map_file(
     fit = fit_flux_map(log, pole_pairs, step_a=step_a, R=fixed.get("R"), inverter_error=inverter_error)
     out.mkdir(parents=True, exist_ok=True)
     header = (
-        f"Identified by pmsmjax identify --flux-map from {log.source}: A, Wb (peak, amplitude-invariant dq).\n"
+        f"Identified by pmsmjax identify --flux-map from {log.source}: A, Wb "
+        "(peak, amplitude-invariant dq).\n"
         "measured = 0: the log did not reach the point; its value continues its neighbours, do not trust it."
     )
     write_flux_map_csv(out / "flux_map.csv", fit.grid, header=header, measured=fit.measured)

@@ -180,14 +180,16 @@ def fit_flux_map(
     turning = np.abs(w_e) > MIN_SPEED_SHARE * max(top, 1e-300)
     if top * float(np.median(dt)) < 1e-6 or turning.mean() < 0.5:
         raise ParameterError(
-            f"{where}: the rotor hardly turns (top speed {plain(top / pole_pairs)} rad/s mechanical, turning in "
+            f"{where}: the rotor hardly turns (top speed {plain(top / pole_pairs)} rad/s mechanical, "
+            f"turning in "
             f"{100 * turning.mean():.0f} % of the log): a flux map is seen through the back-EMF w_e psi, "
             "record the map at speed (a dynamometer holding e.g. a third of the rated speed)."
         )
     both_ways = min((w_e > MIN_SPEED_SHARE * top).mean(), (w_e < -MIN_SPEED_SHARE * top).mean()) > 0.1
     if R is None and not both_ways:
         raise ParameterError(
-            f"{where}: the rotor turns one way only, so R is not separated from the flux (u = R i + w_e J psi "
+            f"{where}: the rotor turns one way only, so R is not separated from the flux (u = R i + "
+            "w_e J psi "
             "at steady state): give --fix R=VALUE (ohm, e.g. a DC measurement) or record the walk in both "
             "directions of rotation."
         )
@@ -211,9 +213,11 @@ def fit_flux_map(
     measured = node_samples >= MIN_NODE_SAMPLES
     if measured.sum() < 4:
         raise ParameterError(
-            f"{where}: the currents visit no region a map can be fitted on ({int(measured.sum())} grid points "
+            f"{where}: the currents visit no region a map can be fitted on "
+            f"({int(measured.sum())} grid points "
             f"of {plain(h[0])} A have {MIN_NODE_SAMPLES} samples near them; i_d {plain(i_dq[:, 0].min())} to "
-            f"{plain(i_dq[:, 0].max())} A, i_q {plain(i_dq[:, 1].min())} to {plain(i_dq[:, 1].max())} A): walk "
+            f"{plain(i_dq[:, 0].max())} A, i_q {plain(i_dq[:, 1].min())} to {plain(i_dq[:, 1].max())} A): "
+            "walk "
             "a grid of current operating points, or give a finer --flux-map-step."
         )
     window = max(2, round(window_s / float(np.median(dt))))

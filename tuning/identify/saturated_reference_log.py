@@ -15,7 +15,8 @@ voltage error ``u_err tanh(i_x / eps)`` (dead time and device drop, ``eps`` = :d
 is subtracted from each phase voltage; the log records the controller's references, as firmware does.
 
 **The controller.** dq current PIs at bandwidth ``a_c`` on the unsaturated inductances (``Kp = a_c L``,
-``Ki =`` :data:`INTEGRAL_SHARE` ``a_c Kp``) and back-EMF feed-forward from the linear model at zero current, voltage clamped to the SVPWM
+``Ki =`` :data:`INTEGRAL_SHARE` ``a_c Kp``) and back-EMF feed-forward from the linear model at zero current,
+voltage clamped to the SVPWM
 circle; the current reference walks a grid of operating points (:func:`operating_walk`): along i_q at
 each i_d, then along i_d at each i_q, so every segment of the grid is crossed by a transient.
 
@@ -185,7 +186,8 @@ def flux_map_log(
 ) -> dict[str, np.ndarray]:
     """The identification log: the walk of :func:`operating_walk` over ``i_d_points x i_q_points`` (A)
     at ``+speed_rpm`` and then retraced at ``-speed_rpm`` (both directions of rotation separate R from
-    the flux), joined in time (the speed reverses between two rows), with white noise of ``noise`` (default :data:`FLUX_MAP_LOG_NOISE`; ``{}`` for none)
+    the flux), joined in time (the speed reverses between two rows), with white noise
+    of ``noise`` (default :data:`FLUX_MAP_LOG_NOISE`; ``{}`` for none)
     drawn with ``seed``. Other arguments as :func:`saturated_drive_log`."""
     walk = operating_walk(i_d_points, i_q_points)
     # Backwards the walk is retraced, so the current is continuous where the dynamometer reverses.
