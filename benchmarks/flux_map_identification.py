@@ -67,7 +67,8 @@ def format_table(r: dict) -> str:
         ve = "-" if x["inverter_error_rel"] is None else f"{100 * x['inverter_error_rel']:+.2f} %"
         lines.append(
             f"{name:15s} {100 * x['flux_rms_share']:8.3f} %         "
-            f"{100 * x['steady_point_map_rms_share']:8.3f} %       {100 * x['R_error']:+.2f} %   {ve:9s}   {x['fit_s']:.2f}"
+            f"{100 * x['steady_point_map_rms_share']:8.3f} %       {100 * x['R_error']:+.2f} %   "
+            f"{ve:9s}   {x['fit_s']:.2f}"
         )
     return "\n".join(lines)
 
