@@ -91,6 +91,27 @@ def test_careless_logs_are_refused(noisy_log):
         fit_flux_map(parked, 4, step_a=2.0)
 
 
+def test_cli_writes_a_drive_file_every_command_reads(noisy_log, tmp_path, capsys):
+    from pmsmjax.cli import main
+    from pmsmjax.io.drive_files import drive_spec
+    from pmsmjax.io.logs import write_csv_atomic
+
+    columns = {"time": noisy_log.time, "u_d": noisy_log.u_dq[:, 0], "u_q": noisy_log.u_dq[:, 1]}
+    columns |= {"i_d": noisy_log.i_dq[:, 0], "i_q": noisy_log.i_dq[:, 1], "omega_m": noisy_log.omega_m}
+    columns["theta_e"] = noisy_log.theta_e
+    write_csv_atomic(tmp_path / "log.csv", columns)
+    out = tmp_path / "out"
+    args = ["identify", str(tmp_path / "log.csv"), "--flux-map", "--pole-pairs", "4", "--out", str(out)]
+    assert main(args + ["--flux-map-step", "2", "--fix", "J=0.002", "B=0.001"]) == 0
+    spec = drive_spec(str(out / "motor.toml"))
+    assert abs(spec.motor["R"] / SATURATED_IPM["R"] - 1.0) < 0.005
+    grid, marks = read_flux_map(out / "flux_map.csv"), read_flux_map_measured(out / "flux_map.csv")
+    assert marks.shape == grid.psi_d.shape and 0 < marks.sum() < marks.size
+    assert main(args + ["--fix", "L_q=0.003"]) != 0
+    message = capsys.readouterr().err.strip().splitlines()
+    assert len(message) == 1 and "--fix L_q=...: with --flux-map only R" in message[0]
+
+
 def test_measured_marks_round_trip(tmp_path):
     i_d, i_q = np.array([-2.0, 0.0, 2.0]), np.array([-1.0, 0.0, 1.0, 2.0])
     D, Q = np.meshgrid(i_d, i_q, indexing="ij")

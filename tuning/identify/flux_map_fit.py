@@ -253,7 +253,6 @@ def fit_flux_map(
     # rows q: psi_q(b) - psi_q(a) + int w_e psi_d + R int i_q + V_e int e_q = int u_q
     dB = B[b] - B[a]
     dW = W_int[b] - W_int[a]
-    zero = np.zeros_like(dB)
     rows_d = np.hstack([dB, -dW])
     rows_q = np.hstack([dW, dB])
     A = np.vstack([rows_d, rows_q])
@@ -267,7 +266,6 @@ def fit_flux_map(
         rhs = rhs - R * extra[0]
     if inverter_error:
         A = np.hstack([A, extra[1][:, None]])
-    del zero
     D, centres = _second_differences(n_d, n_q)
     # strong at an unmeasured node, unless one of its two neighbours along the row is measured and the other
     # not: there the map bends as its measured side says (a row of them between two measured rows is

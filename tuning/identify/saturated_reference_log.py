@@ -136,12 +136,12 @@ def saturated_drive_log(
         psi, L = saturated_flux(m, i[0], i[1])
         return np.linalg.solve(L, u - m["R"] * i - w_e * (_J @ psi))
 
-    i = refs[0].copy()  # start settled at the first point (the field integrates the rest)
-    integral = m["R"] * i + w_e * (_J @ saturated_flux(m, i[0], i[1])[0])  # steady-state voltage
-    pending = np.zeros(2)
-    c0, s0 = 1.0, 0.0
-    pending = np.array([integral[0] * c0 - integral[1] * s0, integral[0] * s0 + integral[1] * c0])
-    integral = integral - np.array([-w_e * L_design[1] * i[1], w_e * (L_design[0] * i[0] + psi0)])
+    # Start settled at the first point: the steady-state voltage applied (stator frame = dq at angle 0)
+    # and the integrators holding what the feed-forward misses of it.
+    i = refs[0].copy()
+    steady = m["R"] * i + w_e * (_J @ saturated_flux(m, i[0], i[1])[0])
+    pending = steady.copy()
+    integral = steady - np.array([-w_e * L_design[1] * i[1], w_e * (L_design[0] * i[0] + psi0)])
     rows = np.empty((n, 7))
     for k in range(n):
         t = k * Ts
