@@ -97,6 +97,25 @@ def add_parser(sub):
     )
     p.add_argument("--dead-time", action="store_true", help="estimate an inverter dead-time voltage V_dt")
     p.add_argument("--no-figures", action="store_true", help="do not write fit.png")
+    p.add_argument(
+        "--flux-map",
+        action="store_true",
+        help="identify a saturated machine's flux map psi_d(i_d, i_q), psi_q(i_d, i_q) and R from a log at "
+        "speed that walks current operating points (both directions of rotation separate R; else --fix "
+        "R=...): writes DIR/flux_map.csv (points the log did not reach marked measured = 0), "
+        "DIR/flux_map.json and DIR/motor.toml (J, B from --fix or --motor)",
+    )
+    p.add_argument(
+        "--flux-map-step",
+        type=checks.positive("A"),
+        default=None,
+        help="flux map grid step, A (default: about 8 intervals over the visited currents)",
+    )
+    p.add_argument(
+        "--inverter-error",
+        action="store_true",
+        help="with --flux-map: fit the inverter voltage error (dead time and device drop, V per phase)",
+    )
     p.set_defaults(func=run)
 
 
@@ -156,6 +175,13 @@ def run(args) -> int:
     prior, pole_pairs = prior_and_pole_pairs(args)
     fixed = _pairs(args.fix, "--fix", _finite)
     columns, units = _pairs(args.columns, "--columns"), _pairs(args.units, "--units")
+    if args.flux_map:
+        return _run_flux_map(args, prior, pole_pairs, fixed, columns, units)
+    if args.inverter_error or args.flux_map_step is not None:
+        flag = "--inverter-error" if args.inverter_error else "--flux-map-step"
+        raise ParameterError(
+            f"{flag} belongs to --flux-map: add --flux-map (or use --dead-time for the linear fit)."
+        )
     # The command line is the one place where pmsmjax reaches up into the tuning workflows.
     from tuning.identify import identify_file
 
@@ -192,6 +218,76 @@ def run(args) -> int:
         + ("" if args.no_figures else ", fit.png")
     )
     return _write_motor_file(args, s, pole_pairs, prior)
+
+
+def _run_flux_map(args, prior, pole_pairs: int, fixed: dict, columns: dict, units: dict) -> int:
+    """``--flux-map``: fit and write DIR/flux_map.csv, flux_map.json and motor.toml (read back as every
+    command reads it). Returns the exit status."""
+    from pathlib import Path
+
+    from pmsmjax.io.drive_files import drive_spec
+
+    bad = sorted(set(fixed) - {"R", "J", "B"})
+    if bad:
+        raise ParameterError(
+            f"--fix {bad[0]}=...: with --flux-map only R (ohm), J (kg m^2) and B (N m s/rad) are values; "
+            "the inductances and flux are the map."
+        )
+    for name, value in fixed.items():
+        if value <= 0:
+            raise ParameterError(f"--fix {name}={value:g}: must be > 0 (SI units).")
+    if args.config is not None or args.load or args.dead_time:
+        flag = "--config" if args.config is not None else "--load" if args.load else "--dead-time"
+        raise ParameterError(
+            f"{flag} is for the linear fit: with --flux-map use --inverter-error and --fix R=."
+        )
+    from tuning.identify.flux_map_files import (
+        flux_map_motor_missing,
+        identify_flux_map_file,
+        write_flux_map_motor,
+    )
+
+    fit = identify_flux_map_file(
+        args.log,
+        args.out,
+        pole_pairs,
+        fixed=fixed,
+        inverter_error=args.inverter_error,
+        step_a=args.flux_map_step,
+        columns=columns,
+        units=units,
+        hold=args.hold or "stator",
+        u_dc=args.u_dc,
+        resample=args.resample,
+    )
+    R_note = "fixed" if fit.R_fixed else "identified"
+    print(f"R {fit.R:.6g} ohm ({R_note})")
+    if fit.V_e is not None:
+        print(f"inverter voltage error {fit.V_e:.4g} V per phase")
+    print(
+        f"flux map {fit.grid.i_d.size} x {fit.grid.i_q.size} points, {int(fit.measured.sum())} measured "
+        f"(step {fit.grid.step[0]:g} A); window residual {fit.residual_rms_wb:.3g} Wb rms; "
+        f"wrote {args.out}/flux_map.csv, flux_map.json"
+    )
+    missing = flux_map_motor_missing(fixed, prior)
+    if missing:
+        print(
+            f"pmsmjax identify: motor.toml not written: {', '.join(missing)} not determined by a "
+            f"constant-speed "
+            f"log: give --fix {missing[0]}=VALUE (SI units) or --motor PRIOR (a drive file or preset).",
+            file=sys.stderr,
+        )
+        return 1
+    path = Path(args.out) / "motor.toml"
+    draft = write_flux_map_motor(path.with_name(".motor.toml.draft"), fit, pole_pairs, fixed, prior)
+    try:
+        drive_spec(draft)
+    except ParameterError as err:
+        draft.unlink()
+        raise ParameterError(f"motor.toml not written: {str(err).replace(str(draft), str(path))}") from None
+    draft.replace(path)
+    print(f"wrote {path}: use it with --motor {path}")
+    return 0
 
 
 def _write_motor_file(args, summary: dict, pole_pairs: int, prior) -> int:

@@ -4,6 +4,10 @@ Formats (SI units: A, Wb peak phase flux linkage in the amplitude-invariant dq f
 
 - **CSV** with the header ``i_d,i_q,psi_d,psi_q``, one row per grid point, rows in any order (lines
   starting with ``#`` are comments);
+  An optional fifth column ``measured`` (1 or 0) marks the grid points a measurement determined; a 0
+  point holds a value only so the interpolant has one everywhere (``pmsmjax identify --flux-map`` fills
+  the points its log did not reach from their neighbours): do not trust the map there.
+  :func:`read_flux_map_measured` returns the marks; the plant uses every point alike;
 - **NPZ** or **MAT** (MATLAB) with 1-D axes ``i_d (n_d,)``, ``i_q (n_q,)`` and 2-D ``psi_d``, ``psi_q``
   ``(n_d, n_q)``;
 - **NPZ** or **MAT** with complex 2-D grids ``i_s_dq = i_d + j i_q`` and ``psi_s_dq = psi_d + j psi_q``
@@ -20,9 +24,11 @@ import numpy as np
 from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.machines.flux_map import FluxMapGrid
 
-__all__ = ["read_flux_map", "write_flux_map_csv", "CSV_COLUMNS"]
+__all__ = ["read_flux_map", "read_flux_map_measured", "write_flux_map_csv", "CSV_COLUMNS", "MEASURED_COLUMN"]
 
 CSV_COLUMNS = ("i_d", "i_q", "psi_d", "psi_q")
+#: The optional CSV column marking measured (1) and filled (0) grid points.
+MEASURED_COLUMN = "measured"
 #: A map whose currents reach this far (A) with an incremental inductance below MA_INDUCTANCE_H (H) was
 #: written in mA: a real machine with kA currents has flux linkages of volts-seconds, not millivolt-seconds.
 MA_CURRENT_A = 1000.0
@@ -37,7 +43,7 @@ def read_flux_map(path) -> FluxMapGrid:
         raise ParameterError(f"{where} does not exist: check the path (relative to the drive file).")
     suffix = path.suffix.lower()
     if suffix == ".csv":
-        axes = _read_csv(path, where)
+        axes = _read_csv(path, where)[:4]
     elif suffix in (".npz", ".mat"):
         axes = _grid_arrays(_load_arrays(path, suffix, where), where)
     else:
@@ -81,7 +87,25 @@ def _read_csv(path: Path, where: str):
         raise ParameterError(f"{where}: a grid point appears twice: give one row per (i_d, i_q).")
     psi_d, psi_q = np.empty((i_d.size, i_q.size)), np.empty((i_d.size, i_q.size))
     psi_d[j, k], psi_q[j, k] = cols["psi_d"], cols["psi_q"]
-    return i_d, i_q, psi_d, psi_q
+    if MEASURED_COLUMN in header:
+        marks = rows[:, header.index(MEASURED_COLUMN)]
+        if not np.all((marks == 0) | (marks == 1)):
+            raise ParameterError(
+                f"{where}: the {MEASURED_COLUMN} column holds "
+                f"{plain(marks[(marks != 0) & (marks != 1)][0])}: "
+                "give 1 (a measured point) or 0 (a filled one)."
+            )
+        measured = np.empty((i_d.size, i_q.size), dtype=bool)
+        measured[j, k] = marks == 1
+        return i_d, i_q, psi_d, psi_q, measured
+    return i_d, i_q, psi_d, psi_q, None
+
+
+def read_flux_map_measured(path) -> np.ndarray | None:
+    """``(n_d, n_q)`` bool marks of a CSV map's ``measured`` column (rows along i_d, as the grid), or None
+    when the file has no such column (every point measured); the file is checked as :func:`read_flux_map`."""
+    read_flux_map(path)
+    return _read_csv(Path(path), f"flux map {path}")[4] if Path(path).suffix.lower() == ".csv" else None
 
 
 def _load_arrays(path: Path, suffix: str, where: str) -> dict:
@@ -141,12 +165,21 @@ def _check_units(i_d, i_q, psi_d, psi_q, where: str) -> None:
         )
 
 
-def write_flux_map_csv(path, grid: FluxMapGrid, header: str = "") -> Path:
-    """Write ``grid`` as a flux-map CSV (one row per grid point, full precision), atomically."""
+def write_flux_map_csv(path, grid: FluxMapGrid, header: str = "", measured=None) -> Path:
+    """Write ``grid`` as a flux-map CSV (one row per grid point, full precision), atomically; with
+    ``measured`` (``(n_d, n_q)`` bool) the ``measured`` column marks the points (module docstring)."""
     from pmsmjax.io.logs import atomic_write
 
     D, Q = np.meshgrid(grid.i_d, grid.i_q, indexing="ij")
-    rows = np.column_stack([D.ravel(), Q.ravel(), grid.psi_d.ravel(), grid.psi_q.ravel()])
-    lines = [f"# {line}" for line in header.splitlines()] + [",".join(CSV_COLUMNS)]
-    lines += [",".join(repr(float(v)) for v in row) for row in rows]
+    columns = [D.ravel(), Q.ravel(), grid.psi_d.ravel(), grid.psi_q.ravel()]
+    names = list(CSV_COLUMNS)
+    if measured is not None:
+        columns.append(np.asarray(measured, dtype=bool).reshape(D.shape).ravel().astype(int))
+        names.append(MEASURED_COLUMN)
+    rows = np.column_stack(columns)
+    lines = [f"# {line}" for line in header.splitlines()] + [",".join(names)]
+    lines += [
+        ",".join(repr(float(v)) for v in row[:4]) + (f",{int(row[4])}" if len(row) > 4 else "")
+        for row in rows
+    ]
     return atomic_write(path, lambda f: f.write("\n".join(lines) + "\n"), mode="w")

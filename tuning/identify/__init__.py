@@ -8,6 +8,9 @@
 - :mod:`~tuning.identify.uncertainty`: standard errors, 95 % intervals, identifiability.
 - :mod:`~tuning.identify.plots`: measured against fitted signals.
 - :mod:`~tuning.identify.motor_file`: the identified motor as a drive file (``DIR/motor.toml``).
+- :mod:`~tuning.identify.flux_map_fit`, :mod:`~tuning.identify.flux_map_files`: a saturated machine's
+  flux map from a constant-speed log (``pmsmjax identify --flux-map``); its test logs are made by
+  :mod:`~tuning.identify.saturated_reference_log`.
 - :mod:`~tuning.identify.excitation`: an experiment that makes every parameter identifiable; simulated
   logs of it (for tests, notebooks and benchmarks) are
   :func:`pmsmjax.studies.synthetic_logs.identification_log`.

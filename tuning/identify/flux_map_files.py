@@ -1,0 +1,86 @@
+"""The files of ``pmsmjax identify --flux-map``: read the log, fit (:mod:`tuning.identify.flux_map_fit`),
+write ``DIR/flux_map.csv`` (the map with its ``measured`` marks, :mod:`pmsmjax.io.flux_map_files`),
+``DIR/flux_map.json`` (R, the inverter voltage error, the residual, the marks' count) and ``DIR/motor.toml``,
+a drive file whose ``[motor] flux_map`` is the identified map (:mod:`pmsmjax.io.drive_files`).
+
+A constant-speed walk does not determine J and B: ``motor.toml`` takes them from ``--fix J=... B=...`` or
+the prior drive (``--motor PRIOR``, which also gives ``[ratings]`` and ``[inverter]``); without either it
+is not written and :func:`flux_map_motor_missing` names what is missing.
+"""
+
+import json
+from pathlib import Path
+
+from pmsmjax.io.drive_files import write_drive_file
+from pmsmjax.io.flux_map_files import write_flux_map_csv
+from pmsmjax.io.logs import atomic_write, check_output_folder
+from tuning.identify.flux_map_fit import FluxMapFit, fit_flux_map
+from tuning.identify.log import load_drive_log
+
+__all__ = ["identify_flux_map_file", "flux_map_motor_missing", "write_flux_map_motor"]
+
+#: What the flux-map fit cannot give and a drive file needs.
+MECHANICAL = ("J", "B")
+
+
+def identify_flux_map_file(
+    log_path, out_dir, pole_pairs: int, *, fixed: dict, inverter_error: bool, step_a=None, **log_options
+) -> FluxMapFit:
+    """Read ``log_path`` (``log_options``: columns, units, hold, u_dc, resample as
+    :func:`tuning.identify.log.load_drive_log`), fit, write ``flux_map.csv`` and ``flux_map.json`` to
+    ``out_dir``. `fixed`: ``{"R": ohm}`` or empty. Returns the fit."""
+    log = load_drive_log(log_path, pole_pairs, **log_options)
+    out = check_output_folder(out_dir)
+    fit = fit_flux_map(log, pole_pairs, step_a=step_a, R=fixed.get("R"), inverter_error=inverter_error)
+    out.mkdir(parents=True, exist_ok=True)
+    header = (
+        f"Identified by pmsmjax identify --flux-map from {log.source}: A, Wb "
+        "(peak, amplitude-invariant dq).\n"
+        "measured = 0: the log did not reach the point; its value continues its neighbours, do not trust it."
+    )
+    write_flux_map_csv(out / "flux_map.csv", fit.grid, header=header, measured=fit.measured)
+    summary = {
+        "log": log.source,
+        "R_ohm": fit.R,
+        "R_fixed": fit.R_fixed,
+        "inverter_error_v": fit.V_e,
+        "grid_i_d_a": [float(fit.grid.i_d[0]), float(fit.grid.i_d[-1]), int(fit.grid.i_d.size)],
+        "grid_i_q_a": [float(fit.grid.i_q[0]), float(fit.grid.i_q[-1]), int(fit.grid.i_q.size)],
+        "measured_points": int(fit.measured.sum()),
+        "grid_points": int(fit.measured.size),
+        "residual_rms_wb": fit.residual_rms_wb,
+        "windows": fit.n_windows,
+        "notes": list(log.notes),
+    }
+    atomic_write(out / "flux_map.json", lambda f: f.write(json.dumps(summary, indent=2).encode()))
+    return fit
+
+
+def flux_map_motor_missing(fixed: dict, prior) -> list[str]:
+    """The mechanical values (J, B) neither ``fixed`` nor the ``prior`` drive gives."""
+    return [n for n in MECHANICAL if n not in fixed and prior is None]
+
+
+def write_flux_map_motor(path, fit: FluxMapFit, pole_pairs: int, fixed: dict, prior=None) -> Path:
+    """Write the drive file of the identified map (module docstring) to ``path``; ``flux_map.csv`` is
+    expected beside it."""
+    motor = {"flux_map": "flux_map.csv", "R": fit.R, "pole_pairs": pole_pairs}
+    comments = {"motor.R": "held fixed (--fix), not identified" if fit.R_fixed else "identified with the map"}
+    for name in MECHANICAL:
+        if name in fixed:
+            motor[name] = fixed[name]
+            comments[f"motor.{name}"] = "given (--fix)"
+        else:
+            motor[name] = prior.motor[name]
+            comments[f"motor.{name}"] = (
+                f"not determined by a constant-speed log: the prior's ({prior.source})"
+            )
+    tables = {"motor": motor}
+    if prior is not None:
+        for table in ("ratings", "inverter"):
+            stated = {k: v for k, v in getattr(prior, table).items() if f"{table}.{k}" not in prior.derived}
+            if stated:
+                tables[table] = stated
+    header = "Identified by pmsmjax identify --flux-map (tuning.identify): the flux map and R; SI units."
+    write_drive_file(path, tables, header=header, comments=comments)
+    return Path(path)

@@ -1,0 +1,208 @@
+"""A flux-map identification log made without this project's engine: a saturated PMSM (an analytic
+co-energy model with cross-saturation) integrated by SciPy's ``solve_ivp`` (DOP853, current as state)
+under a current controller written in NumPy, at a constant speed held by a dynamometer, so that flux-map
+identification (:mod:`tuning.identify.flux_map_fit`) is tested on data the code under test did not make.
+
+**The machine** (the model written in the header of ``pmsmjax/presets/motors/saturated_ipm_map.csv``):
+co-energy ``W'(i) = psi_m i_d + L_d i_d^2/2 + L_ql i_q^2/2 + L_mq s^2 ln cosh(r/s)`` with
+``r = sqrt(s0^2 + i_q^2 + (c i_d)^2)``; ``psi = grad W'`` and ``L_inc = hess W'`` in closed form
+(:func:`saturated_flux`). Voltage equations in the rotor frame (amplitude-invariant dq, peak values):
+``u = R i + L_inc(i) di/dt + w_e J psi(i)``, ``J = [[0, -1], [1, 0]]``, integrated for ``di/dt``.
+
+**The inverter.** The controller's stator-frame voltage is held over each control period (an averaged
+inverter) and applied one period after it is computed (the angle advanced by 1.5 periods). An optional
+voltage error ``u_err tanh(i_x / eps)`` (dead time and device drop, ``eps`` = :data:`ERROR_SMOOTHING_A`)
+is subtracted from each phase voltage; the log records the controller's references, as firmware does.
+
+**The controller.** dq current PIs at bandwidth ``a_c`` on the unsaturated inductances (``Kp = a_c L``,
+``Ki =`` :data:`INTEGRAL_SHARE` ``a_c Kp``) and back-EMF feed-forward from the linear model at zero current,
+voltage clamped to the SVPWM
+circle; the current reference walks a grid of operating points (:func:`operating_walk`): along i_q at
+each i_d, then along i_d at each i_q, so every segment of the grid is crossed by a transient.
+
+Each log row ``k`` is ``time, u_d, u_q, i_d, i_q, omega_m, theta_e``: the held stator voltage of
+``[t_k, t_k+1)`` in dq at ``theta_e(t_k)``, and the currents, speed and angle sampled at ``t_k``.
+"""
+
+import math
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+__all__ = [
+    "SATURATED_IPM",
+    "saturated_flux",
+    "operating_walk",
+    "saturated_drive_log",
+    "flux_map_log",
+    "FLUX_MAP_LOG_NOISE",
+    "ERROR_SMOOTHING_A",
+]
+
+#: The machine of ``saturated_ipm_map.csv`` (Wb, H, A, -) with the drive file's R, pole pairs.
+SATURATED_IPM = dict(psi_m=0.1, L_d=3e-3, L_ql=2.5e-3, L_mq=10e-3, s=4.0, s0=1.0, c=0.5, R=0.5, pole_pairs=4)
+#: Measurement noise (standard deviations) of a flux-map log: currents, A; voltages, V.
+FLUX_MAP_LOG_NOISE = {"current_a": 0.05, "voltage_v": 0.5}
+#: Smoothing current of the inverter voltage error's sign, A.
+ERROR_SMOOTHING_A = 0.1
+#: Integral gain of the current PIs as a share of ``a_c Kp``: the feed-forward of a linear model misses
+#: the saturated flux by tens of volts, which the internal-model integral (``a_c R``) would remove only
+#: at the slow rate R/L; this one removes it within a few milliseconds.
+INTEGRAL_SHARE = 0.25
+_J = np.array([[0.0, -1.0], [1.0, 0.0]])
+
+
+def saturated_flux(machine: dict, i_d, i_q):
+    """``(psi (..., 2) Wb, L_inc (..., 2, 2) H)`` of the co-energy model (module docstring) at currents
+    ``i_d, i_q`` (A, any equal shapes)."""
+    m = machine
+    i_d, i_q = np.asarray(i_d, dtype=float), np.asarray(i_q, dtype=float)
+    a = np.array([m["c"] ** 2, 1.0])
+    x = np.stack([i_d, i_q], -1)
+    ax = a * x  # dr/di * r
+    r = np.sqrt(m["s0"] ** 2 + (x * ax).sum(-1))
+    th = np.tanh(r / m["s"])
+    g = m["s"] * th / r  # saturating part: psi_sat = L_mq g(r) A x
+    dg = (r * (1.0 - th**2) - m["s"] * th) / r**2  # dg/dr
+    psi = np.stack([m["psi_m"] + m["L_d"] * i_d, m["L_ql"] * i_q], -1) + m["L_mq"] * g[..., None] * ax
+    L = np.zeros(x.shape + (2,))
+    L[..., 0, 0], L[..., 1, 1] = m["L_d"], m["L_ql"]
+    L = L + m["L_mq"] * (
+        g[..., None, None] * np.diag(a) + (dg / r)[..., None, None] * ax[..., :, None] * ax[..., None, :]
+    )
+    return psi, L
+
+
+def operating_walk(i_d_points, i_q_points) -> np.ndarray:
+    """``(P, 2)`` current references, A: a snake along i_q at each i_d, then along i_d at each i_q."""
+    i_d_points, i_q_points = np.asarray(i_d_points, float), np.asarray(i_q_points, float)
+    rows = [
+        (d, q) for j, d in enumerate(i_d_points) for q in (i_q_points if j % 2 == 0 else i_q_points[::-1])
+    ]
+    last_q = rows[-1][1]
+    q_order = i_q_points if last_q == i_q_points[0] else i_q_points[::-1]
+    d_start = i_d_points[::-1]
+    cols = [(d, q) for k, q in enumerate(q_order) for d in (d_start if k % 2 == 0 else d_start[::-1])]
+    return np.array(rows + cols)
+
+
+def _phase_error(i_dq, theta, u_err):
+    """``(2,)`` dq voltage lost to the inverter error ``u_err tanh(i_x / eps)`` per phase."""
+    c, s = math.cos(theta), math.sin(theta)
+    i_alpha, i_beta = c * i_dq[0] - s * i_dq[1], s * i_dq[0] + c * i_dq[1]
+    i_abc = np.array(
+        [i_alpha, -0.5 * i_alpha + 0.5 * math.sqrt(3) * i_beta, -0.5 * i_alpha - 0.5 * math.sqrt(3) * i_beta]
+    )
+    e = u_err * np.tanh(i_abc / ERROR_SMOOTHING_A)
+    e_alpha, e_beta = (2.0 * e[0] - e[1] - e[2]) / 3.0, (e[1] - e[2]) / math.sqrt(3)
+    return np.array([c * e_alpha + s * e_beta, -s * e_alpha + c * e_beta])
+
+
+def saturated_drive_log(
+    machine: dict,
+    references,
+    *,
+    speed_rpm: float,
+    dwell_s: float,
+    Ts: float = 1e-4,
+    current_bandwidth_rad_s: float = 1000.0,
+    u_dc_v: float = 311.0,
+    u_err_v: float = 0.0,
+    rtol: float = 1e-8,
+) -> dict[str, np.ndarray]:
+    """Noise-free log (module docstring) of ``machine`` (:data:`SATURATED_IPM`'s keys) at constant
+    ``speed_rpm`` (mechanical, r/min; negative turns backwards), the current reference stepping through
+    ``references (P, 2)`` A, each held ``dwell_s`` s; control period ``Ts`` s; inverter voltage error
+    ``u_err_v`` V per phase. Columns ``time`` s, ``u_d, u_q`` V, ``i_d, i_q`` A, ``omega_m`` rad/s,
+    ``theta_e`` rad, each ``(N,)``, ``N = P dwell_s / Ts``."""
+    m = machine
+    refs = np.asarray(references, dtype=float)
+    per_point = int(round(dwell_s / Ts))
+    n = per_point * len(refs)
+    w_m = speed_rpm * math.pi / 30.0
+    w_e = m["pole_pairs"] * w_m
+    _, L0 = saturated_flux(m, 0.0, 0.0)
+    L_design = np.diag(L0)  # the controller's inductances: the unsaturated ones
+    psi0 = float(saturated_flux(m, 0.0, 0.0)[0][0])
+    u_max = u_dc_v / math.sqrt(3.0)
+    a_c = current_bandwidth_rad_s
+
+    def field(t, i, u_alpha, u_beta, theta0):
+        th = theta0 + w_e * t
+        c, s = math.cos(th), math.sin(th)
+        u = np.array([u_alpha * c + u_beta * s, -u_alpha * s + u_beta * c])
+        if u_err_v:
+            u = u - _phase_error(i, th, u_err_v)
+        psi, L = saturated_flux(m, i[0], i[1])
+        return np.linalg.solve(L, u - m["R"] * i - w_e * (_J @ psi))
+
+    # Start settled at the first point: the steady-state voltage applied (stator frame = dq at angle 0)
+    # and the integrators holding what the feed-forward misses of it.
+    i = refs[0].copy()
+    steady = m["R"] * i + w_e * (_J @ saturated_flux(m, i[0], i[1])[0])
+    pending = steady.copy()
+    integral = steady - np.array([-w_e * L_design[1] * i[1], w_e * (L_design[0] * i[0] + psi0)])
+    rows = np.empty((n, 7))
+    for k in range(n):
+        t = k * Ts
+        th = w_e * t
+        ref = refs[k // per_point]
+        error = ref - i
+        feed = np.array([-w_e * L_design[1] * i[1], w_e * (L_design[0] * i[0] + psi0)])
+        u_dq = a_c * L_design * error + integral + feed
+        magnitude = math.hypot(*u_dq)
+        if magnitude > u_max:
+            u_dq *= u_max / magnitude
+        else:
+            integral = integral + a_c * INTEGRAL_SHARE * a_c * L_design * Ts * error
+        angle = th + 1.5 * w_e * Ts
+        c, s = math.cos(angle), math.sin(angle)
+        command = np.array([u_dq[0] * c - u_dq[1] * s, u_dq[0] * s + u_dq[1] * c])
+        c, s = math.cos(th), math.sin(th)
+        u_alpha, u_beta = pending
+        rows[k] = (t, u_alpha * c + u_beta * s, -u_alpha * s + u_beta * c, i[0], i[1], w_m, th)
+        sol = solve_ivp(
+            field, (0.0, Ts), i, method="DOP853", rtol=rtol, atol=1e-10, args=(u_alpha, u_beta, th)
+        )
+        i = sol.y[:, -1]
+        pending = command
+    names = ("time", "u_d", "u_q", "i_d", "i_q", "omega_m", "theta_e")
+    out = {name: rows[:, j].copy() for j, name in enumerate(names)}
+    out["theta_e"] = np.mod(out["theta_e"] + math.pi, 2 * math.pi) - math.pi
+    return out
+
+
+def flux_map_log(
+    machine: dict,
+    i_d_points,
+    i_q_points,
+    *,
+    speed_rpm: float,
+    dwell_s: float,
+    u_err_v: float = 0.0,
+    noise: dict | None = None,
+    seed: int = 0,
+    **kwargs,
+) -> dict[str, np.ndarray]:
+    """The identification log: the walk of :func:`operating_walk` over ``i_d_points x i_q_points`` (A)
+    at ``+speed_rpm`` and then retraced at ``-speed_rpm`` (both directions of rotation separate R from
+    the flux), joined in time (the speed reverses between two rows), with white noise
+    of ``noise`` (default :data:`FLUX_MAP_LOG_NOISE`; ``{}`` for none)
+    drawn with ``seed``. Other arguments as :func:`saturated_drive_log`."""
+    walk = operating_walk(i_d_points, i_q_points)
+    # Backwards the walk is retraced, so the current is continuous where the dynamometer reverses.
+    parts = [
+        saturated_drive_log(
+            machine, path, speed_rpm=sign * speed_rpm, dwell_s=dwell_s, u_err_v=u_err_v, **kwargs
+        )
+        for sign, path in ((1.0, walk), (-1.0, walk[::-1]))
+    ]
+    dt = parts[0]["time"][1] - parts[0]["time"][0]
+    parts[1]["time"] = parts[1]["time"] + parts[0]["time"][-1] + dt
+    log = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    noise = FLUX_MAP_LOG_NOISE if noise is None else noise
+    rng = np.random.default_rng(seed)
+    for cols, key in ((("i_d", "i_q"), "current_a"), (("u_d", "u_q"), "voltage_v")):
+        for col in cols:
+            log[col] = log[col] + noise.get(key, 0.0) * rng.standard_normal(log[col].shape)
+    return log
