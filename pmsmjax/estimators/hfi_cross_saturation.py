@@ -26,8 +26,9 @@ control of PM brushless AC motors", IEMDC 2007, doi:10.1109/IEMDC.2007.383578 (i
 
 **The operating point.** The controller regulates its reference ``i_ref`` in the estimated frame, so the
 machine carries ``i = R(theta_err) i_ref`` (``R`` the rotation) and the lock angle is the fixed point
-``theta_err = f(R(theta_err) i_ref)`` (:func:`predicted_angle_error`, a few iterations: ``f`` changes
-slowly with the current's direction).
+``theta_err = f(R(theta_err) i_ref)`` (:func:`predicted_angle_error`). The rotation feeds back: on the
+saturated-ipm map with ``i_d < 0`` a negative error turns the current towards the q axis, which saturates
+it further and turns the saliency axis further; beyond a few amperes of ``i_q`` there is no lock near d.
 
 **Compensation** (:class:`CrossSaturationCompensated`): wraps a rotating or pulsating injection estimator,
 which keeps injecting and demodulating on the axis it locks to; each sample the fundamental current in the
@@ -75,16 +76,38 @@ def _rotate(angle: float, x: np.ndarray) -> np.ndarray:
     return np.array([c * x[0] - s * x[1], s * x[0] + c * x[1]])
 
 
-def predicted_angle_error(grid: FluxMapGrid, i_dq_ref, iterations: int = 30) -> tuple[float, np.ndarray]:
+def predicted_angle_error(grid: FluxMapGrid, i_dq_ref, step_deg: float = 0.1) -> tuple[float, np.ndarray]:
     """Steady angle error ``th^ - th`` (rad) of uncompensated HF injection when the controller holds
-    ``i_dq_ref (2,)`` (A) in the estimated frame, and the machine's current ``(2,)`` A then: the fixed
-    point of the module docstring, from the map's interpolant (NumPy)."""
+    ``i_dq_ref (2,)`` (A) in the estimated frame, and the machine's current ``(2,)`` A then (NumPy).
+
+    The lock is a root of ``h(e) = f(R(e) i_ref) - e`` (module docstring, angles modulo pi). Locked on d
+    before the load comes, the estimate drifts the way ``h(0)`` points until ``h`` changes sign: that
+    root, found by walking in ``step_deg`` steps and bisecting. Where there is none within 90 degrees
+    (the error feeds on itself into the saturated q axis) the error is ``nan``.
+    """
     i_ref = np.asarray(i_dq_ref, dtype=float)
-    error = 0.0
-    for _ in range(iterations):
-        i = _rotate(error, i_ref)
-        error = float(saliency_angle(grid.at(*i)[1], np))
-    return error, _rotate(error, i_ref)
+
+    def h(e):
+        drift = float(saliency_angle(grid.at(*_rotate(e, i_ref))[1], np)) - e
+        return (drift + 0.5 * math.pi) % math.pi - 0.5 * math.pi
+
+    h0 = h(0.0)
+    if h0 == 0.0:
+        return 0.0, i_ref
+    direction = math.copysign(1.0, h0)
+    a, h_a = 0.0, h0
+    for k in range(1, int(90.0 / step_deg) + 1):
+        b = direction * math.radians(k * step_deg)
+        h_b = h(b)
+        if h_b * h_a <= 0.0 and abs(h_b - h_a) < 0.5 * math.pi:  # a root, not the modulo-pi wrap
+            for _ in range(50):
+                m = 0.5 * (a + b)
+                h_m = h(m)
+                a, h_a, b = (m, h_m, b) if h_m * h_a > 0.0 else (a, h_a, m)
+            error = 0.5 * (a + b)
+            return error, _rotate(error, i_ref)
+        a, h_a = b, h_b
+    return math.nan, np.full(2, math.nan)
 
 
 def injection_model(grid: FluxMapGrid, motor: PMSMParameters, i_dq) -> PMSMParameters:

@@ -23,7 +23,11 @@ value there.
 **Where the current comes from.** The operating current is the measured one in the observer's last
 estimated frame, low-passed (``current_cutoff``) so the model does not follow the PWM ripple or the
 observer's own transients; the observer then runs its step with that model. Its gains stay those its
-design rule gave for the constant model.
+design rule gave for the constant model. That suits the sliding-mode observers and the EKF, whose error
+dynamics do not scale with ``L``; the MRAS's adaptation loop does, as ``(psi_f / L)^2``
+(:mod:`.mras`): with the secant ``L_q`` twice the design value its loop is four times slower and
+under-damped, and scheduled it oscillated and lost the angle at the rated current on the saturated-ipm
+map (``python -m benchmarks.flux_map_observers``).
 
 **What a constant model costs** (:func:`constant_model_angle_error`). In steady state the rotor-frame
 voltage is ``u = R i + w J psi(i)``; an observer with inductance ``L`` extracts the EMF ``w J (psi(i) -
