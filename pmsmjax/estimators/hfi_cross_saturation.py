@@ -45,11 +45,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import check_positive
+from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.estimators import hfi_signal as hs
 from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.hfi_pulsating import HFIPulsating
+from pmsmjax.estimators.hfi_rotating import HFIRotating
 from pmsmjax.frames.three_phase import park, wrap_angle
-from pmsmjax.machines.flux_map import FluxMapGrid
+from pmsmjax.machines.flux_map import FluxMapGrid, flux_and_inductance
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.machines.pmsm_flux_map import FluxMap
 from pmsmjax.signals import Estimate, Sample
@@ -86,9 +88,11 @@ def predicted_angle_error(grid: FluxMapGrid, i_dq_ref, step_deg: float = 0.1) ->
     (the error feeds on itself into the saturated q axis) the error is ``nan``.
     """
     i_ref = np.asarray(i_dq_ref, dtype=float)
+    coefficients = grid.coefficients()  # once, not per grid.at call
 
     def h(e):
-        drift = float(saliency_angle(grid.at(*_rotate(e, i_ref))[1], np)) - e
+        _, L = flux_and_inductance(coefficients, grid.lower, grid.step, grid.upper, _rotate(e, i_ref), np)
+        drift = float(saliency_angle(L, np)) - e
         return (drift + 0.5 * math.pi) % math.pi - 0.5 * math.pi
 
     h0 = h(0.0)
@@ -171,5 +175,11 @@ def cross_saturation_compensated(
     """``injection`` with the cross-saturation correction of ``flux_map``; the current low-pass defaults to
     the injection PLL's bandwidth (``kp / 2`` rad/s of its double-pole design): the correction moves no
     faster than the estimate it corrects."""
+    if not isinstance(injection, (HFIRotating, HFIPulsating)):
+        raise ParameterError(
+            "the cross-saturation correction applies to HF injection (hfi-rotating, hfi-pulsating), got "
+            f"{type(injection).__name__}: use the map-scheduled model (map_scheduled) for a back-EMF "
+            "observer."
+        )
     cutoff = 0.5 * injection.pll.kp if current_cutoff is None else current_cutoff
     return CrossSaturationCompensated(injection, flux_map, cutoff)

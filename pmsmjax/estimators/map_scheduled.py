@@ -23,11 +23,11 @@ value there.
 **Where the current comes from.** The operating current is the measured one in the observer's last
 estimated frame, low-passed (``current_cutoff``) so the model does not follow the PWM ripple or the
 observer's own transients; the observer then runs its step with that model. Its gains stay those its
-design rule gave for the constant model. That suits the sliding-mode observers and the EKF, whose error
-dynamics do not scale with ``L``; the MRAS's adaptation loop does, as ``(psi_f / L)^2``
-(:mod:`.mras`): with the secant ``L_q`` twice the design value its loop is four times slower and
-under-damped, and scheduled it oscillated and lost the angle at the rated current on the saturated-ipm
-map (``python -m benchmarks.flux_map_observers``).
+design rule gave for the constant model. That suits the sliding-mode observers and the EKF. The MRAS,
+scheduled, oscillated and lost the angle at the rated current on the saturated-ipm map
+(``python -m benchmarks.flux_map_observers``); rescaling its adaptation gains with the scheduled
+``(L / psi_f)^2`` (its design rule's loop, :mod:`.mras`) made it worse either way, so the cause is not
+the loop's gain: use the other observers on a saturated machine.
 
 **What a constant model costs** (:func:`constant_model_angle_error`). In steady state the rotor-frame
 voltage is ``u = R i + w J psi(i)``; an observer with inductance ``L`` extracts the EMF ``w J (psi(i) -
@@ -44,7 +44,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import check_positive
+from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.estimators import hfi_signal as hs
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.frames.three_phase import park
@@ -138,4 +138,10 @@ def map_scheduled(
     observer: AbstractEstimator, flux_map: FluxMap, current_cutoff: float = DEFAULT_CURRENT_CUTOFF
 ) -> MapScheduled:
     """``observer`` with its model scheduled on ``flux_map`` (module docstring)."""
+    if not isinstance(getattr(observer, "model", None), PMSMParameters):
+        raise ParameterError(
+            "the map-scheduled model applies to the fundamental-model observers (smo, smo-pll, "
+            f"adaptive-smo, dq-smo, mras, ekf), got {type(observer).__name__}: HF injection takes the "
+            "cross-saturation correction (cross_saturation_compensated)."
+        )
     return MapScheduled(observer, flux_map, current_cutoff)

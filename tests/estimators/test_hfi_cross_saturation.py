@@ -43,8 +43,7 @@ def test_saliency_angle_is_the_smallest_inductance_axis():
         M = rng.uniform(-0.45, 0.45) * math.sqrt(L_dd * L_qq)
         skew = rng.uniform(-0.3e-3, 0.3e-3)
         L = np.array([[L_dd, M + skew], [M - skew, L_qq]])
-        _, vectors = np.linalg.eigh(0.5 * (L + L.T))
-        axis = math.atan2(vectors[1, 0], vectors[0, 0])  # eigenvector of the smallest eigenvalue
+        axis = _smallest_inductance_axis(L)
         got = float(saliency_angle(L, np))
         assert abs(angle_error_modulo_pi(got, axis)) < 1e-12
 
@@ -54,6 +53,22 @@ def test_no_cross_saturation_error_at_zero_d_current():
     for i_q in (1.0, 3.0, 4.5):
         error, _ = predicted_angle_error(GRID, (0.0, i_q))
         assert abs(error) < 1e-4
+
+
+def _smallest_inductance_axis(L) -> float:
+    _, vectors = np.linalg.eigh(0.5 * (L + L.T))
+    return math.atan2(vectors[1, 0], vectors[0, 0])
+
+
+def test_predicted_lock_is_self_consistent_and_absent_once_the_q_axis_saturates():
+    """At the returned current (the reference turned by the error) the map's smallest-inductance axis
+    is the error itself; at the rated 10 A no lock within 90 degrees exists (L_qq < L_dd there)."""
+    for i_q in (1.0, 2.0, 4.0):
+        error, i = predicted_angle_error(GRID, (-3.0, i_q))
+        c, s = math.cos(error), math.sin(error)
+        assert np.allclose(i, [-3.0 * c - i_q * s, -3.0 * s + i_q * c], atol=1e-12)
+        assert abs(angle_error_modulo_pi(_smallest_inductance_axis(GRID.at(*i)[1]), error)) < 1e-9
+    assert math.isnan(predicted_angle_error(GRID, (-3.0, 10.0))[0])
 
 
 def _injection_drive(method: str, compensated: bool):

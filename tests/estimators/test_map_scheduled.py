@@ -68,3 +68,22 @@ def test_constant_model_error_matches_voltage_equation_and_map_removes_it(method
     tolerance = 1.5 if method == "ekf" else 0.1
     assert abs(math.degrees(errors["constant"] - predicted)) < tolerance
     assert abs(math.degrees(errors["map"])) < 0.1
+
+
+def test_map_aware_wiring_wraps_observer_inside_startup_and_refuses_files_without_a_map():
+    from pmsmjax import ParameterError
+    from pmsmjax.estimators.hfi_cross_saturation import CrossSaturationCompensated
+    from pmsmjax.estimators.map_scheduled import MapScheduled
+    from pmsmjax.presets.user_drive import startup_options, with_map_aware_estimator
+
+    base = spec_drive(SPEC)
+    ekf = presets.with_observer(base, "ekf", MOTOR, startup_options=startup_options(SPEC))
+    wrapped = with_map_aware_estimator(SPEC, ekf)
+    assert isinstance(wrapped.estimator.observer, MapScheduled)
+    hfi_model = eqx.tree_at(lambda m: (m.L_d, m.L_q), MOTOR, (5e-3, 12e-3))
+    hfi = presets.with_observer(base, "hfi-rotating", hfi_model, startup=False)
+    assert isinstance(with_map_aware_estimator(SPEC, hfi).estimator, CrossSaturationCompensated)
+    with pytest.raises(ParameterError, match="flux_map"):
+        with_map_aware_estimator(drive_spec("book"), presets.sensorless_drive("ekf"))
+    with pytest.raises(ParameterError, match="fundamental-model observers"):
+        map_scheduled(hfi.estimator, spec_flux_map(SPEC))
