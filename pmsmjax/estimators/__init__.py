@@ -6,7 +6,9 @@ control (:class:`StatorFluxObserver`, chapter 4) and the fundamental-model obser
 :class:`AbstractEstimator`; :class:`StartupEstimator` wraps an observer in the I/f start from
 standstill; :func:`make_observer` builds an observer by name with its design rule. The HF-injection
 estimators of chapter 6 (:class:`HFIRotating`, :class:`HFIPulsating`; ``hfi-rotating``, ``hfi-pulsating``)
-read the saliency at standstill and low speed.
+read the saliency at standstill and low speed. On a saturated machine given by a flux map,
+:func:`cross_saturation_compensated` takes the map's cross-saturation angle out of HF injection and
+:func:`map_scheduled` gives a fundamental-model observer the map's model at the operating current.
 """
 
 from pmsmjax.estimators.adaptive_smo import AdaptiveSMO, adaptive_smo_design
@@ -14,9 +16,11 @@ from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.dq_smo import DQSlidingModeObserver, dq_smo_design
 from pmsmjax.estimators.ekf import EKF, ekf_design
 from pmsmjax.estimators.flux_observer import StatorFluxObserver, StatorFluxObserverState
+from pmsmjax.estimators.hfi_cross_saturation import CrossSaturationCompensated, cross_saturation_compensated
 from pmsmjax.estimators.hfi_pulsating import HFIPulsating, hfi_pulsating_design
 from pmsmjax.estimators.hfi_rotating import HFIRotating, hfi_rotating_design
 from pmsmjax.estimators.hybrid import HybridEstimator, HybridState, hybrid_design
+from pmsmjax.estimators.map_scheduled import MapScheduled, map_scheduled
 from pmsmjax.estimators.mras import MRAS, mras_design
 from pmsmjax.estimators.pll import PLL, pll_design
 from pmsmjax.estimators.polarity import PolarityDetector, PolarityState, polarity_detector
@@ -67,4 +71,8 @@ __all__ = [
     "HybridEstimator",
     "HybridState",
     "hybrid_design",
+    "CrossSaturationCompensated",
+    "cross_saturation_compensated",
+    "MapScheduled",
+    "map_scheduled",
 ]

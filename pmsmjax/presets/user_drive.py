@@ -32,6 +32,7 @@ __all__ = [
     "spec_scenario",
     "startup_options",
     "with_inverter_error",
+    "with_map_aware_estimator",
     "SMC_LOAD_RISE_S",
 ]
 
@@ -85,6 +86,35 @@ def _with_flux_map(drive: Drive, spec: DriveSpec) -> Drive:
         )
     plant = PMSMFluxMapdq(drive.machine.motor, spec_flux_map(spec), drive.machine.mechanics)
     return eqx.tree_at(lambda d: d.machine, drive, plant)
+
+
+def with_map_aware_estimator(spec: DriveSpec, drive: Drive) -> Drive:
+    """``drive`` with its sensorless estimator reading the file's flux map: HF injection corrected by the
+    map's cross-saturation angle (:mod:`pmsmjax.estimators.hfi_cross_saturation`), a back-EMF observer or
+    the EKF given the map's model at the operating current (:mod:`pmsmjax.estimators.map_scheduled`); an
+    I/f start keeps wrapping it."""
+    from pmsmjax.checks.validation import ParameterError
+    from pmsmjax.estimators.hfi_cross_saturation import cross_saturation_compensated
+    from pmsmjax.estimators.hfi_pulsating import HFIPulsating
+    from pmsmjax.estimators.hfi_rotating import HFIRotating
+    from pmsmjax.estimators.map_scheduled import map_scheduled
+    from pmsmjax.estimators.startup import StartupEstimator
+
+    if "flux_map" not in spec.motor:
+        raise ParameterError(
+            f"{spec.source}: a map-aware estimator needs [motor] flux_map (a measured flux map CSV); this "
+            "drive file has none: drop the map-aware option or add the map."
+        )
+    flux_map = spec_flux_map(spec)
+
+    def aware(estimator):
+        if isinstance(estimator, StartupEstimator):
+            return eqx.tree_at(lambda s: s.observer, estimator, aware(estimator.observer))
+        if isinstance(estimator, (HFIRotating, HFIPulsating)):
+            return cross_saturation_compensated(estimator, flux_map)
+        return map_scheduled(estimator, flux_map)
+
+    return eqx.tree_at(lambda d: d.estimator, drive, aware(drive.estimator))
 
 
 def _accepts(preset) -> set:
