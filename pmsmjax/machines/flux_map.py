@@ -245,7 +245,7 @@ def locate(n_cells, lower, step, upper, i_dq, xp=np):
     corners `lower`, `upper` and spacing `step` (A). Split from :func:`evaluate` so an integrator can
     compute it with the stage point and carry it (:mod:`pmsmjax.machines.pmsm_flux_map`)."""
     i_c = xp.clip(i_dq, lower, upper)
-    x = (i_c - lower) / step
+    x = (i_c - lower) * (1.0 / step)
     cell = xp.clip(xp.floor(x), 0, xp.asarray(n_cells) - 1)
     return xp.concatenate([cell, x - cell, i_dq - i_c])
 
@@ -264,7 +264,7 @@ def evaluate(coefficients, step, where, xp=np):
     psi = ((rows[3] * s + rows[2]) * s + rows[1]) * s + rows[0]
     dpsi_ds = (3.0 * rows[3] * s + 2.0 * rows[2]) * s + rows[1]
     dpsi_dt = ((rows_dt[3] * s + rows_dt[2]) * s + rows_dt[1]) * s + rows_dt[0]
-    L = xp.stack([dpsi_ds / step[0], dpsi_dt / step[1]], -1)
+    L = xp.stack([dpsi_ds * (1.0 / step[0]), dpsi_dt * (1.0 / step[1])], -1)
     return psi + L[:, 0] * where[4] + L[:, 1] * where[5], L
 
 
