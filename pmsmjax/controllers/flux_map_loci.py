@@ -21,12 +21,12 @@ import dataclasses
 import math
 
 import numpy as np
-from scipy.optimize import minimize_scalar
+from scipy.optimize import brentq, minimize_scalar
 
 from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.machines.flux_map import FluxMapGrid, flux_and_inductance
 
-__all__ = ["MapTorque", "MTPATable", "mtpa_table", "DEFAULT_POINTS"]
+__all__ = ["MapTorque", "MTPATable", "mtpa_table", "MTPVTable", "mtpv_table", "DEFAULT_POINTS"]
 
 #: Current magnitudes per branch (motoring, generating) of the MTPA sweep.
 DEFAULT_POINTS = 61
@@ -135,3 +135,47 @@ def mtpa_table(
                 f"{plain(max_current_a)} A; check its signs or lower the current limit."
             )
     return MTPATable(i_q, i_d, torque, magnitude)
+
+
+def _mtpv_condition(model: MapTorque, i_d: float, i_q: float) -> float:
+    """``dT/di_d dF/di_q - dT/di_q dF/di_d`` with ``F = |psi|^2 / 2`` (N m Wb^2 / A^2 up to the factor
+    ``1.5 p``): zero where the torque gradient is parallel to the flux magnitude's, i.e. on MTPV."""
+    psi, L = model.flux(i_d, i_q)
+    torque_d = L[0, 0] * i_q - L[1, 0] * i_d - psi[1]  # dT/di_d / (1.5 p)
+    torque_q = psi[0] + L[0, 1] * i_q - L[1, 1] * i_d  # dT/di_q / (1.5 p)
+    flux_d, flux_q = L.T @ psi  # grad |psi|^2 / 2
+    return float(torque_d * flux_q - torque_q * flux_d)
+
+
+@dataclasses.dataclass(frozen=True)
+class MTPVTable:
+    """The MTPV (maximum torque per flux, the book, ch. 3 for a linear machine) locus of a flux map, as
+    the most negative useful ``i_d`` for each ``i_q``: beyond it (more negative ``i_d``) the torque per
+    flux falls, so field weakening gains nothing.
+
+    - `i_q`, `i_d`: ``(n,)`` currents, A (``i_q`` strictly increasing, both signs);
+    - `inside`: ``(n,)`` bool, False where the map has no MTPV point between its lower ``i_d`` edge and
+      the MTPA locus (``i_d`` is then that edge: the current limit binds first).
+    """
+
+    i_q: np.ndarray
+    i_d: np.ndarray
+    inside: np.ndarray
+
+
+def mtpv_table(grid: FluxMapGrid, pole_pairs: int, i_q, i_d_upper) -> MTPVTable:
+    """The MTPV locus at the currents ``i_q (n,)`` (A, increasing, nonzero): for each the root in ``i_d`` of
+    the parallel-gradient condition between the map's lower ``i_d`` edge and ``i_d_upper (n,)`` (A, the
+    MTPA ``i_d`` there; between the two the flux magnitude at constant torque falls, then rises), by
+    Brent's method."""
+    model = MapTorque(grid, pole_pairs)
+    rows = []
+    for q, upper in zip(np.asarray(i_q, float), np.asarray(i_d_upper, float), strict=True):
+        f = lambda i_d, q=q: _mtpv_condition(model, i_d, q)  # noqa: E731
+        lo = float(grid.i_d[0])
+        if f(lo) * f(upper) < 0:
+            rows.append((q, brentq(f, lo, upper, xtol=1e-10), True))
+        else:
+            rows.append((q, lo, False))
+    i_q, i_d, inside = (np.array(c) for c in zip(*rows, strict=True))
+    return MTPVTable(i_q, i_d, inside.astype(bool))

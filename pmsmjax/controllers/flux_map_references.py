@@ -1,5 +1,13 @@
-"""d-axis references of a saturated machine from its flux map: the MTPA table of
-:mod:`pmsmjax.controllers.flux_map_loci` (computed at load) interpolated in JAX.
+"""d-axis references of a saturated machine from its flux map: the MTPA and MTPV tables of
+:mod:`pmsmjax.controllers.flux_map_loci` (computed at load) interpolated in JAX, and field weakening on
+them.
+
+**Field weakening** (:class:`FluxMapFieldWeakening`): above base speed the voltage limit bounds the flux,
+``|psi| <~ u_max / w_e``. The voltage-feedback integrator of
+:mod:`pmsmjax.controllers.field_weakening` (Kim and Sul 1997) finds the d current that holds
+``|u_dq| = m u_max`` without a model of the voltage limit; on a flux map its base is the map's MTPA
+``i_d(i_q)`` and its floor the map's MTPV ``i_d(i_q)`` (no lower: beyond it the torque per flux falls) or
+the current circle, whichever is higher. The FOC's current circle then gives the q axis what is left.
 
 **Interpolation.** The table's nodes ``(i_q_k, i_d_k)`` are not uniform in ``i_q`` (they are uniform in the
 current magnitude), so a node is found by ``searchsorted``; between nodes ``i_d(i_q)`` is the cubic Hermite
@@ -17,11 +25,18 @@ from scipy.interpolate import PchipInterpolator
 
 from pmsmjax._types import Array
 from pmsmjax.controllers.base import AbstractDAxisReference, CurrentLoopContext
-from pmsmjax.controllers.flux_map_loci import MTPATable, mtpa_table
+from pmsmjax.controllers.field_weakening import voltage_feedback_update
+from pmsmjax.controllers.flux_map_loci import MTPATable, mtpa_table, mtpv_table
 from pmsmjax.machines.flux_map import FluxMapGrid
 from pmsmjax.machines.motor import as_float
 
-__all__ = ["TableCurve", "FluxMapMTPA", "flux_map_mtpa"]
+__all__ = [
+    "TableCurve",
+    "FluxMapMTPA",
+    "FluxMapFieldWeakening",
+    "flux_map_mtpa",
+    "flux_map_field_weakening",
+]
 
 
 class TableCurve(eqx.Module):
@@ -80,3 +95,41 @@ def mtpa_curve(table: MTPATable) -> TableCurve:
 def flux_map_mtpa(grid: FluxMapGrid, pole_pairs: int, max_current_a: float) -> FluxMapMTPA:
     """:class:`FluxMapMTPA` of ``grid`` up to ``max_current_a`` (A) (:func:`flux_map_loci.mtpa_table`)."""
     return FluxMapMTPA(mtpa_curve(mtpa_table(grid, pole_pairs, max_current_a)))
+
+
+class FluxMapFieldWeakening(AbstractDAxisReference):
+    """Voltage-feedback field weakening on the flux map's MTPA (base) and MTPV (floor) loci (module
+    docstring). State: ``delta_i_d``, A (<= 0).
+
+    - `mtpa`, `mtpv`: :class:`TableCurve` ``i_d(i_q)``, A (build with :func:`flux_map_field_weakening`);
+    - `bandwidth`: the voltage loop's bandwidth, rad/s;
+    - `voltage_margin`: the fraction of ``u_max`` held, in (0, 1].
+    """
+
+    mtpa: TableCurve
+    mtpv: TableCurve
+    bandwidth: Array = eqx.field(converter=as_float)
+    voltage_margin: Array = eqx.field(converter=as_float, default=0.95)
+
+    def init(self, dtype):
+        return jnp.zeros((), dtype)
+
+    def step(self, state, id_ref, iq_ref_prev, omega_e, ctx: CurrentLoopContext, current_limit):
+        base = self.mtpa(iq_ref_prev)
+        floor = jnp.maximum(self.mtpv(iq_ref_prev), -current_limit)
+        return voltage_feedback_update(
+            state, base, jnp.minimum(floor, base), self.bandwidth, self.voltage_margin, omega_e, ctx
+        )
+
+
+def flux_map_field_weakening(
+    grid: FluxMapGrid, pole_pairs: int, max_current_a: float, bandwidth: float, voltage_margin: float = 0.95
+) -> FluxMapFieldWeakening:
+    """:class:`FluxMapFieldWeakening` of ``grid`` up to ``max_current_a`` (A): MTPA and MTPV tables at
+    load; `bandwidth` rad/s, `voltage_margin` of ``u_max``."""
+    mtpa = mtpa_table(grid, pole_pairs, max_current_a)
+    away = mtpa.i_q != 0.0  # MTPV is undefined without torque
+    mtpv = mtpv_table(grid, pole_pairs, mtpa.i_q[away], mtpa.i_d[away])
+    return FluxMapFieldWeakening(
+        mtpa_curve(mtpa), TableCurve.pchip(mtpv.i_q, mtpv.i_d), bandwidth, voltage_margin
+    )
