@@ -26,11 +26,12 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
+from pmsmjax.checks.validation import check_positive
 from pmsmjax.controllers.base import AbstractCurrentController, CurrentLoopContext
 from pmsmjax.controllers.current_pi import angle_lead
 from pmsmjax.controllers.pi import clip_magnitude, pi_update
 from pmsmjax.frames.three_phase import inverse_park, park
-from pmsmjax.machines.motor import as_float
+from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.machines.pmsm3 import _solve2
 from pmsmjax.machines.pmsm_flux_map import FluxMap
 
@@ -40,14 +41,33 @@ __all__ = ["FluxMapCurrentLoop"]
 class FluxMapCurrentLoop(AbstractCurrentController):
     """dq current PI scheduled on the flux map (module docstring); state ``(2,)`` integral, V.
 
+    The gains are those of :class:`~pmsmjax.controllers.current_pi.CurrentLoopGains` (same names, so
+    tuning and gains files treat both alike), stated at the design inductances `L_design`: at the current
+    ``i`` the proportional action is ``diag(kp / L_design) L_inc(i) e``, which is ``a_c L_inc(i) e`` for
+    the internal-model gains ``kp = a_c L_design`` (:meth:`imc`).
+
     - `flux_map`: the controller's :class:`~pmsmjax.machines.pmsm_flux_map.FluxMap` (may differ from the
       plant's);
-    - `bandwidth`: closed-loop bandwidth ``a_c``, rad/s. The resistance is the controller model's
-      (``ctx.model.R``).
+    - `kp_d`, `kp_q`: proportional gains at `L_design`, V/A; `ki_d`, `ki_q`: integral gains, V/(A s);
+    - `L_design`: ``(2,)`` the inductances ``[L_d, L_q]`` the proportional gains refer to, H.
     """
 
     flux_map: FluxMap
-    bandwidth: Array = eqx.field(converter=as_float)
+    kp_d: Array = eqx.field(converter=as_float)
+    kp_q: Array = eqx.field(converter=as_float)
+    ki_d: Array = eqx.field(converter=as_float)
+    ki_q: Array = eqx.field(converter=as_float)
+    L_design: Array = eqx.field(converter=as_float)
+
+    @classmethod
+    def imc(cls, flux_map: FluxMap, model: PMSMParameters, bandwidth_rad_s) -> "FluxMapCurrentLoop":
+        """Internal-model gains for the closed-loop bandwidth ``a_c`` (rad/s), stated at the linear
+        ``model``'s ``L_d``, ``L_q`` (so ``kp``, ``ki`` equal :func:`~pmsmjax.controllers.design.
+        current_loop_imc`'s on that model) with its resistance ``R``."""
+        check_positive("current-loop bandwidth a_c", bandwidth_rad_s, "rad/s")
+        a = jnp.asarray(bandwidth_rad_s, model.R.dtype)
+        L = jnp.stack([model.L_d, model.L_q])
+        return cls(flux_map, a * model.L_d, a * model.L_q, a * model.R, a * model.R, L)
 
     def init(self, dtype):
         return jnp.zeros(2, dtype)
@@ -66,11 +86,12 @@ class FluxMapCurrentLoop(AbstractCurrentController):
             i_ctrl = i_dq
         psi, L = self.flux_map(i_ctrl)
         error = i_dq_ref - i_ctrl
-        proportional = self.bandwidth * (L @ error)
+        bandwidths = jnp.stack([self.kp_d, self.kp_q]) / self.L_design  # rad/s per axis
+        proportional = bandwidths * (L @ error)
         ff = omega_e * jnp.stack([-psi[1], psi[0]]) if ctx.decoupling else jnp.zeros(2, i_dq.dtype)
         integral, u_dq = pi_update(
             0.0,
-            self.bandwidth * R,
+            jnp.stack([self.ki_d, self.ki_q]),
             state,
             error,
             ctx.Ts,

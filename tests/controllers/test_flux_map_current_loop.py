@@ -47,7 +47,7 @@ def q_step(scheduled: bool):
     )  # fmt: skip
     drive = eqx.tree_at(lambda d: d.machine, drive, plant)
     if scheduled:
-        loop = FluxMapCurrentLoop(FluxMap.from_grid(g), A_C)
+        loop = FluxMapCurrentLoop.imc(FluxMap.from_grid(g), zero_current, A_C)
     else:
         loop = current_loop_imc(zero_current, A_C)
     drive = eqx.tree_at(lambda d: d.controller.current, drive, loop)
