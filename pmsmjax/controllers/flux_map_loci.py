@@ -7,7 +7,9 @@ cross-saturation move the locus; on a linear map it is the closed form of :mod:`
 
 **MTPA** (the book, ch. 3, for a linear machine; for a flux map e.g. Bianchi and Bolognani, "Parameters and
 volt-ampere ratings of a synchronous motor drive for flux-weakening applications", IEEE Trans. Power
-Electron. 12(5), 1997, doi:10.1109/63.622993): the least current magnitude for each torque. Along the
+Electron. 12(5), 1997; tables of MTPA and MTPV from a measured map as here: Awan, Song, Saarakkala and
+Hinkkanen, "Optimal torque control of saturated synchronous motors: plug-and-play method", IEEE Trans.
+Ind. Appl. 54(6), 2018): the least current magnitude for each torque. Along the
 locus the torque rises monotonically with the magnitude, so this is the same set of points as the most
 torque for each magnitude ``I``, which is a one-dimensional search over the current angle: for each ``I``
 of a sweep ``0..I_max`` the angle ``beta`` (``i_d = I cos beta``, ``i_q = +-I sin beta``) that maximises
