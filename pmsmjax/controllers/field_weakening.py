@@ -78,16 +78,24 @@ class VoltageFeedbackFieldWeakening(AbstractDAxisReference):
     def step(self, state, id_ref, iq_ref_prev, omega_e, ctx: CurrentLoopContext, current_limit):
         m = ctx.model
         base = mtpa_id_from_iq(m, iq_ref_prev) if self.mtpa else id_ref
-        # |u_dq| guarded at 0 (the first period) so the gradient stays finite.
-        u_sq = jnp.sum(ctx.u_dq_prev * ctx.u_dq_prev)
-        nonzero = u_sq > 0
-        u_mag = jnp.where(nonzero, jnp.sqrt(jnp.where(nonzero, u_sq, 1.0)), 0.0)
-        margin = self.voltage_margin * ctx.u_max - u_mag  # V, positive with voltage to spare
-        gain = self.bandwidth / jnp.sqrt(m.R**2 + (omega_e * m.L_d) ** 2)  # A/(V s)
         id_min = -jnp.minimum(current_limit, m.psi_f / m.L_d)
-        delta = state + ctx.Ts * gain * margin
-        delta = jnp.minimum(jnp.maximum(delta, id_min - base), 0.0)
-        return delta, base + delta
+        return voltage_feedback_update(state, base, id_min, self.bandwidth, self.voltage_margin, omega_e, ctx)
 
 
-__all__ = ["VoltageFeedbackFieldWeakening"]
+def voltage_feedback_update(state, base, id_min, bandwidth, voltage_margin, omega_e, ctx: CurrentLoopContext):
+    """One period of the voltage-margin integrator (module docstring): ``delta_i_d`` (A, <= 0) from the
+    last command's magnitude, with the gain scheduled on the model's ``R``, ``L_d``; the reference
+    ``base + delta_i_d`` kept at or above ``id_min`` (A). Returns ``(delta_i_d, i_d*)``."""
+    m = ctx.model
+    # |u_dq| guarded at 0 (the first period) so the gradient stays finite.
+    u_sq = jnp.sum(ctx.u_dq_prev * ctx.u_dq_prev)
+    nonzero = u_sq > 0
+    u_mag = jnp.where(nonzero, jnp.sqrt(jnp.where(nonzero, u_sq, 1.0)), 0.0)
+    margin = voltage_margin * ctx.u_max - u_mag  # V, positive with voltage to spare
+    gain = bandwidth / jnp.sqrt(m.R**2 + (omega_e * m.L_d) ** 2)  # A/(V s)
+    delta = state + ctx.Ts * gain * margin
+    delta = jnp.minimum(jnp.maximum(delta, id_min - base), 0.0)
+    return delta, base + delta
+
+
+__all__ = ["VoltageFeedbackFieldWeakening", "voltage_feedback_update"]

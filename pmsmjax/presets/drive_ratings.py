@@ -10,6 +10,14 @@ i_d)``, with the MTPA d-axis current for a current magnitude ``I``::
 
     i_d = (psi_f - sqrt(psi_f^2 + 8 (L_q - L_d)^2 I^2)) / (4 (L_q - L_d))      (0 for L_d = L_q)
 
+**A flux map** (``motor["flux_map"]``, the map file's path, as a drive file with ``[motor] flux_map`` has
+it): the MTPA rules (:func:`mtpa_d_current`, :func:`torque_at_current`, :func:`current_for_torque`) and
+the rated point's voltage ``|R i + w_e J psi(i)|`` (:func:`rated_point_voltage_v`, hence the base speed)
+come from the map's MTPA table (:mod:`pmsmjax.controllers.flux_map_loci`, built once per map up to the
+grid's corner current; the torque is held beyond it) instead of the linear model; the other rules keep
+the linear model the map derives (``psi_f``, ``L_d``, ``L_q``). Reading a map loads the package's
+array modules (the map's checks), so this path is not JAX-free.
+
 **Current-loop bandwidth** (:func:`current_bandwidth_rule`): the internal-model PI of the book, ch. 3
 makes the current loop ``a_c / s`` times the loop's delay, one period of computation plus half a period of
 the PWM's zero-order hold, ``1.5 Ts``; its phase margin is ``90 deg - 1.5 Ts a_c`` (rad). The rule keeps
@@ -38,8 +46,11 @@ durations of 1.5 to 2.5 x the load time. (The book drive file states the book's 
 200-1500 r/min, 0-10 N m, 0.3-0.5 s.)
 """
 
+import functools
 import math
 from collections.abc import Mapping
+
+import numpy as np
 
 from pmsmjax.analysis.operating_point import steady_point, top_speed_rpm
 
@@ -88,9 +99,29 @@ def torque_factor(motor: Mapping) -> float:
     return 0.5 * motor.get("n_phases", 3) * motor["pole_pairs"]
 
 
+@functools.lru_cache(maxsize=8)
+def _map_loci(path: str, pole_pairs: int):
+    """``(MapTorque, MTPATable)`` of the flux map file ``path`` (module docstring, "A flux map")."""
+    from pmsmjax.controllers.flux_map_loci import MapTorque, mtpa_table
+    from pmsmjax.io.flux_map_files import read_flux_map
+
+    grid = read_flux_map(path)
+    corner = max(math.hypot(d, q) for d in (grid.i_d[0], grid.i_d[-1]) for q in (grid.i_q[0], grid.i_q[-1]))
+    return MapTorque(grid, pole_pairs), mtpa_table(grid, pole_pairs, corner)
+
+
+def _map_mtpa(motor: Mapping):
+    """The MTPA table of ``motor``'s flux map, or None without one."""
+    return _map_loci(str(motor["flux_map"]), motor["pole_pairs"])[1] if "flux_map" in motor else None
+
+
 def mtpa_d_current(motor: Mapping, current_a: float) -> float:
     """The MTPA d-axis current (A, <= 0 for L_q > L_d) for a current magnitude ``current_a`` (module
-    docstring); 0 for a surface motor."""
+    docstring); 0 for a surface motor. From the flux map's table when ``motor`` has one."""
+    table = _map_mtpa(motor)
+    if table is not None:
+        motoring = table.i_q >= 0
+        return float(np.interp(current_a, table.current[motoring], table.i_d[motoring]))
     saliency = motor["L_q"] - motor["L_d"]
     if abs(saliency) < 1e-12 * max(motor["L_q"], motor["L_d"]):
         return 0.0
@@ -99,14 +130,22 @@ def mtpa_d_current(motor: Mapping, current_a: float) -> float:
 
 
 def torque_at_current(motor: Mapping, current_a: float) -> float:
-    """The most torque (N m) a current magnitude ``current_a`` (A, peak) gives (MTPA)."""
+    """The most torque (N m) a current magnitude ``current_a`` (A, peak) gives (MTPA; the flux map's when
+    ``motor`` has one)."""
+    table = _map_mtpa(motor)
+    if table is not None:
+        return table.torque_at_current(current_a)
     i_d = mtpa_d_current(motor, current_a)
     i_q = math.sqrt(max(current_a * current_a - i_d * i_d, 0.0))
     return torque_factor(motor) * i_q * (motor["psi_f"] + (motor["L_d"] - motor["L_q"]) * i_d)
 
 
 def current_for_torque(motor: Mapping, torque_nm: float) -> float:
-    """The least current magnitude (A, peak) that gives ``torque_nm`` (MTPA; bisection)."""
+    """The least current magnitude (A, peak) that gives ``torque_nm`` (MTPA; bisection, or the flux map's
+    table when ``motor`` has one)."""
+    table = _map_mtpa(motor)
+    if table is not None:
+        return table.current_for_torque(torque_nm)
     lo, hi = 0.0, max(torque_nm / (torque_factor(motor) * motor["psi_f"]), 1e-9)
     while torque_at_current(motor, hi) < torque_nm:
         lo, hi = hi, 2.0 * hi
@@ -128,6 +167,12 @@ def rated_point_voltage_v(motor: Mapping, speed_rpm: float, torque_nm: float) ->
     """Peak phase voltage (V) the steady state at ``speed_rpm`` under ``torque_nm`` needs with MTPA
     currents (friction included)."""
     w = speed_rpm * RPM
+    table = _map_mtpa(motor)
+    if table is not None:
+        i_d, i_q = table.point_for_torque(torque_nm + motor["B"] * w)
+        psi, _ = _map_loci(str(motor["flux_map"]), motor["pole_pairs"])[0].flux(i_d, i_q)
+        w_e = motor["pole_pairs"] * w
+        return math.hypot(motor["R"] * i_d - w_e * psi[1], motor["R"] * i_q + w_e * psi[0])
     current = current_for_torque(motor, torque_nm + motor["B"] * w)
     i_d = mtpa_d_current(motor, current)
     return steady_point(motor, w, torque_nm, i_d)["voltage"]

@@ -11,8 +11,10 @@ the file's scenario,
 three are bit for bit the book presets (tests/presets/test_user_drive.py).
 
 A drive file with a flux map (``[motor] flux_map``) gets the map's plant
-(:class:`~pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq`) in place of the linear dq machine; the controller
-keeps its linear model (the file's or the map's derived ``L_d``, ``L_q``, ``psi_f``).
+(:class:`~pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq`) in place of the linear dq machine, and control
+on the map (:func:`pmsmjax.presets.flux_map_control.with_flux_map_control`: the current loop scheduled on
+its inductances, MTPA and field weakening from its tables); the controller's linear model (the file's or
+the map's derived ``L_d``, ``L_q``, ``psi_f``) remains for the speed loop's design.
 """
 
 import inspect
@@ -159,7 +161,11 @@ def spec_drive(spec: DriveSpec, control: str | None = None, **options) -> Drive:
         merged = {**drive_options(spec, control), **options}
         drive = with_inverter_error(spec, control_drive(control, spec_motor(spec), **merged))
         if "flux_map" in spec.motor:
+            from pmsmjax.io.flux_map_files import read_flux_map
+            from pmsmjax.presets.flux_map_control import with_flux_map_control
+
             drive = _with_flux_map(drive, spec)
+            drive = with_flux_map_control(drive, read_flux_map(spec.motor["flux_map"]))
     else:
         if spec.n_phases == 6:
             from pmsmjax.presets.six_phase import six_phase_drive as multiphase_drive

@@ -1,0 +1,135 @@
+"""d-axis references of a saturated machine from its flux map: the MTPA and MTPV tables of
+:mod:`pmsmjax.controllers.flux_map_loci` (computed at load) interpolated in JAX, and field weakening on
+them.
+
+**Field weakening** (:class:`FluxMapFieldWeakening`): above base speed the voltage limit bounds the flux,
+``|psi| <~ u_max / w_e``. The voltage-feedback integrator of
+:mod:`pmsmjax.controllers.field_weakening` (Kim and Sul 1997) finds the d current that holds
+``|u_dq| = m u_max`` without a model of the voltage limit; on a flux map its base is the map's MTPA
+``i_d(i_q)`` and its floor the map's MTPV ``i_d(i_q)`` (no lower: beyond it the torque per flux falls) or
+the current circle, whichever is higher. The FOC's current circle then gives the q axis what is left.
+
+**Interpolation.** The table's nodes ``(i_q_k, i_d_k)`` are not uniform in ``i_q`` (they are uniform in the
+current magnitude), so a node is found by ``searchsorted``; between nodes ``i_d(i_q)`` is the cubic Hermite
+polynomial with the node slopes of SciPy's PCHIP (Fritsch and Carlson, "Monotone piecewise cubic
+interpolation", SIAM J. Numer. Anal. 17(2), 1980, doi:10.1137/0717021): C1, so the reference and its
+derivative in ``i_q`` (which tuning differentiates through) are continuous, and without the overshoot a
+cubic spline shows near the origin where the two branches meet. Beyond the table (``|i_q|`` above the
+current limit) the end value is held: the FOC's current circle bounds ``i_q`` there anyway.
+"""
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from scipy.interpolate import PchipInterpolator
+
+from pmsmjax._types import Array
+from pmsmjax.controllers.base import AbstractDAxisReference, CurrentLoopContext
+from pmsmjax.controllers.field_weakening import voltage_feedback_update
+from pmsmjax.controllers.flux_map_loci import MTPATable, mtpa_table, mtpv_table
+from pmsmjax.machines.flux_map import FluxMapGrid
+from pmsmjax.machines.motor import as_float
+
+__all__ = [
+    "TableCurve",
+    "FluxMapMTPA",
+    "FluxMapFieldWeakening",
+    "flux_map_mtpa",
+    "flux_map_field_weakening",
+]
+
+
+class TableCurve(eqx.Module):
+    """A C1 curve ``y(x)`` through nodes, cubic Hermite between them (module docstring).
+
+    - `x`: ``(n,)`` strictly increasing nodes; `y`: ``(n,)`` values; `slope`: ``(n,)`` ``dy/dx`` at the
+      nodes (units of ``y`` per unit of ``x``).
+    """
+
+    x: Array = eqx.field(converter=as_float)
+    y: Array = eqx.field(converter=as_float)
+    slope: Array = eqx.field(converter=as_float)
+
+    @classmethod
+    def pchip(cls, x, y) -> "TableCurve":
+        """The curve through ``(x, y)`` with PCHIP node slopes (NumPy arrays, at load)."""
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        return cls(x, y, PchipInterpolator(x, y).derivative()(x))
+
+    def __call__(self, x_query) -> Array:
+        """``y`` at the scalar ``x_query``, held at the end values outside ``[x[0], x[-1]]``."""
+        x = jnp.clip(x_query, self.x[0], self.x[-1])
+        k = jnp.clip(jnp.searchsorted(self.x, x, side="right") - 1, 0, self.x.shape[0] - 2)
+        x0, h = self.x[k], self.x[k + 1] - self.x[k]
+        s = (x - x0) / h
+        s2, s3 = s * s, s * s * s
+        return (
+            (2 * s3 - 3 * s2 + 1) * self.y[k]
+            + (s3 - 2 * s2 + s) * h * self.slope[k]
+            + (-2 * s3 + 3 * s2) * self.y[k + 1]
+            + (s3 - s2) * h * self.slope[k + 1]
+        )
+
+
+class FluxMapMTPA(AbstractDAxisReference):
+    """d-axis reference on the flux map's MTPA locus, from last period's ``i_q*`` (like
+    :class:`~pmsmjax.controllers.mtpa.MTPA` on the linear model). Stateless.
+
+    `locus`: :class:`TableCurve` ``i_d(i_q)``, A (build with :func:`flux_map_mtpa`).
+    """
+
+    locus: TableCurve
+
+    def init(self, dtype):
+        return None
+
+    def step(self, state, id_ref, iq_ref_prev, omega_e, ctx: CurrentLoopContext, current_limit):
+        return state, self.locus(iq_ref_prev)
+
+
+def mtpa_curve(table: MTPATable) -> TableCurve:
+    """The table's ``i_d(i_q)`` as a :class:`TableCurve`."""
+    return TableCurve.pchip(table.i_q, table.i_d)
+
+
+def flux_map_mtpa(grid: FluxMapGrid, pole_pairs: int, max_current_a: float) -> FluxMapMTPA:
+    """:class:`FluxMapMTPA` of ``grid`` up to ``max_current_a`` (A) (:func:`flux_map_loci.mtpa_table`)."""
+    return FluxMapMTPA(mtpa_curve(mtpa_table(grid, pole_pairs, max_current_a)))
+
+
+class FluxMapFieldWeakening(AbstractDAxisReference):
+    """Voltage-feedback field weakening on the flux map's MTPA (base) and MTPV (floor) loci (module
+    docstring). State: ``delta_i_d``, A (<= 0).
+
+    - `mtpa`, `mtpv`: :class:`TableCurve` ``i_d(i_q)``, A (build with :func:`flux_map_field_weakening`);
+    - `bandwidth`: the voltage loop's bandwidth, rad/s;
+    - `voltage_margin`: the fraction of ``u_max`` held, in (0, 1].
+    """
+
+    mtpa: TableCurve
+    mtpv: TableCurve
+    bandwidth: Array = eqx.field(converter=as_float)
+    voltage_margin: Array = eqx.field(converter=as_float, default=0.95)
+
+    def init(self, dtype):
+        return jnp.zeros((), dtype)
+
+    def step(self, state, id_ref, iq_ref_prev, omega_e, ctx: CurrentLoopContext, current_limit):
+        base = self.mtpa(iq_ref_prev)
+        floor = jnp.maximum(self.mtpv(iq_ref_prev), -current_limit)
+        return voltage_feedback_update(
+            state, base, jnp.minimum(floor, base), self.bandwidth, self.voltage_margin, omega_e, ctx
+        )
+
+
+def flux_map_field_weakening(
+    grid: FluxMapGrid, pole_pairs: int, max_current_a: float, bandwidth: float, voltage_margin: float = 0.95
+) -> FluxMapFieldWeakening:
+    """:class:`FluxMapFieldWeakening` of ``grid`` up to ``max_current_a`` (A): MTPA and MTPV tables at
+    load; `bandwidth` rad/s, `voltage_margin` of ``u_max``."""
+    mtpa = mtpa_table(grid, pole_pairs, max_current_a)
+    away = mtpa.i_q != 0.0  # MTPV is undefined without torque
+    mtpv = mtpv_table(grid, pole_pairs, mtpa.i_q[away], mtpa.i_d[away])
+    return FluxMapFieldWeakening(
+        mtpa_curve(mtpa), TableCurve.pchip(mtpv.i_q, mtpv.i_d), bandwidth, voltage_margin
+    )
