@@ -255,6 +255,13 @@ def add_parser(sub):
         help="run sensorless from standstill on this chapter 5 observer, with the I/f start-up and hand-over "
         "(default: the exact position sensor); with --control pi, smc or pr",
     )
+    p.add_argument(
+        "--observer-model",
+        choices=("map", "constant"),
+        help="with --estimator on a drive file with a flux map: the observer reads the map's flux and "
+        "incremental inductances at the operating current (map, the default there) or the file's constant "
+        "L_d, L_q, psi_f (constant)",
+    )
     p.add_argument("--out", default="demo_out", help="output folder (created), default: demo_out")
     drive_flags.add_motor_flag(p)
     drive_flags.add_override_flags(p)
@@ -347,6 +354,11 @@ def precheck(args):
             "or drop --estimator."
         )
     spec = drive_flags.resolve_drive(args, drive_flags.MACHINE_PHASES[args.machine])
+    if getattr(args, "observer_model", None) and not (args.estimator and "flux_map" in spec.motor):
+        raise ParameterError(
+            "--observer-model applies to a sensorless run (--estimator) of a drive file with a flux map "
+            "([motor] flux_map); drop it."
+        )
     drive_flags.fill_scenario(args, spec)
     if not args.load_time_s < args.duration_s:
         raise ParameterError(
@@ -388,7 +400,12 @@ def run(args) -> int:
     from pmsmjax.analysis.speed_step_summary import speed_step_summary
     from pmsmjax.io.logs import atomic_write, write_csv_atomic
     from pmsmjax.plotting.traces import save_demo_figures
-    from pmsmjax.presets.user_drive import spec_motor, spec_scenario, startup_options
+    from pmsmjax.presets.user_drive import (
+        spec_motor,
+        spec_scenario,
+        startup_options,
+        with_map_aware_estimator,
+    )
     from pmsmjax.simulate import check_simulation, simulate
     from pmsmjax.trace import COLUMN_UNITS
 
@@ -403,6 +420,8 @@ def run(args) -> int:
             drive = presets.with_observer(
                 drive, args.estimator, spec_motor(spec), startup_options=startup_options(spec)
             )
+            if "flux_map" in spec.motor and args.observer_model != "constant":
+                drive = with_map_aware_estimator(spec, drive)
         # after the observer is in: a gains.toml of pmsmjax tune --estimator names estimator.observer.*
         drive = apply_gains_flag(drive, read_gains_flag(args.gains), args.control)
         scenario = spec_scenario(spec, args.speed_rpm, args.load_nm, args.load_time_s, args.duration_s)
@@ -446,6 +465,9 @@ def run(args) -> int:
             "motor": args.motor,
             "control": args.control,
             "estimator": args.estimator or "exact sensor",
+            "observer_model": (args.observer_model or "map")
+            if args.estimator and "flux_map" in spec.motor
+            else None,
             "frame": args.frame or "dq",
             "Ts_s": drive.Ts,
             "n_substeps": drive.n_substeps,
