@@ -130,6 +130,7 @@ def replay(
     theta_e0: float = 0.0,
     i_dq0=(0.0, 0.0),
     omega_m0: float = 0.0,
+    flux_map=None,
 ) -> dict[str, np.ndarray]:
     """Run ``motor`` under a recorded voltage sequence; returns ``(N,)`` arrays by :data:`REPLAY_COLUMNS`.
 
@@ -146,6 +147,8 @@ def replay(
       speed. Imposed speed is reported back unchanged in the ``omega_m`` output.
     - `load_torque`: ``(N,)`` or scalar load torque, N m, used with dynamic speed (default 0).
     - `hold`: ``"rotor"`` (dq-model simulator) or ``"stator"`` (real inverter).
+    - `flux_map`: a :class:`~pmsmjax.machines.pmsm_flux_map.FluxMap`: the saturated machine of the map
+      (with ``motor``'s R, J, B, pole pairs) instead of the linear one.
     - `n_substeps`: RK4 steps per row interval. Default: the smallest count keeping the longest interval's
       sub-step within :func:`~pmsmjax.machines.integrate.max_stable_substep` at the largest speed (the
       imposed speed, or for dynamic speed 1.5x the voltage-limited speed
@@ -219,7 +222,13 @@ def replay(
     n_substeps = int(n_substeps)
 
     dtype = motor.R.dtype
-    machine = PMSMdq(motor, mechanics="imposed" if imposed else "dynamic")
+    mechanics = "imposed" if imposed else "dynamic"
+    if flux_map is None:
+        machine = PMSMdq(motor, mechanics=mechanics)
+    else:
+        from pmsmjax.machines.pmsm_flux_map import PMSMFluxMapdq
+
+        machine = PMSMFluxMapdq(motor, flux_map, mechanics)
     w0 = cols["omega_m"][0] if imposed else omega_m0
     state0 = machine.initial_state(i0, w0, theta_e0)
     f = lambda x: jnp.asarray(x, dtype)
@@ -369,6 +378,10 @@ def replay_file(
     if unused and report is not None:
         report.append(f"columns not used: {', '.join(unused)}")
     mot = load_motor(motor, check_units=check_units)
+    from pmsmjax.io.drive_files import drive_spec
+    from pmsmjax.presets.user_drive import spec_flux_map
+
+    flux_map = spec_flux_map(drive_spec(motor, check_units=check_units))  # None without [motor] flux_map
     log["time"] = log["time"] * TIME_UNITS[time_unit]
     if check_units:
         tau = min(float(mot.L_d), float(mot.L_q)) / float(mot.R)
@@ -393,6 +406,7 @@ def replay_file(
         n_substeps=n_substeps,
         theta_e0=float(log["theta_e"][0]) if "theta_e" in log else 0.0,
         i_dq0=i0,
+        flux_map=flux_map,
     )
     if hold == "auto":
         hold, note = choose_hold(mot, log, **kwargs)
