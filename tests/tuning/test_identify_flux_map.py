@@ -83,7 +83,7 @@ def test_bridge_error_on_a_phase_axis():
     np.testing.assert_allclose(bridge_error(np.array([0.2, 0.0]), 0.0, 3.0, 1.0), [0.6, 0.0], atol=1e-12)
 
 
-@pytest.mark.slow  # 5.8 s: a log of its own and three fits
+@pytest.mark.slow  # 5.8 s: a log of its own, a fit profiling the sign width and one at a fixed width
 def test_inverter_error_voltage():
     # a bridge of 1 us dead time at 10 kHz and 311 V, 0.8 V drop, sign ramping over the PWM ripple: not the
     # fit's tanh model
