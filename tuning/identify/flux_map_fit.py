@@ -22,7 +22,9 @@ visited currents (:func:`pmsmjax.machines.flux_map.hermite_coefficients`, the in
 uses), so the identified map is exactly what the plant will run. The interpolant is linear in the node
 fluxes, and the equations are linear in ``(node fluxes, R, V_e)``: the least-squares problem is linear.
 Its Jacobian is taken by JAX (forward mode through ``hermite_coefficients``, exact for a linear map), and
-one Gauss-Newton step (a dense least-squares solve) is its exact minimum.
+one Gauss-Newton step (a dense least-squares solve) is its exact minimum. Only the width ``eps`` of the
+inverter error's sign enters nonlinearly: unless given it is found by a bounded scalar search of that
+linear solve's residual (:func:`_profiled_smoothing`).
 
 **Separability.** Steady state at ``+w_e`` and ``-w_e`` gives ``u = R i +- w_e J psi``: R from the sum,
 the flux from the difference. A log at one direction of rotation only does not separate R from ``psi``
