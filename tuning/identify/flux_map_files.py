@@ -1,7 +1,8 @@
 """The files of ``pmsmjax identify --flux-map``: read the log, fit (:mod:`tuning.identify.flux_map_fit`),
 write ``DIR/flux_map.csv`` (the map with its ``measured`` marks, :mod:`pmsmjax.io.flux_map_files`),
-``DIR/flux_map.json`` (R, the inverter voltage error, the residual, the marks' count) and ``DIR/motor.toml``,
-a drive file whose ``[motor] flux_map`` is the identified map (:mod:`pmsmjax.io.drive_files`).
+``DIR/flux_map.json`` (R, the inverter voltage error and its sign width, the residual, the marks' count)
+and ``DIR/motor.toml``, a drive file whose ``[motor] flux_map`` is the identified map
+(:mod:`pmsmjax.io.drive_files`).
 
 A constant-speed walk does not determine J and B: ``motor.toml`` takes them from ``--fix J=... B=...`` or
 the prior drive (``--motor PRIOR``, which also gives ``[ratings]`` and ``[inverter]``); without either it
@@ -44,6 +45,7 @@ def identify_flux_map_file(
         "R_ohm": fit.R,
         "R_fixed": fit.R_fixed,
         "inverter_error_v": fit.V_e,
+        "inverter_error_sign_width_a": fit.error_smoothing_a,
         "grid_i_d_a": [float(fit.grid.i_d[0]), float(fit.grid.i_d[-1]), int(fit.grid.i_d.size)],
         "grid_i_q_a": [float(fit.grid.i_q[0]), float(fit.grid.i_q[-1]), int(fit.grid.i_q.size)],
         "measured_points": int(fit.measured.sum()),

@@ -22,7 +22,9 @@ visited currents (:func:`pmsmjax.machines.flux_map.hermite_coefficients`, the in
 uses), so the identified map is exactly what the plant will run. The interpolant is linear in the node
 fluxes, and the equations are linear in ``(node fluxes, R, V_e)``: the least-squares problem is linear.
 Its Jacobian is taken by JAX (forward mode through ``hermite_coefficients``, exact for a linear map), and
-one Gauss-Newton step (a dense least-squares solve) is its exact minimum.
+one Gauss-Newton step (a dense least-squares solve) is its exact minimum. Only the width ``eps`` of the
+inverter error's sign enters nonlinearly: unless given it is found by a bounded scalar search of that
+linear solve's residual (:func:`_profiled_smoothing`).
 
 **Separability.** Steady state at ``+w_e`` and ``-w_e`` gives ``u = R i +- w_e J psi``: R from the sum,
 the flux from the difference. A log at one direction of rotation only does not separate R from ``psi``
@@ -41,6 +43,7 @@ import math
 import jax
 import jax.numpy as jnp
 import numpy as np
+from scipy.optimize import minimize_scalar
 
 from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.machines.flux_map import FluxMapGrid, flux_and_inductance, hermite_coefficients
@@ -60,6 +63,8 @@ MIN_SPEED_SHARE = 0.05
 #: Weight of the prior's second differences among nodes the log does not reach, against
 #: :data:`SMOOTHNESS` elsewhere: there the map continues its neighbours almost linearly, it is not fitted.
 UNMEASURED_SMOOTHNESS = 50.0
+#: Range of the inverter error's fitted sign width as shares of the largest logged current.
+SMOOTHING_BOUNDS = (1e-3, 0.3)
 #: Fewest grid intervals per axis the default step gives over the visited range.
 DEFAULT_INTERVALS = 8
 
@@ -71,6 +76,8 @@ class FluxMapFit:
     - `grid`: :class:`FluxMapGrid` (every node: the fit's value; unmeasured ones from the prior only);
     - `measured`: ``(n_d, n_q)`` bool, nodes the log reached (module docstring);
     - `R`: ohm (`R_fixed`: given, not fitted); `V_e`: inverter voltage error per phase, V (None: not fitted);
+    - `error_smoothing_a`: the current, A, over which the inverter error's sign turns (``tanh(i / eps)``;
+      fitted unless given; None when ``V_e`` is not fitted);
     - `residual_rms_wb`: RMS of the window equations at the solution, Wb;
     - `n_windows`: windows used; `node_samples`: ``(n_d, n_q)`` samples near each node.
     """
@@ -83,6 +90,7 @@ class FluxMapFit:
     residual_rms_wb: float
     n_windows: int
     node_samples: np.ndarray
+    error_smoothing_a: float | None = None
 
 
 def flux_map_axes(i_dq: np.ndarray, step_a: float | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -157,6 +165,38 @@ def _second_differences(n_d, n_q):
     return np.array(rows), np.array(centres)
 
 
+@jax.jit
+def _error_basis(i_dq, cs, eps):
+    return jax.vmap(lambda i, c: _dead_time_voltage(i, c, eps))(i_dq, cs)
+
+
+def _inverter_error_per_volt(i_dq, theta_e, eps: float) -> np.ndarray:
+    """``(N, 2)`` dq voltage, V, lost to an inverter error of one volt per phase whose sign is
+    ``tanh(i_x / eps)`` of each phase current, at the log's currents ``i_dq (N, 2)`` A and angles
+    ``theta_e (N,)`` rad."""
+    cs = np.stack([np.cos(theta_e), np.sin(theta_e)], -1)
+    with jax.enable_x64(True):
+        return np.asarray(_error_basis(jnp.asarray(i_dq), jnp.asarray(cs), jnp.asarray(float(eps))))
+
+
+def _profiled_smoothing(cost, i_dq) -> float:
+    """The sign's smoothing current, A, that minimises ``cost(eps)`` (the least-squares sum with every
+    other unknown solved for: a variable-projection profile, Golub and Pereyra, Inverse Problems 19(2),
+    2003, doi:10.1088/0266-5611/19/2/201), searched on a log scale between :data:`SMOOTHING_BOUNDS` shares
+    of the largest logged current.
+
+    Why fitted: the width over which a real bridge's error turns is set by the PWM current ripple (and
+    the current sensor's noise blurs the sign the fit sees), and a width off by a factor of a few biases
+    ``V_e`` by ~10 % and R further, since near a zero crossing the error grows with the current as a
+    resistance does."""
+    top = float(np.max(np.abs(i_dq)))
+    lo, hi = (math.log(share * top) for share in SMOOTHING_BOUNDS)
+    best = minimize_scalar(
+        lambda z: cost(math.exp(z)), bounds=(lo, hi), method="bounded", options={"xatol": 0.02}
+    )
+    return float(math.exp(best.x))
+
+
 def fit_flux_map(
     log,
     pole_pairs: int,
@@ -166,12 +206,13 @@ def fit_flux_map(
     stride: int = 2,
     R: float | None = None,
     inverter_error: bool = False,
-    error_smoothing_a: float = 0.1,
+    error_smoothing_a: float | None = None,
 ) -> FluxMapFit:
     """Identify the flux map of ``log`` (a :class:`tuning.identify.log.DriveLog`) with ``pole_pairs``;
     module docstring. `step_a`: grid step, A (default :func:`flux_map_axes`); `window_s`: window length,
     s; `stride`: samples between window starts; `R`: ohm, held fixed when given; `inverter_error`: fit the
-    inverter voltage error ``V_e`` (V per phase, its sign smoothed over `error_smoothing_a` A). Raises
+    inverter voltage error ``V_e`` (V per phase, its sign smoothed over `error_smoothing_a` A; default: that
+    width fitted too, :func:`_profiled_smoothing`). Raises
     :class:`ParameterError` (one line) for a log it cannot use."""
     where = log.source
     dt = np.diff(log.time)
@@ -230,20 +271,11 @@ def fit_flux_map(
 
     with jax.enable_x64(True):
         B = _basis(i_dq, i_d, i_q).reshape(log.n, -1)  # (N, nodes)
-        e = np.zeros((log.n, 2))
-        if inverter_error:
-            cs = np.stack([np.cos(log.theta_e), np.sin(log.theta_e)], -1)
-            e = np.asarray(
-                jax.vmap(lambda i, c: _dead_time_voltage(i, c, error_smoothing_a))(
-                    jnp.asarray(i_dq), jnp.asarray(cs)
-                )
-            )
     U = _voltage_integrals(np.asarray(log.u_dq, dtype=float), w_e, dt, log.hold)
     half = 0.5 * dt[:, None]
     # per interval: the trapezoid weights of each sample (N-1 intervals -> cumulative sums over windows)
     cum = lambda x: np.concatenate([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)])  # noqa: E731
     I_int = cum(half * (i_dq[:-1] + i_dq[1:]))  # (N, 2) running integral of i
-    E_int = cum(half * (e[:-1] + e[1:]))
     U_int = cum(U)
     Bw = w_e[:, None] * B  # w_e psi weights per sample
     W_int = cum(half * (Bw[:-1] + Bw[1:]))  # (N, nodes) running integral of w_e psi
@@ -256,16 +288,12 @@ def fit_flux_map(
     rows_d = np.hstack([dB, -dW])
     rows_q = np.hstack([dW, dB])
     A = np.vstack([rows_d, rows_q])
-    extra = [np.concatenate([I_int[b, 0] - I_int[a, 0], I_int[b, 1] - I_int[a, 1]])]
-    if inverter_error:
-        extra.append(np.concatenate([E_int[b, 0] - E_int[a, 0], E_int[b, 1] - E_int[a, 1]]))
-    rhs = np.concatenate([U_int[b, 0] - U_int[a, 0], U_int[b, 1] - U_int[a, 1]])
+    over_window = lambda x: np.concatenate([x[b, 0] - x[a, 0], x[b, 1] - x[a, 1]])  # noqa: E731
+    rhs = over_window(U_int)
     if R is None:
-        A = np.hstack([A, extra[0][:, None]])
+        A = np.hstack([A, over_window(I_int)[:, None]])
     else:
-        rhs = rhs - R * extra[0]
-    if inverter_error:
-        A = np.hstack([A, extra[1][:, None]])
+        rhs = rhs - R * over_window(I_int)
     D, centres = _second_differences(n_d, n_q)
     # strong at an unmeasured node, unless one of its two neighbours along the row is measured and the other
     # not: there the map bends as its measured side says (a row of them between two measured rows is
@@ -273,13 +301,30 @@ def fit_flux_map(
     outer = ((np.abs(D) == 1.0) & measured.ravel()[None, :]).sum(1)
     strong = ~measured.ravel()[centres] & (outer != 1)
     D = D * np.where(strong, UNMEASURED_SMOOTHNESS, 1.0)[:, None]
-    prior = np.zeros((2 * D.shape[0], A.shape[1]))
+    n_columns = A.shape[1] + inverter_error
+    prior = np.zeros((2 * D.shape[0], n_columns))
     prior[: D.shape[0], :n_nodes] = D
     prior[D.shape[0] :, n_nodes : 2 * n_nodes] = D
     scale = np.sqrt(A.shape[0] / max(prior.shape[0], 1))  # the prior weighs like as many rows as the data
-    x, *_ = np.linalg.lstsq(
-        np.vstack([A, SMOOTHNESS * scale * prior]), np.concatenate([rhs, np.zeros(len(prior))]), rcond=None
-    )
+    prior_rhs = np.zeros(len(prior))
+
+    def solve(eps):
+        """``(x, A, cost)``: the least-squares solution with the error's sign smoothed over ``eps`` A, the
+        window equations' matrix and the sum of squares (prior included) at the solution."""
+        A_eps = A
+        if inverter_error:
+            e = _inverter_error_per_volt(i_dq, log.theta_e, eps)
+            E_int = cum(half * (e[:-1] + e[1:]))
+            A_eps = np.hstack([A, over_window(E_int)[:, None]])
+        M = np.vstack([A_eps, SMOOTHNESS * scale * prior])
+        target = np.concatenate([rhs, prior_rhs])
+        x, *_ = np.linalg.lstsq(M, target, rcond=None)
+        return x, A_eps, float(np.sum((M @ x - target) ** 2))
+
+    eps = error_smoothing_a
+    if inverter_error and eps is None:
+        eps = _profiled_smoothing(lambda e: solve(e)[2], i_dq)
+    x, A, _ = solve(eps)
     residual = A @ x - rhs
     psi_d, psi_q = x[:n_nodes].reshape(n_d, n_q), x[n_nodes : 2 * n_nodes].reshape(n_d, n_q)
     k = 2 * n_nodes
@@ -301,4 +346,5 @@ def fit_flux_map(
         residual_rms_wb=float(np.sqrt(np.mean(residual**2))),
         n_windows=int(starts.size),
         node_samples=node_samples,
+        error_smoothing_a=float(eps) if inverter_error else None,
     )

@@ -11,8 +11,13 @@ co-energy ``W'(i) = psi_m i_d + L_d i_d^2/2 + L_ql i_q^2/2 + L_mq s^2 ln cosh(r/
 
 **The inverter.** The controller's stator-frame voltage is held over each control period (an averaged
 inverter) and applied one period after it is computed (the angle advanced by 1.5 periods). An optional
-voltage error ``u_err tanh(i_x / eps)`` (dead time and device drop, ``eps`` = :data:`ERROR_SMOOTHING_A`)
-is subtracted from each phase voltage; the log records the controller's references, as firmware does.
+voltage error of a two-level bridge is subtracted from each phase voltage (:func:`bridge_error`): the
+PWM-period average of a dead time ``t_d`` and a device drop ``V_f``, ``u_err = (t_d / Ts) U_dc + V_f``
+(Murai et al., IEEE Trans. Ind. Appl. 23(5), 1987, doi:10.1109/TIA.1987.4505004), whose sign moves
+linearly between its two values while the phase current's PWM ripple crosses zero inside the period
+(``|i_x|`` below the ripple's half amplitude; exactly sharp for no ripple). It is written here apart from the
+fit's own model (a ``tanh`` sign) so that the fit is not tested on the shape it assumes. The log records
+the controller's references, as firmware does.
 
 **The controller.** dq current PIs at bandwidth ``a_c`` on the unsaturated inductances (``Kp = a_c L``,
 ``Ki =`` :data:`INTEGRAL_SHARE` ``a_c Kp``) and back-EMF feed-forward from the linear model at zero current,
@@ -36,15 +41,14 @@ __all__ = [
     "saturated_drive_log",
     "flux_map_log",
     "FLUX_MAP_LOG_NOISE",
-    "ERROR_SMOOTHING_A",
+    "bridge_error",
+    "ripple_half_amplitude",
 ]
 
 #: The machine of ``saturated_ipm_map.csv`` (Wb, H, A, -) with the drive file's R, pole pairs.
 SATURATED_IPM = dict(psi_m=0.1, L_d=3e-3, L_ql=2.5e-3, L_mq=10e-3, s=4.0, s0=1.0, c=0.5, R=0.5, pole_pairs=4)
 #: Measurement noise (standard deviations) of a flux-map log: currents, A; voltages, V.
 FLUX_MAP_LOG_NOISE = {"current_a": 0.05, "voltage_v": 0.5}
-#: Smoothing current of the inverter voltage error's sign, A.
-ERROR_SMOOTHING_A = 0.1
 #: Integral gain of the current PIs as a share of ``a_c Kp``: the feed-forward of a linear model misses
 #: the saturated flux by tens of volts, which the internal-model integral (``a_c R``) would remove only
 #: at the slow rate R/L; this one removes it within a few milliseconds.
@@ -86,14 +90,27 @@ def operating_walk(i_d_points, i_q_points) -> np.ndarray:
     return np.array(rows + cols)
 
 
-def _phase_error(i_dq, theta, u_err):
-    """``(2,)`` dq voltage lost to the inverter error ``u_err tanh(i_x / eps)`` per phase."""
+def ripple_half_amplitude(machine: dict, u_dc_v: float, Ts: float) -> float:
+    """Half the peak-to-peak PWM current ripple, A, of a phase at mid modulation: ``U_dc Ts / (8 L)``
+    (centre-aligned PWM, a leg at duty 1/2 against a neutral near mid supply), ``L`` the smaller unsaturated
+    incremental inductance of ``machine``; the current width over which :func:`bridge_error` turns."""
+    L0 = saturated_flux(machine, 0.0, 0.0)[1]
+    return u_dc_v * Ts / (8.0 * float(np.min(np.diag(L0))))
+
+
+def bridge_error(i_dq, theta, u_err_v: float, ripple_a: float) -> np.ndarray:
+    """``(2,)`` dq voltage, V, that a bridge losing ``u_err_v`` V per phase (module docstring) takes away at
+    the mean current ``i_dq (2,)`` A and electrical angle ``theta`` rad: per phase
+    ``u_err clip(i_x / ripple_a, -1, 1)`` (``np.sign`` for ``ripple_a = 0``: the share of the period's
+    dead-time edges at which the rippling current is positive, minus the share at which it is negative,
+    for a ripple spread evenly over ``+-ripple_a``), common mode removed (isolated neutral)."""
     c, s = math.cos(theta), math.sin(theta)
     i_alpha, i_beta = c * i_dq[0] - s * i_dq[1], s * i_dq[0] + c * i_dq[1]
     i_abc = np.array(
         [i_alpha, -0.5 * i_alpha + 0.5 * math.sqrt(3) * i_beta, -0.5 * i_alpha - 0.5 * math.sqrt(3) * i_beta]
     )
-    e = u_err * np.tanh(i_abc / ERROR_SMOOTHING_A)
+    sign = np.sign(i_abc) if ripple_a <= 0.0 else np.clip(i_abc / ripple_a, -1.0, 1.0)
+    e = u_err_v * sign
     e_alpha, e_beta = (2.0 * e[0] - e[1] - e[2]) / 3.0, (e[1] - e[2]) / math.sqrt(3)
     return np.array([c * e_alpha + s * e_beta, -s * e_alpha + c * e_beta])
 
@@ -107,14 +124,17 @@ def saturated_drive_log(
     Ts: float = 1e-4,
     current_bandwidth_rad_s: float = 1000.0,
     u_dc_v: float = 311.0,
-    u_err_v: float = 0.0,
+    dead_time_s: float = 0.0,
+    device_drop_v: float = 0.0,
+    ripple_a: float | None = None,
     rtol: float = 1e-8,
 ) -> dict[str, np.ndarray]:
     """Noise-free log (module docstring) of ``machine`` (:data:`SATURATED_IPM`'s keys) at constant
     ``speed_rpm`` (mechanical, r/min; negative turns backwards), the current reference stepping through
-    ``references (P, 2)`` A, each held ``dwell_s`` s; control period ``Ts`` s; inverter voltage error
-    ``u_err_v`` V per phase. Columns ``time`` s, ``u_d, u_q`` V, ``i_d, i_q`` A, ``omega_m`` rad/s,
-    ``theta_e`` rad, each ``(N,)``, ``N = P dwell_s / Ts``."""
+    ``references (P, 2)`` A, each held ``dwell_s`` s; control period ``Ts`` s (also the PWM period); the
+    bridge's dead time ``dead_time_s`` s and device drop ``device_drop_v`` V, its sign turning over
+    ``ripple_a`` A (default :func:`ripple_half_amplitude`; 0: sharp). Columns ``time`` s, ``u_d, u_q`` V,
+    ``i_d, i_q`` A, ``omega_m`` rad/s, ``theta_e`` rad, each ``(N,)``, ``N = P dwell_s / Ts``."""
     m = machine
     refs = np.asarray(references, dtype=float)
     per_point = int(round(dwell_s / Ts))
@@ -126,13 +146,15 @@ def saturated_drive_log(
     psi0 = float(saturated_flux(m, 0.0, 0.0)[0][0])
     u_max = u_dc_v / math.sqrt(3.0)
     a_c = current_bandwidth_rad_s
+    u_err = dead_time_s / Ts * u_dc_v + device_drop_v
+    ripple = ripple_half_amplitude(m, u_dc_v, Ts) if ripple_a is None else ripple_a
 
     def field(t, i, u_alpha, u_beta, theta0):
         th = theta0 + w_e * t
         c, s = math.cos(th), math.sin(th)
         u = np.array([u_alpha * c + u_beta * s, -u_alpha * s + u_beta * c])
-        if u_err_v:
-            u = u - _phase_error(i, th, u_err_v)
+        if u_err:
+            u = u - bridge_error(i, th, u_err, ripple)
         psi, L = saturated_flux(m, i[0], i[1])
         return np.linalg.solve(L, u - m["R"] * i - w_e * (_J @ psi))
 
@@ -179,7 +201,6 @@ def flux_map_log(
     *,
     speed_rpm: float,
     dwell_s: float,
-    u_err_v: float = 0.0,
     noise: dict | None = None,
     seed: int = 0,
     **kwargs,
@@ -192,9 +213,7 @@ def flux_map_log(
     walk = operating_walk(i_d_points, i_q_points)
     # Backwards the walk is retraced, so the current is continuous where the dynamometer reverses.
     parts = [
-        saturated_drive_log(
-            machine, path, speed_rpm=sign * speed_rpm, dwell_s=dwell_s, u_err_v=u_err_v, **kwargs
-        )
+        saturated_drive_log(machine, path, speed_rpm=sign * speed_rpm, dwell_s=dwell_s, **kwargs)
         for sign, path in ((1.0, walk), (-1.0, walk[::-1]))
     ]
     dt = parts[0]["time"][1] - parts[0]["time"][0]
