@@ -8,7 +8,9 @@ standstill; :func:`make_observer` builds an observer by name with its design rul
 estimators of chapter 6 (:class:`HFIRotating`, :class:`HFIPulsating`; ``hfi-rotating``, ``hfi-pulsating``)
 read the saliency at standstill and low speed. On a saturated machine given by a flux map,
 :func:`cross_saturation_compensated` takes the map's cross-saturation angle out of HF injection and
-:func:`map_scheduled` gives a fundamental-model observer the map's model at the operating current.
+:func:`map_scheduled` gives a fundamental-model observer the map's model at the operating current and
+:func:`map_angle_corrected` keeps its constant model and takes the map's steady angle error out (the one
+that runs the closed loop cleanly).
 """
 
 from pmsmjax.estimators.adaptive_smo import AdaptiveSMO, adaptive_smo_design
@@ -20,6 +22,7 @@ from pmsmjax.estimators.hfi_cross_saturation import CrossSaturationCompensated, 
 from pmsmjax.estimators.hfi_pulsating import HFIPulsating, hfi_pulsating_design
 from pmsmjax.estimators.hfi_rotating import HFIRotating, hfi_rotating_design
 from pmsmjax.estimators.hybrid import HybridEstimator, HybridState, hybrid_design
+from pmsmjax.estimators.map_angle_corrected import MapAngleCorrected, map_angle_corrected
 from pmsmjax.estimators.map_scheduled import MapScheduled, map_scheduled
 from pmsmjax.estimators.mras import MRAS, mras_design
 from pmsmjax.estimators.pll import PLL, pll_design
@@ -73,6 +76,8 @@ __all__ = [
     "hybrid_design",
     "CrossSaturationCompensated",
     "cross_saturation_compensated",
+    "MapAngleCorrected",
+    "map_angle_corrected",
     "MapScheduled",
     "map_scheduled",
 ]

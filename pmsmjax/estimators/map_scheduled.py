@@ -31,6 +31,10 @@ fixed at that current it is steady (0.19 degree): the per-sample change of its m
 ``current_cutoff`` damps it to 0.3-0.4 degree peak-to-peak at 10-25 A, at the price of a model that
 follows a load change in tens of milliseconds.
 
+**In the closed loop** the scheduled model oscillates (current-limit overshoot, a limit cycle under
+load; its current equation misses ``i dL/dt``): the drive's map-aware observer is
+:mod:`.map_angle_corrected`, the constant model with the map's steady angle error taken out.
+
 **What a constant model costs** (:func:`constant_model_angle_error`). In steady state the rotor-frame
 voltage is ``u = R i + w J psi(i)``; an observer with inductance ``L`` extracts the EMF ``w J (psi(i) -
 L i)`` and takes its flux ``psi(i) - L i`` for the d axis, so the estimate leads the rotor by

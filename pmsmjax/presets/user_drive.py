@@ -93,13 +93,14 @@ def _with_flux_map(drive: Drive, spec: DriveSpec) -> Drive:
 def with_map_aware_estimator(spec: DriveSpec, drive: Drive) -> Drive:
     """``drive`` with its sensorless estimator reading the file's flux map: HF injection corrected by the
     map's cross-saturation angle (:mod:`pmsmjax.estimators.hfi_cross_saturation`), a back-EMF observer or
-    the EKF given the map's model at the operating current (:mod:`pmsmjax.estimators.map_scheduled`); an
-    I/f start keeps wrapping it."""
+    the EKF keeping its constant model with its angle corrected by the map at the operating current
+    (:mod:`pmsmjax.estimators.map_angle_corrected`: the scheduled model of
+    :mod:`pmsmjax.estimators.map_scheduled` oscillates in the closed loop); an I/f start keeps wrapping it."""
     from pmsmjax.checks.validation import ParameterError
     from pmsmjax.estimators.hfi_cross_saturation import cross_saturation_compensated
     from pmsmjax.estimators.hfi_pulsating import HFIPulsating
     from pmsmjax.estimators.hfi_rotating import HFIRotating
-    from pmsmjax.estimators.map_scheduled import map_scheduled
+    from pmsmjax.estimators.map_angle_corrected import map_angle_corrected
     from pmsmjax.estimators.startup import StartupEstimator
 
     if "flux_map" not in spec.motor:
@@ -114,7 +115,7 @@ def with_map_aware_estimator(spec: DriveSpec, drive: Drive) -> Drive:
             return eqx.tree_at(lambda s: s.observer, estimator, aware(estimator.observer))
         if isinstance(estimator, (HFIRotating, HFIPulsating)):
             return cross_saturation_compensated(estimator, flux_map)
-        return map_scheduled(estimator, flux_map)
+        return map_angle_corrected(estimator, flux_map)
 
     return eqx.tree_at(lambda d: d.estimator, drive, aware(drive.estimator))
 

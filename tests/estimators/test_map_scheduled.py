@@ -73,13 +73,13 @@ def test_constant_model_error_matches_voltage_equation_and_map_removes_it(method
 def test_map_aware_wiring_wraps_observer_inside_startup_and_refuses_files_without_a_map():
     from pmsmjax import ParameterError
     from pmsmjax.estimators.hfi_cross_saturation import CrossSaturationCompensated
-    from pmsmjax.estimators.map_scheduled import MapScheduled
+    from pmsmjax.estimators.map_angle_corrected import MapAngleCorrected
     from pmsmjax.presets.user_drive import startup_options, with_map_aware_estimator
 
     base = spec_drive(SPEC)
     ekf = presets.with_observer(base, "ekf", MOTOR, startup_options=startup_options(SPEC))
     wrapped = with_map_aware_estimator(SPEC, ekf)
-    assert isinstance(wrapped.estimator.observer, MapScheduled)
+    assert isinstance(wrapped.estimator.observer, MapAngleCorrected)
     hfi_model = eqx.tree_at(lambda m: (m.L_d, m.L_q), MOTOR, (5e-3, 12e-3))
     hfi = presets.with_observer(base, "hfi-rotating", hfi_model, startup=False)
     assert isinstance(with_map_aware_estimator(SPEC, hfi).estimator, CrossSaturationCompensated)
