@@ -8,7 +8,8 @@ d-axis references (:mod:`pmsmjax.controllers.flux_map_current_loop`,
 - That cascade (a FOC: the ``pi`` and ``smc`` controls) gets field weakening on the map's MTPA and
   MTPV tables (:class:`~pmsmjax.controllers.flux_map_references.FluxMapFieldWeakening`), with the voltage
   loop at :func:`~pmsmjax.presets.three_phase.field_weakening_block`'s bandwidth and margin: MTPA below
-  base speed, the voltage limit above it.
+  base speed, the voltage limit above it. In current mode (``mode="current"``) the scenario's ``i_d*``
+  stands: no d-axis reference is installed over it.
 
 The other controls (proportional-resonant and hysteresis current control, direct torque control) are
 kept as they are: on the map's plant, with their linear-model design.
@@ -38,7 +39,8 @@ def with_flux_map_control(drive: Drive, grid: FluxMapGrid) -> Drive:
     a_c = float(current.kp_d / c.model.L_d)
     loop = FluxMapCurrentLoop.imc(FluxMap.from_grid(grid), c.model, a_c)
     drive = eqx.tree_at(lambda d: d.controller.current, drive, loop)
-    if hasattr(c, "d_axis"):  # every controller with a CurrentLoopGains loop has the slot today
+    # In current mode the scenario gives i_d* (and i_q*): no MTPA or field-weakening reference over it.
+    if hasattr(c, "d_axis") and getattr(c, "mode", "speed") == "speed":
         rule = field_weakening_block(a_c)
         fw = flux_map_field_weakening(
             grid, int(c.model.pole_pairs), float(c.current_limit), float(rule.bandwidth),
