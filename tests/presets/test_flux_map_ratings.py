@@ -1,17 +1,17 @@
 """The drive-rating rules (pmsmjax/presets/drive_ratings.py) on a drive file with a flux map, against the
 analytic model the preset saturated-ipm map was sampled from: the rated torque is the most torque of the
 rated current (dense angle search), the base speed the speed where the least-current point of the rated
-torque needs 95 % of the voltage limit (scipy: a constrained minimisation for the point, brentq for the
-speed). The linear model the map derives (L_d > L_q at the rated current: reverse saliency) would give
-other figures; both are checked to differ.
+torque needs 95 % of the voltage limit (scipy: brentq for the magnitude at each angle, minimised over
+the angle; brentq for the speed). The linear model the map derives (L_d > L_q at the rated current:
+reverse saliency) would give other figures; both are checked to differ.
 """
 
 import math
 
 import numpy as np
 import pytest
-from controllers.test_flux_map_references import POLE_PAIRS, psi_preset, torque_preset
-from scipy.optimize import brentq, minimize
+from controllers.test_flux_map_references import psi_preset, torque_preset
+from scipy.optimize import brentq, minimize_scalar
 
 from pmsmjax.io.drive_files import drive_spec
 from pmsmjax.presets import drive_ratings as rules
@@ -30,16 +30,20 @@ def analytic_most_torque(current):
 
 
 def analytic_least_current_point(torque):
-    """``(i_d, i_q)`` of least |i| with the analytic torque ``torque`` (SLSQP from the q axis)."""
-    result = minimize(
-        lambda x: x @ x,
-        np.array([0.0, torque / (1.5 * POLE_PAIRS * 0.1)]),
-        constraints=[{"type": "eq", "fun": lambda x: torque_preset(x[0], x[1]) - torque}],
-        method="SLSQP",
-        options={"ftol": 1e-14, "maxiter": 200},
+    """``(i_d, i_q)`` of least |i| with the analytic torque ``torque``: for each current angle the magnitude
+    giving that torque (brentq), minimised over the angle (bounded Brent; a dense scan brackets it)."""
+
+    def magnitude(beta):
+        f = lambda current: torque_preset(current * np.cos(beta), current * np.sin(beta)) - torque
+        return brentq(f, 1e-9, 200.0, xtol=1e-13)
+
+    betas = np.linspace(np.pi / 2 - 0.6, np.pi / 2 + 0.6, 241)
+    k = int(np.argmin([magnitude(b) for b in betas]))
+    result = minimize_scalar(
+        magnitude, bounds=(betas[k - 1], betas[k + 1]), method="bounded", options={"xatol": 1e-12}
     )
-    assert result.success
-    return result.x
+    beta, current = result.x, magnitude(result.x)
+    return np.array([current * np.cos(beta), current * np.sin(beta)])
 
 
 def test_rated_torque_is_the_maps_mtpa_torque(spec):
