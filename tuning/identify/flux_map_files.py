@@ -17,6 +17,7 @@ from pmsmjax.io.flux_map_files import write_flux_map_csv
 from pmsmjax.io.logs import atomic_write, check_output_folder
 from tuning.identify.flux_map_fit import FluxMapFit, fit_flux_map
 from tuning.identify.log import load_drive_log
+from tuning.identify.motor_file import prior_stated_tables
 
 __all__ = ["identify_flux_map_file", "flux_map_motor_missing", "write_flux_map_motor"]
 
@@ -79,10 +80,7 @@ def write_flux_map_motor(path, fit: FluxMapFit, pole_pairs: int, fixed: dict, pr
             )
     tables = {"motor": motor}
     if prior is not None:
-        for table in ("ratings", "inverter"):
-            stated = {k: v for k, v in getattr(prior, table).items() if f"{table}.{k}" not in prior.derived}
-            if stated:
-                tables[table] = stated
+        tables |= prior_stated_tables(prior)
     header = "Identified by pmsmjax identify --flux-map (tuning.identify): the flux map and R; SI units."
     write_drive_file(path, tables, header=header, comments=comments)
     return Path(path)

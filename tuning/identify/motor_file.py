@@ -16,7 +16,7 @@ from pathlib import Path
 
 from pmsmjax.io.drive_files import DriveSpec, write_drive_file
 
-__all__ = ["MOTOR_NAMES", "undetermined", "motor_file_tables", "write_motor_file"]
+__all__ = ["MOTOR_NAMES", "undetermined", "motor_file_tables", "prior_stated_tables", "write_motor_file"]
 
 #: The identified parameters a drive file's ``[motor]`` holds (pole pairs are given, not identified).
 MOTOR_NAMES = ("R", "L_d", "L_q", "psi_f", "J", "B")
@@ -59,10 +59,7 @@ def motor_file_tables(summary: dict, pole_pairs: int, prior: DriveSpec | None = 
             motor["pole_pairs"] = pole_pairs
     tables = {"motor": motor}
     if prior is not None:
-        for table in ("ratings", "inverter"):
-            stated = {k: v for k, v in getattr(prior, table).items() if f"{table}.{k}" not in prior.derived}
-            if stated:
-                tables[table] = stated
+        tables |= prior_stated_tables(prior)
         if prior.sensor["kind"] != "exact":
             tables["sensor"] = dict(prior.sensor)
         if "u_dc_v" in prior.tolerances:
@@ -84,3 +81,14 @@ def write_motor_file(path, summary: dict, pole_pairs: int, prior: DriveSpec | No
     header += "."
     write_drive_file(path, tables, header=header, comments=comments)
     return Path(path)
+
+
+def prior_stated_tables(prior) -> dict:
+    """The prior drive file's ``[ratings]`` and ``[inverter]`` values it states (not those derived from
+    the rest), which an identified drive file carries over: ``{table: {key: value}}``."""
+    tables = {}
+    for table in ("ratings", "inverter"):
+        stated = {k: v for k, v in getattr(prior, table).items() if f"{table}.{k}" not in prior.derived}
+        if stated:
+            tables[table] = stated
+    return tables
