@@ -35,19 +35,16 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_positive
+from pmsmjax.checks.validation import check_positive
 from pmsmjax.estimators import hfi_signal as hs
 from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.map_scheduled import DEFAULT_CURRENT_CUTOFF, check_fundamental_observer
 from pmsmjax.frames.three_phase import park, wrap_angle
-from pmsmjax.machines.motor import PMSMParameters, as_float
+from pmsmjax.machines.motor import as_float
 from pmsmjax.machines.pmsm_flux_map import FluxMap
 from pmsmjax.signals import Estimate, Sample
 
 __all__ = ["MapAngleCorrected", "MapAngleCorrectedState", "map_angle_corrected", "model_flux_angle"]
-
-#: Default low-pass cut-off of the operating current, rad/s (as :mod:`.map_scheduled`'s: 160 Hz, slow
-#: against the 10 kHz sample, fast against a load step's settling).
-DEFAULT_CURRENT_CUTOFF = 1000.0
 
 
 def model_flux_angle(flux_map: FluxMap, L, i_dq: Array) -> Array:
@@ -101,10 +98,5 @@ def map_angle_corrected(
     observer: AbstractEstimator, flux_map: FluxMap, current_cutoff: float = DEFAULT_CURRENT_CUTOFF
 ) -> MapAngleCorrected:
     """``observer`` with its angle corrected by ``flux_map`` (module docstring)."""
-    if not isinstance(getattr(observer, "model", None), PMSMParameters):
-        raise ParameterError(
-            "the map's angle correction applies to the fundamental-model observers (smo, smo-pll, "
-            f"adaptive-smo, dq-smo, mras, ekf), got {type(observer).__name__}: HF injection takes the "
-            "cross-saturation correction (cross_saturation_compensated)."
-        )
+    check_fundamental_observer(observer, "the map's angle correction")
     return MapAngleCorrected(observer, flux_map, current_cutoff)

@@ -66,6 +66,8 @@ __all__ = [
     "map_scheduled",
     "constant_model_angle_error",
     "SECANT_FLOOR_A",
+    "DEFAULT_CURRENT_CUTOFF",
+    "check_fundamental_observer",
 ]
 
 #: Below this |i_q| (A) the q inductance is the incremental one, not the secant ``psi_q / i_q``.
@@ -144,10 +146,15 @@ def map_scheduled(
     observer: AbstractEstimator, flux_map: FluxMap, current_cutoff: float = DEFAULT_CURRENT_CUTOFF
 ) -> MapScheduled:
     """``observer`` with its model scheduled on ``flux_map`` (module docstring)."""
+    check_fundamental_observer(observer, "the map-scheduled model")
+    return MapScheduled(observer, flux_map, current_cutoff)
+
+
+def check_fundamental_observer(observer: AbstractEstimator, what: str) -> None:
+    """Refuse, in one line naming ``what``, an estimator without a motor model (HF injection)."""
     if not isinstance(getattr(observer, "model", None), PMSMParameters):
         raise ParameterError(
-            "the map-scheduled model applies to the fundamental-model observers (smo, smo-pll, "
-            f"adaptive-smo, dq-smo, mras, ekf), got {type(observer).__name__}: HF injection takes the "
-            "cross-saturation correction (cross_saturation_compensated)."
+            f"{what} applies to the fundamental-model observers (smo, smo-pll, adaptive-smo, dq-smo, mras, "
+            f"ekf), got {type(observer).__name__}: HF injection takes the cross-saturation correction "
+            "(cross_saturation_compensated)."
         )
-    return MapScheduled(observer, flux_map, current_cutoff)
