@@ -148,3 +148,22 @@ def test_measured_marks_round_trip(tmp_path):
     path.write_text(path.read_text().replace(",1\n", ",2\n", 1))
     with pytest.raises(ParameterError, match="measured column holds 2"):
         read_flux_map(path)
+
+
+def test_cli_refuses_currents_in_mA_and_R_in_mohm_before_writing(noisy_log, tmp_path, capsys):
+    from pmsmjax.cli import main
+    from pmsmjax.io.logs import write_csv_atomic
+
+    columns = {"time": noisy_log.time, "u_d": noisy_log.u_dq[:, 0], "u_q": noisy_log.u_dq[:, 1]}
+    columns |= {"i_d": noisy_log.i_dq[:, 0] * 1e3, "i_q": noisy_log.i_dq[:, 1] * 1e3}
+    columns |= {"omega_m": noisy_log.omega_m, "theta_e": noisy_log.theta_e}
+    write_csv_atomic(tmp_path / "ma.csv", columns)
+    out = tmp_path / "out"
+    args = ["identify", str(tmp_path / "ma.csv"), "--flux-map", "--pole-pairs", "4", "--out", str(out)]
+    assert main(args + ["--fix", "J=0.002", "B=0.001"]) != 0
+    assert "in mA" in capsys.readouterr().err and not out.exists()
+    columns |= {"i_d": noisy_log.i_dq[:, 0], "i_q": noisy_log.i_dq[:, 1]}
+    write_csv_atomic(tmp_path / "ma.csv", columns)
+    assert main(args + ["--fix", "R=500", "J=0.002", "B=0.001"]) != 0
+    err = capsys.readouterr().err
+    assert "R=500 ohm" in err and "R=0.5" in err and not out.exists()

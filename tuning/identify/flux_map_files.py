@@ -12,8 +12,12 @@ is not written and :func:`flux_map_motor_missing` names what is missing.
 import json
 from pathlib import Path
 
+import numpy as np
+
+from pmsmjax.checks.plausibility import MAX_RESISTANCE_OHM
+from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.io.drive_files import write_drive_file
-from pmsmjax.io.flux_map_files import write_flux_map_csv
+from pmsmjax.io.flux_map_files import MA_CURRENT_A, write_flux_map_csv
 from pmsmjax.io.logs import atomic_write, check_output_folder
 from tuning.identify.flux_map_fit import FluxMapFit, fit_flux_map
 from tuning.identify.log import load_drive_log
@@ -21,6 +25,9 @@ from tuning.identify.motor_file import prior_stated_tables
 
 __all__ = ["identify_flux_map_file", "flux_map_motor_missing", "write_flux_map_motor"]
 
+#: Flux per ampere (H) below which a log whose currents exceed MA_CURRENT_A is taken to be in mA: a real
+#: kA machine links volt-seconds of flux (1e-3 H and more), a motor logged in mA 1e-5 H.
+APPARENT_INDUCTANCE_FLOOR_H = 1e-4
 #: What the flux-map fit cannot give and a drive file needs.
 MECHANICAL = ("J", "B")
 
@@ -33,6 +40,7 @@ def identify_flux_map_file(
     ``out_dir``. `fixed`: ``{"R": ohm}`` or empty. Returns the fit."""
     log = load_drive_log(log_path, pole_pairs, **log_options)
     out = check_output_folder(out_dir)
+    check_units(log, pole_pairs, fixed)
     fit = fit_flux_map(log, pole_pairs, step_a=step_a, R=fixed.get("R"), inverter_error=inverter_error)
     out.mkdir(parents=True, exist_ok=True)
     header = (
@@ -57,6 +65,28 @@ def identify_flux_map_file(
     }
     atomic_write(out / "flux_map.json", lambda f: f.write(json.dumps(summary, indent=2).encode()))
     return fit
+
+
+def check_units(log, pole_pairs: int, fixed: dict) -> None:
+    """Refuse, before fitting and before any file is written, a log whose currents are in mA (they reach
+    :data:`~pmsmjax.io.flux_map_files.MA_CURRENT_A` while the flux the voltages imply per ampere is below
+    :data:`APPARENT_INDUCTANCE_FLOOR_H`) and a ``--fix R`` in mohm."""
+    R = fixed.get("R")
+    if R is not None and R > MAX_RESISTANCE_OHM:
+        raise ParameterError(
+            f"--fix R={plain(R)} ohm is not a drive's stator resistance (at most {plain(MAX_RESISTANCE_OHM)} "
+            f"ohm): it looks like mohm: give R={plain(R * 1e-3)} (ohm)."
+        )
+    current = float(np.abs(log.i_dq).max())
+    omega_e = float(np.abs(pole_pairs * log.omega_m).max())
+    if current > MA_CURRENT_A and omega_e > 0:
+        flux = float(np.hypot(*log.u_dq.T).max()) / omega_e  # Wb, the flux the voltages imply at speed
+        if flux / current < APPARENT_INDUCTANCE_FLOOR_H:
+            raise ParameterError(
+                f"{log.source}: currents reach {plain(current)} A while the voltages imply about "
+                f"{flux:.3g} Wb of flux: it looks like the currents are in mA: give --units i_d=mA i_q=mA "
+                "or write them in A."
+            )
 
 
 def flux_map_motor_missing(fixed: dict, prior) -> list[str]:
