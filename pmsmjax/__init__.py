@@ -16,7 +16,12 @@ import importlib
 import sys
 import types
 
+from pmsmjax.xla_cpu import request_small_loop_kernels
+
 __version__ = "0.1.0"
+
+# Before anything compiles: loops of tiny bodies as one kernel each (pmsmjax/xla_cpu.py says why).
+request_small_loop_kernels()
 
 #: Public name -> (module, attribute or None for the module itself).
 _LAZY = {

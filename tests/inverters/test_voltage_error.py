@@ -10,8 +10,8 @@ independent references.
 - Narrow pulses and clamped legs against the switching bridge, one period each.
 - Compensation: on the switching bridge with dead time, the current loop's tracking error returns to
   the ideal bridge's.
-- Without dead time and drop the bridge is the ideal one bit for bit (its program against the ideal
-  formula written out here; a dead time and drop of 0 give the same numbers).
+- Without dead time and drop the bridge is the ideal one: its program is the ideal bridge's, and a dead
+  time and drop of 0 give the same numbers to rounding.
 - Gradient with respect to ``t_d`` against central differences.
 """
 
@@ -237,7 +237,7 @@ class IdealBridge(AbstractBridge):
         return advance(machine, state, MachineInput(u_ab, load_torque, "stator"), Ts, n_substeps), u_ab
 
 
-def test_without_dead_time_the_bridge_is_the_ideal_one_bit_for_bit():
+def test_without_dead_time_the_bridge_is_the_ideal_one():
     drive = book_drive()
     x = jax.tree.map(lambda v: v[0], period_inputs(steady(3.0), drive.Ts))
     step_jaxpr = lambda bridge: str(jax.make_jaxpr(with_bridge(drive, bridge).step)(drive.init(), x))
@@ -247,8 +247,12 @@ def test_without_dead_time_the_bridge_is_the_ideal_one_bit_for_bit():
     )
     ideal = simulate(drive, scenario)
     zero = simulate(with_bridge(drive, AveragedBridge(U_DC, dead_time=0.0, device_drop=0.0)), scenario)
+    # An explicit zero error is a different program (its terms multiply by zero), compiled separately:
+    # equal to rounding, not bit for bit (XLA:CPU may contract or order the same sums differently).
     for name in ("i_dq", "omega_m", "duties"):
-        np.testing.assert_array_equal(np.asarray(getattr(zero, name)), np.asarray(getattr(ideal, name)))
+        np.testing.assert_allclose(
+            np.asarray(getattr(zero, name)), np.asarray(getattr(ideal, name)), rtol=1e-12, atol=1e-12
+        )
 
 
 @pytest.mark.slow  # 7 s: compiling the reverse-mode scan
