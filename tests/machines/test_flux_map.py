@@ -160,8 +160,8 @@ def _open_loop(machine, u_ab, Ts, n_sub, x0):
 
 @pytest.mark.parametrize("frame", ["stator", "rotor"])
 @pytest.mark.parametrize("mechanics", ["dynamic", "imposed"])
-def test_stage_loop_is_the_classical_rk4(frame, mechanics):
-    # The plant integrates by a loop over RK4 stages (advance_by_stages); the generic RK4 of its vector
+def test_packed_integration_is_the_classical_rk4(frame, mechanics):
+    # The plant integrates a packed state (advance_packed); the generic RK4 of its vector
     # field (integrate.rk4_step_rotating_hold for a stator-held voltage, rk4_step otherwise) is the reference.
     from pmsmjax.frames.three_phase import wrap_angle
     from pmsmjax.machines.integrate import rk4_step, rk4_step_rotating_hold
