@@ -61,6 +61,28 @@ def run(quick: bool = False, draws: int = 1000, batch: int = 64) -> dict:
     excursion = flux_map.excursion(np.asarray(simulate(mapped, scenario).i_dq))
 
     machine = PMSMFluxMapdq(linear.machine.motor, flux_map)
+    plants = {"linear": linear.machine, "flux_map": machine}
+    plant_periods = 200 if quick else 2000
+
+    def plant_run(m, r):
+        m = eqx.tree_at(lambda x: x.motor.R, m, r)
+
+        def body(state, k):
+            u = 100.0 * jnp.stack([jnp.cos(0.05 * k), jnp.sin(0.05 * k)])
+            state = advance(m, state, MachineInput(u, jnp.asarray(0.5, u.dtype)), linear.Ts, 10)
+            return state, state.currents[0]
+
+        return jax.lax.scan(body, m.initial_state((0.0, 0.0), 10.0, 0.1), jnp.arange(float(plant_periods)))[1]
+
+    plant_calls = {}
+    for k, m in plants.items():
+        one, many = jax.jit(lambda r, m=m: plant_run(m, r)), jax.jit(jax.vmap(lambda r, m=m: plant_run(m, r)))
+        plant_calls[k] = lambda f=one: f(resistance[0]).block_until_ready()
+        plant_calls[f"{k}_batch"] = lambda f=many: f(resistance).block_until_ready()
+    _, plant_best = time_interleaved(plant_calls, reps)
+    plant_cost = {
+        k: 1e6 * t / plant_periods / (batch if k.endswith("_batch") else 1) for k, t in plant_best.items()
+    }
 
     def final_speed(r, u_amp):
         m = eqx.tree_at(lambda x: x.motor.R, machine, r)
@@ -87,6 +109,7 @@ def run(quick: bool = False, draws: int = 1000, batch: int = 64) -> dict:
             cost["flux_map_batch"]["per_period_us"] / cost["linear_batch"]["per_period_us"]
         ),
         "batch": batch,
+        "plant_per_period_us": plant_cost,
         "grid_excursion": excursion,
         "gradient_draws": n,
         "gradient_finite": int(finite.sum()),
@@ -106,6 +129,12 @@ def format_table(r: dict) -> str:
     lines.append(f"  flux map / linear per period, one run: {r['ratio_per_period']:.2f}x (target <= 2x)")
     lines.append(f"  flux map / linear per period, batch of {r['batch']}: {r['ratio_per_period_batch']:.2f}x")
     lines.append(f"  grid: {r['grid_excursion']['warning'] or 'the run stayed on the map grid'}")
+    p = r["plant_per_period_us"]
+    lines.append(
+        f"plants alone, us/period (per run): linear {p['linear']:.3f}, flux map {p['flux_map']:.3f} "
+        f"({p['flux_map'] / p['linear']:.2f}x); batch of {r['batch']}: linear {p['linear_batch']:.3f}, "
+        f"flux map {p['flux_map_batch']:.3f} ({p['flux_map_batch'] / p['linear_batch']:.2f}x)"
+    )
     lines.append(f"gradients finite: {r['gradient_finite']} of {r['gradient_draws']} draws (vmap)")
     m = r["machine"]
     lines.append(f"machine: {m['cpu']}, {m['cpu_count']} cores, {m.get('backend', '')}")
