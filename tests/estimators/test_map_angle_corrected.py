@@ -69,7 +69,7 @@ def closed_loop(estimator: str, observer_model: str):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("estimator", ("smo", "smo-pll", "ekf"))
+@pytest.mark.parametrize("estimator", ("smo", "smo-pll", "dq-smo", "adaptive-smo", "ekf"))
 def test_map_aware_observer_runs_the_closed_loop_within_the_limit_and_removes_the_angle_error(estimator):
     """The scheduled model of map_scheduled went to 33-41 A with a +-7 degree limit cycle here; the
     constant model alone carries a 19.7-20.5 degree steady error. The EKF's L_d/L_q model reads part of
