@@ -6,7 +6,12 @@
    batch of ``batch`` runs under ``jax.vmap`` (resistance spread +-10 %, as Monte Carlo and tuning run);
    all four timed interleaved (:func:`benchmarks.bench_core.time_interleaved`), so the ratios hold under a
    varying load. Target: the flux-map drive costs at most 2x the linear one per period.
-2. Gradients of a flux-map plant run (open loop, rotating voltage, 200 periods) with respect to the
+2. The plants alone, open loop under a rotating voltage, one run and the batch; beside them the same
+   flux-map plant on a map of one bicubic cell spanning the grid (:class:`~pmsmjax.machines.
+   pmsm_flux_map.FluxMap` with the first cell's coefficients): the cell search, coefficient load, patch
+   and 2x2 solve at every RK4 stage with a table that always answers from one cell, the floor any
+   located piecewise-cubic map pays.
+3. Gradients of a flux-map plant run (open loop, rotating voltage, 200 periods) with respect to the
    resistance and voltage amplitude over ``draws`` random draws under ``jax.vmap``: how many are finite.
 
     python -m benchmarks.flux_map_cost --json flux_map_cost.json
@@ -23,7 +28,7 @@ from benchmarks.bench_core import compile_time, machine_info, publish, time_inte
 from pmsmjax import presets, simulate
 from pmsmjax.io.drive_files import drive_spec
 from pmsmjax.machines import MachineInput, advance
-from pmsmjax.machines.pmsm_flux_map import PMSMFluxMapdq
+from pmsmjax.machines.pmsm_flux_map import FluxMap, PMSMFluxMapdq
 from pmsmjax.presets.user_drive import spec_flux_map
 
 __all__ = ["run", "main", "format_table"]
@@ -61,7 +66,14 @@ def run(quick: bool = False, draws: int = 1000, batch: int = 64) -> dict:
     excursion = flux_map.excursion(np.asarray(simulate(mapped, scenario).i_dq))
 
     machine = PMSMFluxMapdq(linear.machine.motor, flux_map)
-    plants = {"linear": linear.machine, "flux_map": machine}
+    one_cell = FluxMap(
+        flux_map.coefficients[:1, :1], flux_map.lower, flux_map.upper - flux_map.lower, flux_map.upper
+    )
+    plants = {
+        "linear": linear.machine,
+        "flux_map": machine,
+        "one_cell": PMSMFluxMapdq(linear.machine.motor, one_cell),
+    }
     plant_periods = 200 if quick else 2000
 
     def plant_run(m, r):
@@ -134,6 +146,11 @@ def format_table(r: dict) -> str:
         f"plants alone, us/period (per run): linear {p['linear']:.3f}, flux map {p['flux_map']:.3f} "
         f"({p['flux_map'] / p['linear']:.2f}x); batch of {r['batch']}: linear {p['linear_batch']:.3f}, "
         f"flux map {p['flux_map_batch']:.3f} ({p['flux_map_batch'] / p['linear_batch']:.2f}x)"
+    )
+    lines.append(
+        f"  one-cell map (the floor of a located cubic patch): {p['one_cell']:.3f} "
+        f"({p['one_cell'] / p['linear']:.2f}x); batch {p['one_cell_batch']:.3f} "
+        f"({p['one_cell_batch'] / p['linear_batch']:.2f}x)"
     )
     lines.append(f"gradients finite: {r['gradient_finite']} of {r['gradient_draws']} draws (vmap)")
     m = r["machine"]
