@@ -25,7 +25,7 @@ from pmsmjax import presets, simulate
 from pmsmjax.estimators import OBSERVERS
 from pmsmjax.frames.three_phase import abc_to_alpha_beta
 from pmsmjax.scenarios import Profile, Scenario
-from pmsmjax.simulate import period_inputs, scan_in_blocks
+from pmsmjax.simulate import period_inputs
 from pmsmjax.studies.offline_observer import observe
 from pmsmjax.units import rpm_to_rad_s
 
@@ -48,15 +48,14 @@ def running_start(drive, speed_rad_s: float):
 
 @eqx.filter_jit
 def speed_only(drive, state, xs):
-    """The simulate scan (checkpointed drive step, in the same blocks of periods:
-    :func:`pmsmjax.simulate.scan_in_blocks`) recording only the speed: the drive's arithmetic."""
+    """The simulate scan (checkpointed drive step) recording only the speed: the drive's arithmetic."""
     step = jax.checkpoint(lambda d, s, x: d.step(s, x))
 
     def body(s, x):
         s, record = step(drive, s, x)
         return s, record.machine.omega_m
 
-    return scan_in_blocks(body, state, xs, xs.speed_ref.dtype.itemsize)[1]
+    return jax.lax.scan(body, state, xs)[1]
 
 
 def run(quick: bool = False, names=tuple(OBSERVERS)) -> dict:

@@ -1,23 +1,22 @@
-"""Where a ``simulate`` call's time goes on XLA:CPU, and the loop-body size that decides it.
+"""Where a ``simulate`` call's time goes on XLA:CPU, and whether the loop body's size still matters.
 
-XLA:CPU runs a loop body sequentially on the calling thread only when every buffer the body touches is
-at most 512 bytes (:data:`pmsmjax.simulate.SEQUENTIAL_BUFFER_BYTES`); otherwise the body's kernels run
-as a task graph whose independent kernels are handed to the thread pool, and for a drive step (hundreds
-of kernels on scalars) the hand-offs cost more than the arithmetic. A flat scan over N periods slices
-the ``(N,)`` inputs and writes the ``(N, row)`` record, so its body is never sequential; an outer scan
-over blocks of B periods with ``B * row bytes <= 512`` is (:func:`pmsmjax.simulate.scan_in_blocks`).
-Two tables, every call timed interleaved (:func:`benchmarks.bench_core.time_interleaved`, best of
-``--reps``), float32 unless x64 is enabled:
+XLA:CPU's runtime once ran a loop body sequentially on the calling thread only when every buffer the
+body touched was at most 512 bytes, and otherwise ran its kernels as a task graph on the thread pool,
+whose hand-offs cost a drive step (kernels on scalars) more than its arithmetic: a flat scan over the
+periods, which slices the whole inputs and writes the whole record, was never sequential, and the
+engine cut its scan into blocks of periods. With the loop limit :mod:`pmsmjax.xla_cpu` sets, a period's
+loops compile into one kernel each and the block length no longer changes the time; this benchmark is
+how to see that again on another machine or jax version. Two tables, every call timed interleaved
+(:func:`benchmarks.bench_core.time_interleaved`, best of ``--reps``), float32 unless x64 is enabled:
 
 1. **book drive against the hand loop** (:mod:`benchmarks.minimal_loop`, literal constants), 4000 periods
-   from rest: the hand loop as a flat scan and in blocks of 10; ``simulate``; the engine's scan keeping
-   only the speed (its arithmetic); the engine's step recording the packed row in one flat scan.
+   from rest: the hand loop; ``simulate``; the engine's scan keeping only the speed (its arithmetic); the
+   engine's step recording the packed row in one flat scan.
 2. **block length sweep**: the sensored drive (11-element record row) and the ``--observers`` drives
    (13 elements: the estimate too) from a flying start at 1000 r/min, 10 N m load step half way, each
    recording the packed row (``ravel_pytree`` of the record, as ``simulate`` writes it) in blocks of
-   ``--blocks`` periods; the header gives ``B * row bytes`` for each. The time per period drops where
-   that reaches 512 bytes or less, and the speed-only scan (4-byte rows) is the arithmetic the record
-   adds to.
+   ``--blocks`` periods; the header gives ``B * row bytes`` for each, and the speed-only scan (4-byte
+   rows) is the arithmetic the record adds to.
 
     python -m benchmarks.engine_cost_profile --observers smo,mras --blocks 1,8,10,20,100
 """
@@ -72,20 +71,18 @@ def book_against_hand_loop(reps: int) -> None:
     drive, scenario = engine_timing.book_problem(engine_timing.FULL)
     xs = period_inputs(scenario, drive.Ts)
     state = drive.init()
-    flat_loop = make_minimal_loop(Ts=drive.Ts, n_sub=drive.n_substeps)
-    blocked_loop = make_minimal_loop(Ts=drive.Ts, n_sub=drive.n_substeps, block=10)
+    hand_loop = make_minimal_loop(Ts=drive.Ts, n_sub=drive.n_substeps)
     flat_record = step_scan(1, "record")
     calls = {
-        "hand loop, flat scan": lambda: flat_loop(xs.speed_ref, xs.load_torque),
-        "hand loop, blocks of 10": lambda: blocked_loop(xs.speed_ref, xs.load_torque),
+        "hand loop": lambda: hand_loop(xs.speed_ref, xs.load_torque),
         "simulate": lambda: simulate(drive, scenario),
         "engine scan, speed only": lambda: speed_only(drive, state, xs),
         "engine step, record in a flat scan": lambda: flat_record(drive, state, xs),
     }
     _, best = time_interleaved(calls, reps)
-    ref = best["hand loop, flat scan"]
+    ref = best["hand loop"]
     periods = xs.speed_ref.shape[0]
-    print(f"book drive, {periods} periods, {jnp.result_type(float)} (x the flat hand loop)")
+    print(f"book drive, {periods} periods, {jnp.result_type(float)} (x the hand loop)")
     for name, t in best.items():
         print(f"  {name:40s} {1e3 * t:7.2f} ms {1e6 * t / periods:6.2f} us/period ({t / ref:4.2f}x)")
 

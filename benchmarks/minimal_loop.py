@@ -34,7 +34,6 @@ def make_minimal_loop(
     beta=book.BOOK_SPEED_BANDWIDTH,
     i_max=book.BOOK_CURRENT_LIMIT,
     runtime_parameters=False,
-    block=1,
 ):
     """Return ``run(speed_ref (N,), load (N,)) -> (omega (N,), i_dq (N, 2))``, jit-compiled.
 
@@ -42,24 +41,18 @@ def make_minimal_loop(
     ``run(speed_ref, load, params)`` with ``params`` a dict like :data:`BOOK`. A library must take its
     parameters at run time (to vmap and differentiate over them); literals let XLA constant-fold, which
     this variant measures the worth of.
-
-    ``block > 1`` (dividing N) runs the periods as an outer scan over blocks of ``block`` periods, as
-    :func:`pmsmjax.simulate.scan_in_blocks` does (XLA:CPU then runs the per-period body sequentially);
-    the default is the plain scan.
     """
     if runtime_parameters:
 
         def run_with(speed_ref, load, params):
-            loop = _build(
-                p=p, u_dc=u_dc, Ts=Ts, n_sub=n_sub, a_c=a_c, beta=beta, i_max=i_max, block=block, **params
-            )
+            loop = _build(p=p, u_dc=u_dc, Ts=Ts, n_sub=n_sub, a_c=a_c, beta=beta, i_max=i_max, **params)
             return loop(speed_ref, load)
 
         return jax.jit(run_with)
-    return jax.jit(_build(R, L, psi, p, J, B, u_dc, Ts, n_sub, a_c, beta, i_max, block))
+    return jax.jit(_build(R, L, psi, p, J, B, u_dc, Ts, n_sub, a_c, beta, i_max))
 
 
-def _build(R, L, psi, p, J, B, u_dc, Ts, n_sub, a_c, beta, i_max, block=1):
+def _build(R, L, psi, p, J, B, u_dc, Ts, n_sub, a_c, beta, i_max):
     kt = 1.5 * p * psi
     kp_w, ki_w, b_a = beta * J / kt, beta * beta * J / kt, (beta * J - B) / kt
     kp_i, ki_i = a_c * L, a_c * R
@@ -119,11 +112,7 @@ def _build(R, L, psi, p, J, B, u_dc, Ts, n_sub, a_c, beta, i_max, block=1):
         dtype = speed_ref.dtype
         z = jnp.zeros((), dtype)
         carry = (jnp.zeros(4, dtype), z, z, z, jnp.zeros(2, dtype), jnp.zeros(2, dtype))
-        if block == 1:
-            _, (w, i_dq) = jax.lax.scan(period, carry, (speed_ref, load))
-            return w, i_dq
-        blocks = (speed_ref.reshape(-1, block), load.reshape(-1, block))
-        _, (w, i_dq) = jax.lax.scan(lambda c, xb: jax.lax.scan(period, c, xb), carry, blocks)
-        return w.reshape(-1), i_dq.reshape(-1, 2)
+        _, (w, i_dq) = jax.lax.scan(period, carry, (speed_ref, load))
+        return w, i_dq
 
     return run

@@ -6,9 +6,10 @@
   recomputes the sub-steps, so memory grows with periods, not with RK4 stages.
 - ``decimate=D`` records the first period of every block of D: an outer scan over blocks, an inner scan
   over the D - 1 unrecorded periods whose record is dead code that XLA removes.
-- Every scan over periods runs in blocks small enough for XLA:CPU to execute the loop body sequentially
-  (:func:`scan_in_blocks`): a body that touches any buffer over 512 bytes, such as the whole record or the
-  whole input, is run as a task graph on the thread pool, which cost the book drive 40 % of its run time.
+- The scan over periods is a plain ``lax.scan``: with the loop limit :mod:`pmsmjax.xla_cpu` sets, XLA:CPU
+  compiles the loops of a period into one kernel each, and cutting the scan into blocks of periods (which
+  once let XLA's runtime execute the body sequentially) no longer changes the run time (``python -m
+  benchmarks.engine_cost_profile``: the book drive 0.52-0.53 us per period in blocks of 1, 10 or 100).
 - ``simulate`` checks concrete inputs before compiling (period count, decimation, sub-step length) and
   composes with ``jax.vmap``/``jax.grad``/``jax.jit`` (checks are skipped on traced values).
 """
@@ -29,12 +30,7 @@ from pmsmjax.machines.integrate import max_stable_substep
 from pmsmjax.scenarios import Scenario
 from pmsmjax.trace import Trace
 
-__all__ = ["simulate", "check_simulation", "period_inputs", "scan_in_blocks"]
-
-#: Largest buffer (bytes) a loop body may touch and still be executed sequentially by XLA:CPU's thunk
-#: executor (``ThunkExecutor::Options::execute_sequential_buffer_threshold`` in
-#: xla/backends/cpu/runtime/thunk_executor.h, fixed at 512 in jax 0.10; no flag sets it).
-SEQUENTIAL_BUFFER_BYTES = 512
+__all__ = ["simulate", "check_simulation", "period_inputs"]
 
 
 def period_inputs(scenario: Scenario, Ts: float) -> PeriodInputs:
@@ -109,9 +105,6 @@ def _simulate(drive: Drive, scenario: Scenario, decimate: int, initial_state) ->
     # The record's layout (to unpack the packed rows) from shapes alone: no extra traced step.
     record_shape = jax.eval_shape(drive.step, state, jax.tree.map(lambda a: a[0], xs))[1]
     _, unravel = ravel_pytree(jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), record_shape))
-    leaves = jax.tree.leaves(record_shape)
-    row_bytes = sum(leaf.size for leaf in leaves) * jnp.result_type(*leaves).itemsize
-    input_bytes = max(a.dtype.itemsize for a in jax.tree.leaves(xs))  # one period of one input
 
     def recorded_step(s, x):
         s, record = step(drive, s, x)
@@ -122,54 +115,21 @@ def _simulate(drive: Drive, scenario: Scenario, decimate: int, initial_state) ->
         return step(drive, s, x)[0], None
 
     if decimate == 1:
-        _, packed = scan_in_blocks(recorded_step, state, xs, row_bytes)
+        _, packed = jax.lax.scan(recorded_step, state, xs)
     else:
         blocks = jax.tree.map(lambda a: a.reshape((-1, decimate) + a.shape[1:]), xs)
 
         def block(s, xb):
             s, r = recorded_step(s, jax.tree.map(lambda a: a[0], xb))
             rest = jax.tree.map(lambda a: a[1:], xb)
-            s, _ = scan_in_blocks(unrecorded_step, s, rest, input_bytes)
+            s, _ = jax.lax.scan(unrecorded_step, s, rest)
             return s, r
 
-        _, packed = scan_in_blocks(block, state, blocks, max(row_bytes, decimate * input_bytes))
+        _, packed = jax.lax.scan(block, state, blocks)
         xs = jax.tree.map(lambda a: a[::decimate], xs)
 
     rec: PeriodRecord = jax.vmap(unravel)(packed)
     return trace_from_records(drive, rec, xs, drive.Ts * decimate)
-
-
-def block_length(n: int, bytes_per_step: int) -> int:
-    """The largest divisor ``B`` of ``n`` steps whose buffers of ``B`` steps (``B * bytes_per_step``)
-    stay within :data:`SEQUENTIAL_BUFFER_BYTES`; at least 1."""
-    fitting = max(SEQUENTIAL_BUFFER_BYTES // max(bytes_per_step, 1), 1)
-    return max(b for b in range(1, min(n, fitting) + 1) if n % b == 0)
-
-
-def scan_in_blocks(f, init, xs, bytes_per_step: int):
-    """``jax.lax.scan(f, init, xs)`` as an outer scan over blocks of ``B`` steps and an inner scan over
-    the steps of a block (same results, same order of operations).
-
-    ``bytes_per_step``: the largest per-step slice, in bytes, of any one input or output array (an input
-    scalar: its itemsize; a packed record row: its length times its itemsize). ``B`` is the largest
-    divisor of the step count with ``B * bytes_per_step <= 512`` (:func:`block_length`).
-
-    Why: XLA:CPU runs a loop body sequentially on the calling thread only if every buffer it touches is
-    at most 512 bytes (:data:`SEQUENTIAL_BUFFER_BYTES`); otherwise it runs the body's kernels as a task
-    graph, handing independent kernels to its thread pool. A drive period is some forty small kernels on
-    scalars, so the hand-offs cost more than the arithmetic: a flat scan over 4000 periods, which slices
-    the ``(4000,)`` inputs and writes the ``(4000, 11)`` record, ran the book drive at 1.5-2.0 us per
-    period, the same scan in blocks of 10 at 0.9-1.0 us (float32, 2-core AMD EPYC;
-    benchmarks/engine_cost_profile.py). Only the outer body, one iteration per block, touches the whole
-    arrays.
-    """
-    n = jax.tree.leaves(xs)[0].shape[0]
-    b = block_length(n, bytes_per_step)
-    if b in (1, n):  # nothing to gain: one step per block, or the whole scan already fits
-        return jax.lax.scan(f, init, xs)
-    blocks = jax.tree.map(lambda a: a.reshape((n // b, b) + a.shape[1:]), xs)
-    carry, ys = jax.lax.scan(lambda c, xb: jax.lax.scan(f, c, xb), init, blocks)
-    return carry, jax.tree.map(lambda y: y.reshape((n,) + y.shape[2:]), ys)
 
 
 def trace_from_records(drive: Drive, rec: PeriodRecord, xs: PeriodInputs, dt: float) -> Trace:
