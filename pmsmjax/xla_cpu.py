@@ -10,18 +10,20 @@ and any batched run exceed that.
 
 :func:`request_small_loop_kernels` raises the limit to :data:`SMALL_LOOP_BYTES` through ``XLA_FLAGS``
 (``--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=N``) when :mod:`pmsmjax` is
-imported. Measured on the book drive (float32, 2 cores, ``python -m benchmarks.flux_map_cost``): one
-run 1.24 -> 0.79 us per period with the linear plant and 3.6 -> 2.4 us with the flux-map plant; a batch
-of 64, 0.16 -> 0.12 and 3.5 -> 1.6 us per run and period. Loops over more than the limit (large Monte
-Carlo batches) keep XLA's default, multi-threaded execution.
+imported. Measured on the book drive (float32, 2 cores, ``python -m benchmarks.flux_map_cost``, the
+same command with the limit set back to 1024): one run 1.27 -> 0.82 us per period with the linear plant
+and 10.7 -> 1.8 us with the flux-map plant; a batch of 64, 0.19 -> 0.12 and 3.4 -> 0.95 us per run and
+period. Loops over more than the limit (large Monte Carlo batches) keep XLA's default, multi-threaded
+execution.
 
 It is a request, not a requirement: XLA reads ``XLA_FLAGS`` when it compiles, so it applies to every
-computation compiled after ``import pmsmjax``, and a user who sets ``xla_backend_extra_options``
-themselves keeps their own value (``...=xla_cpu_small_while_loop_byte_threshold=0`` switches the pass
-off). GPUs ignore it.
+computation compiled after ``import pmsmjax``. A user's own ``xla_backend_extra_options`` (XLA's
+comma-separated ``key=value`` list) get the limit added to them, unless they set it themselves
+(``...=xla_cpu_small_while_loop_byte_threshold=0`` switches the pass off). GPUs ignore it.
 """
 
 import os
+import re
 
 __all__ = ["SMALL_LOOP_BYTES", "request_small_loop_kernels"]
 
@@ -29,14 +31,24 @@ __all__ = ["SMALL_LOOP_BYTES", "request_small_loop_kernels"]
 #: lookup: an RK4 sub-step of a float64 41 x 41 flux map reads its 410 kB table four times).
 SMALL_LOOP_BYTES = 1 << 22
 _OPTION = "xla_backend_extra_options"
+_LIMIT_KEY = "xla_cpu_small_while_loop_byte_threshold"
 
 
 def request_small_loop_kernels(environ=os.environ) -> bool:
-    """Add the small-loop limit to ``environ["XLA_FLAGS"]`` unless it already sets
-    ``xla_backend_extra_options``; returns whether it did."""
+    """Add the small-loop limit to ``environ["XLA_FLAGS"]``: as a new ``--xla_backend_extra_options``, or
+    appended to the last one the flags already give, unless that one sets the limit itself (or is quoted,
+    which this does not parse); returns whether it added it."""
     flags = environ.get("XLA_FLAGS", "")
-    if _OPTION in flags:
+    limit = f"{_LIMIT_KEY}={SMALL_LOOP_BYTES}"
+    given = list(re.finditer(rf"--{_OPTION}=(\S*)", flags))
+    if not given:
+        environ["XLA_FLAGS"] = f"{flags} --{_OPTION}={limit}".strip()
+        return True
+    last = given[-1]
+    value = last.group(1)
+    keys = [item.split("=", 1)[0] for item in value.split(",")]
+    if _LIMIT_KEY in keys or value.startswith(("'", '"')):
         return False
-    limit = f"--{_OPTION}=xla_cpu_small_while_loop_byte_threshold={SMALL_LOOP_BYTES}"
-    environ["XLA_FLAGS"] = f"{flags} {limit}".strip()
+    merged = f"{value},{limit}" if value else limit
+    environ["XLA_FLAGS"] = f"{flags[: last.start(1)]}{merged}{flags[last.end(1) :]}"
     return True

@@ -1,6 +1,10 @@
 """The XLA:CPU setting pmsmjax requests on import (pmsmjax/xla_cpu.py): added once, never over a user's own
 choice, and in effect: the flux-map plant's sub-step loop compiles into one kernel."""
 
+import os
+import subprocess
+import sys
+
 import jax
 import jax.numpy as jnp
 
@@ -18,7 +22,7 @@ def test_the_limit_is_added_to_existing_flags():
     assert not request_small_loop_kernels(environ)  # once only
 
 
-def test_a_users_own_backend_options_are_kept():
+def test_a_users_own_limit_is_kept():
     own = "--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=0"
     environ = {"XLA_FLAGS": own}
     assert not request_small_loop_kernels(environ)
@@ -26,6 +30,32 @@ def test_a_users_own_backend_options_are_kept():
     environ = {}
     assert request_small_loop_kernels(environ)
     assert environ["XLA_FLAGS"].startswith("--xla_backend_extra_options=")
+
+
+def test_the_limit_joins_a_users_other_backend_options():
+    environ = {"XLA_FLAGS": "--xla_backend_extra_options=xla_cpu_use_fusion_emitters=false --xla_dump_to=/d"}
+    assert request_small_loop_kernels(environ)
+    assert environ["XLA_FLAGS"] == (
+        "--xla_backend_extra_options=xla_cpu_use_fusion_emitters=false,"
+        f"xla_cpu_small_while_loop_byte_threshold={SMALL_LOOP_BYTES} --xla_dump_to=/d"
+    )
+    assert not request_small_loop_kernels(environ)  # once only
+
+
+def test_the_merged_options_reach_xla(tmp_path):
+    # A fresh interpreter, since XLA_FLAGS is read by the process that compiles: a user's other option
+    # and the added limit both parse, and the limit still makes the plant's loop one kernel.
+    script = (
+        "import jax, jax.numpy as jnp, pmsmjax, os\n"
+        "body = lambda i, x: x * 1.0001 + jnp.sin(x)\n"
+        "f = jax.jit(lambda x: jax.lax.fori_loop(0, 10, body, x))\n"
+        "text = f.lower(jnp.ones(300_000, jnp.float32)).compile().as_text()\n"
+        "print(os.environ['XLA_FLAGS'], 'xla_cpu_small_call=\"true\"' in text)\n"
+    )
+    env = {**os.environ, "XLA_FLAGS": "--xla_backend_extra_options=xla_cpu_use_thunk_runtime=true"}
+    r = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=False)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stdout.strip().endswith("True"), r.stdout
 
 
 def test_the_flux_map_plants_loop_compiles_into_one_kernel():
