@@ -35,6 +35,15 @@ current (it is ``~ 4/pi V_e`` in the current's direction whatever the current's 
 differences along each axis, weight :data:`SMOOTHNESS`); a node is *measured* when at least
 :data:`MIN_NODE_SAMPLES` samples lie within half a grid step of it along both axes, and the written map
 marks the others (:func:`pmsmjax.io.flux_map_files.read_flux_map_measured`).
+
+**Logs of ordinary operation.** A speed-controlled drive with a fixed d-current rule moves its currents
+along one path through the current plane. The data then fix the flux along the path, and the nodes on
+either side of it only in combination: the interpolant's representation error along the path can tilt
+them into a map that stores no energy or whose flux falls with its current. The prior's weight is
+therefore the least of ``SMOOTHNESS * 2**k``, ``k <= SMOOTHNESS_STEPS``, whose map passes the flux-map
+checks (a walk over a grid passes at ``k = 0``); a log that fails at every weight is refused in one
+line (measured on a SciPy log of speed steps and load steps:
+``tests/tuning/test_identify_flux_map.py``).
 """
 
 import dataclasses
@@ -56,8 +65,11 @@ __all__ = ["FluxMapFit", "fit_flux_map", "flux_map_axes", "SPEED_JUMP", "MIN_NOD
 SPEED_JUMP = 0.05
 #: Samples within half a step of a node (both axes) for it to count as measured.
 MIN_NODE_SAMPLES = 5
-#: Weight of the smoothness prior's second differences against the window equations (Wb per Wb).
+#: Weight of the smoothness prior's second differences against the window equations (Wb per Wb): the
+#: first one tried (:data:`SMOOTHNESS_STEPS`).
 SMOOTHNESS = 0.02
+#: Times :data:`SMOOTHNESS` is doubled at most while the fitted map fails the flux-map checks.
+SMOOTHNESS_STEPS = 5
 #: Smallest share of the log's top speed accepted as "turning": below it the back-EMF hides the flux.
 MIN_SPEED_SHARE = 0.05
 #: Weight of the prior's second differences among nodes the log does not reach, against
@@ -79,7 +91,8 @@ class FluxMapFit:
     - `error_smoothing_a`: the current, A, over which the inverter error's sign turns (``tanh(i / eps)``;
       fitted unless given; None when ``V_e`` is not fitted);
     - `residual_rms_wb`: RMS of the window equations at the solution, Wb;
-    - `n_windows`: windows used; `node_samples`: ``(n_d, n_q)`` samples near each node.
+    - `n_windows`: windows used; `node_samples`: ``(n_d, n_q)`` samples near each node;
+    - `smoothness`: the weight of the smoothness prior the map was fitted with (module docstring).
     """
 
     grid: FluxMapGrid
@@ -91,6 +104,7 @@ class FluxMapFit:
     n_windows: int
     node_samples: np.ndarray
     error_smoothing_a: float | None = None
+    smoothness: float = SMOOTHNESS
 
 
 def flux_map_axes(i_dq: np.ndarray, step_a: float | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -308,35 +322,50 @@ def fit_flux_map(
     scale = np.sqrt(A.shape[0] / max(prior.shape[0], 1))  # the prior weighs like as many rows as the data
     prior_rhs = np.zeros(len(prior))
 
-    def solve(eps):
-        """``(x, A, cost)``: the least-squares solution with the error's sign smoothed over ``eps`` A, the
-        window equations' matrix and the sum of squares (prior included) at the solution."""
+    def solve(eps, weight):
+        """``(x, A, cost)``: the least-squares solution with the error's sign smoothed over ``eps`` A and
+        the prior weighted ``weight``, the window equations' matrix and the sum of squares (prior
+        included) at the solution."""
         A_eps = A
         if inverter_error:
             e = _inverter_error_per_volt(i_dq, log.theta_e, eps)
             E_int = cum(half * (e[:-1] + e[1:]))
             A_eps = np.hstack([A, over_window(E_int)[:, None]])
-        M = np.vstack([A_eps, SMOOTHNESS * scale * prior])
+        M = np.vstack([A_eps, weight * scale * prior])
         target = np.concatenate([rhs, prior_rhs])
         x, *_ = np.linalg.lstsq(M, target, rcond=None)
         return x, A_eps, float(np.sum((M @ x - target) ** 2))
 
-    eps = error_smoothing_a
-    if inverter_error and eps is None:
-        eps = _profiled_smoothing(lambda e: solve(e)[2], i_dq)
-    x, A, _ = solve(eps)
-    residual = A @ x - rhs
-    psi_d, psi_q = x[:n_nodes].reshape(n_d, n_q), x[n_nodes : 2 * n_nodes].reshape(n_d, n_q)
+    # The least smoothing whose map passes the flux-map checks: a log that walks a grid of operating
+    # points determines every node at the first weight; one of ordinary operation follows one path through
+    # the current plane, and the interpolant's representation error along it would otherwise tilt the
+    # nodes off the path into a map that stores no energy.
+    for attempt in range(SMOOTHNESS_STEPS + 1):
+        weight = SMOOTHNESS * 2.0**attempt
+        eps = error_smoothing_a
+        if inverter_error and eps is None:
+            eps = _profiled_smoothing(lambda e, w=weight: solve(e, w)[2], i_dq)
+        x, A_fit, _ = solve(eps, weight)
+        psi_d, psi_q = x[:n_nodes].reshape(n_d, n_q), x[n_nodes : 2 * n_nodes].reshape(n_d, n_q)
+        try:
+            grid = FluxMapGrid(i_d, i_q, psi_d, psi_q, source="identified flux map")
+            break
+        except ParameterError as err:
+            failure = str(err).split(": ", 1)[1]
+    else:
+        lo, hi = i_dq.min(axis=0), i_dq.max(axis=0)
+        visited = f"i_d {plain(lo[0])} to {plain(hi[0])} A, i_q {plain(lo[1])} to {plain(hi[1])} A"
+        reached = f"{int(measured.sum())} of {measured.size} grid points of {plain(h[0])} A"
+        raise ParameterError(
+            f"{where}: the identified map is not a usable flux map, even smoothed "
+            f"{2**SMOOTHNESS_STEPS} times more ({failure} The log's currents reach {reached}, {visited}.) "
+            "If its columns are right, the log does not determine the map: walk a grid of (i_d, i_q) "
+            "operating points at a held speed, or try another --flux-map-step."
+        )
+    residual = A_fit @ x - rhs
     k = 2 * n_nodes
     R_fit = float(x[k]) if R is None else float(R)
     V_e = float(x[k + (R is None)]) if inverter_error else None
-    try:
-        grid = FluxMapGrid(i_d, i_q, psi_d, psi_q, source="identified flux map")
-    except ParameterError as err:
-        raise ParameterError(
-            f"{where}: the identified map is not a usable flux map ({str(err).split(': ', 1)[1]}); give a "
-            "coarser --flux-map-step or a longer log (more samples per grid cell)."
-        ) from None
     return FluxMapFit(
         grid=grid,
         measured=measured,
@@ -347,4 +376,5 @@ def fit_flux_map(
         n_windows=int(starts.size),
         node_samples=node_samples,
         error_smoothing_a=float(eps) if inverter_error else None,
+        smoothness=weight,
     )

@@ -39,6 +39,7 @@ __all__ = [
     "saturated_flux",
     "operating_walk",
     "saturated_drive_log",
+    "speed_controlled_log",
     "flux_map_log",
     "FLUX_MAP_LOG_NOISE",
     "bridge_error",
@@ -141,11 +142,7 @@ def saturated_drive_log(
     n = per_point * len(refs)
     w_m = speed_rpm * math.pi / 30.0
     w_e = m["pole_pairs"] * w_m
-    _, L0 = saturated_flux(m, 0.0, 0.0)
-    L_design = np.diag(L0)  # the controller's inductances: the unsaturated ones
-    psi0 = float(saturated_flux(m, 0.0, 0.0)[0][0])
-    u_max = u_dc_v / math.sqrt(3.0)
-    a_c = current_bandwidth_rad_s
+    loop = _CurrentLoop(m, current_bandwidth_rad_s, u_dc_v, Ts)
     u_err = dead_time_s / Ts * u_dc_v + device_drop_v
     ripple = ripple_half_amplitude(m, u_dc_v, Ts) if ripple_a is None else ripple_a
 
@@ -163,35 +160,154 @@ def saturated_drive_log(
     i = refs[0].copy()
     steady = m["R"] * i + w_e * (_J @ saturated_flux(m, i[0], i[1])[0])
     pending = steady.copy()
-    integral = steady - np.array([-w_e * L_design[1] * i[1], w_e * (L_design[0] * i[0] + psi0)])
+    loop.integral = steady - loop.feed_forward(i, w_e)
     rows = np.empty((n, 7))
     for k in range(n):
         t = k * Ts
         th = w_e * t
-        ref = refs[k // per_point]
-        error = ref - i
-        feed = np.array([-w_e * L_design[1] * i[1], w_e * (L_design[0] * i[0] + psi0)])
-        u_dq = a_c * L_design * error + integral + feed
-        magnitude = math.hypot(*u_dq)
-        if magnitude > u_max:
-            u_dq *= u_max / magnitude
-        else:
-            integral = integral + a_c * INTEGRAL_SHARE * a_c * L_design * Ts * error
-        angle = th + 1.5 * w_e * Ts
-        c, s = math.cos(angle), math.sin(angle)
-        command = np.array([u_dq[0] * c - u_dq[1] * s, u_dq[0] * s + u_dq[1] * c])
-        c, s = math.cos(th), math.sin(th)
-        u_alpha, u_beta = pending
-        rows[k] = (t, u_alpha * c + u_beta * s, -u_alpha * s + u_beta * c, i[0], i[1], w_m, th)
-        sol = solve_ivp(
-            field, (0.0, Ts), i, method="DOP853", rtol=rtol, atol=1e-10, args=(u_alpha, u_beta, th)
-        )
+        command = loop.command(refs[k // per_point], i, w_e, th)
+        rows[k] = (t, *_held_dq(pending, th), i[0], i[1], w_m, th)
+        sol = solve_ivp(field, (0.0, Ts), i, method="DOP853", rtol=rtol, atol=1e-10, args=(*pending, th))
         i = sol.y[:, -1]
         pending = command
+    return _columns(rows)
+
+
+def speed_controlled_log(
+    machine: dict,
+    speed_steps,
+    load_steps,
+    *,
+    duration_s: float,
+    inertia_kgm2: float,
+    friction_nms: float = 0.0,
+    speed_bandwidth_rad_s: float = 60.0,
+    current_limit_a: float = 12.0,
+    i_d_share: float = 0.4,
+    Ts: float = 1e-4,
+    current_bandwidth_rad_s: float = 1000.0,
+    u_dc_v: float = 311.0,
+    noise: dict | None = None,
+    seed: int = 0,
+    rtol: float = 1e-8,
+) -> dict[str, np.ndarray]:
+    """A log of ordinary closed-loop operation: ``machine`` (:data:`SATURATED_IPM`'s keys) from rest under
+    a speed loop and load steps, the speed and angle integrated with the currents by the same DOP853.
+
+    **Arguments:** `speed_steps`, `load_steps`: ``[(time_s, value), ...]`` step references of the speed
+    (mechanical, r/min) and the load torque (N m), each value held from its time on (zero before the
+    first); `duration_s`: s; `inertia_kgm2`, `friction_nms`: the shaft's J (kg m^2) and B (N m s/rad);
+    `speed_bandwidth_rad_s`: the speed PI's bandwidth, designed on the unsaturated torque constant
+    ``1.5 p psi(0)`` (``Kp = J beta / k_t``, ``Ki = beta Kp / 2``, the integral held while the current is
+    limited); `current_limit_a`: the q reference's limit, A; `i_d_share`: the d reference
+    ``-i_d_share |i_q*|`` (a fixed MTPA-like rule, not the map's MTPA); the current loop, bridge and log
+    columns as :func:`saturated_drive_log` (no inverter error); `noise`, `seed` as :func:`flux_map_log`.
+
+    The currents then follow the operating points the speed and load ask for, along one path through
+    the current plane with the transients around it: the fit determines the map there and marks the rest.
+    """
+    m = machine
+    p = m["pole_pairs"]
+    n = int(round(duration_s / Ts))
+    loop = _CurrentLoop(m, current_bandwidth_rad_s, u_dc_v, Ts)
+    k_t = 1.5 * p * loop.psi0
+    kp_w = inertia_kgm2 * speed_bandwidth_rad_s / k_t
+    ki_w = speed_bandwidth_rad_s * kp_w / 2.0
+
+    def held(steps, t):
+        value = 0.0
+        for t_step, v in steps:
+            if t >= t_step:
+                value = v
+        return value
+
+    def field(t, x, u_alpha, u_beta, load):
+        i, w_m, th = x[:2], x[2], x[3]
+        c, s = math.cos(th), math.sin(th)
+        u = np.array([u_alpha * c + u_beta * s, -u_alpha * s + u_beta * c])
+        psi, L = saturated_flux(m, i[0], i[1])
+        w_e = p * w_m
+        di = np.linalg.solve(L, u - m["R"] * i - w_e * (_J @ psi))
+        torque = 1.5 * p * (psi[0] * i[1] - psi[1] * i[0])
+        return np.array([di[0], di[1], (torque - load - friction_nms * w_m) / inertia_kgm2, w_e])
+
+    x = np.zeros(4)
+    speed_integral = 0.0
+    pending = np.zeros(2)
+    rows = np.empty((n, 7))
+    for k in range(n):
+        t = k * Ts
+        i, w_m, th = x[:2], x[2], x[3]
+        error = held(speed_steps, t) * math.pi / 30.0 - w_m
+        i_q_free = kp_w * error + speed_integral
+        i_q_ref = min(max(i_q_free, -current_limit_a), current_limit_a)
+        if i_q_ref == i_q_free:
+            speed_integral += ki_w * Ts * error
+        reference = np.array([-i_d_share * abs(i_q_ref), i_q_ref])
+        command = loop.command(reference, i, p * w_m, th)
+        rows[k] = (t, *_held_dq(pending, th), i[0], i[1], w_m, th)
+        sol = solve_ivp(
+            field, (0.0, Ts), x, method="DOP853", rtol=rtol, atol=1e-10, args=(*pending, held(load_steps, t))
+        )
+        x = sol.y[:, -1]
+        pending = command
+    return _add_noise(_columns(rows), noise, seed)
+
+
+class _CurrentLoop:
+    """The log maker's current controller (module docstring): dq PIs at bandwidth ``a_c`` (rad/s) on the
+    unsaturated inductances, the linear model's back-EMF feed-forward at zero current, the voltage clamped
+    to the SVPWM circle of ``u_dc_v`` (V) with the integral held while clamped, and the command turned
+    to the stator frame at the angle it will be applied at (1.5 periods ahead)."""
+
+    def __init__(self, machine: dict, a_c: float, u_dc_v: float, Ts: float):
+        _, L0 = saturated_flux(machine, 0.0, 0.0)
+        self.L = np.diag(L0)
+        self.psi0 = float(saturated_flux(machine, 0.0, 0.0)[0][0])
+        self.u_max = u_dc_v / math.sqrt(3.0)
+        self.a_c, self.Ts = a_c, Ts
+        self.integral = np.zeros(2)
+
+    def feed_forward(self, i, w_e: float) -> np.ndarray:
+        return np.array([-w_e * self.L[1] * i[1], w_e * (self.L[0] * i[0] + self.psi0)])
+
+    def command(self, reference, i, w_e: float, theta_e: float) -> np.ndarray:
+        """``(2,)`` stator-frame voltage, V, for the current reference ``(2,)`` A at the measured current
+        ``i (2,)`` A, electrical speed ``w_e`` rad/s and angle ``theta_e`` rad."""
+        error = reference - i
+        u_dq = self.a_c * self.L * error + self.integral + self.feed_forward(i, w_e)
+        magnitude = math.hypot(*u_dq)
+        if magnitude > self.u_max:
+            u_dq *= self.u_max / magnitude
+        else:
+            self.integral = self.integral + self.a_c * INTEGRAL_SHARE * self.a_c * self.L * self.Ts * error
+        angle = theta_e + 1.5 * w_e * self.Ts
+        c, s = math.cos(angle), math.sin(angle)
+        return np.array([u_dq[0] * c - u_dq[1] * s, u_dq[0] * s + u_dq[1] * c])
+
+
+def _held_dq(u_ab, theta_e: float) -> tuple[float, float]:
+    """The held stator-frame voltage ``u_ab (2,)`` V in dq at ``theta_e`` rad (a log row's ``u_d, u_q``)."""
+    c, s = math.cos(theta_e), math.sin(theta_e)
+    return u_ab[0] * c + u_ab[1] * s, -u_ab[0] * s + u_ab[1] * c
+
+
+def _columns(rows: np.ndarray) -> dict[str, np.ndarray]:
     names = ("time", "u_d", "u_q", "i_d", "i_q", "omega_m", "theta_e")
     out = {name: rows[:, j].copy() for j, name in enumerate(names)}
     out["theta_e"] = np.mod(out["theta_e"] + math.pi, 2 * math.pi) - math.pi
     return out
+
+
+def _add_noise(log: dict, noise: dict | None, seed: int) -> dict:
+    """``log`` with white noise of ``noise`` (default :data:`FLUX_MAP_LOG_NOISE`; ``{}`` for none) on its
+    currents and voltages, drawn with ``seed``."""
+    noise = FLUX_MAP_LOG_NOISE if noise is None else noise
+    rng = np.random.default_rng(seed)
+    for cols, key in ((("i_d", "i_q"), "current_a"), (("u_d", "u_q"), "voltage_v")):
+        for col in cols:
+            log[col] = log[col] + noise.get(key, 0.0) * rng.standard_normal(log[col].shape)
+    return log
 
 
 def flux_map_log(
@@ -218,10 +334,4 @@ def flux_map_log(
     ]
     dt = parts[0]["time"][1] - parts[0]["time"][0]
     parts[1]["time"] = parts[1]["time"] + parts[0]["time"][-1] + dt
-    log = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-    noise = FLUX_MAP_LOG_NOISE if noise is None else noise
-    rng = np.random.default_rng(seed)
-    for cols, key in ((("i_d", "i_q"), "current_a"), (("u_d", "u_q"), "voltage_v")):
-        for col in cols:
-            log[col] = log[col] + noise.get(key, 0.0) * rng.standard_normal(log[col].shape)
-    return log
+    return _add_noise({k: np.concatenate([p[k] for p in parts]) for k in parts[0]}, noise, seed)
