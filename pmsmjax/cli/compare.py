@@ -217,6 +217,13 @@ def precheck(args):
             "design-rule version of another by running pmsmjax demo, or pass a single --control."
         )
     motor = spec.motor
+    if args.estimator is not None and "flux_map" in motor:
+        raise ParameterError(
+            f"--motor {args.motor} --estimator: the observer comparison runs the book drive on the file's "
+            "constant L_d, L_q, psi_f, which would stand in for this file's flux map; run each observer "
+            "on the map with pmsmjax demo --motor FILE --estimator NAME (the observer corrected by the map; "
+            "--observer-model constant for the uncorrected one)."
+        )
     if chapter6 and not motor["L_q"] > motor["L_d"]:
         raise ParameterError(
             f"--motor {args.motor}: L_q = {plain(motor['L_q'])} H is not above L_d = "

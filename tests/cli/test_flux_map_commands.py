@@ -1,7 +1,8 @@
 """``compare`` and ``tune`` on the preset saturated-ipm drive file, whose FOC controls on its flux map
 (pmsmjax/presets/flux_map_control.py): the comparison holds the rated speed under 0.8 x the map's rated
 torque inside the current limit, and a short tune starts from the internal-model gains of the file's
-bandwidth and linear model and differentiates through the scheduled current loop and the map's loci."""
+bandwidth and linear model and differentiates through the scheduled current loop and the map's loci;
+the observer comparison, which runs the book drive on a file's constants, refuses a map file."""
 
 import json
 import math
@@ -28,6 +29,18 @@ def test_compare_on_the_flux_map_drive(tmp_path):
     load = 0.8 * spec.ratings["rated_torque_nm"] + spec.motor["B"] * rated * math.pi / 30.0
     assert pi["mean_torque_nm"] == pytest.approx(load, rel=0.01)  # the steady state's torque balance
     assert pi["operating_point"]["flags"] == [] and pi["operating_point"]["ok"]
+
+
+def test_the_observer_comparison_refuses_to_stand_in_a_linear_model_for_the_map(tmp_path, capsys):
+    # compare --estimator runs the book drive on the file's constants: on a map file that would compare
+    # the observers on the map's linear model, not on the saturated machine (demo runs the map)
+    out = tmp_path / "cmp"
+    for estimator in ("smo", "hfi-pulsating"):
+        argv = ["compare", "--motor", "saturated-ipm", "--estimator", estimator, "--out", str(out)]
+        assert main(argv) == 2
+        message = capsys.readouterr().err.strip().splitlines()
+        assert len(message) == 1 and "pmsmjax demo --motor FILE --estimator NAME" in message[0]
+    assert not out.exists()
 
 
 @pytest.mark.slow
