@@ -148,8 +148,7 @@ def saturated_drive_log(
 
     def field(t, i, u_alpha, u_beta, theta0):
         th = theta0 + w_e * t
-        c, s = math.cos(th), math.sin(th)
-        u = np.array([u_alpha * c + u_beta * s, -u_alpha * s + u_beta * c])
+        u = np.array(_held_dq((u_alpha, u_beta), th))
         if u_err:
             u = u - bridge_error(i, th, u_err, ripple)
         psi, L = saturated_flux(m, i[0], i[1])
@@ -223,8 +222,7 @@ def speed_controlled_log(
 
     def field(t, x, u_alpha, u_beta, load):
         i, w_m, th = x[:2], x[2], x[3]
-        c, s = math.cos(th), math.sin(th)
-        u = np.array([u_alpha * c + u_beta * s, -u_alpha * s + u_beta * c])
+        u = np.array(_held_dq((u_alpha, u_beta), th))
         psi, L = saturated_flux(m, i[0], i[1])
         w_e = p * w_m
         di = np.linalg.solve(L, u - m["R"] * i - w_e * (_J @ psi))
@@ -261,9 +259,9 @@ class _CurrentLoop:
     to the stator frame at the angle it will be applied at (1.5 periods ahead)."""
 
     def __init__(self, machine: dict, a_c: float, u_dc_v: float, Ts: float):
-        _, L0 = saturated_flux(machine, 0.0, 0.0)
+        psi0, L0 = saturated_flux(machine, 0.0, 0.0)
         self.L = np.diag(L0)
-        self.psi0 = float(saturated_flux(machine, 0.0, 0.0)[0][0])
+        self.psi0 = float(psi0[0])
         self.u_max = u_dc_v / math.sqrt(3.0)
         self.a_c, self.Ts = a_c, Ts
         self.integral = np.zeros(2)
@@ -287,7 +285,8 @@ class _CurrentLoop:
 
 
 def _held_dq(u_ab, theta_e: float) -> tuple[float, float]:
-    """The held stator-frame voltage ``u_ab (2,)`` V in dq at ``theta_e`` rad (a log row's ``u_d, u_q``)."""
+    """The held stator-frame voltage ``u_ab (2,)`` V in dq at ``theta_e`` rad (a log row's ``u_d, u_q``, and
+    the voltage the machine sees at each instant of the period)."""
     c, s = math.cos(theta_e), math.sin(theta_e)
     return u_ab[0] * c + u_ab[1] * s, -u_ab[0] * s + u_ab[1] * c
 
