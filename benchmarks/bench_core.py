@@ -1,4 +1,4 @@
-"""Core speed benchmark: the simulator's own figures (:mod:`pmsmjax.studies.engine_timing`, what
+"""Core speed benchmark: the simulator's own figures (:mod:`pmsmjax.jobs.bench`, what
 ``pmsmjax bench`` reports: compile time, one run, a vmapped batch, gradients, forward- vs reverse-mode
 crossover, the machine) and, timed in the same rounds as the single run, the hand-written minimal loop
 (:mod:`benchmarks.minimal_loop`) it is measured against: with literal constants and with run-time
@@ -19,9 +19,9 @@ import numpy as np
 
 from benchmarks.minimal_loop import BOOK, make_minimal_loop
 from pmsmjax.io.logs import atomic_write
+from pmsmjax.jobs import bench as engine_timing
+from pmsmjax.jobs.bench import compile_time, machine_info, row, time_interleaved
 from pmsmjax.simulate import period_inputs, simulate
-from pmsmjax.studies import engine_timing
-from pmsmjax.studies.engine_timing import compile_time, machine_info, row, time_interleaved
 from pmsmjax.units import rad_s_to_rpm
 
 __all__ = [
@@ -49,7 +49,7 @@ REQUIRED_KEYS = (
 
 
 def run(quick: bool = False) -> dict:
-    """:func:`pmsmjax.studies.engine_timing.run` with the two minimal loops timed alongside the single run
+    """:func:`pmsmjax.jobs.bench.run` with the two minimal loops timed alongside the single run
     (same drive settings and scenario sampled on the period grid), their ratios and speed differences."""
     drive, scenario = engine_timing.book_problem(engine_timing.QUICK if quick else engine_timing.FULL)
     xs = period_inputs(scenario, drive.Ts)
@@ -72,7 +72,7 @@ def run(quick: bool = False) -> dict:
 
 
 def format_table(r: dict) -> str:
-    """The simulator's table (:func:`pmsmjax.studies.engine_timing.format_table`) and the minimal loops."""
+    """The simulator's table (:func:`pmsmjax.jobs.bench.format_table`) and the minimal loops."""
     lines = [
         engine_timing.format_table(r),
         "",

@@ -1,7 +1,7 @@
 """Direct torque control (the book, ch. 4): ripple against bands and sample period, equal switching
 frequency, and the cost per simulated second against the FOC drive.
 
-Operating figures (float64), from :func:`pmsmjax.studies.control_comparison.run_control` (the book scenario:
+Operating figures (float64), from :func:`pmsmjax.jobs.control_comparison.run_control` (the book scenario:
 1000
 r/min step, 10 N m at 0.2 s, 0.4 s; the last two electrical periods, sampled 32 times per 100 us):
 
@@ -9,7 +9,7 @@ r/min step, 10 N m at 0.2 s, 0.4 s; the last two electrical periods, sampled 32 
   (1 N m, 10 mWb) times each factor: mean switching frequency, torque ripple (RMS and peak-to-peak about
   the window mean), flux-magnitude ripple, current THD;
 - the same with the bands matched to the 10 kHz of the SVPWM drives
-  (:func:`pmsmjax.studies.equal_switching.match_switching_frequency`), where the sample period allows it;
+  (:func:`pmsmjax.jobs.equal_switching.match_switching_frequency`), where the sample period allows it;
 - sliding-mode DTC (:func:`pmsmjax.presets.smc_dtc_drive`, saturation and sign switching) and the FOC
   drive, both with SVPWM at 10 kHz on the switching-resolved bridge.
 
@@ -29,9 +29,9 @@ import jax
 from benchmarks.bench_core import compile_time, machine_info, publish, time_interleaved
 from pmsmjax import presets, simulate
 from pmsmjax.inverters.switching import SwitchingBridge
+from pmsmjax.jobs.control_comparison import ControllerCompareSettings, run_control, window_periods
+from pmsmjax.jobs.equal_switching import match_switching_frequency, scale_bands
 from pmsmjax.presets.control_methods import control_drive
-from pmsmjax.studies.control_comparison import ControllerCompareSettings, run_control, window_periods
-from pmsmjax.studies.equal_switching import match_switching_frequency, scale_bands
 
 __all__ = ["run", "main", "format_table", "REQUIRED_KEYS"]
 
@@ -107,7 +107,7 @@ def _operating(sizes: Sizes) -> list[dict]:
 
 def _on_bridge(drive, bridge: str):
     """``drive`` on the switching-resolved bridge when it commands a voltage and ``bridge == "switching"``
-    (as :func:`pmsmjax.studies.control_comparison.compared_drive` does)."""
+    (as :func:`pmsmjax.jobs.control_comparison.compared_drive` does)."""
     if bridge == "switching" and drive.controller.command_kind == "voltage":
         drive = eqx.tree_at(lambda d: d.bridge, drive, SwitchingBridge(drive.bridge.u_dc))
     return drive

@@ -8,7 +8,7 @@ standstill, 10 N m load step at a quarter of the run. The calls are timed interl
 (:func:`benchmarks.bench_core.time_interleaved`) so their ratios hold under a varying machine load. The
 cost goal is <= 1.5x per period. Beside it, the same scan keeping only the speed per period (no Trace
 record: the drive's arithmetic alone), and each estimator alone on the rotating drive's log
-(:func:`pmsmjax.studies.offline_observer.observe`; the rotating one with the carrier read from the voltages,
+(:func:`pmsmjax.recorded.offline_observer.observe`; the rotating one with the carrier read from the voltages,
 as ``pmsmjax observe`` runs it; the pulsating one for its cost only).
 
     python -m benchmarks.bench_hfi --json hfi.json
@@ -23,8 +23,8 @@ from benchmarks.bench_observers import format_estimator_table, time_estimator_dr
 from pmsmjax import presets, simulate
 from pmsmjax.estimators import INJECTION_OBSERVERS, make_observer
 from pmsmjax.frames.three_phase import abc_to_alpha_beta
+from pmsmjax.recorded.offline_observer import observe
 from pmsmjax.scenarios import Profile, Scenario
-from pmsmjax.studies.offline_observer import observe
 
 __all__ = ["run", "main", "format_table", "REQUIRED_KEYS"]
 

@@ -1,8 +1,8 @@
 """Identification benchmark: accuracy, 95 % interval coverage and speed against SciPy.
 
-The log: the book drive (design-rule gains) on :data:`pmsmjax.studies.synthetic_logs.ID_TEST_MOTOR`
+The log: the book drive (design-rule gains) on :data:`pmsmjax.recorded.synthetic_logs.ID_TEST_MOTOR`
 running :func:`tuning.identify.excitation.identification_scenario` (2 s at 10 kHz), plus 1 % current and
-0.5 % voltage noise (:data:`pmsmjax.studies.synthetic_logs.ID_LOG_NOISE`), one noise seed per fit. Every
+0.5 % voltage noise (:data:`pmsmjax.recorded.synthetic_logs.ID_LOG_NOISE`), one noise seed per fit. Every
 figure from one process:
 
 1. ``identify`` on seed 0: wall time of the first call (compile included) and of a second call on
@@ -28,7 +28,7 @@ import numpy as np
 import scipy.optimize
 
 from benchmarks.bench_core import machine_info, publish
-from pmsmjax.studies.synthetic_logs import (
+from pmsmjax.recorded.synthetic_logs import (
     ID_LOG_NOISE,
     ID_TEST_MOTOR,
     add_measurement_noise,

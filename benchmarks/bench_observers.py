@@ -8,7 +8,7 @@ set as if it had been running), 10 N m load step half way. The calls are timed i
 (:func:`benchmarks.bench_core.time_interleaved`) so their ratios hold under a varying machine load. The
 cost goal is <= 1.5x per period. Two diagnostics beside it: the same drive scan keeping only the speed
 per period (no Trace record: what the drive's arithmetic costs), and
-:func:`pmsmjax.studies.offline_observer.observe` over the sensored run's log (the observer's own cost per
+:func:`pmsmjax.recorded.offline_observer.observe` over the sensored run's log (the observer's own cost per
 sample, without the plant).
 
     python -m benchmarks.bench_observers --json observers.json
@@ -24,9 +24,9 @@ from benchmarks.bench_core import compile_time, machine_info, publish, time_inte
 from pmsmjax import presets, simulate
 from pmsmjax.estimators import OBSERVERS
 from pmsmjax.frames.three_phase import abc_to_alpha_beta
+from pmsmjax.recorded.offline_observer import observe
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.simulate import period_inputs
-from pmsmjax.studies.offline_observer import observe
 from pmsmjax.units import rpm_to_rad_s
 
 __all__ = ["run", "main", "format_table", "speed_only", "REQUIRED_KEYS"]

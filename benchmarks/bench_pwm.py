@@ -27,9 +27,9 @@ from benchmarks.bench_core import compile_time, machine_info, publish, time_inte
 from benchmarks.pwm_reference import CarrierReferenceBridge, dense_phase_currents
 from pmsmjax import Profile, Scenario, simulate
 from pmsmjax.inverters import SwitchingBridge
+from pmsmjax.jobs.pwm_comparison import CompareSettings, steady_state
 from pmsmjax.presets.book_constants import BOOK_DC_LINK
 from pmsmjax.presets.three_phase import book_drive
-from pmsmjax.studies.pwm_comparison import CompareSettings, steady_state
 
 __all__ = ["run", "main", "format_table", "REQUIRED_KEYS"]
 

@@ -52,7 +52,7 @@ COMMANDS = {
 def write_logs(folder: Path) -> dict:
     """A dq identification log and a stator-frame drive log of the book drive, as CSV files in `folder`."""
     from pmsmjax import presets
-    from pmsmjax.studies.synthetic_logs import drive_log, identification_log
+    from pmsmjax.recorded.synthetic_logs import drive_log, identification_log
     from tuning.identify import identification_scenario
 
     log = folder / "log.csv"

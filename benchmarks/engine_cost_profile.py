@@ -32,9 +32,9 @@ from benchmarks.bench_core import time_interleaved
 from benchmarks.bench_observers import running_start, speed_only
 from benchmarks.minimal_loop import make_minimal_loop
 from pmsmjax import presets, simulate
+from pmsmjax.jobs import bench as engine_timing
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.simulate import period_inputs
-from pmsmjax.studies import engine_timing
 from pmsmjax.units import rpm_to_rad_s
 
 

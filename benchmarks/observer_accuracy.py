@@ -1,8 +1,8 @@
 """Accuracy of the chapter 5 observers on logs made by the project's own drive (2 degrees RMS is the goal).
 
 Logs: the sensored book drive (design-rule FOC, SVPWM, averaged bridge, 10 kHz) with 0.5 % white noise
-on voltages and currents (:mod:`pmsmjax.studies.synthetic_logs`); each observer runs offline on them with its
-design-rule gains and starts cold (:func:`pmsmjax.studies.offline_observer.observe`).
+on voltages and currents (:mod:`pmsmjax.recorded.synthetic_logs`); each observer runs offline on them with its
+design-rule gains and starts cold (:func:`pmsmjax.recorded.offline_observer.observe`).
 
 1. **Speed bands**: speed steps from rest to 400, 1000, 2000 and -1000 r/min with a 10 N m load step at
    0.15 s (0.3 s); the samples after convergence (20 ms after |speed| first reaches 300 r/min) pooled by
@@ -35,9 +35,9 @@ from pmsmjax.analysis.observer_errors import angle_error
 from pmsmjax.controllers import MTPA
 from pmsmjax.estimators import OBSERVERS, make_observer
 from pmsmjax.io.logs import atomic_write
+from pmsmjax.recorded.offline_observer import observe
+from pmsmjax.recorded.synthetic_logs import drive_log, speed_scenario
 from pmsmjax.scenarios import Profile, Scenario
-from pmsmjax.studies.offline_observer import observe
-from pmsmjax.studies.synthetic_logs import drive_log, speed_scenario
 from pmsmjax.units import rpm_to_rad_s
 
 TS = presets.BOOK_TS

@@ -19,7 +19,7 @@ from benchmarks.observer_accuracy import BANDS_RPM, NOISE, TARGETS_RPM, TS, _con
 from pmsmjax import presets
 from pmsmjax.estimators import make_observer
 from pmsmjax.estimators.sensored_warmup import SensoredWarmup
-from pmsmjax.studies.synthetic_logs import drive_log, speed_scenario
+from pmsmjax.recorded.synthetic_logs import drive_log, speed_scenario
 from tuning.parameters import read_gains_toml, set_leaves
 
 

@@ -1,5 +1,5 @@
 """``pmsmjax tune --control pi`` on the example drive files: how much the held-out speed ITAE drops from the
-design rules (:mod:`pmsmjax.presets.drive_ratings`) on drives other than the book's.
+design rules (:mod:`pmsmjax.spec.design_rules`) on drives other than the book's.
 
 Per drive (servo-400w, industrial-5k6w, outer-rotor-24v; ``pmsmjax/presets/motors/``): the tune job
 (:func:`tuning.autotune.job.run_tune_job`) on batches from the file's ``[tuning]`` ranges, modest sizes
@@ -27,7 +27,7 @@ import numpy as np
 
 from benchmarks.bench_core import write_json_atomic
 from pmsmjax.io.drive_files import drive_spec
-from pmsmjax.presets.drive_ratings import torque_at_current
+from pmsmjax.spec.design_rules import torque_at_current
 from tuning.autotune.drive_batches import drive_batches
 from tuning.autotune.job import DEFAULT_CONFIG, run_tune_job
 

@@ -26,7 +26,6 @@ request_small_loop_kernels()
 #: Public name -> (module, attribute or None for the module itself).
 _LAZY = {
     "analysis": ("analysis", None),
-    "checks": ("checks", None),
     "controllers": ("controllers", None),
     "estimators": ("estimators", None),
     "frames": ("frames", None),
@@ -36,14 +35,16 @@ _LAZY = {
     "plotting": ("plotting", None),
     "presets": ("presets", None),
     "scenarios": ("scenarios", None),
-    "studies": ("studies", None),
+    "jobs": ("jobs", None),
+    "recorded": ("recorded", None),
+    "spec": ("spec", None),
     # Short names for modules that live in the folders above.
     "logs": ("io.logs", None),
     "metrics": ("analysis.metrics", None),
     "multiphase_frames": ("frames.multiphase", None),
     "presets_six_phase": ("presets.six_phase", None),
     "presets_five_phase": ("presets.five_phase", None),
-    "replay": ("studies.replay", None),
+    "replay": ("recorded.replay", None),
     "Drive": ("drive", "Drive"),
     "DriveState": ("drive", "DriveState"),
     "PeriodInputs": ("drive", "PeriodInputs"),
@@ -52,7 +53,7 @@ _LAZY = {
     "stack_scenarios": ("scenarios", "stack_scenarios"),
     "simulate": ("simulate", "simulate"),
     "Trace": ("trace", "Trace"),
-    "ParameterError": ("checks.validation", "ParameterError"),
+    "ParameterError": ("spec.validation", "ParameterError"),
 }
 
 __all__ = sorted(_LAZY)

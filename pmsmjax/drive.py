@@ -23,13 +23,13 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.controllers.base import AbstractController
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.position_sensors import ExactSensor
 from pmsmjax.inverters.base import AbstractBridge, AbstractModulator
 from pmsmjax.machines.base import AbstractMachine, MachineState
 from pmsmjax.signals import References, Sample
+from pmsmjax.spec.validation import ParameterError, check_positive
 
 
 class PeriodInputs(eqx.Module):

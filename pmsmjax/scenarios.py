@@ -15,8 +15,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_finite, check_positive, is_concrete
 from pmsmjax.machines.motor import as_float
+from pmsmjax.spec.validation import ParameterError, check_finite, check_positive, is_concrete
 
 
 class Profile(eqx.Module):

@@ -22,12 +22,12 @@ import jax.numpy as jnp
 import numpy as np
 from jax.flatten_util import ravel_pytree
 
-from pmsmjax.checks.validation import ParameterError, is_concrete
 from pmsmjax.drive import Drive, DriveState, PeriodInputs, PeriodRecord
 from pmsmjax.frames.three_phase import dq_to_abc
 from pmsmjax.inverters.averaged import phase_voltages
 from pmsmjax.machines.integrate import max_stable_substep
 from pmsmjax.scenarios import Scenario
+from pmsmjax.spec.validation import ParameterError, is_concrete
 from pmsmjax.trace import Trace
 
 __all__ = ["simulate", "check_simulation", "period_inputs"]

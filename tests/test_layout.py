@@ -5,8 +5,8 @@ pmsmjax/ and tuning/, at module level or inside a function, parsed with :mod:`as
 Checked: no import circle, and the one-way flow of the layers: nothing in pmsmjax imports tuning (except
 the command line, inside the function that runs a subcommand), nothing imports benchmarks or tests, the
 blocks (frames, machines, inverters, controllers, estimators) import nothing from the drive upwards,
-controllers see of the estimators only their base, analysis never reaches studies, presets or the command
-line, and studies never reach the command line.
+controllers see of the estimators only their base, analysis never reaches jobs, presets or the command
+line, and jobs never reach the command line.
 """
 
 import ast
@@ -22,7 +22,7 @@ TOP_LEVEL = (*CHECKED, "benchmarks", "tests")
 BLOCKS = ("frames", "machines", "inverters", "controllers", "estimators")
 #: What sits at or above the drive step: a block importing any of these would make a lower layer depend on
 #: a higher one.
-ABOVE_BLOCKS = ("drive", "simulate", "analysis", "studies", "presets", "io", "plotting", "cli")
+ABOVE_BLOCKS = ("drive", "simulate", "analysis", "recorded", "jobs", "presets", "io", "plotting", "cli")
 #: The estimators' modules a controller may import: the interface, not an observer.
 ESTIMATOR_INTERFACE = ("pmsmjax.estimators.base",)
 #: Modules that may import by name at run time (``importlib.import_module``), which this graph cannot see:
@@ -198,7 +198,7 @@ def test_the_graph_is_read():
     assert ("pmsmjax.presets.three_phase", "pmsmjax.presets.book_constants") in targets
     assert any(e.target == "pmsmjax.scenarios" and e.source.startswith("tuning.") for e in EDGES)
     assert any(e.in_function and e.source.startswith("pmsmjax.cli.") for e in EDGES)
-    assert {layer(m) for m in MODULES} >= {*BLOCKS, *ABOVE_BLOCKS, "signals", "checks"}
+    assert {layer(m) for m in MODULES} >= {*BLOCKS, *ABOVE_BLOCKS, "signals", "spec"}
 
 
 def test_every_import_is_visible_to_this_graph():
@@ -265,11 +265,11 @@ def test_controllers_see_only_the_estimator_interface():
     )
 
 
-def test_analysis_reaches_neither_studies_presets_nor_the_command_line():
+def test_analysis_reaches_neither_jobs_presets_nor_the_command_line():
     assert not violations(
-        lambda e: layer(e.source) == "analysis" and layer(e.target) in ("studies", "presets", "cli")
+        lambda e: layer(e.source) == "analysis" and layer(e.target) in ("recorded", "jobs", "presets", "cli")
     )
 
 
-def test_studies_do_not_reach_the_command_line():
-    assert not violations(lambda e: layer(e.source) == "studies" and layer(e.target) == "cli")
+def test_jobs_do_not_reach_the_command_line():
+    assert not violations(lambda e: layer(e.source) in ("jobs", "recorded") and layer(e.target) == "cli")

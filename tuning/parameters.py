@@ -15,9 +15,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.drive import Drive
 from pmsmjax.io.logs import atomic_write
+from pmsmjax.spec.validation import ParameterError
 
 if sys.version_info >= (3, 11):
     import tomllib

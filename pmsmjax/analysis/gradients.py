@@ -4,7 +4,7 @@ Forward mode (``jax.jvp``, one pass per parameter) costs about one extra forward
 parameter and stores nothing; reverse mode (``jax.grad``) costs a few forward simulations whatever the
 number of parameters, recomputing each period from the per-period checkpoints. ``mode="auto"`` picks
 forward mode up to :data:`FORWARD_MODE_MAX_PARAMS` parameters, the crossover measured by
-``pmsmjax bench`` (:mod:`pmsmjax.studies.engine_timing`) on the book drive.
+``pmsmjax bench`` (:mod:`pmsmjax.jobs.bench`) on the book drive.
 """
 
 from collections.abc import Callable

@@ -28,8 +28,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.frames.three_phase import dq_to_abc
+from pmsmjax.spec.validation import ParameterError
 
 #: Floor of ``|reference|`` in the figures against the reference (units of the reference), so that a
 #: zero reference gives finite numbers.

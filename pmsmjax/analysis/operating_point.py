@@ -24,7 +24,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from pmsmjax.checks.validation import ParameterError, plain
+from pmsmjax.spec.validation import ParameterError, plain
 
 __all__ = [
     "steady_point",

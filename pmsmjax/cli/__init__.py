@@ -33,9 +33,9 @@ import os
 import sys
 import warnings
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.cli import compilation_cache
 from pmsmjax.cli.checks import Parser
+from pmsmjax.spec.validation import ParameterError
 
 #: The subcommands' modules, in the order ``pmsmjax --help`` lists them.
 SUBCOMMANDS = (

@@ -1,4 +1,4 @@
-"""``pmsmjax bench``: how fast the simulator runs on this machine (:mod:`pmsmjax.studies.engine_timing`).
+"""``pmsmjax bench``: how fast the simulator runs on this machine (:mod:`pmsmjax.jobs.bench`).
 
 The comparison with a hand-written loop is a benchmark of the repository, not of an installation:
 ``python -m benchmarks.bench_core``.
@@ -27,8 +27,8 @@ def run(args) -> int:
     import json
 
     from pmsmjax.io.logs import atomic_write
-    from pmsmjax.studies.engine_timing import format_table
-    from pmsmjax.studies.engine_timing import run as time_the_engine
+    from pmsmjax.jobs.bench import format_table
+    from pmsmjax.jobs.bench import run as time_the_engine
 
     results = time_the_engine(quick=args.quick)
     print(format_table(results))

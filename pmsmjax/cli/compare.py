@@ -1,12 +1,12 @@
 """``pmsmjax compare``: control methods side by side on a drive's scenario (``--motor``: the book drive by
-default, or a drive file; :mod:`pmsmjax.studies.control_comparison`)."""
+default, or a drive file; :mod:`pmsmjax.jobs.control_comparison`)."""
 
 import json
 import time
 
-from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.cli import checks, drive_flags
 from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
+from pmsmjax.spec.validation import ParameterError, plain
 
 #: Electrical periods of the ripple and THD window at the end of the run.
 WINDOW_CYCLES = 2
@@ -14,11 +14,11 @@ WINDOW_CYCLES = 2
 
 def whole_window_speed(speed_rpm: float, spec, given: bool) -> float:
     """The run's speed, r/min: the ripple window spans whole electrical periods at the control rate
-    (:func:`pmsmjax.studies.control_comparison.window_periods`). A speed from the drive file that does not
+    (:func:`pmsmjax.jobs.control_comparison.window_periods`). A speed from the drive file that does not
     fit is lowered to the nearest one that does (said on the console); one the user gave is refused with
     the nearest ones that fit."""
     from pmsmjax.presets.book_constants import DTC_SAMPLE_PERIOD_S, HYSTERESIS_SAMPLE_PERIOD_S
-    from pmsmjax.presets.drive_ratings import common_period_s, whole_period_speed_rpm
+    from pmsmjax.spec.design_rules import common_period_s, whole_period_speed_rpm
 
     cycles = WINDOW_CYCLES
     # every control's own period: the comparator drives sample faster than the PWM ones
@@ -166,7 +166,7 @@ def precheck(args):
         chapter6 = any(n in CHAPTER6_NAMES for n in names)
         _chapter6_flags(args, names, chapter6)
         if chapter6:
-            from pmsmjax.studies.control_comparison import check_estimator_scenario
+            from pmsmjax.jobs.control_comparison import check_estimator_scenario
 
             check_estimator_scenario(names, args.scenario)
         control = "pi"
@@ -254,7 +254,7 @@ CHAPTER6_NAMES = ("hfi-rotating", "hfi-pulsating", "hybrid")
 def _chapter6_flags(args, names: list[str], chapter6: bool) -> None:
     """Fill in --scenario (book; standstill when an injection method is compared) and refuse what does
     not fit before JAX starts (the scenario-estimator pairs themselves:
-    :func:`pmsmjax.studies.control_comparison.check_estimator_scenario`)."""
+    :func:`pmsmjax.jobs.control_comparison.check_estimator_scenario`)."""
     if args.scenario is None:
         injection = any(n.startswith("hfi-") for n in names)
         args.scenario = "standstill" if injection else "book"
@@ -308,7 +308,7 @@ def run(args) -> int:
         return run_estimators(args, names, spec)
 
     from pmsmjax.io.logs import atomic_write
-    from pmsmjax.studies.control_comparison import ControllerCompareSettings, compare_controllers
+    from pmsmjax.jobs.control_comparison import ControllerCompareSettings, compare_controllers
 
     settings = ControllerCompareSettings(
         speed_rpm=args.speed_rpm,
@@ -354,20 +354,20 @@ def run(args) -> int:
 
 
 def run_estimators(args, names: list[str], spec) -> int:
-    """``pmsmjax compare --estimator``: the observers side by side (:func:`pmsmjax.studies.control_comparison.
+    """``pmsmjax compare --estimator``: the observers side by side (:func:`pmsmjax.jobs.control_comparison.
     compare_estimators`); writes compare.json, compare_estimators.md and figures."""
     import numpy as np
 
     from pmsmjax.analysis.observer_errors import angle_error, angle_error_modulo_pi
     from pmsmjax.io.logs import atomic_write
-    from pmsmjax.presets.user_drive import spec_motor
-    from pmsmjax.studies.control_comparison import (
+    from pmsmjax.jobs.control_comparison import (
         ESTIMATOR_COLUMNS,
         ControllerCompareSettings,
         LowSpeedSweep,
         compare_estimators,
         estimator_table,
     )
+    from pmsmjax.presets.user_drive import spec_motor
 
     settings = ControllerCompareSettings(
         speed_rpm=args.speed_rpm,

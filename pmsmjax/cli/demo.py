@@ -4,7 +4,7 @@ and figures; ``--machine six-phase`` runs the dual three-phase drive (book ch. 7
 five-phase`` the five-phase drive (book ch. 10).
 
 Before any work: the flags (:mod:`pmsmjax.cli.checks`), ``--out``, the drive file (its units,
-:mod:`pmsmjax.checks.plausibility`, and its ratings; :mod:`pmsmjax.cli.drive_flags`), the gains file, the
+:mod:`pmsmjax.spec.plausibility`, and its ratings; :mod:`pmsmjax.cli.drive_flags`), the gains file, the
 load step inside the run, and a speed the drive could reach at all. After the run, ``summary.json`` says
 whether the speed reached its reference and how much of the run sat at the voltage or current limit
 (:func:`pmsmjax.analysis.operating_point.run_flags`), and the console repeats every such flag with its
@@ -15,9 +15,9 @@ import json
 import math
 import time
 
-from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.cli import checks, drive_flags
 from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
+from pmsmjax.spec.validation import ParameterError, plain
 
 CONTROL_NAMES = ("pi", "smc", "pr", "hysteresis", "dtc", "smc-dtc")
 #: ``--machine six-phase``: the schemes of pmsmjax.presets.six_phase.SIX_PHASE_CONTROLS (listed here so
@@ -330,7 +330,7 @@ def add_parser(sub):
     p.add_argument(
         "--trust-units",
         action="store_true",
-        help="accept motor values outside the plausible ranges of pmsmjax.checks.plausibility (an inductance "
+        help="accept motor values outside the plausible ranges of pmsmjax.spec.plausibility (an inductance "
         "above 1 H, say) instead of refusing them as a likely unit mistake (a drive file: trust_units = "
         "true in [motor])",
     )

@@ -78,7 +78,7 @@ def scenario_help(key: str, what: str) -> str:
 
 def resolve_drive(args, n_phases: int = 3) -> DriveSpec:
     """The drive of ``args.motor`` with ``--u-dc``/``--current-limit`` applied (when the command has them),
-    checked; a careless value is a one-line :class:`~pmsmjax.checks.validation.ParameterError`."""
+    checked; a careless value is a one-line :class:`~pmsmjax.spec.validation.ParameterError`."""
     return drive_spec(
         args.motor,
         n_phases=n_phases,

@@ -10,7 +10,7 @@ import math
 import sys
 from pathlib import Path
 
-from pmsmjax.checks.validation import ParameterError
+from pmsmjax.spec.validation import ParameterError
 
 if sys.version_info >= (3, 11):
     import tomllib

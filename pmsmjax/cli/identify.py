@@ -3,8 +3,8 @@ the identified motor as a drive file (:mod:`tuning.identify.motor_file`)."""
 
 import sys
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.cli import checks
+from pmsmjax.spec.validation import ParameterError
 
 
 def add_parser(sub):
@@ -25,7 +25,7 @@ def add_parser(sub):
             "[ratings], [inverter] and [sensor]. Without --motor such a parameter has no value: "
             "params.json is written, motor.toml is not, and the command exits with status 1 naming it and "
             'the fix (--motor PRIOR or --fix NAME=VALUE). To try it, make a log with: python -c "from '
-            "tuning.identify import identification_scenario; from pmsmjax.studies.synthetic_logs import "
+            "tuning.identify import identification_scenario; from pmsmjax.recorded.synthetic_logs import "
             "ID_LOG_NOISE, add_measurement_noise, identification_log; from pmsmjax.io.logs import "
             "write_csv_atomic; write_csv_atomic('log.csv', "
             'add_measurement_noise(identification_log(identification_scenario()), ID_LOG_NOISE))" then '

@@ -6,10 +6,10 @@ import os
 import sys
 import textwrap
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.cli import checks, drive_flags
 from pmsmjax.cli.demo import ESTIMATOR_NAMES
 from pmsmjax.cli.gains import add_gains_flag, read_gains_flag
+from pmsmjax.spec.validation import ParameterError
 
 #: The study TOML, as ``pmsmjax montecarlo --help`` shows it (the layout of tuning/montecarlo/study.py).
 STUDY_TOML = """\

@@ -1,5 +1,5 @@
 """``pmsmjax observe``: run a chapter 5 observer, or the rotating HF-injection estimator of chapter 6, offline
-on a recorded drive log (:mod:`pmsmjax.studies.offline_observer`).
+on a recorded drive log (:mod:`pmsmjax.recorded.offline_observer`).
 
 ``hfi-rotating`` reads the carrier from the log's voltages (``carrier="measured"``: the log's drive
 injected it, this run does not), and its angle is the d axis modulo pi: ``estimate.csv`` gives it in
@@ -11,7 +11,7 @@ record.
 import json
 import time
 
-from pmsmjax.checks.validation import ParameterError
+from pmsmjax.spec.validation import ParameterError
 
 
 def add_parser(sub):
@@ -132,7 +132,7 @@ def run(args) -> int:
     from pmsmjax.frames.three_phase import wrap_angle
     from pmsmjax.io.logs import atomic_write, check_output_folder, write_csv_atomic
     from pmsmjax.presets.user_drive import spec_motor
-    from pmsmjax.studies.offline_observer import observe
+    from pmsmjax.recorded.offline_observer import observe
 
     # The command line is the one place where pmsmjax reaches up into the tuning workflows (the log reader
     # is shared with `pmsmjax identify`).

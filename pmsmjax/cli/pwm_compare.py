@@ -1,13 +1,13 @@
 """``pmsmjax pwm-compare``: the PWM methods of a three-, six- or five-phase drive (``--motor``: the book
 drive by default, or a drive file: its motor, DC link, switching frequency and dead time) compared at one
-steady operating point (:mod:`pmsmjax.studies.pwm_comparison`)."""
+steady operating point (:mod:`pmsmjax.jobs.pwm_comparison`)."""
 
 import json
 import time
 
-from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.cli import checks, drive_flags
 from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
+from pmsmjax.spec.validation import ParameterError, plain
 
 MODULATOR_NAMES = ("sinusoidal", "third_harmonic", "min_max", "svpwm")
 #: ``--phases 6``: the dual three-phase modulators (pmsmjax.presets.six_phase.SIX_PHASE_PWMS).
@@ -17,7 +17,7 @@ FIVE_PHASE_MODULATOR_NAMES = ("near-four-vector", "carrier", "sinusoidal", "larg
 #: Dead time of the _deadtime variants when the drive file gives none (ideal switches), us.
 DEFAULT_DEAD_TIME_US = 2.0
 #: ``--phases`` -> the control whose drive reaches the operating point and its default modulator
-#: (:attr:`pmsmjax.studies.pwm_comparison.PhaseCount.base_drive`).
+#: (:attr:`pmsmjax.jobs.pwm_comparison.PhaseCount.base_drive`).
 BASE_CONTROL = {
     3: ("pi", {}),
     6: ("conventional", {"pwm": "four-vector"}),
@@ -173,8 +173,8 @@ def run(args) -> int:
     import numpy as np
 
     from pmsmjax.io.logs import atomic_write
+    from pmsmjax.jobs.pwm_comparison import CompareSettings, compare
     from pmsmjax.presets.user_drive import spec_drive
-    from pmsmjax.studies.pwm_comparison import CompareSettings, compare
 
     settings = CompareSettings(
         speed_rpm=args.speed_rpm,

@@ -55,7 +55,7 @@ def run(args) -> int:
     from pmsmjax.io.drive_files import drive_spec
 
     drive_spec(args.motor, check_units=not args.trust_units)  # refused here, before JAX starts
-    from pmsmjax.studies.replay import replay_file
+    from pmsmjax.recorded.replay import replay_file
 
     notes: list[str] = []
     path = replay_file(

@@ -8,8 +8,8 @@ the same command resumes from it.
 import sys
 from pathlib import Path
 
-from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.cli import checks, drive_flags
+from pmsmjax.spec.validation import ParameterError, plain
 
 
 def add_parser(sub):

@@ -20,9 +20,9 @@ from typing import Literal
 import equinox as eqx
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.frames.three_phase import abc_to_alpha_beta, dq_to_abc
 from pmsmjax.inverters.voltage_error import VoltageError
+from pmsmjax.spec.validation import ParameterError
 
 __all__ = ["DeadTimeCompensation"]
 

@@ -12,10 +12,10 @@ import math
 
 import jax.numpy as jnp
 
-from pmsmjax.checks.validation import check_positive
 from pmsmjax.controllers.current_pi import CurrentLoopGains
 from pmsmjax.controllers.speed_pi import SpeedLoopGains
 from pmsmjax.machines.motor import PMSMParameters
+from pmsmjax.spec.validation import check_positive
 
 __all__ = [
     "CurrentLoopGains",

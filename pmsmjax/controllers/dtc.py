@@ -73,7 +73,7 @@ has no current reference).
 Gradients: the comparators, sector and table are piecewise constant, so the derivative of a run with
 respect to the bands is zero almost everywhere, and no smooth surrogate is offered here; tune DTC with
 :class:`~pmsmjax.controllers.smc_dtc.SlidingModeDTC`, whose switching function has one, and set the
-bands of this one by search (:func:`pmsmjax.studies.equal_switching.match_switching_frequency`).
+bands of this one by search (:func:`pmsmjax.jobs.equal_switching.match_switching_frequency`).
 """
 
 from typing import ClassVar, Literal
@@ -84,13 +84,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.controllers.base import AbstractController, AbstractSpeedController
 from pmsmjax.controllers.design import speed_loop_active_damping
 from pmsmjax.controllers.hysteresis import hysteresis_comparator
 from pmsmjax.frames.three_phase import abc_to_alpha_beta, park
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import CommandKind, ControlOutput, Estimate, References, Sample
+from pmsmjax.spec.validation import ParameterError, check_positive
 
 DTCMode = Literal["speed", "torque"]
 

@@ -38,10 +38,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_positive, is_concrete
 from pmsmjax.controllers.base import AbstractDAxisReference, CurrentLoopContext
 from pmsmjax.controllers.mtpa import mtpa_id_from_iq
 from pmsmjax.machines.motor import as_float
+from pmsmjax.spec.validation import ParameterError, check_positive, is_concrete
 
 
 class VoltageFeedbackFieldWeakening(AbstractDAxisReference):

@@ -42,7 +42,6 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import check_positive
 from pmsmjax.controllers.base import AbstractCurrentController, CurrentLoopContext
 from pmsmjax.controllers.current_pi import angle_lead
 from pmsmjax.controllers.pi import clip_magnitude, pi_update
@@ -50,6 +49,7 @@ from pmsmjax.frames.three_phase import inverse_park, park
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.machines.pmsm3 import _solve2
 from pmsmjax.machines.pmsm_flux_map import FluxMap
+from pmsmjax.spec.validation import check_positive
 
 __all__ = ["FluxMapCurrentLoop"]
 

@@ -25,8 +25,8 @@ import math
 import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
-from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.machines.flux_map import FluxMapGrid, flux_and_inductance
+from pmsmjax.spec.validation import ParameterError, plain
 
 __all__ = ["MapTorque", "MTPATable", "mtpa_table", "MTPVTable", "mtpv_table", "DEFAULT_POINTS"]
 

@@ -23,7 +23,6 @@ import jax
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.controllers.base import (
     AbstractController,
     AbstractCurrentController,
@@ -35,6 +34,7 @@ from pmsmjax.controllers.dead_time_compensation import DeadTimeCompensation
 from pmsmjax.frames.three_phase import park
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import ControlOutput, Estimate, References, Sample
+from pmsmjax.spec.validation import ParameterError, check_positive
 
 ControlMode = Literal["speed", "current"]
 

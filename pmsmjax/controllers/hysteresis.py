@@ -50,7 +50,6 @@ import jax
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.controllers.base import (
     AbstractController,
     AbstractDAxisReference,
@@ -62,6 +61,7 @@ from pmsmjax.controllers.foc import ControlMode, cascade_references
 from pmsmjax.frames.three_phase import abc_to_alpha_beta, dq_to_abc, park
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import CommandKind, ControlOutput, Estimate, References, Sample
+from pmsmjax.spec.validation import ParameterError, check_positive
 
 ComparatorKind = Literal["exact", "smooth"]
 

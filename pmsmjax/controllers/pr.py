@@ -91,12 +91,12 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_nonnegative, check_positive
 from pmsmjax.controllers.base import AbstractCurrentController, CurrentLoopContext
 from pmsmjax.controllers.current_pi import angle_lead
 from pmsmjax.controllers.pi import clip_magnitude
 from pmsmjax.frames.three_phase import inverse_park, park
 from pmsmjax.machines.motor import PMSMParameters, as_float
+from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive
 
 Discretisation = Literal["tustin-prewarp", "sogi"]
 DISCRETISATIONS = ("tustin-prewarp", "sogi")

@@ -69,7 +69,6 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_nonnegative, check_positive
 from pmsmjax.controllers.base import (
     AbstractController,
     AbstractCurrentController,
@@ -100,6 +99,7 @@ from pmsmjax.frames.multiphase import (
 from pmsmjax.frames.three_phase import inverse_park, park
 from pmsmjax.machines.motor import as_float
 from pmsmjax.signals import ControlOutput, Estimate, References, Sample
+from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive
 
 __all__ = [
     "AbstractSixPhaseCurrentController",

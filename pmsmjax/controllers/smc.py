@@ -60,9 +60,9 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_nonnegative, check_positive, is_concrete
 from pmsmjax.controllers.base import AbstractSpeedController
 from pmsmjax.machines.motor import PMSMParameters, as_float
+from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive, is_concrete
 
 Switching = Literal["sign", "saturation", "tanh"]
 SWITCHING = ("sign", "saturation", "tanh")

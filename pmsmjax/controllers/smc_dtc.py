@@ -55,7 +55,6 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_positive, is_concrete
 from pmsmjax.controllers.base import AbstractController, AbstractSpeedController
 from pmsmjax.controllers.current_pi import angle_lead
 from pmsmjax.controllers.design import speed_loop_active_damping
@@ -71,6 +70,7 @@ from pmsmjax.controllers.smc import SWITCHING, Switching, switching_function
 from pmsmjax.frames.three_phase import park, rotation
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import CommandKind, ControlOutput, Estimate, References, Sample
+from pmsmjax.spec.validation import ParameterError, check_positive, is_concrete
 
 __all__ = ["SlidingModeDTC", "SlidingModeDTCState", "smc_dtc_design"]
 

@@ -25,9 +25,9 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.controllers.base import AbstractSpeedController
 from pmsmjax.controllers.pi import clip_symmetric, pi_update, realisable_reference_tracking
+from pmsmjax.spec.validation import ParameterError
 
 AntiWindup = Literal["realisable_reference", "reset"]
 

@@ -31,7 +31,6 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.smo import (
     SMO_K_MARGIN,
@@ -53,6 +52,7 @@ from pmsmjax.estimators.switching import SWITCHING, Switching
 from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Estimate, Sample
+from pmsmjax.spec.validation import ParameterError, check_positive
 from pmsmjax.units import rpm_to_rad_s
 
 

@@ -13,7 +13,6 @@ import difflib
 import functools
 import inspect
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.estimators.adaptive_smo import adaptive_smo_design
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.dq_smo import dq_smo_design
@@ -23,6 +22,7 @@ from pmsmjax.estimators.hfi_rotating import hfi_rotating_design
 from pmsmjax.estimators.mras import mras_design
 from pmsmjax.estimators.smo import smo_design
 from pmsmjax.machines.motor import PMSMParameters
+from pmsmjax.spec.validation import ParameterError
 
 #: Observer name -> (design rule ``f(motor, Ts, **options)``, one-line description).
 OBSERVERS = {

@@ -41,7 +41,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.pll import PLL, PLLState, pll_design
 from pmsmjax.estimators.smo import SMO_K_MARGIN, SMO_POLE, check_observer_pole, sliding_current_update
@@ -51,6 +50,7 @@ from pmsmjax.estimators.switching import SWITCHING, Switching
 from pmsmjax.frames.three_phase import inverse_park, park, wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Estimate, Sample
+from pmsmjax.spec.validation import ParameterError, check_positive
 from pmsmjax.units import rpm_to_rad_s
 
 

@@ -60,12 +60,12 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_nonnegative
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.position_sensors import ExactSensor
 from pmsmjax.frames.three_phase import inverse_park, park
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Estimate, Sample
+from pmsmjax.spec.validation import ParameterError, check_nonnegative
 
 __all__ = ["StatorFluxObserver", "StatorFluxObserverState", "current_model_flux", "flux_torque"]
 

@@ -45,7 +45,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.estimators import hfi_signal as hs
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.hfi_pulsating import HFIPulsating
@@ -55,6 +54,7 @@ from pmsmjax.machines.flux_map import FluxMapGrid, flux_and_inductance
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.machines.pmsm_flux_map import FluxMap
 from pmsmjax.signals import Estimate, Sample
+from pmsmjax.spec.validation import ParameterError, check_positive
 
 __all__ = [
     "saliency_angle",

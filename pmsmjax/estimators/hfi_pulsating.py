@@ -43,13 +43,13 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import check_positive
 from pmsmjax.estimators import hfi_signal as hs
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.pll import PLL, PLLState, pll_design
 from pmsmjax.frames.three_phase import inverse_park, park, wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Estimate, Sample
+from pmsmjax.spec.validation import check_positive
 
 
 class HFIPulsatingState(eqx.Module):

@@ -40,8 +40,8 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_positive, is_concrete
 from pmsmjax.frames.three_phase import wrap_angle
+from pmsmjax.spec.validation import ParameterError, check_positive, is_concrete
 
 #: Default carrier frequency as a fraction of the sampling frequency: 10 samples per carrier period, far
 #: below the 5 kHz Nyquist frequency of 10 kHz control, far above the ~175 Hz current-loop bandwidth.

@@ -51,7 +51,6 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.catalogue import INJECTION_OBSERVERS, OBSERVERS, build
 from pmsmjax.estimators.ekf import EKF
@@ -62,6 +61,7 @@ from pmsmjax.estimators.stability import concrete_values
 from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Sample
+from pmsmjax.spec.validation import ParameterError, check_positive
 from pmsmjax.units import rpm_to_rad_s
 
 

@@ -35,7 +35,6 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import check_positive
 from pmsmjax.estimators import hfi_signal as hs
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.map_scheduled import DEFAULT_CURRENT_CUTOFF, check_fundamental_observer
@@ -43,6 +42,7 @@ from pmsmjax.frames.three_phase import park, wrap_angle
 from pmsmjax.machines.motor import as_float
 from pmsmjax.machines.pmsm_flux_map import FluxMap
 from pmsmjax.signals import Estimate, Sample
+from pmsmjax.spec.validation import check_positive
 
 __all__ = ["MapAngleCorrected", "MapAngleCorrectedState", "map_angle_corrected", "model_flux_angle"]
 

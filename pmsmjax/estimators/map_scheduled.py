@@ -50,7 +50,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.estimators import hfi_signal as hs
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.frames.three_phase import park
@@ -58,6 +57,7 @@ from pmsmjax.machines.flux_map import FluxMapGrid
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.machines.pmsm_flux_map import FluxMap
 from pmsmjax.signals import Estimate, Sample
+from pmsmjax.spec.validation import ParameterError, check_positive
 
 __all__ = [
     "MapScheduled",

@@ -34,13 +34,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import check_positive
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.stability import check_loop, concrete_values
 from pmsmjax.estimators.stator_model import cross, emf_direction, period_weight_phase, rl_coefficients
 from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Estimate, Sample
+from pmsmjax.spec.validation import check_positive
 
 
 class MRASState(eqx.Module):

@@ -22,10 +22,10 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import check_positive
 from pmsmjax.estimators.stability import check_loop, concrete_values, tracking_loop_matrix
 from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.motor import as_float
+from pmsmjax.spec.validation import check_positive
 
 
 class PLLState(eqx.Module):

@@ -40,11 +40,11 @@ import jax
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_nonnegative, check_positive
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.frames.three_phase import park, wrap_angle
 from pmsmjax.machines.motor import as_float
 from pmsmjax.signals import Sample
+from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive
 
 Decision = Literal["exact", "sigmoid"]
 

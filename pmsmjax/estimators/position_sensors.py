@@ -18,11 +18,11 @@ import math
 import equinox as eqx
 import jax.numpy as jnp
 
-from pmsmjax.checks.validation import ParameterError, check_nonnegative, check_positive, is_concrete
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.motor import as_float
 from pmsmjax.signals import Estimate, Sample
+from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive, is_concrete
 
 
 class ExactSensor(AbstractEstimator):

@@ -34,10 +34,10 @@ import jax
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.machines.motor import as_float
 from pmsmjax.signals import Sample
+from pmsmjax.spec.validation import ParameterError, check_positive
 
 
 class SensoredWarmupState(eqx.Module):

@@ -48,7 +48,6 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.pll import PLL, PLLState, pll_design
 from pmsmjax.estimators.stability import check_loop, concrete_values
@@ -67,6 +66,7 @@ from pmsmjax.estimators.switching import SWITCHING, Switching, linear_gain, swit
 from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Estimate, Sample
+from pmsmjax.spec.validation import ParameterError, check_positive
 from pmsmjax.units import rpm_to_rad_s
 
 AngleMethod = Literal["arctan", "pll"]

@@ -26,11 +26,11 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import check_positive
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.motor import as_float
 from pmsmjax.signals import Sample
+from pmsmjax.spec.validation import check_positive
 
 
 class StartupState(eqx.Module):

@@ -54,8 +54,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array, ArrayLike
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.frames.three_phase import abc_to_alpha_beta, alpha_beta_to_abc, inverse_park, park
+from pmsmjax.spec.validation import ParameterError
 
 __all__ = [
     "PhaseLayout",
@@ -108,7 +108,7 @@ class PhaseLayout(NamedTuple):
         return 2 * len(self.harmonics)
 
     def check(self) -> None:
-        """Raise :class:`~pmsmjax.checks.validation.ParameterError` unless the layout is consistent:
+        """Raise :class:`~pmsmjax.spec.validation.ParameterError` unless the layout is consistent:
         ``2 n_planes + n_stars == n`` and the star-point groups cover every phase once."""
         n = self.n
         if 2 * len(self.harmonics) + len(self.neutrals) != n:

@@ -14,13 +14,13 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import check_positive
 from pmsmjax.frames.three_phase import abc_to_alpha_beta
 from pmsmjax.inverters.base import AbstractBridge
 from pmsmjax.inverters.voltage_error import VoltageError, check_dead_time
 from pmsmjax.machines.base import MachineInput
 from pmsmjax.machines.integrate import advance
 from pmsmjax.machines.motor import as_float
+from pmsmjax.spec.validation import check_positive
 
 
 def phase_voltages(duties: Array, u_dc: Array) -> Array:

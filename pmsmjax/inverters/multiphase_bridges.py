@@ -23,13 +23,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_nonnegative, check_positive, is_concrete
 from pmsmjax.frames.multiphase import SIX_PHASE, PhaseLayout, vsd_matrix
 from pmsmjax.inverters.base import AbstractBridge
 from pmsmjax.inverters.switching import CurrentSign, pwm_segments
 from pmsmjax.machines.base import MachineInput
 from pmsmjax.machines.integrate import advance
 from pmsmjax.machines.motor import as_float
+from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive, is_concrete
 
 __all__ = [
     "MultiPhaseAveragedBridge",

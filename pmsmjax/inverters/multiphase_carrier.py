@@ -30,10 +30,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.frames.multiphase import FIVE_PHASE, PhaseLayout, inverse_vsd
 from pmsmjax.inverters.base import AbstractModulator
 from pmsmjax.inverters.multiphase_svpwm import padded_reference
+from pmsmjax.spec.validation import ParameterError
 
 __all__ = ["ZeroSequencePWM"]
 

@@ -52,10 +52,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.frames.multiphase import FIVE_PHASE, PhaseLayout
 from pmsmjax.inverters.base import AbstractModulator
 from pmsmjax.inverters.multiphase_vectors import space_vectors
+from pmsmjax.spec.validation import ParameterError
 
 __all__ = ["LargeVectorSVPWM", "NearFourVectorSVPWM", "four_vector_tables", "padded_reference"]
 

@@ -51,8 +51,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.frames.multiphase import PhaseLayout, vsd_matrix
+from pmsmjax.spec.validation import ParameterError
 
 __all__ = ["SpaceVectors", "large_magnitude", "space_vectors"]
 

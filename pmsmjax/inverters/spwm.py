@@ -22,9 +22,9 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.frames.three_phase import alpha_beta_to_abc
 from pmsmjax.inverters.base import AbstractModulator
+from pmsmjax.spec.validation import ParameterError
 
 SQRT3 = 3.0**0.5
 

@@ -40,12 +40,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_nonnegative, check_positive, is_concrete
 from pmsmjax.frames.three_phase import abc_to_alpha_beta, dq_to_abc
 from pmsmjax.inverters.base import AbstractBridge
 from pmsmjax.machines.base import MachineInput
 from pmsmjax.machines.integrate import advance
 from pmsmjax.machines.motor import as_float
+from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive, is_concrete
 
 CurrentSign = Literal["exact", "smooth"]
 

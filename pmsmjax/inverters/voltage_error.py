@@ -38,8 +38,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_nonnegative, check_positive, is_concrete
 from pmsmjax.machines.motor import as_float
+from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive, is_concrete
 
 __all__ = ["VoltageError", "smooth_sign", "check_dead_time", "CURRENT_LIMIT_SHARE"]
 
@@ -54,7 +54,7 @@ def smooth_sign(current: Array, current_scale: Array) -> Array:
 
 
 def check_dead_time(dead_time, Ts: float, name: str) -> None:
-    """Raise :class:`~pmsmjax.checks.validation.ParameterError` unless ``dead_time`` (s, any shape) is
+    """Raise :class:`~pmsmjax.spec.validation.ParameterError` unless ``dead_time`` (s, any shape) is
     below half the PWM period ``Ts`` (s): both edges of one pulse must fit. `name`: how to call it."""
     if not is_concrete(dead_time):
         return

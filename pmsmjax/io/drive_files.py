@@ -30,12 +30,12 @@ on the rated ``L_q`` only slower near zero current.
 
 A seven-value motor file (the values at top level or under ``[motor]``) is a drive file with every
 other table left out. What a file leaves out is derived from what it gives
-(:mod:`pmsmjax.presets.drive_ratings` has the rules and their sources) and each derived value is listed,
+(:mod:`pmsmjax.spec.design_rules` has the rules and their sources) and each derived value is listed,
 with how, in :attr:`DriveSpec.derived` (``summary.json``'s ``drive_file.derived``).
 
-Checked, each a one-line :class:`~pmsmjax.checks.validation.ParameterError` naming the file, the table and
+Checked, each a one-line :class:`~pmsmjax.spec.validation.ParameterError` naming the file, the table and
 key, the value in its unit and the fix: TOML syntax, unknown tables and keys (with the likely meant one),
-types, units (an inductance in mH, :mod:`pmsmjax.checks.plausibility`; a DC link in kV, a switching
+types, units (an inductance in mH, :mod:`pmsmjax.spec.plausibility`; a DC link in kV, a switching
 frequency in kHz, a dead time in us), a dead time that eats the switching period, a maximum current
 below the rated current, a rated torque the maximum current cannot give, and a rated point the inverter
 cannot reach (even with field weakening).
@@ -49,9 +49,9 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from pmsmjax.analysis.operating_point import reachable, steady_point
-from pmsmjax.checks.plausibility import check_motor_units
-from pmsmjax.checks.validation import ParameterError, plain
-from pmsmjax.presets import drive_ratings as rules
+from pmsmjax.spec import design_rules as rules
+from pmsmjax.spec.plausibility import check_motor_units
+from pmsmjax.spec.validation import ParameterError, plain
 
 if sys.version_info >= (3, 11):
     import tomllib

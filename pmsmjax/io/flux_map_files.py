@@ -14,15 +14,15 @@ Formats (SI units: A, Wb peak phase flux linkage in the amplitude-invariant dq f
   (the layout some public machine-design tools write), rows along either axis.
 
 A careless file (a missing column or array, a grid with holes or uneven steps, NaN, currents in mA) is
-refused with one :class:`~pmsmjax.checks.validation.ParameterError` naming the file and the fix.
+refused with one :class:`~pmsmjax.spec.validation.ParameterError` naming the file and the fix.
 """
 
 from pathlib import Path
 
 import numpy as np
 
-from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.machines.flux_map import FluxMapGrid
+from pmsmjax.spec.validation import ParameterError, plain
 
 __all__ = ["read_flux_map", "read_flux_map_measured", "write_flux_map_csv", "CSV_COLUMNS", "MEASURED_COLUMN"]
 

@@ -26,7 +26,7 @@ import warnings
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
-from pmsmjax.checks.validation import ParameterError
+from pmsmjax.spec.validation import ParameterError
 
 __all__ = ["LOCK_NAME", "FolderLock", "acquire", "held_folder", "read_lock"]
 

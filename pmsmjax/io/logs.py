@@ -10,7 +10,7 @@ A log is a set of equally long 1-D numeric columns, one of which is usually the 
 
 :func:`read_log` returns the requested columns as float64 NumPy arrays after :func:`check_columns` has
 checked them: required columns present, no NaN/inf, at least two rows, equal lengths, time strictly
-increasing. Every failure is a :class:`~pmsmjax.checks.validation.ParameterError` naming the column, the row
+increasing. Every failure is a :class:`~pmsmjax.spec.validation.ParameterError` naming the column, the row
 and the fix. Extra columns are allowed and ignored.
 
 Writers go through :func:`atomic_write`: the data is written to a temporary file in the destination
@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pmsmjax.checks.validation import ParameterError
+from pmsmjax.spec.validation import ParameterError
 
 __all__ = [
     "read_log",

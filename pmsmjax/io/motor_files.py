@@ -5,7 +5,7 @@ file (:mod:`pmsmjax.io.drive_files`, the one reader).
 -, kg m^2, N m s/rad) for a preset name or a drive file; :func:`pmsmjax.presets.load_motor` builds the
 :class:`~pmsmjax.machines.motor.PMSMParameters` from it. A seven-value motor file (the values at top level
 or under ``[motor]``, optionally ``trust_units = true`` to skip the unit plausibility check of
-:mod:`pmsmjax.checks.plausibility`) is a drive file with only its motor; a file with ``[ratings]``,
+:mod:`pmsmjax.spec.plausibility`) is a drive file with only its motor; a file with ``[ratings]``,
 ``[inverter]``, ... tables reads the same way, its inverter's control period setting the time-constant
 check.
 """
@@ -32,5 +32,5 @@ def motor_values(name_or_path, *, check_units: bool = True) -> dict:
 
 def read_motor_file(path, *, check_units: bool = True) -> dict:
     """``{field: value}`` of a three-phase motor or drive file; every problem is a one-line
-    :class:`~pmsmjax.checks.validation.ParameterError` naming the file, the key and the fix."""
+    :class:`~pmsmjax.spec.validation.ParameterError` naming the file, the key and the fix."""
     return _motor(read_drive_file(path, n_phases=3, check_units=check_units))

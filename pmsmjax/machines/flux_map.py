@@ -36,7 +36,7 @@ import math
 
 import numpy as np
 
-from pmsmjax.checks.validation import ParameterError, plain
+from pmsmjax.spec.validation import ParameterError, plain
 
 __all__ = [
     "FluxMapGrid",

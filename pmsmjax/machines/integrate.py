@@ -14,9 +14,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from pmsmjax.checks.validation import is_concrete
 from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.base import AbstractMachine, MachineInput, MachineState
+from pmsmjax.spec.validation import is_concrete
 
 
 def rk4_step(machine: AbstractMachine, state: MachineState, inputs: MachineInput, h) -> MachineState:

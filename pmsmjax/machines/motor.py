@@ -4,7 +4,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_nonnegative, check_positive
+from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive
 
 
 def as_float(x) -> Array:

@@ -28,8 +28,8 @@ import jax
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_nonnegative, check_positive, is_concrete
 from pmsmjax.machines.motor import as_float
+from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive, is_concrete
 
 
 def _optional_float(x):

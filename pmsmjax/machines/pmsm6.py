@@ -21,12 +21,12 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.frames.multiphase import SIX_PHASE, PhaseLayout, double_dq_to_vsd, vsd_to_double_dq
 from pmsmjax.frames.three_phase import inverse_park, park
 from pmsmjax.machines.base import MachineInput, Mechanics
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
 from pmsmjax.machines.pmsm_multiphase import AbstractMultiPhaseMachine, _as_scale
+from pmsmjax.spec.validation import ParameterError
 
 __all__ = ["PMSM6DoubleDQ"]
 

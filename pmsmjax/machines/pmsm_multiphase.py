@@ -50,12 +50,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.frames.multiphase import SIX_PHASE, PhaseLayout, inverse_vsd_matrix, vsd_matrix
 from pmsmjax.frames.three_phase import inverse_park, park
 from pmsmjax.machines.base import AbstractMachine, MachineInput, MachineState, Mechanics
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
 from pmsmjax.machines.pmsm3 import _solve2
+from pmsmjax.spec.validation import ParameterError, check_positive
 
 __all__ = [
     "AbstractMultiPhaseMachine",

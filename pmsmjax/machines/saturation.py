@@ -31,10 +31,10 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.checks.validation import ParameterError, check_positive, is_concrete, plain
 from pmsmjax.machines.base import MachineInput, Mechanics
 from pmsmjax.machines.motor import as_float
 from pmsmjax.machines.pmsm3 import PMSMdq
+from pmsmjax.spec.validation import ParameterError, check_positive, is_concrete, plain
 
 
 def _log_cosh(x):

@@ -1,4 +1,4 @@
-"""Figures of the controller comparison (:mod:`pmsmjax.studies.control_comparison`)."""
+"""Figures of the controller comparison (:mod:`pmsmjax.jobs.control_comparison`)."""
 
 import matplotlib.pyplot as plt
 import numpy as np

@@ -1,4 +1,4 @@
-"""Figures of the PWM comparison (:mod:`pmsmjax.studies.pwm_comparison`): waveforms, spectra and the THD
+"""Figures of the PWM comparison (:mod:`pmsmjax.jobs.pwm_comparison`): waveforms, spectra and the THD
 table of the three-phase comparison; :func:`comparison_figures` picks those of any phase count (the six- and
 five-phase ones are in :mod:`.six_phase`).
 
@@ -140,7 +140,7 @@ def thd_figure(result: dict):
 
 
 def comparison_figures(result: dict) -> list:
-    """``[(file name, figure)]`` of a :func:`pmsmjax.studies.pwm_comparison.compare` result.
+    """``[(file name, figure)]`` of a :func:`pmsmjax.jobs.pwm_comparison.compare` result.
 
     Three phases: ``pwm_waveforms.png`` and ``pwm_spectra.png`` (sinusoidal PWM and SVPWM on the switching
     bridge, those compared) and ``pwm_thd.png``. ``n`` = 6 or 5 phases: ``pwm<n>_trajectories.png`` (every

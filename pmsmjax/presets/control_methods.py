@@ -8,9 +8,9 @@ chapter adds its method here and every command gains it.
 import inspect
 
 from pmsmjax import presets
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.drive import Drive
 from pmsmjax.machines.motor import PMSMParameters
+from pmsmjax.spec.validation import ParameterError
 
 #: Control name -> (preset building its drive, one-line description).
 CONTROLS = {

@@ -43,7 +43,6 @@ cascade :class:`~pmsmjax.controllers.six_phase.MultiPhaseFOC` with the five-phas
 
 from pathlib import Path
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.controllers.design import current_loop_imc
 from pmsmjax.controllers.pr import pr_design
 from pmsmjax.controllers.six_phase import VSDCurrentControl, vsd_current_design, z_pr_design
@@ -66,6 +65,7 @@ from pmsmjax.presets.six_phase import (
     read_multiphase_motor_file,
 )
 from pmsmjax.presets.three_phase import PR_W_C, book_motor
+from pmsmjax.spec.validation import ParameterError
 
 __all__ = [
     "FIVE_PHASE_CONTROLS",

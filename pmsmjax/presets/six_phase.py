@@ -35,7 +35,6 @@ delay, design-rule gains at a_c = 1100 rad/s and beta = 50 rad/s, 15 A limit) wi
 import sys
 from pathlib import Path
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.controllers.design import current_loop_imc, speed_loop_active_damping
 from pmsmjax.controllers.six_phase import (
     SixPhaseFOC,
@@ -61,6 +60,7 @@ from pmsmjax.presets.book_constants import (
     BOOK_TS,
 )
 from pmsmjax.presets.three_phase import PR_W_C, book_motor
+from pmsmjax.spec.validation import ParameterError
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -10,7 +10,6 @@ from pathlib import Path
 
 import equinox as eqx
 
-from pmsmjax.checks.validation import ParameterError, check_positive
 from pmsmjax.controllers.base import AbstractDAxisReference
 from pmsmjax.controllers.design import current_loop_imc, speed_loop_active_damping
 from pmsmjax.controllers.dtc import SwitchingTableDTC
@@ -43,6 +42,7 @@ from pmsmjax.presets.book_constants import (
     HYSTERESIS_SAMPLE_PERIOD_S,
 )
 from pmsmjax.scenarios import Profile, Scenario
+from pmsmjax.spec.validation import ParameterError, check_positive
 from pmsmjax.units import rpm_to_rad_s
 
 #: Resonator damping of the PR drive, rad/s: Kr = a_c R / w_c = 527 V/A, a peak gain Kp + Kr = 533 V/A,

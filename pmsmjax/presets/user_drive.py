@@ -77,9 +77,9 @@ def spec_flux_map(spec: DriveSpec):
 
 def _with_flux_map(drive: Drive, spec: DriveSpec) -> Drive:
     """``drive`` with its linear dq plant replaced by the file's flux-map plant (same motor, mechanics)."""
-    from pmsmjax.checks.validation import ParameterError
     from pmsmjax.machines.pmsm3 import PMSMdq
     from pmsmjax.machines.pmsm_flux_map import PMSMFluxMapdq
+    from pmsmjax.spec.validation import ParameterError
 
     if type(drive.machine) is not PMSMdq:
         raise ParameterError(
@@ -96,12 +96,12 @@ def with_map_aware_estimator(spec: DriveSpec, drive: Drive) -> Drive:
     the EKF keeping its constant model with its angle corrected by the map at the operating current
     (:mod:`pmsmjax.estimators.map_angle_corrected`: the scheduled model of
     :mod:`pmsmjax.estimators.map_scheduled` oscillates in the closed loop); an I/f start keeps wrapping it."""
-    from pmsmjax.checks.validation import ParameterError
     from pmsmjax.estimators.hfi_cross_saturation import cross_saturation_compensated
     from pmsmjax.estimators.hfi_pulsating import HFIPulsating
     from pmsmjax.estimators.hfi_rotating import HFIRotating
     from pmsmjax.estimators.map_angle_corrected import map_angle_corrected
     from pmsmjax.estimators.startup import StartupEstimator
+    from pmsmjax.spec.validation import ParameterError
 
     if "flux_map" not in spec.motor:
         raise ParameterError(

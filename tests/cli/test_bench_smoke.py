@@ -1,6 +1,6 @@
 """Smoke test of the core benchmark, run as the script it is (``python -m benchmarks.bench_core --quick
 --json FILE`` from the repository root), and of the library timing behind it and ``pmsmjax bench``
-(pmsmjax/studies/engine_timing.py).
+(pmsmjax/jobs/bench.py).
 
 It checks that every figure is present, positive and finite, that the library and the hand-written
 minimal loop it is timed against simulate the same trajectory, that forward- and reverse-mode gradients
@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from pmsmjax.studies.engine_timing import REQUIRED_KEYS, mode_crossover
+from pmsmjax.jobs.bench import REQUIRED_KEYS, mode_crossover
 
 ROOT = Path(__file__).resolve().parents[2]
 #: The comparison with the minimal loop that the benchmark adds to the library's figures.
@@ -130,10 +130,10 @@ def test_the_table_is_printed_and_only_the_json_is_written(bench):
 
 
 def test_pmsmjax_bench_prints_and_writes_the_library_figures(results, tmp_path, monkeypatch, capsys):
-    """``pmsmjax bench`` reports what :func:`pmsmjax.studies.engine_timing.run` measures (here the
+    """``pmsmjax bench`` reports what :func:`pmsmjax.jobs.bench.run` measures (here the
     script's own figures without the minimal loop, so the command's compiles are not paid twice)."""
     from pmsmjax.cli import main
-    from pmsmjax.studies import engine_timing
+    from pmsmjax.jobs import bench as engine_timing
 
     library = {k: v for k, v in results.items() if k not in MINIMAL_KEYS}
     monkeypatch.setattr(engine_timing, "run", lambda quick=False: library)

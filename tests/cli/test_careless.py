@@ -279,7 +279,7 @@ def test_unreadable_checkpoint_says_how_to_start_fresh(capsys, files):
 
 
 def test_checkpoint_of_other_settings_says_how_to_start_fresh(tmp_path):
-    from pmsmjax.checks.validation import ParameterError
+    from pmsmjax.spec.validation import ParameterError
     from tuning.autotune.tuner import _load_checkpoint
 
     path = tmp_path / "checkpoint.npz"
@@ -443,8 +443,8 @@ def test_every_option_help_gives_its_default():
 
 def test_replay_and_identify_share_one_default_hold(tmp_path, monkeypatch):
     """Replay's flag default, and what identify passes on when given none (captured where it reads the
-    log), are both :data:`pmsmjax.studies.replay.DEFAULT_HOLD`."""
-    from pmsmjax.studies import replay
+    log), are both :data:`pmsmjax.recorded.replay.DEFAULT_HOLD`."""
+    from pmsmjax.recorded import replay
     from tuning.identify import pipeline
 
     sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))

@@ -107,7 +107,7 @@ def test_six_phase_demo_uses_the_files_dc_link(tmp_path):
 @pytest.mark.slow
 def test_compare_book_default_is_the_presets_comparison(tmp_path):
     from pmsmjax import presets
-    from pmsmjax.studies.control_comparison import ControllerCompareSettings, compare_controllers
+    from pmsmjax.jobs.control_comparison import ControllerCompareSettings, compare_controllers
 
     run = ["--duration-s", "0.25", "--load-time-s", "0.15"]
     report = run_json(
@@ -136,7 +136,7 @@ def test_compare_runs_on_an_example_drive(tmp_path):
 def test_pwm_compare_book_default_and_an_example_drive(tmp_path):
     """The book default equals the study run on its own default drive; on the servo file the inverter's
     48 V and 20 kHz set the linear limit and the analysis period."""
-    from pmsmjax.studies.pwm_comparison import CompareSettings, compare
+    from pmsmjax.jobs.pwm_comparison import CompareSettings, compare
 
     small = ["--modulators", "svpwm", "--settle-cycles", "1", "--window-cycles", "1", "--no-figures"]
     book = run_json(["pwm-compare", *small, "--out", tmp_path / "b"], "pwm.json")

@@ -18,8 +18,8 @@ import pytest
 
 import pmsmjax.cli
 import pmsmjax.cli.identify
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.io.folder_lock import LOCK_NAME, acquire, read_lock
+from pmsmjax.spec.validation import ParameterError
 
 ROOT = Path(__file__).resolve().parents[2]
 ENV = {**os.environ, "PYTHONPATH": str(ROOT), "JAX_PLATFORMS": "cpu"}

@@ -23,10 +23,10 @@ import pytest
 from pmsmjax import simulate
 from pmsmjax.analysis.speed_step_summary import speed_step_summary
 from pmsmjax.cli import main
+from pmsmjax.jobs.pwm_comparison import CompareSettings, compare
 from pmsmjax.presets.five_phase import five_phase_drive, five_phase_motor
 from pmsmjax.presets.six_phase import six_phase_drive, six_phase_motor
 from pmsmjax.presets.three_phase import book_scenario
-from pmsmjax.studies.pwm_comparison import CompareSettings, compare
 from tuning.montecarlo import run_study
 from tuning.montecarlo.kernel import run_metrics
 from tuning.montecarlo.study import Study

@@ -46,11 +46,11 @@ from pmsmjax.controllers.dtc import (
 from pmsmjax.estimators import ExactSensor, StatorFluxObserver
 from pmsmjax.frames.three_phase import abc_to_alpha_beta
 from pmsmjax.inverters.switching import SwitchingBridge
+from pmsmjax.jobs.equal_switching import match_switching_frequency
 from pmsmjax.machines.pmsm3 import PMSMAlphaBeta
 from pmsmjax.presets.control_methods import control_drive
 from pmsmjax.signals import Estimate, References, Sample
 from pmsmjax.simulate import period_inputs
-from pmsmjax.studies.equal_switching import match_switching_frequency
 
 MOTOR = presets.book_motor()
 R, PSI_F, P = float(MOTOR.R), float(MOTOR.psi_f), MOTOR.pole_pairs

@@ -27,7 +27,6 @@ import pmsmjax
 from pmsmjax import Profile, Scenario, presets
 from pmsmjax.analysis import metrics
 from pmsmjax.analysis.operating_point import field_weakening_top_speed_rpm, motor_dict, top_speed_rpm
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.controllers import (
     MTPA,
     CurrentLoopContext,
@@ -36,6 +35,7 @@ from pmsmjax.controllers import (
     mtpa_id_from_magnitude,
 )
 from pmsmjax.machines import PMSMParameters
+from pmsmjax.spec.validation import ParameterError
 
 RPM = 2.0 * math.pi / 60.0
 U_MAX = presets.BOOK_DC_LINK / math.sqrt(3.0)  # V

@@ -17,7 +17,6 @@ import numpy as np
 import pytest
 from machines.test_flux_map import P_N, analytic_grid, psi_analytic
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.controllers.flux_map_loci import mtpa_table, mtpv_table
 from pmsmjax.controllers.flux_map_references import flux_map_mtpa
 from pmsmjax.controllers.mtpa import mtpa_id_from_iq
@@ -25,6 +24,7 @@ from pmsmjax.io.drive_files import preset_path
 from pmsmjax.io.flux_map_files import read_flux_map
 from pmsmjax.machines.flux_map import FluxMapGrid
 from pmsmjax.presets.three_phase import book_motor
+from pmsmjax.spec.validation import ParameterError
 
 POLE_PAIRS = 4  # the saturated-ipm drive file's
 MAX_CURRENT = 25.0  # A, its max_current_a

@@ -24,9 +24,9 @@ import pmsmjax
 from pmsmjax import Profile, Scenario, presets
 from pmsmjax.analysis import metrics
 from pmsmjax.analysis.speed_step_summary import speed_step_summary
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.controllers import CurrentLoopContext, ProportionalResonant, pr_design
 from pmsmjax.frames.three_phase import inverse_park
+from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
 
 MOTOR = presets.book_motor()

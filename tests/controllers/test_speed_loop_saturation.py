@@ -30,9 +30,9 @@ from helpers.gradient_check import check_gradient
 import pmsmjax
 from pmsmjax import presets
 from pmsmjax.analysis import metrics
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.controllers import pi_update, realisable_reference_tracking, speed_loop_active_damping
 from pmsmjax.controllers.speed_pi import SpeedLoopGains
+from pmsmjax.spec.validation import ParameterError
 
 RPM = 2.0 * math.pi / 60.0
 W_REF = 1500.0 * RPM  # rad/s

@@ -5,8 +5,8 @@ line naming it."""
 import pytest
 
 from pmsmjax import presets
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.estimators.catalogue import INJECTION_OBSERVERS, OBSERVERS, build, options_of
+from pmsmjax.spec.validation import ParameterError
 
 TS = 1e-4
 

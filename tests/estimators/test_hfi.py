@@ -28,9 +28,9 @@ from pmsmjax.estimators import INJECTION_OBSERVERS, make_observer
 from pmsmjax.estimators.pll import PLL
 from pmsmjax.frames.three_phase import abc_to_alpha_beta
 from pmsmjax.io.logs import write_csv_atomic
+from pmsmjax.recorded.offline_observer import angle_error_modulo_pi
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.simulate import simulate
-from pmsmjax.studies.offline_observer import angle_error_modulo_pi
 from pmsmjax.units import rpm_to_rad_s
 
 MOTOR = presets.book_motor(salient=True)

@@ -10,11 +10,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.hybrid import HybridEstimator, smoothstep
+from pmsmjax.presets.hybrid_runs import hybrid_book_drive, hybrid_scenarios, run_from_angles, summary
 from pmsmjax.signals import Estimate, Sample
-from pmsmjax.studies.hybrid_runs import hybrid_book_drive, hybrid_scenarios, run_from_angles, summary
+from pmsmjax.spec.validation import ParameterError
 
 # 0.3 rad: the injection (starting at 0) locks to the right pole; 2.0 and 4.0 rad: to the wrong one
 ANGLES = (0.3, 2.0, 4.0)

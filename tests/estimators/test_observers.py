@@ -26,9 +26,9 @@ from pmsmjax.estimators import OBSERVERS, make_observer, observer_options
 from pmsmjax.estimators.pll import PLL
 from pmsmjax.estimators.stability import tracking_loop_matrix
 from pmsmjax.estimators.stator_model import first_order_lag, period_weight_phase
+from pmsmjax.recorded.offline_observer import angle_error, observe
+from pmsmjax.recorded.synthetic_logs import drive_log, speed_scenario
 from pmsmjax.scenarios import Profile, Scenario
-from pmsmjax.studies.offline_observer import angle_error, observe
-from pmsmjax.studies.synthetic_logs import drive_log, speed_scenario
 from pmsmjax.units import rpm_to_rad_s
 
 TS = presets.BOOK_TS

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from pmsmjax import presets
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.estimators import OBSERVERS
 from pmsmjax.estimators.startup import StartupEstimator
 from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.simulate import simulate
+from pmsmjax.spec.validation import ParameterError
 
 RPM = 30.0 / np.pi  # rad/s -> r/min
 SCENARIO = presets.book_scenario(duration_s=0.3)

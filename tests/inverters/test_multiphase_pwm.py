@@ -38,9 +38,9 @@ from pmsmjax.inverters import (
     ZeroSequencePWM,
 )
 from pmsmjax.inverters.multiphase_vectors import space_vectors
+from pmsmjax.jobs.pwm_comparison import CompareSettings, compare
 from pmsmjax.presets.five_phase import FIVE_PHASE_PWMS, five_phase_machine
 from pmsmjax.presets.six_phase import SIX_PHASE_PWMS, six_phase_machine
-from pmsmjax.studies.pwm_comparison import CompareSettings, compare
 
 U_DC = 311.0
 S3 = math.sqrt(3.0)

@@ -23,11 +23,11 @@ from pmsmjax import ParameterError, Profile, Scenario, simulate
 from pmsmjax.drive import Drive
 from pmsmjax.frames.three_phase import abc_to_alpha_beta, dq_to_abc
 from pmsmjax.inverters import AveragedBridge, SwitchingBridge, phase_voltages
+from pmsmjax.jobs.pwm_comparison import CompareSettings, steady_state
 from pmsmjax.machines.base import MachineInput, MachineState
 from pmsmjax.machines.integrate import advance
 from pmsmjax.machines.pmsm3 import PMSMdq
 from pmsmjax.presets.three_phase import book_drive, book_motor
-from pmsmjax.studies.pwm_comparison import CompareSettings, steady_state
 
 TS = 1e-4
 U_DC = 311.0

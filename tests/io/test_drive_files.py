@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 from scipy import optimize
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.io.drive_files import PRESET_FOLDER, drive_spec, read_drive_file
+from pmsmjax.spec.validation import ParameterError
 
 BOOK = (PRESET_FOLDER / "book.toml").read_text()
 SERVO = (PRESET_FOLDER / "servo_400w_48v.toml").read_text()

@@ -21,9 +21,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import pmsmjax.cli
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.io.drive_files import PRESET_FOLDER, drive_spec
 from pmsmjax.io.logs import read_log
+from pmsmjax.spec.validation import ParameterError
 
 FUZZ = settings(
     max_examples=25,

@@ -17,7 +17,6 @@ import pytest
 from helpers.gradient_check import check_gradient
 from scipy.integrate import solve_ivp
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.io.flux_map_files import read_flux_map, write_flux_map_csv
 from pmsmjax.machines import MachineInput, MachineState, advance
 from pmsmjax.machines.flux_map import FluxMapGrid
@@ -25,6 +24,7 @@ from pmsmjax.machines.pmsm_flux_map import FluxMap, PMSMFluxMapdq, flux_map_mach
 from pmsmjax.presets.three_phase import book_drive, book_motor
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.simulate import simulate
+from pmsmjax.spec.validation import ParameterError
 
 # --- the analytic saturation model (independent of the package) --------------------------------------
 # One iron path saturating with the total ampere-turns: co-energy per 1.5 factor

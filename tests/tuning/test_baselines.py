@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from benchmarks import bench_tuning
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.presets.three_phase import book_drive
+from pmsmjax.spec.validation import ParameterError
 from tuning.autotune import baselines
 from tuning.autotune.baselines import cma_available, cma_es, design_rule_cost, nelder_mead
 from tuning.autotune.objectives import ObjectiveWeights, batch_cost

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 from helpers.gradient_check import CentralDifferences, assert_gradient_close
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.cli import main
+from pmsmjax.spec.validation import ParameterError
 from tuning.autotune.hfi_tuning import MAX_RPM, make_injection_batch
 from tuning.autotune.job import run_tune_job
 from tuning.autotune.objectives import ObjectiveWeights, scenario_metrics, smoothed_batch_cost

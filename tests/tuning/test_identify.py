@@ -10,16 +10,16 @@ import json
 import numpy as np
 import pytest
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.cli import main
 from pmsmjax.frames.three_phase import dq_to_abc, inverse_park
 from pmsmjax.io.logs import write_csv_atomic
-from pmsmjax.studies.synthetic_logs import (
+from pmsmjax.recorded.synthetic_logs import (
     ID_LOG_NOISE,
     ID_TEST_MOTOR,
     add_measurement_noise,
     identification_log,
 )
+from pmsmjax.spec.validation import ParameterError
 from tuning.identify import IdentifyOptions, identify
 from tuning.identify.excitation import identification_scenario, prbs
 from tuning.identify.log import drive_log_from_columns

@@ -16,9 +16,9 @@ integrated by SciPy (tuning/identify/saturated_reference_log.py), checked agains
 import numpy as np
 import pytest
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.io.flux_map_files import read_flux_map, read_flux_map_measured, write_flux_map_csv
 from pmsmjax.machines.flux_map import FluxMapGrid
+from pmsmjax.spec.validation import ParameterError
 from tuning.identify.flux_map_fit import fit_flux_map
 from tuning.identify.log import drive_log_from_columns
 from tuning.identify.saturated_reference_log import (

@@ -20,7 +20,7 @@ from scipy.integrate import ode
 
 from pmsmjax.cli import main
 from pmsmjax.io.logs import write_csv_atomic
-from pmsmjax.studies.synthetic_logs import (
+from pmsmjax.recorded.synthetic_logs import (
     ID_LOG_NOISE,
     ID_TEST_MOTOR,
     add_measurement_noise,

@@ -33,7 +33,7 @@ import pytest
 from pmsmjax.cli import main
 from pmsmjax.io.drive_files import drive_spec
 from pmsmjax.io.logs import write_csv_atomic
-from pmsmjax.studies.synthetic_logs import ID_LOG_NOISE, ID_TEST_MOTOR, add_measurement_noise
+from pmsmjax.recorded.synthetic_logs import ID_LOG_NOISE, ID_TEST_MOTOR, add_measurement_noise
 from tuning.identify import IdentifyOptions, identify
 from tuning.identify.excitation import prbs
 from tuning.identify.log import drive_log_from_columns

@@ -16,9 +16,9 @@ from helpers.gradient_check import CentralDifferences, assert_gradient_close
 
 import pmsmjax
 from pmsmjax.analysis import metrics
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.machines.motor import PMSMParameters
 from pmsmjax.presets.three_phase import book_drive
+from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rad_s_to_rpm
 from tuning.montecarlo import VOLATILE_KEYS, StudyRunner, chunk_layout, run_study
 from tuning.montecarlo import study as mc_study

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from pmsmjax import presets
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.cli import main
 from pmsmjax.io.drive_files import drive_spec, preset_path
+from pmsmjax.spec.validation import ParameterError
 from tuning.montecarlo import study as mc_study
 from tuning.montecarlo.distributions import Distribution, sample
 from tuning.montecarlo.study import Study

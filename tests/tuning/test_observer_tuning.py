@@ -22,9 +22,9 @@ import pytest
 from helpers.gradient_check import CentralDifferences, assert_gradient_close
 
 import pmsmjax
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.cli import main
 from pmsmjax.estimators import OBSERVERS
+from pmsmjax.spec.validation import ParameterError
 from tuning.autotune import TuneConfig, tune
 from tuning.autotune.job import run_tune_job
 from tuning.autotune.objectives import ObjectiveWeights, scenario_metrics, smoothed_batch_cost, start_at_speed

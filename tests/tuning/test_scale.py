@@ -14,8 +14,8 @@ import optax
 import pytest
 from scipy.stats import rankdata, spearmanr
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.presets.three_phase import book_drive
+from pmsmjax.spec.validation import ParameterError
 from tuning.autotune import TuneConfig, tune
 from tuning.autotune.objectives import ObjectiveWeights
 from tuning.autotune.scenario_batches import make_batch

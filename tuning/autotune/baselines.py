@@ -27,8 +27,8 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.optimize
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.drive import Drive
+from pmsmjax.spec.validation import ParameterError
 from tuning.autotune.objectives import ObjectiveWeights, batch_cost
 from tuning.autotune.scenario_batches import ScenarioBatch
 from tuning.parameters import LogParameterisation

@@ -18,7 +18,7 @@ Per control (:data:`pmsmjax.presets.control_methods.CONTROLS`):
 
 import dataclasses
 
-from pmsmjax.checks.validation import ParameterError
+from pmsmjax.spec.validation import ParameterError
 
 
 @dataclasses.dataclass(frozen=True)
@@ -75,7 +75,7 @@ FIVE_PHASE_TUNABLE_CONTROLS = {
 
 def control_tuning(name: str, machine: str = "three-phase") -> ControlTuning:
     """The default tuning job of control `name` on `machine` (``three-phase``, ``six-phase`` or
-    ``five-phase``); :class:`~pmsmjax.checks.validation.ParameterError` listing the tunable controls for
+    ``five-phase``); :class:`~pmsmjax.spec.validation.ParameterError` listing the tunable controls for
     another name."""
     table = {"six-phase": SIX_PHASE_TUNABLE_CONTROLS, "five-phase": FIVE_PHASE_TUNABLE_CONTROLS}.get(
         machine, TUNABLE_CONTROLS

@@ -6,7 +6,7 @@ Drive (:func:`injection_sensorless_drive`): the FOC drive of the drive file (for
 salient book motor, ``L_d`` 5.25 mH, ``L_q`` 12 mH; any other drive file must be salient) with the
 estimator's design rule, on the plant with d-axis saturation
 (:func:`pmsmjax.machines.saturated_machine`, defaults on the book drive), as
-:func:`pmsmjax.studies.control_comparison.chapter6_drive` builds it for ``compare --estimator``;
+:func:`pmsmjax.jobs.control_comparison.chapter6_drive` builds it for ``compare --estimator``;
 :func:`tuning.autotune.observers.observer_drive` puts it behind the
 same sensored warm-up and measurement noise as the chapter 5 observers.
 
@@ -39,11 +39,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax import Profile, Scenario, presets, stack_scenarios
-from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.io.drive_files import DriveSpec, drive_spec
 from pmsmjax.machines.saturation import saturated_machine
 from pmsmjax.presets.book_constants import BOOK_TS
 from pmsmjax.presets.user_drive import spec_drive, spec_motor
+from pmsmjax.spec.validation import ParameterError, plain
 from pmsmjax.units import rpm_to_rad_s
 from tuning.autotune.drive_scaling import noise_scale, speed_scale, torque_scale
 from tuning.autotune.scenario_batches import WARMUP_S, ScenarioBatch

@@ -51,10 +51,10 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.io.drive_files import DriveSpec, drive_spec
 from pmsmjax.io.logs import atomic_write
 from pmsmjax.presets.user_drive import spec_drive
+from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rad_s_to_rpm
 
 if sys.version_info >= (3, 11):

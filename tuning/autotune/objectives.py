@@ -18,8 +18,8 @@ import numpy as np
 
 import pmsmjax
 from pmsmjax.analysis import metrics, observer_errors
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.drive import Drive
+from pmsmjax.spec.validation import ParameterError
 from pmsmjax.trace import Trace
 from tuning.autotune.scenario_batches import ScenarioBatch
 

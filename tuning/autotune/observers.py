@@ -54,12 +54,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax import Profile, Scenario, presets, stack_scenarios
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.estimators.registry import check_observer_name
 from pmsmjax.estimators.sensored_warmup import SensoredWarmup
 from pmsmjax.io.drive_files import DriveSpec, drive_spec
 from pmsmjax.presets.book_constants import BOOK_TS
 from pmsmjax.presets.user_drive import spec_drive, spec_motor
+from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
 from tuning.autotune.drive_scaling import noise_scale
 from tuning.autotune.hfi_tuning import injection_sensorless_drive
@@ -145,7 +145,7 @@ TUNABLE_OBSERVERS = {
 
 
 def observer_tuning(name: str) -> ObserverTuning:
-    """The default tuning job of observer `name`; :class:`~pmsmjax.checks.validation.ParameterError`
+    """The default tuning job of observer `name`; :class:`~pmsmjax.spec.validation.ParameterError`
     listing the tunable observers for another name."""
     check_observer_name(name)
     if name not in TUNABLE_OBSERVERS:

@@ -11,8 +11,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax import Profile, Scenario, stack_scenarios
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.presets.book_constants import BOOK_TS
+from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
 
 KINDS = ("step", "reversal", "ramp")

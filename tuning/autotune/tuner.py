@@ -33,9 +33,9 @@ import numpy as np
 import optax
 from tqdm.auto import tqdm
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.drive import Drive
 from pmsmjax.io.logs import atomic_write
+from pmsmjax.spec.validation import ParameterError
 from tuning.autotune.objectives import ObjectiveWeights, batch_cost, smoothed_batch_cost
 from tuning.autotune.quasi_newton import bfgs_init, bfgs_tell
 from tuning.autotune.scenario_batches import ScenarioBatch

@@ -13,7 +13,7 @@
   :mod:`~tuning.identify.saturated_reference_log`.
 - :mod:`~tuning.identify.excitation`: an experiment that makes every parameter identifiable; simulated
   logs of it (for tests, notebooks and benchmarks) are
-  :func:`pmsmjax.studies.synthetic_logs.identification_log`.
+  :func:`pmsmjax.recorded.synthetic_logs.identification_log`.
 """
 
 from tuning.identify.excitation import identification_scenario, prbs

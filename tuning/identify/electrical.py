@@ -7,7 +7,7 @@ depends on the electrical parameters only (:mod:`tuning.identify.fit` solves it 
 ``L_d di_d/dt = u_d - R i_d + w_e L_q i_q``,  ``L_q di_q/dt = u_q - R i_q - w_e (L_d i_d + psi_f)``,
 
 with ``w_e = p_n w_m`` interpolated linearly between the measured samples. The voltage of row k is held
-over interval k as :mod:`pmsmjax.studies.replay` holds it: ``hold="stator"`` (a real inverter: the
+over interval k as :mod:`pmsmjax.recorded.replay` holds it: ``hold="stator"`` (a real inverter: the
 stator-frame voltage is constant, so its dq components turn by ``-(theta_e(t) - theta_e(t_k))``) or
 ``"rotor"``.
 An optional dead-time term subtracts ``V_dt * tanh(i_x / eps)`` from each phase voltage (the voltage an

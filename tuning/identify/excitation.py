@@ -19,8 +19,8 @@ each level settles, and its amplitude (default 3 A) is a fraction of the current
 
 import numpy as np
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.scenarios import Profile, Scenario
+from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
 
 __all__ = ["identification_scenario", "prbs"]

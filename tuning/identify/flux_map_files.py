@@ -14,11 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
-from pmsmjax.checks.plausibility import MAX_RESISTANCE_OHM
-from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.io.drive_files import write_drive_file
 from pmsmjax.io.flux_map_files import MA_CURRENT_A, write_flux_map_csv
 from pmsmjax.io.logs import atomic_write, check_output_folder
+from pmsmjax.spec.plausibility import MAX_RESISTANCE_OHM
+from pmsmjax.spec.validation import ParameterError, plain
 from tuning.identify.flux_map_fit import FluxMapFit, fit_flux_map
 from tuning.identify.log import load_drive_log
 from tuning.identify.motor_file import prior_stated_tables

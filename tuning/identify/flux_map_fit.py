@@ -54,9 +54,9 @@ import jax.numpy as jnp
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from pmsmjax.checks.validation import ParameterError, plain
 from pmsmjax.machines.flux_map import FluxMapGrid, flux_and_inductance, hermite_coefficients
-from pmsmjax.presets.drive_ratings import round_up_nice
+from pmsmjax.spec.design_rules import round_up_nice
+from pmsmjax.spec.validation import ParameterError, plain
 from tuning.identify.electrical import _dead_time_voltage
 
 __all__ = ["FluxMapFit", "fit_flux_map", "flux_map_axes", "SPEED_JUMP", "MIN_NODE_SAMPLES", "SMOOTHNESS"]

@@ -1,7 +1,7 @@
 """Which voltage hold a log follows (``pmsmjax identify --hold auto``, the default).
 
 A log's voltage of row k is held until row k+1 either in the stator frame (a real inverter) or in the
-rotor frame (a dq-model simulator); see :mod:`pmsmjax.studies.replay`. Read with the wrong one, every voltage
+rotor frame (a dq-model simulator); see :mod:`pmsmjax.recorded.replay`. Read with the wrong one, every voltage
 is turned by about ``omega_e dt / 2``: the fit then returns biased values (R 2 % off, psi_f 1 % off on the
 test logs) or fails. Both are cheap to try: the equation-error warm start of
 :func:`tuning.identify.electrical.warm_start` is a linear least-squares fit, and the share of the

@@ -14,10 +14,10 @@ Canonical columns (SI units after conversion):
 
 The voltage of row k is the one applied from ``t_k`` to ``t_{k+1}``. Stationary-frame and duty voltages
 are turned into dq with ``theta_e[k]``; how the voltage is held between rows (``hold``) is a property of
-the recording, as in :mod:`pmsmjax.studies.replay`: ``"stator"`` for a real inverter, ``"rotor"`` for a
+the recording, as in :mod:`pmsmjax.recorded.replay`: ``"stator"`` for a real inverter, ``"rotor"`` for a
 dq-model simulator, ``"auto"`` (the command's default) to find it from the log (:mod:`tuning.identify.hold`).
 
-Checks, all before any fitting, each a :class:`~pmsmjax.checks.validation.ParameterError` naming the column
+Checks, all before any fitting, each a :class:`~pmsmjax.spec.validation.ParameterError` naming the column
 and the fix: missing or unknown columns (with close-name hints; a file column that looks like a
 misspelt canonical one the log lacks, ``omgea_m``, is refused rather than left unused), NaN/inf,
 non-increasing time (:func:`pmsmjax.io.logs.check_columns`), irregular sampling or gaps (refused, or
@@ -35,10 +35,10 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.frames.three_phase import abc_to_alpha_beta, park
 from pmsmjax.inverters.averaged import phase_voltages
 from pmsmjax.io.logs import check_columns, column_names, misspelt_columns, read_log
+from pmsmjax.spec.validation import ParameterError
 
 if sys.version_info >= (3, 11):
     import tomllib

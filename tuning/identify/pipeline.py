@@ -6,7 +6,7 @@ Pipeline (each step in its own module):
    everything (gaps, units, consistency) before any fitting.
 2. :mod:`tuning.identify.electrical`: current residuals over multiple-shooting windows (R, L_d, L_q, psi_f
    and a dead-time voltage), the voltage held as the recording held it (``hold``, as in
-   :mod:`pmsmjax.studies.replay`); given the measured speed they do not involve the mechanics.
+   :mod:`pmsmjax.recorded.replay`); given the measured speed they do not involve the mechanics.
 3. :mod:`tuning.identify.mechanical`: speed residuals at window ends (J, B, a constant load, and the
    electrical parameters through the torque).
    :mod:`tuning.identify.fit`: equation-error warm starts, then one output-error Levenberg-Marquardt solve
@@ -31,9 +31,9 @@ import jax
 import numpy as np
 from scipy import stats
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.io.logs import atomic_write, check_output_folder
-from pmsmjax.studies.replay import DEFAULT_HOLD
+from pmsmjax.recorded.replay import DEFAULT_HOLD
+from pmsmjax.spec.validation import ParameterError
 from tuning.identify import electrical as el
 from tuning.identify import fit as id_fit
 from tuning.identify import mechanical as me
@@ -367,7 +367,7 @@ def identify_file(
 ) -> IdentifyResult:
     """Read ``log_path``, identify, write ``out_dir/params.json`` (and ``fit.png``); returns the result.
 
-    `hold`: ``"auto"`` (default, :data:`pmsmjax.studies.replay.DEFAULT_HOLD`: the hold that fits better,
+    `hold`: ``"auto"`` (default, :data:`pmsmjax.recorded.replay.DEFAULT_HOLD`: the hold that fits better,
     :mod:`tuning.identify.hold`), ``"stator"`` or ``"rotor"``.
     `config`: TOML with ``[columns]``, ``[units]``, ``[log]`` (``hold``, ``u_dc``, ``resample``) and
     ``[identify]`` (:class:`IdentifyOptions` fields; ``fixed``/``start`` as tables); explicit arguments

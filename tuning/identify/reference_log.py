@@ -16,7 +16,7 @@ The drive (the book, ch. 1 and 3, built independently of :mod:`pmsmjax.controlle
 - the motor: dq equations with the stator-frame voltage turned into dq at the rotor angle of each instant.
 
 Each row ``k`` of the log is what firmware records (the layout of
-:data:`pmsmjax.studies.synthetic_logs.LOG_COLUMNS` ``["dq"]``): the time ``t_k``, the held stator voltage
+:data:`pmsmjax.recorded.synthetic_logs.LOG_COLUMNS` ``["dq"]``): the time ``t_k``, the held stator voltage
 of ``[t_k, t_k+1)`` turned into dq with the angle at ``t_k``, the currents, speed and angle sampled at
 ``t_k``, and the load torque.
 """
@@ -136,9 +136,9 @@ def commissioning_log(spec, duration_s: float, prbs_clock_s: float, noise=None, 
     """The identification log of drive file ``spec`` (:class:`pmsmjax.io.drive_files.DriveSpec`): the
     reference drive at the file's DC link, control rate, current limit and design-rule bandwidths, the
     staircase of :func:`identification_speeds_rpm`, a PRBS of :data:`PRBS_SHARE` x the maximum current on
-    i_d; ``noise`` (default :data:`pmsmjax.studies.synthetic_logs.ID_LOG_NOISE`: 1 % on the currents, 0.5 %
+    i_d; ``noise`` (default :data:`pmsmjax.recorded.synthetic_logs.ID_LOG_NOISE`: 1 % on the currents, 0.5 %
     on the voltages) drawn with ``seed``."""
-    from pmsmjax.studies.synthetic_logs import ID_LOG_NOISE, add_measurement_noise
+    from pmsmjax.recorded.synthetic_logs import ID_LOG_NOISE, add_measurement_noise
 
     log = reference_drive_log(
         spec.motor,

@@ -7,7 +7,7 @@ scan; the few samples after the last whole window are not used (at most ``W - 1`
 
 import numpy as np
 
-from pmsmjax.checks.validation import ParameterError
+from pmsmjax.spec.validation import ParameterError
 
 __all__ = ["window_layout", "interval_windows", "sample_windows"]
 

@@ -20,7 +20,7 @@ import math
 import numpy as np
 from scipy.special import ndtri
 
-from pmsmjax.checks.validation import ParameterError, plain
+from pmsmjax.spec.validation import ParameterError, plain
 
 KINDS = ("uniform", "normal", "lognormal")
 SAMPLING = ("random", "latin_hypercube")

@@ -46,10 +46,10 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from tqdm import tqdm
 
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.io.logs import atomic_write
 from pmsmjax.machines.integrate import max_stable_substep
 from pmsmjax.simulate import check_simulation, period_inputs
+from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
 from tuning.montecarlo import study as mc_study
 from tuning.montecarlo.chunking import auto_chunk_size, bytes_per_run

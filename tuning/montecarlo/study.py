@@ -55,11 +55,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax import presets
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.drive import Drive
 from pmsmjax.inverters.averaged import AveragedBridge
 from pmsmjax.io.drive_files import TABLES, DriveSpec, drive_spec
 from pmsmjax.scenarios import Profile, Scenario
+from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
 from tuning.montecarlo.distributions import KINDS, SAMPLING, Distribution
 from tuning.parameters import apply_gains, array_leaf_names, get_leaf
@@ -343,7 +343,7 @@ def nominal_value(study: Study, drive: Drive, name: str) -> float:
 
 
 def check_name(drive: Drive, name: str) -> None:
-    """Raise :class:`~pmsmjax.checks.validation.ParameterError` unless `name` is a parameter a study may
+    """Raise :class:`~pmsmjax.spec.validation.ParameterError` unless `name` is a parameter a study may
     vary on `drive` (a motor field, ``bridge.u_dc``, a scenario field or a controller leaf), listing them."""
     fields = MOTOR_FIELDS + (("L_ls",) if hasattr(drive.machine.motor, "L_ls") else ())
     allowed = [f"motor.{f}" for f in fields] + ["bridge.u_dc"] + [f"scenario.{f}" for f in SCENARIO_FIELDS]

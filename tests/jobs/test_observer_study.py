@@ -11,15 +11,15 @@ import pytest
 
 import pmsmjax
 from pmsmjax.analysis import observer_errors as om
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.cli import main
-from pmsmjax.scenarios import Profile, Scenario
-from pmsmjax.studies.control_comparison import (
+from pmsmjax.jobs.control_comparison import (
     ControllerCompareSettings,
     LowSpeedSweep,
     compare_estimators,
     estimator_table,
 )
+from pmsmjax.scenarios import Profile, Scenario
+from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
 from tuning.montecarlo import run_study
 from tuning.montecarlo import study as mc_study

@@ -22,11 +22,11 @@ import jax
 import numpy as np
 
 from pmsmjax.analysis import metrics
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.controllers.dtc import SwitchingTableDTC
 from pmsmjax.controllers.hysteresis import HysteresisCurrentControl
 from pmsmjax.drive import Drive
 from pmsmjax.simulate import simulate
+from pmsmjax.spec.validation import ParameterError
 
 #: Controller class -> the band leaves scaled together.
 BAND_LEAVES = {

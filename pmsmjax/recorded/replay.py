@@ -36,8 +36,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from pmsmjax.checks.plausibility import check_time_step
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.frames.three_phase import inverse_park, wrap_angle
 from pmsmjax.io.logs import check_columns, misspelt_columns, read_log, write_csv_atomic
 from pmsmjax.machines.base import MachineInput, MachineState
@@ -45,6 +43,8 @@ from pmsmjax.machines.integrate import advance, max_stable_substep
 from pmsmjax.machines.motor import PMSMParameters
 from pmsmjax.machines.pmsm3 import PMSMdq
 from pmsmjax.presets.three_phase import load_motor
+from pmsmjax.spec.plausibility import check_time_step
+from pmsmjax.spec.validation import ParameterError
 
 __all__ = [
     "replay",
@@ -351,7 +351,7 @@ def replay_file(
       ``"stator"``; `n_substeps`: as in :func:`replay`.
     - `time_unit`: unit of the time column, ``"s"``, ``"ms"`` or ``"us"``.
     - `check_units`: refuse a time step implausible for a drive log (a time in ms read as s) and motor
-      values implausible in SI units (:mod:`pmsmjax.checks.plausibility`).
+      values implausible in SI units (:mod:`pmsmjax.spec.plausibility`).
     - `report`: a list that receives one line per note (the hold chosen, columns not used).
 
     The output has columns ``time,i_d,i_q,omega_m,theta_e`` (time in s), one row per log row. All input is

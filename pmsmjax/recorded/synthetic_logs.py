@@ -8,7 +8,7 @@ the commanded voltage one period late, because of the computational delay) and t
 ``t_k``, plus the true electrical angle and mechanical speed (``theta_e``, ``omega_m``; in the dq layout
 also the load torque ``T_L``), see :data:`LOG_COLUMNS`. In the dq layout the stator voltage is turned
 into dq with the angle at ``t_k``, so ``inverse_park(u_dq[k], theta_e[k])`` is exactly the held stator
-voltage (``hold="stator"`` in :mod:`pmsmjax.studies.replay`).
+voltage (``hold="stator"`` in :mod:`pmsmjax.recorded.replay`).
 
 Noise (:func:`add_measurement_noise`): white Gaussian, standard deviation ``level`` times the RMS of the
 vector's magnitude over the log, the same on both axes, drawn independently on the voltages and on the

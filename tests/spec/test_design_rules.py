@@ -1,4 +1,4 @@
-"""The rules of pmsmjax.presets.drive_ratings against independent calculations: MTPA by brute force over
+"""The rules of pmsmjax.spec.design_rules against independent calculations: MTPA by brute force over
 the current angle, the base speed by solving the steady-state voltage equation with scipy, the delay
 phase margin of the current-loop rule, the linear speed step of the speed-loop rule, the lcm period."""
 
@@ -9,7 +9,7 @@ import pytest
 from scipy.optimize import brentq
 
 from pmsmjax.presets.book_constants import BOOK_MOTOR, BOOK_SALIENT_MOTOR
-from pmsmjax.presets.drive_ratings import (
+from pmsmjax.spec.design_rules import (
     base_speed_rpm,
     common_period_s,
     current_bandwidth_rule,

@@ -20,7 +20,7 @@ Pure Python: runs before JAX is imported.
 import math
 from collections.abc import Mapping
 
-from pmsmjax.checks.validation import ParameterError, plain
+from pmsmjax.spec.validation import ParameterError, plain
 
 __all__ = ["check_motor_units", "check_time_step", "OVERRIDE", "OVERRIDE_LOG"]
 

@@ -6,8 +6,8 @@ motor passes."""
 
 import pytest
 
-from pmsmjax.checks.plausibility import check_motor_units
-from pmsmjax.checks.validation import ParameterError
+from pmsmjax.spec.plausibility import check_motor_units
+from pmsmjax.spec.validation import ParameterError
 
 BOOK = {"R": 0.958, "L_d": 5.25e-3, "L_q": 12e-3, "psi_f": 0.1827, "J": 0.003, "B": 0.008, "pole_pairs": 4}
 

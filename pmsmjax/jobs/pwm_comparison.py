@@ -47,7 +47,6 @@ import numpy as np
 from pmsmjax._types import Array
 from pmsmjax.analysis.spectra import piecewise_constant_spectrum, sampled_spectrum, thd
 from pmsmjax.analysis.within_period import dense_window
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.drive import Drive
 from pmsmjax.frames.multiphase import FIVE_PHASE, SIX_PHASE, PhaseLayout, inverse_vsd, vsd
 from pmsmjax.frames.three_phase import alpha_beta_to_abc
@@ -68,6 +67,7 @@ from pmsmjax.presets.six_phase import SIX_PHASE_PWMS, six_phase_drive
 from pmsmjax.presets.three_phase import book_drive, book_scenario
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.simulate import period_inputs, simulate
+from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
 
 __all__ = [

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from pmsmjax import presets
-from pmsmjax.studies.synthetic_logs import LOG_COLUMNS, add_measurement_noise, drive_log, speed_scenario
+from pmsmjax.recorded.synthetic_logs import LOG_COLUMNS, add_measurement_noise, drive_log, speed_scenario
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,7 @@ import pytest
 from pmsmjax import presets
 from pmsmjax.cli import main
 from pmsmjax.io.logs import write_csv_atomic
-from pmsmjax.studies.synthetic_logs import drive_log, speed_scenario
+from pmsmjax.recorded.synthetic_logs import drive_log, speed_scenario
 
 SQRT3 = math.sqrt(3.0)
 

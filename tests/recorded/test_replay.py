@@ -1,4 +1,4 @@
-"""Replay of recorded voltages (pmsmjax.studies.replay) and log I/O (pmsmjax.io.logs).
+"""Replay of recorded voltages (pmsmjax.recorded.replay) and log I/O (pmsmjax.io.logs).
 
 The reference is an adaptive scipy solve of the dq equations written here in NumPy, one solve per row
 interval (the held voltage jumps at every row), with each hold frame spelled out independently.
@@ -11,11 +11,11 @@ import pytest
 import scipy.io
 from scipy.integrate import solve_ivp
 
-import pmsmjax.studies.replay as replay_module
-from pmsmjax.checks.validation import ParameterError
+import pmsmjax.recorded.replay as replay_module
 from pmsmjax.io.logs import atomic_write, read_log, write_csv_atomic
 from pmsmjax.presets.three_phase import book_motor
-from pmsmjax.studies.replay import REPLAY_COLUMNS, default_substeps, replay, replay_file
+from pmsmjax.recorded.replay import REPLAY_COLUMNS, default_substeps, replay, replay_file
+from pmsmjax.spec.validation import ParameterError
 
 # Book motors as plain numbers for the reference (salient: L_q = 12 mH).
 SURFACE = dict(R=0.958, L_d=5.25e-3, L_q=5.25e-3, psi_f=0.1827, J=0.003, B=0.008, p=4)

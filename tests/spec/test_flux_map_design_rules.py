@@ -1,4 +1,4 @@
-"""The drive-rating rules (pmsmjax/presets/drive_ratings.py) on a drive file with a flux map, against the
+"""The drive-rating rules (pmsmjax/spec/design_rules.py) on a drive file with a flux map, against the
 analytic model the preset saturated-ipm map was sampled from: the rated torque is the most torque of the
 rated current (dense angle search), the base speed the speed where the least-current point of the rated
 torque needs 95 % of the voltage limit (scipy: brentq for the magnitude at each angle, minimised over
@@ -14,7 +14,7 @@ from controllers.test_flux_map_references import psi_preset, torque_preset
 from scipy.optimize import brentq, minimize_scalar
 
 from pmsmjax.io.drive_files import drive_spec
-from pmsmjax.presets import drive_ratings as rules
+from pmsmjax.spec import design_rules as rules
 
 RPM = math.pi / 30.0
 

@@ -16,7 +16,7 @@ samples
   currents).
 
 At equal switching frequency (``equal_switching_hz``): each controller with bands (table DTC, hysteresis
-current control; :mod:`pmsmjax.studies.equal_switching`) is run a second time, as ``"NAME@F kHz"``, with its
+current control; :mod:`pmsmjax.jobs.equal_switching`) is run a second time, as ``"NAME@F kHz"``, with its
 bands scaled so that its mean switching frequency over the same window meets the given frequency (by default
 the
 PWM frequency ``1/Ts`` of the voltage-commanding controllers compared).
@@ -42,16 +42,16 @@ from pmsmjax.analysis.operating_point import run_flags
 from pmsmjax.analysis.spectra import sampled_spectrum, thd
 from pmsmjax.analysis.speed_step_summary import speed_step_summary
 from pmsmjax.analysis.within_period import dense_window
-from pmsmjax.checks.validation import ParameterError
 from pmsmjax.drive import Drive
 from pmsmjax.frames.three_phase import inverse_park
 from pmsmjax.inverters.switching import SwitchingBridge
+from pmsmjax.jobs.equal_switching import BAND_LEAVES, match_switching_frequency
 from pmsmjax.machines.motor import PMSMParameters
 from pmsmjax.presets.control_methods import CONTROLS, control_drive
 from pmsmjax.presets.five_phase import FIVE_PHASE_CONTROLS, five_phase_drive
 from pmsmjax.presets.six_phase import SIX_PHASE_CONTROLS, six_phase_drive
 from pmsmjax.simulate import check_simulation, simulate
-from pmsmjax.studies.equal_switching import BAND_LEAVES, match_switching_frequency
+from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rad_s_to_rpm
 
 SUMMARY_KEYS = {
@@ -88,7 +88,7 @@ class ControllerCompareSettings:
     equal_switching_hz: float | None = None
 
     def check(self) -> None:
-        """Raise :class:`~pmsmjax.checks.validation.ParameterError` naming the first inconsistent setting
+        """Raise :class:`~pmsmjax.spec.validation.ParameterError` naming the first inconsistent setting
         (unknown bridge, no speed, load step outside the run, too low a sampling rate for the THD)."""
         if self.bridge not in ("switching", "averaged"):
             raise ParameterError(f"bridge must be 'switching' or 'averaged', got {self.bridge!r}.")
@@ -461,8 +461,8 @@ def check_estimator_scenario(names, scenario: str) -> None:
 def estimator_scenario(scenario: str, load_nm: float):
     """The fixed chapter 6 scenarios of :data:`ESTIMATOR_SCENARIOS` (all but ``book``) with the load
     ``load_nm`` (N m; ``reversal`` keeps its 5 N m)."""
+    from pmsmjax.presets.hybrid_runs import hybrid_scenarios
     from pmsmjax.scenarios import Profile, Scenario
-    from pmsmjax.studies.hybrid_runs import hybrid_scenarios
     from pmsmjax.units import rpm_to_rad_s
 
     w60 = rpm_to_rad_s(60.0)

@@ -6,7 +6,7 @@ recorded voltages and followed to the map's resolution; the same file's linear m
 import numpy as np
 
 from pmsmjax.io.logs import write_csv_atomic
-from pmsmjax.studies.replay import replay_file
+from pmsmjax.recorded.replay import replay_file
 from tuning.identify.saturated_reference_log import SATURATED_IPM, operating_walk, saturated_drive_log
 
 

@@ -1,1 +1,0 @@
-"""Checks of user input made before anything compiles: parameter validation and unit plausibility."""
