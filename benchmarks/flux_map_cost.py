@@ -26,10 +26,10 @@ import numpy as np
 
 from benchmarks.bench_core import compile_time, machine_info, publish, time_interleaved
 from pmsmjax import presets, simulate
+from pmsmjax.assemble import spec_flux_map
 from pmsmjax.io.drive_files import drive_spec
 from pmsmjax.machines import MachineInput, advance
 from pmsmjax.machines.pmsm_flux_map import FluxMap, PMSMFluxMapdq
-from pmsmjax.presets.user_drive import spec_flux_map
 
 __all__ = ["run", "main", "format_table"]
 

@@ -36,6 +36,7 @@ import numpy as np  # noqa: E402
 from benchmarks.bench_core import publish  # noqa: E402
 from pmsmjax import presets  # noqa: E402
 from pmsmjax.analysis.observer_errors import angle_error, angle_error_modulo_pi  # noqa: E402
+from pmsmjax.assemble import spec_drive, spec_flux_map, spec_motor  # noqa: E402
 from pmsmjax.estimators import INJECTION_OBSERVERS, OBSERVERS  # noqa: E402
 from pmsmjax.estimators.hfi_cross_saturation import (  # noqa: E402
     cross_saturation_compensated,
@@ -45,7 +46,6 @@ from pmsmjax.estimators.hfi_cross_saturation import (  # noqa: E402
 from pmsmjax.estimators.map_scheduled import constant_model_angle_error, map_scheduled  # noqa: E402
 from pmsmjax.io.drive_files import drive_spec  # noqa: E402
 from pmsmjax.io.flux_map_files import read_flux_map  # noqa: E402
-from pmsmjax.presets.user_drive import spec_drive, spec_flux_map, spec_motor  # noqa: E402
 from pmsmjax.scenarios import Profile, Scenario, stack_scenarios  # noqa: E402
 from pmsmjax.simulate import simulate  # noqa: E402
 from pmsmjax.units import rpm_to_rad_s  # noqa: E402

@@ -63,9 +63,9 @@ def test_the_flux_map_plants_loop_compiles_into_one_kernel():
     # limit set back to 1024 in XLA_FLAGS); the requested one makes it a single kernel.
     if jax.default_backend() != "cpu":
         return
+    from pmsmjax.assemble import spec_drive
     from pmsmjax.io.drive_files import drive_spec
     from pmsmjax.machines import MachineInput, advance
-    from pmsmjax.presets.user_drive import spec_drive
 
     machine = spec_drive(drive_spec("saturated-ipm")).machine
     assert type(machine).__name__ == "PMSMFluxMapdq"

@@ -6,6 +6,7 @@ import time
 
 from pmsmjax.cli import checks, drive_flags
 from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
+from pmsmjax.spec import registry
 from pmsmjax.spec.validation import ParameterError, plain
 
 #: Electrical periods of the ripple and THD window at the end of the run.
@@ -150,7 +151,6 @@ def precheck(args):
     """Checks that need no model (before JAX starts); returns the control (or observer) names and the
     drive (:class:`~pmsmjax.io.drive_files.DriveSpec`), the scenario flags left unset filled from it."""
     from pmsmjax.analysis.operating_point import refuse_unreachable
-    from pmsmjax.cli.demo import CONTROL_NAMES, ESTIMATOR_NAMES, MULTIPHASE_NAMES
 
     multiphase = args.machine != "three-phase"
     if multiphase:
@@ -162,7 +162,8 @@ def precheck(args):
                 )
     chapter6 = False
     if args.estimator is not None:
-        names = _estimator_names(args, (*ESTIMATOR_NAMES, *CHAPTER6_NAMES), ESTIMATOR_NAMES)
+        observers = registry.names("estimator", group="observer")
+        names = _estimator_names(args, (*observers, *CHAPTER6_NAMES), observers)
         chapter6 = any(n in CHAPTER6_NAMES for n in names)
         _chapter6_flags(args, names, chapter6)
         if chapter6:
@@ -193,7 +194,7 @@ def precheck(args):
     drive_flags.fill_scenario(args, spec)
     if not fixed:
         args.speed_rpm = whole_window_speed(args.speed_rpm, spec, speed_given)
-    known = MULTIPHASE_NAMES[args.machine][0] if multiphase else CONTROL_NAMES
+    known = registry.names("control", args.machine)
     default = ",".join(known) if multiphase else (control or "pi,smc,pr,hysteresis")
     control_list = args.control if args.control is not None else default
     controls = [n.strip() for n in control_list.split(",") if n.strip()]
@@ -248,7 +249,7 @@ def precheck(args):
 #: The chapter 6 estimators ``compare --estimator`` takes (the keys of
 #: :data:`pmsmjax.estimators.INJECTION_OBSERVERS` and ``HYBRID_OBSERVERS``; spelled here so that the
 #: checks run before JAX starts, tests/studies/test_hfi_compare.py checks they agree).
-CHAPTER6_NAMES = ("hfi-rotating", "hfi-pulsating", "hybrid")
+CHAPTER6_NAMES = registry.names("estimator", group="injection") + registry.names("estimator", group="hybrid")
 
 
 def _chapter6_flags(args, names: list[str], chapter6: bool) -> None:
@@ -359,6 +360,7 @@ def run_estimators(args, names: list[str], spec) -> int:
     import numpy as np
 
     from pmsmjax.analysis.observer_errors import angle_error, angle_error_modulo_pi
+    from pmsmjax.assemble import spec_motor
     from pmsmjax.io.logs import atomic_write
     from pmsmjax.jobs.control_comparison import (
         ESTIMATOR_COLUMNS,
@@ -367,7 +369,6 @@ def run_estimators(args, names: list[str], spec) -> int:
         compare_estimators,
         estimator_table,
     )
-    from pmsmjax.presets.user_drive import spec_motor
 
     settings = ControllerCompareSettings(
         speed_rpm=args.speed_rpm,

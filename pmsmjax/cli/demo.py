@@ -17,28 +17,26 @@ import time
 
 from pmsmjax.cli import checks, drive_flags
 from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
+from pmsmjax.spec import registry
 from pmsmjax.spec.validation import ParameterError, plain
 
-CONTROL_NAMES = ("pi", "smc", "pr", "hysteresis", "dtc", "smc-dtc")
-#: ``--machine six-phase``: the schemes of pmsmjax.presets.six_phase.SIX_PHASE_CONTROLS (listed here so
-#: that ``--help`` needs no JAX import), its modulators and model frames.
-SIX_PHASE_CONTROL_NAMES = ("vsd", "double-dq", "conventional", "pr")
-SIX_PHASE_PWM_NAMES = ("four-vector", "two-vector", "decoupled", "double-zs")
-THREE_PHASE_FRAMES = ("dq", "alpha_beta", "abc")
-SIX_PHASE_FRAME_NAMES = ("dq", "vsd", "double-dq", "natural")
-#: ``--machine five-phase``: pmsmjax.presets.five_phase.FIVE_PHASE_CONTROLS, _PWMS, _FRAMES.
-FIVE_PHASE_CONTROL_NAMES = ("vsd", "conventional", "pr")
-FIVE_PHASE_PWM_NAMES = ("near-four-vector", "carrier", "sinusoidal", "large-vector")
-FIVE_PHASE_FRAME_NAMES = ("dq", "vsd", "natural")
+CONTROL_NAMES = registry.names("control", "three-phase")
+SIX_PHASE_CONTROL_NAMES = registry.names("control", "six-phase")
+SIX_PHASE_PWM_NAMES = registry.names("modulator", "six-phase")
+THREE_PHASE_FRAMES = registry.names("frame", "three-phase")
+SIX_PHASE_FRAME_NAMES = registry.names("frame", "six-phase")
+FIVE_PHASE_CONTROL_NAMES = registry.names("control", "five-phase")
+FIVE_PHASE_PWM_NAMES = registry.names("modulator", "five-phase")
+FIVE_PHASE_FRAME_NAMES = registry.names("frame", "five-phase")
 #: Per multi-phase machine: (controls, modulators, frames, default modulator).
 MULTIPHASE_NAMES = {
-    "six-phase": (SIX_PHASE_CONTROL_NAMES, SIX_PHASE_PWM_NAMES, SIX_PHASE_FRAME_NAMES, "four-vector"),
-    "five-phase": (
-        FIVE_PHASE_CONTROL_NAMES,
-        FIVE_PHASE_PWM_NAMES,
-        FIVE_PHASE_FRAME_NAMES,
-        "near-four-vector",
-    ),
+    machine: (
+        registry.names("control", machine),
+        registry.names("modulator", machine),
+        registry.names("frame", machine),
+        registry.default("modulator", machine),
+    )
+    for machine in ("six-phase", "five-phase")
 }
 #: Flags the six- and five-phase drives take (argparse dest -> six_phase_drive / five_phase_drive option).
 SIX_PHASE_FLAG_OPTIONS = {
@@ -52,11 +50,10 @@ SIX_PHASE_FLAG_OPTIONS = {
     "bridge": "bridge",
 }
 
-#: ``--estimator``: the chapter 5 observers (:data:`pmsmjax.estimators.OBSERVERS`; listed here so the
-#: flags are checked before JAX starts) and the controls that can run on one (FOC cascades: they hold the
-#: I/f start-up current).
-ESTIMATOR_NAMES = ("smo", "smo-pll", "adaptive-smo", "dq-smo", "mras", "ekf")
-SENSORLESS_CONTROLS = ("pi", "smc", "pr")
+#: ``--estimator``: the chapter 5 observers, and the controls that can run on one (FOC cascades: they hold
+#: the I/f start-up current).
+ESTIMATOR_NAMES = registry.names("estimator", group="observer")
+SENSORLESS_CONTROLS = registry.names("control", group="foc")
 
 #: Command-line flag (argparse dest) -> preset option; flags left unset keep each preset's own default.
 FLAG_OPTIONS = {
@@ -94,21 +91,6 @@ OPERATING_FLAGS = {
 #: A reference beyond this many times the top speed the drive could reach at no load is refused: the run
 #: would only show saturation (up to it, the run is made and its saturation reported).
 MAX_SPEED_FACTOR = 3.0
-
-
-def six_phase_drive_from_flags(args, spec):
-    """``--machine six-phase`` (or ``five-phase``): the multi-phase drive of ``args.control`` on the drive
-    file ``spec`` with the flags the user set (a switching bridge gets the file's dead time); flags of the
-    three-phase controls are refused (:func:`check_machine_flags`)."""
-    from pmsmjax.presets.user_drive import spec_drive
-
-    options = {}
-    for flag in SIX_PHASE_FLAG_OPTIONS:
-        value = getattr(args, flag, None)
-        if value is None or value is False:
-            continue
-        options[SIX_PHASE_FLAG_OPTIONS[flag]] = False if flag == "no_delay" else value
-    return spec_drive(spec, args.control, **options)
 
 
 def check_machine_flags(args) -> None:
@@ -158,19 +140,27 @@ def check_machine_flags(args) -> None:
         raise ParameterError(f"--control {args.control} needs --machine {need}.")
 
 
-def control_drive_from_flags(args, drive):
-    """The three-phase drive of ``args.control`` with the options the user set, on ``drive``: a
-    :class:`~pmsmjax.io.drive_files.DriveSpec` (its DC link, control rate, current limit and bandwidths;
-    :func:`pmsmjax.presets.user_drive.spec_drive`) or a bare motor (the preset's defaults). A flag that does
-    not apply to the chosen control is refused (``--band-a`` with ``--control pi``, say) instead of
-    silently ignored."""
-    from pmsmjax import presets
-    from pmsmjax.io.drive_files import DriveSpec
-    from pmsmjax.presets.control_methods import control_drive, control_options
-    from pmsmjax.presets.user_drive import spec_drive
+def options_from_flags(args, spec) -> dict:
+    """The preset options the user set by flag for ``args.control`` on ``args.machine`` (flags left unset
+    keep the drive file's values and the preset's defaults). A flag that does not apply to the chosen
+    control is refused (``--band-a`` with ``--control pi``, say) instead of silently ignored.
 
-    spec = drive if isinstance(drive, DriveSpec) else None
-    allowed = control_options(args.control)
+    Args:
+        args: the parsed flags.
+        spec: the drive file (its current-loop bandwidth sets field weakening's), or None for the book
+            drive's defaults.
+
+    Returns:
+        ``{option: value}`` for :func:`pmsmjax.assemble.assemble`.
+    """
+    if args.machine in MULTIPHASE_NAMES:
+        options = {}
+        for flag, option in SIX_PHASE_FLAG_OPTIONS.items():
+            value = getattr(args, flag, None)
+            if value is not None and value is not False:
+                options[option] = False if flag == "no_delay" else value
+        return options
+    allowed = registry.method("control", args.control, what="control").options
     options = {}
     for flag, option in FLAG_OPTIONS.items():
         value = getattr(args, flag, None)
@@ -179,7 +169,7 @@ def control_drive_from_flags(args, drive):
         if flag == "current_limit" and spec is not None:
             continue  # already in the spec (drive_spec's max_current_a override)
         if option not in allowed:
-            fits = [c for c in CONTROL_NAMES if option in control_options(c)]
+            fits = [c for c in CONTROL_NAMES if option in registry.method("control", c).options]
             raise ParameterError(
                 f"--{flag.replace('_', '-')} does not apply to --control {args.control}: drop it, or choose "
                 f"--control {' or '.join(fits)}."
@@ -189,14 +179,14 @@ def control_drive_from_flags(args, drive):
         elif flag == "sample_period_us":
             value = value * 1e-6
         elif flag == "field_weakening":
+            from pmsmjax.presets import BOOK_CURRENT_BANDWIDTH, field_weakening_block
+
             bandwidth = getattr(args, "current_bandwidth", None) or (
-                presets.BOOK_CURRENT_BANDWIDTH if spec is None else spec.control["current_bandwidth_rad_s"]
+                BOOK_CURRENT_BANDWIDTH if spec is None else spec.control["current_bandwidth_rad_s"]
             )
-            value = presets.field_weakening_block(bandwidth)
+            value = field_weakening_block(bandwidth)
         options[option] = value
-    if spec is None:
-        return control_drive(args.control, drive, **options)
-    return spec_drive(spec, args.control, **options)
+    return options
 
 
 def add_parser(sub):
@@ -395,33 +385,25 @@ def run(args) -> int:
     import jax
     import numpy as np
 
-    from pmsmjax import presets
     from pmsmjax.analysis.operating_point import run_flags
     from pmsmjax.analysis.speed_step_summary import speed_step_summary
+    from pmsmjax.assemble import assemble, spec_scenario
     from pmsmjax.io.logs import atomic_write, write_csv_atomic
     from pmsmjax.plotting.traces import save_demo_figures
-    from pmsmjax.presets.user_drive import (
-        spec_motor,
-        spec_scenario,
-        startup_options,
-        with_map_aware_estimator,
-    )
     from pmsmjax.simulate import check_simulation, simulate
     from pmsmjax.trace import COLUMN_UNITS
 
     out = checks.output_folder(args.out)
     six_phase = args.machine in MULTIPHASE_NAMES  # six- or five-phase
     try:
-        if six_phase:
-            drive = six_phase_drive_from_flags(args, spec)
-        else:
-            drive = control_drive_from_flags(args, spec)
-        if args.estimator:  # three-phase only (check_machine_flags); the drive file's I/f start
-            drive = presets.with_observer(
-                drive, args.estimator, spec_motor(spec), startup_options=startup_options(spec)
-            )
-            if "flux_map" in spec.motor and args.observer_model != "constant":
-                drive = with_map_aware_estimator(spec, drive)
+        drive = assemble(
+            spec,
+            args.control,
+            machine=args.machine,
+            options=options_from_flags(args, spec),
+            estimator=args.estimator,  # three-phase only (check_machine_flags); the drive file's I/f start
+            observer_model=args.observer_model or "map",
+        )
         # after the observer is in: a gains.toml of pmsmjax tune --estimator names estimator.observer.*
         drive = apply_gains_flag(drive, read_gains_flag(args.gains), args.control)
         scenario = spec_scenario(spec, args.speed_rpm, args.load_nm, args.load_time_s, args.duration_s)

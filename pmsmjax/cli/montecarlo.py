@@ -7,8 +7,8 @@ import sys
 import textwrap
 
 from pmsmjax.cli import checks, drive_flags
-from pmsmjax.cli.demo import ESTIMATOR_NAMES
 from pmsmjax.cli.gains import add_gains_flag, read_gains_flag
+from pmsmjax.spec import registry
 from pmsmjax.spec.validation import ParameterError
 
 #: The study TOML, as ``pmsmjax montecarlo --help`` shows it (the layout of tuning/montecarlo/study.py).
@@ -90,7 +90,7 @@ def add_parser(sub):
     add_gains_flag(p)
     p.add_argument(
         "--estimator",
-        choices=list(ESTIMATOR_NAMES),
+        choices=list(registry.names("estimator", group="observer")),
         help="sensorless study: run on this chapter 5 observer with the I/f start, the plant's R, L, psi_f "
         "drawn against the observer's nominal model (default: the exact sensor)",
     )

@@ -128,10 +128,10 @@ def run(args) -> int:
     import numpy as np
 
     from pmsmjax.analysis.observer_errors import error_statistics
+    from pmsmjax.assemble import spec_motor
     from pmsmjax.estimators.registry import INJECTION_OBSERVERS, check_observer_name, make_observer
     from pmsmjax.frames.three_phase import wrap_angle
     from pmsmjax.io.logs import atomic_write, check_output_folder, write_csv_atomic
-    from pmsmjax.presets.user_drive import spec_motor
     from pmsmjax.recorded.offline_observer import observe
 
     # The command line is the one place where pmsmjax reaches up into the tuning workflows (the log reader

@@ -172,9 +172,9 @@ def run(args) -> int:
 
     import numpy as np
 
+    from pmsmjax.assemble import spec_drive
     from pmsmjax.io.logs import atomic_write
     from pmsmjax.jobs.pwm_comparison import CompareSettings, compare
-    from pmsmjax.presets.user_drive import spec_drive
 
     settings = CompareSettings(
         speed_rpm=args.speed_rpm,

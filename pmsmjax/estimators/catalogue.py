@@ -6,67 +6,44 @@ Each name maps to the design rule that builds the estimator from a motor and the
 are the design rule's keyword arguments (e.g. ``switching="sign"``, ``pll_bandwidth=500.0``,
 ``model=...`` for an observer whose motor model differs from the plant's; ``hf_voltage`` (V) and
 ``hf_frequency`` (Hz) for the injection estimators). The estimators built from these (the whole-speed-range
-hybrid, :mod:`.hybrid`) and the registry of every name (:mod:`.registry`) sit above this module.
+hybrid, :mod:`.hybrid`) and the estimators' registry (:mod:`.registry`) sit above this module; names,
+descriptions and options are :mod:`pmsmjax.spec.registry`'s.
 """
 
 import difflib
 import functools
-import inspect
 
-from pmsmjax.estimators.adaptive_smo import adaptive_smo_design
 from pmsmjax.estimators.base import AbstractEstimator
-from pmsmjax.estimators.dq_smo import dq_smo_design
-from pmsmjax.estimators.ekf import ekf_design
-from pmsmjax.estimators.hfi_pulsating import hfi_pulsating_design
-from pmsmjax.estimators.hfi_rotating import hfi_rotating_design
-from pmsmjax.estimators.mras import mras_design
-from pmsmjax.estimators.smo import smo_design
 from pmsmjax.machines.motor import PMSMParameters
+from pmsmjax.spec.registry import REGISTRY, load_factory
 from pmsmjax.spec.validation import ParameterError
 
-#: Observer name -> (design rule ``f(motor, Ts, **options)``, one-line description).
-OBSERVERS = {
-    "smo": (
-        functools.partial(smo_design, angle="arctan"),
-        "classic SMO in alpha-beta, sigmoid switching, back-EMF low-pass, arctan + exact lag compensation",
-    ),
-    "smo-pll": (
-        functools.partial(smo_design, angle="pll"),
-        "classic SMO in alpha-beta, sigmoid switching, back-EMF low-pass, PLL + exact lag compensation",
-    ),
-    "adaptive-smo": (
-        adaptive_smo_design,
-        "SMO with an adaptive back-EMF model (speed adaptation, no low-pass)",
-    ),
-    "dq-smo": (
-        dq_smo_design,
-        "SMO in the estimated rotating frame on the extended EMF, PLL on E_d (salient)",
-    ),
-    "mras": (mras_design, "MRAS: current model as adjustable model, Popov PI speed adaptation"),
-    "ekf": (ekf_design, "extended Kalman filter, state [i_alpha, i_beta, w_e, theta_e]"),
-}
+
+def _design_rules(group: str) -> dict:
+    """``{name: (design rule, description)}`` of the registry's estimators of ``group``."""
+    table = {}
+    for entry in REGISTRY:
+        if entry.kind == "estimator" and entry.group == group:
+            rule = load_factory(entry)
+            table[entry.name] = (functools.partial(rule, **dict(entry.fixed)) if entry.fixed else rule,
+                                 entry.description)  # fmt: skip
+    return table
+
+
+#: Observer name -> (design rule ``f(motor, Ts, **options)``, one-line description): the chapter 5
+#: back-EMF observers of :data:`pmsmjax.spec.registry.REGISTRY`.
+OBSERVERS = _design_rules("observer")
 
 #: The HF-injection estimators of chapter 6, same form. Kept apart from :data:`OBSERVERS` (the chapter 5
 #: fundamental-model observers, which the chapter 5 studies, benchmarks and ``demo --estimator`` iterate
 #: over on the surface book motor): these need a salient machine and give the d axis modulo pi.
-INJECTION_OBSERVERS = {
-    "hfi-rotating": (
-        hfi_rotating_design,
-        "rotating HF injection (salient machines, standstill and low speed; angle modulo pi)",
-    ),
-    "hfi-pulsating": (
-        hfi_pulsating_design,
-        "pulsating HF injection on the estimated d axis (salient machines; angle modulo pi)",
-    ),
-}
+INJECTION_OBSERVERS = _design_rules("injection")
 
 
 def options_of(table: dict, name: str) -> tuple[str, ...]:
-    """Keyword options the design rule of ``name`` in ``table`` accepts."""
-    rule = table[name][0]
-    fixed = rule.keywords if isinstance(rule, functools.partial) else {}
-    params = inspect.signature(rule).parameters
-    return tuple(p for p, v in params.items() if v.kind == v.KEYWORD_ONLY and p not in fixed)
+    """Keyword options the design rule of ``name`` in ``table`` accepts (declared in the registry)."""
+    check_name(table, name)
+    return next(m.options for m in REGISTRY if m.kind == "estimator" and m.name == name)
 
 
 def check_name(table: dict, name: str, what: str = "observer") -> None:

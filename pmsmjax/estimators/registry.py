@@ -11,6 +11,7 @@ from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.catalogue import INJECTION_OBSERVERS, OBSERVERS, build, check_name, options_of
 from pmsmjax.estimators.hybrid import hybrid_design
 from pmsmjax.machines.motor import PMSMParameters
+from pmsmjax.spec.registry import method
 
 __all__ = [
     "HYBRID_OBSERVERS",
@@ -24,12 +25,7 @@ __all__ = [
 #: Whole-speed-range estimators (chapter 6 with chapter 5), same form as :data:`OBSERVERS`; apart from
 #: :data:`INJECTION_OBSERVERS` because they are no modulo-pi injection estimators (studies of those
 #: iterate over that registry), though they inject a carrier at low speed.
-HYBRID_OBSERVERS = {
-    "hybrid": (
-        hybrid_design,
-        "HF injection (with start-up polarity pulses) below a crossover band, EKF above: whole speed range",
-    ),
-}
+HYBRID_OBSERVERS = {"hybrid": (hybrid_design, method("estimator", "hybrid").description)}
 
 #: Every name, in the order a refusal lists them.
 _EVERY = {**OBSERVERS, **INJECTION_OBSERVERS, **HYBRID_OBSERVERS}

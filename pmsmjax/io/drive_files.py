@@ -142,7 +142,9 @@ class DriveSpec:
     - `tolerances`: relative half-widths (only those the file gives);
     - `control`, `scenario`, `tuning`: as the file's tables, complete;
     - `derived`: ``{"table.key": how}`` for every value the file left out;
-    - `notes`: what a user should know about the drive (a rated point that needs field weakening).
+    - `notes`: what a user should know about the drive (a rated point that needs field weakening);
+    - `flux_map`: the ``[motor] flux_map`` grid as read once
+      (:class:`~pmsmjax.machines.flux_map.FluxMapGrid`), None without one.
     """
 
     source: str
@@ -156,6 +158,7 @@ class DriveSpec:
     tuning: dict
     derived: dict
     notes: tuple = ()
+    flux_map: object = dataclasses.field(default=None, compare=False, repr=False)
 
     @property
     def n_phases(self) -> int:
@@ -255,9 +258,9 @@ def read_drive_file(
     tables = _split_tables(data, where)
     for table, values in tables.items():
         _check_keys(table, values, where)
-    flux_map_derived = {}
+    flux_map_derived, grid = {}, None
     if "flux_map" in tables["motor"]:
-        flux_map_derived = _flux_map_motor(tables["motor"], tables["ratings"], path, where)
+        flux_map_derived, grid = _flux_map_motor(tables["motor"], tables["ratings"], path, where)
     motor = _read_motor(tables["motor"], where, n_phases)
     trust = tables["motor"].get("trust_units", False)
     ratings = _numbers(tables["ratings"], "ratings", where)
@@ -337,7 +340,7 @@ def read_drive_file(
             )
     return DriveSpec(
         str(source if source is not None else path), motor, ratings, inverter, sensor, tolerances, control,
-        scenario, tuning, derived, tuple(notes),
+        scenario, tuning, derived, tuple(notes), grid,
     )  # fmt: skip
 
 
@@ -460,7 +463,8 @@ FLUX_MAP_DERIVES = ("L_d", "L_q", "psi_f")
 
 def _flux_map_motor(values: dict, ratings: dict, path: Path, where: str) -> dict:
     """Read ``[motor] flux_map`` and put the map's linear model (module docstring) into ``values`` where the
-    file leaves it out; the map's absolute path replaces the relative one. Returns the derivation notes."""
+    file leaves it out; the map's absolute path replaces the relative one. Returns the derivation notes
+    and the map."""
     from pmsmjax.io.flux_map_files import read_flux_map
 
     name = values["flux_map"]
@@ -493,7 +497,7 @@ def _flux_map_motor(values: dict, ratings: dict, path: Path, where: str) -> dict
             values[key] = linear[key]
             derived[f"motor.{key}"] = how[key]
     values["flux_map"] = str(map_path)
-    return derived
+    return derived, grid
 
 
 def _read_motor(values: dict, where: str, n_phases: int | None) -> dict:

@@ -133,10 +133,10 @@ def compared_drive(
     three-phase machine, the six- or five-phase presets' schemes (``vsd``, ...) for ``machine``; ``motor``
     is then a :class:`pmsmjax.machines.MultiPhaseParameters` (None: the preset's rewind of the book motor).
     With a drive file ``spec`` (:class:`pmsmjax.io.drive_files.DriveSpec`) instead of ``motor``: its drive
-    (:func:`pmsmjax.presets.user_drive.spec_drive`; a multi-phase switching bridge with the file's dead
+    (:func:`pmsmjax.assemble.spec_drive`; a multi-phase switching bridge with the file's dead
     time)."""
     if spec is not None:
-        from pmsmjax.presets.user_drive import spec_drive
+        from pmsmjax.assemble import spec_drive
 
         if machine != "three-phase":
             return spec_drive(spec, name, bridge=bridge)

@@ -30,9 +30,6 @@ _THREE_PHASE = (
     "field_weakening_drive",
     "field_weakening_block",
     "pr_drive",
-    "sensorless_drive",
-    "with_observer",
-    "STARTUP_DEFAULTS",
     "book_scenario",
     "load_motor",
     "DTC_SAMPLE_PERIOD_S",
@@ -43,20 +40,25 @@ _THREE_PHASE = (
     "dtc_drive",
     "smc_dtc_drive",
 )
+#: Sensorless drives are assembled (:mod:`pmsmjax.assemble`); their names stay here, where users find the
+#: book's drives.
+_ASSEMBLED = ("sensorless_drive", "with_observer", "STARTUP_DEFAULTS")
 #: Public name -> (module, attribute), the layout of ``pmsmjax._LAZY``.
 _LAZY = {
     **{name: ("book_constants", name) for name in _BOOK_CONSTANTS},
     **{name: ("three_phase", name) for name in _THREE_PHASE},
+    **{name: ("..assemble", name) for name in _ASSEMBLED},
 }
 
-__all__ = [*_BOOK_CONSTANTS, *_THREE_PHASE]
+__all__ = [*_BOOK_CONSTANTS, *_THREE_PHASE, *_ASSEMBLED]
 
 
 def __getattr__(name):
     if name not in _LAZY:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     module, attr = _LAZY[name]
-    value = getattr(importlib.import_module(f"{__name__}.{module}"), attr)
+    path = "pmsmjax.assemble" if module == "..assemble" else f"{__name__}.{module}"
+    value = getattr(importlib.import_module(path), attr)
     globals()[name] = value
     return value
 

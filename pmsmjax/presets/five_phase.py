@@ -65,6 +65,7 @@ from pmsmjax.presets.six_phase import (
     read_multiphase_motor_file,
 )
 from pmsmjax.presets.three_phase import PR_W_C, book_motor
+from pmsmjax.spec.registry import REGISTRY
 from pmsmjax.spec.validation import ParameterError
 
 __all__ = [
@@ -149,11 +150,9 @@ FIVE_PHASE_PWMS = {
     "large-vector": _large,
 }
 
-#: Control schemes (the book, ch. 10): name -> one-line description.
+#: Control schemes by name -> one-line description (:data:`pmsmjax.spec.registry.REGISTRY`).
 FIVE_PHASE_CONTROLS = {
-    "vsd": "i_d = 0 vector control: dq PIs and x-y PIs (3 theta_e frame), PI speed loop (ch. 10)",
-    "conventional": "dq PIs only, x-y voltage zero (open loop), PI speed loop (ch. 10)",
-    "pr": "stationary-frame PR on alpha-beta and x-y (resonant at w_e: phase unbalance), PI speed loop",
+    m.name: m.description for m in REGISTRY if m.kind == "control" and "five-phase" in m.machines
 }
 
 

@@ -60,6 +60,7 @@ from pmsmjax.presets.book_constants import (
     BOOK_TS,
 )
 from pmsmjax.presets.three_phase import PR_W_C, book_motor
+from pmsmjax.spec.registry import REGISTRY
 from pmsmjax.spec.validation import ParameterError
 
 if sys.version_info >= (3, 11):
@@ -185,12 +186,9 @@ SIX_PHASE_PWMS = {
     "double-zs": _double_zs,
 }
 
-#: Control schemes (the book, ch. 9): name -> one-line description.
+#: Control schemes by name -> one-line description (:data:`pmsmjax.spec.registry.REGISTRY`).
 SIX_PHASE_CONTROLS = {
-    "vsd": "VSD: dq PIs and z1-z2 PIs (counter-rotating frame), PI speed loop (ch. 9)",
-    "double-dq": "double dq: four PIs with cross-coupling compensation, PI speed loop (ch. 9)",
-    "conventional": "dq PIs only, z1-z2 voltage zero (open loop), PI speed loop (ch. 9)",
-    "pr": "stationary-frame PR on alpha-beta and z1-z2, PI speed loop (ch. 9)",
+    m.name: m.description for m in REGISTRY if m.kind == "control" and "six-phase" in m.machines
 }
 
 

@@ -282,69 +282,6 @@ def pr_drive(
     return eqx.tree_at(lambda d: d.controller.current, drive, current)
 
 
-def sensorless_drive(
-    observer_name: str,
-    motor: PMSMParameters | None = None,
-    *,
-    observer_options: dict | None = None,
-    observer_model: PMSMParameters | None = None,
-    startup: bool = False,
-    startup_options: dict | None = None,
-    **kw,
-) -> Drive:
-    """:func:`book_drive` with the chapter 5 observer ``observer_name`` (``smo``, ``smo-pll``,
-    ``adaptive-smo``, ``dq-smo``, ``mras``, ``ekf``; the HF-injection estimators ``hfi-rotating``,
-    ``hfi-pulsating`` of chapter 6 on a salient motor; :data:`pmsmjax.estimators.OBSERVERS`) in place of the
-    exact sensor: the controller runs on the estimate, and the trace's ``theta_e_est``/``omega_m_est`` are
-    the observer's.
-
-    The observer gets its design-rule gains for ``observer_model`` (default ``motor``: no plant/model
-    mismatch) at the drive's period, overridden by ``observer_options`` (its design rule's keywords);
-    unstable gains are refused. ``kw`` go to :func:`book_drive`. This swaps the estimator only: the drive
-    starts with the observer cold, so it suits runs that start at speed or take over from another
-    estimator; ``startup=True`` wraps the observer in the I/f start from standstill
-    (:class:`pmsmjax.estimators.startup.StartupEstimator`, defaults :data:`STARTUP_DEFAULTS`, overridden
-    by ``startup_options``).
-    """
-    motor = book_motor() if motor is None else motor
-    drive = book_drive(motor, **kw)
-    model = motor if observer_model is None else observer_model
-    return with_observer(drive, observer_name, model, observer_options, startup, startup_options)
-
-
-def with_observer(
-    drive: Drive,
-    observer_name: str,
-    model: PMSMParameters,
-    observer_options: dict | None = None,
-    startup: bool = True,
-    startup_options: dict | None = None,
-) -> Drive:
-    """``drive`` with the chapter 5 observer ``observer_name`` (design rule for ``model`` at the drive's
-    period, overridden by ``observer_options``) as its estimator, wrapped in the I/f start from standstill
-    if ``startup`` (:data:`STARTUP_DEFAULTS` overridden by ``startup_options``). The controller must be a
-    :class:`~pmsmjax.controllers.FOC` (it holds the start-up current)."""
-    from pmsmjax.estimators.registry import HYBRID_OBSERVERS, INJECTION_OBSERVERS, make_observer
-
-    observer_options = dict(observer_options or {})
-    if observer_name in INJECTION_OBSERVERS or observer_name in HYBRID_OBSERVERS:
-        # the carrier's phase at the sampling instant depends on when the drive applies the command
-        observer_options.setdefault("delay_periods", 1.5 if drive.computation_delay else 0.5)
-    observer = make_observer(observer_name, model, drive.Ts, **observer_options)
-    if startup:
-        from pmsmjax.estimators.startup import StartupEstimator
-
-        opts = {**STARTUP_DEFAULTS, **(startup_options or {})}
-        observer = StartupEstimator(observer, model.pole_pairs, **opts)
-    return eqx.tree_at(lambda d: d.estimator, drive, observer)
-
-
-#: I/f start-up of the book drive (:func:`sensorless_drive` with ``startup=True``): current amplitude
-#: (A; 1.1 N m/A torque constant, J = 0.003 kg m^2), ramp acceleration (mechanical rad/s^2), hand-over
-#: speed and blend span (mechanical rad/s: 150 r/min, then 100 r/min of blend).
-STARTUP_DEFAULTS = dict(i_start=8.0, accel=1000.0, handover_speed=15.7, blend_speed=10.5)
-
-
 def book_scenario(
     speed_rpm: float = BOOK_SPEED_STEP_RPM,
     load_nm: float = BOOK_LOAD_NM,

@@ -378,8 +378,8 @@ def replay_file(
     if unused and report is not None:
         report.append(f"columns not used: {', '.join(unused)}")
     mot = load_motor(motor, check_units=check_units)
+    from pmsmjax.assemble import spec_flux_map
     from pmsmjax.io.drive_files import drive_spec
-    from pmsmjax.presets.user_drive import spec_flux_map
 
     flux_map = spec_flux_map(drive_spec(motor, check_units=check_units))  # None without [motor] flux_map
     log["time"] = log["time"] * TIME_UNITS[time_unit]

@@ -470,13 +470,14 @@ def test_demo_runs_each_dtc_variant(control, tmp_path):
 
 
 def test_demo_dtc_flags_reach_the_preset_and_others_are_refused(tmp_path, capsys):
-    from pmsmjax.cli.demo import control_drive_from_flags
+    from pmsmjax.cli.demo import options_from_flags
+    from pmsmjax.presets.control_methods import control_drive
 
     class Args:
-        control = "dtc"
+        machine, control = "three-phase", "dtc"
         torque_band_nm, flux_band_wb, sample_period_us = 0.5, 0.004, 40.0
 
-    drive = control_drive_from_flags(Args(), MOTOR)
+    drive = control_drive("dtc", MOTOR, **options_from_flags(Args(), None))
     assert drive.Ts == pytest.approx(40e-6)
     assert float(drive.controller.torque_band_nm) == 0.5 and float(drive.controller.flux_band_wb) == 0.004
     assert main(["demo", "--control", "smc-dtc", "--torque-band-nm", "1", "--out", str(tmp_path / "x")]) == 2

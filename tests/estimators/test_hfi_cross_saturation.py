@@ -17,6 +17,7 @@ import pytest
 
 from pmsmjax import presets
 from pmsmjax.analysis.observer_errors import angle_error_modulo_pi
+from pmsmjax.assemble import spec_drive, spec_flux_map, spec_motor
 from pmsmjax.estimators import INJECTION_OBSERVERS
 from pmsmjax.estimators.hfi_cross_saturation import (
     cross_saturation_compensated,
@@ -29,7 +30,6 @@ from pmsmjax.io.flux_map_files import read_flux_map
 from pmsmjax.machines.flux_map import FluxMapGrid
 from pmsmjax.machines.motor import PMSMParameters
 from pmsmjax.machines.pmsm_flux_map import FluxMap, flux_map_machine
-from pmsmjax.presets.user_drive import spec_drive, spec_flux_map, spec_motor
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.simulate import simulate
 

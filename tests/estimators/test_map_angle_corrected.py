@@ -15,9 +15,7 @@ import pytest
 
 from pmsmjax import presets
 from pmsmjax.analysis.observer_errors import angle_error
-from pmsmjax.estimators.map_angle_corrected import model_flux_angle
-from pmsmjax.io.drive_files import drive_spec
-from pmsmjax.presets.user_drive import (
+from pmsmjax.assemble import (
     spec_drive,
     spec_flux_map,
     spec_motor,
@@ -25,6 +23,8 @@ from pmsmjax.presets.user_drive import (
     startup_options,
     with_map_aware_estimator,
 )
+from pmsmjax.estimators.map_angle_corrected import model_flux_angle
+from pmsmjax.io.drive_files import drive_spec
 from pmsmjax.simulate import simulate
 
 SPEC = drive_spec("saturated-ipm")

@@ -17,6 +17,7 @@ import pytest
 
 from pmsmjax import presets
 from pmsmjax.analysis.observer_errors import angle_error
+from pmsmjax.assemble import spec_drive, spec_flux_map, spec_motor
 from pmsmjax.estimators.map_scheduled import (
     SECANT_FLOOR_A,
     constant_model_angle_error,
@@ -25,7 +26,6 @@ from pmsmjax.estimators.map_scheduled import (
 )
 from pmsmjax.io.drive_files import drive_spec
 from pmsmjax.io.flux_map_files import read_flux_map
-from pmsmjax.presets.user_drive import spec_drive, spec_flux_map, spec_motor
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.simulate import simulate
 from pmsmjax.units import rpm_to_rad_s
@@ -72,9 +72,9 @@ def test_constant_model_error_matches_voltage_equation_and_map_removes_it(method
 
 def test_map_aware_wiring_wraps_observer_inside_startup_and_refuses_files_without_a_map():
     from pmsmjax import ParameterError
+    from pmsmjax.assemble import startup_options, with_map_aware_estimator
     from pmsmjax.estimators.hfi_cross_saturation import CrossSaturationCompensated
     from pmsmjax.estimators.map_angle_corrected import MapAngleCorrected
-    from pmsmjax.presets.user_drive import startup_options, with_map_aware_estimator
 
     base = spec_drive(SPEC)
     ekf = presets.with_observer(base, "ekf", MOTOR, startup_options=startup_options(SPEC))

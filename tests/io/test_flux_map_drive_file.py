@@ -8,11 +8,11 @@ import shutil
 import numpy as np
 import pytest
 
+from pmsmjax.assemble import spec_drive
 from pmsmjax.cli import main as pmsmjax
 from pmsmjax.io.drive_files import PRESET_FOLDER, drive_spec
 from pmsmjax.io.flux_map_files import read_flux_map
 from pmsmjax.machines.pmsm_flux_map import PMSMFluxMapdq
-from pmsmjax.presets.user_drive import spec_drive
 from pmsmjax.spec.validation import ParameterError
 
 PRESET = PRESET_FOLDER / "saturated_ipm.toml"

@@ -12,9 +12,9 @@ import pytest
 from controllers.test_flux_map_references import POLE_PAIRS, psi_preset, torque_preset
 
 import pmsmjax
+from pmsmjax.assemble import spec_drive, spec_scenario
 from pmsmjax.controllers.flux_map_references import FluxMapFieldWeakening
 from pmsmjax.io.drive_files import drive_spec
-from pmsmjax.presets.user_drive import spec_drive, spec_scenario
 
 SPEED_RPM, LOAD_NM = 4500.0, 4.0
 VOLTAGE_MARGIN = 0.95  # the field-weakening loop's target share of U_dc / sqrt(3)

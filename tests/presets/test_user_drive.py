@@ -9,11 +9,11 @@ import pytest
 from pmsmjax import presets, simulate
 from pmsmjax.analysis.operating_point import run_flags
 from pmsmjax.analysis.speed_step_summary import speed_step_summary
+from pmsmjax.assemble import spec_drive, spec_scenario, startup_options
 from pmsmjax.io.drive_files import drive_spec, preset_path
 from pmsmjax.presets.control_methods import CONTROLS, control_drive
 from pmsmjax.presets.five_phase import five_phase_drive
 from pmsmjax.presets.six_phase import six_phase_drive
-from pmsmjax.presets.user_drive import spec_drive, spec_scenario, startup_options
 
 EXAMPLE_DRIVES = ("servo-400w", "industrial-5k6w", "outer-rotor-24v")
 

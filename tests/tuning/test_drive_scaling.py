@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from pmsmjax import presets
+from pmsmjax.assemble import spec_drive
 from pmsmjax.estimators.sensored_warmup import SensoredWarmup
 from pmsmjax.io.drive_files import drive_spec
 from pmsmjax.machines.saturation import saturated_machine
 from pmsmjax.presets.control_methods import control_drive
-from pmsmjax.presets.user_drive import spec_drive
 from pmsmjax.units import rad_s_to_rpm
 from tuning.autotune import drive_scaling
 from tuning.autotune.drive_batches import drive_batches

@@ -7,7 +7,7 @@ continues from it and ends at the same result).
 
 The drive (``drive``): a drive file or preset name (:func:`pmsmjax.io.drive_files.drive_spec`, default
 ``book``) or its :class:`~pmsmjax.io.drive_files.DriveSpec`; every drive is built from it by
-:func:`pmsmjax.presets.user_drive.spec_drive`, and every batch from its ``[tuning]`` ranges and control
+:func:`pmsmjax.assemble.spec_drive`, and every batch from its ``[tuning]`` ranges and control
 period (:mod:`tuning.autotune.drive_scaling`). ``--motor book`` gives the book drive and batches bit for
 bit.
 
@@ -51,9 +51,9 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from pmsmjax.assemble import spec_drive
 from pmsmjax.io.drive_files import DriveSpec, drive_spec
 from pmsmjax.io.logs import atomic_write
-from pmsmjax.presets.user_drive import spec_drive
 from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rad_s_to_rpm
 

@@ -54,11 +54,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax import Profile, Scenario, presets, stack_scenarios
+from pmsmjax.assemble import spec_drive, spec_motor
 from pmsmjax.estimators.registry import check_observer_name
 from pmsmjax.estimators.sensored_warmup import SensoredWarmup
 from pmsmjax.io.drive_files import DriveSpec, drive_spec
 from pmsmjax.presets.book_constants import BOOK_TS
-from pmsmjax.presets.user_drive import spec_drive, spec_motor
 from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
 from tuning.autotune.drive_scaling import noise_scale
@@ -166,7 +166,7 @@ def observer_drive(
     **kw,
 ):
     """The FOC drive of the drive file ``spec`` (default the book drive;
-    :func:`pmsmjax.presets.user_drive.spec_drive`) on observer ``name`` (design-rule gains for the
+    :func:`pmsmjax.assemble.spec_drive`) on observer ``name`` (design-rule gains for the
     drive's motor, overridden by ``observer_options``) behind a sensored warm-up of ``warmup_s`` (s), with
     the measurement noise ``NOISE_CURRENT_A``, ``NOISE_VOLTAGE_V`` (scaled to the drive's current limit
     and DC link, :func:`tuning.autotune.drive_scaling.noise_scale`) on the observer's samples unless

@@ -3,7 +3,7 @@
 A study runs the scenario form of the book (speed step from rest to ``speed_rpm`` at t = 0, load step
 0 -> ``load_nm`` at ``load_time_s``, ``duration_s`` long) on the user's drive: a drive file or preset
 (``motor``, :func:`pmsmjax.io.drive_files.drive_spec`) built by
-:func:`pmsmjax.presets.user_drive.spec_drive` at the file's DC link, control rate, current limit and
+:func:`pmsmjax.assemble.spec_drive` at the file's DC link, control rate, current limit and
 bandwidths (optionally with tuned gains from ``pmsmjax tune``). What the study leaves out comes from the
 drive file: the scenario (``[scenario]``), the current limit and with it the failure threshold
 (``[ratings] max_current_a``), the DC link, the bandwidths, and the default tolerances (``[tolerances]``,
@@ -19,7 +19,7 @@ parameter is named by a dotted path:
 
 **Sensorless studies** (``estimator``): the drive runs on a chapter 5 observer
 (:data:`pmsmjax.estimators.OBSERVERS`) with the drive file's I/f start from standstill
-(:func:`pmsmjax.presets.with_observer`, :func:`pmsmjax.presets.user_drive.startup_options`). The
+(:func:`pmsmjax.presets.with_observer`, :func:`pmsmjax.assemble.startup_options`). The
 observer's motor model, like the controller's, is the *nominal* motor; the ``motor.*`` parameters perturb
 the *plant*, so every draw is a plant/model mismatch as on a drive whose motor differs from its data
 sheet. The default set is then :data:`SENSORLESS_TOLERANCES` (R +-30 %, L_d and L_q +-20 % each, drawn
@@ -300,10 +300,10 @@ def default_tolerances(spec: DriveSpec) -> dict[str, float]:
 
 
 def build_drive(study: Study) -> Drive:
-    """The nominal drive of ``study``: the drive file's drive (:func:`pmsmjax.presets.user_drive.spec_drive`)
+    """The nominal drive of ``study``: the drive file's drive (:func:`pmsmjax.assemble.spec_drive`)
     with the study's bandwidths and sub-steps, tuned gains if given, and the observer with the file's
     I/f start for a sensorless study."""
-    from pmsmjax.presets.user_drive import spec_drive, startup_options
+    from pmsmjax.assemble import spec_drive, startup_options
 
     spec = study.spec
     options = dict(
