@@ -1,6 +1,6 @@
 """The hybrid estimator's reference table and the contrasts behind its design.
 
-Runs (:mod:`pmsmjax.presets.hybrid_runs`): the book drive on the salient book motor with d-axis saturation,
+Runs (:mod:`pmsmjax.jobs.hybrid_runs`): the book drive on the salient book motor with d-axis saturation,
 sensorless with the hybrid from standstill at 8 initial rotor angles (every 45 degrees, so the injection
 alone locks to the wrong pole for about half), through
 
@@ -20,7 +20,7 @@ import argparse
 import jax
 import numpy as np
 
-from pmsmjax.presets.hybrid_runs import hybrid_book_drive, hybrid_scenarios, run_from_angles, summary
+from pmsmjax.jobs.hybrid_runs import hybrid_book_drive, hybrid_scenarios, run_from_angles, summary
 
 VARIANTS = {
     "default: ekf 50/150/250 r/min": {},

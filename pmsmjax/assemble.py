@@ -30,6 +30,7 @@ from pmsmjax.spec.validation import ParameterError
 __all__ = [
     "assemble",
     "with_parts",
+    "part",
     "drive_options",
     "inverter_error_parts",
     "flux_map_parts",
@@ -76,20 +77,22 @@ def with_parts(drive: Drive, parts: Mapping[str, object]) -> Drive:
     if not parts:
         return drive
     paths = list(parts)
-
-    def get(d):
-        found = []
-        for path in paths:
-            node = d
-            for name in path.split("."):
-                node = getattr(node, name)
-            found.append(node)
-        return found
-
-    new = eqx.tree_at(get, drive, list(parts.values()), is_leaf=lambda x: x is None)
+    new = eqx.tree_at(lambda d: [part(d, p) for p in paths], drive, list(parts.values()), is_leaf=_is_none)
     if "bridge" in parts:
         new.bridge.check_period(new.Ts)
     return new
+
+
+def _is_none(x) -> bool:
+    return x is None
+
+
+def part(tree, path: str):
+    """The part of ``tree`` (a drive, or one of its blocks) at the dotted ``path``
+    (``"controller.speed.kp"``)."""
+    for name in path.split("."):
+        tree = getattr(tree, name)
+    return tree
 
 
 def drive_options(spec, control: str = "pi", machine: str = "three-phase") -> dict:

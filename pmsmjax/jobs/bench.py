@@ -36,6 +36,7 @@ import numpy as np
 
 from pmsmjax.analysis.gradients import value_and_grad
 from pmsmjax.analysis.metrics import itae
+from pmsmjax.assemble import part, with_parts
 from pmsmjax.drive import Drive
 from pmsmjax.presets.three_phase import book_drive, book_scenario
 from pmsmjax.scenarios import Scenario, stack_scenarios
@@ -128,28 +129,28 @@ REQUIRED_KEYS = (
 # Every array leaf of the book drive, in the order subsets are taken for the forward/reverse comparison:
 # the 7 controller gains, the plant's motor parameters, then the rest (limits, the controller's model;
 # FOC does not use the model's J and B, so their gradients are zero, but they are still carried).
-PARAMETERS: dict[str, Callable[[Drive], jax.Array]] = {
-    "speed.kp": lambda d: d.controller.speed.kp,
-    "speed.ki": lambda d: d.controller.speed.ki,
-    "speed.active_damping": lambda d: d.controller.speed.active_damping,
-    "current.kp_d": lambda d: d.controller.current.kp_d,
-    "current.kp_q": lambda d: d.controller.current.kp_q,
-    "current.ki_d": lambda d: d.controller.current.ki_d,
-    "current.ki_q": lambda d: d.controller.current.ki_q,
-    "motor.R": lambda d: d.machine.motor.R,
-    "motor.L_d": lambda d: d.machine.motor.L_d,
-    "motor.L_q": lambda d: d.machine.motor.L_q,
-    "motor.psi_f": lambda d: d.machine.motor.psi_f,
-    "motor.J": lambda d: d.machine.motor.J,
-    "motor.B": lambda d: d.machine.motor.B,
-    "current_limit": lambda d: d.controller.current_limit,
-    "bridge.u_dc": lambda d: d.bridge.u_dc,
-    "model.R": lambda d: d.controller.model.R,
-    "model.L_d": lambda d: d.controller.model.L_d,
-    "model.L_q": lambda d: d.controller.model.L_q,
-    "model.psi_f": lambda d: d.controller.model.psi_f,
-    "model.J": lambda d: d.controller.model.J,
-    "model.B": lambda d: d.controller.model.B,
+PARAMETERS: dict[str, str] = {
+    "speed.kp": "controller.speed.kp",
+    "speed.ki": "controller.speed.ki",
+    "speed.active_damping": "controller.speed.active_damping",
+    "current.kp_d": "controller.current.kp_d",
+    "current.kp_q": "controller.current.kp_q",
+    "current.ki_d": "controller.current.ki_d",
+    "current.ki_q": "controller.current.ki_q",
+    "motor.R": "machine.motor.R",
+    "motor.L_d": "machine.motor.L_d",
+    "motor.L_q": "machine.motor.L_q",
+    "motor.psi_f": "machine.motor.psi_f",
+    "motor.J": "machine.motor.J",
+    "motor.B": "machine.motor.B",
+    "current_limit": "controller.current_limit",
+    "bridge.u_dc": "bridge.u_dc",
+    "model.R": "controller.model.R",
+    "model.L_d": "controller.model.L_d",
+    "model.L_q": "controller.model.L_q",
+    "model.psi_f": "controller.model.psi_f",
+    "model.J": "controller.model.J",
+    "model.B": "controller.model.B",
 }
 CONTROLLER_GAINS = tuple(PARAMETERS)[:7]
 
@@ -230,13 +231,12 @@ def batch_of_scenarios(n: int, duration_s: float, seed: int = 0) -> Scenario:
 
 def get_parameters(drive: Drive, names) -> dict[str, jax.Array]:
     """The named leaves of ``drive`` (keys of :data:`PARAMETERS`) as a dict of scalar arrays."""
-    return {name: PARAMETERS[name](drive) for name in names}
+    return {name: part(drive, PARAMETERS[name]) for name in names}
 
 
 def with_parameters(drive: Drive, params: dict[str, jax.Array]) -> Drive:
     """``drive`` with the named leaves replaced by the values in ``params``."""
-    getters = [PARAMETERS[name] for name in params]
-    return eqx.tree_at(lambda d: [g(d) for g in getters], drive, list(params.values()))
+    return with_parts(drive, {PARAMETERS[name]: value for name, value in params.items()})
 
 
 def speed_itae(drive: Drive, scenario: Scenario) -> jax.Array:

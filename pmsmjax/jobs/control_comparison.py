@@ -30,7 +30,6 @@ import dataclasses
 import math
 import re
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -42,6 +41,7 @@ from pmsmjax.analysis.operating_point import run_flags
 from pmsmjax.analysis.spectra import sampled_spectrum, thd
 from pmsmjax.analysis.speed_step_summary import speed_step_summary
 from pmsmjax.analysis.within_period import dense_window
+from pmsmjax.assemble import with_parts
 from pmsmjax.drive import Drive
 from pmsmjax.frames.three_phase import inverse_park
 from pmsmjax.inverters.switching import SwitchingBridge
@@ -147,7 +147,7 @@ def compared_drive(
     else:
         drive = control_drive(name, motor)
     if bridge == "switching" and drive.controller.command_kind == "voltage":
-        drive = eqx.tree_at(lambda d: d.bridge, drive, SwitchingBridge(drive.bridge.u_dc))
+        drive = with_parts(drive, {"bridge": SwitchingBridge(drive.bridge.u_dc)})
     return drive
 
 
@@ -364,7 +364,7 @@ def observer_drive(
     for ``motor``) and the I/f start from standstill, on ``bridge``."""
     drive = presets.sensorless_drive(name, motor, startup=startup)
     if bridge == "switching":
-        drive = eqx.tree_at(lambda d: d.bridge, drive, SwitchingBridge(drive.bridge.u_dc))
+        drive = with_parts(drive, {"bridge": SwitchingBridge(drive.bridge.u_dc)})
     return drive
 
 
@@ -375,7 +375,7 @@ def low_speed_sweep(drive: Drive, sweep: LowSpeedSweep = LowSpeedSweep(), r_fact
     from pmsmjax.scenarios import stack_scenarios
 
     if r_factor != 1.0:
-        drive = eqx.tree_at(lambda d: d.machine.motor.R, drive, drive.machine.motor.R * r_factor)
+        drive = with_parts(drive, {"machine.motor.R": drive.machine.motor.R * r_factor})
 
     scenarios = [sweep.scenario(s) for s in sweep.speeds_rpm]
     check_simulation(drive, scenarios[0])
@@ -461,7 +461,7 @@ def check_estimator_scenario(names, scenario: str) -> None:
 def estimator_scenario(scenario: str, load_nm: float):
     """The fixed chapter 6 scenarios of :data:`ESTIMATOR_SCENARIOS` (all but ``book``) with the load
     ``load_nm`` (N m; ``reversal`` keeps its 5 N m)."""
-    from pmsmjax.presets.hybrid_runs import hybrid_scenarios
+    from pmsmjax.jobs.hybrid_runs import hybrid_scenarios
     from pmsmjax.scenarios import Profile, Scenario
     from pmsmjax.units import rpm_to_rad_s
 
@@ -484,9 +484,9 @@ def chapter6_drive(name: str, motor: PMSMParameters | None = None, bridge: str =
 
     motor = presets.book_motor(salient=True) if motor is None else motor
     drive = presets.sensorless_drive(name, motor, startup=False)
-    drive = eqx.tree_at(lambda d: d.machine, drive, saturated_machine(motor))
+    drive = with_parts(drive, {"machine": saturated_machine(motor)})
     if bridge == "switching":
-        drive = eqx.tree_at(lambda d: d.bridge, drive, SwitchingBridge(drive.bridge.u_dc))
+        drive = with_parts(drive, {"bridge": SwitchingBridge(drive.bridge.u_dc)})
     return drive
 
 

@@ -17,11 +17,11 @@ the target or, failing that, at the closest run; the report says how close it go
 
 import math
 
-import equinox as eqx
 import jax
 import numpy as np
 
 from pmsmjax.analysis import metrics
+from pmsmjax.assemble import part, with_parts
 from pmsmjax.controllers.dtc import SwitchingTableDTC
 from pmsmjax.controllers.hysteresis import HysteresisCurrentControl
 from pmsmjax.drive import Drive
@@ -49,9 +49,8 @@ def _band_names(drive: Drive) -> tuple[str, ...]:
 
 def scale_bands(drive: Drive, factor) -> Drive:
     """``drive`` with every band of its controller (:data:`BAND_LEAVES`) multiplied by ``factor``."""
-    names = _band_names(drive)
-    get = lambda d: [getattr(d.controller, n) for n in names]
-    return eqx.tree_at(get, drive, [x * factor for x in get(drive)])
+    paths = [f"controller.{name}" for name in _band_names(drive)]
+    return with_parts(drive, {path: part(drive, path) * factor for path in paths})
 
 
 def window_switching_frequency_hz(drive: Drive, scenario, window_periods: int) -> float:

@@ -47,6 +47,7 @@ import numpy as np
 from pmsmjax._types import Array
 from pmsmjax.analysis.spectra import piecewise_constant_spectrum, sampled_spectrum, thd
 from pmsmjax.analysis.within_period import dense_window
+from pmsmjax.assemble import with_parts
 from pmsmjax.drive import Drive
 from pmsmjax.frames.multiphase import FIVE_PHASE, SIX_PHASE, PhaseLayout, inverse_vsd, vsd
 from pmsmjax.frames.three_phase import alpha_beta_to_abc
@@ -414,7 +415,7 @@ def compare(settings: CompareSettings = CompareSettings(), base: Drive | None = 
         for bridge_key in settings.bridge_names:
             suffix, bridge = bridges[bridge_key]
             name = mod_name + suffix
-            drive = eqx.tree_at(lambda d: (d.modulator, d.bridge), base, (modulator, bridge))
+            drive = with_parts(base, {"modulator": modulator, "bridge": bridge})
             wave = run_variant(drive, start, settings, per_cycle)
             figures = analyse(wave, settings, base.Ts, u_dc)
             spectra[name] = figures.pop("spectra")

@@ -8,8 +8,6 @@ Drives: :func:`book_drive` (FOC, SVPWM) and :func:`hysteresis_drive` (hysteresis
 
 from pathlib import Path
 
-import equinox as eqx
-
 from pmsmjax.controllers.base import AbstractDAxisReference
 from pmsmjax.controllers.design import current_loop_imc, speed_loop_active_damping
 from pmsmjax.controllers.dtc import SwitchingTableDTC
@@ -93,10 +91,37 @@ def book_drive(
     scenario's ``i_d*``).
     """
     motor = book_motor() if motor is None else motor
+    speed = speed_loop_active_damping(motor, speed_bandwidth)
+    current = current_loop_imc(motor, current_bandwidth)
+    return _foc_drive(
+        motor, speed, current, frame=frame, mechanics=mechanics, mode=mode, current_limit=current_limit,
+        u_dc=u_dc, Ts=Ts, n_substeps=n_substeps, computation_delay=computation_delay,
+        speed_divider=speed_divider, d_axis=d_axis,
+    )  # fmt: skip
+
+
+def _foc_drive(
+    motor: PMSMParameters,
+    speed,
+    current,
+    *,
+    frame: str = "dq",
+    mechanics: str = "dynamic",
+    mode: str = "speed",
+    current_limit: float = BOOK_CURRENT_LIMIT,
+    u_dc: float = BOOK_DC_LINK,
+    Ts: float = BOOK_TS,
+    n_substeps: int = 10,
+    computation_delay: bool = True,
+    speed_divider: int = 1,
+    d_axis: AbstractDAxisReference | None = None,
+) -> Drive:
+    """The FOC drive of :func:`book_drive` with the given speed and current blocks (the variants of the
+    book's cascade: :func:`smc_drive`, :func:`pr_drive`)."""
     controller = FOC(
         model=motor,
-        speed=speed_loop_active_damping(motor, speed_bandwidth),
-        current=current_loop_imc(motor, current_bandwidth),
+        speed=speed,
+        current=current,
         current_limit=current_limit,
         d_axis=d_axis,
         mode=mode,
@@ -132,19 +157,21 @@ def smc_drive(
     eps = 4.2e5 rad/s^3 (10 N m in 10 ms plus friction, 20 % margin), boundary 1.39e3 rad/s^2.
     """
     motor = book_motor() if motor is None else motor
-    drive = book_drive(motor, **drive_kw)
+    kw = dict(drive_kw)
+    kw.pop("speed_bandwidth", None)  # the sliding-mode law replaces the PI speed loop
+    current_bandwidth = kw.pop("current_bandwidth", BOOK_CURRENT_BANDWIDTH)
     speed = smc_design(
         motor,
         time_constant_s,
         reaching_ratio=reaching_ratio,
         load_torque_rate_nm_s=load_torque_rate_nm_s,
-        current_limit_a=drive_kw.get("current_limit", BOOK_CURRENT_LIMIT),
-        current_bandwidth_rad_s=drive_kw.get("current_bandwidth", BOOK_CURRENT_BANDWIDTH),
-        Ts=drive.Ts * drive.controller.speed_divider,
+        current_limit_a=kw.get("current_limit", BOOK_CURRENT_LIMIT),
+        current_bandwidth_rad_s=current_bandwidth,
+        Ts=kw.get("Ts", BOOK_TS) * kw.get("speed_divider", 1),
         margin=margin,
         switching=switching,
     )
-    return eqx.tree_at(lambda d: d.controller.speed, drive, speed)
+    return _foc_drive(motor, speed, current_loop_imc(motor, current_bandwidth), **kw)
 
 
 #: Hysteresis drive defaults: full band, A; comparator sample period, s; speed-loop period, s (the book's
@@ -270,16 +297,18 @@ def pr_drive(
     the current block is :func:`pmsmjax.controllers.pr.pr_design` at the same current bandwidth, with
     resonator damping ``w_c`` (rad/s) and the given static options.
     """
-    drive = book_drive(motor, **kw)
+    motor = book_motor() if motor is None else motor
+    kw = dict(kw)
+    speed = speed_loop_active_damping(motor, kw.pop("speed_bandwidth", BOOK_SPEED_BANDWIDTH))
     current = pr_design(
-        drive.controller.model,
-        kw.get("current_bandwidth", BOOK_CURRENT_BANDWIDTH),
+        motor,
+        kw.pop("current_bandwidth", BOOK_CURRENT_BANDWIDTH),
         w_c,
         discretisation=discretisation,
         phase_lead=phase_lead,
         back_emf_feedforward=back_emf_feedforward,
     )
-    return eqx.tree_at(lambda d: d.controller.current, drive, current)
+    return _foc_drive(motor, speed, current, **kw)
 
 
 def book_scenario(

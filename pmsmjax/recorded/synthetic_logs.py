@@ -20,9 +20,9 @@ The identification log (:func:`identification_log`) is the book drive's closed l
 
 from collections.abc import Mapping
 
-import equinox as eqx
 import numpy as np
 
+from pmsmjax.assemble import with_parts
 from pmsmjax.drive import Drive
 from pmsmjax.frames.three_phase import abc_to_alpha_beta, park
 from pmsmjax.inverters.averaged import AveragedBridge, phase_voltages
@@ -164,7 +164,7 @@ def identification_log(
     motor = PMSMParameters(**ID_TEST_MOTOR) if motor is None else motor
     drive = book_drive(motor, n_substeps=n_substeps)
     if hold == "rotor":
-        drive = eqx.tree_at(lambda d: d.bridge, drive, RotorHoldBridge(drive.bridge.u_dc))
+        drive = with_parts(drive, {"bridge": RotorHoldBridge(drive.bridge.u_dc)})
     elif hold != "stator":
         raise ValueError(f"hold must be 'stator' or 'rotor', got {hold!r}")
     if id_zero:

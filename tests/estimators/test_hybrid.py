@@ -12,7 +12,7 @@ import pytest
 
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.hybrid import HybridEstimator, smoothstep
-from pmsmjax.presets.hybrid_runs import hybrid_book_drive, hybrid_scenarios, run_from_angles, summary
+from pmsmjax.jobs.hybrid_runs import hybrid_book_drive, hybrid_scenarios, run_from_angles, summary
 from pmsmjax.signals import Estimate, Sample
 from pmsmjax.spec.validation import ParameterError
 

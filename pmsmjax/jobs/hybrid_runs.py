@@ -9,12 +9,12 @@ from standstill at several initial rotor angles.
   against an active load torque that would turn the rotor).
 """
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax.analysis.observer_errors import LOCK_ANGLE_RAD, angle_error, rms_and_max_abs
+from pmsmjax.assemble import with_parts
 from pmsmjax.machines.saturation import saturated_machine
 from pmsmjax.presets.three_phase import book_drive, book_motor, book_scenario
 from pmsmjax.scenarios import Profile, Scenario
@@ -32,7 +32,7 @@ def hybrid_book_drive(**hybrid_options):
     motor = book_motor(salient=True)
     drive = book_drive(motor)
     estimator = hybrid_design(motor, drive.Ts, **hybrid_options)
-    return eqx.tree_at(lambda d: (d.machine, d.estimator), drive, (saturated_machine(motor), estimator))
+    return with_parts(drive, {"machine": saturated_machine(motor), "estimator": estimator})
 
 
 def hybrid_scenarios() -> dict:
