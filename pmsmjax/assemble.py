@@ -388,7 +388,7 @@ def startup_options(spec) -> dict:
     }
 
 
-# --- the steps as functions of a built drive (the public names of earlier releases) ---------------------
+# --- the steps applied to a built drive, and the book's sensorless drive ----------------------------
 _MACHINE_OF_PHASES = {3: "three-phase", 6: "six-phase", 5: "five-phase"}
 
 

@@ -10,11 +10,9 @@ and any batched run exceed that.
 
 :func:`request_small_loop_kernels` raises the limit to :data:`SMALL_LOOP_BYTES` through ``XLA_FLAGS``
 (``--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=N``) when :mod:`pmsmjax` is
-imported. Measured on the book drive (float32, 2 cores, ``python -m benchmarks.flux_map_cost``, the
-same command with the limit set back to 1024): one run 1.27 -> 0.82 us per period with the linear plant
-and 10.7 -> 1.8 us with the flux-map plant; a batch of 64, 0.19 -> 0.12 and 3.4 -> 0.95 us per run and
-period. Loops over more than the limit (large Monte Carlo batches) keep XLA's default, multi-threaded
-execution.
+imported (its effect on the linear and flux-map drives: docs/performance.md, ``python -m
+benchmarks.flux_map_cost``). Loops over more than the limit (large Monte Carlo batches) keep XLA's
+default, multi-threaded execution.
 
 It is a request, not a requirement: XLA reads ``XLA_FLAGS`` when it compiles, so it applies to every
 computation compiled after ``import pmsmjax``. A user's own ``xla_backend_extra_options`` (XLA's
