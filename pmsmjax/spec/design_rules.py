@@ -15,8 +15,9 @@ it): the MTPA rules (:func:`mtpa_d_current`, :func:`torque_at_current`, :func:`c
 the rated point's voltage ``|R i + w_e J psi(i)|`` (:func:`rated_point_voltage_v`, hence the base speed)
 come from the map's MTPA table (:mod:`pmsmjax.controllers.flux_map_loci`, built once per map up to the
 grid's corner current; the torque is held beyond it) instead of the linear model; the other rules keep
-the linear model the map derives (``psi_f``, ``L_d``, ``L_q``). Reading a map loads the package's
-array modules (the map's checks), so this path is not JAX-free.
+the linear model the map derives (``psi_f``, ``L_d``, ``L_q``). The map's interpolant, torque and voltage
+are the plant's own (:mod:`pmsmjax.machines.flux_map`, :mod:`pmsmjax.machines.dq_equations`), evaluated
+in NumPy: this path, too, loads no JAX.
 
 **Current-loop bandwidth** (:func:`current_bandwidth_rule`): the internal-model PI of the book, ch. 3
 makes the current loop ``a_c / s`` times the loop's delay, one period of computation plus half a period of
