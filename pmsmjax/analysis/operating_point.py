@@ -10,7 +10,8 @@ Steady state of the dq model (the book, ch. 1) at mechanical speed ``w`` (rad/s)
 ``n/2`` replaces it: 3 for six phases, 2.5 for five), and the point is reachable when
 ``|u_dq| <= U_lim`` (the modulator's linear limit, ``U_dc / sqrt 3`` for SVPWM) and ``|i_dq| <= I_max``
 (the controller's current limit). With i_d = 0 control the top speed at a load follows by bisection;
-with field weakening any ``-I_max <= i_d <= 0`` may be used.
+with field weakening any ``-I_max <= i_d <= 0`` may be used. The equations are the machines' own,
+:mod:`pmsmjax.machines.dq_equations` (written once for floats, NumPy and JAX), here on the linear model.
 
 :func:`steady_point`, :func:`top_speed_rpm` and :func:`reachable` are pure Python on a dict of motor
 values (:func:`pmsmjax.io.motor_files.motor_values`), so the command line checks a request before JAX
@@ -24,6 +25,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from pmsmjax.machines import dq_equations as dq
 from pmsmjax.spec.validation import ParameterError, plain
 
 __all__ = [
@@ -68,14 +70,13 @@ def steady_point(motor: Mapping, speed_rad_s: float, load_nm: float, i_d: float 
     ``psi_f + (L_d - L_q) i_d`` makes no torque."""
     p = motor["pole_pairs"]
     torque = load_nm + motor["B"] * speed_rad_s
-    flux = motor["psi_f"] + (motor["L_d"] - motor["L_q"]) * i_d
+    flux = dq.active_flux(motor["psi_f"], motor["L_d"], motor["L_q"], i_d)
     if abs(flux) < 1e-12:
         return {"i_q": math.inf, "current": math.inf, "voltage": math.inf}
-    i_q = torque / (0.5 * motor.get("n_phases", 3) * p * flux)
-    w_e = p * speed_rad_s
-    u_d = motor["R"] * i_d - w_e * motor["L_q"] * i_q
-    u_q = motor["R"] * i_q + w_e * (motor["L_d"] * i_d + motor["psi_f"])
-    return {"i_q": i_q, "current": math.hypot(i_d, i_q), "voltage": math.hypot(u_d, u_q)}
+    i_q = dq.q_current(dq.torque_factor(p, motor.get("n_phases", 3)), torque, flux)
+    psi_d, psi_q = dq.linear_flux(motor["psi_f"], motor["L_d"], motor["L_q"], i_d, i_q)
+    voltage = dq.voltage_magnitude(motor["R"], p * speed_rad_s, i_d, i_q, psi_d, psi_q)
+    return {"i_q": i_q, "current": math.hypot(i_d, i_q), "voltage": voltage}
 
 
 def top_speed_rpm(motor: Mapping, u_limit_v: float, load_nm: float, direction: float = 1.0) -> float:
@@ -157,7 +158,8 @@ def field_weakening_top_speed_rpm(
 def max_load_nm(motor: Mapping, current_limit_a: float) -> float:
     """Largest load torque (N m) i_d = 0 control holds at standstill within the current limit (torque
     factor n/2: 1.5 for three phases, from the dict's ``n_phases`` otherwise)."""
-    return 0.5 * motor.get("n_phases", 3) * motor["pole_pairs"] * motor["psi_f"] * current_limit_a
+    factor = dq.torque_factor(motor["pole_pairs"], motor.get("n_phases", 3))
+    return dq.active_flux_torque(factor, current_limit_a, motor["psi_f"])
 
 
 def _window_mean(x, t, start, end):
@@ -196,12 +198,9 @@ def run_flags(
     u_lim = float(np.asarray(drive.voltage_limit()))
     i_lim = float(np.asarray(drive.controller.current_limit))
     u_dc = float(np.asarray(drive.bridge.u_dc))
-    p = motor["pole_pairs"]
-    w_e = p * w
-    u_need = np.hypot(
-        motor["R"] * i_dq[:, 0] - w_e * motor["L_q"] * i_dq[:, 1],
-        motor["R"] * i_dq[:, 1] + w_e * (motor["L_d"] * i_dq[:, 0] + motor["psi_f"]),
-    )
+    i_d, i_q = i_dq[:, 0], i_dq[:, 1]
+    psi_d, psi_q = dq.linear_flux(motor["psi_f"], motor["L_d"], motor["L_q"], i_d, i_q)
+    u_need = dq.voltage_magnitude(motor["R"], motor["pole_pairs"] * w, i_d, i_q, psi_d, psi_q, np)
     at_voltage = u_need >= VOLTAGE_SATURATED[1] * u_lim
     if drive.controller.command_kind == "voltage":
         at_voltage |= np.hypot(u_cmd[:, 0], u_cmd[:, 1]) >= VOLTAGE_SATURATED[0] * u_lim

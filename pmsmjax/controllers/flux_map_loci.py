@@ -1,5 +1,6 @@
-"""Operating loci of a saturated machine from its flux map, computed at load (NumPy and SciPy, no JAX):
-the maximum-torque-per-ampere (MTPA) locus as a table ``i_d(i_q)`` for motoring and generating.
+"""Operating loci of a saturated machine from its flux map, computed at load (NumPy, and SciPy's root
+finder for MTPV; no JAX): the maximum-torque-per-ampere (MTPA) locus as a table ``i_d(i_q)`` for motoring
+and generating.
 
 The torque is the map's, ``T = 1.5 p (psi_d(i) i_q - psi_q(i) i_d)`` (amplitude-invariant dq, peak values),
 with ``psi`` the map's bicubic Hermite interpolant (:mod:`pmsmjax.machines.flux_map`), so saturation and
@@ -16,16 +17,20 @@ of a sweep ``0..I_max`` the angle ``beta`` (``i_d = I cos beta``, ``i_q = +-I si
 ``+-T`` (motoring ``+``, generating ``-``), by a coarse scan over ``(0, pi)`` that brackets the maximum and
 a bounded Brent search inside the bracket (the torque at fixed ``I`` has one maximum per sign for an
 interior-PM map; the scan guards against a flat start). The table is the union of both signs, sorted by
-``i_q``; ``i_q`` rises with ``I`` on each branch (checked), so ``i_d`` is a function of ``i_q``.
+``i_q``; ``i_q`` rises with ``I`` on each branch (checked), so ``i_d`` is a function of ``i_q``. Every
+magnitude is searched at once: the scan is one evaluation of the map on all angles of all magnitudes, and
+the Brent search (SciPy's bounded one, written on arrays: :func:`_bounded_minimum`) one evaluation per
+step on the magnitudes still searching, so a table is a few dozen NumPy calls (the drive file's checks
+build one before every run).
 """
 
 import dataclasses
 import math
 
 import numpy as np
-from scipy.optimize import brentq, minimize_scalar
 
-from pmsmjax.machines.flux_map import FluxMapGrid, flux_and_inductance
+from pmsmjax.machines import dq_equations as dq
+from pmsmjax.machines.flux_map import FluxMapGrid
 from pmsmjax.spec.validation import ParameterError, plain
 
 __all__ = ["MapTorque", "MTPATable", "mtpa_table", "MTPVTable", "mtpv_table", "DEFAULT_POINTS"]
@@ -37,8 +42,9 @@ _SCAN_ANGLES = 48
 
 
 class MapTorque:
-    """NumPy evaluation of a :class:`FluxMapGrid`'s interpolant at single points, its coefficients computed
-    once (``FluxMapGrid.at`` recomputes them per call).
+    """NumPy evaluation of a :class:`FluxMapGrid`'s interpolant (the plant's,
+    :func:`pmsmjax.machines.flux_map.flux_and_inductance`) and torque (the plant's,
+    :func:`pmsmjax.machines.dq_equations.torque`), at one point or at many in one call.
 
     `grid`: the map; `pole_pairs`: ``p``.
     """
@@ -46,18 +52,108 @@ class MapTorque:
     def __init__(self, grid: FluxMapGrid, pole_pairs: int):
         self.grid = grid
         self.pole_pairs = pole_pairs
-        self._coefficients = grid.coefficients()
+        self.factor = dq.torque_factor(pole_pairs)
 
-    def flux(self, i_d: float, i_q: float) -> tuple[np.ndarray, np.ndarray]:
-        """``(psi (2,) Wb, L_inc (2, 2) H)`` at ``(i_d, i_q)`` A."""
-        g = self.grid
-        i = np.array([i_d, i_q], dtype=float)
-        return flux_and_inductance(self._coefficients, g.lower, g.step, g.upper, i, np)
+    def flux(self, i_d, i_q) -> tuple[np.ndarray, np.ndarray]:
+        """``(psi (..., 2) Wb, L_inc (..., 2, 2) H)`` at the currents ``i_d``, ``i_q`` (A; numbers or arrays
+        that broadcast together)."""
+        return self.grid.flux(np.stack(np.broadcast_arrays(i_d, i_q), -1))
 
-    def torque(self, i_d: float, i_q: float) -> float:
-        """Air-gap torque ``1.5 p (psi_d i_q - psi_q i_d)``, N m."""
+    def torque(self, i_d, i_q):
+        """Air-gap torque ``1.5 p (psi_d i_q - psi_q i_d)``, N m: a float at one point, else an array."""
         psi, _ = self.flux(i_d, i_q)
-        return 1.5 * self.pole_pairs * float(psi[0] * i_q - psi[1] * i_d)
+        torque = dq.torque(self.factor, i_d, i_q, psi[..., 0], psi[..., 1])
+        return float(torque) if np.ndim(torque) == 0 else torque
+
+
+def _cos_sin(angles) -> tuple[np.ndarray, np.ndarray]:
+    """``cos``, ``sin`` of ``angles`` by :mod:`math` (the platform's libm) element by element: NumPy's SIMD
+    sine and cosine may differ from it in the last bit on some builds, and the table's numbers are those
+    of the scalar search it replaces."""
+    flat = np.asarray(angles, dtype=float).ravel().tolist()
+    shape = np.shape(angles)
+    return (
+        np.array([math.cos(a) for a in flat]).reshape(shape),
+        np.array([math.sin(a) for a in flat]).reshape(shape),
+    )
+
+
+def _bounded_minimum(f, a, b, xatol: float, maxfun: int = 500) -> np.ndarray:
+    """The minimiser of ``f`` on each interval ``[a[k], b[k]]``, all intervals at once: SciPy's
+    ``minimize_scalar(method="bounded")`` (Brent's bounded search, golden sections and parabolic steps;
+    Forsythe, Malcolm and Moler, "Computer Methods for Mathematical Computations", 1977, ``fmin``)
+    written on arrays, each lane taking the steps and doing the arithmetic SciPy's loop does on it, so each
+    result is SciPy's to the bit (tested). A lane stops when SciPy's would; the others go on.
+
+    `f(x, lanes)`: the values at ``x (m,)`` of the lanes ``lanes`` (indices ``(m,)``), one call per step;
+    `a`, `b`: ``(n,)`` bounds; `xatol`: absolute tolerance in ``x``; `maxfun`: SciPy's ``maxiter``.
+    """
+    sqrt_eps = math.sqrt(2.2e-16)
+    golden_mean = 0.5 * (3.0 - math.sqrt(5.0))
+    a, b = np.array(a, dtype=float), np.array(b, dtype=float)
+    fulc = a + golden_mean * (b - a)
+    nfc, xf = fulc.copy(), fulc.copy()
+    rat, e = np.zeros_like(a), np.zeros_like(a)
+    fx = np.asarray(f(xf, np.arange(a.size)), dtype=float)
+    ffulc, fnfc = fx.copy(), fx.copy()
+    xm = 0.5 * (a + b)
+    tol1 = sqrt_eps * np.abs(xf) + xatol / 3.0
+    tol2 = 2.0 * tol1
+    active = np.abs(xf - xm) > (tol2 - 0.5 * (b - a))
+    num = 1
+    with np.errstate(divide="ignore", invalid="ignore"):
+        while active.any():
+            # A parabolic step where the last steps were large enough (|e| > tol1) and the parabola's
+            # minimum falls inside the bracket, else a golden section.
+            r = (xf - nfc) * (fx - ffulc)
+            q = (xf - fulc) * (fx - fnfc)
+            p = (xf - fulc) * q - (xf - nfc) * r
+            q = 2.0 * (q - r)
+            p = np.where(q > 0.0, -p, p)
+            q = np.abs(q)
+            parabolic = (np.abs(e) > tol1) & (np.abs(p) < np.abs(0.5 * q * e))
+            parabolic &= (p > q * (a - xf)) & (p < q * (b - xf))
+            rat_p = (p + 0.0) / q
+            x_p = xf + rat_p
+            near_edge = ((x_p - a) < tol2) | ((b - x_p) < tol2)
+            rat_p = np.where(near_edge, tol1 * (np.sign(xm - xf) + ((xm - xf) == 0)), rat_p)
+            e_golden = np.where(xf >= xm, a - xf, b - xf)
+            e_new = np.where(parabolic, rat, e_golden)
+            rat_new = np.where(parabolic, rat_p, golden_mean * e_golden)
+            x = xf + (np.sign(rat_new) + (rat_new == 0)) * np.maximum(np.abs(rat_new), tol1)
+            lanes = np.flatnonzero(active)
+            fu = np.full_like(a, np.nan)
+            fu[lanes] = f(x[lanes], lanes)
+            num += 1
+            # The bracket and the three best points, as SciPy updates them.
+            better = fu <= fx
+            worse = ~better
+            first = worse & ((fu <= fnfc) | (nfc == xf))
+            second = worse & ~first & ((fu <= ffulc) | (fulc == xf) | (fulc == nfc))
+            new = {
+                "a": np.where(better, np.where(x >= xf, xf, a), np.where(x < xf, x, a)),
+                "b": np.where(better, np.where(x >= xf, b, xf), np.where(x < xf, b, x)),
+                "fulc": np.where(better | first, nfc, np.where(second, x, fulc)),
+                "ffulc": np.where(better | first, fnfc, np.where(second, fu, ffulc)),
+                "nfc": np.where(better, xf, np.where(first, x, nfc)),
+                "fnfc": np.where(better, fx, np.where(first, fu, fnfc)),
+                "xf": np.where(better, x, xf),
+                "fx": np.where(better, fu, fx),
+                "e": e_new,
+                "rat": rat_new,
+            }
+            a, b = np.where(active, new["a"], a), np.where(active, new["b"], b)
+            fulc, ffulc = np.where(active, new["fulc"], fulc), np.where(active, new["ffulc"], ffulc)
+            nfc, fnfc = np.where(active, new["nfc"], nfc), np.where(active, new["fnfc"], fnfc)
+            xf, fx = np.where(active, new["xf"], xf), np.where(active, new["fx"], fx)
+            e, rat = np.where(active, new["e"], e), np.where(active, new["rat"], rat)
+            xm = 0.5 * (a + b)
+            tol1 = sqrt_eps * np.abs(xf) + xatol / 3.0
+            tol2 = 2.0 * tol1
+            if num >= maxfun:
+                break
+            active &= np.abs(xf - xm) > (tol2 - 0.5 * (b - a))
+    return xf
 
 
 @dataclasses.dataclass(frozen=True)
@@ -91,19 +187,23 @@ class MTPATable:
         return float(np.interp(current_a, self.current[branch][order], np.abs(self.torque[branch][order])))
 
 
-def _best_angle(model: MapTorque, current: float, sign: float) -> float:
-    """Angle ``beta`` in (0, pi) maximising ``sign * T`` at magnitude ``current`` (module docstring)."""
+def _best_angles(model: MapTorque, currents: np.ndarray, signs: np.ndarray) -> np.ndarray:
+    """Angles ``beta`` in (0, pi) maximising ``signs * T`` at the magnitudes ``currents`` (``(n,)`` each;
+    module docstring): the scan and the bounded Brent search of every magnitude at once, a few dozen
+    evaluations of the map on arrays."""
 
-    def negative_torque(beta):
-        return -sign * model.torque(current * math.cos(beta), sign * current * math.sin(beta))
+    def negative_torque(beta, lanes):
+        current, sign = currents[lanes], signs[lanes]
+        cos, sin = _cos_sin(beta)
+        return -sign * model.torque(current * cos, sign * current * sin)
 
+    lanes = np.arange(currents.size)
     betas = np.linspace(0.0, math.pi, _SCAN_ANGLES + 1)[1:-1]
-    values = np.array([negative_torque(b) for b in betas])
-    k = int(np.argmin(values))
+    values = negative_torque(np.broadcast_to(betas, (lanes.size, betas.size)), lanes[:, None])
+    k = np.argmin(values, axis=1)
     step = betas[1] - betas[0]
-    lo, hi = max(betas[k] - step, 1e-9), min(betas[k] + step, math.pi - 1e-9)
-    result = minimize_scalar(negative_torque, bounds=(lo, hi), method="bounded", options={"xatol": 1e-10})
-    return float(result.x)
+    lo, hi = np.maximum(betas[k] - step, 1e-9), np.minimum(betas[k] + step, math.pi - 1e-9)
+    return _bounded_minimum(negative_torque, lo, hi, xatol=1e-10)
 
 
 def mtpa_table(
@@ -120,13 +220,16 @@ def mtpa_table(
             f"{grid.source}: the MTPA table needs a positive current limit, got {plain(max_current_a)} A."
         )
     model = MapTorque(grid, pole_pairs)
-    currents = np.linspace(0.0, max_current_a, n_points)[1:]
-    rows = [(0.0, 0.0, 0.0, 0.0)]  # (i_q, i_d, torque, magnitude): the origin joins the branches
-    for sign in (1.0, -1.0):
-        for current in currents:
-            beta = _best_angle(model, current, sign)
-            i_d, i_q = current * math.cos(beta), sign * current * math.sin(beta)
-            rows.append((i_q, i_d, model.torque(i_d, i_q), current))
+    magnitudes = np.linspace(0.0, max_current_a, n_points)[1:]
+    currents = np.concatenate([magnitudes, magnitudes])
+    signs = np.repeat([1.0, -1.0], magnitudes.size)
+    beta = _best_angles(model, currents, signs)
+    cos, sin = _cos_sin(beta)
+    i_d, i_q = currents * cos, signs * currents * sin
+    torque = model.torque(i_d, i_q)
+    # (i_q, i_d, torque, magnitude); the origin joins the branches
+    rows = [(0.0, 0.0, 0.0, 0.0)]
+    rows += zip(i_q.tolist(), i_d.tolist(), torque.tolist(), currents.tolist(), strict=True)
     i_q, i_d, torque, magnitude = np.array(sorted(rows)).T
     for name, values in (("i_q", i_q), ("torque", torque)):
         if np.any(np.diff(values) <= 0):
@@ -170,6 +273,8 @@ def mtpv_table(grid: FluxMapGrid, pole_pairs: int, i_q, i_d_upper) -> MTPVTable:
     the parallel-gradient condition between the map's lower ``i_d`` edge and ``i_d_upper (n,)`` (A, the
     MTPA ``i_d`` there; between the two the flux magnitude at constant torque falls, then rises), by
     Brent's method."""
+    from scipy.optimize import brentq  # here: loading SciPy's optimisers takes longer than the table
+
     model = MapTorque(grid, pole_pairs)
     rows = []
     for q, upper in zip(np.asarray(i_q, float), np.asarray(i_d_upper, float), strict=True):

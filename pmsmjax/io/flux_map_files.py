@@ -74,7 +74,7 @@ def _read_csv(path: Path, where: str):
     if rows.ndim != 2 or rows.shape[1] != len(header):
         raise ParameterError(f"{where}: every row needs {len(header)} values, as many as the header names.")
     cols = {c: rows[:, header.index(c)] for c in CSV_COLUMNS}
-    i_d, i_q = np.unique(cols["i_d"]), np.unique(cols["i_q"])
+    i_d, i_q = _distinct(cols["i_d"]), _distinct(cols["i_q"])
     if np.isnan(i_d).any() or np.isnan(i_q).any():
         raise ParameterError(f"{where}: a current (i_d or i_q) is NaN: every row needs its grid point.")
     if len(rows) != i_d.size * i_q.size:
@@ -83,7 +83,7 @@ def _read_csv(path: Path, where: str):
             "i_q values: give exactly one row per grid point (a rectangular grid, no holes or repeats)."
         )
     j, k = np.searchsorted(i_d, cols["i_d"]), np.searchsorted(i_q, cols["i_q"])
-    if np.unique(j * i_q.size + k).size != len(rows):
+    if _distinct(j * i_q.size + k).size != len(rows):
         raise ParameterError(f"{where}: a grid point appears twice: give one row per (i_d, i_q).")
     psi_d, psi_q = np.empty((i_d.size, i_q.size)), np.empty((i_d.size, i_q.size))
     psi_d[j, k], psi_q[j, k] = cols["psi_d"], cols["psi_q"]
@@ -99,6 +99,15 @@ def _read_csv(path: Path, where: str):
         measured[j, k] = marks == 1
         return i_d, i_q, psi_d, psi_q, measured
     return i_d, i_q, psi_d, psi_q, None
+
+
+def _distinct(values: np.ndarray) -> np.ndarray:
+    """The sorted distinct values of ``values`` (``np.unique`` without its first call's import of
+    ``numpy.ma``, a fifth of reading a drive file with a map); NaNs are kept, each, at the end."""
+    ordered = np.sort(values)
+    first = np.ones(ordered.size, dtype=bool)
+    first[1:] = ordered[1:] != ordered[:-1]
+    return ordered[first]
 
 
 def read_flux_map_measured(path) -> np.ndarray | None:

@@ -1,40 +1,48 @@
 """Plant models: the three-phase PMSM in its three frames, the n-phase (six-phase) PMSM in its frames,
-their parameters and integrators."""
+their parameters and integrators.
 
-from pmsmjax.machines.base import AbstractMachine, MachineInput, MachineState
-from pmsmjax.machines.continuous import linearise, solve_adaptive
-from pmsmjax.machines.integrate import advance, rk4_step
-from pmsmjax.machines.motor import PMSMParameters
-from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
-from pmsmjax.machines.pmsm3 import PMSMabc, PMSMAlphaBeta, PMSMdq
-from pmsmjax.machines.pmsm6 import PMSM6DoubleDQ
-from pmsmjax.machines.pmsm_multiphase import (
-    AbstractMultiPhaseMachine,
-    MultiPhasePMSMdq,
-    MultiPhasePMSMNatural,
-    MultiPhasePMSMVSD,
-)
-from pmsmjax.machines.saturation import DAxisSaturation, SaturatedPMSMdq, saturated_machine
+The re-exported names are imported on first use (PEP 562), so that the plain-array modules here (the
+steady-state dq equations, :mod:`.dq_equations`; the flux map's grid and interpolant,
+:mod:`.flux_map`) read without loading JAX: the command line's checks before a run use them.
+"""
 
-__all__ = [
-    "AbstractMachine",
-    "MachineInput",
-    "MachineState",
-    "PMSMParameters",
-    "PMSMabc",
-    "PMSMAlphaBeta",
-    "PMSMdq",
-    "advance",
-    "linearise",
-    "solve_adaptive",
-    "rk4_step",
-    "AbstractMultiPhaseMachine",
-    "MultiPhaseParameters",
-    "MultiPhasePMSMdq",
-    "MultiPhasePMSMNatural",
-    "MultiPhasePMSMVSD",
-    "PMSM6DoubleDQ",
-    "DAxisSaturation",
-    "SaturatedPMSMdq",
-    "saturated_machine",
-]
+import importlib
+
+#: Public name -> (module, attribute), the layout of ``pmsmjax._LAZY``.
+_LAZY = {
+    "AbstractMachine": ("base", "AbstractMachine"),
+    "MachineInput": ("base", "MachineInput"),
+    "MachineState": ("base", "MachineState"),
+    "PMSMParameters": ("motor", "PMSMParameters"),
+    "PMSMabc": ("pmsm3", "PMSMabc"),
+    "PMSMAlphaBeta": ("pmsm3", "PMSMAlphaBeta"),
+    "PMSMdq": ("pmsm3", "PMSMdq"),
+    "advance": ("integrate", "advance"),
+    "linearise": ("continuous", "linearise"),
+    "solve_adaptive": ("continuous", "solve_adaptive"),
+    "rk4_step": ("integrate", "rk4_step"),
+    "AbstractMultiPhaseMachine": ("pmsm_multiphase", "AbstractMultiPhaseMachine"),
+    "MultiPhaseParameters": ("multiphase_motor", "MultiPhaseParameters"),
+    "MultiPhasePMSMdq": ("pmsm_multiphase", "MultiPhasePMSMdq"),
+    "MultiPhasePMSMNatural": ("pmsm_multiphase", "MultiPhasePMSMNatural"),
+    "MultiPhasePMSMVSD": ("pmsm_multiphase", "MultiPhasePMSMVSD"),
+    "PMSM6DoubleDQ": ("pmsm6", "PMSM6DoubleDQ"),
+    "DAxisSaturation": ("saturation", "DAxisSaturation"),
+    "SaturatedPMSMdq": ("saturation", "SaturatedPMSMdq"),
+    "saturated_machine": ("saturation", "saturated_machine"),
+}
+
+__all__ = list(_LAZY)
+
+
+def __getattr__(name):
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    module, attr = _LAZY[name]
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), attr)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))

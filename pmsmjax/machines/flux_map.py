@@ -32,6 +32,7 @@ co-energy depends slightly on the path; the plant's torque ``1.5 p (psi_d i_q - 
 """
 
 import dataclasses
+import functools
 import math
 
 import numpy as np
@@ -106,10 +107,20 @@ class FluxMapGrid:
         psi = xp.stack([xp.asarray(self.psi_d), xp.asarray(self.psi_q)])
         return hermite_coefficients(psi, self.step, xp)
 
+    @functools.cached_property
+    def _numpy_coefficients(self) -> np.ndarray:
+        """:meth:`coefficients` in NumPy, computed once per map (the checks evaluate it many times)."""
+        return self.coefficients()
+
+    def flux(self, i_dq) -> tuple[np.ndarray, np.ndarray]:
+        """``(psi (..., 2) Wb, L_inc (..., 2, 2) H)`` of the interpolant at the currents ``i_dq (..., 2)`` A,
+        in NumPy, all points in one call (:func:`flux_and_inductance`, the plant's own)."""
+        i = np.asarray(i_dq, dtype=float)
+        return flux_and_inductance(self._numpy_coefficients, self.lower, self.step, self.upper, i, np)
+
     def at(self, i_d: float, i_q: float) -> tuple[np.ndarray, np.ndarray]:
         """``(psi (2,) Wb, L_inc (2, 2) H)`` of the interpolant at one point (NumPy, for design rules)."""
-        i = np.array([i_d, i_q], dtype=float)
-        return flux_and_inductance(self.coefficients(), self.lower, self.step, self.upper, i, np)
+        return self.flux(np.array([i_d, i_q], dtype=float))
 
     def linear_model(self, i_q: float = 0.0) -> dict:
         """The linear machine a controller designs with: ``psi_f = psi_d(0, 0)`` (Wb) and the incremental
@@ -226,23 +237,29 @@ def hermite_coefficients(psi, step, xp=np):
 
 
 def flux_and_inductance(coefficients, lower, step, upper, i_dq, xp=np):
-    """The map at one current, extended linearly outside the grid (module docstring).
+    """The map at one current or many, extended linearly outside the grid (module docstring).
 
     **Arguments:** `coefficients` from :func:`hermite_coefficients`; `lower`, `step`, `upper`: ``(2,)``
-    grid corners and spacing, A; `i_dq`: ``(2,)`` current, A; `xp`: ``numpy`` or ``jax.numpy``.
+    grid corners and spacing, A; `i_dq`: ``(..., 2)`` currents, A; `xp`: ``numpy`` or ``jax.numpy``.
 
-    **Returns:** ``psi (2,)`` Wb and the incremental inductance ``L (2, 2)`` H,
-    ``L[r, c] = dpsi_r / di_c``.
+    **Returns:** ``psi (..., 2)`` Wb and the incremental inductance ``L (..., 2, 2)`` H,
+    ``L[..., r, c] = dpsi_r / di_c``.
+
+    One implementation for both namespaces: the plant runs it in JAX on one point (``(2,)``), the checks
+    before a run in NumPy on many points at once. Each point's arithmetic is the same elementwise
+    sequence either way (no sum, matmul or fused reduction), so NumPy on a batch gives, point by point, the
+    bits NumPy gives on that point alone, and JAX's agree with them to float64 rounding (XLA may contract
+    a product and a sum into one fused multiply-add).
     """
     where = locate(coefficients.shape[:2], lower, step, upper, i_dq, xp)
     return evaluate(coefficients, step, where, xp)
 
 
 def locate(n_cells, lower, step, upper, i_dq, xp=np):
-    """Where the current ``i_dq (2,)`` (A) lies on the grid: ``(6,)`` ``[cell_d, cell_q, s, t, outside_d,
-    outside_q]``: the cell's indices (as floats), the position inside it (``s, t`` in [0, 1]) and how far the
-    current lies outside the grid along each axis (A, 0 inside), from the grid shape `n_cells` ``(2,)``,
-    corners `lower`, `upper` and spacing `step` (A).
+    """Where the currents ``i_dq (..., 2)`` (A) lie on the grid: ``(..., 6)`` ``[cell_d, cell_q, s, t,
+    outside_d, outside_q]``: the cell's indices (as floats), the position inside it (``s, t`` in [0, 1])
+    and how far the current lies outside the grid along each axis (A, 0 inside), from the grid shape
+    `n_cells` ``(2,)``, corners `lower`, `upper` and spacing `step` (A).
 
     The clamps are comparisons and selects, not ``clip``: XLA:CPU compiles ``clip``'s NaN-propagating
     min/max into several instructions each, and this chain sits on the plant's critical path at every RK4
@@ -254,25 +271,31 @@ def locate(n_cells, lower, step, upper, i_dq, xp=np):
     cell = xp.floor(x)  # >= 0: the current is clamped to the grid
     last = xp.asarray(n_cells, dtype=x.dtype) - 1
     cell = xp.where(cell > last, last, cell)  # the upper edge belongs to the last cell (s = 1)
-    return xp.concatenate([cell, x - cell, i_dq - i_c])
+    return xp.concatenate([cell, x - cell, i_dq - i_c], axis=-1)
+
+
+def _per_point(x):
+    """A per-point value ``(...)`` against the per-point ``(..., 2)`` flux components: unchanged for one
+    point (so the plant's traced program is the single-point one), a trailing axis for a batch."""
+    return x if x.ndim == 0 else x[..., None]
 
 
 def evaluate(coefficients, step, where, xp=np):
-    """``(psi (2,) Wb, L_inc (2, 2) H)`` of the map at the point :func:`locate` gave (`where` ``(6,)``),
-    extended linearly outside the grid with the edge's incremental inductance."""
-    cell = where[:2].astype(int)
-    s, t = where[2], where[3]
-    C = coefficients[cell[0], cell[1]]  # (2, 4, 4)
+    """``(psi (..., 2) Wb, L_inc (..., 2, 2) H)`` of the map at the points :func:`locate` gave (`where`
+    ``(..., 6)``), extended linearly outside the grid with the edge's incremental inductance."""
+    cell = where[..., :2].astype(int)
+    s, t = _per_point(where[..., 2]), _per_point(where[..., 3])
+    C = coefficients[cell[..., 0], cell[..., 1]]  # (..., 2, 4, 4)
     # Nested (Horner) products written out on slices, with no sum or matmul: on CPU each reduction or
     # small dot is a kernel of its own, and inside the plant's integration loop the kernel count sets the
     # cost (measured: sums made the flux-map drive 18x the linear one, matmuls 60x).
-    rows = [((C[:, a, 3] * t + C[:, a, 2]) * t + C[:, a, 1]) * t + C[:, a, 0] for a in range(4)]
-    rows_dt = [(3.0 * C[:, a, 3] * t + 2.0 * C[:, a, 2]) * t + C[:, a, 1] for a in range(4)]
+    rows = [((C[..., a, 3] * t + C[..., a, 2]) * t + C[..., a, 1]) * t + C[..., a, 0] for a in range(4)]
+    rows_dt = [(3.0 * C[..., a, 3] * t + 2.0 * C[..., a, 2]) * t + C[..., a, 1] for a in range(4)]
     psi = ((rows[3] * s + rows[2]) * s + rows[1]) * s + rows[0]
     dpsi_ds = (3.0 * rows[3] * s + 2.0 * rows[2]) * s + rows[1]
     dpsi_dt = ((rows_dt[3] * s + rows_dt[2]) * s + rows_dt[1]) * s + rows_dt[0]
     L = xp.stack([dpsi_ds * (1.0 / step[0]), dpsi_dt * (1.0 / step[1])], -1)
-    return psi + L[:, 0] * where[4] + L[:, 1] * where[5], L
+    return psi + L[..., 0] * _per_point(where[..., 4]) + L[..., 1] * _per_point(where[..., 5]), L
 
 
 def excursion(grid_lower, grid_upper, i_dq) -> dict:

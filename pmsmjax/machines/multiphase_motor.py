@@ -28,6 +28,7 @@ import jax
 import numpy as np
 
 from pmsmjax._types import Array
+from pmsmjax.machines import dq_equations as dq
 from pmsmjax.machines.motor import as_float
 from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive, is_concrete
 
@@ -88,4 +89,4 @@ class MultiPhaseParameters(eqx.Module):
     @property
     def torque_factor(self) -> float:
         """``n/2 p_n``: ``T_e = torque_factor [psi_f i_q + (L_d - L_q) i_d i_q]``."""
-        return 0.5 * self.n_phases * self.pole_pairs
+        return dq.torque_factor(self.pole_pairs, self.n_phases)

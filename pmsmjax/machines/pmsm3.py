@@ -27,6 +27,7 @@ import numpy as np
 
 from pmsmjax._types import Array
 from pmsmjax.frames.three_phase import abc_to_alpha_beta, alpha_beta_to_abc, inverse_park, park
+from pmsmjax.machines import dq_equations as dq
 from pmsmjax.machines.base import AbstractMachine, MachineInput, Mechanics
 from pmsmjax.machines.motor import PMSMParameters, as_float
 
@@ -63,7 +64,7 @@ class PMSMdq(AbstractMachine):
     def torque(self, currents, theta_e):
         m = self.motor
         i_d, i_q = currents[0], currents[1]
-        return 1.5 * m.pole_pairs * (m.psi_f * i_q + (m.L_d - m.L_q) * i_d * i_q)
+        return dq.linear_torque(dq.torque_factor(m.pole_pairs), m.psi_f, m.L_d, m.L_q, i_d, i_q)
 
     def currents_to_dq(self, currents, theta_e):
         return currents

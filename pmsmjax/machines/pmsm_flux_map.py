@@ -36,6 +36,7 @@ import jax.numpy as jnp
 
 from pmsmjax._types import Array
 from pmsmjax.frames.three_phase import wrap_angle
+from pmsmjax.machines import dq_equations as dq
 from pmsmjax.machines.base import AbstractMachine, MachineInput, MachineState, Mechanics
 from pmsmjax.machines.flux_map import FluxMapGrid, excursion, flux_and_inductance
 from pmsmjax.machines.integrate import rotate_back
@@ -100,7 +101,7 @@ class PMSMFluxMapdq(AbstractMachine):
 
     def torque(self, currents, theta_e):
         psi = self.flux_dq(currents)
-        return 1.5 * self.motor.pole_pairs * (psi[0] * currents[1] - psi[1] * currents[0])
+        return dq.torque(dq.torque_factor(self.motor.pole_pairs), currents[0], currents[1], psi[0], psi[1])
 
     def currents_to_dq(self, currents, theta_e):
         return currents
@@ -123,7 +124,7 @@ class PMSMFluxMapdq(AbstractMachine):
         di_d = (L[1, 1] * b_d - L[0, 1] * b_q) * inverse_det
         di_q = (L[0, 0] * b_q - L[1, 0] * b_d) * inverse_det
         if self.mechanics == "dynamic":
-            torque = 1.5 * m.pole_pairs * (psi[0] * i[1] - psi[1] * i[0])
+            torque = dq.torque(dq.torque_factor(m.pole_pairs), i[0], i[1], psi[0], psi[1])
             domega = (torque - load_torque - m.B * x[2]) / m.J
         else:
             domega = jnp.zeros_like(x[2])

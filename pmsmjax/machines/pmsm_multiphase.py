@@ -52,6 +52,7 @@ import numpy as np
 from pmsmjax._types import Array
 from pmsmjax.frames.multiphase import SIX_PHASE, PhaseLayout, inverse_vsd_matrix, vsd_matrix
 from pmsmjax.frames.three_phase import inverse_park, park
+from pmsmjax.machines import dq_equations as dq
 from pmsmjax.machines.base import AbstractMachine, MachineInput, MachineState, Mechanics
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
 from pmsmjax.machines.pmsm3 import _solve2
@@ -309,7 +310,7 @@ class _Fundamental(AbstractMachine):
 
     def torque(self, currents, theta_e):
         m = self.motor
-        return m.torque_factor * (m.psi_f * currents[1] + (m.L_d - m.L_q) * currents[0] * currents[1])
+        return dq.linear_torque(m.torque_factor, m.psi_f, m.L_d, m.L_q, currents[0], currents[1])
 
 
 class MultiPhasePMSMdq(AbstractMultiPhaseMachine):

@@ -31,6 +31,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
+from pmsmjax.machines import dq_equations as dq
 from pmsmjax.machines.base import MachineInput, Mechanics
 from pmsmjax.machines.motor import as_float
 from pmsmjax.machines.pmsm3 import PMSMdq
@@ -115,7 +116,7 @@ class SaturatedPMSMdq(PMSMdq):
         if self.saturation is None:
             return super().torque(currents, theta_e)
         psi = self.flux_dq(currents)
-        return 1.5 * self.motor.pole_pairs * (psi[0] * currents[1] - psi[1] * currents[0])
+        return dq.torque(dq.torque_factor(self.motor.pole_pairs), currents[0], currents[1], psi[0], psi[1])
 
 
 def saturated_machine(

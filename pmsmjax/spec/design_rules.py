@@ -15,8 +15,9 @@ it): the MTPA rules (:func:`mtpa_d_current`, :func:`torque_at_current`, :func:`c
 the rated point's voltage ``|R i + w_e J psi(i)|`` (:func:`rated_point_voltage_v`, hence the base speed)
 come from the map's MTPA table (:mod:`pmsmjax.controllers.flux_map_loci`, built once per map up to the
 grid's corner current; the torque is held beyond it) instead of the linear model; the other rules keep
-the linear model the map derives (``psi_f``, ``L_d``, ``L_q``). Reading a map loads the package's
-array modules (the map's checks), so this path is not JAX-free.
+the linear model the map derives (``psi_f``, ``L_d``, ``L_q``). The map's interpolant, torque and voltage
+are the plant's own (:mod:`pmsmjax.machines.flux_map`, :mod:`pmsmjax.machines.dq_equations`), evaluated
+in NumPy: this path, too, loads no JAX.
 
 **Current-loop bandwidth** (:func:`current_bandwidth_rule`): the internal-model PI of the book, ch. 3
 makes the current loop ``a_c / s`` times the loop's delay, one period of computation plus half a period of
@@ -53,6 +54,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from pmsmjax.analysis.operating_point import steady_point, top_speed_rpm
+from pmsmjax.machines import dq_equations as dq
 
 __all__ = [
     "CURRENT_LOOP_PHASE_MARGIN_DEG",
@@ -96,7 +98,7 @@ TUNING_DURATION_FACTORS = (1.5, 2.5)
 
 def torque_factor(motor: Mapping) -> float:
     """``(n/2) p``: torque per ampere of q current per weber of flux (``1.5 p`` for three phases)."""
-    return 0.5 * motor.get("n_phases", 3) * motor["pole_pairs"]
+    return dq.torque_factor(motor["pole_pairs"], motor.get("n_phases", 3))
 
 
 @functools.lru_cache(maxsize=8)
@@ -137,7 +139,8 @@ def torque_at_current(motor: Mapping, current_a: float) -> float:
         return table.torque_at_current(current_a)
     i_d = mtpa_d_current(motor, current_a)
     i_q = math.sqrt(max(current_a * current_a - i_d * i_d, 0.0))
-    return torque_factor(motor) * i_q * (motor["psi_f"] + (motor["L_d"] - motor["L_q"]) * i_d)
+    psi_a = dq.active_flux(motor["psi_f"], motor["L_d"], motor["L_q"], i_d)
+    return dq.active_flux_torque(torque_factor(motor), i_q, psi_a)
 
 
 def current_for_torque(motor: Mapping, torque_nm: float) -> float:
@@ -171,8 +174,7 @@ def rated_point_voltage_v(motor: Mapping, speed_rpm: float, torque_nm: float) ->
     if table is not None:
         i_d, i_q = table.point_for_torque(torque_nm + motor["B"] * w)
         psi, _ = _map_loci(str(motor["flux_map"]), motor["pole_pairs"])[0].flux(i_d, i_q)
-        w_e = motor["pole_pairs"] * w
-        return math.hypot(motor["R"] * i_d - w_e * psi[1], motor["R"] * i_q + w_e * psi[0])
+        return dq.voltage_magnitude(motor["R"], motor["pole_pairs"] * w, i_d, i_q, psi[0], psi[1])
     current = current_for_torque(motor, torque_nm + motor["B"] * w)
     i_d = mtpa_d_current(motor, current)
     return steady_point(motor, w, torque_nm, i_d)["voltage"]

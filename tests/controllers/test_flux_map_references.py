@@ -8,16 +8,28 @@ independent references:
   closed form of pmsmjax/controllers/mtpa.py;
 - the MTPV locus on the cross-saturated analytic map of tests/machines/test_flux_map.py gives, at each
   point's flux magnitude, the most torque a dense grid search over currents finds within that flux;
-- a map whose torque does not rise along the locus is refused in one line.
+- a map whose torque does not rise along the locus is refused in one line;
+- the table's search, run on all magnitudes at once in NumPy, gives SciPy's scalar bounded search on each
+  magnitude to the bit (and the array search SciPy's on smooth, kinked, flat and cut-short problems).
 """
+
+import math
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 from machines.test_flux_map import P_N, analytic_grid, psi_analytic
+from scipy.optimize import minimize_scalar
 
-from pmsmjax.controllers.flux_map_loci import mtpa_table, mtpv_table
+from pmsmjax.controllers.flux_map_loci import (
+    _SCAN_ANGLES,
+    MapTorque,
+    _best_angles,
+    _bounded_minimum,
+    mtpa_table,
+    mtpv_table,
+)
 from pmsmjax.controllers.flux_map_references import flux_map_mtpa
 from pmsmjax.controllers.mtpa import mtpa_id_from_iq
 from pmsmjax.io.drive_files import preset_path
@@ -151,3 +163,53 @@ def test_mtpv_is_the_most_torque_per_flux():
     # lets it miss by a little (ratio > 0): measured up to 7.6e-4
     assert np.min(ratio[big]) > -1e-5
     assert np.max(ratio[big]) < 1e-3
+
+
+def scipy_best_angle(model, current, sign):
+    """The table's search on one magnitude as SciPy runs it: the scan, then minimize_scalar(bounded)."""
+
+    def negative(beta):
+        return -sign * model.torque(current * math.cos(beta), sign * current * math.sin(beta))
+
+    betas = np.linspace(0.0, math.pi, _SCAN_ANGLES + 1)[1:-1]
+    k = int(np.argmin([negative(b) for b in betas]))
+    step = betas[1] - betas[0]
+    bounds = (max(betas[k] - step, 1e-9), min(betas[k] + step, math.pi - 1e-9))
+    return minimize_scalar(negative, bounds=bounds, method="bounded", options={"xatol": 1e-10}).x
+
+
+@pytest.mark.parametrize("which", ["preset", "analytic"])
+def test_array_search_is_scipys_search_on_each_magnitude(which, preset_grid):
+    grid, pole_pairs = (preset_grid, POLE_PAIRS) if which == "preset" else (analytic_grid(9), P_N)
+    model = MapTorque(grid, pole_pairs)
+    currents = np.concatenate([np.linspace(0.0, 42.0, 22)[1:]] * 2)  # beyond the grid's corner too
+    signs = np.repeat([1.0, -1.0], 21)
+    got = _best_angles(model, currents, signs)
+    want = [scipy_best_angle(model, c, s) for c, s in zip(currents, signs, strict=True)]
+    assert np.array_equal(got, want)
+
+
+@pytest.mark.parametrize(
+    "f",
+    [
+        lambda x, c: (x - c) * (x - c),  # parabolic steps
+        lambda x, c: np.abs(x - c) + 0.1 * np.abs(x - 2.0 * c),  # kinks: golden sections
+        lambda x, c: np.zeros_like(x) + 0.0 * c,  # flat: every comparison a tie
+        lambda x, c: ((x - c) * (x - c) - 0.5) * ((x - c) * (x - c) - 0.5) + 0.1 * x,  # two minima
+    ],
+)
+@pytest.mark.parametrize("maxfun", [500, 6])
+def test_array_bounded_search_is_scipys(f, maxfun):
+    rng = np.random.default_rng(3)
+    c = rng.uniform(-1.0, 3.0, 40)
+    lo, hi = rng.uniform(-2.0, 0.5, 40), rng.uniform(0.6, 4.0, 40)
+    got = _bounded_minimum(lambda x, lanes: f(x, c[lanes]), lo, hi, xatol=1e-10, maxfun=maxfun)
+    for k in range(c.size):
+        options = {"xatol": 1e-10, "maxiter": maxfun}
+        want = minimize_scalar(
+            lambda x, k=k: float(f(np.float64(x), c[k])),
+            bounds=(lo[k], hi[k]),
+            method="bounded",
+            options=options,
+        )
+        assert got[k] == want.x, k

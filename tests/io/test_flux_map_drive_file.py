@@ -4,6 +4,8 @@ and a run that leaves the map's grid says so."""
 
 import json
 import shutil
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -50,6 +52,22 @@ def test_the_map_path_is_relative_to_the_drive_file(tmp_path, monkeypatch):
     assert drive_spec("drive/ipm.toml").motor["L_q"] == pytest.approx(
         drive_spec("saturated-ipm").motor["L_q"]
     )
+
+
+def test_reading_the_file_loads_neither_jax_nor_scipy():
+    """The checks on the map (its grid, MTPA table, rated point) run in NumPy: a fresh interpreter reads
+    the drive file without loading JAX or SciPy, and derives what this one does, to the bit."""
+    code = (
+        "import json, sys\nfrom pmsmjax.io.drive_files import drive_spec\n"
+        "summary = drive_spec('saturated-ipm').summary()\n"
+        "heavy = [m for m in ('jax', 'jaxlib', 'equinox', 'scipy') if m in sys.modules]\n"
+        "print(json.dumps({'heavy': heavy, 'summary': summary}))\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["heavy"] == []
+    assert out["summary"] == json.loads(json.dumps(drive_spec("saturated-ipm").summary()))
 
 
 def test_a_missing_map_is_refused_in_one_line(tmp_path):

@@ -122,6 +122,37 @@ def test_linear_extension_outside_the_grid():
 
 # --- the plant ------------------------------------------------------------------------------------------
 @pytest.mark.slow
+@pytest.mark.parametrize("which", ["saturated-ipm", "analytic"])
+def test_numpy_and_jax_interpolants_agree(which):
+    """One interpolant, two namespaces: NumPy on a batch of points (the checks before a run) gives, point
+    by point, what NumPy gives on each point alone, bit for bit, and what the plant's JAX gives on it to
+    float64 rounding (XLA orders the coefficients' einsum and may fuse a product into a sum), inside the
+    grid and outside it (the linear extension)."""
+    if which == "saturated-ipm":
+        from pmsmjax.io.drive_files import PRESET_FOLDER
+
+        grid = read_flux_map(PRESET_FOLDER / "saturated_ipm_map.csv")
+    else:
+        grid = analytic_grid(9)
+    rng = np.random.default_rng(7)
+    span = 1.5 * np.maximum(np.abs(grid.lower), np.abs(grid.upper))
+    points = rng.uniform(-span, span, (400, 2))
+    points[:4] = [grid.lower, grid.upper, [grid.i_d[1], grid.i_q[-2]], [0.0, 0.0]]  # nodes and corners
+    psi, L = grid.flux(points)
+    assert psi.shape == (400, 2) and L.shape == (400, 2, 2)
+    outside = np.any((points < grid.lower) | (points > grid.upper), axis=1)
+    assert 50 < outside.sum() < 350
+    single = [grid.at(*p) for p in points[:50]]
+    assert all(np.array_equal(a, psi[k]) and np.array_equal(b, L[k]) for k, (a, b) in enumerate(single))
+    plant = FluxMap.from_grid(grid)
+    at = jax.jit(lambda i: plant(i))
+    psi_j, L_j = (np.stack(x) for x in zip(*[at(jnp.asarray(p)) for p in points], strict=True))
+    scale_psi = max(np.abs(grid.psi_d).max(), np.abs(grid.psi_q).max())
+    scale_L = np.abs(grid.node_inductances()).max()
+    assert np.abs(psi - psi_j).max() <= 1e-12 * scale_psi
+    assert np.abs(L - L_j).max() <= 1e-12 * scale_L
+
+
 def test_linear_map_reproduces_the_linear_machine():
     drive = book_drive(book_motor(salient=True))
     motor = drive.machine.motor
