@@ -149,8 +149,8 @@ def add_parser(sub):
 
 def precheck(args):
     """Checks that need no model (before JAX starts); returns the control (or observer) names and the
-    drive (:class:`~pmsmjax.io.drive_files.DriveSpec`), the scenario flags left unset filled from it."""
-    from pmsmjax.analysis.operating_point import refuse_unreachable
+    drive (:class:`~pmsmjax.spec.drive_spec.DriveSpec`), the scenario flags left unset filled from it."""
+    from pmsmjax.spec.steady_state import refuse_unreachable
 
     multiphase = args.machine != "three-phase"
     if multiphase:

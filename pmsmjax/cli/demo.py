@@ -332,8 +332,8 @@ def add_parser(sub):
 
 def precheck(args):
     """Every check that needs no model (pure Python, before JAX starts); returns the drive
-    (:class:`~pmsmjax.io.drive_files.DriveSpec`) with the scenario flags left unset filled from it."""
-    from pmsmjax.analysis.operating_point import top_speed_rpm
+    (:class:`~pmsmjax.spec.drive_spec.DriveSpec`) with the scenario flags left unset filled from it."""
+    from pmsmjax.spec.steady_state import top_speed_rpm
 
     checks.output_folder(args.out)
     check_machine_flags(args)

@@ -2,13 +2,14 @@
 :mod:`pmsmjax.io.drive_files`), ``--u-dc`` and ``--current-limit`` overriding the file's ``[inverter]
 u_dc_v`` and ``[ratings] max_current_a``, and the scenario flags the user left unset filled from the
 file's ``[scenario]``. Every command that runs a drive resolves it here once, in its precheck (pure
-Python, before JAX starts), and builds everything after from the :class:`~pmsmjax.io.drive_files.DriveSpec`.
+Python, before JAX starts), and builds everything after from the :class:`~pmsmjax.spec.drive_spec.DriveSpec`.
 """
 
 from pathlib import Path
 
 from pmsmjax.cli import checks
-from pmsmjax.io.drive_files import PRESET_FILES, DriveSpec, drive_spec
+from pmsmjax.io.drive_files import PRESET_FILES, drive_spec
+from pmsmjax.spec.drive_spec import DriveSpec
 
 __all__ = [
     "DRIVE_FLAGS",

@@ -108,8 +108,8 @@ def add_parser(sub):
 
 def precheck(args):
     """Checks that need no model (before JAX starts); returns the drive
-    (:class:`~pmsmjax.io.drive_files.DriveSpec`), the flags left unset filled from it."""
-    from pmsmjax.analysis.operating_point import refuse_unreachable
+    (:class:`~pmsmjax.spec.drive_spec.DriveSpec`), the flags left unset filled from it."""
+    from pmsmjax.spec.steady_state import refuse_unreachable
 
     checks.output_folder(args.out)
     read_gains_flag(args.gains)

@@ -10,14 +10,10 @@ or under ``[motor]``, optionally ``trust_units = true`` to skip the unit plausib
 check.
 """
 
-from pmsmjax.io.drive_files import MOTOR_FIELDS, drive_spec, read_drive_file
-from pmsmjax.presets.book_constants import BOOK_MOTOR, BOOK_SALIENT_MOTOR
+from pmsmjax.io.drive_files import drive_spec, read_drive_file
+from pmsmjax.spec.drive_spec import MOTOR_FIELDS
 
-__all__ = ["MOTOR_FIELDS", "PRESET_VALUES", "motor_values", "read_motor_file"]
-
-#: The book's surface motor and its salient variant (L_q = 12 mH) for HF injection
-#: (:mod:`pmsmjax.presets.book_constants`); read-only.
-PRESET_VALUES = {"book": BOOK_MOTOR, "book_salient": BOOK_SALIENT_MOTOR}
+__all__ = ["MOTOR_FIELDS", "motor_values", "read_motor_file"]
 
 
 def _motor(spec) -> dict:

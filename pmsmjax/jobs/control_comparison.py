@@ -132,7 +132,7 @@ def compared_drive(
     :data:`pmsmjax.presets.control_methods.CONTROLS` for the
     three-phase machine, the six- or five-phase presets' schemes (``vsd``, ...) for ``machine``; ``motor``
     is then a :class:`pmsmjax.machines.MultiPhaseParameters` (None: the preset's rewind of the book motor).
-    With a drive file ``spec`` (:class:`pmsmjax.io.drive_files.DriveSpec`) instead of ``motor``: its drive
+    With a drive file ``spec`` (:class:`pmsmjax.spec.drive_spec.DriveSpec`) instead of ``motor``: its drive
     (:func:`pmsmjax.assemble.spec_drive`; a multi-phase switching bridge with the file's dead
     time)."""
     if spec is not None:
@@ -254,7 +254,7 @@ def compare_controllers(
     Returns ``{"settings", "controllers": name -> figures, "traces": name -> Trace, "windows": name ->
     {t, i_abc, torque, psi_ab}}``; `progress`: optional callable taking a line per controller; `adjust`:
     optional ``(drive, name) -> drive`` applied to each drive before anything runs (tuned gains, say);
-    `spec`: a drive file (:class:`pmsmjax.io.drive_files.DriveSpec`) whose drives run instead of
+    `spec`: a drive file (:class:`pmsmjax.spec.drive_spec.DriveSpec`) whose drives run instead of
     ``motor``'s presets (:func:`compared_drive`).
     """
     settings.check()

@@ -53,8 +53,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from pmsmjax.analysis.operating_point import steady_point, top_speed_rpm
 from pmsmjax.machines import dq_equations as dq
+from pmsmjax.spec.steady_state import steady_point, top_speed_rpm
 
 __all__ = [
     "CURRENT_LOOP_PHASE_MARGIN_DEG",

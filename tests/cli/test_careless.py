@@ -330,8 +330,9 @@ def test_a_reachable_run_has_no_flags_and_documented_units(tmp_path):
 def test_field_weakening_top_speed_matches_the_simulated_drive(tmp_path):
     """The steady-state limit model (pure algebra) against the closed-loop simulation: the drive asked
     for 3000 r/min at 10 N m with field weakening settles at the predicted top speed."""
-    from pmsmjax.analysis.operating_point import FIELD_WEAKENING_MARGIN, field_weakening_top_speed_rpm
-    from pmsmjax.io.motor_files import PRESET_VALUES
+    from pmsmjax.analysis.operating_point import FIELD_WEAKENING_MARGIN
+    from pmsmjax.presets.book_constants import BOOK_MOTOR
+    from pmsmjax.spec.steady_state import field_weakening_top_speed_rpm
 
     out = tmp_path / "o"
     argv = ["demo", "--speed-rpm", "3000", "--field-weakening", "--out", str(out), "--no-figures"]
@@ -339,7 +340,7 @@ def test_field_weakening_top_speed_matches_the_simulated_drive(tmp_path):
     op = json.loads((out / "summary.json").read_text())["operating_point"]
     reached = op["segments"][-1]["speed_rpm"]
     u_lim = FIELD_WEAKENING_MARGIN * 311.0 / np.sqrt(3.0)
-    predicted = field_weakening_top_speed_rpm(PRESET_VALUES["book"], u_lim, 15.0, 10.0)
+    predicted = field_weakening_top_speed_rpm(BOOK_MOTOR, u_lim, 15.0, 10.0)
     assert reached == pytest.approx(predicted, rel=0.01)
     assert op["flags"][0]["limit"] == "voltage" and f"{predicted:.0f} r/min" in op["flags"][0]["cause"]
 

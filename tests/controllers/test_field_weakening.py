@@ -26,7 +26,6 @@ from helpers.gradient_check import check_gradient
 import pmsmjax
 from pmsmjax import Profile, Scenario, presets
 from pmsmjax.analysis import metrics
-from pmsmjax.analysis.operating_point import field_weakening_top_speed_rpm, motor_dict, top_speed_rpm
 from pmsmjax.controllers import (
     MTPA,
     CurrentLoopContext,
@@ -35,6 +34,7 @@ from pmsmjax.controllers import (
     mtpa_id_from_magnitude,
 )
 from pmsmjax.machines import PMSMParameters
+from pmsmjax.spec.steady_state import field_weakening_top_speed_rpm, motor_dict, top_speed_rpm
 from pmsmjax.spec.validation import ParameterError
 
 RPM = 2.0 * math.pi / 60.0

@@ -126,7 +126,7 @@ def test_observer_batches_scale_to_the_drive():
     """outer-rotor-24v: top speed capped by what the 24 V link reaches under the rated torque (835 r/min
     with i_d = 0, below twice the rated 600), loads up to the rated 3 N m, warm-up half the book's."""
     spec = drive_spec("outer-rotor-24v")
-    from pmsmjax.analysis.operating_point import top_speed_rpm
+    from pmsmjax.spec.steady_state import top_speed_rpm
 
     reach = top_speed_rpm(spec.motor, spec.voltage_limit_v, 3.0)
     batches = drive_batches(spec, "smo")

@@ -15,7 +15,7 @@ On the book drive every batch is the book's to the bit (tests/tuning/test_drive_
 import dataclasses
 from collections.abc import Callable
 
-from pmsmjax.io.drive_files import DriveSpec
+from pmsmjax.spec.drive_spec import DriveSpec
 from tuning.autotune import drive_scaling
 from tuning.autotune.observers import HOLD_S, RATED_SPEED_RPM, make_observer_batch, observer_tuning
 from tuning.autotune.scenario_batches import WARMUP_S, make_batch

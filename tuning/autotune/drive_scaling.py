@@ -1,5 +1,5 @@
 """The tune job's scenario batches and observer settings scaled to the user's drive
-(:class:`pmsmjax.io.drive_files.DriveSpec`).
+(:class:`pmsmjax.spec.drive_spec.DriveSpec`).
 
 The controls' batches (:func:`tuning.autotune.scenario_batches.make_batch`) take the drive file's
 ``[tuning]`` ranges and control period as they are. The observer batches (:mod:`tuning.autotune.observers`,
@@ -26,9 +26,9 @@ drive).
 import dataclasses
 import math
 
-from pmsmjax.analysis.operating_point import top_speed_rpm
-from pmsmjax.io.drive_files import DriveSpec
 from pmsmjax.presets.book_constants import BOOK_CURRENT_LIMIT, BOOK_DC_LINK
+from pmsmjax.spec.drive_spec import DriveSpec
+from pmsmjax.spec.steady_state import top_speed_rpm
 
 __all__ = [
     "BOOK_RATED_SPEED_RPM",

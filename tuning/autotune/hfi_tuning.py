@@ -40,9 +40,10 @@ import numpy as np
 
 from pmsmjax import Profile, Scenario, presets, stack_scenarios
 from pmsmjax.assemble import spec_drive, spec_motor
-from pmsmjax.io.drive_files import DriveSpec, drive_spec
+from pmsmjax.io.drive_files import drive_spec
 from pmsmjax.machines.saturation import saturated_machine
 from pmsmjax.presets.book_constants import BOOK_TS
+from pmsmjax.spec.drive_spec import DriveSpec
 from pmsmjax.spec.validation import ParameterError, plain
 from pmsmjax.units import rpm_to_rad_s
 from tuning.autotune.drive_scaling import noise_scale, speed_scale, torque_scale

@@ -6,7 +6,7 @@ scenarios before and after) and ``checkpoint.npz`` (resume point; running the sa
 continues from it and ends at the same result).
 
 The drive (``drive``): a drive file or preset name (:func:`pmsmjax.io.drive_files.drive_spec`, default
-``book``) or its :class:`~pmsmjax.io.drive_files.DriveSpec`; every drive is built from it by
+``book``) or its :class:`~pmsmjax.spec.drive_spec.DriveSpec`; every drive is built from it by
 :func:`pmsmjax.assemble.spec_drive`, and every batch from its ``[tuning]`` ranges and control
 period (:mod:`tuning.autotune.drive_scaling`). ``--motor book`` gives the book drive and batches bit for
 bit.
@@ -52,8 +52,9 @@ import jax
 import numpy as np
 
 from pmsmjax.assemble import spec_drive
-from pmsmjax.io.drive_files import DriveSpec, drive_spec
+from pmsmjax.io.drive_files import drive_spec
 from pmsmjax.io.logs import atomic_write
+from pmsmjax.spec.drive_spec import DriveSpec
 from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rad_s_to_rpm
 

@@ -57,8 +57,9 @@ from pmsmjax import Profile, Scenario, presets, stack_scenarios
 from pmsmjax.assemble import spec_drive, spec_motor
 from pmsmjax.estimators.registry import check_observer_name
 from pmsmjax.estimators.sensored_warmup import SensoredWarmup
-from pmsmjax.io.drive_files import DriveSpec, drive_spec
+from pmsmjax.io.drive_files import drive_spec
 from pmsmjax.presets.book_constants import BOOK_TS
+from pmsmjax.spec.drive_spec import DriveSpec
 from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
 from tuning.autotune.drive_scaling import noise_scale

@@ -14,7 +14,8 @@
 
 from pathlib import Path
 
-from pmsmjax.io.drive_files import DriveSpec, write_drive_file
+from pmsmjax.io.drive_files import write_drive_file
+from pmsmjax.spec.drive_spec import DriveSpec
 
 __all__ = ["MOTOR_NAMES", "undetermined", "motor_file_tables", "prior_stated_tables", "write_motor_file"]
 

@@ -133,7 +133,7 @@ def reference_drive_log(
 
 
 def commissioning_log(spec, duration_s: float, prbs_clock_s: float, noise=None, seed: int = 0) -> dict:
-    """The identification log of drive file ``spec`` (:class:`pmsmjax.io.drive_files.DriveSpec`): the
+    """The identification log of drive file ``spec`` (:class:`pmsmjax.spec.drive_spec.DriveSpec`): the
     reference drive at the file's DC link, control rate, current limit and design-rule bandwidths, the
     staircase of :func:`identification_speeds_rpm`, a PRBS of :data:`PRBS_SHARE` x the maximum current on
     i_d; ``noise`` (default :data:`pmsmjax.recorded.synthetic_logs.ID_LOG_NOISE`: 1 % on the currents, 0.5 %

@@ -57,8 +57,9 @@ import numpy as np
 from pmsmjax import presets
 from pmsmjax.drive import Drive
 from pmsmjax.inverters.averaged import AveragedBridge
-from pmsmjax.io.drive_files import TABLES, DriveSpec, drive_spec
+from pmsmjax.io.drive_files import drive_spec
 from pmsmjax.scenarios import Profile, Scenario
+from pmsmjax.spec.drive_spec import TABLES, DriveSpec
 from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
 from tuning.montecarlo.distributions import KINDS, SAMPLING, Distribution

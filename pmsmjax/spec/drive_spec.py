@@ -1,0 +1,256 @@
+"""The drive spec: a drive file's tables checked and completed, for every command, before JAX starts (the
+file itself is read by :mod:`pmsmjax.io.drive_files`).
+
+Layout (SI units; every table but ``[motor]`` optional)::
+
+    [motor]        R, L_d, L_q, psi_f, pole_pairs, J, B (ohm, H, H, Wb, -, kg m^2, N m s/rad);
+                   n_phases = 6 or 5 with L_ls (H) and, five-phase, psi_f3 (Wb); trust_units = true;
+                   flux_map = "map.csv" (three-phase: a measured flux map, path relative to the drive
+                   file, read by :mod:`pmsmjax.io.flux_map_files`; L_d, L_q, psi_f then optional)
+    [ratings]      rated_speed_rpm, rated_torque_nm or rated_current_a (A peak), max_current_a (A peak)
+    [inverter]     u_dc_v, switching_frequency_hz, control_frequency_hz (default: the switching
+                   frequency), dead_time_s, device_drop_v (a switch's or diode's on-state voltage, V),
+                   dead_time_compensation = true | false (default true: the controller adds the dead
+                   time's and drop's predicted error back, as drive firmware does)
+    [sensor]       kind = "exact" | "encoder", lines (per mechanical revolution), delay_s
+    [tolerances]   relative half-widths of the parameters' spread: R = 0.05 (+-5 %), L_d, L_q, psi_f, J, B,
+                   u_dc_v (Monte Carlo draws, robust tuning)
+    [control]      current_bandwidth_rad_s, speed_bandwidth_rad_s, startup_current_a,
+                   startup_acceleration_rad_s2, handover_speed_rad_s, blend_speed_rad_s
+    [scenario]     speed_rpm, load_nm, load_time_s, duration_s (the demo, compare and Monte Carlo run)
+    [tuning]       speed_rpm = [low, high], load_nm = [low, high], duration_s = [low, high]
+
+With a flux map the simulated machine is the map's (:class:`pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq`)
+and ``L_d``, ``L_q``, ``psi_f`` are the linear model the design rules and the controller use; left out,
+they are derived from the map: ``psi_f = psi_d(0, 0)`` and ``L_d``, ``L_q`` the incremental inductances
+``dpsi_d/di_d``, ``dpsi_q/di_q`` at ``i_d = 0``, ``i_q = [ratings] rated_current_a`` when the file gives
+it, else at zero current. The rated point is the choice for a map whose q axis saturates: a current loop
+tuned on the unsaturated ``L_q`` would run several times faster than designed at rated current, one tuned
+on the rated ``L_q`` only slower near zero current.
+
+A seven-value motor file (the values at top level or under ``[motor]``) is a drive file with every
+other table left out. What a file leaves out is derived from what it gives
+(:mod:`pmsmjax.spec.design_rules` has the rules and their sources) and each derived value is listed,
+with how, in :attr:`DriveSpec.derived` (``summary.json``'s ``drive_file.derived``).
+
+Checked, each a one-line :class:`~pmsmjax.spec.validation.ParameterError` naming the file, the table and
+key, the value in its unit and the fix: TOML syntax, unknown tables and keys (with the likely meant one),
+types, units (an inductance in mH, :mod:`pmsmjax.spec.plausibility`; a DC link in kV, a switching
+frequency in kHz, a dead time in us), a dead time that eats the switching period, a maximum current
+below the rated current, a rated torque the maximum current cannot give, and a rated point the inverter
+cannot reach (even with field weakening).
+"""
+
+import dataclasses
+from collections.abc import Mapping
+
+from pmsmjax.spec import derivations as derive
+from pmsmjax.spec import design_rules as rules
+from pmsmjax.spec import schema
+from pmsmjax.spec.plausibility import check_motor_units
+from pmsmjax.spec.schema import (
+    MAX_SENSOR_DELAY_PERIODS,
+    MOTOR_FIELDS,
+    TABLES,
+    check_keys,
+    flux_map_name,
+    split_tables,
+)
+from pmsmjax.spec.tables import (
+    ControlTable,
+    InverterTable,
+    MotorTable,
+    RatingsTable,
+    ScenarioTable,
+    SensorTable,
+    ToleranceTable,
+    TuningTable,
+)
+from pmsmjax.spec.validation import ParameterError, plain
+
+__all__ = ["DriveSpec", "complete", "split_tables", "check_keys", "flux_map_name", "TABLES", "MOTOR_FIELDS"]
+
+
+@dataclasses.dataclass(frozen=True)
+class DriveSpec:
+    """A checked drive: the file's tables (:mod:`pmsmjax.spec.tables`, typed and frozen) with every absent
+    value derived.
+
+    - `source`: the preset name or file path;
+    - `motor`: SI values (``n_phases`` present only for a multi-phase motor);
+    - `ratings`: ``rated_speed_rpm, rated_torque_nm, rated_current_a, max_current_a``;
+    - `inverter`: ``u_dc_v, switching_frequency_hz, control_frequency_hz, dead_time_s, device_drop_v``
+      and ``dead_time_compensation`` (bool);
+    - `sensor`: ``kind`` and, for an encoder, ``lines``, ``delay_s``;
+    - `tolerances`: relative half-widths (only those the file gives);
+    - `control`, `scenario`, `tuning`: as the file's tables, complete;
+    - `derived`: ``{"table.key": how}`` for every value the file left out;
+    - `notes`: what a user should know about the drive (a rated point that needs field weakening);
+    - `flux_map`: the ``[motor] flux_map`` grid as read once
+      (:class:`~pmsmjax.machines.flux_map.FluxMapGrid`), None without one.
+    """
+
+    source: str
+    motor: MotorTable
+    ratings: RatingsTable
+    inverter: InverterTable
+    sensor: SensorTable
+    tolerances: ToleranceTable
+    control: ControlTable
+    scenario: ScenarioTable
+    tuning: TuningTable
+    derived: dict
+    notes: tuple = ()
+    flux_map: object = dataclasses.field(default=None, compare=False, repr=False)
+
+    @property
+    def n_phases(self) -> int:
+        """Phase count of the motor: ``[motor] n_phases``, 3 when absent."""
+        return int(self.motor.get("n_phases", 3))
+
+    @property
+    def Ts(self) -> float:
+        """Control period, s."""
+        return 1.0 / self.inverter["control_frequency_hz"]
+
+    @property
+    def current_limit_a(self) -> float:
+        """The controller's peak current limit, A (``[ratings] max_current_a``)."""
+        return self.ratings["max_current_a"]
+
+    @property
+    def u_dc_v(self) -> float:
+        """DC-link voltage, V: ``[inverter] u_dc_v`` (or ``--u-dc``)."""
+        return self.inverter["u_dc_v"]
+
+    @property
+    def voltage_limit_v(self) -> float:
+        """Peak phase voltage of the default modulator's linear range, V."""
+        return rules.voltage_limit_v(self.u_dc_v, self.n_phases)
+
+    def summary(self) -> dict:
+        """The drive as summary.json reports it (every table, what was derived and how)."""
+        return {
+            "source": self.source,
+            **{t: dict(getattr(self, t)) for t in ("motor", "ratings", "inverter", "sensor", "tolerances")},
+            **{t: dict(getattr(self, t)) for t in ("control", "scenario", "tuning")},
+            "derived": dict(self.derived),
+            "notes": list(self.notes),
+        }
+
+
+def complete(
+    tables: dict,
+    *,
+    where: str,
+    source: str,
+    n_phases: int | None = None,
+    check_units: bool = True,
+    overrides: Mapping[str, float] | None = None,
+    flags: Mapping[str, str] | None = None,
+    flux_map=None,
+    flux_map_path: str | None = None,
+) -> DriveSpec:
+    """Check and complete a drive file's tables (module docstring).
+
+    Args:
+        tables: ``{table: {key: value}}`` as :func:`split_tables` gives them (every table, empty when the
+            file leaves it out), keys checked by :func:`check_keys`.
+        where: how messages name the file (``"drive file motor.toml"``).
+        source: the preset name or file path the spec reports.
+        n_phases: the machine the command runs (a file for another is refused); None: any.
+        check_units: refuse values implausible in SI units (unless the file trusts its units).
+        overrides: ``u_dc_v`` (V) and ``max_current_a`` (A) from flags, over the file's.
+        flags: how messages name the overrides (``{"u_dc_v": "--u-dc"}``).
+        flux_map: the ``[motor] flux_map`` grid (:class:`~pmsmjax.machines.flux_map.FluxMapGrid`) as read.
+        flux_map_path: its absolute path (what ``motor["flux_map"]`` reports).
+
+    Returns:
+        The checked, completed drive.
+    """
+    tables = {table: dict(values) for table, values in tables.items()}  # completed in place below
+    flux_map_derived = {}
+    if flux_map is not None:
+        flux_map_derived = derive.flux_map_motor(tables["motor"], tables["ratings"], flux_map, flux_map_path)
+    motor = schema.read_motor(tables["motor"], where, n_phases)
+    trust = tables["motor"].get("trust_units", False)
+    ratings = schema.numbers(tables["ratings"], "ratings", where)
+    compensation = tables["inverter"].pop("dead_time_compensation", None)
+    if compensation is not None and not isinstance(compensation, bool):
+        raise ParameterError(
+            f"{where}: [inverter] dead_time_compensation must be true or false, got {compensation!r}."
+        )
+    inverter = schema.numbers(tables["inverter"], "inverter", where)
+    control = schema.numbers(tables["control"], "control", where)
+    scenario = schema.numbers(tables["scenario"], "scenario", where, positive=("duration_s",), signed=True)
+    tolerances = schema.numbers(tables["tolerances"], "tolerances", where, zero_ok=True)
+    if scenario.get("load_time_s", 0.0) < 0.0:
+        raise ParameterError(
+            f"{where}: [scenario] load_time_s = {plain(scenario['load_time_s'])} s: give a time >= 0 (s "
+            "after the start of the run)."
+        )
+    tuning = schema.ranges(tables["tuning"], where)
+    sensor = schema.read_sensor(tables["sensor"], where)
+    for key, value in (overrides or {}).items():
+        table = "inverter" if key == "u_dc_v" else "ratings"
+        schema.positive_number(value, key, (flags or {}).get(key, f"[{table}] {key}"))
+        (inverter if table == "inverter" else ratings)[key] = float(value)
+    name_of = derive.namer(where, flags or {}, overrides or {})
+
+    derived = dict(flux_map_derived)
+    derive.complete_inverter(inverter, derived, name_of)
+    if compensation is None:
+        compensation = True
+        derived["inverter.dead_time_compensation"] = (
+            "true: the controller adds the dead time's and device drop's predicted error back, as drive "
+            "firmware does (it acts when dead_time_s or device_drop_v > 0)"
+        )
+    inverter["dead_time_compensation"] = compensation
+    Ts = 1.0 / inverter["control_frequency_hz"]
+    if check_units and not trust:
+        check_motor_units(motor, f"{where} [motor]", Ts)
+    derive.complete_ratings(motor, ratings, inverter, derived, name_of)
+    notes = derive.check_rated_point(motor, ratings, inverter, name_of)
+    derive.complete_control(motor, ratings, control, Ts, derived, where)
+    if sensor.get("delay_s", 0.0) > MAX_SENSOR_DELAY_PERIODS * Ts:
+        raise ParameterError(
+            f"{where}: [sensor] delay_s = {plain(sensor['delay_s'])} s is more than "
+            f"{MAX_SENSOR_DELAY_PERIODS} "
+            f"control periods ({plain(MAX_SENSOR_DELAY_PERIODS * Ts * 1e6)} us): encoder latencies are a few "
+            "us, "
+            "in s: write e.g. 2e-6 for 2 us."
+        )
+    if not scenario.keys() >= TABLES["scenario"].keys():
+        rule = rules.default_scenario(
+            motor, ratings["rated_speed_rpm"], ratings["rated_torque_nm"], ratings["max_current_a"],
+            control["speed_bandwidth_rad_s"],
+        )  # fmt: skip
+        for key, value in rule.items():
+            if key not in scenario:
+                scenario[key] = value
+                derived[f"scenario.{key}"] = derive.SCENARIO_HOW[key]
+    if not scenario["load_time_s"] < scenario["duration_s"]:
+        raise ParameterError(
+            f"{where}: [scenario] load_time_s = {plain(scenario['load_time_s'])} s is not inside the run "
+            f"(duration_s = {plain(scenario['duration_s'])} s): give a load time below the duration."
+        )
+    if not tuning.keys() >= TABLES["tuning"].keys():
+        rule = rules.tuning_ranges(
+            motor, ratings["rated_speed_rpm"], ratings["rated_torque_nm"], ratings["max_current_a"],
+            inverter["u_dc_v"], control["speed_bandwidth_rad_s"],
+        )  # fmt: skip
+        for key, value in rule.items():
+            if key not in tuning:
+                tuning[key] = value
+                derived[f"tuning.{key}"] = derive.TUNING_HOW[key]
+    for key, value in tolerances.items():
+        if not value < 1.0:
+            raise ParameterError(
+                f"{where}: [tolerances] {key} = {plain(value)} is a relative half-width and must be below 1 "
+                f"(0.05 for +-5 %); a spread of {plain(100 * value)} % would reach zero or below."
+            )
+    return DriveSpec(
+        source, MotorTable.of(motor), RatingsTable.of(ratings), InverterTable.of(inverter),
+        SensorTable.of(sensor), ToleranceTable.of(tolerances), ControlTable.of(control),
+        ScenarioTable.of(scenario), TuningTable.of(tuning), derived, tuple(notes), flux_map,
+    )  # fmt: skip

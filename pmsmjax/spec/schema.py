@@ -1,0 +1,248 @@
+"""The drive file's schema: every table and key with its unit, the plausible ranges, and the reading of a
+table's raw values into checked numbers (types, signs, units), each refusal one line naming the file, the
+table and key, the value in its unit and the fix. Plain Python."""
+
+import difflib
+import math
+
+from pmsmjax.spec.validation import ParameterError, plain
+
+MOTOR_FIELDS = ("R", "L_d", "L_q", "psi_f", "pole_pairs", "J", "B")
+MULTIPHASE_FIELDS = ("n_phases", "L_ls", "psi_f3")
+MOTOR_UNITS = {"R": "ohm", "L_d": "H", "L_q": "H", "psi_f": "Wb", "pole_pairs": "", "J": "kg m^2"}
+MOTOR_UNITS.update(B="N m s/rad", L_ls="H", psi_f3="Wb", n_phases="")
+
+#: Every table and its keys with their units (``"int"``: a whole number; ``"str"``: text; ``"range"``: a
+#: [low, high] pair).
+TABLES = {
+    "motor": {**MOTOR_UNITS, "trust_units": "bool", "flux_map": "str"},
+    "ratings": {
+        "rated_speed_rpm": "r/min",
+        "rated_torque_nm": "N m",
+        "rated_current_a": "A",
+        "max_current_a": "A",
+    },  # fmt: skip
+    "inverter": {
+        "u_dc_v": "V",
+        "switching_frequency_hz": "Hz",
+        "control_frequency_hz": "Hz",
+        "dead_time_s": "s",
+        "device_drop_v": "V",
+        "dead_time_compensation": "bool",
+    },  # fmt: skip
+    "sensor": {"kind": "str", "lines": "int", "delay_s": "s"},
+    "tolerances": {k: "" for k in ("R", "L_d", "L_q", "psi_f", "J", "B", "L_ls", "u_dc_v")},
+    "control": {
+        "current_bandwidth_rad_s": "rad/s",
+        "speed_bandwidth_rad_s": "rad/s",
+        "startup_current_a": "A",
+        "startup_acceleration_rad_s2": "rad/s^2",
+        "handover_speed_rad_s": "rad/s",
+        "blend_speed_rad_s": "rad/s",
+    },  # fmt: skip
+    "scenario": {"speed_rpm": "r/min", "load_nm": "N m", "load_time_s": "s", "duration_s": "s"},
+    "tuning": {"speed_rpm": "range", "load_nm": "range", "duration_s": "range"},
+}
+SENSOR_KINDS = ("exact", "encoder")
+#: Plausible ranges of the inverter's numbers (wide: they catch a unit slip, not an unusual drive).
+DC_LINK_RANGE_V = (5.0, 5000.0)
+SWITCHING_RANGE_HZ = (500.0, 1e6)
+#: A dead time beyond this share of the switching period is refused (it would take over a fifth of the
+#: voltage: a unit slip, us for s).
+MAX_DEAD_TIME_SHARE = 0.1
+#: A device drop above this (V), or above this share of the DC link, is refused (IGBTs and diodes drop
+#: 0.7-3 V, MOSFETs less: more is a unit slip, mV for V, or the drop of a whole string).
+MAX_DEVICE_DROP_V = 10.0
+MAX_DEVICE_DROP_SHARE = 0.1
+MAX_SPEED_RPM = 200_000.0
+#: An encoder latency beyond this many control periods is refused (a unit slip: us for s).
+MAX_SENSOR_DELAY_PERIODS = 10
+
+
+def _one_line(text) -> str:
+    return " ".join(str(text).split())
+
+
+def split_tables(data: dict, where: str) -> dict:
+    """``{table: values}`` for every table; a file with no ``[motor]`` table holds its motor at top level
+    (the seven-value motor file)."""
+    tables = {t: {} for t in TABLES}
+    if "motor" in data:
+        loose = sorted(k for k, v in data.items() if not isinstance(v, dict))
+        if loose:
+            raise ParameterError(
+                f"{where}: keys {loose} sit outside any table next to a [motor] table: move them into "
+                "the table they belong to ([motor], [ratings], [inverter], ...)."
+            )
+        unknown = sorted(set(data) - set(TABLES))
+        if unknown:
+            hints = _hints(unknown, TABLES)
+            raise ParameterError(
+                f"{where}: unknown tables {unknown}{hints}; a drive file has [{'], ['.join(TABLES)}]."
+            )
+        for table, values in data.items():
+            if not isinstance(values, dict):  # pragma: no cover (caught as a loose key above)
+                raise ParameterError(f"{where}: [{table}] must be a table.")
+            tables[table] = dict(values)
+        return tables
+    nested = sorted(k for k, v in data.items() if isinstance(v, dict))
+    if nested:
+        raise ParameterError(
+            f"{where}: tables {nested} but no [motor] table: put the motor's values under [motor]."
+        )
+    tables["motor"] = dict(data)
+    return tables
+
+
+def _hints(unknown, allowed) -> str:
+    found = [
+        f"{u!r} looks like {m[0]!r}" for u in unknown if (m := difflib.get_close_matches(u, allowed, 1, 0.6))
+    ]
+    return f" ({'; '.join(found)})" if found else ""
+
+
+def check_keys(table: str, values: dict, where: str) -> None:
+    """Refuse keys the table does not have, with the likely meant ones."""
+    unknown = sorted(set(values) - set(TABLES[table]))
+    if unknown:
+        raise ParameterError(
+            f"{where}: unknown keys {unknown} in [{table}]{_hints(unknown, TABLES[table])}; allowed: "
+            f"{', '.join(TABLES[table])}."
+        )
+
+
+def is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def positive_number(value, key: str, name: str, unit: str = "") -> float:
+    unit = f" {unit}" if unit else ""
+    if not is_number(value):
+        raise ParameterError(f"{name} must be a number{(' of' + unit) if unit else ''}, got {value!r}.")
+    if not math.isfinite(value) or value <= 0:
+        raise ParameterError(f"{name} = {plain(value)}{unit} must be a finite number above 0.")
+    return float(value)
+
+
+def numbers(values: dict, table: str, where: str, positive=(), signed=False, zero_ok=False) -> dict:
+    """The table's values as floats, each finite and > 0 (>= 0 with `zero_ok` or for a dead time; any
+    finite value with `signed`, except the keys of `positive`)."""
+    out = {}
+    for key, v in values.items():
+        unit = TABLES[table][key]
+        name = f"{where}: [{table}] {key}"
+        if not is_number(v):
+            raise ParameterError(f"{name} must be a number ({unit or 'relative'}), got {v!r}.")
+        v = float(v)
+        low_ok = (zero_ok or key in ("dead_time_s", "device_drop_v")) and v == 0.0
+        if not math.isfinite(v) or ((not signed or key in positive) and v <= 0 and not low_ok):
+            need = "a finite number" if signed and key not in positive else "a finite number above 0"
+            raise ParameterError(f"{name} = {plain(v)} {unit}: give {need}.")
+        out[key] = v
+    return out
+
+
+def ranges(values: dict, where: str) -> dict:
+    out = {}
+    for key, v in values.items():
+        name = f"{where}: [tuning] {key}"
+        if not (isinstance(v, list) and len(v) == 2 and all(is_number(x) and math.isfinite(x) for x in v)):
+            raise ParameterError(f"{name} must be [low, high], two finite numbers, got {v!r}.")
+        low, high = (float(x) for x in v)
+        if not 0 <= low <= high or (key == "duration_s" and low <= 0):
+            raise ParameterError(
+                f"{name} = [{plain(low)}, {plain(high)}]: give 0 <= low <= high (durations > 0)."
+            )
+        out[key] = [low, high]
+    return out
+
+
+#: The linear-model values a flux map stands in for.
+FLUX_MAP_DERIVES = ("L_d", "L_q", "psi_f")
+
+
+def flux_map_name(values: dict, where: str) -> str:
+    """The ``[motor] flux_map`` file name, checked (a non-empty name, a three-phase motor)."""
+    name = values["flux_map"]
+    if not isinstance(name, str) or not name:
+        raise ParameterError(f'{where}: [motor] flux_map must be a file name (e.g. "map.csv"), got {name!r}.')
+    if values.get("n_phases", 3) != 3:
+        raise ParameterError(
+            f"{where}: [motor] flux_map is for a three-phase motor: drop n_phases or the map."
+        )
+    return name
+
+
+def read_motor(values: dict, where: str, n_phases: int | None) -> dict:
+    trust = values.get("trust_units", False)
+    if not isinstance(trust, bool):
+        raise ParameterError(f"{where}: [motor] trust_units must be true or false, got {trust!r}.")
+    file_phases = values.get("n_phases", 3)
+    if not isinstance(file_phases, int) or isinstance(file_phases, bool) or file_phases not in (3, 5, 6):
+        raise ParameterError(f"{where}: [motor] n_phases = {file_phases!r}: give 3, 5 or 6.")
+    if n_phases is not None and file_phases != n_phases:
+        word = {3: "three", 5: "five", 6: "six"}
+        raise ParameterError(
+            f"{where}: a {word[file_phases]}-phase motor (n_phases = {file_phases}); this command runs a "
+            f"{word[n_phases]}-phase machine: give --machine {word[file_phases]}-phase or a "
+            f"{word[n_phases]}-phase drive file."
+        )
+    needed = MOTOR_FIELDS + (("L_ls",) if file_phases != 3 else ())
+    missing = [f for f in needed if f not in values]
+    if missing:
+        raise ParameterError(
+            f"{where} lacks {', '.join(missing)} in [motor]: it needs {', '.join(needed)} (SI units: "
+            f"{', '.join(k + ' ' + (MOTOR_UNITS[k] or '-') for k in needed)})."
+        )
+    extra = sorted(k for k in ("L_ls", "psi_f3") if k in values and file_phases == 3)
+    if extra or ("psi_f3" in values and file_phases != 5):
+        raise ParameterError(
+            f"{where}: [motor] {', '.join(extra or ['psi_f3'])} belong to a multi-phase motor (L_ls: "
+            "five- or six-phase, psi_f3: five-phase): set n_phases or drop them."
+        )
+    motor = {"flux_map": values["flux_map"]} if "flux_map" in values else {}
+    for key in needed + tuple(k for k in ("psi_f3",) if k in values):
+        v = values[key]
+        if key == "pole_pairs":
+            if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+                raise ParameterError(f"{where}: [motor] pole_pairs must be a whole number >= 1, got {v!r}.")
+            motor[key] = v
+            continue
+        if not is_number(v) or not math.isfinite(v):
+            raise ParameterError(
+                f"{where}: [motor] {key} must be a finite number ({MOTOR_UNITS[key]}), got {v!r}."
+            )
+        lowest_ok = key in ("B", "psi_f3")
+        if v < 0 or (v == 0 and not lowest_ok):
+            need = ">= 0" if lowest_ok else "> 0"
+            raise ParameterError(
+                f"{where}: [motor] {key} = {plain(v)} {MOTOR_UNITS[key]}: give a value {need}."
+            )
+        motor[key] = float(v)
+    if file_phases != 3:
+        motor["n_phases"] = file_phases
+    return motor
+
+
+def read_sensor(values: dict, where: str) -> dict:
+    kind = values.get("kind", "exact")
+    if kind not in SENSOR_KINDS:
+        raise ParameterError(f"{where}: [sensor] kind = {kind!r}: give one of {', '.join(SENSOR_KINDS)}.")
+    sensor = {"kind": kind}
+    if kind == "exact":
+        extra = sorted(set(values) - {"kind"})
+        if extra:
+            raise ParameterError(f'{where}: [sensor] {", ".join(extra)} apply to kind = "encoder" only.')
+        return sensor
+    lines = values.get("lines")
+    if not isinstance(lines, int) or isinstance(lines, bool) or lines < 1:
+        raise ParameterError(
+            f"{where}: [sensor] lines must be the encoder's lines per revolution, a whole number >= 1 "
+            f"(e.g. 2500), got {lines!r}."
+        )
+    sensor["lines"] = lines
+    delay = values.get("delay_s", 0.0)
+    if not is_number(delay) or not math.isfinite(delay) or delay < 0:
+        raise ParameterError(f"{where}: [sensor] delay_s must be a number >= 0 (s), got {delay!r}.")
+    sensor["delay_s"] = float(delay)
+    return sensor
