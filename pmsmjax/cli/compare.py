@@ -167,7 +167,7 @@ def precheck(args):
         chapter6 = any(n in CHAPTER6_NAMES for n in names)
         _chapter6_flags(args, names, chapter6)
         if chapter6:
-            from pmsmjax.jobs.control_comparison import check_estimator_scenario
+            from pmsmjax.jobs.estimator_comparison import check_estimator_scenario
 
             check_estimator_scenario(names, args.scenario)
         control = "pi"
@@ -255,7 +255,7 @@ CHAPTER6_NAMES = registry.names("estimator", group="injection") + registry.names
 def _chapter6_flags(args, names: list[str], chapter6: bool) -> None:
     """Fill in --scenario (book; standstill when an injection method is compared) and refuse what does
     not fit before JAX starts (the scenario-estimator pairs themselves:
-    :func:`pmsmjax.jobs.control_comparison.check_estimator_scenario`)."""
+    :func:`pmsmjax.jobs.estimator_comparison.check_estimator_scenario`)."""
     if args.scenario is None:
         injection = any(n.startswith("hfi-") for n in names)
         args.scenario = "standstill" if injection else "book"
@@ -355,16 +355,16 @@ def run(args) -> int:
 
 
 def run_estimators(args, names: list[str], spec) -> int:
-    """``pmsmjax compare --estimator``: the observers side by side (:func:`pmsmjax.jobs.control_comparison.
+    """``pmsmjax compare --estimator``: the observers side by side (:func:`pmsmjax.jobs.estimator_comparison.
     compare_estimators`); writes compare.json, compare_estimators.md and figures."""
     import numpy as np
 
     from pmsmjax.analysis.observer_errors import angle_error, angle_error_modulo_pi
     from pmsmjax.assemble import spec_motor
     from pmsmjax.io.logs import atomic_write
-    from pmsmjax.jobs.control_comparison import (
+    from pmsmjax.jobs.control_comparison import ControllerCompareSettings
+    from pmsmjax.jobs.estimator_comparison import (
         ESTIMATOR_COLUMNS,
-        ControllerCompareSettings,
         LowSpeedSweep,
         compare_estimators,
         estimator_table,
