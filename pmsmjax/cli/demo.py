@@ -395,7 +395,7 @@ def run(args) -> int:
     spec = precheck(args)
     out = checks.output_folder(args.out)
     gains = read_gains_flag(args.gains)
-    adjust = None if gains is None else (lambda drive: apply_gains_flag(drive, gains, args.control))
+    adjust = None if gains is None else (lambda drive, control: apply_gains_flag(drive, gains, control))
     try:
         request = demo_spec(args, spec)
         drive, scenario = demo_job.build(request, adjust)

@@ -147,8 +147,9 @@ def build(spec: DemoSpec, adjust: Callable | None = None):
     """The drive and the scenario of ``spec``, checked: a duration that is not a whole number of control
     periods, a ``decimate`` that does not divide them, or what
     :func:`pmsmjax.simulate.check_simulation` refuses is a :class:`~pmsmjax.spec.validation.ParameterError`
-    before anything compiles. ``adjust``: ``drive -> drive`` applied once the drive is built (tuned gains,
-    say; after the observer is in, so gains may name ``estimator.*``). Returns ``(drive, scenario)``."""
+    before anything compiles. ``adjust``: ``(drive, control) -> drive`` applied once the drive is built
+    (tuned gains, say; after the observer is in, so gains may name ``estimator.*``). Returns
+    ``(drive, scenario)``."""
     from pmsmjax.assemble import assemble, spec_scenario
     from pmsmjax.simulate import check_simulation
 
@@ -167,7 +168,7 @@ def build(spec: DemoSpec, adjust: Callable | None = None):
         observer_model=spec.observer_model or "map",
     )
     if adjust is not None:
-        drive = adjust(drive)
+        drive = adjust(drive, spec.control)
     scenario = spec_scenario(spec.drive, spec.speed_rpm, spec.load_nm, spec.load_time_s, spec.duration_s)
     n = spec.duration_s / drive.Ts
     if abs(n - round(n)) > 1e-6 * max(n, 1.0):
