@@ -99,4 +99,3 @@ def drive_name(spec: DriveSpec) -> str:
     """The drive as titles and the console name it: the preset name, or the drive file's stem."""
     source = spec.source
     return Path(source).stem if source.endswith(".toml") or Path(source).is_file() else source
-
