@@ -4,7 +4,7 @@ tuner saw.
 
 The tuning drive (:mod:`tuning.autotune.hfi_tuning`) wraps the estimator in a sensored warm-up (path
 ``estimator.observer.*``) and the hybrid there has no polarity detector; the compare drive
-(:func:`pmsmjax.jobs.control_comparison.chapter6_drive`) holds the estimator at ``estimator.*`` and the
+(:func:`pmsmjax.jobs.estimator_comparison.chapter6_drive`) holds the estimator at ``estimator.*`` and the
 hybrid's injection inside its polarity detector (``estimator.injection.observer.*``). The gains are moved to
 those
 paths (:func:`compare_paths`). The hybrid also runs ``compare``'s book scenario (1000 r/min from
@@ -25,16 +25,14 @@ import sys
 import jax
 
 from pmsmjax.analysis.observer_errors import observer_errors
-from pmsmjax.jobs.control_comparison import (
+from pmsmjax.jobs.control_comparison import ControllerCompareSettings, run_control, window_periods
+from pmsmjax.jobs.estimator_comparison import (
     CHAPTER6_INITIAL_ANGLE_DEG,
     ESTIMATOR_SCENARIOS,
-    ControllerCompareSettings,
     chapter6_drive,
     estimator_family,
     estimator_scenario,
-    run_control,
     run_estimator_scenario,
-    window_periods,
 )
 from tuning.parameters import read_gains_toml, set_leaves
 

@@ -323,8 +323,8 @@ def test_the_spec_loads_no_jax():
 
 @pytest.mark.xfail(
     strict=True,
-    reason="the commands (demo builds its drive through the assembler) still analyse and plot in the command "
-    "modules, and compare, tune and montecarlo still build drives there: that work moves into jobs/ next",
+    reason="observe, replay, tune, identify and montecarlo still build and analyse in the command modules: "
+    "they move into jobs/ next",
 )
 def test_the_command_line_imports_no_physics():
     """A command parses flags into a spec, calls a job and writes its result: the physics (blocks, engine,

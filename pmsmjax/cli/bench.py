@@ -27,13 +27,12 @@ def run(args) -> int:
     import json
 
     from pmsmjax.io.logs import atomic_write
-    from pmsmjax.jobs.bench import format_table
-    from pmsmjax.jobs.bench import run as time_the_engine
+    from pmsmjax.jobs.bench import bench
 
-    results = time_the_engine(quick=args.quick)
-    print(format_table(results))
+    result = bench(quick=args.quick)
+    print(result.table)
     if args.json is not None:
-        text = json.dumps(results, indent=2) + "\n"
+        text = json.dumps(result.figures, indent=2) + "\n"
         atomic_write(args.json, lambda f: f.write(text.encode()))
         print(f"wrote {args.json}")
     return 0

@@ -1,46 +1,15 @@
 """``pmsmjax compare``: control methods side by side on a drive's scenario (``--motor``: the book drive by
-default, or a drive file; :mod:`pmsmjax.jobs.control_comparison`)."""
+default, or a drive file), or observers (``--estimator``). The comparison itself is
+:mod:`pmsmjax.jobs.compare`: this module parses the flags into its :class:`~pmsmjax.jobs.compare.CompareSpec`
+and writes its :class:`~pmsmjax.jobs.compare.CompareResult`."""
 
 import json
-import time
 
 from pmsmjax.cli import checks, drive_flags
 from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
+from pmsmjax.jobs import compare as compare_job
 from pmsmjax.spec import registry
 from pmsmjax.spec.validation import ParameterError, plain
-
-#: Electrical periods of the ripple and THD window at the end of the run.
-WINDOW_CYCLES = 2
-
-
-def whole_window_speed(speed_rpm: float, spec, given: bool) -> float:
-    """The run's speed, r/min: the ripple window spans whole electrical periods at the control rate
-    (:func:`pmsmjax.jobs.control_comparison.window_periods`). A speed from the drive file that does not
-    fit is lowered to the nearest one that does (said on the console); one the user gave is refused with
-    the nearest ones that fit."""
-    from pmsmjax.presets.book_constants import DTC_SAMPLE_PERIOD_S, HYSTERESIS_SAMPLE_PERIOD_S
-    from pmsmjax.spec.design_rules import common_period_s, whole_period_speed_rpm
-
-    cycles = WINDOW_CYCLES
-    # every control's own period: the comparator drives sample faster than the PWM ones
-    period = common_period_s((spec.Ts, HYSTERESIS_SAMPLE_PERIOD_S, DTC_SAMPLE_PERIOD_S))
-    fitting = whole_period_speed_rpm(speed_rpm, spec.motor["pole_pairs"], period, cycles)
-    if fitting == speed_rpm:
-        return speed_rpm
-    if given:
-        slower = whole_period_speed_rpm(0.999 * fitting, spec.motor["pole_pairs"], period, cycles)
-        raise ParameterError(
-            f"--speed-rpm {plain(speed_rpm)}: {cycles} electrical periods at this speed are not a whole "
-            f"number of {plain(period * 1e6)} us (every control's period), which the ripple window needs: "
-            "give "
-            "e.g. "
-            f"{fitting:.6g} or {slower:.6g} r/min."
-        )
-    print(
-        f"speed {fitting:.6g} r/min instead of the drive file's {plain(speed_rpm)} r/min: the ripple window "
-        f"needs {cycles} electrical periods to span whole {plain(period * 1e6)} us (every control's period)"
-    )
-    return fitting
 
 
 def add_parser(sub):
@@ -150,8 +119,6 @@ def add_parser(sub):
 def precheck(args):
     """Checks that need no model (before JAX starts); returns the control (or observer) names and the
     drive (:class:`~pmsmjax.spec.drive_spec.DriveSpec`), the scenario flags left unset filled from it."""
-    from pmsmjax.spec.steady_state import refuse_unreachable
-
     multiphase = args.machine != "three-phase"
     if multiphase:
         for flag, value in (("--estimator", args.estimator), ("--equal-switching", args.equal_switching)):
@@ -167,7 +134,7 @@ def precheck(args):
         chapter6 = any(n in CHAPTER6_NAMES for n in names)
         _chapter6_flags(args, names, chapter6)
         if chapter6:
-            from pmsmjax.jobs.control_comparison import check_estimator_scenario
+            from pmsmjax.jobs.estimator_comparison import check_estimator_scenario
 
             check_estimator_scenario(names, args.scenario)
         control = "pi"
@@ -193,7 +160,9 @@ def precheck(args):
     speed_given = args.speed_rpm is not None
     drive_flags.fill_scenario(args, spec)
     if not fixed:
-        args.speed_rpm = whole_window_speed(args.speed_rpm, spec, speed_given)
+        args.speed_rpm, note = compare_job.fitting_speed(args.speed_rpm, spec, speed_given)
+        if note:
+            print(note)
     known = registry.names("control", args.machine)
     default = ",".join(known) if multiphase else (control or "pi,smc,pr,hysteresis")
     control_list = args.control if args.control is not None else default
@@ -232,17 +201,7 @@ def precheck(args):
             "a salient drive file."
         )
     if not fixed:
-        refuse_unreachable(
-            motor,
-            args.speed_rpm,
-            args.load_nm,
-            spec.u_dc_v,
-            spec.voltage_limit_v,  # the default modulator's linear range for the file's phase count
-            spec.current_limit_a,
-            what="the comparison of ripple and THD",
-            u_dc_flag=drive_flags.U_DC_KNOB,
-            current_limit_flag="--current-limit",
-        )
+        compare_job.check_operating_point(spec, args.speed_rpm, args.load_nm, drive_flags.U_DC_KNOB)
     return names, spec
 
 
@@ -255,7 +214,7 @@ CHAPTER6_NAMES = registry.names("estimator", group="injection") + registry.names
 def _chapter6_flags(args, names: list[str], chapter6: bool) -> None:
     """Fill in --scenario (book; standstill when an injection method is compared) and refuse what does
     not fit before JAX starts (the scenario-estimator pairs themselves:
-    :func:`pmsmjax.jobs.control_comparison.check_estimator_scenario`)."""
+    :func:`pmsmjax.jobs.estimator_comparison.check_estimator_scenario`)."""
     if args.scenario is None:
         injection = any(n.startswith("hfi-") for n in names)
         args.scenario = "standstill" if injection else "book"
@@ -305,139 +264,90 @@ def run(args) -> int:
     """Run the drive's scenario under each chosen control method (or observer, ``--estimator``);
     writes compare.json and figures to ``--out``. Returns the exit status."""
     names, spec = precheck(args)
-    if args.estimator is not None:
-        return run_estimators(args, names, spec)
-
-    from pmsmjax.io.logs import atomic_write
-    from pmsmjax.jobs.control_comparison import ControllerCompareSettings, compare_controllers
-
-    settings = ControllerCompareSettings(
+    request = compare_job.CompareSpec(
+        drive=spec,
+        names=tuple(names),
         speed_rpm=args.speed_rpm,
         load_nm=args.load_nm,
         load_time_s=args.load_time_s,
         duration_s=args.duration_s,
+        machine=args.machine,
         bridge=args.bridge,
-        window_cycles=WINDOW_CYCLES,
         equal_switching_hz=args.equal_switching,
-    )
-    settings.check()
-    out = checks.output_folder(args.out)
-    gains = read_gains_flag(args.gains)
-    tune = None if gains is None else (lambda drive, name: apply_gains_flag(drive, gains, name))
-    t0 = time.perf_counter()
-    result = compare_controllers(
-        names, None, settings, progress=print, adjust=tune, machine=args.machine, spec=spec
-    )
-    report = {"settings": result["settings"], "controllers": result["controllers"]}
-    report["settings"]["machine"] = args.machine
-    report["settings"]["gains"] = args.gains
-    report["drive_file"] = spec.summary()
-    report["wall_time_s"] = time.perf_counter() - t0
-    out.mkdir(parents=True, exist_ok=True)
-    atomic_write(out / "compare.json", lambda f: f.write(json.dumps(report, indent=2).encode()))
-    written = ["compare.json"]
-    if not args.no_figures:
-        from pmsmjax.plotting.compare import flux_figure, ripple_figure, speed_figure
-        from pmsmjax.plotting.traces import save_figure
-
-        for name, fig in (
-            ("compare_speed.png", speed_figure(result)),
-            ("compare_ripple.png", ripple_figure(result)),
-            ("compare_flux.png", flux_figure(result)),
-        ):
-            save_figure(fig, out / name)
-            written.append(name)
-    for name, entry in result["controllers"].items():
-        for f in entry["operating_point"]["flags"]:
-            print(f"WARNING {name}: {f['flag']}: {f['cause']}; remedy: {f['remedy']}.")
-    print(f"wrote {', '.join(f'{out}/{w}' for w in written)} in {report['wall_time_s']:.1f} s")
-    return 0
-
-
-def run_estimators(args, names: list[str], spec) -> int:
-    """``pmsmjax compare --estimator``: the observers side by side (:func:`pmsmjax.jobs.control_comparison.
-    compare_estimators`); writes compare.json, compare_estimators.md and figures."""
-    import numpy as np
-
-    from pmsmjax.analysis.observer_errors import angle_error, angle_error_modulo_pi
-    from pmsmjax.assemble import spec_motor
-    from pmsmjax.io.logs import atomic_write
-    from pmsmjax.jobs.control_comparison import (
-        ESTIMATOR_COLUMNS,
-        ControllerCompareSettings,
-        LowSpeedSweep,
-        compare_estimators,
-        estimator_table,
-    )
-
-    settings = ControllerCompareSettings(
-        speed_rpm=args.speed_rpm,
-        load_nm=args.load_nm,
-        load_time_s=args.load_time_s,
-        duration_s=args.duration_s,
-        bridge=args.bridge,
-        window_cycles=WINDOW_CYCLES,
-    )
-    settings.check()
-    motor = spec_motor(spec)
-    out = checks.output_folder(args.out)
-    t0 = time.perf_counter()
-    print("  ".join(h for h, _, _ in ESTIMATOR_COLUMNS))
-    result = compare_estimators(
-        names,
-        motor,
-        settings,
-        LowSpeedSweep(load_nm=args.load_nm),
-        progress=print,
+        gains=args.gains,
+        estimators=args.estimator is not None,
         scenario=args.scenario,
         initial_angle_deg=args.initial_angle_deg,
     )
-    report = {"settings": result["settings"], "estimators": result["controllers"]}
-    report["drive_file"] = spec.summary()
-    report["wall_time_s"] = time.perf_counter() - t0
-    out.mkdir(parents=True, exist_ok=True)
-    atomic_write(out / "compare.json", lambda f: f.write(json.dumps(report, indent=2).encode()))
-    table = estimator_table(result) + "\n"
-    atomic_write(out / "compare_estimators.md", lambda f: f.write(table.encode()))
-    written = ["compare.json", "compare_estimators.md"]
-    if not args.no_figures:
-        from pmsmjax.plotting.compare import speed_figure
-        from pmsmjax.plotting.observers import angle_error_figure
-        from pmsmjax.plotting.traces import save_figure
-        from pmsmjax.units import rad_s_to_rpm
+    out = checks.output_folder(args.out)
+    if request.estimators:
+        result = compare_job.compare_observers(request, progress=print)
+    else:
+        gains = read_gains_flag(args.gains)
+        tune = None if gains is None else (lambda drive, name: apply_gains_flag(drive, gains, name))
+        result = compare_job.compare_controls(request, adjust=tune, progress=print)
+    write(args, request, result, out)
+    return 0
 
-        first = next(iter(result["traces"].values()))
-        entries = result["controllers"]
-        errors = {}
-        for n, tr in result["traces"].items():
-            modulo_pi = entries[n]["angle_modulo"] == "pi"  # injection without polarity
-            error = angle_error_modulo_pi if modulo_pi else angle_error
-            theta_est, theta = (np.asarray(a, np.float64) for a in (tr.theta_e_est, tr.theta_e))
-            errors[f"{n} (mod pi)" if modulo_pi else n] = np.degrees(error(theta_est, theta))
-        angle0 = result["settings"]["initial_angle_deg"]
-        start = f"rotor {angle0:g} el. deg off" if chapter6_run(names) else "I/f"
-        title = f"Angle error, sensorless from standstill ({start}), {args.scenario} scenario"
-        angle = angle_error_figure(
-            np.asarray(first.t),
-            errors,
-            speed_rpm=rad_s_to_rpm(np.asarray(first.omega_m)),
-            title=title,
-            ylim=20.0 if chapter6_run(names) else 5.0,
-        )
-        speed = (
-            speed_figure(result)
-            if args.scenario == "book"
-            else speed_figure(
-                result,
-                title=f"Speed, {args.scenario} scenario",
-                load_time_s=0.15 if args.scenario == "reversal" else 0.1,  # the fixed scenarios' load steps
-            )
-        )
-        for name, fig in (("compare_speed.png", speed), ("compare_angle_error.png", angle)):
+
+def write(args, request: compare_job.CompareSpec, result: compare_job.CompareResult, out) -> None:
+    """Write compare.json, compare_estimators.md (observers) and, unless ``--no-figures``, the figures into
+    the folder ``out``; then print the warnings and what was written."""
+    from pmsmjax.io.logs import atomic_write
+
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write(out / "compare.json", lambda f: f.write(json.dumps(result.report, indent=2).encode()))
+    written = ["compare.json"]
+    if result.table is not None:
+        atomic_write(out / "compare_estimators.md", lambda f: f.write(result.table.encode()))
+        written.append("compare_estimators.md")
+    if not args.no_figures:
+        from pmsmjax.plotting.traces import save_figure
+
+        figures = observer_figures(request, result) if request.estimators else control_figures(result)
+        for name, fig in figures:
             save_figure(fig, out / name)
             written.append(name)
-    for name, entry in result["controllers"].items():
-        for f in entry["operating_point"]["flags"]:
-            print(f"WARNING {name}: {f['flag']}: {f['cause']}; remedy: {f['remedy']}.")
-    print(f"wrote {', '.join(f'{out}/{w}' for w in written)} in {report['wall_time_s']:.1f} s")
-    return 0
+    for line in result.warnings:
+        print(line)
+    print(f"wrote {', '.join(f'{out}/{w}' for w in written)} in {result.report['wall_time_s']:.1f} s")
+
+
+def control_figures(result: compare_job.CompareResult) -> list:
+    """``[(file name, figure)]`` of the control methods: speed, ripple and flux side by side."""
+    from pmsmjax.plotting.compare import flux_figure, ripple_figure, speed_figure
+
+    comparison = result.comparison
+    return [
+        ("compare_speed.png", speed_figure(comparison)),
+        ("compare_ripple.png", ripple_figure(comparison)),
+        ("compare_flux.png", flux_figure(comparison)),
+    ]
+
+
+def observer_figures(request: compare_job.CompareSpec, result: compare_job.CompareResult) -> list:
+    """``[(file name, figure)]`` of the observers: the speeds and the angle errors."""
+    from pmsmjax.plotting.compare import speed_figure
+    from pmsmjax.plotting.observers import angle_error_figure
+
+    chapter6 = chapter6_run(request.names)
+    angle0 = result.comparison["settings"]["initial_angle_deg"]
+    start = f"rotor {angle0:g} el. deg off" if chapter6 else "I/f"
+    angles = result.angle_errors
+    angle = angle_error_figure(
+        angles["t"],
+        angles["errors"],
+        speed_rpm=angles["speed_rpm"],
+        title=f"Angle error, sensorless from standstill ({start}), {request.scenario} scenario",
+        ylim=20.0 if chapter6 else 5.0,
+    )
+    speed = (
+        speed_figure(result.comparison)
+        if request.scenario == "book"
+        else speed_figure(
+            result.comparison,
+            title=f"Speed, {request.scenario} scenario",
+            load_time_s=result.load_time_s,
+        )
+    )
+    return [("compare_speed.png", speed), ("compare_angle_error.png", angle)]

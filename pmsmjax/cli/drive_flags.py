@@ -22,7 +22,6 @@ __all__ = [
     "resolve_drive",
     "fill_scenario",
     "drive_name",
-    "dead_time_entry",
 ]
 
 #: How messages name the values the flags override (drive_spec's `flags`).
@@ -101,35 +100,3 @@ def drive_name(spec: DriveSpec) -> str:
     """The drive as titles and the console name it: the preset name, or the drive file's stem."""
     source = spec.source
     return Path(source).stem if source.endswith(".toml") or Path(source).is_file() else source
-
-
-def dead_time_entry(spec: DriveSpec, drive) -> dict:
-    """summary.json's account of the drive file's dead time and device drop: what the bridge that ran
-    models (the averaged bridge's period-average error, or the switching bridge's dead windows) and
-    whether the controller compensates them."""
-    t_d, drop = spec.inverter["dead_time_s"], spec.inverter.get("device_drop_v", 0.0)
-    bridge = drive.bridge
-    error = getattr(bridge, "voltage_error", None)
-    if error is not None:
-        modelled, how = float(error.dead_time) > 0.0, "period-averaged by the averaged bridge"
-    else:
-        modelled, how = (
-            getattr(bridge, "resolve_dead_time", False),
-            "resolved edge by edge by the switching bridge",
-        )
-    compensation = getattr(drive.controller, "dead_time_compensation", None)
-    entry = {
-        "dead_time_s": t_d,
-        "device_drop_v": drop,
-        "modelled": bool(modelled and t_d > 0.0),
-        "compensated": compensation is not None,
-    }
-    if t_d > 0.0 and modelled:
-        entry["how"] = how
-    if t_d > 0.0 and not modelled:
-        entry["note"] = (
-            f"[inverter] dead_time_s = {t_d:g} s is not modelled by this bridge ({type(bridge).__name__}): "
-            "the three-phase averaged bridge and the switching bridges model it (six- and five-phase: "
-            "--bridge switching)"
-        )
-    return entry

@@ -1,12 +1,14 @@
 """``pmsmjax pwm-compare``: the PWM methods of a three-, six- or five-phase drive (``--motor``: the book
 drive by default, or a drive file: its motor, DC link, switching frequency and dead time) compared at one
-steady operating point (:mod:`pmsmjax.jobs.pwm_comparison`)."""
+steady operating point. The comparison itself is :mod:`pmsmjax.jobs.pwm_compare`: this module parses the
+flags into its :class:`~pmsmjax.jobs.pwm_compare.PwmCompareSpec` and writes its
+:class:`~pmsmjax.jobs.pwm_compare.PwmCompareResult`."""
 
 import json
-import time
 
 from pmsmjax.cli import checks, drive_flags
 from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
+from pmsmjax.jobs import pwm_compare as pwm_job
 from pmsmjax.spec.validation import ParameterError, plain
 
 MODULATOR_NAMES = ("sinusoidal", "third_harmonic", "min_max", "svpwm")
@@ -16,13 +18,6 @@ SIX_PHASE_MODULATOR_NAMES = ("four-vector", "two-vector", "decoupled", "double-z
 FIVE_PHASE_MODULATOR_NAMES = ("near-four-vector", "carrier", "sinusoidal", "large-vector")
 #: Dead time of the _deadtime variants when the drive file gives none (ideal switches), us.
 DEFAULT_DEAD_TIME_US = 2.0
-#: ``--phases`` -> the control whose drive reaches the operating point and its default modulator
-#: (:attr:`pmsmjax.jobs.pwm_comparison.PhaseCount.base_drive`).
-BASE_CONTROL = {
-    3: ("pi", {}),
-    6: ("conventional", {"pwm": "four-vector"}),
-    5: ("conventional", {"pwm": "near-four-vector"}),
-}
 
 
 def add_parser(sub):
@@ -109,8 +104,6 @@ def add_parser(sub):
 def precheck(args):
     """Checks that need no model (before JAX starts); returns the drive
     (:class:`~pmsmjax.spec.drive_spec.DriveSpec`), the flags left unset filled from it."""
-    from pmsmjax.spec.steady_state import refuse_unreachable
-
     checks.output_folder(args.out)
     read_gains_flag(args.gains)
     names = {3: MODULATOR_NAMES, 5: FIVE_PHASE_MODULATOR_NAMES, 6: SIX_PHASE_MODULATOR_NAMES}[args.phases]
@@ -136,32 +129,8 @@ def precheck(args):
             f"the modulator once per switching period; give control_frequency_hz = {plain(f_sw)} (or leave "
             "it out)."
         )
-    Ts = spec.Ts
-    f1 = args.speed_rpm / 60.0 * spec.motor["pole_pairs"]
-    per_cycle = 1.0 / (f1 * Ts)
-    if abs(per_cycle - round(per_cycle)) > 1e-9 * per_cycle:
-        # whole r/min whose electrical period is a whole number of PWM periods, the four nearest the one asked
-        step = 60.0 / (spec.motor["pole_pairs"] * Ts)  # r/min of a one-period electrical cycle
-        whole = [
-            step / n for n in range(1, 10 * round(per_cycle) + 10) if abs(step / n - round(step / n)) < 1e-9
-        ]
-        good = sorted(sorted(whole, key=lambda v: abs(v - args.speed_rpm))[:4])
-        raise ParameterError(
-            f"--speed-rpm {plain(args.speed_rpm)}: a fundamental period ({1e3 / f1:.4g} ms) is not a whole "
-            f"number of {plain(Ts * 1e6)} us PWM periods, so the spectra would leak: pick a speed "
-            f"with f_sw / f_1 whole, e.g. {', '.join(plain(round(g)) for g in good)} r/min."
-        )
-    refuse_unreachable(
-        spec.motor,
-        args.speed_rpm,
-        args.load_nm,
-        spec.u_dc_v,
-        spec.voltage_limit_v,  # the default modulator's linear range for the phase count
-        spec.current_limit_a,
-        what="the PWM comparison",
-        u_dc_flag=drive_flags.U_DC_KNOB,
-        current_limit_flag="--current-limit",
-    )
+    pwm_job.check_speed(spec, args.speed_rpm)
+    pwm_job.check_operating_point(spec, args.speed_rpm, args.load_nm, drive_flags.U_DC_KNOB)
     return spec
 
 
@@ -169,14 +138,8 @@ def run(args) -> int:
     """Compare the PWM methods at the operating point; writes pwm.json, waveforms.npz and figures
     to ``--out``. Returns the exit status."""
     spec = precheck(args)
-
-    import numpy as np
-
-    from pmsmjax.assemble import spec_drive
-    from pmsmjax.io.logs import atomic_write
-    from pmsmjax.jobs.pwm_comparison import CompareSettings, compare
-
-    settings = CompareSettings(
+    request = pwm_job.PwmCompareSpec(
+        drive=spec,
         speed_rpm=args.speed_rpm,
         load_nm=args.load_nm,
         dead_time_s=args.dead_time_us * 1e-6,
@@ -188,27 +151,32 @@ def run(args) -> int:
         if args.phases == 3
         else ("averaged", "switching") + (("deadtime",) if args.dead_time_variants else ()),
         phases=args.phases,
+        gains=args.gains,
     )
-    control, options = BASE_CONTROL[args.phases]
-    base = apply_gains_flag(spec_drive(spec, control, **options), read_gains_flag(args.gains), control)
+    gains = read_gains_flag(args.gains)
+    adjust = None if gains is None else (lambda drive, control: apply_gains_flag(drive, gains, control))
     out = checks.output_folder(args.out)
-    t0 = time.perf_counter()
-    result = compare(settings, base=base, progress=print)
+    result = pwm_job.compare_pwm(request, adjust, progress=print)
+    write(args, result, out)
+    return 0
+
+
+def write(args, result: pwm_job.PwmCompareResult, out) -> None:
+    """Write pwm.json, waveforms.npz and, unless ``--no-figures``, the figures into the folder ``out``;
+    then print what was written."""
+    import numpy as np
+
+    from pmsmjax.io.logs import atomic_write
+
     out.mkdir(parents=True, exist_ok=True)
-    report = {"settings": result["settings"], "entries": result["entries"]}
-    report["settings"]["gains"] = args.gains
-    report["drive_file"] = spec.summary()
-    report["wall_time_s"] = time.perf_counter() - t0
-    atomic_write(out / "pwm.json", lambda f: f.write(json.dumps(report, indent=2).encode()))
-    arrays = {f"{name}/{key}": v for name, w in result["waves"].items() for key, v in w.items()}
-    atomic_write(out / "waveforms.npz", lambda f: np.savez(f, **arrays))
+    atomic_write(out / "pwm.json", lambda f: f.write(json.dumps(result.report, indent=2).encode()))
+    atomic_write(out / "waveforms.npz", lambda f: np.savez(f, **result.arrays))
     written = ["pwm.json", "waveforms.npz"]
     if not args.no_figures:
         from pmsmjax.plotting.pwm import comparison_figures
         from pmsmjax.plotting.traces import save_figure
 
-        for name, fig in comparison_figures(result):
+        for name, fig in comparison_figures(result.comparison):
             save_figure(fig, out / name)
             written.append(name)
-    print(f"wrote {', '.join(f'{out}/{w}' for w in written)} in {report['wall_time_s']:.1f} s")
-    return 0
+    print(f"wrote {', '.join(f'{out}/{w}' for w in written)} in {result.report['wall_time_s']:.1f} s")

@@ -29,6 +29,7 @@ __all__ = [
     "steady_point",
     "top_speed_rpm",
     "field_weakening_top_speed_rpm",
+    "no_load_field_weakening_top_speed_rpm",
     "reachable",
     "motor_dict",
     "max_load_nm",
@@ -138,6 +139,14 @@ def field_weakening_top_speed_rpm(
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if ok(mid) else (lo, mid)
     return sign * lo
+
+
+def no_load_field_weakening_top_speed_rpm(motor: Mapping, u_limit_v: float, current_limit_a: float) -> float:
+    """No-load top speed (r/min) with field weakening in closed form, resistance neglected: at
+    ``i_d = -current_limit_a`` the flux left is ``psi_f - L_d I_max``, which ``u_limit_v`` holds up to
+    ``w_e = U_lim / (psi_f - L_d I_max)``; inf when the current limit cancels the magnet flux."""
+    excess = motor["psi_f"] - motor["L_d"] * current_limit_a
+    return math.inf if excess <= 0 else u_limit_v / (motor["pole_pairs"] * excess) * 30 / math.pi
 
 
 def max_load_nm(motor: Mapping, current_limit_a: float) -> float:

@@ -27,7 +27,7 @@ from pmsmjax.estimators.ekf import active_flux
 from pmsmjax.estimators.hybrid import pull_injection
 from pmsmjax.estimators.pll import PLLState
 from pmsmjax.frames.three_phase import wrap_angle
-from pmsmjax.jobs.control_comparison import LowSpeedSweep, chapter6_drive, estimator_scenario
+from pmsmjax.jobs.estimator_comparison import LowSpeedSweep, chapter6_drive, estimator_scenario
 from pmsmjax.machines.saturation import saturated_machine
 from pmsmjax.scenarios import Profile, Scenario, stack_scenarios
 from pmsmjax.signals import Estimate

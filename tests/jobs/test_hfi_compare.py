@@ -15,7 +15,8 @@ from pmsmjax.analysis import observer_errors as om
 from pmsmjax.cli import main
 from pmsmjax.cli.compare import CHAPTER6_NAMES
 from pmsmjax.estimators import HYBRID_OBSERVERS, INJECTION_OBSERVERS
-from pmsmjax.jobs.control_comparison import ControllerCompareSettings, compare_estimators, estimator_table
+from pmsmjax.jobs.control_comparison import ControllerCompareSettings
+from pmsmjax.jobs.estimator_comparison import compare_estimators, estimator_table
 from pmsmjax.units import rpm_to_rad_s
 
 TS = 1e-4

@@ -12,12 +12,8 @@ import pytest
 import pmsmjax
 from pmsmjax.analysis import observer_errors as om
 from pmsmjax.cli import main
-from pmsmjax.jobs.control_comparison import (
-    ControllerCompareSettings,
-    LowSpeedSweep,
-    compare_estimators,
-    estimator_table,
-)
+from pmsmjax.jobs.control_comparison import ControllerCompareSettings
+from pmsmjax.jobs.estimator_comparison import LowSpeedSweep, compare_estimators, estimator_table
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s

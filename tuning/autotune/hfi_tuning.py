@@ -6,7 +6,7 @@ Drive (:func:`injection_sensorless_drive`): the FOC drive of the drive file (for
 salient book motor, ``L_d`` 5.25 mH, ``L_q`` 12 mH; any other drive file must be salient) with the
 estimator's design rule, on the plant with d-axis saturation
 (:func:`pmsmjax.machines.saturated_machine`, defaults on the book drive), as
-:func:`pmsmjax.jobs.control_comparison.chapter6_drive` builds it for ``compare --estimator``;
+:func:`pmsmjax.jobs.estimator_comparison.chapter6_drive` builds it for ``compare --estimator``;
 :func:`tuning.autotune.observers.observer_drive` puts it behind the
 same sensored warm-up and measurement noise as the chapter 5 observers.
 

@@ -1,0 +1,342 @@
+"""``pmsmjax demo``: one drive's scenario under one control method, from a :class:`DemoSpec` (what the
+command's flags ask for) to a :class:`DemoResult` (the trace, summary.json's content, the console's lines
+and what the figures need).
+
+Importing this module loads no JAX: :func:`check_reference_speed` belongs to the command's checks before
+any work; :func:`build` (the drive and the scenario, every refusal before the first compile) and
+:func:`run` (the simulation and its summary) import the engine when called.
+"""
+
+import dataclasses
+import time
+from collections.abc import Callable, Mapping
+
+from pmsmjax.spec import registry
+from pmsmjax.spec.validation import ParameterError, plain
+
+__all__ = [
+    "DEFINITIONS",
+    "MAX_SPEED_FACTOR",
+    "DemoResult",
+    "DemoSpec",
+    "build",
+    "check_reference_speed",
+    "dead_time_entry",
+    "flux_map_entry",
+    "run",
+    "z_current_peak",
+]
+
+#: A reference beyond this many times the top speed the drive could reach at no load is refused: the run
+#: would only show saturation (up to it, the run is made and its saturation reported).
+MAX_SPEED_FACTOR = 3.0
+
+#: What summary.json's less obvious figures mean.
+DEFINITIONS = {
+    "steady_state_error_rpm": "mean of reference - speed over the last 10 % of the samples before the load "
+    "step, r/min",
+    "final_error_rpm": "mean of reference - speed over the last n samples of the run, n = a tenth of the "
+    "samples before the load step (the same window length as steady_state_error_rpm), r/min",
+    "rise_time_s": "10 % to 90 % of the step, s (null: not reached)",
+    "settling_time_s": "last entry into the 2 % band around the reference, s (null: not settled)",
+    "speed_dip_rpm": "largest drop below the reference after the load step, r/min",
+    "recovery_time_s": "time from the load step until the speed stays within recovery_band_rpm, s",
+    "itae_rad_s": "integral of t |reference - speed| over the run, speed in rad/s (rad s)",
+    "operating_point": "voltage_limited_share / current_limited_share: share of the control periods at the "
+    "voltage or current limit; segments: whether the mean speed over the last 10 % before the load step and "
+    "of the run is within the tolerance of the reference; flags: each shortfall with cause and remedy",
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class DemoSpec:
+    """What one demo run is asked for (the command's flags, checked, with the drive file's scenario
+    filling what the user left unset).
+
+    - `drive`: the drive file (:class:`~pmsmjax.spec.drive_spec.DriveSpec`); `motor`: ``--motor`` as
+      given; `name`: the drive as the console and the figures name it.
+    - `machine`: ``three-phase``, ``six-phase`` or ``five-phase``; `control`: a control method of the
+      registry on it; `estimator`: a sensorless observer (three-phase FOC only) or None for the file's
+      sensor; `observer_model`: ``map`` or ``constant`` with a flux map (None: ``map``).
+    - `speed_rpm`, `load_nm`, `load_time_s`, `duration_s`: the scenario (speed step at 0, load step).
+    - `options`: the preset options the flags set (:func:`pmsmjax.assemble.assemble`); with
+      `field_weakening` the MTPA and voltage-feedback field weakening is added, its voltage loop a third
+      of `current_bandwidth` (rad/s; None: the drive file's current loop).
+    - `flags`: the flags the user set, by name, as summary.json repeats them; `operating_flags`: the
+      command's names of the knobs the operating-point remedies name
+      (:func:`pmsmjax.analysis.operating_point.run_flags`).
+    - `frame`, `pwm`, `bridge`: the model frame and the multi-phase modulator and bridge asked for (None:
+      the defaults), as summary.json reports them; `gains`: the gains file, or None.
+    - `decimate`: record every n-th control period.
+    """
+
+    drive: object
+    motor: str
+    name: str
+    machine: str
+    control: str
+    speed_rpm: float
+    load_nm: float
+    load_time_s: float
+    duration_s: float
+    options: Mapping[str, object] = dataclasses.field(default_factory=dict)
+    flags: Mapping[str, object] = dataclasses.field(default_factory=dict)
+    operating_flags: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    estimator: str | None = None
+    observer_model: str | None = None
+    field_weakening: bool = False
+    current_bandwidth: float | None = None
+    frame: str | None = None
+    pwm: str | None = None
+    bridge: str | None = None
+    gains: str | None = None
+    decimate: int = 1
+
+    @property
+    def multiphase(self) -> bool:
+        """Whether the machine is the six- or five-phase one."""
+        return self.machine != "three-phase"
+
+
+@dataclasses.dataclass(frozen=True)
+class DemoResult:
+    """What a demo run gives its writer.
+
+    - `trace`: the run's :class:`~pmsmjax.trace.Trace` (NumPy arrays, every `decimate`-th period).
+    - `summary`: summary.json's content.
+    - `console`: the lines the console reports, in order (the drive, the step, the load step, each
+      operating-point flag, a flux-map warning, the timing).
+    - `current_limit_a`, `voltage_limit_v`: the limits the figures draw, A and V (peak).
+    - `layout`: the multi-phase winding's :class:`~pmsmjax.frames.multiphase.PhaseLayout` (its second-plane
+      currents' figure), None for three phases.
+    """
+
+    trace: object
+    summary: dict
+    console: tuple[str, ...]
+    current_limit_a: float
+    voltage_limit_v: float
+    layout: object | None = None
+
+
+def check_reference_speed(drive, speed_rpm: float, field_weakening: bool, u_dc_flag: str) -> None:
+    """Refuse a speed reference beyond :data:`MAX_SPEED_FACTOR` times the no-load top speed of the
+    three-phase drive file ``drive`` (with i_d = 0, or with field weakening: the closed form of
+    :func:`pmsmjax.spec.steady_state.no_load_field_weakening_top_speed_rpm`); pure Python.
+    ``u_dc_flag``: the DC-link knob the fix names."""
+    from pmsmjax.spec.steady_state import no_load_field_weakening_top_speed_rpm, top_speed_rpm
+
+    motor, u_dc, u_limit, limit = drive.motor, drive.u_dc_v, drive.voltage_limit_v, drive.current_limit_a
+    if field_weakening:
+        top = no_load_field_weakening_top_speed_rpm(motor, u_limit, limit)
+    else:
+        top = abs(top_speed_rpm(motor, u_limit, 0.0))
+    if abs(speed_rpm) > MAX_SPEED_FACTOR * top:
+        raise ParameterError(
+            f"--speed-rpm {plain(speed_rpm)}: this drive cannot turn faster than about {top:.0f} r/min "
+            f"(no load, U_dc = {plain(u_dc)} V"
+            + (", field weakening" if field_weakening else ", i_d = 0")
+            + f"); a reference beyond {MAX_SPEED_FACTOR:g}x that would only show saturation: give at most "
+            f"{MAX_SPEED_FACTOR * top:.0f} r/min"
+            + ("" if field_weakening else ", add --field-weakening")
+            + f", or raise the DC link ({u_dc_flag})."
+        )
+
+
+def build(spec: DemoSpec, adjust: Callable | None = None):
+    """The drive and the scenario of ``spec``, checked: a duration that is not a whole number of control
+    periods, a ``decimate`` that does not divide them, or what
+    :func:`pmsmjax.simulate.check_simulation` refuses is a :class:`~pmsmjax.spec.validation.ParameterError`
+    before anything compiles. ``adjust``: ``(drive, control) -> drive`` applied once the drive is built
+    (tuned gains, say; after the observer is in, so gains may name ``estimator.*``). Returns
+    ``(drive, scenario)``."""
+    from pmsmjax.assemble import assemble, spec_scenario
+    from pmsmjax.simulate import check_simulation
+
+    options = dict(spec.options)
+    if spec.field_weakening:
+        from pmsmjax.presets import field_weakening_block
+
+        bandwidth = spec.current_bandwidth or spec.drive.control["current_bandwidth_rad_s"]
+        options["d_axis"] = field_weakening_block(bandwidth)
+    drive = assemble(
+        spec.drive,
+        spec.control,
+        machine=spec.machine,
+        options=options,
+        estimator=spec.estimator,  # three-phase only; the drive file's I/f start
+        observer_model=spec.observer_model or "map",
+    )
+    if adjust is not None:
+        drive = adjust(drive, spec.control)
+    scenario = spec_scenario(spec.drive, spec.speed_rpm, spec.load_nm, spec.load_time_s, spec.duration_s)
+    n = spec.duration_s / drive.Ts
+    if abs(n - round(n)) > 1e-6 * max(n, 1.0):
+        raise ParameterError(
+            f"--duration-s {plain(spec.duration_s)} is not a whole number of {plain(drive.Ts * 1e3)} ms "
+            f"control periods: give e.g. {plain(round(n) * drive.Ts)} s."
+        )
+    if round(n) % spec.decimate:
+        raise ParameterError(
+            f"--decimate {spec.decimate} does not divide the {round(n)} control periods of the run: give "
+            "a divisor of it (1, 2, 5, 10, ...)."
+        )
+    check_simulation(drive, scenario, spec.decimate)
+    return drive, scenario
+
+
+def run(spec: DemoSpec, drive, scenario) -> DemoResult:
+    """Simulate ``drive`` through ``scenario`` (from :func:`build`) twice, the second call timed without
+    compiling; judge the run (:func:`pmsmjax.analysis.speed_step_summary.speed_step_summary`,
+    :func:`pmsmjax.analysis.operating_point.run_flags`) and describe it."""
+    import jax
+    import numpy as np
+
+    from pmsmjax.analysis.operating_point import run_flags
+    from pmsmjax.analysis.speed_step_summary import speed_step_summary
+    from pmsmjax.simulate import simulate
+    from pmsmjax.trace import COLUMN_UNITS
+
+    t0 = time.perf_counter()
+    trace = jax.block_until_ready(simulate(drive, scenario, decimate=spec.decimate))
+    first_call_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    trace = jax.block_until_ready(simulate(drive, scenario, decimate=spec.decimate))
+    run_s = time.perf_counter() - t0
+    trace = trace.to_numpy()
+
+    load_time = spec.load_time_s if 0 < spec.load_time_s < spec.duration_s else None
+    current_limit = float(np.asarray(drive.controller.current_limit))
+    operating = run_flags(
+        trace, drive, load_time_s=load_time, field_weakening=spec.field_weakening, flags=spec.operating_flags
+    )
+    summary = {
+        "scenario": {
+            "speed_rpm": spec.speed_rpm,
+            "load_nm": spec.load_nm,
+            "load_time_s": spec.load_time_s,
+            "duration_s": spec.duration_s,
+        },
+        "drive": {
+            "machine": spec.machine,
+            "motor": spec.motor,
+            "control": spec.control,
+            "estimator": spec.estimator or "exact sensor",
+            "observer_model": (spec.observer_model or "map")
+            if spec.estimator and "flux_map" in spec.drive.motor
+            else None,
+            "frame": spec.frame or "dq",
+            "Ts_s": drive.Ts,
+            "n_substeps": drive.n_substeps,
+            "computation_delay": drive.computation_delay,
+            "options": dict(spec.flags),
+            "gains": spec.gains,
+            "current_limit_a": current_limit,
+            "u_dc_v": float(np.asarray(drive.bridge.u_dc)),
+            "bridge_dead_time": dead_time_entry(spec.drive, drive),
+        },
+        "drive_file": spec.drive.summary(),
+        "metrics": speed_step_summary(trace, load_time_s=load_time, current_limit_a=current_limit),
+        "operating_point": operating,
+        **flux_map_entry(drive, trace),
+        "definitions": DEFINITIONS,
+        "trace_columns": COLUMN_UNITS,
+        "timing": {"compile_s": max(first_call_s - run_s, 0.0), "run_s": run_s},
+    }
+    layout = None
+    if spec.multiphase:
+        from pmsmjax.trace import FIVE_PHASE_COLUMN_UNITS, SIX_PHASE_COLUMN_UNITS
+
+        five = spec.machine == "five-phase"
+        layout = drive.machine.layout
+        extra = FIVE_PHASE_COLUMN_UNITS if five else SIX_PHASE_COLUMN_UNITS
+        summary["trace_columns"] = {**COLUMN_UNITS, **extra}
+        summary["drive"]["pwm"] = spec.pwm or registry.default("modulator", spec.machine)
+        summary["drive"]["bridge"] = spec.bridge or "averaged"
+        peak = "xy_current_peak_a" if five else "z_current_peak_a"
+        summary["metrics"][peak] = z_current_peak(trace, layout)
+    return DemoResult(
+        trace=trace,
+        summary=summary,
+        console=_console(spec, summary, drive.Ts),
+        current_limit_a=current_limit,
+        voltage_limit_v=float(np.asarray(drive.voltage_limit())),
+        layout=layout,
+    )
+
+
+def _console(spec: DemoSpec, summary: dict, Ts: float) -> tuple[str, ...]:
+    """The console's report of a finished run (:attr:`DemoResult.console`)."""
+    m, limit = summary["metrics"], summary["drive"]["current_limit_a"]
+    lines = [
+        f"{spec.name} drive ({spec.machine}, U_dc {plain(summary['drive']['u_dc_v'])} V, current limit "
+        f"{plain(limit)} A, {plain(1e-3 / Ts)} kHz), {spec.control} control",
+        f"final speed {m['final_speed_rpm']:.1f} r/min (ref {m['reference_speed_rpm']:.0f}), "
+        f"rise {_fmt(m['rise_time_s'], 1e3)} ms, overshoot {m['overshoot_pct']:.2f} %, "
+        f"settling {_fmt(m['settling_time_s'], 1e3)} ms",
+    ]
+    if "speed_dip_rpm" in m:
+        lines.append(
+            f"load step: dip {m['speed_dip_rpm']:.1f} r/min, recovery {_fmt(m['recovery_time_s'], 1e3)} ms; "
+            f"peak current {m['peak_phase_current_a']:.2f} A (limit {m['current_limit_a']:.1f} A)"
+        )
+    for f in summary["operating_point"]["flags"]:
+        lines.append(f"WARNING {f['flag']}: {f['cause']}; remedy: {f['remedy']}.")
+    if summary.get("flux_map", {}).get("warning"):
+        lines.append(f"WARNING flux_map: {summary['flux_map']['warning']}")
+    timing = summary["timing"]
+    lines.append(f"compile {timing['compile_s']:.2f} s, run {timing['run_s'] * 1e3:.1f} ms")
+    return tuple(lines)
+
+
+def dead_time_entry(spec, drive) -> dict:
+    """summary.json's account of the drive file's dead time and device drop: what the bridge that ran
+    models (the averaged bridge's period-average error, or the switching bridge's dead windows) and
+    whether the controller compensates them."""
+    t_d, drop = spec.inverter["dead_time_s"], spec.inverter.get("device_drop_v", 0.0)
+    bridge = drive.bridge
+    error = getattr(bridge, "voltage_error", None)
+    if error is not None:
+        modelled, how = float(error.dead_time) > 0.0, "period-averaged by the averaged bridge"
+    else:
+        modelled, how = (
+            getattr(bridge, "resolve_dead_time", False),
+            "resolved edge by edge by the switching bridge",
+        )
+    compensation = getattr(drive.controller, "dead_time_compensation", None)
+    entry = {
+        "dead_time_s": t_d,
+        "device_drop_v": drop,
+        "modelled": bool(modelled and t_d > 0.0),
+        "compensated": compensation is not None,
+    }
+    if t_d > 0.0 and modelled:
+        entry["how"] = how
+    if t_d > 0.0 and not modelled:
+        entry["note"] = (
+            f"[inverter] dead_time_s = {t_d:g} s is not modelled by this bridge ({type(bridge).__name__}): "
+            "the three-phase averaged bridge and the switching bridges model it (six- and five-phase: "
+            "--bridge switching)"
+        )
+    return entry
+
+
+def flux_map_entry(drive, trace) -> dict:
+    """``{"flux_map": ...}`` for summary.json when the plant is a flux map: how far the run's currents went
+    outside the map's grid (:func:`pmsmjax.machines.flux_map.excursion`); ``{}`` otherwise."""
+    flux_map = getattr(drive.machine, "flux_map", None)
+    return {} if flux_map is None else {"flux_map": flux_map.excursion(trace.i_dq)}
+
+
+def z_current_peak(trace, layout=None) -> float:
+    """Largest |z1-z2| current (A) of a six-phase trace (|x-y| of a five-phase one: ``layout``)."""
+    import numpy as np
+
+    from pmsmjax.frames.multiphase import SIX_PHASE, vsd
+
+    i_z = np.asarray(vsd(trace.i_abc, SIX_PHASE if layout is None else layout))[:, 2:4]
+    return float(np.max(np.hypot(i_z[:, 0], i_z[:, 1])))
+
+
+def _fmt(x, scale):
+    return "n/a" if x is None else f"{x * scale:.1f}"

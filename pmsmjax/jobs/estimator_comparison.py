@@ -1,0 +1,347 @@
+"""Observers side by side (``pmsmjax compare --estimator``): the chapter 5 observers on the book FOC drive,
+sensorless from standstill with the I/f start, and the chapter 6 estimators (HF injection, the hybrid) on
+the salient book motor with d-axis saturation, each in a scenario it is made for.
+
+Each estimator's run gives the figures of the controller comparison
+(:func:`pmsmjax.jobs.control_comparison.run_control`) on the book scenario, or those of
+:func:`run_estimator_scenario` on the fixed ones, plus the observer's
+(:func:`pmsmjax.analysis.observer_errors.observer_errors`) and, on the book scenario, the lowest speed held
+under load (:class:`LowSpeedSweep`). :func:`estimator_table` lays them out as Markdown.
+"""
+
+import dataclasses
+import math
+import re
+
+import jax
+import numpy as np
+
+from pmsmjax import presets
+from pmsmjax.analysis import metrics
+from pmsmjax.analysis.observer_errors import observer_errors, speed_held
+from pmsmjax.assemble import with_parts
+from pmsmjax.drive import Drive
+from pmsmjax.inverters.switching import SwitchingBridge
+from pmsmjax.jobs.control_comparison import ControllerCompareSettings, run_control, window_periods
+from pmsmjax.machines.motor import PMSMParameters
+from pmsmjax.simulate import check_simulation, simulate
+from pmsmjax.spec.validation import ParameterError
+from pmsmjax.units import rad_s_to_rpm
+
+#: Speeds (r/min) of the low-speed sweep under load, highest first.
+LOW_SPEED_SWEEP_RPM = (500.0, 300.0, 200.0, 150.0, 100.0, 70.0, 50.0, 30.0, 20.0, 10.0, 5.0, 2.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class LowSpeedSweep:
+    """The sweep behind ``lowest_held_rpm``: one run per speed in `speeds_rpm`, each from standstill
+    (I/f start) to `start_rpm`, the load `load_nm` stepped on at `load_time_s`, then the reference ramped
+    from `start_rpm` down to the swept speed over [`ramp_start_s`, `ramp_end_s`], held to `duration_s`;
+    judged from `judge_from_s` to the end (:func:`pmsmjax.analysis.observer_errors.speed_held`).
+
+    With the observer's model equal to the plant and no noise, a fundamental-model observer sees the
+    small back-EMF exactly and holds very low speeds; what limits it on a real drive is model error. So
+    the sweep is also run with the plant's stator resistance times `hot_r_factor` (1.3: about 75 K of
+    copper heating) while the observer and the controller keep the nominal value (None: not run).
+    """
+
+    speeds_rpm: tuple = LOW_SPEED_SWEEP_RPM
+    start_rpm: float = 500.0
+    load_nm: float = 10.0
+    load_time_s: float = 0.1
+    ramp_start_s: float = 0.15
+    ramp_end_s: float = 0.35
+    judge_from_s: float = 0.45
+    duration_s: float = 0.6
+    hot_r_factor: float | None = 1.3
+
+    def scenario(self, speed_rpm: float):
+        """The :class:`~pmsmjax.scenarios.Scenario` of one swept speed `speed_rpm` (r/min): the ramp from
+        `start_rpm` down to it and the load step (class docstring)."""
+        from pmsmjax.scenarios import Profile, Scenario
+        from pmsmjax.units import rpm_to_rad_s
+
+        return Scenario(
+            duration_s=self.duration_s,
+            speed_ref=Profile.ramp(
+                self.ramp_start_s, self.ramp_end_s, rpm_to_rad_s(self.start_rpm), rpm_to_rad_s(speed_rpm)
+            ),
+            load_torque=Profile.step(self.load_time_s, 0.0, self.load_nm),
+        )
+
+
+def observer_drive(
+    name: str, motor: PMSMParameters | None = None, bridge: str = "averaged", startup: bool = True
+) -> Drive:
+    """The book FOC drive with observer ``name`` (:data:`pmsmjax.estimators.OBSERVERS`, design-rule gains
+    for ``motor``) and the I/f start from standstill, on ``bridge``."""
+    drive = presets.sensorless_drive(name, motor, startup=startup)
+    if bridge == "switching":
+        drive = with_parts(drive, {"bridge": SwitchingBridge(drive.bridge.u_dc)})
+    return drive
+
+
+def low_speed_sweep(drive: Drive, sweep: LowSpeedSweep = LowSpeedSweep(), r_factor: float = 1.0) -> dict:
+    """Run ``drive`` (its plant's R times ``r_factor``) through every speed of ``sweep`` (one batched
+    simulation); returns ``{"runs": [{speed_rpm, held, ...}], "lowest_held_rpm"}``: the lowest swept
+    speed such that it and every higher swept speed were held (None if the highest was not)."""
+    from pmsmjax.scenarios import stack_scenarios
+
+    if r_factor != 1.0:
+        drive = with_parts(drive, {"machine.motor.R": drive.machine.motor.R * r_factor})
+
+    scenarios = [sweep.scenario(s) for s in sweep.speeds_rpm]
+    check_simulation(drive, scenarios[0])
+    batch = stack_scenarios(scenarios)
+    traces = jax.block_until_ready(jax.vmap(simulate, in_axes=(None, 0))(drive, batch))
+    runs, lowest = [], None
+    for i, speed in enumerate(sweep.speeds_rpm):
+        trace = jax.tree.map(lambda x, i=i: np.asarray(x[i]), traces)
+        run = {"speed_rpm": float(speed), **speed_held(trace, drive.Ts, sweep.judge_from_s)}
+        runs.append(run)
+    for run in runs:  # highest first: stop at the first speed not held
+        if not run["held"]:
+            break
+        lowest = run["speed_rpm"]
+    return {"runs": runs, "lowest_held_rpm": lowest, "r_factor": r_factor}
+
+
+#: The scenarios of ``compare --estimator`` (``scenario=`` of :func:`compare_estimators`): name ->
+#: (description, estimator families it suits). ``book``: :func:`_scenario` of the settings; the others are
+#: fixed runs (:func:`estimator_scenario`) at low speed or through zero, where HF injection works.
+ESTIMATOR_SCENARIOS = {
+    "book": (
+        "speed step from standstill, then the load step (the settings' book scenario)",
+        ("ch5", "hybrid"),
+    ),
+    "standstill": ("speed reference 0, the load stepped on at 0.1 s, 0.8 s", ("injection", "hybrid")),
+    "slow-reversal": (
+        "0 -> 60 r/min (0.05-0.15 s) -> -60 r/min (0.3-0.6 s), the load stepped on at 0.1 s, 0.8 s",
+        ("injection", "hybrid"),
+    ),
+    "reversal": (
+        "-1000 r/min from standstill, 5 N m from 0.15 s, step to +1000 r/min at 0.3 s, 0.7 s",
+        ("hybrid",),
+    ),
+}
+
+#: Default initial rotor angle of the chapter 6 runs, electrical degrees off the estimators' initial
+#: estimate (0): the injection methods must find the d axis, not start on it (benchmarks/hfi_accuracy.py).
+CHAPTER6_INITIAL_ANGLE_DEG = 30.0
+
+
+def estimator_family(name: str) -> str:
+    """``"ch5"`` (:data:`pmsmjax.estimators.OBSERVERS`), ``"injection"`` (``INJECTION_OBSERVERS``: angle
+    modulo pi) or ``"hybrid"`` (``HYBRID_OBSERVERS``)."""
+    from pmsmjax.estimators.registry import HYBRID_OBSERVERS, INJECTION_OBSERVERS, check_observer_name
+
+    check_observer_name(name)
+    return "injection" if name in INJECTION_OBSERVERS else "hybrid" if name in HYBRID_OBSERVERS else "ch5"
+
+
+def check_estimator_scenario(names, scenario: str) -> None:
+    """Refuse a comparison that makes no sense: an unknown scenario, chapter 5 observers with chapter 6
+    estimators (different motors and start-ups), or an estimator in a scenario it is not made for."""
+    if scenario not in ESTIMATOR_SCENARIOS:
+        raise ParameterError(
+            f"--scenario {scenario!r}: unknown; choose from {', '.join(ESTIMATOR_SCENARIOS)}."
+        )
+    families = {n: estimator_family(n) for n in names}
+    ch5 = [n for n, f in families.items() if f == "ch5"]
+    ch6 = [n for n, f in families.items() if f != "ch5"]
+    if ch5 and ch6:
+        raise ParameterError(
+            f"--estimator mixes chapter 5 observers ({', '.join(ch5)}) with chapter 6 injection estimators "
+            f"({', '.join(ch6)}): they need different motors (surface vs salient) and start-ups; compare "
+            "them in two runs."
+        )
+    suits = ESTIMATOR_SCENARIOS[scenario][1]
+    wrong = [n for n, f in families.items() if f not in suits]
+    if wrong:
+        fit = [s for s, (_, fams) in ESTIMATOR_SCENARIOS.items() if all(families[n] in fams for n in names)]
+        why = {
+            "ch5": "the chapter 5 observers start with I/f and are compared on the book scenario",
+            "injection": "HF injection alone is a standstill and low-speed method (no polarity, the carrier "
+            "fades out at speed; the hybrid covers the whole range)",
+            "hybrid": "",
+        }[families[wrong[0]]]
+        raise ParameterError(
+            f"--scenario {scenario} does not suit {', '.join(wrong)}: {why}; give --scenario "
+            f"{' or '.join(fit) if fit else 'in two runs'}."
+        )
+
+
+def estimator_scenario(scenario: str, load_nm: float):
+    """The fixed chapter 6 scenarios of :data:`ESTIMATOR_SCENARIOS` (all but ``book``) with the load
+    ``load_nm`` (N m; ``reversal`` keeps its 5 N m)."""
+    from pmsmjax.jobs.hybrid_runs import hybrid_scenarios
+    from pmsmjax.scenarios import Profile, Scenario
+    from pmsmjax.units import rpm_to_rad_s
+
+    w60 = rpm_to_rad_s(60.0)
+    load = Profile.step(0.1, 0.0, load_nm)
+    if scenario == "standstill":
+        return Scenario(0.8, Profile.piecewise([0.0, 0.8], [0.0, 0.0], "linear"), load)
+    if scenario == "slow-reversal":
+        t = [0.0, 0.05, 0.15, 0.3, 0.6, 0.8]
+        return Scenario(0.8, Profile.piecewise(t, [0.0, 0.0, w60, w60, -w60, -w60], "linear"), load)
+    return hybrid_scenarios()[scenario]
+
+
+def chapter6_drive(name: str, motor: PMSMParameters | None = None, bridge: str = "averaged") -> Drive:
+    """The book FOC drive with the injection or hybrid estimator ``name`` (design rule for ``motor``,
+    default the salient book motor), no I/f start (injection sees the rotor at standstill), on the plant
+    with d-axis saturation (:func:`pmsmjax.machines.saturated_machine`, defaults), which the hybrid's
+    polarity pulses read (at ``i_d = 0`` its inductance is the linear machine's), on ``bridge``."""
+    from pmsmjax.machines.saturation import saturated_machine
+
+    motor = presets.book_motor(salient=True) if motor is None else motor
+    drive = presets.sensorless_drive(name, motor, startup=False)
+    drive = with_parts(drive, {"machine": saturated_machine(motor)})
+    if bridge == "switching":
+        drive = with_parts(drive, {"bridge": SwitchingBridge(drive.bridge.u_dc)})
+    return drive
+
+
+def run_estimator_scenario(drive: Drive, scenario, initial_state) -> dict:
+    """Simulate ``drive`` through a fixed scenario (:func:`estimator_scenario`) from ``initial_state``;
+    its figures (ITAE of the speed error, rad s; largest speed deviation from the reference, r/min, after
+    :data:`pmsmjax.analysis.observer_errors.CONVERGED_AFTER_S`; peak phase current, A) and its trace."""
+    from pmsmjax.analysis.observer_errors import CONVERGED_AFTER_S
+
+    check_simulation(drive, scenario)
+    trace = simulate(drive, scenario, initial_state=initial_state).to_numpy()  # figures in NumPy
+    t = np.asarray(trace.t, np.float64)
+    w = np.asarray(trace.omega_m, np.float64)
+    ref = np.asarray(trace.speed_ref, np.float64)
+    after = t >= CONVERGED_AFTER_S - 0.5 * drive.Ts
+    error = metrics.tracking_error(ref, w)
+    entry = {
+        "itae": float(metrics.itae(t, error)),
+        "speed_deviation_max_rpm": float(rad_s_to_rpm(np.max(np.abs(error[after])))),
+        "final_speed_rpm": float(rad_s_to_rpm(w[-1])),
+        "peak_current_a": float(metrics.peak_phase_current(trace.i_abc)),
+        "current_limit_a": float(drive.controller.current_limit),
+        "control_period_s": drive.Ts,
+        "bridge": type(drive.bridge).__name__,
+        "operating_point": {"flags": []},
+    }
+    return {"entry": entry, "trace": trace, "window": None}
+
+
+def compare_estimators(
+    names,
+    motor: PMSMParameters | None = None,
+    settings: ControllerCompareSettings | None = None,
+    sweep: LowSpeedSweep | None = LowSpeedSweep(),
+    progress=None,
+    scenario: str = "book",
+    initial_angle_deg: float | None = None,
+) -> dict:
+    """Run the book FOC drive sensorless with each named estimator through ``scenario``
+    (:data:`ESTIMATOR_SCENARIOS`; refused where it makes no sense, :func:`check_estimator_scenario`).
+
+    Chapter 5 observers (:data:`pmsmjax.estimators.OBSERVERS`) start from standstill with I/f; the chapter 6
+    estimators (``hfi-rotating``, ``hfi-pulsating``, ``hybrid``) run :func:`chapter6_drive` (default motor
+    the salient book motor) with the rotor ``initial_angle_deg`` electrical degrees off their initial
+    estimate (default 0 for chapter 5, :data:`CHAPTER6_INITIAL_ANGLE_DEG` for chapter 6).
+
+    Each entry holds, on ``book``, the figures of :func:`~pmsmjax.jobs.control_comparison.run_control`
+    (rise, dip, ITAE, THD, ripple, ...), on the fixed scenarios those of :func:`run_estimator_scenario`;
+    and the observer's (:func:`pmsmjax.analysis.observer_errors.observer_errors`: angle error RMS/max after
+    convergence in electrical degrees, **modulo pi for the injection estimators** (``angle_modulo``), speed
+    estimation error RMS, speed tracking error RMS, ``lock_lost``, judged on the angle alone off the book
+    scenario), plus, on ``book`` unless ``sweep`` is None, ``lowest_held_rpm`` under ``sweep.load_nm`` and
+    the sweep's runs (:func:`low_speed_sweep`), and ``lowest_held_rpm_hot_r`` with the plant's R off the
+    observer's by ``sweep.hot_r_factor``. Returns the layout of
+    :func:`~pmsmjax.jobs.control_comparison.compare_controllers` (``windows`` None off the book scenario).
+    ``settings`` None: the default :class:`~pmsmjax.jobs.control_comparison.ControllerCompareSettings`.
+    """
+    settings = ControllerCompareSettings() if settings is None else settings
+    settings.check()
+    check_estimator_scenario(names, scenario)
+    families = {name: estimator_family(name) for name in names}
+    chapter6 = any(f != "ch5" for f in families.values())
+    if initial_angle_deg is None:
+        initial_angle_deg = CHAPTER6_INITIAL_ANGLE_DEG if chapter6 else 0.0
+    build = chapter6_drive if chapter6 else observer_drive
+    drives = {name: build(name, motor, settings.bridge) for name in names}
+    if scenario == "book":
+        for drive in drives.values():
+            window_periods(drive, settings)
+        fixed = None
+    else:
+        fixed = estimator_scenario(scenario, settings.load_nm)
+    result = {"settings": dataclasses.asdict(settings), "controllers": {}, "traces": {}, "windows": {}}
+    result["settings"]["sweep"] = None if sweep is None or fixed is not None else dataclasses.asdict(sweep)
+    result["settings"]["scenario"] = scenario
+    result["settings"]["initial_angle_deg"] = initial_angle_deg
+    for name, drive in drives.items():
+        start = drive.init(theta_e=math.radians(initial_angle_deg))
+        if fixed is None:
+            run = run_control(name, drive, settings, start)
+        else:
+            run = run_estimator_scenario(drive, fixed, start)
+        modulo_pi = families[name] == "injection"
+        # off the book scenario the speed reference is (near) zero: lock is judged on the angle alone
+        errors = observer_errors(run["trace"], drive.Ts, modulo_pi=modulo_pi, speed_lock=fixed is None)
+        run["entry"].update(errors)
+        run["entry"]["observer"] = name
+        if sweep is not None and fixed is None:
+            swept = low_speed_sweep(drive, sweep)
+            run["entry"]["lowest_held_rpm"] = swept["lowest_held_rpm"]
+            run["entry"]["low_speed_runs"] = swept["runs"]
+            if sweep.hot_r_factor is not None:
+                hot = low_speed_sweep(drive, sweep, sweep.hot_r_factor)
+                run["entry"]["lowest_held_rpm_hot_r"] = hot["lowest_held_rpm"]
+                run["entry"]["low_speed_runs_hot_r"] = hot["runs"]
+        result["controllers"][name] = run["entry"]
+        result["traces"][name] = run["trace"]
+        result["windows"][name] = run["window"]
+        if progress:
+            progress(estimator_row(name, run["entry"]))
+    return result
+
+
+#: Columns of the observer table: (header, key, format).
+ESTIMATOR_COLUMNS = (
+    ("observer", "observer", "{:12s}"),
+    ("angle RMS deg", "angle_error_rms_deg", "{:13.3f}"),
+    ("angle max deg", "angle_error_max_deg", "{:13.3f}"),
+    ("angle modulo", "angle_modulo", "{!s:12s}"),
+    ("speed est RMS r/min", "speed_error_rms_rpm", "{:19.3f}"),
+    ("ITAE rad s", "itae", "{:10.4f}"),
+    ("dip r/min", "dip_rpm", "{:9.1f}"),
+    ("max speed dev r/min", "speed_deviation_max_rpm", "{:19.1f}"),
+    ("lock lost", "lock_lost", "{!s:9s}"),
+    ("lowest held r/min", "lowest_held_rpm", "{!s:17s}"),
+    ("lowest held, hot R", "lowest_held_rpm_hot_r", "{!s:18s}"),
+)
+
+
+def estimator_row(name: str, entry: dict) -> str:
+    """One row of the observer table (:data:`ESTIMATOR_COLUMNS`)."""
+    cells = []
+    for _, key, fmt in ESTIMATOR_COLUMNS:
+        value = name if key == "observer" else entry.get(key)
+        if isinstance(value, float) and key.startswith("lowest_held"):
+            value = f"{value:g}"
+        if value is None:  # a figure of the other kind of scenario (dip: book; deviation: fixed ones)
+            cells.append("-".rjust(int(re.search(r"\d+", fmt).group())))
+            continue
+        cells.append(fmt.format(value))
+    return "  ".join(cells)
+
+
+def estimator_table(result: dict) -> str:
+    """The observer table of :func:`compare_estimators`'s result, as Markdown."""
+    head = "| " + " | ".join(h for h, _, _ in ESTIMATOR_COLUMNS) + " |"
+    rule = "|" + "|".join("---" for _ in ESTIMATOR_COLUMNS) + "|"
+    rows = []
+    for name, e in result["controllers"].items():
+        cells = [name]
+        for _, key, _ in ESTIMATOR_COLUMNS[1:]:
+            v = e.get(key)
+            cells.append(f"{v:.3g}" if isinstance(v, float) else ("-" if v is None else str(v)))
+        rows.append("| " + " | ".join(cells) + " |")
+    return "\n".join([head, rule, *rows])
