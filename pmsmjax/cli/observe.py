@@ -136,7 +136,8 @@ def run(args) -> int:
 
     # The command line is the one place where pmsmjax reaches up into the tuning workflows (the log reader
     # is shared with `pmsmjax identify`).
-    from tuning.identify.log import load_stator_log, read_log_config
+    from tuning.identify.log import read_log_config
+    from tuning.identify.stator_log import load_stator_log
 
     check_observer_name(args.observer)
     injection = args.observer in INJECTION_OBSERVERS
