@@ -222,23 +222,17 @@ def run(args) -> int:
     """Run the Monte Carlo robustness study of the drive (resuming finished chunks); writes
     summary.json and figures to ``--out``. Returns the exit status."""
     precheck(args)
-    # Split the CPU into one device per core before anything initialises JAX's backends.
-    from tuning.montecarlo.cpu_devices import split_cpu
+    # The devices (one per CPU core, or the cluster's hosts) before anything initialises JAX's backends.
+    from tuning.montecarlo.cpu_devices import set_up_devices
 
-    if args.distributed:
-        import jax
-
-        # Cluster settings from the flags, else from the environment (SLURM, Open MPI, Cloud TPU, ...).
-        given = {"coordinator_address": args.coordinator, "num_processes": args.num_processes}
-        given["process_id"] = args.process_id
-        jax.distributed.initialize(**{k: v for k, v in given.items() if v is not None})
-    else:
-        split_cpu(args.devices)
-    if args.compilation_cache:
-        import jax
-
-        jax.config.update("jax_compilation_cache_dir", args.compilation_cache)
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    set_up_devices(
+        args.devices,
+        distributed=args.distributed,
+        coordinator=args.coordinator,
+        num_processes=args.num_processes,
+        process_id=args.process_id,
+        compilation_cache=args.compilation_cache,
+    )
     from tuning.montecarlo import run_study
     from tuning.montecarlo.study import Study, read_study_toml
 

@@ -1,5 +1,5 @@
 """``pmsmjax observe``: run a chapter 5 observer, or the rotating HF-injection estimator of chapter 6, offline
-on a recorded drive log (:mod:`pmsmjax.recorded.offline_observer`).
+on a recorded drive log (:mod:`pmsmjax.jobs.observe`).
 
 ``hfi-rotating`` reads the carrier from the log's voltages (``carrier="measured"``: the log's drive
 injected it, this run does not), and its angle is the d axis modulo pi: ``estimate.csv`` gives it in
@@ -9,7 +9,6 @@ record.
 """
 
 import json
-import time
 
 from pmsmjax.spec.validation import ParameterError
 
@@ -120,48 +119,25 @@ def _number_or_text(value: str):
 
 
 def run(args) -> int:
-    """Run the chosen observer offline on the log; writes estimate.csv, observe.json and observe.png
-    to ``--out``. Returns the exit status."""
+    """Run the chosen observer offline on the log (:mod:`pmsmjax.jobs.observe`); writes estimate.csv,
+    observe.json and observe.png to ``--out``. Returns the exit status."""
     from pmsmjax.io.drive_files import drive_spec
 
-    spec = drive_spec(args.motor)  # checked before JAX starts
-    import numpy as np
-
-    from pmsmjax.analysis.observer_errors import error_statistics
-    from pmsmjax.assemble import spec_motor
-    from pmsmjax.estimators.registry import INJECTION_OBSERVERS, check_observer_name, make_observer
-    from pmsmjax.frames.three_phase import wrap_angle
-    from pmsmjax.io.logs import atomic_write, check_output_folder, write_csv_atomic
-    from pmsmjax.recorded.offline_observer import observe
+    drive = drive_spec(args.motor)  # checked before JAX starts
+    from pmsmjax.io.logs import check_output_folder
+    from pmsmjax.jobs.observe import ObserveSpec, check_observer, run_observer
 
     # The command line is the one place where pmsmjax reaches up into the tuning workflows (the log reader
     # is shared with `pmsmjax identify`).
-    from tuning.identify.log import load_stator_log, read_log_config
+    from tuning.identify.log import read_log_config
+    from tuning.identify.stator_log import load_stator_log
 
-    check_observer_name(args.observer)
-    injection = args.observer in INJECTION_OBSERVERS
-    if args.observer == "hfi-pulsating":
-        raise ParameterError(
-            "observer 'hfi-pulsating' cannot run offline: its demodulation needs the injection axis of the "
-            "drive that made the log, which a log does not record; use --observer hfi-rotating on logs "
-            "with rotating injection."
-        )
-    if args.observer == "hybrid":
-        raise ParameterError(
-            "observer 'hybrid' cannot run offline: it commands start-up polarity pulses and fades its "
-            "carrier with its own speed estimate, which a recorded log cannot follow; run its parts, "
-            "--observer hfi-rotating and a chapter 5 observer, on the log instead."
-        )
     hf_flags = {"--hf-voltage": args.hf_voltage, "--hf-frequency": args.hf_frequency}
     given = [flag for flag, value in hf_flags.items() if value is not None]
     if args.polarity_known:
         given.append("--polarity-known")
-    if given and not injection:
-        raise ParameterError(
-            f"{', '.join(given)} apply to the HF-injection observer hfi-rotating only, not {args.observer!r}."
-        )
+    check_observer(args.observer, given)
     out = check_output_folder(args.out)
-    motor = spec_motor(spec)
     if args.settle_s < 0:
         raise ParameterError(f"--settle-s must be >= 0 s, got {args.settle_s}.")
     truth = tuple(c.strip() for c in args.truth_columns.split(",") if c.strip())
@@ -176,95 +152,54 @@ def run(args) -> int:
         u_dc=args.u_dc if args.u_dc is not None else cfg["log"].get("u_dc"),
         resample=args.resample or bool(cfg["log"].get("resample", False)),
         truth=truth,
-        pole_pairs=motor.pole_pairs,
+        pole_pairs=drive.motor["pole_pairs"],
     )
-    options = {k: _number_or_text(v) for k, v in _pairs(args.option, "--option").items()}
-    if injection:
-        # the log's drive injected the carrier: take its phase from the logged voltages
-        options.setdefault("carrier", "measured")
-        if args.hf_voltage is not None:
-            options["hf_voltage"] = args.hf_voltage
-        if args.hf_frequency is not None:
-            options["hf_frequency"] = args.hf_frequency
-    observer = make_observer(args.observer, motor, log.Ts, **options)
-
-    t0 = time.perf_counter()
-    est = observe(observer, log.u_ab, log.i_ab, log.Ts)
-    theta, omega = np.asarray(est.theta_e, dtype=np.float64), np.asarray(est.omega_m, dtype=np.float64)
-    wall = time.perf_counter() - t0
-    modulo_pi = injection and not args.polarity_known
-    if modulo_pi:
-        theta = 0.5 * wrap_angle(2.0 * theta)  # the d axis modulo pi, [-pi/2, pi/2)
-    bad_rows = ~(np.isfinite(theta) & np.isfinite(omega))
-    if bad_rows.any():
-        row = int(np.argmax(bad_rows))
-        raise ParameterError(
-            f"observer {args.observer!r} diverged (not finite from row {row}, t = {log.time[row]:.6g} s); "
-            "nothing written: check the motor parameters (--motor), the log's units (--units) and the "
-            "observer options."
-        )
-
-    summary = {
-        "observer": args.observer,
-        "motor": str(args.motor),
-        "drive_file": spec.summary(),
-        "log": str(args.log),
-        "samples": int(log.n),
-        "Ts_s": log.Ts,
-        "options": options,
-        "notes": list(log.notes),
-        "wall_time_s": wall,
-        "angle_modulo_pi": bool(modulo_pi),
-    }
-    if truth:
-        summary["errors"] = _errors(log, theta, omega, args.settle_s, error_statistics, modulo_pi)
-    out.mkdir(parents=True, exist_ok=True)
-    write_csv_atomic(out / "estimate.csv", {"time": log.time, "theta_e": theta, "omega_m": omega})
-    atomic_write(out / "observe.json", lambda f: f.write(json.dumps(summary, indent=2).encode()))
-    written = ["estimate.csv", "observe.json"]
-    if not args.no_figures:
-        from pmsmjax.plotting.observers import observer_log_figure
-        from pmsmjax.plotting.traces import save_figure
-
-        save_figure(
-            observer_log_figure(
-                log.time, theta, omega, log.truth, title=f"{args.observer} on {args.log}", modulo_pi=modulo_pi
-            ),
-            out / "observe.png",
-        )
-        written.append("observe.png")
-    if truth:
-        e = summary["errors"]
-        parts = []
-        if "angle_rms_deg" in e:
-            parts.append(f"angle error {e['angle_rms_deg']:.3g} deg RMS (max {e['angle_max_deg']:.3g})")
-        if "speed_rms_rpm" in e:
-            parts.append(f"speed error {e['speed_rms_rpm']:.3g} r/min RMS")
-        print(f"after {args.settle_s:g} s: " + ", ".join(parts))
+    spec = ObserveSpec(
+        observer=args.observer,
+        drive=drive,
+        motor=str(args.motor),
+        log=str(args.log),
+        settle_s=args.settle_s,
+        truth=truth,
+        options={k: _number_or_text(v) for k, v in _pairs(args.option, "--option").items()},
+        hf_voltage=args.hf_voltage,
+        hf_frequency=args.hf_frequency,
+        polarity_known=args.polarity_known,
+    )
+    result = run_observer(spec, log)
+    written = _write(result, out, figure_title=None if args.no_figures else f"{args.observer} on {args.log}")
+    for line in result.report:
+        print(line)
     print(
-        f"{args.observer}: {log.n} samples in {wall:.2f} s; wrote {', '.join(f'{out}/{w}' for w in written)}"
+        f"{args.observer}: {log.n} samples in {result.summary['wall_time_s']:.2f} s; wrote "
+        f"{', '.join(f'{out}/{w}' for w in written)}"
     )
     return 0
 
 
-def _errors(log, theta, omega, settle_s, error_statistics, modulo_pi=False) -> dict:
-    """Error figures against the truth columns present (angle: electrical deg; speed: mechanical r/min)."""
-    import numpy as np
+def _write(result, out, figure_title: str | None) -> list[str]:
+    """Write estimate.csv, observe.json and (with a `figure_title`) observe.png of a
+    :class:`~pmsmjax.jobs.observe.ObserveResult` into the folder `out`; returns the names written."""
+    from pmsmjax.io.logs import atomic_write, write_csv_atomic
 
-    if log.time[-1] - log.time[0] <= settle_s:
-        raise ParameterError(
-            f"--settle-s {settle_s} s is not shorter than the log ({log.time[-1] - log.time[0]:.4g} s): "
-            "lower it so some samples are scored."
+    out.mkdir(parents=True, exist_ok=True)
+    write_csv_atomic(
+        out / "estimate.csv", {"time": result.time, "theta_e": result.theta_e, "omega_m": result.omega_m}
+    )
+    atomic_write(out / "observe.json", lambda f: f.write(json.dumps(result.summary, indent=2).encode()))
+    written = ["estimate.csv", "observe.json"]
+    if figure_title is not None:
+        from pmsmjax.plotting.observers import observer_log_figure
+        from pmsmjax.plotting.traces import save_figure
+
+        figure = observer_log_figure(
+            result.time,
+            result.theta_e,
+            result.omega_m,
+            result.truth,
+            title=figure_title,
+            modulo_pi=result.modulo_pi,
         )
-    th_true = log.truth.get("theta_e", theta)
-    w_true = log.truth.get("omega_m", omega)
-    stats = error_statistics(log.time, theta, omega, th_true, w_true, settle_s, modulo_pi=modulo_pi)
-    keys = {"samples"}
-    if "theta_e" in log.truth:
-        keys |= {"angle_rms_deg", "angle_mean_deg", "angle_max_deg"}
-    if "omega_m" in log.truth:
-        keys |= {"speed_rms_rpm", "speed_max_rpm"}
-    out = {k: v for k, v in stats.items() if k in keys}
-    out["settle_s"] = float(settle_s)
-    out["finite"] = bool(np.all(np.isfinite(list(out.values()))))
-    return out
+        save_figure(figure, out / "observe.png")
+        written.append("observe.png")
+    return written

@@ -1,4 +1,6 @@
-"""``pmsmjax replay``: run the machine under a recorded voltage sequence."""
+"""``pmsmjax replay``: run the machine under a recorded voltage sequence (:mod:`pmsmjax.jobs.replay`)."""
+
+from pathlib import Path
 
 from pmsmjax.cli import checks
 
@@ -48,27 +50,36 @@ def add_parser(sub):
 
 
 def run(args) -> int:
-    """Run the machine under the log's recorded voltages; writes the simulated dq currents, speed and
-    angle (replay.csv) to ``--out``. Returns the exit status."""
+    """Run the machine under the log's recorded voltages (:mod:`pmsmjax.jobs.replay`); writes the simulated
+    dq currents, speed and angle (replay.csv) to ``--out``. Returns the exit status."""
     checks.existing_file(args.log, "log", "log file")
     checks.output_folder(args.out)
     from pmsmjax.io.drive_files import drive_spec
 
     drive_spec(args.motor, check_units=not args.trust_units)  # refused here, before JAX starts
-    from pmsmjax.recorded.replay import replay_file
+    from pmsmjax.jobs.replay import ReplaySpec, run_replay
 
-    notes: list[str] = []
-    path = replay_file(
+    spec = ReplaySpec(
         args.log,
         args.motor,
-        args.out,
         hold=args.hold,
         n_substeps=args.substeps,
         time_unit=args.time_unit,
         check_units=not args.trust_units,
-        report=notes,
     )
-    for note in notes:
+    result = run_replay(spec)
+    path = _write(result, args.out)
+    for note in result.notes:
         print(note)
     print(f"wrote {path}")
     return 0
+
+
+def _write(result, out) -> Path:
+    """Write ``out/replay.csv`` (atomically) from a :class:`~pmsmjax.jobs.replay.ReplayResult`; returns its
+    path."""
+    from pmsmjax.io.logs import write_csv_atomic
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    return write_csv_atomic(out / "replay.csv", result.columns)

@@ -18,7 +18,7 @@ integrated over each interval with a fixed number of RK4 sub-steps inside one ji
   drive, where ``u_dq[k]`` is the controller's command computed with the angle at ``t_k``.
 
 The two agree at standstill and differ by about ``omega_e * dt / 2`` rad of voltage angle at speed.
-:func:`replay_file` (``pmsmjax replay``) defaults to ``hold="auto"`` like ``pmsmjax identify``
+:func:`replay_log` (``pmsmjax replay``) defaults to ``hold="auto"`` like ``pmsmjax identify``
 (:data:`DEFAULT_HOLD`): the hold whose replay matches the log's own currents, ``"stator"`` when it has none.
 
 **Speed.** With an ``omega_m`` column the speed is imposed (a dynamometer): row k's speed holds over
@@ -49,6 +49,7 @@ from pmsmjax.spec.validation import ParameterError
 __all__ = [
     "replay",
     "replay_file",
+    "replay_log",
     "replay_scan",
     "choose_hold",
     "default_substeps",
@@ -337,7 +338,30 @@ def replay_file(
     check_units: bool = True,
     report: list | None = None,
 ) -> Path:
-    """Replay a log file and write ``out_dir/replay.csv``; returns the path written.
+    """Replay a log file (:func:`replay_log`) and write ``out_dir/replay.csv``; returns the path written.
+
+    The output has columns ``time,i_d,i_q,omega_m,theta_e`` (time in s), one row per log row, written
+    atomically only after the run succeeded: a failure leaves no (partial) ``replay.csv``.
+    """
+    result = replay_log(
+        log_path, motor, hold, n_substeps, time_unit=time_unit, check_units=check_units, report=report
+    )
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    return write_csv_atomic(out / "replay.csv", result)
+
+
+def replay_log(
+    log_path: str | os.PathLike,
+    motor: str | os.PathLike,
+    hold: str = DEFAULT_HOLD,
+    n_substeps: int | None = None,
+    *,
+    time_unit: str = "s",
+    check_units: bool = True,
+    report: list | None = None,
+) -> dict[str, np.ndarray]:
+    """Replay a log file; returns ``(N,)`` float64 arrays by :data:`REPLAY_COLUMNS`, in that order.
 
     **Arguments:**
 
@@ -346,7 +370,6 @@ def replay_file(
       and ``theta_e`` (rad), ``i_d``, ``i_q`` (A), whose first row sets the initial state.
     - `motor`: a preset name (``book``, ``book_salient``) or a TOML file with ``R, L_d, L_q, psi_f,
       pole_pairs, J, B`` in SI units (ohm, H, H, Wb, -, kg m^2, N m s).
-    - `out_dir`: output folder, created if needed.
     - `hold`: ``"auto"`` (default, shared with ``pmsmjax identify``: :func:`choose_hold`), ``"rotor"`` or
       ``"stator"``; `n_substeps`: as in :func:`replay`.
     - `time_unit`: unit of the time column, ``"s"``, ``"ms"`` or ``"us"``.
@@ -354,10 +377,9 @@ def replay_file(
       values implausible in SI units (:mod:`pmsmjax.spec.plausibility`).
     - `report`: a list that receives one line per note (the hold chosen, columns not used).
 
-    The output has columns ``time,i_d,i_q,omega_m,theta_e`` (time in s), one row per log row. All input is
-    read and checked before anything is compiled, and the file is written atomically only after the run
-    succeeded: a failure leaves no (partial) ``replay.csv``. A column that looks like a misspelt one replay
-    reads (``omega`` for ``omega_m``) is refused: read as absent it would change what is simulated.
+    Row k is the state at the log's row k (time in s). All input is read and checked before anything is
+    compiled. A column that looks like a misspelt one replay reads (``omega`` for ``omega_m``) is refused:
+    read as absent it would change what is simulated.
     """
     if hold not in (*_HOLDS, "auto"):
         raise ParameterError(f"hold must be 'auto', 'rotor' or 'stator', got {hold!r}.")
@@ -413,6 +435,4 @@ def replay_file(
         if report is not None:
             report.append(note)
     result = replay(mot, hold=hold, **kwargs)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    return write_csv_atomic(out / "replay.csv", {c: result[c] for c in REPLAY_COLUMNS})
+    return {c: result[c] for c in REPLAY_COLUMNS}

@@ -2,6 +2,8 @@
 
 - :mod:`~tuning.identify.pipeline`: :func:`identify` and :func:`identify_file`, the steps below in order.
 - :mod:`~tuning.identify.log`: read a log, map its columns and units, turn it into dq, check it.
+  Its columns, units and checks are :mod:`~tuning.identify.log_columns`, shared with the
+  observers' stator-frame log :mod:`~tuning.identify.stator_log` (``pmsmjax observe``).
 - :mod:`~tuning.identify.electrical`, :mod:`~tuning.identify.mechanical`: the two residual groups
   (over :mod:`~tuning.identify.windows`, in the unknowns of :mod:`~tuning.identify.parameters`).
 - :mod:`~tuning.identify.fit`: warm starts and the Levenberg-Marquardt solve.

@@ -6,7 +6,9 @@
 - :mod:`~tuning.montecarlo.runner`: :func:`run_study`, chunked, sharded over every device, resumable.
 - :mod:`~tuning.montecarlo.summary`, :mod:`~tuning.montecarlo.figures`: percentiles, failure rates,
   CVaR, sensitivities; histograms, fan charts, a tornado chart.
-- :mod:`~tuning.montecarlo.cpu_devices`: :func:`split_cpu`, one JAX device per CPU core.
+- :mod:`~tuning.montecarlo.cpu_devices`: :func:`split_cpu`, one JAX device per CPU core, and
+  :func:`~tuning.montecarlo.cpu_devices.set_up_devices`, a study's devices (a core each, or a cluster's
+  hosts).
 
 :func:`split_cpu` only works before JAX initialises its backends, and importing this package runs the
 imports below: none of them may touch a device at import time (no module-level arrays).

@@ -1,8 +1,10 @@
-"""Expose a CPU's cores as separate JAX devices, so work sharded over devices runs on every core.
+"""The devices a study runs on: a CPU's cores exposed as separate JAX devices (:func:`split_cpu`), so work
+sharded over devices runs on every core, or the hosts of a multi-host run (:func:`set_up_devices`).
 
 XLA:CPU runs one compiled program (a vmapped scan, say) mostly on a single thread; split into N host
 devices, a batch sharded over them runs N programs at once. This must happen before JAX initialises its
-backends, so the command line and the benchmark call :func:`split_cpu` first thing.
+backends, so the command line and the benchmark call :func:`split_cpu` (or :func:`set_up_devices`) first
+thing.
 """
 
 import os
@@ -27,3 +29,31 @@ def split_cpu(n: int | None = None) -> int | None:
     except RuntimeError:  # backends already initialised: too late, keep what there is
         return None
     return n
+
+
+def set_up_devices(
+    devices: int | None = None,
+    *,
+    distributed: bool = False,
+    coordinator: str | None = None,
+    num_processes: int | None = None,
+    process_id: int | None = None,
+    compilation_cache: str | None = None,
+) -> None:
+    """Prepare JAX for a study, before anything initialises its backends (``pmsmjax montecarlo``).
+
+    - `distributed`: a multi-host run: :func:`jax.distributed.initialize` with the cluster's `coordinator`
+      (``HOST:PORT``), `num_processes` and this `process_id`, each taken from the environment (SLURM,
+      Open MPI, Cloud TPU, ...) when None. Otherwise the CPU is split into `devices` devices
+      (:func:`split_cpu`; default one per core).
+    - `compilation_cache`: a folder that keeps every compiled function (whatever its compile time)
+      instead of the persistent cache already set; None leaves the cache as it is.
+    """
+    if distributed:
+        given = {"coordinator_address": coordinator, "num_processes": num_processes, "process_id": process_id}
+        jax.distributed.initialize(**{k: v for k, v in given.items() if v is not None})
+    else:
+        split_cpu(devices)
+    if compilation_cache:
+        jax.config.update("jax_compilation_cache_dir", compilation_cache)
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)

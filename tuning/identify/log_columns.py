@@ -1,0 +1,228 @@
+"""The canonical columns of a drive log, shared by the identification log (:mod:`tuning.identify.log`)
+and the observers' stator-frame log (:mod:`tuning.identify.stator_log`): their names, units and meanings,
+reading them through a column map, and the checks and conversions both logs make.
+
+Column names in the file are mapped to canonical names by a column map (``{canonical: name in file}``,
+from options or the ``[columns]`` table of a TOML file); units by ``{canonical: unit}`` (``[units]``).
+Canonical columns (SI units after conversion):
+
+- ``time`` (s; ``ms``, ``us`` accepted);
+- voltages, one set: ``u_d, u_q`` | ``u_alpha, u_beta`` | ``u_a, u_b, u_c`` | duties ``d_a, d_b, d_c``
+  (0..1) with ``U_dc`` (a column or the ``u_dc`` option), V;
+- currents, one set: ``i_d, i_q`` | ``i_alpha, i_beta`` | ``i_a, i_b, i_c``, A (``mA``);
+- ``theta_e`` electrical angle (rad; ``deg``) and/or ``omega_m`` mechanical speed (rad/s; ``rpm``,
+  ``Hz`` = rev/s);
+- ``T_L`` known load torque, N m (optional).
+
+Each check raises a :class:`~pmsmjax.spec.validation.ParameterError` naming the column and the fix.
+"""
+
+import difflib
+import warnings
+
+import numpy as np
+
+from pmsmjax.frames.three_phase import abc_to_alpha_beta, park
+from pmsmjax.inverters.averaged import phase_voltages
+from pmsmjax.io.logs import read_log
+from pmsmjax.spec.validation import ParameterError
+
+__all__ = [
+    "CANONICAL",
+    "CURRENT_SETS",
+    "MAX_JITTER",
+    "MAX_STEP_S",
+    "MEANINGS",
+    "UNITS",
+    "VOLTAGE_SETS",
+    "apply_units",
+    "check_grid",
+    "check_speed_against_angle",
+    "pick_set",
+    "read_canonical",
+    "to_dq64",
+]
+
+#: The signal sets a log may give its voltages in (frame -> columns).
+VOLTAGE_SETS = {
+    "dq": ("u_d", "u_q"),
+    "alpha_beta": ("u_alpha", "u_beta"),
+    "abc": ("u_a", "u_b", "u_c"),
+    "duty": ("d_a", "d_b", "d_c"),
+}
+#: The signal sets a log may give its currents in.
+CURRENT_SETS = {"dq": ("i_d", "i_q"), "alpha_beta": ("i_alpha", "i_beta"), "abc": ("i_a", "i_b", "i_c")}
+#: Every canonical column name.
+CANONICAL = (
+    ("time", "theta_e", "omega_m", "T_L", "U_dc")
+    + sum(VOLTAGE_SETS.values(), ())
+    + sum(CURRENT_SETS.values(), ())
+)
+#: What each canonical column is, for messages.
+MEANINGS = {
+    "time": "time, s",
+    "theta_e": "electrical rotor angle, rad",
+    "omega_m": "mechanical speed, rad/s",
+    "T_L": "known load torque, N m",
+    "U_dc": "DC-link voltage, V",
+    **{c: "voltage, V" for c in sum(VOLTAGE_SETS.values(), ()) if not c.startswith("d_")},
+    **{c: "duty cycle, 0..1" for c in VOLTAGE_SETS["duty"]},
+    **{c: "current, A" for c in sum(CURRENT_SETS.values(), ())},
+}
+#: Accepted units: canonical column (or group) -> {unit: factor to SI}.
+UNITS = {
+    "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6},
+    "omega_m": {"rad/s": 1.0, "rpm": np.pi / 30.0, "Hz": 2.0 * np.pi},
+    "theta_e": {"rad": 1.0, "deg": np.pi / 180.0},
+    "current": {"A": 1.0, "mA": 1e-3},
+    "voltage": {"V": 1.0, "mV": 1e-3, "kV": 1e3},
+    "T_L": {"N m": 1.0, "Nm": 1.0},
+}
+#: Sampling steps deviating more than this from the median are irregular (refused or resampled).
+MAX_JITTER = 0.05
+#: Longest sampling step accepted, s: the electrical time constants of drives are a few ms.
+MAX_STEP_S = 1e-3
+
+
+def read_canonical(path, columns: dict | None, unused: list | None = None) -> dict:
+    """The canonical columns present in the log at ``path``, read through the column map ``columns``;
+    the file's other column names are appended to ``unused`` when a list is given."""
+    columns = dict(columns or {})
+    bad = sorted(set(columns) - set(CANONICAL))
+    if bad:
+        hints = [f"{b!r} -> {difflib.get_close_matches(b, CANONICAL, 1, 0.5)}" for b in bad]
+        raise ParameterError(
+            f"column map: unknown canonical name(s) {bad} ({'; '.join(hints)}); the keys of [columns] "
+            f"are canonical names ({', '.join(CANONICAL)}), the values the names in the file."
+        )
+    wanted = [columns.get(c, c) for c in CANONICAL]
+    raw = read_log(path, (), wanted, time=None, unused=unused)
+    back = {columns.get(c, c): c for c in CANONICAL}
+    present = {back[k]: v for k, v in raw.items()}
+    if not present:
+        raise ParameterError(
+            f"log {path}: none of the expected columns is present ({', '.join(CANONICAL)}); map the "
+            "file's names with a column map (--columns or a [columns] table)."
+        )
+    return present
+
+
+def pick_set(cols, sets, what, source) -> str:
+    complete = [k for k, names in sets.items() if all(n in cols for n in names)]
+    if complete:
+        return complete[0]
+    partial = {
+        k: [n for n in names if n not in cols] for k, names in sets.items() if any(n in cols for n in names)
+    }
+    options = " | ".join(",".join(n) for n in sets.values())
+    if partial:
+        k, lack = next(iter(partial.items()))
+        raise ParameterError(
+            f"{source}: {what}s in {k} are incomplete, {', '.join(lack)} missing; log one full set "
+            f"({options}) or map the names with a column map."
+        )
+    close = sorted(
+        {m for n in sum(sets.values(), ()) for m in difflib.get_close_matches(n, list(cols), 1, 0.7)}
+    )
+    raise ParameterError(
+        f"{source}: no {what} columns; expected one set of {options}"
+        + (f" (columns {close} look close: map them with a column map)" if close else "")
+        + "."
+    )
+
+
+def apply_units(c: dict, units: dict, source: str) -> None:
+    for key, unit in units.items():
+        group = key if key in UNITS else None
+        if key in ("current", "voltage"):
+            targets = [n for n in c if n.startswith("i_" if key == "current" else "u_")]
+        elif key in UNITS:
+            targets = [key] if key in c else []
+        elif key.startswith("i_") or key.startswith("u_"):
+            group, targets = ("current" if key.startswith("i_") else "voltage"), [key] if key in c else []
+        else:
+            raise ParameterError(
+                f"units: unknown key {key!r}; use time, omega_m, theta_e, T_L, current, voltage or a column."
+            )
+        table = UNITS[group]
+        if unit not in table:
+            raise ParameterError(f"units: {key} = {unit!r} is not one of {', '.join(table)}.")
+        for n in targets:
+            c[n] = c[n] * table[unit]
+
+
+def check_grid(c: dict, dt: np.ndarray, resample: bool, source: str):
+    """Refuse (or resample) an irregular time grid; returns ``(columns, dt, note or None)``."""
+    med = float(np.median(dt))
+    dev = np.abs(dt / med - 1.0)
+    if dev.max() <= MAX_JITTER:
+        return c, dt, None
+    row = int(np.argmax(dev)) + 1
+    reason = (
+        f"the sampling is irregular: the step before row {row} (t = {c['time'][row]:.6g} s) is "
+        f"{dt[row - 1]:.3g} s against a median of {med:.3g} s"
+        + (f"; {int(np.sum(dt > 1.5 * med))} gap(s) longer than 1.5 steps" if np.any(dt > 1.5 * med) else "")
+    )
+    if not resample:
+        raise ParameterError(
+            f"{source}: {reason}. Cut the log at the gap, or pass resample=True (--resample) to interpolate "
+            "every signal onto a uniform grid (this also interpolates across gaps, which invents data there)."
+        )
+    t_new = c["time"][0] + med * np.arange(int(np.floor((c["time"][-1] - c["time"][0]) / med)) + 1)
+    out = {}
+    for name, v in c.items():
+        if name == "theta_e":
+            th = np.interp(t_new, c["time"], np.unwrap(v))
+            out[name] = np.mod(th + np.pi, 2 * np.pi) - np.pi
+        else:
+            out[name] = np.interp(t_new, c["time"], v)
+    note = f"resampled onto a uniform {med:.3g} s grid: {reason}"
+    warnings.warn(f"{source}: {note}", stacklevel=3)
+    return out, np.diff(t_new), note
+
+
+def check_speed_against_angle(c: dict, pole_pairs: int, source: str) -> None:
+    """The angle's rate of change must be ``pole_pairs * omega_m``; name the likely mistake otherwise."""
+    t, th, w = c["time"], np.unwrap(c["theta_e"]), pole_pairs * c["omega_m"]
+    step = max(1, th.size // 2000)  # differences over several samples: quantised angles stay usable
+    rate = np.diff(th[::step]) / np.diff(t[::step])
+    w_mid = 0.5 * (w[::step][1:] + w[::step][:-1])
+    if np.sqrt(np.mean(w_mid**2)) < 1.0 or np.sqrt(np.mean(rate**2)) < 1.0:
+        return  # (nearly) standstill: nothing to compare
+    ratio = float(np.dot(rate, w_mid) / np.dot(w_mid, w_mid))
+    if abs(ratio - 1.0) < 0.1:
+        return
+    guesses = (  # (ratio the mistake produces, what to do)
+        (np.pi / 30.0, "omega_m looks like r/min: set units omega_m = 'rpm'"),
+        (2.0 * np.pi, "omega_m looks like rev/s: set units omega_m = 'Hz'"),
+        (1.0 / pole_pairs, "omega_m looks like the electrical speed (divide it by the pole pairs), or "
+         "theta_e like the mechanical angle (multiply it by the pole pairs)"),
+        (-1.0, "theta_e and omega_m have opposite signs: flip one of them"),
+    )  # fmt: skip
+    hint = next(
+        (h for r, h in guesses if r * ratio > 0 and abs(np.log(ratio / r)) < 0.15),
+        f"check the units of omega_m (mechanical rad/s), of theta_e (electrical rad) and the pole pairs "
+        f"({pole_pairs}; the ratio suggests {pole_pairs * ratio:.3g})",
+    )
+    raise ParameterError(
+        f"{source}: the angle theta_e turns at {ratio:.4g} x pole_pairs x omega_m, not 1 x: {hint}."
+    )
+
+
+def to_dq64(c: dict, names, frame: str, th: np.ndarray, u_dc) -> np.ndarray:
+    if frame == "dq":
+        return np.stack([c[names[0]], c[names[1]]], axis=1)
+    if frame == "alpha_beta":
+        ab = np.stack([c[names[0]], c[names[1]]], axis=1)
+    elif frame == "abc":
+        ab = np.asarray(abc_to_alpha_beta(np.stack([c[n] for n in names], axis=1)))
+    else:  # duties: period-average phase voltages of the bridge
+        vdc = c["U_dc"][:, None] if "U_dc" in c else float(u_dc)
+        duties = np.stack([c[n] for n in names], axis=1)
+        if duties.min() < -1e-9 or duties.max() > 1 + 1e-9:
+            raise ParameterError(
+                f"duty columns {', '.join(names)} must lie in [0, 1], got {duties.min():.3g} to "
+                f"{duties.max():.3g}: give duties as fractions (percent / 100)."
+            )
+        ab = np.asarray(abc_to_alpha_beta(np.asarray(phase_voltages(duties, vdc))))
+    return np.asarray(park(ab, th), dtype=np.float64)
