@@ -16,8 +16,6 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-import pytest
-
 ROOT = Path(__file__).resolve().parents[1]
 #: Packages whose imports are checked; imports of the other top-level folders are recognised as targets.
 CHECKED = ("pmsmjax", "tuning")
@@ -321,11 +319,6 @@ def test_the_spec_loads_no_jax():
     assert out.stdout.strip() == "[]"
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="observe, replay, tune, identify and montecarlo still build and analyse in the command modules: "
-    "they move into jobs/ next",
-)
 def test_the_command_line_imports_no_physics():
     """A command parses flags into a spec, calls a job and writes its result: the physics (blocks, engine,
     assembler, analysis) stays below the jobs."""
