@@ -17,6 +17,7 @@ book is one block swapped into the same cascade:
   weakening).
 """
 
+import abc
 from typing import ClassVar, NamedTuple
 
 import equinox as eqx
@@ -38,14 +39,15 @@ class AbstractController(eqx.Module):
     command_kind: ClassVar[CommandKind] = "voltage"
     current_limit: eqx.AbstractVar[Array]
 
+    @abc.abstractmethod
     def init(self, dtype):
         """The controller's state before the first period (integrators and memories at zero).
 
         `dtype`: the floating dtype of the state's arrays (the drive's, float32 or float64). Returns a
         pytree (the concrete controller's own state type) that :meth:`step` takes and returns.
         """
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def step(
         self, state, sample: Sample, estimate: Estimate, refs: References, Ts: float, u_max, delayed: bool
     ) -> tuple[object, ControlOutput]:
@@ -59,7 +61,6 @@ class AbstractController(eqx.Module):
         :class:`~pmsmjax.signals.ControlOutput` (a ``(2,)`` V stator-frame voltage or ``(n,)`` switch
         states by ``command_kind``, with the dq voltage command and current reference).
         """
-        raise NotImplementedError
 
 
 class AbstractSpeedController(eqx.Module):
@@ -69,10 +70,11 @@ class AbstractSpeedController(eqx.Module):
     d-axis reference); `Ts`: the speed loop's own period, s. ``init(dtype)`` gives the zero state.
     """
 
+    @abc.abstractmethod
     def init(self, dtype):
         """The speed loop's zero state (integrator, filter memories) with arrays of floating `dtype`."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def step(self, state, speed_ref, omega_m, iq_max, Ts) -> tuple[object, Array]:
         """One speed-loop period: the torque-producing current reference.
 
@@ -80,7 +82,6 @@ class AbstractSpeedController(eqx.Module):
         magnitude limit, A; `Ts`: the speed loop's period, s (a multiple of the control period). Returns
         the new state and ``i_q*`` (scalar, A, within ``[-iq_max, iq_max]``).
         """
-        raise NotImplementedError
 
 
 class CurrentLoopContext(NamedTuple):
@@ -112,10 +113,11 @@ class AbstractCurrentController(eqx.Module):
     and the same command in the estimated rotor frame ``u_dq (2,)`` V.
     """
 
+    @abc.abstractmethod
     def init(self, dtype):
         """The current loop's zero state (integrators, resonators, last command) of floating `dtype`."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def step(self, state, i_dq_ref, i_ab, theta_e, omega_e, ctx: CurrentLoopContext):
         """One current-loop period: the voltage command that drives ``i_ab`` to ``i_dq_ref``.
 
@@ -125,7 +127,6 @@ class AbstractCurrentController(eqx.Module):
         stationary-frame command (with the angle lead of the PWM hold and delay) and the same command in
         the estimated rotor frame, within ``ctx.u_max``.
         """
-        raise NotImplementedError
 
 
 class AbstractDAxisReference(eqx.Module):
@@ -138,10 +139,11 @@ class AbstractDAxisReference(eqx.Module):
     bandwidth.
     """
 
+    @abc.abstractmethod
     def init(self, dtype):
         """The block's zero state (a field-weakening integrator, or ``None``) of floating `dtype`."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def step(self, state, id_ref, iq_ref_prev, omega_e, ctx: CurrentLoopContext, current_limit):
         """One period: the d-axis current reference.
 
@@ -149,4 +151,3 @@ class AbstractDAxisReference(eqx.Module):
         estimated electrical speed, rad/s; `ctx`: the cascade's :class:`CurrentLoopContext`;
         `current_limit`: peak phase-current limit, A. Returns the new state and ``i_d*`` (scalar, A).
         """
-        raise NotImplementedError

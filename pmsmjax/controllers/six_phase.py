@@ -63,6 +63,7 @@ the z1-z2 command to ``z_limit_fraction u_max`` (it shares the DC link with the 
 voltages suffice, the subspace's impedance being only ``R + j w L_ls``).
 """
 
+import abc
 from typing import Literal
 
 import equinox as eqx
@@ -128,10 +129,11 @@ class AbstractZCurrentController(eqx.Module):
     voltage command ``u_z (2,)`` V.
     """
 
+    @abc.abstractmethod
     def init(self, dtype):
         """The z1-z2 loop's zero state (integrator or resonators, last command) of floating `dtype`."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def step(self, state, i_z, theta_e, omega_e, ctx):
         """One period: the z1-z2 voltage that drives the measured z1-z2 currents to zero.
 
@@ -140,7 +142,6 @@ class AbstractZCurrentController(eqx.Module):
         :class:`~pmsmjax.controllers.base.CurrentLoopContext`. Returns the new state and the stationary
         command ``u_z (2,)`` V, within the block's fraction of ``ctx.u_max``.
         """
-        raise NotImplementedError
 
 
 class AbstractSixPhaseCurrentController(eqx.Module):
@@ -152,10 +153,11 @@ class AbstractSixPhaseCurrentController(eqx.Module):
     the angle lead that the PWM hold and the delay need) and its fundamental part in the rotor frame.
     """
 
+    @abc.abstractmethod
     def init(self, dtype):
         """The current loop's zero state (every sub-block's integrators and memories) of floating `dtype`."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def step(self, state, i_dq_ref, i_phase, theta_e, omega_e, ctx):
         """One period: the multi-phase voltage command from the phase currents.
 
@@ -166,7 +168,6 @@ class AbstractSixPhaseCurrentController(eqx.Module):
         V)``: the stationary command ``[u_alpha, u_beta, u_z1, u_z2]`` (with the angle lead of the PWM hold
         and delay) and its fundamental part in the estimated rotor frame.
         """
-        raise NotImplementedError
 
 
 # --- the controller ---------------------------------------------------------------------------------

@@ -13,6 +13,7 @@ the later chapters (sliding-mode, MRAS, EKF, HF injection) implement it, so a se
   (HF injection); the drive adds it only for such estimators, so others cost nothing.
 """
 
+import abc
 from typing import ClassVar
 
 import equinox as eqx
@@ -25,6 +26,7 @@ class AbstractEstimator(eqx.Module):
 
     injects_voltage: ClassVar[bool] = False
 
+    @abc.abstractmethod
     def init(self, sample: Sample):
         """The estimator's state from the first period's `sample` (measurements at the start of the run).
 
@@ -32,8 +34,8 @@ class AbstractEstimator(eqx.Module):
         ``None``); an observer, which cannot know the rotor's angle, typically starts from the measured
         currents with angle and speed zero. Returns a pytree (the concrete estimator's state type).
         """
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def step(self, state, sample: Sample, Ts: float) -> tuple[object, Estimate]:
         """One control period: update the estimate from this period's `sample`.
 
@@ -43,7 +45,6 @@ class AbstractEstimator(eqx.Module):
         mechanical speed rad/s, and the optional fields the estimator provides) used by the controller in
         the same period.
         """
-        raise NotImplementedError
 
     def check_period(self, Ts: float) -> None:
         """Raise :class:`pmsmjax.ParameterError` if the estimator's gains are unstable at period ``Ts``, s.

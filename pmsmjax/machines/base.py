@@ -6,6 +6,7 @@ serves the fixed-step scan (:func:`pmsmjax.machines.integrate.rk4`), diffrax ada
 linearisation (``jax.jacfwd`` of :meth:`AbstractMachine.vector_field`).
 """
 
+import abc
 from typing import ClassVar, Literal
 
 import equinox as eqx
@@ -79,21 +80,21 @@ class AbstractMachine(eqx.Module):
     n_phases: ClassVar[int] = 3
 
     # --- frame-specific part -------------------------------------------------------------------
+    @abc.abstractmethod
     def current_derivative(self, currents: Array, theta_e: Array, omega_e: Array, u: MachineInput):
         """d(currents)/dt in the model's frame, A/s."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def torque(self, currents: Array, theta_e: Array) -> Array:
         """Electromagnetic torque, N m."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def currents_to_dq(self, currents: Array, theta_e: Array) -> Array:
         """Model-frame currents -> ``(2,)`` dq currents, A."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def currents_from_dq(self, i_dq: Array, theta_e: Array) -> Array:
         """``(2,)`` dq currents -> model-frame currents (zero sequence 0), A."""
-        raise NotImplementedError
 
     # --- shared ----------------------------------------------------------------------------------
     def initial_state(self, i_dq=(0.0, 0.0), omega_m=0.0, theta_e=0.0) -> MachineState:

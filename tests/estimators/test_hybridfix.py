@@ -77,6 +77,9 @@ class Compensated(AbstractEstimator):
     def init(self, sample):
         return None
 
+    def step(self, state, sample, Ts):
+        return state, self.output(state)
+
     def output(self, state):
         return Estimate(state.pll.theta + self.lag, state.pll.omega / self.pole_pairs)
 
