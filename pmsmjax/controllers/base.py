@@ -33,11 +33,13 @@ class AbstractController(eqx.Module):
     ``step(state, sample, estimate, refs, Ts, u_max, delayed)``: `Ts` the control period, s (static);
     `u_max` the modulator's linear voltage limit, V; `delayed` (static) whether the command is applied
     one period after it is computed. ``current_limit`` (A, peak phase current) is read by the metrics and
-    objectives that judge a run.
+    objectives that judge a run. ``speed``: the speed loop (:class:`AbstractSpeedController`, in charge
+    in speed mode), whose state the controller's state holds as its ``speed`` field.
     """
 
     command_kind: ClassVar[CommandKind] = "voltage"
     current_limit: eqx.AbstractVar[Array]
+    speed: eqx.AbstractVar["AbstractSpeedController"]
 
     @abc.abstractmethod
     def init(self, dtype):
@@ -82,6 +84,12 @@ class AbstractSpeedController(eqx.Module):
         magnitude limit, A; `Ts`: the speed loop's period, s (a multiple of the control period). Returns
         the new state and ``i_q*`` (scalar, A, within ``[-iq_max, iq_max]``).
         """
+
+    def steady_state(self, state, omega_m):
+        """The loop's state in its no-load steady state at mechanical speed ``omega_m`` (rad/s), from its
+        zero state ``state``: where a run started at speed begins. Here ``state`` unchanged; a loop whose
+        feedforward needs an integral to balance it (the PI's active damping) overrides it."""
+        return state
 
 
 class CurrentLoopContext(NamedTuple):

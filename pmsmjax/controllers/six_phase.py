@@ -64,7 +64,7 @@ voltages suffice, the subspace's impedance being only ``R + j w L_ls``).
 """
 
 import abc
-from typing import Literal
+from typing import ClassVar, Literal
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -99,6 +99,7 @@ from pmsmjax.frames.multiphase import (
 )
 from pmsmjax.frames.three_phase import inverse_park, park
 from pmsmjax.machines.motor import as_float
+from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
 from pmsmjax.signals import ControlOutput, Estimate, References, Sample
 from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive
 
@@ -151,7 +152,11 @@ class AbstractSixPhaseCurrentController(eqx.Module):
     `i_dq_ref (2,)` A (the dq reference of the fundamental subspace; z1-z2 reference 0); `i_phase (6,)` A
     sampled phase currents; returns the stationary command ``[u_alpha, u_beta, u_z1, u_z2]`` V (with
     the angle lead that the PWM hold and the delay need) and its fundamental part in the rotor frame.
+    ``layout``: the winding the loop serves (:data:`~pmsmjax.frames.multiphase.SIX_PHASE`, ``FIVE_PHASE``),
+    whose phase count the cascade checks against its motor model's.
     """
+
+    layout: eqx.AbstractVar[PhaseLayout]
 
     @abc.abstractmethod
     def init(self, dtype):
@@ -177,7 +182,7 @@ class SixPhaseFOC(AbstractController):
     :class:`~pmsmjax.machines.multiphase_motor.MultiPhaseParameters`. Command: ``(4,)``
     [u_alpha, u_beta, u_z1, u_z2], V."""
 
-    model: eqx.Module
+    model: MultiPhaseParameters
     speed: AbstractSpeedController
     current: AbstractSixPhaseCurrentController
     current_limit: Array = eqx.field(converter=as_float)
@@ -189,8 +194,8 @@ class SixPhaseFOC(AbstractController):
 
     def __check_init__(self):
         check_positive("current_limit", self.current_limit, "A")
-        layout = getattr(self.current, "layout", SIX_PHASE)
-        if getattr(self.model, "n_phases", 3) != layout.n:
+        layout = self.current.layout
+        if self.model.n_phases != layout.n:
             word = {5: "five", 6: "six"}.get(layout.n, f"{layout.n}")
             raise ParameterError(
                 f"SixPhaseFOC with a {word}-phase current block needs a {word}-phase motor model "
@@ -422,6 +427,7 @@ class DoubleDQCurrentPI(AbstractSixPhaseCurrentController):
     ki_q: Array = eqx.field(converter=as_float)
     kc_d: Array = eqx.field(converter=as_float)
     kc_q: Array = eqx.field(converter=as_float)
+    layout: ClassVar[PhaseLayout] = SIX_PHASE  # two three-phase sets: the dual three-phase machine only
 
     def init(self, dtype):
         return (jnp.zeros(4, dtype), jnp.zeros(4, dtype))

@@ -36,7 +36,7 @@ import jax.numpy as jnp
 
 from pmsmjax._types import Array
 from pmsmjax.estimators import hfi_signal as hs
-from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.base import AbstractEstimator, AbstractModelObserver
 from pmsmjax.estimators.map_scheduled import DEFAULT_CURRENT_CUTOFF, check_fundamental_observer
 from pmsmjax.frames.three_phase import park, wrap_angle
 from pmsmjax.machines.motor import as_float
@@ -69,7 +69,7 @@ class MapAngleCorrected(AbstractEstimator):
     low-pass, rad/s.
     """
 
-    observer: AbstractEstimator
+    observer: AbstractModelObserver
     flux_map: FluxMap
     current_cutoff: Array = eqx.field(converter=as_float, default=DEFAULT_CURRENT_CUTOFF)
 

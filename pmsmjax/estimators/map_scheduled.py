@@ -51,7 +51,7 @@ import numpy as np
 
 from pmsmjax._types import Array
 from pmsmjax.estimators import hfi_signal as hs
-from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.base import AbstractEstimator, AbstractModelObserver
 from pmsmjax.frames.three_phase import park
 from pmsmjax.machines.flux_map import FluxMapGrid
 from pmsmjax.machines.motor import PMSMParameters, as_float
@@ -113,12 +113,12 @@ class MapScheduledState(eqx.Module):
 class MapScheduled(AbstractEstimator):
     """A fundamental-model observer whose motor model follows the flux map (module docstring).
 
-    **Arguments:** `observer`: any estimator with a ``model`` (:class:`PMSMParameters`) field (the chapter
-    5 observers, the EKF); `flux_map`: the machine's map; `current_cutoff`: operating-current low-pass,
-    rad/s.
+    **Arguments:** `observer`: a fundamental-model observer
+    (:class:`~pmsmjax.estimators.base.AbstractModelObserver`: the chapter 5 observers, the EKF);
+    `flux_map`: the machine's map; `current_cutoff`: operating-current low-pass, rad/s.
     """
 
-    observer: AbstractEstimator
+    observer: AbstractModelObserver
     flux_map: FluxMap
     current_cutoff: Array = eqx.field(converter=as_float, default=DEFAULT_CURRENT_CUTOFF)
 
@@ -152,7 +152,7 @@ def map_scheduled(
 
 def check_fundamental_observer(observer: AbstractEstimator, what: str) -> None:
     """Refuse, in one line naming ``what``, an estimator without a motor model (HF injection)."""
-    if not isinstance(getattr(observer, "model", None), PMSMParameters):
+    if not isinstance(observer, AbstractModelObserver):
         raise ParameterError(
             f"{what} applies to the fundamental-model observers (smo, smo-pll, adaptive-smo, dq-smo, mras, "
             f"ekf), got {type(observer).__name__}: HF injection takes the cross-saturation correction "

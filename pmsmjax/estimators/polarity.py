@@ -33,6 +33,7 @@ right); ``decision="sigmoid"`` replaces the flip by ``pi sigmoid((L(+) - L(-)) /
 smooth surrogate for gradient studies.
 """
 
+import dataclasses
 from typing import Literal
 
 import equinox as eqx
@@ -43,7 +44,7 @@ from pmsmjax._types import Array
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.frames.three_phase import park, wrap_angle
 from pmsmjax.machines.motor import as_float
-from pmsmjax.signals import Sample
+from pmsmjax.signals import Estimate, Sample
 from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive
 
 Decision = Literal["exact", "sigmoid"]
@@ -168,6 +169,11 @@ class PolarityDetector(AbstractEstimator):
             is_leaf=lambda x: x is None,
         )
         return new_state, estimate
+
+    def pull(self, state: PolarityState, estimate: Estimate, theta_e, omega_m, strength) -> PolarityState:
+        """The wrapped estimator pulled (the flip is in both ``theta_e`` and ``estimate``, so it cancels)."""
+        observer = self.observer.pull(state.observer, estimate, theta_e, omega_m, strength)
+        return dataclasses.replace(state, observer=observer)
 
 
 def polarity_detector(

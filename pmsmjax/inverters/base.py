@@ -51,6 +51,10 @@ class AbstractBridge(eqx.Module):
 
     u_dc: eqx.AbstractVar[Array]
     n_phases: ClassVar[int] = 3
+    #: The bridge integrates each constant-voltage switching segment of a period and samples the
+    #: trajectory inside it with ``sample_period(machine, state, duties, load_torque, Ts, n_samples)``
+    #: (:mod:`pmsmjax.analysis.within_period`); otherwise the period-average voltage is held over it.
+    switching_resolved: ClassVar[bool] = False
 
     def commanded_voltage(self, duties: Array) -> Array:
         """``(2,)`` stator-frame period-average voltage, V, that ideal legs with ``duties (n,)`` give.

@@ -7,6 +7,7 @@ linearisation (``jax.jacfwd`` of :meth:`AbstractMachine.vector_field`).
 """
 
 import abc
+from collections.abc import Callable
 from typing import ClassVar, Literal
 
 import equinox as eqx
@@ -78,6 +79,18 @@ class AbstractMachine(eqx.Module):
     motor: eqx.AbstractVar[PMSMParameters]
     mechanics: eqx.AbstractVar[Mechanics]
     n_phases: ClassVar[int] = 3
+    #: The equations see the rotor angle only through a stator-frame held voltage read in the rotor frame
+    #: (the dq models): :func:`pmsmjax.machines.integrate.advance` then rotates that voltage by each RK4
+    #: stage's angle increment instead of evaluating trigonometry of the absolute angle.
+    angle_only_in_voltage: ClassVar[bool] = False
+
+    @property
+    def split_advance(self) -> Callable[[MachineState, MachineInput, float, int], MachineState] | None:
+        """``(state, inputs, duration, n_substeps) -> state``: this machine's own integrator over an
+        interval, which :func:`pmsmjax.machines.integrate.advance` uses in place of its RK4 (the flux-map
+        model's packed state, the balanced multi-phase model's separately integrated planes); ``None``
+        (here): the generic RK4."""
+        return None
 
     # --- frame-specific part -------------------------------------------------------------------
     @abc.abstractmethod

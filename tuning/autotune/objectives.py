@@ -225,15 +225,14 @@ def batch_metrics(drive: Drive, batch: ScenarioBatch) -> dict:
 
 def start_at_speed(drive: Drive, speed_m, theta_e):
     """The drive's state at mechanical speed ``speed_m`` (rad/s) and electrical angle ``theta_e`` (rad),
-    zero currents, with the speed PI's integral holding its active-damping term ``B_a w`` (its no-load
-    steady state; from a zero integral the damping term alone would brake the machine, measured 260 r/min
-    of dip from 694 r/min on the book drive). Other controllers start from their ``init``."""
+    zero currents, with the speed loop in its no-load steady state
+    (:meth:`~pmsmjax.controllers.base.AbstractSpeedController.steady_state`): the speed PI's integral
+    holds its active-damping term ``B_a w`` (from a zero integral the damping term alone would brake the
+    machine, measured 260 r/min of dip from 694 r/min on the book drive); other loops start from their
+    ``init``."""
     state = drive.init(speed_m=speed_m, theta_e=theta_e)
-    damping = getattr(getattr(drive.controller, "speed", None), "active_damping", None)
-    if damping is None or getattr(state.controller, "speed", None) is None:
-        return state
-    integral = jnp.asarray(damping * speed_m, state.controller.speed.dtype)
-    return eqx.tree_at(lambda s: s.controller.speed, state, integral)
+    speed_state = drive.controller.speed.steady_state(state.controller.speed, speed_m)
+    return eqx.tree_at(lambda s: s.controller.speed, state, speed_state)
 
 
 def batch_cost(drive: Drive, batch: ScenarioBatch, weights: ObjectiveWeights):

@@ -157,9 +157,10 @@ class StudyRunner:
         if not samples:
             return
         motor = self.drive.machine.motor
-        inductances = ("R", "L_d", "L_q") + (("L_ls",) if hasattr(motor, "L_ls") else ())  # six-phase leakage
+        inductances = ("R", "L_d", "L_q") + motor.leakage_fields  # multi-phase: the leakage inductance
         sampled = SimpleNamespace(
             pole_pairs=motor.pole_pairs,
+            leakage_fields=motor.leakage_fields,
             **{f: samples.get(f"motor.{f}", np.asarray(getattr(motor, f))) for f in inductances},
         )
         speed = rpm_to_rad_s(np.max(np.abs(samples.get("scenario.speed_rpm", self.study.speed_rpm))))

@@ -345,7 +345,7 @@ def nominal_value(study: Study, drive: Drive, name: str) -> float:
 def check_name(drive: Drive, name: str) -> None:
     """Raise :class:`~pmsmjax.spec.validation.ParameterError` unless `name` is a parameter a study may
     vary on `drive` (a motor field, ``bridge.u_dc``, a scenario field or a controller leaf), listing them."""
-    fields = MOTOR_FIELDS + (("L_ls",) if hasattr(drive.machine.motor, "L_ls") else ())
+    fields = MOTOR_FIELDS + drive.machine.motor.leakage_fields
     allowed = [f"motor.{f}" for f in fields] + ["bridge.u_dc"] + [f"scenario.{f}" for f in SCENARIO_FIELDS]
     controller = [n for n in array_leaf_names(drive) if n.startswith("controller.") and ".model." not in n]
     if name not in allowed and name not in controller:
