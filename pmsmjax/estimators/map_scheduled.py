@@ -85,6 +85,8 @@ def map_model(flux_map: FluxMap, model: PMSMParameters, i_dq: Array) -> PMSMPara
     secant = jnp.abs(i_dq[1]) >= SECANT_FLOOR_A
     L_q = jnp.where(secant, psi[1] / jnp.where(secant, i_dq[1], 1.0), L[1, 1])
     psi_f = psi[0] - L_d * i_dq[0]
+    # patched, not rebuilt: the constructor's converter would recast the traced leaves to the default
+    # float precision (a float32 drive under x64) and its checks cannot read traced values anyway
     return eqx.tree_at(lambda m: (m.L_d, m.L_q, m.psi_f), model, (L_d, L_q, psi_f))
 
 
@@ -135,6 +137,7 @@ class MapScheduled(AbstractEstimator):
     def step(self, state: MapScheduledState, sample: Sample, Ts: float) -> tuple[MapScheduledState, Estimate]:
         i_now = park(sample.i_ab, state.theta)
         i_dq = state.i_dq + hs.lowpass_gain(self.current_cutoff, Ts) * (i_now - state.i_dq)
+        # the same observer on this period's model (patched, as map_model: its gains keep their dtype)
         observer = eqx.tree_at(
             lambda o: o.model, self.observer, map_model(self.flux_map, self.observer.model, i_dq)
         )

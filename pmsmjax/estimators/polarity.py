@@ -162,11 +162,8 @@ class PolarityDetector(AbstractEstimator):
         # that the wrapped estimator's pulse transients do not wind up the speed loop (as the I/f start
         # reports its ramp speed)
         omega = (1.0 - weight) * obs.omega_m
-        estimate = eqx.tree_at(
-            lambda e: (e.theta_e, e.omega_m, e.startup_weight, e.startup_i_dq),
-            obs,
-            (theta, omega, weight, i_dq_start),
-            is_leaf=lambda x: x is None,
+        estimate = dataclasses.replace(
+            obs, theta_e=theta, omega_m=omega, startup_weight=weight, startup_i_dq=i_dq_start
         )
         return new_state, estimate
 
