@@ -1,7 +1,7 @@
 """Controllers: the controller interfaces, discrete PI, design rules, cascaded FOC with its blocks (PI and
 sliding-mode speed loops; dq PI or proportional-resonant current loops; MTPA and field weakening), and
-hysteresis current control; switching-table and sliding-mode direct torque control; the six-phase
-cascade (VSD, double dq, PR current loops)."""
+hysteresis current control; switching-table and sliding-mode direct torque control; the six- and
+five-phase cascade (VSD, double dq, PR current loops)."""
 
 from pmsmjax.controllers.base import (
     AbstractController,
@@ -22,17 +22,9 @@ from pmsmjax.controllers.field_weakening import VoltageFeedbackFieldWeakening
 from pmsmjax.controllers.foc import FOC, FOCState
 from pmsmjax.controllers.hysteresis import HysteresisCurrentControl, HysteresisState, hysteresis_comparator
 from pmsmjax.controllers.mtpa import MTPA, mtpa_id_from_iq, mtpa_id_from_magnitude
-from pmsmjax.controllers.pi import clip_magnitude, clip_symmetric, pi_update, realisable_reference_tracking
-from pmsmjax.controllers.pr import (
-    ProportionalResonant,
-    ResonantCoefficients,
-    pr_design,
-    resonant_coefficients,
-)
-from pmsmjax.controllers.six_phase import (
+from pmsmjax.controllers.multiphase import (
     DoubleDQCurrentPI,
     MultiPhaseFOC,
-    SixPhaseFOC,
     VSDCurrentControl,
     ZCurrentPI,
     ZProportionalResonant,
@@ -41,6 +33,13 @@ from pmsmjax.controllers.six_phase import (
     vsd_current_design,
     z_current_imc,
     z_pr_design,
+)
+from pmsmjax.controllers.pi import clip_magnitude, clip_symmetric, pi_update, realisable_reference_tracking
+from pmsmjax.controllers.pr import (
+    ProportionalResonant,
+    ResonantCoefficients,
+    pr_design,
+    resonant_coefficients,
 )
 from pmsmjax.controllers.smc import SlidingModeSpeed, SlidingModeState, smc_design, switching_function
 from pmsmjax.controllers.smc_dtc import SlidingModeDTC, smc_dtc_design
@@ -82,7 +81,6 @@ __all__ = [
     "smc_dtc_design",
     "torque_current_limit",
     "DoubleDQCurrentPI",
-    "SixPhaseFOC",
     "MultiPhaseFOC",
     "VSDCurrentControl",
     "ZCurrentPI",
