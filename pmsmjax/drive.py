@@ -19,6 +19,8 @@ Every block is a field of the drive, so ``simulate``, ``jax.vmap``, ``jax.grad``
 work on any combination without a second engine.
 """
 
+import dataclasses
+
 import equinox as eqx
 import jax.numpy as jnp
 
@@ -162,7 +164,7 @@ class Drive(eqx.Module):
         if estimate.i_ab_fundamental is not None:
             # HF injection: the current loop gets the carrier-free current (stationary frame; the phase
             # currents stay raw, so only controllers that read i_ab are shielded from the carrier)
-            seen = eqx.tree_at(lambda s: s.i_ab, sample, estimate.i_ab_fundamental)
+            seen = dataclasses.replace(sample, i_ab=estimate.i_ab_fundamental)
         ctrl_state, out = self.controller.step(
             state.controller, seen, estimate, refs, self.Ts, self.voltage_limit(), self.computation_delay
         )

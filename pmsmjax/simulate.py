@@ -61,7 +61,7 @@ def check_simulation(drive: Drive, scenario: Scenario, decimate: int = 1) -> Non
         raise ParameterError(
             f"decimate = {decimate!r} must be a positive int dividing the {n} periods of the scenario."
         )
-    drive.bridge.check_period(drive.Ts)  # also for a bridge swapped in with eqx.tree_at (no __check_init__)
+    drive.bridge.check_period(drive.Ts)  # also for a bridge patched into the drive (no __check_init__ then)
     values = scenario.speed_ref.values
     motor = drive.machine.motor
     if all(is_concrete(x) for x in (values, motor.R, motor.L_d, motor.L_q)):

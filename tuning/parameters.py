@@ -57,29 +57,37 @@ def _split_index(name: str) -> tuple[str, int | None]:
     return name, None
 
 
-def get_leaf(drive, name: str):
-    """The leaf of ``drive`` at the dotted path ``name`` (e.g. ``controller.speed.kp``), or the element of a
-    vector leaf (``estimator.observer.q[2]``)."""
+def get_leaf(tree, name: str):
+    """The node of ``tree`` (a drive, or any equinox pytree) at the dotted path ``name`` (e.g.
+    ``controller.speed.kp``), or the element of a vector leaf (``estimator.observer.q[2]``)."""
     path, index = _split_index(name)
-    node = drive
+    node = tree
     for part in path.split("."):
         node = getattr(node, part)
     return node if index is None else node[index]
 
 
-def set_leaves(drive, names, values):
-    """``drive`` with the leaves (or vector-leaf elements) ``names`` set to ``values`` (traceable)."""
+def set_leaves(tree, names, values):
+    """``tree`` with the nodes at the dotted paths ``names`` set to ``values`` (traceable).
+
+    ``tree`` is any equinox pytree: a drive, its state, a data module. A name is a leaf
+    (``controller.speed.kp``), a vector leaf's element (``estimator.observer.q[2]``) or a whole block
+    (``estimator``, ``machine``, ``bridge.voltage_error``, also where it is ``None``). The rest of ``tree``
+    is kept as it is, leaf for leaf: nothing is converted or checked again. The only place tuning writes
+    into a pytree."""
     updates: dict[str, object] = {}
     for name, value in zip(names, values, strict=True):
         path, index = _split_index(name)
         if index is None:
             updates[path] = value
         else:
-            leaf = updates.get(path, get_leaf(drive, path))
+            leaf = updates.get(path, get_leaf(tree, path))
             updates[path] = jnp.asarray(leaf).at[index].set(value)
     paths = list(updates)
     getters = [lambda d, n=n: get_leaf(d, n) for n in paths]
-    return eqx.tree_at(lambda d: [g(d) for g in getters], drive, [updates[n] for n in paths])
+    return eqx.tree_at(
+        lambda d: [g(d) for g in getters], tree, [updates[n] for n in paths], is_leaf=lambda x: x is None
+    )
 
 
 def array_leaf_names(drive: Drive) -> list[str]:

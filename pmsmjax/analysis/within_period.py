@@ -3,8 +3,9 @@
 A Trace holds the state at each period start only. With centre-aligned PWM those instants sit at the
 middle of the current ripple, so ripple, spectra and torque ripple need the trajectory in between. It is
 recomputed here from each period's recorded start state and applied duties (the same model, so the same
-trajectory the simulation followed): segment by segment for the switching-resolved bridge
-(:meth:`SwitchingBridge.sample_period`), in equal held-voltage steps for the averaged bridge.
+trajectory the simulation followed): segment by segment for the switching-resolved bridges (their
+``sample_period``, :attr:`~pmsmjax.inverters.base.AbstractBridge.switching_resolved`), in equal
+held-voltage steps for the averaged ones.
 """
 
 import equinox as eqx
@@ -14,7 +15,6 @@ import numpy as np
 from pmsmjax.drive import Drive
 from pmsmjax.frames.three_phase import abc_to_alpha_beta
 from pmsmjax.inverters.averaged import phase_voltages
-from pmsmjax.inverters.switching import SwitchingBridge
 from pmsmjax.machines.base import MachineInput, MachineState
 from pmsmjax.machines.integrate import advance
 from pmsmjax.trace import Trace
@@ -59,7 +59,7 @@ def dense_window(drive: Drive, window: Trace, n_samples: int):
         i_vsd = vsd(window.i_abc, machine.layout)[:, : machine.layout.n_active]
         currents = jax.vmap(machine.currents_from_vsd)(i_vsd, window.theta_e)
     states = MachineState(currents, window.omega_m, window.theta_e)
-    if isinstance(drive.bridge, SwitchingBridge) or hasattr(drive.bridge, "sample_period"):
+    if drive.bridge.switching_resolved:
         dense, times, u_ab = _dense_switching(drive, states, window.duties, window.load_torque, n_samples)
         t_u = (np.arange(n)[:, None] * Ts + np.asarray(times)[:, :-1]).ravel()
         u_ab = np.asarray(u_ab).reshape(-1, np.shape(u_ab)[-1])

@@ -1,7 +1,7 @@
 """Controllers: the controller interfaces, discrete PI, design rules, cascaded FOC with its blocks (PI and
 sliding-mode speed loops; dq PI or proportional-resonant current loops; MTPA and field weakening), and
-hysteresis current control; switching-table and sliding-mode direct torque control; the six-phase
-cascade (VSD, double dq, PR current loops).
+hysteresis current control; switching-table and sliding-mode direct torque control; the six- and
+five-phase cascade (VSD, double dq, PR current loops).
 
 The re-exported names are imported on first use (PEP 562), so that the plain-NumPy modules here (the
 flux map's MTPA and MTPV tables, :mod:`.flux_map_loci`) read without loading JAX: the drive file's checks
@@ -47,17 +47,16 @@ _LAZY = {
     "SlidingModeDTC": ("smc_dtc", "SlidingModeDTC"),
     "smc_dtc_design": ("smc_dtc", "smc_dtc_design"),
     "torque_current_limit": ("dtc", "torque_current_limit"),
-    "DoubleDQCurrentPI": ("six_phase", "DoubleDQCurrentPI"),
-    "SixPhaseFOC": ("six_phase", "SixPhaseFOC"),
-    "MultiPhaseFOC": ("six_phase", "MultiPhaseFOC"),
-    "VSDCurrentControl": ("six_phase", "VSDCurrentControl"),
-    "ZCurrentPI": ("six_phase", "ZCurrentPI"),
-    "ZProportionalResonant": ("six_phase", "ZProportionalResonant"),
-    "double_dq_design": ("six_phase", "double_dq_design"),
-    "pr_current_design": ("six_phase", "pr_current_design"),
-    "vsd_current_design": ("six_phase", "vsd_current_design"),
-    "z_current_imc": ("six_phase", "z_current_imc"),
-    "z_pr_design": ("six_phase", "z_pr_design"),
+    "DoubleDQCurrentPI": ("multiphase", "DoubleDQCurrentPI"),
+    "MultiPhaseFOC": ("multiphase", "MultiPhaseFOC"),
+    "VSDCurrentControl": ("multiphase", "VSDCurrentControl"),
+    "ZCurrentPI": ("multiphase", "ZCurrentPI"),
+    "ZProportionalResonant": ("multiphase", "ZProportionalResonant"),
+    "double_dq_design": ("multiphase", "double_dq_design"),
+    "pr_current_design": ("multiphase", "pr_current_design"),
+    "vsd_current_design": ("multiphase", "vsd_current_design"),
+    "z_current_imc": ("multiphase", "z_current_imc"),
+    "z_pr_design": ("multiphase", "z_pr_design"),
 }
 
 __all__ = list(_LAZY)

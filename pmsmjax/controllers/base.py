@@ -17,6 +17,7 @@ book is one block swapped into the same cascade:
   weakening).
 """
 
+import abc
 from typing import ClassVar, NamedTuple
 
 import equinox as eqx
@@ -32,20 +33,23 @@ class AbstractController(eqx.Module):
     ``step(state, sample, estimate, refs, Ts, u_max, delayed)``: `Ts` the control period, s (static);
     `u_max` the modulator's linear voltage limit, V; `delayed` (static) whether the command is applied
     one period after it is computed. ``current_limit`` (A, peak phase current) is read by the metrics and
-    objectives that judge a run.
+    objectives that judge a run. ``speed``: the speed loop (:class:`AbstractSpeedController`, in charge
+    in speed mode), whose state the controller's state holds as its ``speed`` field.
     """
 
     command_kind: ClassVar[CommandKind] = "voltage"
     current_limit: eqx.AbstractVar[Array]
+    speed: eqx.AbstractVar["AbstractSpeedController"]
 
+    @abc.abstractmethod
     def init(self, dtype):
         """The controller's state before the first period (integrators and memories at zero).
 
         `dtype`: the floating dtype of the state's arrays (the drive's, float32 or float64). Returns a
         pytree (the concrete controller's own state type) that :meth:`step` takes and returns.
         """
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def step(
         self, state, sample: Sample, estimate: Estimate, refs: References, Ts: float, u_max, delayed: bool
     ) -> tuple[object, ControlOutput]:
@@ -59,7 +63,6 @@ class AbstractController(eqx.Module):
         :class:`~pmsmjax.signals.ControlOutput` (a ``(2,)`` V stator-frame voltage or ``(n,)`` switch
         states by ``command_kind``, with the dq voltage command and current reference).
         """
-        raise NotImplementedError
 
 
 class AbstractSpeedController(eqx.Module):
@@ -69,10 +72,11 @@ class AbstractSpeedController(eqx.Module):
     d-axis reference); `Ts`: the speed loop's own period, s. ``init(dtype)`` gives the zero state.
     """
 
+    @abc.abstractmethod
     def init(self, dtype):
         """The speed loop's zero state (integrator, filter memories) with arrays of floating `dtype`."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def step(self, state, speed_ref, omega_m, iq_max, Ts) -> tuple[object, Array]:
         """One speed-loop period: the torque-producing current reference.
 
@@ -80,7 +84,12 @@ class AbstractSpeedController(eqx.Module):
         magnitude limit, A; `Ts`: the speed loop's period, s (a multiple of the control period). Returns
         the new state and ``i_q*`` (scalar, A, within ``[-iq_max, iq_max]``).
         """
-        raise NotImplementedError
+
+    def steady_state(self, state, omega_m):
+        """The loop's state in its no-load steady state at mechanical speed ``omega_m`` (rad/s), from its
+        zero state ``state``: where a run started at speed begins. Here ``state`` unchanged; a loop whose
+        feedforward needs an integral to balance it (the PI's active damping) overrides it."""
+        return state
 
 
 class CurrentLoopContext(NamedTuple):
@@ -112,10 +121,11 @@ class AbstractCurrentController(eqx.Module):
     and the same command in the estimated rotor frame ``u_dq (2,)`` V.
     """
 
+    @abc.abstractmethod
     def init(self, dtype):
         """The current loop's zero state (integrators, resonators, last command) of floating `dtype`."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def step(self, state, i_dq_ref, i_ab, theta_e, omega_e, ctx: CurrentLoopContext):
         """One current-loop period: the voltage command that drives ``i_ab`` to ``i_dq_ref``.
 
@@ -125,7 +135,6 @@ class AbstractCurrentController(eqx.Module):
         stationary-frame command (with the angle lead of the PWM hold and delay) and the same command in
         the estimated rotor frame, within ``ctx.u_max``.
         """
-        raise NotImplementedError
 
 
 class AbstractDAxisReference(eqx.Module):
@@ -138,10 +147,11 @@ class AbstractDAxisReference(eqx.Module):
     bandwidth.
     """
 
+    @abc.abstractmethod
     def init(self, dtype):
         """The block's zero state (a field-weakening integrator, or ``None``) of floating `dtype`."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def step(self, state, id_ref, iq_ref_prev, omega_e, ctx: CurrentLoopContext, current_limit):
         """One period: the d-axis current reference.
 
@@ -149,4 +159,3 @@ class AbstractDAxisReference(eqx.Module):
         estimated electrical speed, rad/s; `ctx`: the cascade's :class:`CurrentLoopContext`;
         `current_limit`: peak phase-current limit, A. Returns the new state and ``i_d*`` (scalar, A).
         """
-        raise NotImplementedError

@@ -135,8 +135,8 @@ def cascade_references(controller, state: FOCState, estimate: Estimate, refs: Re
     """Steps 1-2 of the cascade (d-axis reference, speed loop) of ``controller`` (a :class:`FOC`, or a
     controller with the same ``model``, ``speed``, ``d_axis``, ``current_limit``, ``mode`` and
     ``speed_divider`` fields and a state with :class:`FOCState`'s ``speed``, ``d_axis``, ``iq_ref`` and
-    ``counter``, such as the six-phase
-    :class:`pmsmjax.controllers.six_phase.SixPhaseFOC` and
+    ``counter``, such as the multi-phase
+    :class:`pmsmjax.controllers.multiphase.MultiPhaseFOC` and
     :class:`pmsmjax.controllers.hysteresis.HysteresisCurrentControl`).
 
     During a sensorless start (``estimate.startup_weight`` set) the start-up current is blended in.

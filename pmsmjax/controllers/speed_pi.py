@@ -70,5 +70,10 @@ class SpeedLoopGains(AbstractSpeedController):
             ),
         )
 
+    def steady_state(self, state, omega_m):
+        """The integral holding the active-damping term ``B_a w`` (A): its no-load steady state at ``omega_m``
+        (rad/s). From a zero integral the damping term alone would brake a machine started at speed."""
+        return jnp.asarray(self.active_damping * omega_m, state.dtype)
+
 
 __all__ = ["SpeedLoopGains"]

@@ -31,7 +31,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.base import AbstractModelObserver
 from pmsmjax.estimators.smo import (
     SMO_K_MARGIN,
     SMO_POLE,
@@ -63,7 +63,7 @@ class AdaptiveSMOState(eqx.Module):
     omega: Array  # rad/s, adapted electrical speed
 
 
-class AdaptiveSMO(AbstractEstimator):
+class AdaptiveSMO(AbstractModelObserver):
     """SMO with an adaptive back-EMF model (see the module docstring).
 
     **Arguments:**

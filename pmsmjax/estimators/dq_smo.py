@@ -41,7 +41,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.base import AbstractModelObserver
 from pmsmjax.estimators.pll import PLL, PLLState, pll_design
 from pmsmjax.estimators.smo import SMO_K_MARGIN, SMO_POLE, check_observer_pole, sliding_current_update
 from pmsmjax.estimators.stability import check_loop, concrete_values
@@ -78,7 +78,7 @@ class DQSMOState(eqx.Module):
     omega: Array  # rad/s, PLL electrical speed
 
 
-class DQSlidingModeObserver(AbstractEstimator):
+class DQSlidingModeObserver(AbstractModelObserver):
     """Rotating-frame SMO on the extended EMF with a PLL (see the module docstring).
 
     **Arguments:**

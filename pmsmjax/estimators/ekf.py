@@ -27,12 +27,14 @@ There is no sampled loop gain to refuse: the Kalman gain is computed online and 
 definite ``Q``, ``R``, ``P0``, which ``__check_init__`` requires (diagonals > 0).
 """
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.base import AbstractModelObserver
 from pmsmjax.estimators.stator_model import emf_direction, period_weight_phase, rl_coefficients
 from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
@@ -46,7 +48,7 @@ class EKFState(eqx.Module):
     P: Array  # (4, 4) its covariance
 
 
-class EKF(AbstractEstimator):
+class EKF(AbstractModelObserver):
     """Extended Kalman filter on the stationary-frame model (see the module docstring).
 
     **Arguments:**
@@ -105,6 +107,14 @@ class EKF(AbstractEstimator):
         w = x[2]
         emf = w * active_flux(m, x[:2], theta) * emf_direction(theta)
         return EKFState(x, P), Estimate(theta, w / m.pole_pairs, back_emf_ab=emf)
+
+    def pull(self, state: EKFState, estimate: Estimate, theta_e, omega_m, strength) -> EKFState:
+        """The state's speed and angle (``x[2]``, ``x[3]``) moved by the estimate's distance to the target."""
+        d_theta = strength * wrap_angle(theta_e - estimate.theta_e)
+        d_omega = strength * (omega_m - estimate.omega_m)
+        x = state.x
+        x = x.at[2].add(self.model.pole_pairs * d_omega).at[3].set(wrap_angle(x[3] + d_theta))
+        return dataclasses.replace(state, x=x)
 
 
 def active_flux(model: PMSMParameters, i_ab, theta) -> Array:

@@ -60,7 +60,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.base import AbstractEstimator, AbstractModelObserver
 from pmsmjax.estimators.position_sensors import ExactSensor
 from pmsmjax.frames.three_phase import inverse_park, park
 from pmsmjax.machines.motor import PMSMParameters, as_float
@@ -89,7 +89,7 @@ class StatorFluxObserverState(eqx.Module):
     i_ab: Array  # (2,) A, the current sampled at the last sample (trapezoid of R i)
 
 
-class StatorFluxObserver(AbstractEstimator):
+class StatorFluxObserver(AbstractModelObserver):
     """Voltage-model stator flux and torque with current-model blending (see the module docstring).
 
     **Arguments:**

@@ -37,6 +37,7 @@ estimator's PLL follows, gives ``L_inc`` from the map and ``theta_err``, and the
 controller is ``th^ - theta_err``.
 """
 
+import dataclasses
 import math
 from typing import ClassVar
 
@@ -120,6 +121,8 @@ def injection_model(grid: FluxMapGrid, motor: PMSMParameters, i_dq) -> PMSMParam
     operating point it serves. A map's linear model at the rated current may have ``L_q < L_d`` (the q
     path saturated) and be refused by the saliency check though the machine is salient at light load."""
     _, L = grid.at(*np.asarray(i_dq, dtype=float))
+    # patched, not rebuilt: the design rule reads the map's values as the Python floats they are (the
+    # constructor would convert them to arrays of the default precision) and the rest of the motor as is
     return eqx.tree_at(lambda m: (m.L_d, m.L_q), motor, (float(L[0, 0]), float(L[1, 1])))
 
 
@@ -165,7 +168,7 @@ class CrossSaturationCompensated(AbstractEstimator):
         i_dq = state.i_dq + hs.lowpass_gain(self.current_cutoff, Ts) * (i_now - state.i_dq)
         angle_error = saliency_angle(self.flux_map(i_dq)[1])
         theta = wrap_angle(estimate.theta_e - angle_error)
-        corrected = eqx.tree_at(lambda e: e.theta_e, estimate, theta)
+        corrected = dataclasses.replace(estimate, theta_e=theta)
         return CrossSaturationState(injection, i_dq, angle_error), corrected
 
 

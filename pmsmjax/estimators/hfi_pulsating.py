@@ -37,6 +37,7 @@ frequency signal injection", IEEE TIA 35(1), 1999, doi:10.1109/28.740843; M. Lin
 IECON 2002, doi:10.1109/IECON.2002.1187512 (pulsating injection in the estimated d axis).
 """
 
+import dataclasses
 from typing import ClassVar
 
 import equinox as eqx
@@ -45,7 +46,7 @@ import jax.numpy as jnp
 from pmsmjax._types import Array
 from pmsmjax.estimators import hfi_signal as hs
 from pmsmjax.estimators.base import AbstractEstimator
-from pmsmjax.estimators.pll import PLL, PLLState, pll_design
+from pmsmjax.estimators.pll import PLL, PLLState, pll_design, pull_pll
 from pmsmjax.frames.three_phase import inverse_park, park, wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Estimate, Sample
@@ -136,6 +137,13 @@ class HFIPulsating(AbstractEstimator):
         return HFIPulsatingState(carrier, bandpass, error, pll_state), Estimate(
             pll_state.theta, pll_state.omega / self.pole_pairs, u_injection_ab=u_inj, i_ab_fundamental=i_fund
         )
+
+    def pull(
+        self, state: HFIPulsatingState, estimate: Estimate, theta_e, omega_m, strength
+    ) -> HFIPulsatingState:
+        """The PLL moved by the estimate's distance to the target (:func:`.pll.pull_pll`)."""
+        pll = pull_pll(state.pll, self.pole_pairs, estimate, theta_e, omega_m, strength)
+        return dataclasses.replace(state, pll=pll)
 
 
 def hfi_pulsating_design(

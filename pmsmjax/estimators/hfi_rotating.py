@@ -50,6 +50,7 @@ permanent magnet synchronous machine at standstill and high speeds", IEEE TIA 34
 doi:10.1109/28.703964 (heterodyne demodulation of the negative sequence).
 """
 
+import dataclasses
 from typing import ClassVar, Literal
 
 import equinox as eqx
@@ -58,7 +59,7 @@ import jax.numpy as jnp
 from pmsmjax._types import Array
 from pmsmjax.estimators import hfi_signal as hs
 from pmsmjax.estimators.base import AbstractEstimator
-from pmsmjax.estimators.pll import PLL, PLLState, pll_design
+from pmsmjax.estimators.pll import PLL, PLLState, pll_design, pull_pll
 from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Estimate, Sample
@@ -190,6 +191,13 @@ class HFIRotating(AbstractEstimator):
         return new_state, Estimate(
             theta, omega_e / self.pole_pairs, u_injection_ab=u_inj, i_ab_fundamental=i_fund
         )
+
+    def pull(
+        self, state: HFIRotatingState, estimate: Estimate, theta_e, omega_m, strength
+    ) -> HFIRotatingState:
+        """The PLL moved by the estimate's distance to the target (:func:`.pll.pull_pll`)."""
+        pll = pull_pll(state.pll, self.pole_pairs, estimate, theta_e, omega_m, strength)
+        return dataclasses.replace(state, pll=pll)
 
 
 def hfi_rotating_design(

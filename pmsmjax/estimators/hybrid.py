@@ -32,20 +32,23 @@ Slaving. A fundamental-model observer sees no back-EMF at standstill and runs wh
 it; left alone it would have to converge while the drive accelerates through the band (a few ms at the
 book drive's current limit). So below the band the hybrid pulls the observer's angle and speed to its own
 estimate: after each step the observer's angle and speed states move so that its estimate goes
-``(1 - w)`` of its difference to the hybrid's (:func:`pull_observer`: fully slaved at ``w = 0``, free at
-``w = 1``). It knows the states of :class:`.smo.SlidingModeObserver` with a PLL (the PLL tracks the
-back-EMF angle: rotor angle, plus pi below zero speed) and :class:`.ekf.EKF` (``x = [i_a, i_b, w_e,
-th_e]``); other observers run free. Likewise above the band the injection estimator's PLL is pulled so
-that its estimate goes ``w`` of the way to the hybrid's (less the polarity correction;
-:func:`pull_injection`), so that when the carrier fades back in (a reversal) it is already locked on the
-right pole at the right speed instead of re-acquiring during the deceleration. Both pulls shift the
-states by the *estimate's* distance to the target: an estimator's output can be its state plus a
-compensation (the rotating injection adds half its filters' lag to its PLL angle, 13 degrees at 335 r/min),
-and setting the state to the target instead biased the blend inside the band (README.md).
+``(1 - w)`` of its difference to the hybrid's (the observer's
+:meth:`~pmsmjax.estimators.base.AbstractEstimator.pull`: fully slaved at ``w = 0``, free at ``w = 1``).
+:class:`.smo.SlidingModeObserver` with a PLL (the PLL tracks the back-EMF angle: rotor angle, plus pi below
+zero speed) and :class:`.ekf.EKF` (``x = [i_a, i_b, w_e, th_e]``) implement it; other observers run free.
+Likewise above the band the injection estimator's PLL is pulled so that its estimate goes ``w`` of the way
+to the hybrid's (less the polarity correction; :func:`.pll.pull_pll`, through a
+:class:`.polarity.PolarityDetector`), so that when the carrier fades back in (a reversal) it is already
+locked on the right pole at the right speed instead of re-acquiring during the deceleration. Both pulls
+shift the states by the *estimate's* distance to the target: an estimator's output can be its state plus
+a compensation (the rotating injection adds half its filters' lag to its PLL angle, 13 degrees at 335
+r/min), and setting the state to the target instead biased the blend inside the band (README.md).
 
 Start-up fields (``startup_weight``, ``startup_i_dq``) and the carrier-free current
 (``i_ab_fundamental``) come from the injection estimate (the polarity pulses, the carrier filter).
 """
+
+import dataclasses
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -53,62 +56,13 @@ import jax.numpy as jnp
 from pmsmjax._types import Array
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.catalogue import INJECTION_OBSERVERS, OBSERVERS, build
-from pmsmjax.estimators.ekf import EKF
-from pmsmjax.estimators.pll import PLLState
-from pmsmjax.estimators.polarity import PolarityDetector, polarity_detector
-from pmsmjax.estimators.smo import SlidingModeObserver
+from pmsmjax.estimators.polarity import polarity_detector
 from pmsmjax.estimators.stability import concrete_values
 from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Sample
 from pmsmjax.spec.validation import ParameterError, check_positive
 from pmsmjax.units import rpm_to_rad_s
-
-
-def pull_observer(observer: AbstractEstimator, state, estimate, theta_e, omega_m, strength):
-    """``state`` of ``observer``, whose estimate is ``estimate`` (this step's output), moved so that its
-    angle and speed go ``strength`` (in [0, 1]) of the way to ``theta_e`` (rad) and ``omega_m``
-    (mechanical rad/s); unchanged for observers it does not know.
-
-    The states are shifted by the *estimate's* distance to the target, not set from the target: an
-    observer's output may be its state plus a compensation (the smo-pll adds its filter chain's lag to
-    the PLL angle), and setting the state to the target would leave the output off by that compensation."""
-    d_theta = strength * wrap_angle(theta_e - estimate.theta_e)
-    d_omega = strength * (omega_m - estimate.omega_m)
-    if isinstance(observer, SlidingModeObserver) and observer.angle == "pll":
-        # the PLL tracks the back-EMF's angle (rotor angle, plus pi below zero): the same increment
-        theta = wrap_angle(state.theta + d_theta)
-        omega = state.omega + observer.model.pole_pairs * d_omega
-        return eqx.tree_at(lambda s: (s.theta, s.omega), state, (theta, omega))
-    if isinstance(observer, EKF):
-        x = state.x
-        x = x.at[2].add(observer.model.pole_pairs * d_omega).at[3].set(wrap_angle(x[3] + d_theta))
-        return eqx.tree_at(lambda s: s.x, state, x)
-    return state
-
-
-def pull_injection(injection: AbstractEstimator, state, estimate, theta_e, omega_m, strength):
-    """``state`` of the injection estimator, whose estimate is ``estimate`` (this step's output, flip
-    included), with its PLL moved so that the estimate goes ``strength`` of the way to ``theta_e`` (rad)
-    and ``omega_m`` (mechanical rad/s). Knows the injection estimators with a ``pll`` state
-    (:mod:`.hfi_rotating`, :mod:`.hfi_pulsating`) and looks through a :class:`.polarity.PolarityDetector`
-    (its flip is in both ``theta_e`` and ``estimate``, so it cancels); others run free.
-
-    Shifted by the estimate's distance to the target, not set to it: the rotating injection's output is
-    its PLL angle plus half its filters' lag of the ``2 th`` image (``~ 2 w_e / B``: 13 electrical
-    degrees at 335 r/min on the book drive). Setting the PLL to the target left the output off by that
-    lag, and inside the crossover band, where the blend feeds back into both estimators, the two pulls
-    settled on an estimate off by up to twice it; that lost the hand-down under load
-    (README.md)."""
-    if isinstance(injection, PolarityDetector):
-        inner = pull_injection(injection.observer, state.observer, estimate, theta_e, omega_m, strength)
-        return eqx.tree_at(lambda s: s.observer, state, inner)
-    pll = getattr(state, "pll", None)
-    if isinstance(pll, PLLState) and hasattr(injection, "pole_pairs"):
-        theta = wrap_angle(pll.theta + strength * wrap_angle(theta_e - estimate.theta_e))
-        omega = pll.omega + strength * injection.pole_pairs * (omega_m - estimate.omega_m)
-        return eqx.tree_at(lambda s: s.pll, state, PLLState(theta, omega))
-    return state
 
 
 class HybridState(eqx.Module):
@@ -192,14 +146,9 @@ class HybridEstimator(AbstractEstimator):
         g = 1.0 - jnp.exp(-self.speed_filter * Ts)
         speed = state.speed + g * (jnp.abs(omega) - state.speed)
         u_inj = self.injection_scale(state.speed) * inj.u_injection_ab
-        obs_state = pull_observer(self.observer, obs_state, obs, theta, omega, 1.0 - w)
-        inj_state = pull_injection(self.injection, inj_state, inj, wrap_angle(theta - correction), omega, w)
-        estimate = eqx.tree_at(
-            lambda e: (e.theta_e, e.omega_m, e.u_injection_ab),
-            inj,
-            (theta, omega, u_inj),
-            is_leaf=lambda x: x is None,
-        )
+        obs_state = self.observer.pull(obs_state, obs, theta, omega, 1.0 - w)
+        inj_state = self.injection.pull(inj_state, inj, wrap_angle(theta - correction), omega, w)
+        estimate = dataclasses.replace(inj, theta_e=theta, omega_m=omega, u_injection_ab=u_inj)
         return HybridState(inj_state, obs_state, speed, correction), estimate
 
 

@@ -51,7 +51,7 @@ import numpy as np
 
 from pmsmjax._types import Array
 from pmsmjax.estimators import hfi_signal as hs
-from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.base import AbstractEstimator, AbstractModelObserver
 from pmsmjax.frames.three_phase import park
 from pmsmjax.machines.flux_map import FluxMapGrid
 from pmsmjax.machines.motor import PMSMParameters, as_float
@@ -85,6 +85,8 @@ def map_model(flux_map: FluxMap, model: PMSMParameters, i_dq: Array) -> PMSMPara
     secant = jnp.abs(i_dq[1]) >= SECANT_FLOOR_A
     L_q = jnp.where(secant, psi[1] / jnp.where(secant, i_dq[1], 1.0), L[1, 1])
     psi_f = psi[0] - L_d * i_dq[0]
+    # patched, not rebuilt: the constructor's converter would recast the traced leaves to the default
+    # float precision (a float32 drive under x64) and its checks cannot read traced values anyway
     return eqx.tree_at(lambda m: (m.L_d, m.L_q, m.psi_f), model, (L_d, L_q, psi_f))
 
 
@@ -113,12 +115,12 @@ class MapScheduledState(eqx.Module):
 class MapScheduled(AbstractEstimator):
     """A fundamental-model observer whose motor model follows the flux map (module docstring).
 
-    **Arguments:** `observer`: any estimator with a ``model`` (:class:`PMSMParameters`) field (the chapter
-    5 observers, the EKF); `flux_map`: the machine's map; `current_cutoff`: operating-current low-pass,
-    rad/s.
+    **Arguments:** `observer`: a fundamental-model observer
+    (:class:`~pmsmjax.estimators.base.AbstractModelObserver`: the chapter 5 observers, the EKF);
+    `flux_map`: the machine's map; `current_cutoff`: operating-current low-pass, rad/s.
     """
 
-    observer: AbstractEstimator
+    observer: AbstractModelObserver
     flux_map: FluxMap
     current_cutoff: Array = eqx.field(converter=as_float, default=DEFAULT_CURRENT_CUTOFF)
 
@@ -135,6 +137,7 @@ class MapScheduled(AbstractEstimator):
     def step(self, state: MapScheduledState, sample: Sample, Ts: float) -> tuple[MapScheduledState, Estimate]:
         i_now = park(sample.i_ab, state.theta)
         i_dq = state.i_dq + hs.lowpass_gain(self.current_cutoff, Ts) * (i_now - state.i_dq)
+        # the same observer on this period's model (patched, as map_model: its gains keep their dtype)
         observer = eqx.tree_at(
             lambda o: o.model, self.observer, map_model(self.flux_map, self.observer.model, i_dq)
         )
@@ -152,7 +155,7 @@ def map_scheduled(
 
 def check_fundamental_observer(observer: AbstractEstimator, what: str) -> None:
     """Refuse, in one line naming ``what``, an estimator without a motor model (HF injection)."""
-    if not isinstance(getattr(observer, "model", None), PMSMParameters):
+    if not isinstance(observer, AbstractModelObserver):
         raise ParameterError(
             f"{what} applies to the fundamental-model observers (smo, smo-pll, adaptive-smo, dq-smo, mras, "
             f"ekf), got {type(observer).__name__}: HF injection takes the cross-saturation correction "

@@ -34,7 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.base import AbstractModelObserver
 from pmsmjax.estimators.stability import check_loop, concrete_values
 from pmsmjax.estimators.stator_model import cross, emf_direction, period_weight_phase, rl_coefficients
 from pmsmjax.frames.three_phase import wrap_angle
@@ -60,7 +60,7 @@ def mras_loop_matrix(kp: float, ki: float, psi_f: float, L: float, R: float, Ts:
     return np.array([[m11, g], [-Ts * ki * m11, 1.0 - Ts * ki * g]])
 
 
-class MRAS(AbstractEstimator):
+class MRAS(AbstractModelObserver):
     """Speed MRAS with the current model as adjustable model (see the module docstring).
 
     **Arguments:**

@@ -33,6 +33,7 @@ right); ``decision="sigmoid"`` replaces the flip by ``pi sigmoid((L(+) - L(-)) /
 smooth surrogate for gradient studies.
 """
 
+import dataclasses
 from typing import Literal
 
 import equinox as eqx
@@ -43,7 +44,7 @@ from pmsmjax._types import Array
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.frames.three_phase import park, wrap_angle
 from pmsmjax.machines.motor import as_float
-from pmsmjax.signals import Sample
+from pmsmjax.signals import Estimate, Sample
 from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive
 
 Decision = Literal["exact", "sigmoid"]
@@ -161,13 +162,15 @@ class PolarityDetector(AbstractEstimator):
         # that the wrapped estimator's pulse transients do not wind up the speed loop (as the I/f start
         # reports its ramp speed)
         omega = (1.0 - weight) * obs.omega_m
-        estimate = eqx.tree_at(
-            lambda e: (e.theta_e, e.omega_m, e.startup_weight, e.startup_i_dq),
-            obs,
-            (theta, omega, weight, i_dq_start),
-            is_leaf=lambda x: x is None,
+        estimate = dataclasses.replace(
+            obs, theta_e=theta, omega_m=omega, startup_weight=weight, startup_i_dq=i_dq_start
         )
         return new_state, estimate
+
+    def pull(self, state: PolarityState, estimate: Estimate, theta_e, omega_m, strength) -> PolarityState:
+        """The wrapped estimator pulled (the flip is in both ``theta_e`` and ``estimate``, so it cancels)."""
+        observer = self.observer.pull(state.observer, estimate, theta_e, omega_m, strength)
+        return dataclasses.replace(state, observer=observer)
 
 
 def polarity_detector(

@@ -29,6 +29,8 @@ The path of the wrapped observer is ``estimator.observer``, as in :class:`.start
 gains tuned on a warm-up drive (``estimator.observer.k``) apply unchanged to a drive with the I/f start.
 """
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -90,28 +92,22 @@ class SensoredWarmup(AbstractEstimator):
     def step(self, state: SensoredWarmupState, sample: Sample, Ts: float):
         key, k_i, k_u = jax.random.split(jax.random.wrap_key_data(state.key), 3)
         dtype = sample.i_ab.dtype
-        noisy = eqx.tree_at(
-            lambda s: (s.i_ab, s.u_ab_last),
+        noisy = dataclasses.replace(
             sample,
-            (
-                sample.i_ab + self.current_noise_a * jax.random.normal(k_i, (2,), dtype),
-                sample.u_ab_last + self.voltage_noise_v * jax.random.normal(k_u, (2,), dtype),
-            ),
+            i_ab=sample.i_ab + self.current_noise_a * jax.random.normal(k_i, (2,), dtype),
+            u_ab_last=sample.u_ab_last + self.voltage_noise_v * jax.random.normal(k_u, (2,), dtype),
         )
         obs_state, obs = self.observer.step(state.observer, noisy, Ts)
         # a comparison of time with a constant: the same branch for every value of the observer's gains
         on_observer = state.t >= self.warmup_s - 0.5 * Ts
-        estimate = eqx.tree_at(
-            lambda e: (e.theta_e, e.omega_m),
+        estimate = dataclasses.replace(
             obs,
-            (
-                jnp.where(on_observer, obs.theta_e, sample.sensor_theta_e),
-                jnp.where(on_observer, obs.omega_m, sample.sensor_omega_m),
-            ),
+            theta_e=jnp.where(on_observer, obs.theta_e, sample.sensor_theta_e),
+            omega_m=jnp.where(on_observer, obs.omega_m, sample.sensor_omega_m),
         )
         if obs.i_ab_fundamental is not None:
             # the carrier-free current for the controller (HF injection): from the clean sample, as the
             # controller keeps the clean sample (the observer filtered the noisy one)
             fundamental = obs.i_ab_fundamental - (noisy.i_ab - sample.i_ab)
-            estimate = eqx.tree_at(lambda e: e.i_ab_fundamental, estimate, fundamental)
+            estimate = dataclasses.replace(estimate, i_ab_fundamental=fundamental)
         return SensoredWarmupState(obs_state, state.t + Ts, jax.random.key_data(key)), estimate

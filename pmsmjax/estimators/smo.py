@@ -42,13 +42,14 @@ back-EMF observer. The margin of 3 keeps the per-axis sigmoid's compression of a
 2000 r/min).
 """
 
+import dataclasses
 from typing import Literal
 
 import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.base import AbstractModelObserver
 from pmsmjax.estimators.pll import PLL, PLLState, pll_design
 from pmsmjax.estimators.stability import check_loop, concrete_values
 from pmsmjax.estimators.stator_model import (
@@ -120,7 +121,7 @@ class SMOState(eqx.Module):
     omega: Array  # rad/s, electrical speed estimate (the PLL's speed for "pll")
 
 
-class SlidingModeObserver(AbstractEstimator):
+class SlidingModeObserver(AbstractModelObserver):
     """Classic stationary-frame SMO (see the module docstring).
 
     **Arguments:**
@@ -225,6 +226,18 @@ class SlidingModeObserver(AbstractEstimator):
         rotor = theta if self.angle == "arctan" else wrap_angle(rotor_angle(theta + lag, omega))
         estimate = Estimate(rotor, omega / m.pole_pairs, back_emf_ab=rotate(emf, lag))
         return new_state, estimate
+
+    def pull(self, state: SMOState, estimate: Estimate, theta_e, omega_m, strength) -> SMOState:
+        """With ``angle="pll"``: the PLL's angle and speed moved by the estimate's distance to the target (it
+        tracks the back-EMF's angle, the rotor angle plus pi below zero speed: the same increment). The
+        ``"arctan"`` angle is the back-EMF's own, with no state to move: it runs free."""
+        if self.angle != "pll":
+            return state
+        d_theta = strength * wrap_angle(theta_e - estimate.theta_e)
+        d_omega = strength * (omega_m - estimate.omega_m)
+        theta = wrap_angle(state.theta + d_theta)
+        omega = state.omega + self.model.pole_pairs * d_omega
+        return dataclasses.replace(state, theta=theta, omega=omega)
 
 
 #: Design-rule defaults of :func:`smo_design` (see there for why).

@@ -22,6 +22,8 @@ measured voltages and currents, so it has converged by the hand-over if ``w_h`` 
 back-EMF to be observable (about 10 % of rated speed for the book drive).
 """
 
+import dataclasses
+
 import equinox as eqx
 import jax.numpy as jnp
 
@@ -89,10 +91,7 @@ class StartupEstimator(AbstractEstimator):
         omega_next = jnp.minimum(state.omega_if + self.accel * Ts, omega_end)
         # trapezoidal angle integration of the piecewise-linear ramp
         theta_next = wrap_angle(theta_if + self.pole_pairs * 0.5 * (state.omega_if + omega_next) * Ts)
-        estimate = eqx.tree_at(
-            lambda e: (e.theta_e, e.omega_m, e.startup_weight, e.startup_i_dq),
-            obs,
-            (theta, omega, 1.0 - w, i_dq_start),
-            is_leaf=lambda x: x is None,
+        estimate = dataclasses.replace(
+            obs, theta_e=theta, omega_m=omega, startup_weight=1.0 - w, startup_i_dq=i_dq_start
         )
         return StartupState(obs_state, theta_next, omega_next), estimate

@@ -4,6 +4,7 @@ Both carry the number of legs they drive, ``n_phases`` (3 here; the six- and fiv
 override it); :class:`pmsmjax.drive.Drive` checks that it matches the machine's.
 """
 
+import abc
 from typing import ClassVar
 
 import equinox as eqx
@@ -23,6 +24,7 @@ class AbstractModulator(eqx.Module):
 
     n_phases: ClassVar[int] = 3
 
+    @abc.abstractmethod
     def duties(self, u_ab_ref: Array, u_dc: Array) -> Array:
         """Leg duty cycles that reproduce the stationary-frame reference on average over one period.
 
@@ -32,11 +34,10 @@ class AbstractModulator(eqx.Module):
         the linear range each modulator saturates in its own way (duties clipped to [0, 1], or the vector
         limited to the hexagon).
         """
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def linear_limit(self, u_dc) -> Array:
         """Largest phase-voltage amplitude (peak, V) reproduced without distortion."""
-        raise NotImplementedError
 
 
 class AbstractBridge(eqx.Module):
@@ -50,6 +51,10 @@ class AbstractBridge(eqx.Module):
 
     u_dc: eqx.AbstractVar[Array]
     n_phases: ClassVar[int] = 3
+    #: The bridge integrates each constant-voltage switching segment of a period and samples the
+    #: trajectory inside it with ``sample_period(machine, state, duties, load_torque, Ts, n_samples)``
+    #: (:mod:`pmsmjax.analysis.within_period`); otherwise the period-average voltage is held over it.
+    switching_resolved: ClassVar[bool] = False
 
     def commanded_voltage(self, duties: Array) -> Array:
         """``(2,)`` stator-frame period-average voltage, V, that ideal legs with ``duties (n,)`` give.
@@ -70,6 +75,7 @@ class AbstractBridge(eqx.Module):
         Called by :class:`pmsmjax.drive.Drive` at construction (before compiling); nothing to check here.
         """
 
+    @abc.abstractmethod
     def advance(
         self,
         machine: AbstractMachine,
@@ -88,4 +94,3 @@ class AbstractBridge(eqx.Module):
         the state at the period end and the period-average stator-frame voltage applied, ``(2,)`` V
         (``(2 n_planes,)`` for the multi-phase bridges).
         """
-        raise NotImplementedError

@@ -17,6 +17,8 @@ stationary VSD voltage of those phase voltages, ``(2 n_planes,)`` = [alpha, beta
 ideal period average, the interface every controller reads.
 """
 
+from typing import ClassVar
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -113,6 +115,7 @@ class MultiPhaseSwitchingBridge(AbstractBridge):
     segment_substeps: int = eqx.field(static=True)
     resolve_dead_time: bool = eqx.field(static=True)
     resolve_device_drop: bool = eqx.field(static=True)
+    switching_resolved: ClassVar[bool] = True
 
     def __init__(
         self,

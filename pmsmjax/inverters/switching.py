@@ -32,7 +32,7 @@ Output voltage: phase-to-neutral of a star, isolated-neutral machine, ``u_xN = v
 pole voltages ``v``; :meth:`SwitchingBridge.advance` returns its exact period average in the stator frame.
 """
 
-from typing import Literal
+from typing import ClassVar, Literal
 
 import equinox as eqx
 import jax
@@ -75,6 +75,7 @@ class SwitchingBridge(AbstractBridge):
     current_sign: CurrentSign = eqx.field(static=True)
     segment_substeps: int = eqx.field(static=True)
     resolve_dead_time: bool = eqx.field(static=True)
+    switching_resolved: ClassVar[bool] = True
 
     def __init__(
         self,

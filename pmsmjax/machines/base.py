@@ -6,6 +6,8 @@ serves the fixed-step scan (:func:`pmsmjax.machines.integrate.rk4`), diffrax ada
 linearisation (``jax.jacfwd`` of :meth:`AbstractMachine.vector_field`).
 """
 
+import abc
+from collections.abc import Callable
 from typing import ClassVar, Literal
 
 import equinox as eqx
@@ -77,23 +79,35 @@ class AbstractMachine(eqx.Module):
     motor: eqx.AbstractVar[PMSMParameters]
     mechanics: eqx.AbstractVar[Mechanics]
     n_phases: ClassVar[int] = 3
+    #: The equations see the rotor angle only through a stator-frame held voltage read in the rotor frame
+    #: (the dq models): :func:`pmsmjax.machines.integrate.advance` then rotates that voltage by each RK4
+    #: stage's angle increment instead of evaluating trigonometry of the absolute angle.
+    angle_only_in_voltage: ClassVar[bool] = False
+
+    @property
+    def split_advance(self) -> Callable[[MachineState, MachineInput, float, int], MachineState] | None:
+        """``(state, inputs, duration, n_substeps) -> state``: this machine's own integrator over an
+        interval, which :func:`pmsmjax.machines.integrate.advance` uses in place of its RK4 (the flux-map
+        model's packed state, the balanced multi-phase model's separately integrated planes); ``None``
+        (here): the generic RK4."""
+        return None
 
     # --- frame-specific part -------------------------------------------------------------------
+    @abc.abstractmethod
     def current_derivative(self, currents: Array, theta_e: Array, omega_e: Array, u: MachineInput):
         """d(currents)/dt in the model's frame, A/s."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def torque(self, currents: Array, theta_e: Array) -> Array:
         """Electromagnetic torque, N m."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def currents_to_dq(self, currents: Array, theta_e: Array) -> Array:
         """Model-frame currents -> ``(2,)`` dq currents, A."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def currents_from_dq(self, i_dq: Array, theta_e: Array) -> Array:
         """``(2,)`` dq currents -> model-frame currents (zero sequence 0), A."""
-        raise NotImplementedError
 
     # --- shared ----------------------------------------------------------------------------------
     def initial_state(self, i_dq=(0.0, 0.0), omega_m=0.0, theta_e=0.0) -> MachineState:

@@ -95,19 +95,20 @@ def advance(
     Wrapping only at the interval end keeps every RK4 stage on a continuous angle. Machines whose
     equations depend on the angle only through a stator-frame held voltage (``angle_only_in_voltage``,
     the dq model) take :func:`rk4_step_rotating_hold` (see the module docstring). A machine with a
-    ``split_advance`` (the balanced multi-phase dq model) integrates itself.
+    :attr:`~pmsmjax.machines.base.AbstractMachine.split_advance` (the flux-map model, the balanced
+    multi-phase dq model) integrates itself.
 
     `unroll` (static): write the sub-steps out instead of looping over them: the same arithmetic, one
     larger fused program per period. On one H100 it took the Monte Carlo kernel from 682 to
     896 M periods/s and one unbatched run from 0.58 to 0.24 s; on 2 CPU cores it is 2 % faster with
     bitwise the same results and a compile 1.1 s longer (measured), so it is off by default.
     """
-    split = getattr(machine, "split_advance", None)
+    split = machine.split_advance
     if split is not None:  # a multi-phase model whose planes integrate separately (pmsm_multiphase.py)
         return split(state, inputs, duration, n_substeps)
     h = duration / n_substeps
     loop = lambda body, carry: jax.lax.fori_loop(0, n_substeps, body, carry, unroll=bool(unroll))
-    if inputs.frame == "stator" and getattr(machine, "angle_only_in_voltage", False):
+    if inputs.frame == "stator" and machine.angle_only_in_voltage:
         carry = (state, inputs.dq(state.theta_e))
         step = lambda _, c: rk4_step_rotating_hold(machine, c[0], c[1], inputs.load_torque, h)
         state = step(0, carry)[0] if n_substeps == 1 else loop(step, carry)[0]
@@ -128,12 +129,12 @@ def max_stable_substep(motor_or_machine, max_speed_m) -> float:
     is stable to about 2.8 on both axes and accurate to 1e-4 per period at 0.5. Used by the input checks,
     so it works on NumPy values (it must not create JAX tracers inside a jit).
     """
-    motor = getattr(motor_or_machine, "motor", motor_or_machine)
+    motor = motor_or_machine.motor if isinstance(motor_or_machine, AbstractMachine) else motor_or_machine
     R, L_d, L_q = (np.asarray(jax.device_get(x), dtype=float) for x in (motor.R, motor.L_d, motor.L_q))
     L_min = np.minimum(L_d, L_q)
-    if hasattr(motor, "L_ls") and is_concrete(
-        motor.L_ls
-    ):  # multi-phase: the leakage-only planes (z1-z2, x-y) are the fastest
-        L_min = np.minimum(L_min, np.asarray(jax.device_get(motor.L_ls), dtype=float))
+    for name in motor.leakage_fields:  # multi-phase: the leakage-only planes (z1-z2, x-y) are the fastest
+        L_leak = getattr(motor, name)
+        if is_concrete(L_leak):
+            L_min = np.minimum(L_min, np.asarray(jax.device_get(L_leak), dtype=float))
     rate = np.maximum(R / L_min, motor.pole_pairs * np.abs(max_speed_m))
     return float(np.min(0.5 / rate))

@@ -1,5 +1,7 @@
 """Parameters of a three-phase permanent-magnet synchronous motor (SI units)."""
 
+from typing import ClassVar
+
 import equinox as eqx
 import jax.numpy as jnp
 
@@ -35,6 +37,12 @@ class PMSMParameters(eqx.Module):
     J: Array = eqx.field(converter=as_float)
     B: Array = eqx.field(converter=as_float)
     pole_pairs: int = eqx.field(static=True, default=4)
+    #: Stator phases (the multi-phase parameters carry theirs as a field).
+    n_phases: ClassVar[int] = 3
+    #: Names of the leakage-inductance fields, H, that only the planes beyond the fundamental see (the
+    #: multi-phase parameters' ``("L_ls",)``); none for three phases. The sub-step check and the Monte
+    #: Carlo studies read them.
+    leakage_fields: ClassVar[tuple[str, ...]] = ()
 
     def __check_init__(self):
         if not isinstance(self.pole_pairs, int) or self.pole_pairs < 1:

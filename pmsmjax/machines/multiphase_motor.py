@@ -23,6 +23,8 @@ Leakage is taken as the phase's own (diagonal) leakage; mutual leakage between p
 not modelled (it would lower the z1-z2 inductance below ``L_ls``).
 """
 
+from typing import ClassVar
+
 import equinox as eqx
 import jax
 import numpy as np
@@ -55,6 +57,8 @@ class MultiPhaseParameters(eqx.Module):
     pole_pairs: int = eqx.field(static=True, default=4)
     n_phases: int = eqx.field(static=True, default=6)
     psi_f3: Array | None = eqx.field(default=None, converter=_optional_float)
+    #: The leakage inductance's field (see :attr:`pmsmjax.machines.motor.PMSMParameters.leakage_fields`).
+    leakage_fields: ClassVar[tuple[str, ...]] = ("L_ls",)
 
     def __check_init__(self):
         if not isinstance(self.pole_pairs, int) or self.pole_pairs < 1:

@@ -41,19 +41,20 @@ def _solve2(L: Array, b: Array) -> Array:
     return jnp.stack([L[1, 1] * b[0] - L[0, 1] * b[1], L[0, 0] * b[1] - L[1, 0] * b[0]]) / det
 
 
-class PMSMdq(AbstractMachine):
-    """PMSM in the rotor frame; state currents ``(2,)`` = [i_d, i_q], A. Surface or salient.
+class AbstractPMSMdq(AbstractMachine):
+    """A three-phase PMSM in the rotor frame, state currents ``(2,)`` = [i_d, i_q], A: the frame
+    conversions and the linear (unsaturated) equations that :class:`PMSMdq` and
+    :class:`~pmsmjax.machines.saturation.SaturatedPMSMdq` share.
 
     Its equations see the rotor angle only through the voltage (a stator-frame voltage read in the rotor
     frame), which lets :func:`pmsmjax.machines.integrate.advance` rotate that voltage by small angle
     increments instead of evaluating trigonometry at every RK4 stage.
     """
 
-    motor: PMSMParameters
-    mechanics: Mechanics = eqx.field(static=True, default="dynamic")
     angle_only_in_voltage: ClassVar[bool] = True
 
-    def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
+    def linear_current_derivative(self, currents, theta_e, omega_e, u: MachineInput) -> Array:
+        """``d[i_d, i_q]/dt`` of the linear machine, A/s (the module docstring's rotor-frame equations)."""
         m = self.motor
         i_d, i_q = currents[0], currents[1]
         u_dq = u.dq(theta_e)
@@ -61,7 +62,8 @@ class PMSMdq(AbstractMachine):
         diq = (u_dq[1] - m.R * i_q - omega_e * (m.L_d * i_d + m.psi_f)) / m.L_q
         return jnp.stack([did, diq])
 
-    def torque(self, currents, theta_e):
+    def linear_torque(self, currents) -> Array:
+        """Electromagnetic torque of the linear machine, N m (the module docstring's ``T_e``)."""
         m = self.motor
         i_d, i_q = currents[0], currents[1]
         return dq.linear_torque(dq.torque_factor(m.pole_pairs), m.psi_f, m.L_d, m.L_q, i_d, i_q)
@@ -71,6 +73,24 @@ class PMSMdq(AbstractMachine):
 
     def currents_from_dq(self, i_dq, theta_e):
         return i_dq
+
+
+class PMSMdq(AbstractPMSMdq):
+    """PMSM in the rotor frame; state currents ``(2,)`` = [i_d, i_q], A. Surface or salient (the equations
+    of :class:`AbstractPMSMdq`).
+
+    **Arguments:** `motor` (:class:`~pmsmjax.machines.PMSMParameters`); `mechanics`: ``"dynamic"`` or
+    ``"imposed"`` speed.
+    """
+
+    motor: PMSMParameters
+    mechanics: Mechanics = eqx.field(static=True, default="dynamic")
+
+    def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
+        return self.linear_current_derivative(currents, theta_e, omega_e, u)
+
+    def torque(self, currents, theta_e):
+        return self.linear_torque(currents)
 
 
 class PMSMAlphaBeta(AbstractMachine):

@@ -14,7 +14,7 @@ inductance between the sets ``L_m{d,q}``, with ``L_md = 1.5 (L_0m + L_2m)`` and
 
 (``L_md = (L_d - L_ls)/2``, ``L_mq = (L_q - L_ls)/2`` in terms of the VSD inductances.) The mutual terms
 couple the two sets' current loops: the cross-coupling that the double-dq controller of chapter 9
-compensates (:mod:`pmsmjax.controllers.six_phase`).
+compensates (:mod:`pmsmjax.controllers.multiphase`).
 """
 
 import equinox as eqx

@@ -42,6 +42,7 @@ stationary VSD voltage ``[u_alpha, u_beta, u_z1, u_z2, ...]`` (``frame="stator"`
 ``[u_d, u_q, u_z1, u_z2, ...]`` with only the fundamental in the rotor frame (``frame="rotor"``).
 """
 
+import abc
 from typing import ClassVar
 
 import equinox as eqx
@@ -118,13 +119,13 @@ class AbstractMultiPhaseMachine(AbstractMachine):
         return self.motor.psi_f3 * jnp.stack([jnp.cos(3.0 * theta_e), jnp.sin(3.0 * theta_e)])
 
     # --- frame conversions ---------------------------------------------------------------------
+    @abc.abstractmethod
     def currents_to_vsd(self, currents: Array, theta_e: Array) -> Array:
         """Model-frame currents -> ``(2 n_planes,)`` stationary VSD currents, A."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def currents_from_vsd(self, i_vsd: Array, theta_e: Array) -> Array:
         """``(2 n_planes,)`` stationary VSD currents -> model-frame currents, A."""
-        raise NotImplementedError
 
     def currents_to_dq(self, currents, theta_e):
         return park(self.currents_to_vsd(currents, theta_e)[:2], theta_e)
@@ -311,6 +312,12 @@ class _Fundamental(AbstractMachine):
     def torque(self, currents, theta_e):
         m = self.motor
         return dq.linear_torque(m.torque_factor, m.psi_f, m.L_d, m.L_q, currents[0], currents[1])
+
+    def currents_to_dq(self, currents, theta_e):
+        return currents  # the state is already the dq currents
+
+    def currents_from_dq(self, i_dq, theta_e):
+        return i_dq
 
 
 class MultiPhasePMSMdq(AbstractMultiPhaseMachine):

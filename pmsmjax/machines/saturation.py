@@ -25,16 +25,14 @@ power balance ``1.5 u.i = 1.5 R |i|^2 + dW_field/dt + T_e w_m``).
 Everything is smooth in ``i_d``, ``a`` and ``i_s`` (tanh, ln cosh), hence differentiable.
 """
 
-from typing import ClassVar
-
 import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
 from pmsmjax.machines import dq_equations as dq
 from pmsmjax.machines.base import MachineInput, Mechanics
-from pmsmjax.machines.motor import as_float
-from pmsmjax.machines.pmsm3 import PMSMdq
+from pmsmjax.machines.motor import PMSMParameters, as_float
+from pmsmjax.machines.pmsm3 import AbstractPMSMdq
 from pmsmjax.spec.validation import ParameterError, check_positive, is_concrete, plain
 
 
@@ -76,7 +74,7 @@ class DAxisSaturation(eqx.Module):
         return psi_f + L_d * (i_d - self.depth * s * _log_cosh(i_d / s))
 
 
-class SaturatedPMSMdq(PMSMdq):
+class SaturatedPMSMdq(AbstractPMSMdq):
     """The rotor-frame PMSM of :class:`~pmsmjax.machines.PMSMdq` with d-axis saturation; state currents
     ``(2,)`` = [i_d, i_q], A.
 
@@ -84,12 +82,14 @@ class SaturatedPMSMdq(PMSMdq):
 
     - `motor`: :class:`~pmsmjax.machines.PMSMParameters`; ``L_d`` is the incremental d inductance at
       ``i_d = 0``.
-    - `saturation`: :class:`DAxisSaturation`, or ``None`` for the linear machine (the parent's equations).
     - `mechanics`: ``"dynamic"`` or ``"imposed"`` speed.
+    - `saturation`: :class:`DAxisSaturation`, or ``None`` for the linear machine (the linear equations of
+      :class:`~pmsmjax.machines.pmsm3.AbstractPMSMdq`, as :class:`~pmsmjax.machines.PMSMdq`).
     """
 
+    motor: PMSMParameters
+    mechanics: Mechanics = eqx.field(static=True, default="dynamic")
     saturation: DAxisSaturation | None = None
-    angle_only_in_voltage: ClassVar[bool] = True
 
     def flux_dq(self, currents) -> Array:
         """``(2,)`` rotor-frame flux linkage ``[psi_d, psi_q]``, Wb."""
@@ -102,7 +102,7 @@ class SaturatedPMSMdq(PMSMdq):
 
     def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
         if self.saturation is None:
-            return super().current_derivative(currents, theta_e, omega_e, u)
+            return self.linear_current_derivative(currents, theta_e, omega_e, u)
         m = self.motor
         i_d, i_q = currents[0], currents[1]
         u_dq = u.dq(theta_e)
@@ -114,7 +114,7 @@ class SaturatedPMSMdq(PMSMdq):
 
     def torque(self, currents, theta_e):
         if self.saturation is None:
-            return super().torque(currents, theta_e)
+            return self.linear_torque(currents)
         psi = self.flux_dq(currents)
         return dq.torque(dq.torque_factor(self.motor.pole_pairs), currents[0], currents[1], psi[0], psi[1])
 

@@ -22,16 +22,19 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from pmsmjax._types import Array
 from pmsmjax.assemble import with_parts
 from pmsmjax.drive import Drive
 from pmsmjax.frames.three_phase import abc_to_alpha_beta, park
-from pmsmjax.inverters.averaged import AveragedBridge, phase_voltages
+from pmsmjax.inverters.averaged import phase_voltages
+from pmsmjax.inverters.base import AbstractBridge
 from pmsmjax.machines.base import MachineInput
 from pmsmjax.machines.integrate import advance
-from pmsmjax.machines.motor import PMSMParameters
+from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.presets.three_phase import book_drive
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.simulate import simulate
+from pmsmjax.spec.validation import check_positive
 from pmsmjax.units import rpm_to_rad_s
 
 __all__ = [
@@ -132,13 +135,21 @@ def add_measurement_noise(
     return out
 
 
-class RotorHoldBridge(AveragedBridge):
-    """Averaged bridge whose period voltage is held in the rotor frame (another simulator's convention: a
-    dq-model block fed by a sampled controller).
+class RotorHoldBridge(AbstractBridge):
+    """Ideal averaged bridge whose period voltage is held in the rotor frame (another simulator's
+    convention: a dq-model block fed by a sampled controller).
 
-    The period-average stator voltage is turned into dq with the angle at the period start and held
-    there, so the stator-frame voltage rotates with the rotor during the period.
+    The period-average stator voltage (:func:`pmsmjax.inverters.averaged.phase_voltages`, as the ideal
+    :class:`~pmsmjax.inverters.averaged.AveragedBridge`) is turned into dq with the angle at the period
+    start and held there, so the stator-frame voltage rotates with the rotor during the period.
+
+    **Arguments:** `u_dc`: DC-link voltage, V.
     """
+
+    u_dc: Array = eqx.field(converter=as_float)
+
+    def __check_init__(self):
+        check_positive("u_dc (DC-link voltage)", self.u_dc, "V")
 
     def advance(self, machine, state, duties, load_torque, Ts, n_substeps):
         u_ab = abc_to_alpha_beta(phase_voltages(duties, self.u_dc))

@@ -44,7 +44,7 @@ def motor_dict(motor) -> dict:
     get = (lambda k: motor[k]) if isinstance(motor, Mapping) else (lambda k: getattr(motor, k))
     out = {k: float(np.asarray(get(k))) for k in ("R", "L_d", "L_q", "psi_f", "J", "B")}
     out["pole_pairs"] = int(get("pole_pairs"))
-    n = motor.get("n_phases", 3) if isinstance(motor, Mapping) else getattr(motor, "n_phases", 3)
+    n = motor.get("n_phases", 3) if isinstance(motor, Mapping) else motor.n_phases
     if n != 3:  # multi-phase: the torque factor n/2 (module docstring)
         out["n_phases"] = int(n)
     return out

@@ -10,9 +10,11 @@
 3. The slow reversal 0 -> 60 -> -60 r/min under 10 N m ends at -60 r/min, rotor and estimate alike: the
    hybrid's pull of the injection PLL to the target angle shifts the PLL by the estimate's distance to the
    target, so it respects the injection's output compensation (estimate = PLL angle + half its filters'
-   lag); :func:`pmsmjax.estimators.hybrid.pull_injection` is also checked with a stand-in estimator.
+   lag); :func:`pmsmjax.estimators.pll.pull_pll` (the injection estimators' ``pull``) is also checked with a
+   stand-in estimator.
 """
 
+import dataclasses
 import math
 
 import equinox as eqx
@@ -24,8 +26,7 @@ import pytest
 from pmsmjax import presets
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.ekf import active_flux
-from pmsmjax.estimators.hybrid import pull_injection
-from pmsmjax.estimators.pll import PLLState
+from pmsmjax.estimators.pll import PLLState, pull_pll
 from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.jobs.estimator_comparison import LowSpeedSweep, chapter6_drive, estimator_scenario
 from pmsmjax.machines.saturation import saturated_machine
@@ -77,8 +78,15 @@ class Compensated(AbstractEstimator):
     def init(self, sample):
         return None
 
+    def step(self, state, sample, Ts):
+        return state, self.output(state)
+
     def output(self, state):
         return Estimate(state.pll.theta + self.lag, state.pll.omega / self.pole_pairs)
+
+    def pull(self, state, estimate, theta_e, omega_m, strength):  # as the HF-injection estimators'
+        pll = pull_pll(state.pll, self.pole_pairs, estimate, theta_e, omega_m, strength)
+        return dataclasses.replace(state, pll=pll)
 
 
 class _State(eqx.Module):
@@ -90,7 +98,7 @@ def test_pull_moves_the_estimate_not_the_state():
     state = _State(PLLState(jnp.asarray(1.0), jnp.asarray(40.0)))
     target_theta, target_omega = 0.5, 20.0
     for strength in (1.0, 0.25):
-        pulled = pull_injection(inj, state, inj.output(state), target_theta, target_omega, strength)
+        pulled = inj.pull(state, inj.output(state), target_theta, target_omega, strength)
         est = inj.output(pulled)
         before = inj.output(state)
         expected = float(before.theta_e) + strength * (target_theta - float(before.theta_e))

@@ -2,7 +2,7 @@
 the same comparison engine as the three-phase controls.
 
 Independent checks: the book-9.5 equivalence (VSD and double dq designed equivalently give the same
-response, derived in controllers/six_phase.py and tested there on traces); the steady torque balance
+response, derived in controllers/multiphase.py and tested there on traces); the steady torque balance
 ``T_e = T_L + B w`` of the mechanics; one-line refusals before anything is written.
 """
 

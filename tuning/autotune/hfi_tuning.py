@@ -34,7 +34,6 @@ These are the book drive's numbers; on another drive file each is the same share
 rated torque, current limit and tuning durations (:mod:`tuning.autotune.drive_scaling`).
 """
 
-import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
@@ -48,6 +47,7 @@ from pmsmjax.spec.validation import ParameterError, plain
 from pmsmjax.units import rpm_to_rad_s
 from tuning.autotune.drive_scaling import noise_scale, speed_scale, torque_scale
 from tuning.autotune.scenario_batches import WARMUP_S, ScenarioBatch
+from tuning.parameters import set_leaves
 
 #: Scenario kinds of the injection batches.
 INJECTION_KINDS = ("standstill", "slow")
@@ -96,7 +96,7 @@ def injection_sensorless_drive(
     foc = spec_drive(spec, "pi", **kw)
     drive = presets.with_observer(foc, name, motor, options, startup=False)
     current_scale = SATURATION_CURRENT_A * noise_scale(spec)[0]
-    return eqx.tree_at(lambda d: d.machine, drive, saturated_machine(motor, current_scale=current_scale))
+    return set_leaves(drive, ["machine"], [saturated_machine(motor, current_scale=current_scale)])
 
 
 def make_injection_batch(

@@ -11,7 +11,6 @@ back as soon as they are crossed.
 import dataclasses
 from typing import Literal
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -22,6 +21,7 @@ from pmsmjax.drive import Drive
 from pmsmjax.spec.validation import ParameterError
 from pmsmjax.trace import Trace
 from tuning.autotune.scenario_batches import ScenarioBatch
+from tuning.parameters import get_leaf, set_leaves
 
 METRIC_NAMES = (
     "itae",  # rad s (speed error in rad/s, weighted by time)
@@ -189,16 +189,11 @@ def batch_metrics(drive: Drive, batch: ScenarioBatch) -> dict:
 
     def one(scenario, duration, t_load, scale, speed0, theta0, observe_from):
         plant = drive
-        names = [n for n in scale if n != "u_dc_v"]
+        names = [f"machine.motor.{n}" for n in scale if n != "u_dc_v"]
         if names:
-            motor = drive.machine.motor
-            plant = eqx.tree_at(
-                lambda d: [getattr(d.machine.motor, n) for n in names],
-                plant,
-                [getattr(motor, n) * scale[n] for n in names],
-            )
+            plant = set_leaves(plant, names, [get_leaf(drive, n) * scale[n.rsplit(".", 1)[1]] for n in names])
         if "u_dc_v" in scale:  # the DC link the bridge applies and the controller measures
-            plant = eqx.tree_at(lambda d: d.bridge.u_dc, plant, drive.bridge.u_dc * scale["u_dc_v"])
+            plant = set_leaves(plant, ["bridge.u_dc"], [drive.bridge.u_dc * scale["u_dc_v"]])
         start = None if speed0 is None else start_at_speed(plant, speed0, theta0)
         trace = pmsmjax.simulate(plant, scenario, initial_state=start)
         observe_from = 0.0 if observe_from is None else observe_from
@@ -225,15 +220,14 @@ def batch_metrics(drive: Drive, batch: ScenarioBatch) -> dict:
 
 def start_at_speed(drive: Drive, speed_m, theta_e):
     """The drive's state at mechanical speed ``speed_m`` (rad/s) and electrical angle ``theta_e`` (rad),
-    zero currents, with the speed PI's integral holding its active-damping term ``B_a w`` (its no-load
-    steady state; from a zero integral the damping term alone would brake the machine, measured 260 r/min
-    of dip from 694 r/min on the book drive). Other controllers start from their ``init``."""
+    zero currents, with the speed loop in its no-load steady state
+    (:meth:`~pmsmjax.controllers.base.AbstractSpeedController.steady_state`): the speed PI's integral
+    holds its active-damping term ``B_a w`` (from a zero integral the damping term alone would brake the
+    machine, measured 260 r/min of dip from 694 r/min on the book drive); other loops start from their
+    ``init``."""
     state = drive.init(speed_m=speed_m, theta_e=theta_e)
-    damping = getattr(getattr(drive.controller, "speed", None), "active_damping", None)
-    if damping is None or getattr(state.controller, "speed", None) is None:
-        return state
-    integral = jnp.asarray(damping * speed_m, state.controller.speed.dtype)
-    return eqx.tree_at(lambda s: s.controller.speed, state, integral)
+    speed_state = drive.controller.speed.steady_state(state.controller.speed, speed_m)
+    return set_leaves(state, ["controller.speed"], [speed_state])
 
 
 def batch_cost(drive: Drive, batch: ScenarioBatch, weights: ObjectiveWeights):

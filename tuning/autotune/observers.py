@@ -49,7 +49,6 @@ benchmarks/observer_accuracy.py at 300-600 r/min, against the design rule's 0.5)
 
 import dataclasses
 
-import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
@@ -180,7 +179,7 @@ def observer_drive(
         drive = presets.with_observer(foc, name, spec_motor(spec), observer_options, startup=False)
     i_scale, u_scale = noise_scale(spec)
     levels = (NOISE_CURRENT_A * i_scale, NOISE_VOLTAGE_V * u_scale) if noise else (0.0, 0.0)
-    drive = eqx.tree_at(lambda d: d.estimator, drive, SensoredWarmup(drive.estimator, warmup_s, *levels))
+    drive = set_leaves(drive, ["estimator"], [SensoredWarmup(drive.estimator, warmup_s, *levels)])
     # A gain stored as a Python float (the SMO's speed_bandwidth) is not an array leaf: make the tunable
     # ones arrays so they can be named, differentiated and vmapped.
     dtype = drive.machine.motor.R.dtype

@@ -30,6 +30,7 @@ from tuning.identify import electrical as el
 from tuning.identify import mechanical as me
 from tuning.identify.parameters import ParameterMap
 from tuning.identify.uncertainty import covariance, interval_dof
+from tuning.parameters import set_leaves
 
 __all__ = ["FitResult", "fit", "noise_level", "joint_residuals"]
 
@@ -143,8 +144,8 @@ def fit(log, pole_pairs: int, *, hold, fixed, start, dead_time, dead_time_eps, w
     y = jnp.zeros(pmap.n_free, jnp.float64)
     steps_total, ok = 0, True
     for _ in range(3):
-        mdata = eqx.tree_at(lambda d: d.sigma, mdata, jnp.asarray(sigma_w, jnp.float64))
-        edata = eqx.tree_at(lambda d: d.sigma, edata, jnp.asarray(sigma_i, jnp.float64))
+        mdata = set_leaves(mdata, ["sigma"], [jnp.asarray(sigma_w, jnp.float64)])
+        edata = set_leaves(edata, ["sigma"], [jnp.asarray(sigma_i, jnp.float64)])
         y, jac, r, steps, ok = _solve_and_linearise(y, (pmap, edata, mdata), max_steps, rtol)
         steps_total += int(steps)
         n_e = int(np.prod(edata.i[:, 1:].shape))  # electrical rows come first

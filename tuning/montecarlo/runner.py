@@ -38,7 +38,6 @@ import math
 import time
 from collections.abc import Callable
 from pathlib import Path
-from types import SimpleNamespace
 
 import jax
 import jax.numpy as jnp
@@ -57,6 +56,7 @@ from tuning.montecarlo.distributions import sample
 from tuning.montecarlo.kernel import METRICS, OBSERVER_METRICS, run_metrics
 from tuning.montecarlo.study import Study
 from tuning.montecarlo.summary import sensitivity_summary, summarise
+from tuning.parameters import set_leaves
 
 #: Bump when the kernel's metric definitions change: chunks written by another version are recomputed.
 KERNEL_VERSION = 1
@@ -157,11 +157,10 @@ class StudyRunner:
         if not samples:
             return
         motor = self.drive.machine.motor
-        inductances = ("R", "L_d", "L_q") + (("L_ls",) if hasattr(motor, "L_ls") else ())  # six-phase leakage
-        sampled = SimpleNamespace(
-            pole_pairs=motor.pole_pairs,
-            **{f: samples.get(f"motor.{f}", np.asarray(getattr(motor, f))) for f in inductances},
-        )
+        inductances = ("R", "L_d", "L_q") + motor.leakage_fields  # multi-phase: the leakage inductance
+        # the motor with every sampled value at once (NumPy vectors as its leaves; no checks run)
+        values = [samples.get(f"motor.{f}", np.asarray(getattr(motor, f))) for f in inductances]
+        sampled = set_leaves(motor, inductances, values)
         speed = rpm_to_rad_s(np.max(np.abs(samples.get("scenario.speed_rpm", self.study.speed_rpm))))
         h_max = max_stable_substep(sampled, 1.5 * speed + 1.0)  # the margin check_simulation allows
         if self.drive.Ts / self.drive.n_substeps > h_max:

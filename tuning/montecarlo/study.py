@@ -50,7 +50,6 @@ import math
 import sys
 from pathlib import Path
 
-import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
@@ -63,7 +62,7 @@ from pmsmjax.spec.drive_spec import TABLES, DriveSpec
 from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
 from tuning.montecarlo.distributions import KINDS, SAMPLING, Distribution
-from tuning.parameters import apply_gains, array_leaf_names, get_leaf
+from tuning.parameters import apply_gains, array_leaf_names, get_leaf, set_leaves
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -323,10 +322,8 @@ def build_drive(study: Study) -> Drive:
     if study.unroll_substeps:
         unrolled = AveragedBridge(drive.bridge.u_dc, unroll_substeps=True)
         # keep the drive file's dead time and device drop (None without them)
-        unrolled = eqx.tree_at(
-            lambda b: b.voltage_error, unrolled, drive.bridge.voltage_error, is_leaf=lambda x: x is None
-        )
-        drive = eqx.tree_at(lambda d: d.bridge, drive, unrolled)
+        unrolled = set_leaves(unrolled, ["voltage_error"], [drive.bridge.voltage_error])
+        drive = set_leaves(drive, ["bridge"], [unrolled])
     drive = drive if study.gains is None else apply_gains(drive, study.gains)
     if study.estimator is not None:  # the observer's model: the nominal motor (the plant is varied)
         drive = presets.with_observer(
@@ -346,7 +343,7 @@ def nominal_value(study: Study, drive: Drive, name: str) -> float:
 def check_name(drive: Drive, name: str) -> None:
     """Raise :class:`~pmsmjax.spec.validation.ParameterError` unless `name` is a parameter a study may
     vary on `drive` (a motor field, ``bridge.u_dc``, a scenario field or a controller leaf), listing them."""
-    fields = MOTOR_FIELDS + (("L_ls",) if hasattr(drive.machine.motor, "L_ls") else ())
+    fields = MOTOR_FIELDS + drive.machine.motor.leakage_fields
     allowed = [f"motor.{f}" for f in fields] + ["bridge.u_dc"] + [f"scenario.{f}" for f in SCENARIO_FIELDS]
     controller = [n for n in array_leaf_names(drive) if n.startswith("controller.") and ".model." not in n]
     if name not in allowed and name not in controller:
@@ -355,10 +352,13 @@ def check_name(drive: Drive, name: str) -> None:
         )
 
 
+def _drive_path(name: str) -> str:
+    """The dotted path from the drive of a study parameter (``motor.R`` is ``machine.motor.R``)."""
+    return "machine." + name if name.startswith("motor.") else name
+
+
 def _leaf(drive: Drive, name: str):
-    if name.startswith("motor."):
-        return getattr(drive.machine.motor, name.split(".", 1)[1])
-    return get_leaf(drive, name)
+    return get_leaf(drive, _drive_path(name))
 
 
 def distributions(study: Study, drive: Drive) -> dict[str, Distribution]:
@@ -411,9 +411,9 @@ def apply_sample(drive: Drive, study: Study, names: tuple[str, ...], values) -> 
     """The drive and scenario of one run: ``values (P,)`` (may be traced) for the parameters ``names``."""
     drive_names = [n for n in names if not n.startswith("scenario.")]
     if drive_names:
-        drive = eqx.tree_at(
-            lambda d: [_leaf(d, n) for n in drive_names],
+        drive = set_leaves(
             drive,
+            [_drive_path(n) for n in drive_names],
             [values[names.index(n)].astype(drive.machine.motor.R.dtype) for n in drive_names],
         )
     scen = {f: getattr(study, f) for f in SCENARIO_FIELDS}
