@@ -12,10 +12,10 @@ The names below are imported on first use (PEP 562), not when the package is: ``
 bad input answer in a fraction of a second. ``pmsmjax.X`` and ``from pmsmjax import X`` work as before.
 """
 
-import importlib
 import sys
 import types
 
+from pmsmjax._lazy import lazy_exports
 from pmsmjax.xla_cpu import request_small_loop_kernels
 
 __version__ = "0.1.0"
@@ -59,19 +59,7 @@ _LAZY = {
 __all__ = sorted(_LAZY)
 
 
-def __getattr__(name):
-    if name not in _LAZY:
-        raise AttributeError(f"module 'pmsmjax' has no attribute {name!r}")
-    module, attr = _LAZY[name]
-    value = importlib.import_module(f"{__name__}.{module}")
-    if attr is not None:
-        value = getattr(value, attr)
-    setattr(sys.modules[__name__], name, value)
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)
 
 
 class _Package(types.ModuleType):

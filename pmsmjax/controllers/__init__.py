@@ -8,7 +8,7 @@ flux map's MTPA and MTPV tables, :mod:`.flux_map_loci`) read without loading JAX
 before a run build an MTPA table.
 """
 
-import importlib
+from pmsmjax._lazy import lazy_exports
 
 #: Public name -> (module, attribute), the layout of ``pmsmjax._LAZY``.
 _LAZY = {
@@ -63,14 +63,4 @@ _LAZY = {
 __all__ = list(_LAZY)
 
 
-def __getattr__(name):
-    if name not in _LAZY:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    module, attr = _LAZY[name]
-    value = getattr(importlib.import_module(f"{__name__}.{module}"), attr)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

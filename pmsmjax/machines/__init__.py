@@ -6,7 +6,7 @@ steady-state dq equations, :mod:`.dq_equations`; the flux map's grid and interpo
 :mod:`.flux_map`) read without loading JAX: the command line's checks before a run use them.
 """
 
-import importlib
+from pmsmjax._lazy import lazy_exports
 
 #: Public name -> (module, attribute), the layout of ``pmsmjax._LAZY``.
 _LAZY = {
@@ -35,14 +35,4 @@ _LAZY = {
 __all__ = list(_LAZY)
 
 
-def __getattr__(name):
-    if name not in _LAZY:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    module, attr = _LAZY[name]
-    value = getattr(importlib.import_module(f"{__name__}.{module}"), attr)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

@@ -7,7 +7,7 @@ The re-exported names are imported on first use (PEP 562), so that ``pmsmjax.pre
 reads without loading JAX (the command line's checks before a run).
 """
 
-import importlib
+from pmsmjax._lazy import lazy_exports
 
 _BOOK_CONSTANTS = (
     "BOOK_CURRENT_BANDWIDTH",
@@ -53,15 +53,4 @@ _LAZY = {
 __all__ = [*_BOOK_CONSTANTS, *_THREE_PHASE, *_ASSEMBLED]
 
 
-def __getattr__(name):
-    if name not in _LAZY:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    module, attr = _LAZY[name]
-    path = "pmsmjax.assemble" if module == "..assemble" else f"{__name__}.{module}"
-    value = getattr(importlib.import_module(path), attr)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)
