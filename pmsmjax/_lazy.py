@@ -11,6 +11,12 @@ import importlib
 import sys
 
 
+def by_module(exports: dict[str, tuple[str, ...]]) -> dict[str, tuple[str, str]]:
+    """The ``_LAZY`` table of `exports`, ``{submodule: names it defines}``: each name re-exported under its
+    own name."""
+    return {name: (module, name) for module, names in exports.items() for name in names}
+
+
 def lazy_exports(package: str, table: dict[str, tuple[str, str | None]]):
     """The module-level ``(__getattr__, __dir__)`` of `package` (its ``__name__``) re-exporting `table`
     lazily: a name is imported on first use and bound in the package, so the next use is a plain
