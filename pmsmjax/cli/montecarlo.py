@@ -3,7 +3,6 @@
 
 import argparse
 import os
-import sys
 import textwrap
 
 from pmsmjax.cli import checks, drive_flags
@@ -207,10 +206,8 @@ def _study_drive_table(config) -> dict:
     """The study TOML's ``[drive]`` table (empty without one; its errors are the study reader's)."""
     if config is None:
         return {}
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:  # pragma: no cover
-        import tomli as tomllib
+    from pmsmjax.io.toml_parser import tomllib
+
     try:
         table = tomllib.loads(open(config).read()).get("drive", {})
     except (tomllib.TOMLDecodeError, UnicodeDecodeError, OSError):

@@ -5,7 +5,6 @@ Ctrl-C saves the checkpoint of the last finished iteration and ends with one lin
 the same command resumes from it.
 """
 
-import sys
 from pathlib import Path
 
 from pmsmjax.cli import checks, drive_flags
@@ -176,10 +175,7 @@ def _config_robust(path) -> bool:
     not parse is left to the config reader's message."""
     if path is None:
         return False
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:  # pragma: no cover
-        import tomli as tomllib
+    from pmsmjax.io.toml_parser import tomllib
 
     try:
         return tomllib.loads(Path(path).read_text()).get("job", {}).get("robust", False) is True

@@ -32,7 +32,6 @@ delay, design-rule gains at a_c = 1100 rad/s and beta = 50 rad/s, 15 A limit) wi
 :data:`SIX_PHASE_CONTROLS` and a modulator of :data:`SIX_PHASE_PWMS`.
 """
 
-import sys
 from pathlib import Path
 
 from pmsmjax.controllers.design import current_loop_imc
@@ -46,17 +45,13 @@ from pmsmjax.frames.multiphase import SIX_PHASE
 from pmsmjax.inverters.decoupled_svpwm import DecoupledSVPWM
 from pmsmjax.inverters.multiphase_carrier import ZeroSequencePWM
 from pmsmjax.inverters.multiphase_svpwm import LargeVectorSVPWM, NearFourVectorSVPWM
+from pmsmjax.io.toml_parser import tomllib
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
 from pmsmjax.machines.pmsm6 import PMSM6DoubleDQ
 from pmsmjax.machines.pmsm_multiphase import MultiPhasePMSMdq, MultiPhasePMSMNatural, MultiPhasePMSMVSD
 from pmsmjax.presets.multiphase import machine_controls, multiphase_drive_function, multiphase_machine
 from pmsmjax.presets.three_phase import PR_W_C, book_motor
 from pmsmjax.spec.validation import ParameterError
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 __all__ = [
     "SIX_PHASE_CONTROLS",
