@@ -34,9 +34,7 @@ def add_parser(sub):
             "([weights], [tune], [job] tables), then built-in defaults."
         ),
     )
-    p.add_argument("--out", default="tune_out", help="output folder (created), default: tune_out")
-    drive_flags.add_motor_flag(p)
-    drive_flags.add_override_flags(p)
+    drive_flags.add_drive_flags(p, "tune_out")
     p.add_argument(
         "--robust",
         action="store_true",
