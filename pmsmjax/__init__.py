@@ -12,10 +12,10 @@ The names below are imported on first use (PEP 562), not when the package is: ``
 bad input answer in a fraction of a second. ``pmsmjax.X`` and ``from pmsmjax import X`` work as before.
 """
 
-import importlib
 import sys
 import types
 
+from pmsmjax._lazy import by_module, lazy_exports
 from pmsmjax.xla_cpu import request_small_loop_kernels
 
 __version__ = "0.1.0"
@@ -23,21 +23,14 @@ __version__ = "0.1.0"
 # Before anything compiles: loops of tiny bodies as one kernel each (pmsmjax/xla_cpu.py says why).
 request_small_loop_kernels()
 
+#: The subpackages and modules re-exported under their own names.
+_MODULES = (
+    "analysis", "controllers", "estimators", "frames", "inverters", "io", "machines", "plotting", "presets",
+    "scenarios", "jobs", "recorded", "spec",
+)  # fmt: skip
 #: Public name -> (module, attribute or None for the module itself).
 _LAZY = {
-    "analysis": ("analysis", None),
-    "controllers": ("controllers", None),
-    "estimators": ("estimators", None),
-    "frames": ("frames", None),
-    "inverters": ("inverters", None),
-    "io": ("io", None),
-    "machines": ("machines", None),
-    "plotting": ("plotting", None),
-    "presets": ("presets", None),
-    "scenarios": ("scenarios", None),
-    "jobs": ("jobs", None),
-    "recorded": ("recorded", None),
-    "spec": ("spec", None),
+    **{name: (name, None) for name in _MODULES},
     # Short names for modules that live in the folders above.
     "logs": ("io.logs", None),
     "metrics": ("analysis.metrics", None),
@@ -45,33 +38,21 @@ _LAZY = {
     "presets_six_phase": ("presets.six_phase", None),
     "presets_five_phase": ("presets.five_phase", None),
     "replay": ("recorded.replay", None),
-    "Drive": ("drive", "Drive"),
-    "DriveState": ("drive", "DriveState"),
-    "PeriodInputs": ("drive", "PeriodInputs"),
-    "Profile": ("scenarios", "Profile"),
-    "Scenario": ("scenarios", "Scenario"),
-    "stack_scenarios": ("scenarios", "stack_scenarios"),
-    "simulate": ("simulate", "simulate"),
-    "Trace": ("trace", "Trace"),
-    "ParameterError": ("spec.validation", "ParameterError"),
+    **by_module(
+        {
+            "drive": ("Drive", "DriveState", "PeriodInputs"),
+            "scenarios": ("Profile", "Scenario", "stack_scenarios"),
+            "simulate": ("simulate",),
+            "trace": ("Trace",),
+            "spec.validation": ("ParameterError",),
+        }
+    ),
 }
 
 __all__ = sorted(_LAZY)
 
 
-def __getattr__(name):
-    if name not in _LAZY:
-        raise AttributeError(f"module 'pmsmjax' has no attribute {name!r}")
-    module, attr = _LAZY[name]
-    value = importlib.import_module(f"{__name__}.{module}")
-    if attr is not None:
-        value = getattr(value, attr)
-    setattr(sys.modules[__name__], name, value)
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)
 
 
 class _Package(types.ModuleType):

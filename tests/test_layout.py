@@ -30,10 +30,10 @@ ABOVE_BLOCKS = (
 #: The estimators' modules a controller may import: the interface, not an observer.
 ESTIMATOR_INTERFACE = ("pmsmjax.estimators.base",)
 #: Modules that may import by name at run time (``importlib.import_module``), which this graph cannot see:
-#: the command line's table of subcommands (its own modules) and the registry of methods (its factories,
-#: checked by test_the_registry_names_factories_of_blocks_and_presets); the lazy re-export tables are read
-#: above.
-DYNAMIC_IMPORTERS = ("pmsmjax.cli", "pmsmjax.spec.registry")
+#: the command line's table of subcommands (its own modules), the registry of methods (its factories,
+#: checked by test_the_registry_names_factories_of_blocks_and_presets) and the lazy re-export helper (the
+#: packages' ``_LAZY`` tables it imports from are read above).
+DYNAMIC_IMPORTERS = ("pmsmjax.cli", "pmsmjax.spec.registry", "pmsmjax._lazy")
 
 
 @dataclass(frozen=True)

@@ -31,6 +31,9 @@ from pmsmjax.spec.validation import ParameterError, plain
 
 __all__ = [
     "Parser",
+    "add_out_flag",
+    "add_key_values_flag",
+    "add_log_column_flags",
     "number",
     "real",
     "positive",
@@ -50,6 +53,28 @@ class Parser(argparse.ArgumentParser):
 
     def error(self, message):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def add_out_flag(p, default: str | None = None) -> None:
+    """``--out``: the command's output folder (created), `default` or, without one, required."""
+    if default is None:
+        p.add_argument("--out", required=True, help="output folder (created)")
+    else:
+        p.add_argument("--out", default=default, help=f"output folder (created), default: {default}")
+
+
+def add_key_values_flag(p, flag: str, metavar: str, help: str) -> None:
+    """`flag` taking KEY=VALUE words (``--units time=ms omega_m=rpm``; default none)."""
+    p.add_argument(flag, nargs="+", default=[], metavar=metavar, help=help)
+
+
+def add_log_column_flags(p, example: str, units_help: str) -> None:
+    """``--columns`` (the log's names of the canonical columns, e.g. `example`) and ``--units`` (help
+    `units_help`) of a command that reads a log."""
+    add_key_values_flag(
+        p, "--columns", "CANONICAL=NAME", f"column map, e.g. {example} (default: the canonical names)"
+    )
+    add_key_values_flag(p, "--units", "COLUMN=UNIT", units_help)
 
 
 def number(

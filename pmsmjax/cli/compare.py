@@ -71,26 +71,10 @@ def add_parser(sub):
         help="with --control: three-phase (default), six-phase (controls vsd, double-dq, conventional, pr) "
         "or five-phase (vsd, conventional, pr), book ch. 7-10 (--motor book: the book motor's rewinds)",
     )
-    p.add_argument("--out", default="compare_out", help="output folder (created), default: compare_out")
-    drive_flags.add_motor_flag(p, None, "book; book_salient for the chapter 6 estimators")
-    drive_flags.add_override_flags(p)
-    p.add_argument(
-        "--speed-rpm",
-        type=checks.positive("r/min"),
-        help=drive_flags.scenario_help("speed_rpm", "speed step, r/min"),
-    )
-    p.add_argument(
-        "--load-nm", type=checks.real("N m"), help=drive_flags.scenario_help("load_nm", "load step, N m")
-    )
-    p.add_argument(
-        "--load-time-s",
-        type=checks.positive("s"),
-        help=drive_flags.scenario_help("load_time_s", "time of the load step, s"),
-    )
-    p.add_argument(
-        "--duration-s",
-        type=checks.positive("s"),
-        help=drive_flags.scenario_help("duration_s", "simulated time, s"),
+    drive_flags.add_drive_flags(p, "compare_out", None, "book; book_salient for the chapter 6 estimators")
+    # The load step inside a run with a ripple window at speed: a speed and a load time above 0.
+    drive_flags.add_scenario_flags(
+        p, types={"speed_rpm": checks.positive("r/min"), "load_time_s": checks.positive("s")}
     )
     p.add_argument(
         "--bridge",
@@ -109,9 +93,7 @@ def add_parser(sub):
         "(default: not run)",
     )
     add_gains_flag(p)
-    p.add_argument(
-        "--trust-units", action="store_true", help="accept motor values outside the plausible ranges"
-    )
+    drive_flags.add_trust_units_flag(p)
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.set_defaults(func=run)
 

@@ -246,27 +246,8 @@ def add_parser(sub):
         "incremental inductances at the operating current (map, the default there) or the file's constant "
         "L_d, L_q, psi_f (constant)",
     )
-    p.add_argument("--out", default="demo_out", help="output folder (created), default: demo_out")
-    drive_flags.add_motor_flag(p)
-    drive_flags.add_override_flags(p)
-    p.add_argument(
-        "--speed-rpm",
-        type=checks.real("r/min"),
-        help=drive_flags.scenario_help("speed_rpm", "speed step, r/min"),
-    )
-    p.add_argument(
-        "--load-nm", type=checks.real("N m"), help=drive_flags.scenario_help("load_nm", "load step, N m")
-    )
-    p.add_argument(
-        "--load-time-s",
-        type=checks.nonnegative("s"),
-        help=drive_flags.scenario_help("load_time_s", "time of the load step, s"),
-    )
-    p.add_argument(
-        "--duration-s",
-        type=checks.positive("s"),
-        help=drive_flags.scenario_help("duration_s", "simulated time, s"),
-    )
+    drive_flags.add_drive_flags(p, "demo_out")
+    drive_flags.add_scenario_flags(p)
     p.add_argument(
         "--frame",
         choices=list(dict.fromkeys(THREE_PHASE_FRAMES + SIX_PHASE_FRAME_NAMES + FIVE_PHASE_FRAME_NAMES)),
@@ -311,12 +292,11 @@ def add_parser(sub):
         help="dtc: comparator sample period, us (default 25)",
     )
     add_gains_flag(p)
-    p.add_argument(
-        "--trust-units",
-        action="store_true",
-        help="accept motor values outside the plausible ranges of pmsmjax.spec.plausibility (an inductance "
-        "above 1 H, say) instead of refusing them as a likely unit mistake (a drive file: trust_units = "
-        "true in [motor])",
+    drive_flags.add_trust_units_flag(
+        p,
+        "accept motor values outside the plausible ranges of pmsmjax.spec.plausibility (an inductance above "
+        "1 H, say) instead of refusing them as a likely unit mistake (a drive file: trust_units = true in "
+        "[motor])",
     )
     p.add_argument("--decimate", type=checks.count(), default=1, help="record every N-th period (default 1)")
     p.add_argument("--format", choices=["csv", "npz"], default="csv", help="trace file format (default csv)")

@@ -16,8 +16,12 @@ __all__ = [
     "U_DC_KNOB",
     "SCENARIO_KEYS",
     "MACHINE_PHASES",
+    "add_drive_flags",
     "add_motor_flag",
     "add_override_flags",
+    "add_trust_units_flag",
+    "add_scenario_flags",
+    "add_logged_motor_flags",
     "scenario_help",
     "resolve_drive",
     "fill_scenario",
@@ -32,6 +36,13 @@ U_DC_KNOB = "--u-dc, or [inverter] u_dc_v in the drive file"
 SCENARIO_KEYS = ("speed_rpm", "load_nm", "load_time_s", "duration_s")
 #: ``--machine`` -> the drive file's ``n_phases``.
 MACHINE_PHASES = {"three-phase": 3, "six-phase": 6, "five-phase": 5}
+#: What the help of each scenario flag calls it.
+_SCENARIO_WHAT = {
+    "speed_rpm": "speed step, r/min",
+    "load_nm": "load step, N m",
+    "load_time_s": "time of the load step, s",
+    "duration_s": "simulated time, s",
+}
 #: The book drive's scenario, for the help texts (pmsmjax/presets/motors/book.toml).
 _BOOK_SCENARIO = {
     "speed_rpm": "1000 r/min",
@@ -39,6 +50,15 @@ _BOOK_SCENARIO = {
     "load_time_s": "0.2 s",
     "duration_s": "0.4 s",
 }
+
+
+def add_drive_flags(p, out: str, motor: str | None = "book", motor_text: str | None = None) -> None:
+    """The flags every command that runs the user's drive opens with: ``--out`` (default `out`),
+    ``--motor`` (default `motor`, said as `motor_text`, :func:`add_motor_flag`) and the overrides
+    ``--u-dc``, ``--current-limit``."""
+    checks.add_out_flag(p, out)
+    add_motor_flag(p, motor, motor_text)
+    add_override_flags(p)
 
 
 def add_motor_flag(p, default: str | None = "book", default_text: str | None = None) -> None:
@@ -69,6 +89,40 @@ def add_override_flags(p, current_limit: bool = True) -> None:
             default=None,
             help="peak phase-current limit, A (default: the drive file's [ratings] max_current_a; book: 15)",
         )
+
+
+def add_trust_units_flag(p, help: str = "accept motor values outside the plausible ranges") -> None:
+    """``--trust-units``: skip the drive file's unit plausibility check (:func:`resolve_drive`)."""
+    p.add_argument("--trust-units", action="store_true", help=help)
+
+
+def add_logged_motor_flags(p, role: str) -> None:
+    """The log file and ``--motor`` (its `role`, required) of a command that runs a model on a logged drive
+    run."""
+    p.add_argument("log", help="log file (.csv, .npz or .mat)")
+    p.add_argument(
+        "--motor",
+        required=True,
+        help=f"{role}: a preset name (book, book_salient, servo-400w, ...) or a drive TOML file (its "
+        "[motor]; a seven-value motor file is one)",
+    )
+
+
+def add_scenario_flags(p, keys=SCENARIO_KEYS, types=None, whats=None) -> None:
+    """The scenario flags of `keys` (argparse dests of :data:`SCENARIO_KEYS`), each defaulting to the
+    drive file's ``[scenario]`` (:func:`fill_scenario`): a finite speed and load, a load time >= 0 and a
+    duration > 0, unless `types` (dest -> argparse ``type``) checks more; `whats` (dest -> text): what
+    the help calls a flag whose meaning is narrower than a step's."""
+    types = {
+        "speed_rpm": checks.real("r/min"),
+        "load_nm": checks.real("N m"),
+        "load_time_s": checks.nonnegative("s"),
+        "duration_s": checks.positive("s"),
+        **(types or {}),
+    }
+    whats = {**_SCENARIO_WHAT, **(whats or {})}
+    for key in keys:
+        p.add_argument(checks.flag(key), type=types[key], help=scenario_help(key, whats[key]))
 
 
 def scenario_help(key: str, what: str) -> str:

@@ -7,15 +7,10 @@ have (gains tuned for another control) with the names it does have.
 """
 
 import math
-import sys
 from pathlib import Path
 
+from pmsmjax.io.toml_parser import tomllib
 from pmsmjax.spec.validation import ParameterError
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 __all__ = ["add_gains_flag", "read_gains_flag", "apply_gains_flag"]
 

@@ -33,7 +33,7 @@ def add_parser(sub):
         ),
     )
     p.add_argument("log", help="log file (.csv, .npz or .mat)")
-    p.add_argument("--out", required=True, help="output folder (created)")
+    checks.add_out_flag(p)
     p.add_argument(
         "--pole-pairs",
         type=checks.count(),
@@ -53,20 +53,7 @@ def add_parser(sub):
         default=None,
         help="TOML with [columns], [units], [log], [identify] tables (default: none)",
     )
-    p.add_argument(
-        "--columns",
-        nargs="+",
-        default=[],
-        metavar="CANONICAL=NAME",
-        help="column map, e.g. u_d=Ud (default: the canonical names)",
-    )
-    p.add_argument(
-        "--units",
-        nargs="+",
-        default=[],
-        metavar="COLUMN=UNIT",
-        help="e.g. omega_m=rpm time=ms (default: SI: s, V, A, rad/s, rad)",
-    )
+    checks.add_log_column_flags(p, "u_d=Ud", "e.g. omega_m=rpm time=ms (default: SI: s, V, A, rad/s, rad)")
     p.add_argument(
         "--hold",
         choices=["auto", "stator", "rotor"],
@@ -81,12 +68,8 @@ def add_parser(sub):
         help="DC-link voltage, V, for duty logs without a U_dc column (default: none)",
     )
     p.add_argument("--resample", action="store_true", help="resample an irregular time grid (with a warning)")
-    p.add_argument(
-        "--fix",
-        nargs="+",
-        default=[],
-        metavar="NAME=VALUE",
-        help="hold parameters fixed, SI units, e.g. L_d=0.0041 (default: none)",
+    checks.add_key_values_flag(
+        p, "--fix", "NAME=VALUE", "hold parameters fixed, SI units, e.g. L_d=0.0041 (default: none)"
     )
     p.add_argument(
         "--load",

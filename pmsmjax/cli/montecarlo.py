@@ -3,7 +3,6 @@
 
 import argparse
 import os
-import sys
 import textwrap
 
 from pmsmjax.cli import checks, drive_flags
@@ -67,7 +66,7 @@ def add_parser(sub):
     p.add_argument("--n", type=checks.count(), help="number of runs (default 1000)")
     drive_flags.add_motor_flag(p, default=None, default_text="the study TOML's [drive] motor, else book")
     drive_flags.add_override_flags(p)
-    p.add_argument("--out", default="montecarlo_out", help="output folder (created), default: montecarlo_out")
+    checks.add_out_flag(p, "montecarlo_out")
     p.add_argument("--config", default=None, help="study TOML, layout below (default: none)")
     p.add_argument("--seed", type=checks.count(minimum=0), help="sampling seed (default 0)")
     p.add_argument(
@@ -207,10 +206,8 @@ def _study_drive_table(config) -> dict:
     """The study TOML's ``[drive]`` table (empty without one; its errors are the study reader's)."""
     if config is None:
         return {}
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:  # pragma: no cover
-        import tomli as tomllib
+    from pmsmjax.io.toml_parser import tomllib
+
     try:
         table = tomllib.loads(open(config).read()).get("drive", {})
     except (tomllib.TOMLDecodeError, UnicodeDecodeError, OSError):

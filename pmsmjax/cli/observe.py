@@ -10,6 +10,7 @@ record.
 
 import json
 
+from pmsmjax.cli import checks, drive_flags
 from pmsmjax.spec.validation import ParameterError
 
 
@@ -29,33 +30,18 @@ def add_parser(sub):
             "log's carrier); its angle is the d axis modulo pi, in [-pi/2, pi/2), unless --polarity-known."
         ),
     )
-    p.add_argument("log", help="log file (.csv, .npz or .mat)")
-    p.add_argument(
-        "--motor",
-        required=True,
-        help="the observer's motor model and pole pairs: a preset name (book, book_salient, servo-400w, ...) "
-        "or a drive TOML file (its [motor]; a seven-value motor file is one)",
-    )
+    drive_flags.add_logged_motor_flags(p, "the observer's motor model and pole pairs")
     p.add_argument(
         "--observer",
         required=True,
         help="smo, smo-pll, adaptive-smo, dq-smo, mras, ekf, or hfi-rotating (logs of a salient machine with "
         "rotating injection)",
     )
-    p.add_argument("--out", required=True, help="output folder (created)")
+    checks.add_out_flag(p)
     p.add_argument(
         "--config", default=None, help="TOML with [columns], [units] and [log] tables (default: none)"
     )
-    p.add_argument(
-        "--columns",
-        nargs="+",
-        default=[],
-        metavar="CANONICAL=NAME",
-        help="column map, e.g. i_alpha=Ialpha (default: the canonical names)",
-    )
-    p.add_argument(
-        "--units", nargs="+", default=[], metavar="COLUMN=UNIT", help="e.g. time=ms omega_m=rpm (default: SI)"
-    )
+    checks.add_log_column_flags(p, "i_alpha=Ialpha", "e.g. time=ms omega_m=rpm (default: SI)")
     p.add_argument(
         "--truth-columns",
         default="",
@@ -73,12 +59,11 @@ def add_parser(sub):
         help="DC-link voltage, V, for duty logs without U_dc (default: none)",
     )
     p.add_argument("--resample", action="store_true", help="resample an irregular time grid (with a warning)")
-    p.add_argument(
+    checks.add_key_values_flag(
+        p,
         "--option",
-        nargs="+",
-        default=[],
-        metavar="NAME=VALUE",
-        help="observer design-rule options, e.g. switching=sign pll_bandwidth=500 (default: the design rule)",
+        "NAME=VALUE",
+        "observer design-rule options, e.g. switching=sign pll_bandwidth=500 (default: the design rule)",
     )
     p.add_argument(
         "--hf-voltage",

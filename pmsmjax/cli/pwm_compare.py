@@ -53,18 +53,16 @@ def add_parser(sub):
         "five-phase methods of chapter 10 (near-four-vector, carrier, sinusoidal, large-vector), x-y "
         "average voltage and 3rd/7th harmonic currents",
     )
-    p.add_argument("--out", default="pwm_out", help="output folder (created), default: pwm_out")
-    drive_flags.add_motor_flag(p)
-    drive_flags.add_override_flags(p)
-    p.add_argument(
-        "--speed-rpm",
-        type=checks.positive("r/min"),
-        help=drive_flags.scenario_help(
-            "speed_rpm", "speed, r/min; f_sw / f_1 must be whole (book: 1000 r/min gives 150)"
-        ),
-    )
-    p.add_argument(
-        "--load-nm", type=checks.real("N m"), help=drive_flags.scenario_help("load_nm", "load torque, N m")
+    drive_flags.add_drive_flags(p, "pwm_out")
+    # One steady operating point: a speed above 0 and a load.
+    drive_flags.add_scenario_flags(
+        p,
+        ("speed_rpm", "load_nm"),
+        types={"speed_rpm": checks.positive("r/min")},
+        whats={
+            "speed_rpm": "speed, r/min; f_sw / f_1 must be whole (book: 1000 r/min gives 150)",
+            "load_nm": "load torque, N m",
+        },
     )
     p.add_argument(
         "--dead-time-us",
@@ -94,9 +92,7 @@ def add_parser(sub):
         help="--phases 6 or 5: add the switching bridge with dead time (three phases always include it)",
     )
     add_gains_flag(p)
-    p.add_argument(
-        "--trust-units", action="store_true", help="accept motor values outside the plausible ranges"
-    )
+    drive_flags.add_trust_units_flag(p)
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.set_defaults(func=run)
 

@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from pmsmjax.cli import checks
+from pmsmjax.cli import checks, drive_flags
 
 
 def add_parser(sub):
@@ -18,14 +18,8 @@ def add_parser(sub):
             "is refused; other columns are reported as not used."
         ),
     )
-    p.add_argument("log", help="log file (.csv, .npz or .mat)")
-    p.add_argument(
-        "--motor",
-        required=True,
-        help="the machine: a preset name (book, book_salient, servo-400w, ...) or a drive TOML file (its "
-        "[motor]; a seven-value motor file is one)",
-    )
-    p.add_argument("--out", required=True, help="output folder (created)")
+    drive_flags.add_logged_motor_flags(p, "the machine")
+    checks.add_out_flag(p)
     p.add_argument(
         "--hold",
         choices=["auto", "rotor", "stator"],

@@ -5,7 +5,6 @@ Ctrl-C saves the checkpoint of the last finished iteration and ends with one lin
 the same command resumes from it.
 """
 
-import sys
 from pathlib import Path
 
 from pmsmjax.cli import checks, drive_flags
@@ -35,9 +34,7 @@ def add_parser(sub):
             "([weights], [tune], [job] tables), then built-in defaults."
         ),
     )
-    p.add_argument("--out", default="tune_out", help="output folder (created), default: tune_out")
-    drive_flags.add_motor_flag(p)
-    drive_flags.add_override_flags(p)
+    drive_flags.add_drive_flags(p, "tune_out")
     p.add_argument(
         "--robust",
         action="store_true",
@@ -176,10 +173,7 @@ def _config_robust(path) -> bool:
     not parse is left to the config reader's message."""
     if path is None:
         return False
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:  # pragma: no cover
-        import tomli as tomllib
+    from pmsmjax.io.toml_parser import tomllib
 
     try:
         return tomllib.loads(Path(path).read_text()).get("job", {}).get("robust", False) is True

@@ -8,68 +8,36 @@ flux map's MTPA and MTPV tables, :mod:`.flux_map_loci`) read without loading JAX
 before a run build an MTPA table.
 """
 
-import importlib
+from pmsmjax._lazy import by_module, lazy_exports
 
-#: Public name -> (module, attribute), the layout of ``pmsmjax._LAZY``.
-_LAZY = {
-    "FOC": ("foc", "FOC"),
-    "FOCState": ("foc", "FOCState"),
-    "HysteresisCurrentControl": ("hysteresis", "HysteresisCurrentControl"),
-    "HysteresisState": ("hysteresis", "HysteresisState"),
-    "MTPA": ("mtpa", "MTPA"),
-    "VoltageFeedbackFieldWeakening": ("field_weakening", "VoltageFeedbackFieldWeakening"),
-    "AbstractController": ("base", "AbstractController"),
-    "AbstractCurrentController": ("base", "AbstractCurrentController"),
-    "AbstractDAxisReference": ("base", "AbstractDAxisReference"),
-    "AbstractSpeedController": ("base", "AbstractSpeedController"),
-    "CurrentLoopContext": ("base", "CurrentLoopContext"),
-    "CurrentLoopGains": ("design", "CurrentLoopGains"),
-    "SlidingModeSpeed": ("smc", "SlidingModeSpeed"),
-    "SlidingModeState": ("smc", "SlidingModeState"),
-    "ProportionalResonant": ("pr", "ProportionalResonant"),
-    "ResonantCoefficients": ("pr", "ResonantCoefficients"),
-    "SpeedLoopGains": ("design", "SpeedLoopGains"),
-    "clip_magnitude": ("pi", "clip_magnitude"),
-    "clip_symmetric": ("pi", "clip_symmetric"),
-    "current_loop_imc": ("design", "current_loop_imc"),
-    "first_order_rise_time": ("design", "first_order_rise_time"),
-    "hysteresis_comparator": ("hysteresis", "hysteresis_comparator"),
-    "mtpa_id_from_iq": ("mtpa", "mtpa_id_from_iq"),
-    "mtpa_id_from_magnitude": ("mtpa", "mtpa_id_from_magnitude"),
-    "pi_update": ("pi", "pi_update"),
-    "realisable_reference_tracking": ("pi", "realisable_reference_tracking"),
-    "smc_design": ("smc", "smc_design"),
-    "pr_design": ("pr", "pr_design"),
-    "resonant_coefficients": ("pr", "resonant_coefficients"),
-    "speed_loop_active_damping": ("design", "speed_loop_active_damping"),
-    "switching_function": ("smc", "switching_function"),
-    "SwitchingTableDTC": ("dtc", "SwitchingTableDTC"),
-    "SlidingModeDTC": ("smc_dtc", "SlidingModeDTC"),
-    "smc_dtc_design": ("smc_dtc", "smc_dtc_design"),
-    "torque_current_limit": ("dtc", "torque_current_limit"),
-    "DoubleDQCurrentPI": ("multiphase", "DoubleDQCurrentPI"),
-    "MultiPhaseFOC": ("multiphase", "MultiPhaseFOC"),
-    "VSDCurrentControl": ("multiphase", "VSDCurrentControl"),
-    "ZCurrentPI": ("multiphase", "ZCurrentPI"),
-    "ZProportionalResonant": ("multiphase", "ZProportionalResonant"),
-    "double_dq_design": ("multiphase", "double_dq_design"),
-    "pr_current_design": ("multiphase", "pr_current_design"),
-    "vsd_current_design": ("multiphase", "vsd_current_design"),
-    "z_current_imc": ("multiphase", "z_current_imc"),
-    "z_pr_design": ("multiphase", "z_pr_design"),
-}
+#: Module -> the names re-exported from it; ``_LAZY``: name -> (module, name), the layout of
+#: ``pmsmjax._LAZY``.
+_LAZY = by_module({
+    "foc": ("FOC", "FOCState"),
+    "hysteresis": ("HysteresisCurrentControl", "HysteresisState", "hysteresis_comparator"),
+    "mtpa": ("MTPA", "mtpa_id_from_iq", "mtpa_id_from_magnitude"),
+    "field_weakening": ("VoltageFeedbackFieldWeakening",),
+    "base": (
+        "AbstractController", "AbstractCurrentController", "AbstractDAxisReference",
+        "AbstractSpeedController", "CurrentLoopContext",
+    ),
+    "design": (
+        "CurrentLoopGains", "SpeedLoopGains", "current_loop_imc", "first_order_rise_time",
+        "speed_loop_active_damping",
+    ),
+    "smc": ("SlidingModeSpeed", "SlidingModeState", "smc_design", "switching_function"),
+    "pr": ("ProportionalResonant", "ResonantCoefficients", "pr_design", "resonant_coefficients"),
+    "pi": ("clip_magnitude", "clip_symmetric", "pi_update", "realisable_reference_tracking"),
+    "dtc": ("SwitchingTableDTC", "torque_current_limit"),
+    "smc_dtc": ("SlidingModeDTC", "smc_dtc_design"),
+    "multiphase": (
+        "DoubleDQCurrentPI", "MultiPhaseFOC", "VSDCurrentControl", "ZCurrentPI",
+        "ZProportionalResonant", "double_dq_design", "pr_current_design", "vsd_current_design",
+        "z_current_imc", "z_pr_design",
+    ),
+})  # fmt: skip
 
 __all__ = list(_LAZY)
 
 
-def __getattr__(name):
-    if name not in _LAZY:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    module, attr = _LAZY[name]
-    value = getattr(importlib.import_module(f"{__name__}.{module}"), attr)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

@@ -7,11 +7,11 @@ Reading is the file's part only: the TOML, its tables and the ``[motor] flux_map
 ``pmsmjax/presets/motors/``.
 """
 
-import sys
 from collections.abc import Mapping
 from pathlib import Path
 
 from pmsmjax.io.flux_map_files import read_flux_map
+from pmsmjax.io.toml_parser import tomllib
 from pmsmjax.spec.drive_spec import (
     MOTOR_FIELDS,
     TABLES,
@@ -22,11 +22,6 @@ from pmsmjax.spec.drive_spec import (
     split_tables,
 )
 from pmsmjax.spec.validation import ParameterError
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 __all__ = [
     "DriveSpec",

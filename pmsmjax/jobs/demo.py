@@ -294,16 +294,19 @@ def dead_time_entry(spec, drive) -> dict:
     models (the averaged bridge's period-average error, or the switching bridge's dead windows) and
     whether the controller compensates them."""
     t_d, drop = spec.inverter["dead_time_s"], spec.inverter.get("device_drop_v", 0.0)
+    from pmsmjax.controllers.foc import FOC
+    from pmsmjax.inverters.averaged import AveragedBridge
+    from pmsmjax.inverters.multiphase_bridges import MultiPhaseSwitchingBridge
+
     bridge = drive.bridge
-    error = getattr(bridge, "voltage_error", None)
-    if error is not None:
-        modelled, how = float(error.dead_time) > 0.0, "period-averaged by the averaged bridge"
+    if isinstance(bridge, AveragedBridge):
+        error = bridge.voltage_error
+        modelled = error is not None and float(error.dead_time) > 0.0
+        how = "period-averaged by the averaged bridge"
     else:
-        modelled, how = (
-            getattr(bridge, "resolve_dead_time", False),
-            "resolved edge by edge by the switching bridge",
-        )
-    compensation = getattr(drive.controller, "dead_time_compensation", None)
+        modelled = isinstance(bridge, MultiPhaseSwitchingBridge) and bridge.resolve_dead_time
+        how = "resolved edge by edge by the switching bridge"
+    compensation = drive.controller.dead_time_compensation if isinstance(drive.controller, FOC) else None
     entry = {
         "dead_time_s": t_d,
         "device_drop_v": drop,
@@ -324,8 +327,11 @@ def dead_time_entry(spec, drive) -> dict:
 def flux_map_entry(drive, trace) -> dict:
     """``{"flux_map": ...}`` for summary.json when the plant is a flux map: how far the run's currents went
     outside the map's grid (:func:`pmsmjax.machines.flux_map.excursion`); ``{}`` otherwise."""
-    flux_map = getattr(drive.machine, "flux_map", None)
-    return {} if flux_map is None else {"flux_map": flux_map.excursion(trace.i_dq)}
+    from pmsmjax.machines.pmsm_flux_map import PMSMFluxMapdq
+
+    if not isinstance(drive.machine, PMSMFluxMapdq):
+        return {}
+    return {"flux_map": drive.machine.flux_map.excursion(trace.i_dq)}
 
 
 def z_current_peak(trace, layout=None) -> float:

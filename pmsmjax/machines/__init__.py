@@ -6,43 +6,25 @@ steady-state dq equations, :mod:`.dq_equations`; the flux map's grid and interpo
 :mod:`.flux_map`) read without loading JAX: the command line's checks before a run use them.
 """
 
-import importlib
+from pmsmjax._lazy import by_module, lazy_exports
 
-#: Public name -> (module, attribute), the layout of ``pmsmjax._LAZY``.
-_LAZY = {
-    "AbstractMachine": ("base", "AbstractMachine"),
-    "MachineInput": ("base", "MachineInput"),
-    "MachineState": ("base", "MachineState"),
-    "PMSMParameters": ("motor", "PMSMParameters"),
-    "PMSMabc": ("pmsm3", "PMSMabc"),
-    "PMSMAlphaBeta": ("pmsm3", "PMSMAlphaBeta"),
-    "PMSMdq": ("pmsm3", "PMSMdq"),
-    "advance": ("integrate", "advance"),
-    "linearise": ("continuous", "linearise"),
-    "solve_adaptive": ("continuous", "solve_adaptive"),
-    "rk4_step": ("integrate", "rk4_step"),
-    "AbstractMultiPhaseMachine": ("pmsm_multiphase", "AbstractMultiPhaseMachine"),
-    "MultiPhaseParameters": ("multiphase_motor", "MultiPhaseParameters"),
-    "MultiPhasePMSMdq": ("pmsm_multiphase", "MultiPhasePMSMdq"),
-    "MultiPhasePMSMNatural": ("pmsm_multiphase", "MultiPhasePMSMNatural"),
-    "MultiPhasePMSMVSD": ("pmsm_multiphase", "MultiPhasePMSMVSD"),
-    "PMSM6DoubleDQ": ("pmsm6", "PMSM6DoubleDQ"),
-    "DAxisSaturation": ("saturation", "DAxisSaturation"),
-    "SaturatedPMSMdq": ("saturation", "SaturatedPMSMdq"),
-    "saturated_machine": ("saturation", "saturated_machine"),
-}
+#: Module -> the names re-exported from it; ``_LAZY``: name -> (module, name), the layout of
+#: ``pmsmjax._LAZY``.
+_LAZY = by_module({
+    "base": ("AbstractMachine", "MachineInput", "MachineState"),
+    "motor": ("PMSMParameters",),
+    "pmsm3": ("PMSMabc", "PMSMAlphaBeta", "PMSMdq"),
+    "integrate": ("advance", "rk4_step"),
+    "continuous": ("linearise", "solve_adaptive"),
+    "pmsm_multiphase": (
+        "AbstractMultiPhaseMachine", "MultiPhasePMSMdq", "MultiPhasePMSMNatural", "MultiPhasePMSMVSD",
+    ),
+    "multiphase_motor": ("MultiPhaseParameters",),
+    "pmsm6": ("PMSM6DoubleDQ",),
+    "saturation": ("DAxisSaturation", "SaturatedPMSMdq", "saturated_machine"),
+})  # fmt: skip
 
 __all__ = list(_LAZY)
 
 
-def __getattr__(name):
-    if name not in _LAZY:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    module, attr = _LAZY[name]
-    value = getattr(importlib.import_module(f"{__name__}.{module}"), attr)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

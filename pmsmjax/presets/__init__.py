@@ -7,7 +7,7 @@ The re-exported names are imported on first use (PEP 562), so that ``pmsmjax.pre
 reads without loading JAX (the command line's checks before a run).
 """
 
-import importlib
+from pmsmjax._lazy import by_module, lazy_exports
 
 _BOOK_CONSTANTS = (
     "BOOK_CURRENT_BANDWIDTH",
@@ -44,24 +44,9 @@ _THREE_PHASE = (
 #: book's drives.
 _ASSEMBLED = ("sensorless_drive", "with_observer", "STARTUP_DEFAULTS")
 #: Public name -> (module, attribute), the layout of ``pmsmjax._LAZY``.
-_LAZY = {
-    **{name: ("book_constants", name) for name in _BOOK_CONSTANTS},
-    **{name: ("three_phase", name) for name in _THREE_PHASE},
-    **{name: ("..assemble", name) for name in _ASSEMBLED},
-}
+_LAZY = by_module({"book_constants": _BOOK_CONSTANTS, "three_phase": _THREE_PHASE, "..assemble": _ASSEMBLED})
 
-__all__ = [*_BOOK_CONSTANTS, *_THREE_PHASE, *_ASSEMBLED]
+__all__ = list(_LAZY)
 
 
-def __getattr__(name):
-    if name not in _LAZY:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    module, attr = _LAZY[name]
-    path = "pmsmjax.assemble" if module == "..assemble" else f"{__name__}.{module}"
-    value = getattr(importlib.import_module(path), attr)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

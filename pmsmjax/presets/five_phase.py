@@ -36,7 +36,7 @@ The same numbers are in the motor file ``pmsmjax/presets/motors/five_phase_book.
 **Drives** (:func:`five_phase_drive`): the book drive's settings (311 V, 10 kHz, one-period computational
 delay, design-rule gains at a_c = 1100 rad/s and beta = 50 rad/s, 15 A limit) with a control of
 :data:`FIVE_PHASE_CONTROLS` and a modulator of :data:`FIVE_PHASE_PWMS`; the controller is the n-phase
-cascade :class:`~pmsmjax.controllers.six_phase.MultiPhaseFOC` with the five-phase VSD current block (dq PI
+cascade :class:`~pmsmjax.controllers.multiphase.MultiPhaseFOC` with the five-phase VSD current block (dq PI
 + x-y PI in the frame at ``3 theta_e``), the bridges the n-leg ones
 (:mod:`pmsmjax.inverters.multiphase_bridges`) with the five-phase layout.
 """
@@ -44,28 +44,16 @@ cascade :class:`~pmsmjax.controllers.six_phase.MultiPhaseFOC` with the five-phas
 from pathlib import Path
 
 from pmsmjax.controllers.design import current_loop_imc
+from pmsmjax.controllers.multiphase import VSDCurrentControl, vsd_current_design, z_pr_design
 from pmsmjax.controllers.pr import pr_design
-from pmsmjax.controllers.six_phase import VSDCurrentControl, vsd_current_design, z_pr_design
-from pmsmjax.drive import Drive
 from pmsmjax.frames.multiphase import FIVE_PHASE
 from pmsmjax.inverters.multiphase_carrier import ZeroSequencePWM
 from pmsmjax.inverters.multiphase_svpwm import LargeVectorSVPWM, NearFourVectorSVPWM
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
 from pmsmjax.machines.pmsm_multiphase import MultiPhasePMSMdq, MultiPhasePMSMNatural, MultiPhasePMSMVSD
-from pmsmjax.presets.book_constants import (
-    BOOK_CURRENT_BANDWIDTH,
-    BOOK_CURRENT_LIMIT,
-    BOOK_DC_LINK,
-    BOOK_SPEED_BANDWIDTH,
-    BOOK_TS,
-)
-from pmsmjax.presets.six_phase import (
-    THREE_PHASE_LEAKAGE_FRACTION,
-    assemble_multiphase_drive,
-    read_multiphase_motor_file,
-)
+from pmsmjax.presets.multiphase import machine_controls, multiphase_drive_function, multiphase_machine
+from pmsmjax.presets.six_phase import THREE_PHASE_LEAKAGE_FRACTION, read_multiphase_motor_file
 from pmsmjax.presets.three_phase import PR_W_C, book_motor
-from pmsmjax.spec.registry import REGISTRY
 from pmsmjax.spec.validation import ParameterError
 
 __all__ = [
@@ -151,20 +139,14 @@ FIVE_PHASE_PWMS = {
 }
 
 #: Control schemes by name -> one-line description (:data:`pmsmjax.spec.registry.REGISTRY`).
-FIVE_PHASE_CONTROLS = {
-    m.name: m.description for m in REGISTRY if m.kind == "control" and "five-phase" in m.machines
-}
+FIVE_PHASE_CONTROLS = machine_controls("five-phase")
 
 
 def five_phase_machine(motor=None, frame: str = "dq", mechanics: str = "dynamic", resistance_scale=None):
     """The five-phase machine model of ``motor`` in ``frame`` (:data:`FIVE_PHASE_FRAMES`)."""
     motor = five_phase_motor() if motor is None else motor
-    if frame not in FIVE_PHASE_FRAMES:
-        raise ParameterError(
-            f"five-phase frame must be one of {', '.join(FIVE_PHASE_FRAMES)}, got {frame!r}."
-        )
-    return FIVE_PHASE_FRAMES[frame](
-        motor, layout=FIVE_PHASE, mechanics=mechanics, resistance_scale=resistance_scale
+    return multiphase_machine(
+        "five-phase", FIVE_PHASE_FRAMES, motor, frame, mechanics, resistance_scale, layout=FIVE_PHASE
     )
 
 
@@ -172,7 +154,7 @@ def five_phase_current_block(control: str, motor, current_bandwidth: float, w_c:
     """The five-phase current block of ``control`` (:data:`FIVE_PHASE_CONTROLS`) from the design rules.
 
     ``pr``: the alpha-beta PR (:func:`~pmsmjax.controllers.pr.pr_design`) and the x-y PR
-    (:func:`~pmsmjax.controllers.six_phase.z_pr_design`), both resonant at ``w_e``: a phase-resistance
+    (:func:`~pmsmjax.controllers.multiphase.z_pr_design`), both resonant at ``w_e``: a phase-resistance
     unbalance puts x-y currents at ``+-w_e`` (not constant in the ``3 theta_e`` frame of the ``vsd`` x-y
     PI, which removes third-harmonic disturbances instead); a real-coefficient resonator at ``w_e``
     removes both directions."""
@@ -189,27 +171,9 @@ def five_phase_current_block(control: str, motor, current_bandwidth: float, w_c:
     )
 
 
-def five_phase_drive(
-    motor: MultiPhaseParameters | None = None,
-    *,
-    control: str = "vsd",
-    pwm: str = "near-four-vector",
-    bridge: str = "averaged",
-    frame: str = "dq",
-    mechanics: str = "dynamic",
-    mode: str = "speed",
-    current_bandwidth: float = BOOK_CURRENT_BANDWIDTH,
-    speed_bandwidth: float = BOOK_SPEED_BANDWIDTH,
-    current_limit: float = BOOK_CURRENT_LIMIT,
-    u_dc: float = BOOK_DC_LINK,
-    Ts: float = BOOK_TS,
-    n_substeps: int = 10,
-    computation_delay: bool = True,
-    speed_divider: int = 1,
-    dead_time: float | None = None,
-    resistance_scale=None,
-    w_c: float = PR_W_C,
-) -> Drive:
+five_phase_drive = multiphase_drive_function(
+    "five_phase_drive",
+    __name__,
     """A five-phase drive: `control` (:data:`FIVE_PHASE_CONTROLS`), `pwm` (:data:`FIVE_PHASE_PWMS`),
     `bridge` (``averaged`` or ``switching``, the latter with optional `dead_time` s), `frame`
     (:data:`FIVE_PHASE_FRAMES`); the rest as :func:`pmsmjax.presets.book_drive`. `resistance_scale`:
@@ -217,24 +181,12 @@ def five_phase_drive(
 
     The controller's model is the plant's motor (its ``psi_f3`` unused by the controller): the speed PI
     with active damping at ``speed_bandwidth``, the current loops at ``current_bandwidth``.
-    """
-    motor = five_phase_motor() if motor is None else motor
-    if pwm not in FIVE_PHASE_PWMS:
-        raise ParameterError(f"five-phase pwm must be one of {', '.join(FIVE_PHASE_PWMS)}, got {pwm!r}.")
-    return assemble_multiphase_drive(
-        motor,
-        five_phase_machine(motor, frame, mechanics, resistance_scale),
-        five_phase_current_block(control, motor, current_bandwidth, w_c),
-        FIVE_PHASE_PWMS[pwm](),
-        layout=FIVE_PHASE,
-        bridge=bridge,
-        dead_time=dead_time,
-        u_dc=u_dc,
-        speed_bandwidth=speed_bandwidth,
-        current_limit=current_limit,
-        mode=mode,
-        speed_divider=speed_divider,
-        Ts=Ts,
-        n_substeps=n_substeps,
-        computation_delay=computation_delay,
-    )
+    """,
+    machine="five-phase",
+    layout=FIVE_PHASE,
+    default_motor=five_phase_motor,
+    pwms=FIVE_PHASE_PWMS,
+    default_pwm="near-four-vector",
+    machine_model=five_phase_machine,
+    current_block=five_phase_current_block,
+)

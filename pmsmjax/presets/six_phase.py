@@ -32,41 +32,26 @@ delay, design-rule gains at a_c = 1100 rad/s and beta = 50 rad/s, 15 A limit) wi
 :data:`SIX_PHASE_CONTROLS` and a modulator of :data:`SIX_PHASE_PWMS`.
 """
 
-import sys
 from pathlib import Path
 
-from pmsmjax.controllers.design import current_loop_imc, speed_loop_active_damping
-from pmsmjax.controllers.six_phase import (
-    SixPhaseFOC,
+from pmsmjax.controllers.design import current_loop_imc
+from pmsmjax.controllers.multiphase import (
     VSDCurrentControl,
     double_dq_design,
     pr_current_design,
     vsd_current_design,
 )
-from pmsmjax.drive import Drive
 from pmsmjax.frames.multiphase import SIX_PHASE
 from pmsmjax.inverters.decoupled_svpwm import DecoupledSVPWM
-from pmsmjax.inverters.multiphase_bridges import MultiPhaseAveragedBridge, MultiPhaseSwitchingBridge
 from pmsmjax.inverters.multiphase_carrier import ZeroSequencePWM
 from pmsmjax.inverters.multiphase_svpwm import LargeVectorSVPWM, NearFourVectorSVPWM
+from pmsmjax.io.toml_parser import tomllib
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
 from pmsmjax.machines.pmsm6 import PMSM6DoubleDQ
 from pmsmjax.machines.pmsm_multiphase import MultiPhasePMSMdq, MultiPhasePMSMNatural, MultiPhasePMSMVSD
-from pmsmjax.presets.book_constants import (
-    BOOK_CURRENT_BANDWIDTH,
-    BOOK_CURRENT_LIMIT,
-    BOOK_DC_LINK,
-    BOOK_SPEED_BANDWIDTH,
-    BOOK_TS,
-)
+from pmsmjax.presets.multiphase import machine_controls, multiphase_drive_function, multiphase_machine
 from pmsmjax.presets.three_phase import PR_W_C, book_motor
-from pmsmjax.spec.registry import REGISTRY
 from pmsmjax.spec.validation import ParameterError
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 __all__ = [
     "SIX_PHASE_CONTROLS",
@@ -187,17 +172,13 @@ SIX_PHASE_PWMS = {
 }
 
 #: Control schemes by name -> one-line description (:data:`pmsmjax.spec.registry.REGISTRY`).
-SIX_PHASE_CONTROLS = {
-    m.name: m.description for m in REGISTRY if m.kind == "control" and "six-phase" in m.machines
-}
+SIX_PHASE_CONTROLS = machine_controls("six-phase")
 
 
 def six_phase_machine(motor=None, frame: str = "dq", mechanics: str = "dynamic", resistance_scale=None):
     """The six-phase machine model of ``motor`` in ``frame`` (:data:`SIX_PHASE_FRAMES`)."""
     motor = six_phase_motor() if motor is None else motor
-    if frame not in SIX_PHASE_FRAMES:
-        raise ParameterError(f"six-phase frame must be one of {', '.join(SIX_PHASE_FRAMES)}, got {frame!r}.")
-    return SIX_PHASE_FRAMES[frame](motor, mechanics=mechanics, resistance_scale=resistance_scale)
+    return multiphase_machine("six-phase", SIX_PHASE_FRAMES, motor, frame, mechanics, resistance_scale)
 
 
 def six_phase_current_block(control: str, motor, current_bandwidth: float, w_c: float = PR_W_C):
@@ -215,27 +196,9 @@ def six_phase_current_block(control: str, motor, current_bandwidth: float, w_c: 
     )
 
 
-def six_phase_drive(
-    motor: MultiPhaseParameters | None = None,
-    *,
-    control: str = "vsd",
-    pwm: str = "four-vector",
-    bridge: str = "averaged",
-    frame: str = "dq",
-    mechanics: str = "dynamic",
-    mode: str = "speed",
-    current_bandwidth: float = BOOK_CURRENT_BANDWIDTH,
-    speed_bandwidth: float = BOOK_SPEED_BANDWIDTH,
-    current_limit: float = BOOK_CURRENT_LIMIT,
-    u_dc: float = BOOK_DC_LINK,
-    Ts: float = BOOK_TS,
-    n_substeps: int = 10,
-    computation_delay: bool = True,
-    speed_divider: int = 1,
-    w_c: float = PR_W_C,
-    dead_time: float | None = None,
-    resistance_scale=None,
-) -> Drive:
+six_phase_drive = multiphase_drive_function(
+    "six_phase_drive",
+    __name__,
     """A six-phase drive: `control` (:data:`SIX_PHASE_CONTROLS`), `pwm` (:data:`SIX_PHASE_PWMS`),
     `bridge` (``averaged`` or ``switching``, the latter with optional `dead_time` s), `frame`
     (:data:`SIX_PHASE_FRAMES`); the rest as :func:`pmsmjax.presets.book_drive`. `w_c` rad/s: the PR
@@ -243,65 +206,13 @@ def six_phase_drive(
 
     Every control uses the design-rule gains of the same motor (the controller's model is the plant's
     balanced motor): the speed PI with active damping at ``speed_bandwidth``, current loops at
-    ``current_bandwidth`` (:mod:`pmsmjax.controllers.six_phase`).
-    """
-    motor = six_phase_motor() if motor is None else motor
-    if pwm not in SIX_PHASE_PWMS:
-        raise ParameterError(f"six-phase pwm must be one of {', '.join(SIX_PHASE_PWMS)}, got {pwm!r}.")
-    return assemble_multiphase_drive(
-        motor,
-        six_phase_machine(motor, frame, mechanics, resistance_scale),
-        six_phase_current_block(control, motor, current_bandwidth, w_c),
-        SIX_PHASE_PWMS[pwm](),
-        layout=SIX_PHASE,
-        bridge=bridge,
-        dead_time=dead_time,
-        u_dc=u_dc,
-        speed_bandwidth=speed_bandwidth,
-        current_limit=current_limit,
-        mode=mode,
-        speed_divider=speed_divider,
-        Ts=Ts,
-        n_substeps=n_substeps,
-        computation_delay=computation_delay,
-    )
-
-
-def assemble_multiphase_drive(
-    motor: MultiPhaseParameters,
-    machine,
-    current,
-    modulator,
-    *,
-    layout,
-    bridge: str,
-    dead_time: float | None,
-    u_dc: float,
-    speed_bandwidth: float,
-    current_limit: float,
-    mode: str,
-    speed_divider: int,
-    Ts: float,
-    n_substeps: int,
-    computation_delay: bool,
-) -> Drive:
-    """A multi-phase FOC drive from its parts (shared by the six- and five-phase presets): the n-leg
-    ``bridge`` (``averaged``, or ``switching`` with optional ``dead_time`` s) for ``layout``, and the FOC
-    cascade with the speed PI (active damping at ``speed_bandwidth`` rad/s) around the ``current`` block."""
-    if bridge == "averaged":
-        if dead_time is not None:
-            raise ParameterError("dead_time needs the switching-resolved bridge: set bridge='switching'.")
-        inverter = MultiPhaseAveragedBridge(u_dc, layout)
-    elif bridge == "switching":
-        inverter = MultiPhaseSwitchingBridge(u_dc, dead_time=dead_time, layout=layout)
-    else:
-        raise ParameterError(f"bridge must be 'averaged' or 'switching', got {bridge!r}.")
-    controller = SixPhaseFOC(
-        model=motor,
-        speed=speed_loop_active_damping(motor, speed_bandwidth),
-        current=current,
-        current_limit=current_limit,
-        mode=mode,
-        speed_divider=speed_divider,
-    )
-    return Drive(machine, controller, modulator, inverter, Ts, n_substeps, computation_delay)
+    ``current_bandwidth`` (:mod:`pmsmjax.controllers.multiphase`).
+    """,
+    machine="six-phase",
+    layout=SIX_PHASE,
+    default_motor=six_phase_motor,
+    pwms=SIX_PHASE_PWMS,
+    default_pwm="four-vector",
+    machine_model=six_phase_machine,
+    current_block=six_phase_current_block,
+)

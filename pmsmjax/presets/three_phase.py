@@ -6,6 +6,7 @@ injection, 311 V, 10 kHz, the 1000 r/min step with a 10 N m load at 0.2 s) are
 Drives: :func:`book_drive` (FOC, SVPWM) and :func:`hysteresis_drive` (hysteresis current control).
 """
 
+import inspect
 from pathlib import Path
 
 from pmsmjax.controllers.base import AbstractDAxisReference
@@ -100,24 +101,21 @@ def book_drive(
     )  # fmt: skip
 
 
+def _book_options(options) -> dict:
+    """The keyword options of :func:`book_drive`: `options` (as the variants of its cascade,
+    :func:`smc_drive` and :func:`pr_drive`, take them) and its defaults for the others; one it does not
+    take is a TypeError."""
+    bound = inspect.signature(book_drive).bind(**options)
+    bound.apply_defaults()
+    return {name: value for name, value in bound.arguments.items() if name != "motor"}
+
+
 def _foc_drive(
-    motor: PMSMParameters,
-    speed,
-    current,
-    *,
-    frame: str = "dq",
-    mechanics: str = "dynamic",
-    mode: str = "speed",
-    current_limit: float = BOOK_CURRENT_LIMIT,
-    u_dc: float = BOOK_DC_LINK,
-    Ts: float = BOOK_TS,
-    n_substeps: int = 10,
-    computation_delay: bool = True,
-    speed_divider: int = 1,
-    d_axis: AbstractDAxisReference | None = None,
-) -> Drive:
+    motor, speed, current, *, frame, mechanics, mode, current_limit, u_dc, Ts, n_substeps, computation_delay,
+    speed_divider, d_axis,
+) -> Drive:  # fmt: skip
     """The FOC drive of :func:`book_drive` with the given speed and current blocks (the variants of the
-    book's cascade: :func:`smc_drive`, :func:`pr_drive`)."""
+    book's cascade: :func:`smc_drive`, :func:`pr_drive`), SVPWM on the averaged bridge."""
     controller = FOC(
         model=motor,
         speed=speed,
@@ -127,15 +125,36 @@ def _foc_drive(
         mode=mode,
         speed_divider=speed_divider,
     )
+    return _averaged_drive(
+        motor, controller, SVPWM(), frame=frame, mechanics=mechanics, u_dc=u_dc, Ts=Ts,
+        n_substeps=n_substeps, computation_delay=computation_delay,
+    )  # fmt: skip
+
+
+def _averaged_drive(
+    motor, controller, modulator, *, frame, mechanics, u_dc, Ts, n_substeps, computation_delay, **parts
+) -> Drive:
+    """The three-phase drive of ``controller`` and ``modulator`` (None: the controller's switch states
+    drive the legs) on the averaged bridge at ``u_dc`` V, the machine ``motor`` in ``frame``; ``parts``:
+    the drive's other parts (its estimator)."""
     return Drive(
         machine=make_machine(motor, frame, mechanics),
         controller=controller,
-        modulator=SVPWM(),
+        modulator=modulator,
         bridge=AveragedBridge(u_dc),
         Ts=Ts,
         n_substeps=n_substeps,
         computation_delay=computation_delay,
+        **parts,
     )
+
+
+def _comparator_speed_divider(sample_period_s: float, speed_period_s: float) -> int:
+    """The comparator drives' speed loop runs on a whole number of samples: its period is this divider
+    times ``sample_period_s`` (both periods checked)."""
+    check_positive("sample_period_s (comparator sample period)", sample_period_s, "s")
+    check_positive("speed_period_s (speed-loop period)", speed_period_s, "s")
+    return max(1, round(speed_period_s / sample_period_s))
 
 
 def smc_drive(
@@ -157,17 +176,17 @@ def smc_drive(
     eps = 4.2e5 rad/s^3 (10 N m in 10 ms plus friction, 20 % margin), boundary 1.39e3 rad/s^2.
     """
     motor = book_motor() if motor is None else motor
-    kw = dict(drive_kw)
-    kw.pop("speed_bandwidth", None)  # the sliding-mode law replaces the PI speed loop
-    current_bandwidth = kw.pop("current_bandwidth", BOOK_CURRENT_BANDWIDTH)
+    kw = _book_options(drive_kw)
+    kw.pop("speed_bandwidth")  # the sliding-mode law replaces the PI speed loop
+    current_bandwidth = kw.pop("current_bandwidth")
     speed = smc_design(
         motor,
         time_constant_s,
         reaching_ratio=reaching_ratio,
         load_torque_rate_nm_s=load_torque_rate_nm_s,
-        current_limit_a=kw.get("current_limit", BOOK_CURRENT_LIMIT),
+        current_limit_a=kw["current_limit"],
         current_bandwidth_rad_s=current_bandwidth,
-        Ts=kw.get("Ts", BOOK_TS) * kw.get("speed_divider", 1),
+        Ts=kw["Ts"] * kw["speed_divider"],
         margin=margin,
         switching=switching,
     )
@@ -223,11 +242,8 @@ def hysteresis_drive(
       band: at 0.5 A and 10 us the RMS error grows from 0.23 A to 0.42 A and the peak from 0.77 A to
       1.3 A (book scenario, last 0.1 s).
     """
-    check_positive("sample_period_s (comparator sample period)", sample_period_s, "s")
-    check_positive("speed_period_s (speed-loop period)", speed_period_s, "s")
+    divider = _comparator_speed_divider(sample_period_s, speed_period_s)
     motor = book_motor() if motor is None else motor
-    # The speed loop runs on a whole number of samples: its period is divider * sample_period_s.
-    divider = max(1, round(speed_period_s / sample_period_s))
     controller = HysteresisCurrentControl(
         motor,
         band_a,
@@ -238,15 +254,10 @@ def hysteresis_drive(
         smooth_width_a=smooth_width_a,
         speed_bandwidth=speed_bandwidth,
     )
-    return Drive(
-        machine=make_machine(motor, frame, mechanics),
-        controller=controller,
-        modulator=None,
-        bridge=AveragedBridge(u_dc),
-        Ts=sample_period_s,
-        n_substeps=n_substeps,
-        computation_delay=computation_delay,
-    )
+    return _averaged_drive(
+        motor, controller, None, frame=frame, mechanics=mechanics, u_dc=u_dc, Ts=sample_period_s,
+        n_substeps=n_substeps, computation_delay=computation_delay,
+    )  # fmt: skip
 
 
 def field_weakening_drive(
@@ -298,11 +309,11 @@ def pr_drive(
     resonator damping ``w_c`` (rad/s) and the given static options.
     """
     motor = book_motor() if motor is None else motor
-    kw = dict(kw)
-    speed = speed_loop_active_damping(motor, kw.pop("speed_bandwidth", BOOK_SPEED_BANDWIDTH))
+    kw = _book_options(kw)
+    speed = speed_loop_active_damping(motor, kw.pop("speed_bandwidth"))
     current = pr_design(
         motor,
-        kw.pop("current_bandwidth", BOOK_CURRENT_BANDWIDTH),
+        kw.pop("current_bandwidth"),
         w_c,
         discretisation=discretisation,
         phase_lead=phase_lead,
@@ -390,10 +401,8 @@ def dtc_drive(
     - `computation_delay` = False: as for hysteresis current control, a state acts from the sample that
       chose it (FPGA-style comparators); ``True`` gives the DSP's one-sample delay.
     """
-    check_positive("sample_period_s (comparator sample period)", sample_period_s, "s")
-    check_positive("speed_period_s (speed-loop period)", speed_period_s, "s")
+    divider = _comparator_speed_divider(sample_period_s, speed_period_s)
     motor = book_motor() if motor is None else motor
-    divider = max(1, round(speed_period_s / sample_period_s))
     controller = SwitchingTableDTC(
         motor,
         torque_band_nm,
@@ -405,16 +414,11 @@ def dtc_drive(
         speed_divider=divider,
         speed_bandwidth=speed_bandwidth,
     )
-    return Drive(
-        machine=make_machine(motor, frame, mechanics),
-        controller=controller,
-        modulator=None,
-        bridge=AveragedBridge(u_dc),
-        Ts=sample_period_s,
-        n_substeps=n_substeps,
-        computation_delay=computation_delay,
+    return _averaged_drive(
+        motor, controller, None, frame=frame, mechanics=mechanics, u_dc=u_dc, Ts=sample_period_s,
+        n_substeps=n_substeps, computation_delay=computation_delay,
         estimator=StatorFluxObserver(motor, crossover_rad_s),
-    )
+    )  # fmt: skip
 
 
 def smc_dtc_drive(
@@ -466,13 +470,8 @@ def smc_dtc_drive(
         speed_bandwidth=speed_bandwidth,
         **gains,
     )
-    return Drive(
-        machine=make_machine(motor, frame, mechanics),
-        controller=controller,
-        modulator=SVPWM(),
-        bridge=AveragedBridge(u_dc),
-        Ts=Ts,
-        n_substeps=n_substeps,
-        computation_delay=computation_delay,
+    return _averaged_drive(
+        motor, controller, SVPWM(), frame=frame, mechanics=mechanics, u_dc=u_dc, Ts=Ts,
+        n_substeps=n_substeps, computation_delay=computation_delay,
         estimator=StatorFluxObserver(motor, crossover_rad_s),
-    )
+    )  # fmt: skip

@@ -20,6 +20,7 @@ The identification log (:func:`identification_log`) is the book drive's closed l
 
 from collections.abc import Mapping
 
+import equinox as eqx
 import numpy as np
 
 from pmsmjax._types import Array

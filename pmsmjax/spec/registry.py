@@ -30,52 +30,22 @@ MACHINES = {"three-phase": 3, "six-phase": 6, "five-phase": 5}
 THREE = ("three-phase",)
 MULTIPHASE = ("six-phase", "five-phase")
 
+#: The option groups the drive presets share: the plant (its model frame, mechanics, speed or torque
+#: mode); the speed loop, current limit and DC link; the control period and its sub-steps, delay and
+#: speed-loop divider.
+_PLANT = ("frame", "mechanics", "mode")
+_LIMITS = ("speed_bandwidth", "current_limit", "u_dc")
+_PERIOD = ("Ts", "n_substeps", "computation_delay", "speed_divider")
 #: What every three-phase FOC-type preset takes besides its method's own options.
-_FOC_DRIVE = (
-    "frame",
-    "mechanics",
-    "mode",
-    "current_bandwidth",
-    "speed_bandwidth",
-    "current_limit",
-    "u_dc",
-    "Ts",
-    "n_substeps",
-    "computation_delay",
-    "speed_divider",
-    "d_axis",
-)
-#: What the comparator drives (hysteresis, table DTC) take besides their own options.
-_COMPARATOR_DRIVE = (
-    "frame",
-    "mechanics",
-    "mode",
-    "speed_bandwidth",
-    "current_limit",
-    "u_dc",
-    "n_substeps",
-    "computation_delay",
-)
+_FOC_DRIVE = (*_PLANT, "current_bandwidth", *_LIMITS, *_PERIOD, "d_axis")
+#: What the comparator drives (hysteresis, table DTC) take besides their own options (their period is the
+#: comparator's sample).
+_COMPARATOR_DRIVE = (*_PLANT, *_LIMITS, "n_substeps", "computation_delay")
 #: What the six- and five-phase drives take.
 _MULTIPHASE_DRIVE = (
-    "control",
-    "pwm",
-    "bridge",
-    "frame",
-    "mechanics",
-    "mode",
-    "current_bandwidth",
-    "speed_bandwidth",
-    "current_limit",
-    "u_dc",
-    "Ts",
-    "n_substeps",
-    "computation_delay",
-    "speed_divider",
-    "w_c",
-    "dead_time",
+    "control", "pwm", "bridge", *_PLANT, "current_bandwidth", *_LIMITS, *_PERIOD, "w_c", "dead_time",
     "resistance_scale",
-)
+)  # fmt: skip
 _SMO = ("switching", "max_speed_rpm", "k_margin", "pole")
 _HFI = ("hf_voltage", "hf_frequency", "bandpass_q")
 
@@ -113,6 +83,20 @@ class Method:
 
 def _control(name, description, factory, options, group, machines=THREE, default=False):
     return Method("control", name, description, machines, factory, options, (), group, default)
+
+
+def _multiphase_control(machine, name, description, default=False):
+    """A control of the six- or five-phase ``machine``: its drive preset builds it."""
+    preset = machine.replace("-", "_")
+    factory = f"pmsmjax.presets.{preset}:{preset}_drive"
+    return _control(name, description, factory, _MULTIPHASE_DRIVE, "", (machine,), default)
+
+
+def _modulator(machine, name, description, factory, default=False):
+    """A modulator of the six- or five-phase ``machine``; a bare `factory` is an attribute of its preset."""
+    if ":" not in factory:
+        factory = f"pmsmjax.presets.{machine.replace('-', '_')}:{factory}"
+    return Method("modulator", name, description, (machine,), factory, default=default)
 
 
 def _estimator(name, description, factory, options, group, fixed=()):
@@ -178,95 +162,58 @@ REGISTRY: tuple[Method, ...] = (
             "flux_bandwidth",
             "flux_ref_wb",
             "crossover_rad_s",
-            "frame",
-            "mechanics",
-            "mode",
-            "speed_bandwidth",
-            "current_limit",
-            "u_dc",
-            "Ts",
-            "n_substeps",
-            "computation_delay",
-            "speed_divider",
+            *_PLANT,
+            *_LIMITS,
+            *_PERIOD,
         ),
         "direct",
     ),  # fmt: skip
     # Six-phase controls (the book, ch. 7-9).
-    _control(
+    _multiphase_control(
+        "six-phase",
         "vsd",
         "VSD: dq PIs and z1-z2 PIs (counter-rotating frame), PI speed loop (ch. 9)",
-        "pmsmjax.presets.six_phase:six_phase_drive",
-        _MULTIPHASE_DRIVE,
-        "",
-        ("six-phase",),
-        True,
-    ),  # fmt: skip
-    _control(
+        default=True,
+    ),
+    _multiphase_control(
+        "six-phase",
         "double-dq",
         "double dq: four PIs with cross-coupling compensation, PI speed loop (ch. 9)",
-        "pmsmjax.presets.six_phase:six_phase_drive",
-        _MULTIPHASE_DRIVE,
-        "",
-        ("six-phase",),
-    ),  # fmt: skip
-    _control(
-        "conventional",
-        "dq PIs only, z1-z2 voltage zero (open loop), PI speed loop (ch. 9)",
-        "pmsmjax.presets.six_phase:six_phase_drive",
-        _MULTIPHASE_DRIVE,
-        "",
-        ("six-phase",),
-    ),  # fmt: skip
-    _control(
-        "pr",
-        "stationary-frame PR on alpha-beta and z1-z2, PI speed loop (ch. 9)",
-        "pmsmjax.presets.six_phase:six_phase_drive",
-        _MULTIPHASE_DRIVE,
-        "",
-        ("six-phase",),
-    ),  # fmt: skip
+    ),
+    _multiphase_control(
+        "six-phase", "conventional", "dq PIs only, z1-z2 voltage zero (open loop), PI speed loop (ch. 9)"
+    ),
+    _multiphase_control(
+        "six-phase", "pr", "stationary-frame PR on alpha-beta and z1-z2, PI speed loop (ch. 9)"
+    ),
     # Five-phase controls (the book, ch. 10).
-    _control(
+    _multiphase_control(
+        "five-phase",
         "vsd",
         "i_d = 0 vector control: dq PIs and x-y PIs (3 theta_e frame), PI speed loop (ch. 10)",
-        "pmsmjax.presets.five_phase:five_phase_drive",
-        _MULTIPHASE_DRIVE,
-        "",
-        ("five-phase",),
-        True,
-    ),  # fmt: skip
-    _control(
-        "conventional",
-        "dq PIs only, x-y voltage zero (open loop), PI speed loop (ch. 10)",
-        "pmsmjax.presets.five_phase:five_phase_drive",
-        _MULTIPHASE_DRIVE,
-        "",
-        ("five-phase",),
-    ),  # fmt: skip
-    _control(
+        default=True,
+    ),
+    _multiphase_control(
+        "five-phase", "conventional", "dq PIs only, x-y voltage zero (open loop), PI speed loop (ch. 10)"
+    ),
+    _multiphase_control(
+        "five-phase",
         "pr",
         "stationary-frame PR on alpha-beta and x-y (resonant at w_e: phase unbalance), PI speed loop",
-        "pmsmjax.presets.five_phase:five_phase_drive",
-        _MULTIPHASE_DRIVE,
-        "",
-        ("five-phase",),
-    ),  # fmt: skip
-    # Estimators: the chapter 5 observers, the chapter 6 HF injection, the whole-speed-range hybrid.
-    _estimator(
-        "smo",
-        "classic SMO in alpha-beta, sigmoid switching, back-EMF low-pass, arctan + exact lag compensation",
-        "pmsmjax.estimators.smo:smo_design",
-        (*_SMO, "omega_c", "speed_bandwidth", "pll_bandwidth", "emf_floor_fraction", "model"),
-        "observer",
-        (("angle", "arctan"),),
     ),
-    _estimator(
-        "smo-pll",
-        "classic SMO in alpha-beta, sigmoid switching, back-EMF low-pass, PLL + exact lag compensation",
-        "pmsmjax.estimators.smo:smo_design",
-        (*_SMO, "omega_c", "speed_bandwidth", "pll_bandwidth", "emf_floor_fraction", "model"),
-        "observer",
-        (("angle", "pll"),),
+    # Estimators: the chapter 5 observers, the chapter 6 HF injection, the whole-speed-range hybrid.
+    # The classic SMO's design rule with its two angle extractions: smo (arctan), smo-pll.
+    *(
+        _estimator(
+            name,
+            f"classic SMO in alpha-beta, sigmoid switching, back-EMF low-pass, {angle_text} + exact lag "
+            "compensation",
+            "pmsmjax.estimators.smo:smo_design",
+            (*_SMO, "omega_c", "speed_bandwidth", "pll_bandwidth", "emf_floor_fraction", "model"),
+            "observer",
+            (("angle", angle),),
+        )
+        for name, angle, angle_text in (("smo", "arctan", "arctan"), ("smo-pll", "pll", "PLL"))
     ),
     _estimator(
         "adaptive-smo",
@@ -346,64 +293,31 @@ REGISTRY: tuple[Method, ...] = (
         "hybrid",
     ),  # fmt: skip
     # Multi-phase modulators (the book, ch. 8 and 10).
-    Method(
-        "modulator",
+    _modulator(
+        "six-phase",
         "four-vector",
         "four-vector SVPWM (z1-z2 volt-seconds zero)",
-        ("six-phase",),
-        "pmsmjax.presets.six_phase:_four_vector",
+        "_four_vector",
         default=True,
-    ),  # fmt: skip
-    Method(
-        "modulator",
-        "two-vector",
-        "two-vector SVPWM (largest vectors only)",
-        ("six-phase",),
-        "pmsmjax.presets.six_phase:_two_vector",
-    ),  # fmt: skip
-    Method(
-        "modulator",
+    ),
+    _modulator("six-phase", "two-vector", "two-vector SVPWM (largest vectors only)", "_two_vector"),
+    _modulator(
+        "six-phase",
         "decoupled",
         "two SVPWMs, one per three-phase set",
-        ("six-phase",),
         "pmsmjax.inverters.decoupled_svpwm:DecoupledSVPWM",
-    ),  # fmt: skip
-    Method(
-        "modulator",
-        "double-zs",
-        "carrier PWM with a zero sequence per set",
-        ("six-phase",),
-        "pmsmjax.presets.six_phase:_double_zs",
-    ),  # fmt: skip
-    Method(
-        "modulator",
+    ),
+    _modulator("six-phase", "double-zs", "carrier PWM with a zero sequence per set", "_double_zs"),
+    _modulator(
+        "five-phase",
         "near-four-vector",
         "near-four-vector SVPWM (x-y volt-seconds zero)",
-        ("five-phase",),
-        "pmsmjax.presets.five_phase:_nfv",
+        "_nfv",
         default=True,
-    ),  # fmt: skip
-    Method(
-        "modulator",
-        "carrier",
-        "carrier PWM with the min-max zero sequence",
-        ("five-phase",),
-        "pmsmjax.presets.five_phase:_carrier",
-    ),  # fmt: skip
-    Method(
-        "modulator",
-        "sinusoidal",
-        "sinusoidal carrier PWM",
-        ("five-phase",),
-        "pmsmjax.presets.five_phase:_sinusoidal",
-    ),  # fmt: skip
-    Method(
-        "modulator",
-        "large-vector",
-        "large vectors only (x-y uncontrolled)",
-        ("five-phase",),
-        "pmsmjax.presets.five_phase:_large",
-    ),  # fmt: skip
+    ),
+    _modulator("five-phase", "carrier", "carrier PWM with the min-max zero sequence", "_carrier"),
+    _modulator("five-phase", "sinusoidal", "sinusoidal carrier PWM", "_sinusoidal"),
+    _modulator("five-phase", "large-vector", "large vectors only (x-y uncontrolled)", "_large"),
     # Machine model frames.
     Method("frame", "dq", "rotor frame", ("three-phase", "six-phase", "five-phase"), "", default=True),
     Method("frame", "alpha_beta", "stationary frame", THREE, ""),
