@@ -102,6 +102,9 @@ class DriveSpec:
     derived: dict
     notes: tuple = ()
     flux_map: object = dataclasses.field(default=None, compare=False, repr=False)
+    #: ``{table: keys}`` in the order the file gave them and the derivations added them: the order
+    #: summary.json lists them in (a table's own iteration is its field order).
+    key_order: dict | None = dataclasses.field(default=None, compare=False, repr=False)
 
     @property
     def n_phases(self) -> int:
@@ -130,10 +133,16 @@ class DriveSpec:
 
     def summary(self) -> dict:
         """The drive as summary.json reports it (every table, what was derived and how)."""
+        order = self.key_order or {}
+
+        def table(name):
+            values = getattr(self, name)
+            return {key: values[key] for key in order.get(name, values)}
+
         return {
             "source": self.source,
-            **{t: dict(getattr(self, t)) for t in ("motor", "ratings", "inverter", "sensor", "tolerances")},
-            **{t: dict(getattr(self, t)) for t in ("control", "scenario", "tuning")},
+            **{t: table(t) for t in ("motor", "ratings", "inverter", "sensor", "tolerances")},
+            **{t: table(t) for t in ("control", "scenario", "tuning")},
             "derived": dict(self.derived),
             "notes": list(self.notes),
         }
@@ -249,8 +258,13 @@ def complete(
                 f"{where}: [tolerances] {key} = {plain(value)} is a relative half-width and must be below 1 "
                 f"(0.05 for +-5 %); a spread of {plain(100 * value)} % would reach zero or below."
             )
+    tables = dict(
+        motor=motor, ratings=ratings, inverter=inverter, sensor=sensor, tolerances=tolerances,
+        control=control, scenario=scenario, tuning=tuning,
+    )  # fmt: skip
     return DriveSpec(
         source, MotorTable.of(motor), RatingsTable.of(ratings), InverterTable.of(inverter),
         SensorTable.of(sensor), ToleranceTable.of(tolerances), ControlTable.of(control),
         ScenarioTable.of(scenario), TuningTable.of(tuning), derived, tuple(notes), flux_map,
+        {name: tuple(values) for name, values in tables.items()},
     )  # fmt: skip

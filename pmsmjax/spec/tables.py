@@ -30,7 +30,7 @@ class Table(Mapping):
     mapping of the same items, as a dict is)."""
 
     def __getitem__(self, key: str):
-        value = getattr(self, key, None) if key in self._names() else None
+        value = getattr(self, key) if key in self._names() else None
         if value is None:
             raise KeyError(key)
         return value
