@@ -74,6 +74,8 @@ def namer(where: str, flags: Mapping[str, str], overrides: Mapping[str, float]):
 
 
 def complete_inverter(inverter: dict, derived: dict, name_of) -> None:
+    """Refuse an implausible DC link, switching or control frequency, dead time or device drop (a unit
+    slip), and fill in the inverter's defaults, each noted in ``derived``."""
     u_dc = inverter.get("u_dc_v")
     if u_dc is not None and not DC_LINK_RANGE_V[0] <= u_dc <= DC_LINK_RANGE_V[1]:
         hint = f": it looks like kV: write {plain(u_dc * 1e3)}" if u_dc * 1e3 <= DC_LINK_RANGE_V[1] else ""
@@ -128,6 +130,8 @@ def complete_inverter(inverter: dict, derived: dict, name_of) -> None:
 
 
 def complete_ratings(motor: dict, ratings: dict, inverter: dict, derived: dict, name_of) -> None:
+    """Refuse contradicting ratings and fill in those the file leaves out (rated current and torque
+    from each other by MTPA, the peak current, the DC link, the base speed), each noted in ``derived``."""
     speed = ratings.get("rated_speed_rpm")
     if speed is not None and speed > MAX_SPEED_RPM:
         raise ParameterError(
@@ -241,6 +245,8 @@ def check_rated_point(motor: dict, ratings: dict, inverter: dict, name_of) -> li
 
 
 def complete_control(motor: dict, ratings: dict, control: dict, Ts: float, derived: dict, where: str) -> None:
+    """Refuse loop bandwidths that leave no phase margin or no cascade, and fill in the design rules'
+    bandwidths and I/f start where the file leaves them out, each noted in ``derived``."""
     given = control.get("current_bandwidth_rad_s")
     unstable = rules.current_bandwidth_rule(Ts, phase_margin_deg=0.0)
     if given is not None and given >= unstable:

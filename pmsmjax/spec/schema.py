@@ -112,10 +112,12 @@ def check_keys(table: str, values: dict, where: str) -> None:
 
 
 def is_number(v) -> bool:
+    """Whether ``v`` is an int or a float (not a bool)."""
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
 def positive_number(value, key: str, name: str, unit: str = "") -> float:
+    """``value`` as a float when it is finite and above 0, else a one-line refusal naming ``name``."""
     unit = f" {unit}" if unit else ""
     if not is_number(value):
         raise ParameterError(f"{name} must be a number{(' of' + unit) if unit else ''}, got {value!r}.")
@@ -143,6 +145,7 @@ def numbers(values: dict, table: str, where: str, positive=(), signed=False, zer
 
 
 def ranges(values: dict, where: str) -> dict:
+    """The ``[tuning]`` table's ``[low, high]`` pairs, checked (``0 <= low <= high``, durations > 0)."""
     out = {}
     for key, v in values.items():
         name = f"{where}: [tuning] {key}"
@@ -174,6 +177,8 @@ def flux_map_name(values: dict, where: str) -> str:
 
 
 def read_motor(values: dict, where: str, n_phases: int | None) -> dict:
+    """The ``[motor]`` table checked for the machine ``n_phases`` (None: any): the fields it needs, their
+    types and signs; SI floats, ``pole_pairs`` an int, ``n_phases`` only for a multi-phase motor."""
     trust = values.get("trust_units", False)
     if not isinstance(trust, bool):
         raise ParameterError(f"{where}: [motor] trust_units must be true or false, got {trust!r}.")
@@ -225,6 +230,7 @@ def read_motor(values: dict, where: str, n_phases: int | None) -> dict:
 
 
 def read_sensor(values: dict, where: str) -> dict:
+    """The ``[sensor]`` table checked: ``kind``, and an encoder's ``lines`` and ``delay_s``."""
     kind = values.get("kind", "exact")
     if kind not in SENSOR_KINDS:
         raise ParameterError(f"{where}: [sensor] kind = {kind!r}: give one of {', '.join(SENSOR_KINDS)}.")

@@ -108,6 +108,8 @@ def read_canonical(path, columns: dict | None, unused: list | None = None) -> di
 
 
 def pick_set(cols, sets, what, source) -> str:
+    """The first of ``sets`` (``{name: column names}``) whose columns ``cols`` all has; else a one-line
+    refusal naming ``what`` is missing from ``source``."""
     complete = [k for k, names in sets.items() if all(n in cols for n in names)]
     if complete:
         return complete[0]
@@ -132,6 +134,7 @@ def pick_set(cols, sets, what, source) -> str:
 
 
 def apply_units(c: dict, units: dict, source: str) -> None:
+    """Convert the columns of ``c`` in place to SI by ``units`` (``{column or group: unit}``)."""
     for key, unit in units.items():
         group = key if key in UNITS else None
         if key in ("current", "voltage"):
@@ -210,6 +213,8 @@ def check_speed_against_angle(c: dict, pole_pairs: int, source: str) -> None:
 
 
 def to_dq64(c: dict, names, frame: str, th: np.ndarray, u_dc) -> np.ndarray:
+    """The ``(N, 2)`` float64 dq pair of columns ``names`` given in ``frame`` (dq, alpha-beta or phases),
+    turned with the angle ``th`` (rad)."""
     if frame == "dq":
         return np.stack([c[names[0]], c[names[1]]], axis=1)
     if frame == "alpha_beta":
