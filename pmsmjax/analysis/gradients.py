@@ -26,13 +26,15 @@ def value_and_grad(
 ) -> tuple[jax.Array, object]:
     """``fn(params, *args, **kwargs)`` and its gradient with respect to the array leaves of ``params``.
 
-    **Arguments:**
+    Args:
+        fn: Returns a scalar.
+        params: A pytree (e.g. a Drive, or a dict of arrays); non-array leaves are held fixed.
+        *args: Further positional arguments of ``fn``.
+        mode: ``"forward"``, ``"reverse"`` or ``"auto"`` (by the number of scalar parameters).
+        **kwargs: Further keyword arguments of ``fn``.
 
-    - `fn`: returns a scalar.
-    - `params`: a pytree (e.g. a Drive, or a dict of arrays); non-array leaves are held fixed.
-    - `mode`: ``"forward"``, ``"reverse"`` or ``"auto"`` (by the number of scalar parameters).
-
-    **Returns:** ``(value, grads)`` with ``grads`` shaped like ``params`` (None at non-array leaves).
+    Returns:
+        ``(value, grads)`` with ``grads`` shaped like ``params`` (None at non-array leaves).
     """
     dynamic, static = eqx.partition(params, eqx.is_inexact_array)
     f = lambda p: fn(eqx.combine(p, static), *args, **kwargs)

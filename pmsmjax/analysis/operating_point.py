@@ -52,7 +52,11 @@ REPORTED_SHARE = (0.2, 0.5)
 
 
 def motor_dict(motor) -> dict:
-    """Plain floats ``R, L_d, L_q, psi_f, J, B, pole_pairs`` of a motor (a mapping or PMSMParameters)."""
+    """Plain floats ``R, L_d, L_q, psi_f, J, B, pole_pairs`` of a motor.
+
+    Args:
+        motor: A mapping or :class:`~pmsmjax.machines.motor.PMSMParameters`.
+    """
     get = (lambda k: motor[k]) if isinstance(motor, Mapping) else (lambda k: getattr(motor, k))
     out = {k: float(np.asarray(get(k))) for k in ("R", "L_d", "L_q", "psi_f", "J", "B")}
     out["pole_pairs"] = int(get("pole_pairs"))
@@ -63,9 +67,18 @@ def motor_dict(motor) -> dict:
 
 
 def steady_point(motor: Mapping, speed_rad_s: float, load_nm: float, i_d: float = 0.0) -> dict:
-    """Steady state at ``speed_rad_s`` (mechanical) under ``load_nm`` with ``i_d`` (A): ``{"i_q": A,
-    "current": |i_dq| A, "voltage": |u_dq| V}`` (peak phase values). ``current`` is inf when the flux
-    ``psi_f + (L_d - L_q) i_d`` makes no torque."""
+    """Steady state at a speed under a load with a given d current (peak phase values).
+
+    Args:
+        motor: The motor (a mapping of :func:`motor_dict`'s names).
+        speed_rad_s: Mechanical speed, rad/s.
+        load_nm: Load torque, N m.
+        i_d: d current, A.
+
+    Returns:
+        ``{"i_q": A, "current": |i_dq| A, "voltage": |u_dq| V}``; ``current`` is inf when the flux
+        ``psi_f + (L_d - L_q) i_d`` makes no torque.
+    """
     p = motor["pole_pairs"]
     torque = load_nm + motor["B"] * speed_rad_s
     flux = motor["psi_f"] + (motor["L_d"] - motor["L_q"]) * i_d
@@ -79,8 +92,17 @@ def steady_point(motor: Mapping, speed_rad_s: float, load_nm: float, i_d: float 
 
 
 def top_speed_rpm(motor: Mapping, u_limit_v: float, load_nm: float, direction: float = 1.0) -> float:
-    """Largest speed (r/min, in the sign of ``direction``) whose steady state with i_d = 0 at ``load_nm``
-    needs at most ``u_limit_v``; 0 when even standstill needs more."""
+    """Largest speed whose steady state with i_d = 0 at ``load_nm`` needs at most ``u_limit_v``.
+
+    Args:
+        motor: The motor (a mapping of :func:`motor_dict`'s names).
+        u_limit_v: Voltage limit (peak phase), V.
+        load_nm: Load torque, N m.
+        direction: Sign of the speed.
+
+    Returns:
+        The speed, r/min, in the sign of ``direction``; 0 when even standstill needs more.
+    """
     sign = 1.0 if direction >= 0 else -1.0
     need = lambda w: steady_point(motor, sign * w, load_nm)["voltage"]
     if need(0.0) > u_limit_v:
@@ -102,10 +124,21 @@ def reachable(
     current_limit_a: float,
     field_weakening: bool = False,
 ) -> dict:
-    """Whether the steady point (``speed_rpm``, ``load_nm``) fits the limits. Returns ``{"ok", "i_d",
-    "current", "voltage", "limit"}``: ``limit`` is ``"current"`` or ``"voltage"`` when not ok, and the
-    figures are those of the best i_d tried (0, or with field weakening the one needing least voltage
-    within the current limit)."""
+    """Whether the steady point (``speed_rpm``, ``load_nm``) fits the limits.
+
+    Args:
+        motor: The motor (a mapping of :func:`motor_dict`'s names).
+        speed_rpm: Speed, r/min.
+        load_nm: Load torque, N m.
+        u_limit_v: Voltage limit (peak phase), V.
+        current_limit_a: Current limit (peak phase), A.
+        field_weakening: Allow a negative i_d to lower the voltage.
+
+    Returns:
+        ``{"ok", "i_d", "current", "voltage", "limit"}``: ``limit`` is ``"current"`` or ``"voltage"`` when
+        not ok, and the figures are those of the best i_d (0, or with field weakening the one needing least
+        voltage within the current limit).
+    """
     w = speed_rpm * RPM
     candidates = [0.0]
     if field_weakening:
@@ -140,7 +173,18 @@ def reachable(
 def field_weakening_top_speed_rpm(
     motor: Mapping, u_limit_v: float, current_limit_a: float, load_nm: float, direction: float = 1.0
 ) -> float:
-    """Largest speed (r/min, sign of ``direction``) :func:`reachable` with field weakening at ``load_nm``."""
+    """Largest speed :func:`reachable` with field weakening at ``load_nm``.
+
+    Args:
+        motor: The motor (a mapping of :func:`motor_dict`'s names).
+        u_limit_v: Voltage limit (peak phase), V.
+        current_limit_a: Current limit (peak phase), A.
+        load_nm: Load torque, N m.
+        direction: Sign of the speed.
+
+    Returns:
+        The speed, r/min, in the sign of ``direction``.
+    """
     sign = 1.0 if direction >= 0 else -1.0
     ok = lambda n: reachable(motor, sign * n, load_nm, u_limit_v, current_limit_a, True)["ok"]
     if not ok(0.0):
@@ -155,8 +199,16 @@ def field_weakening_top_speed_rpm(
 
 
 def max_load_nm(motor: Mapping, current_limit_a: float) -> float:
-    """Largest load torque (N m) i_d = 0 control holds at standstill within the current limit (torque
-    factor n/2: 1.5 for three phases, from the dict's ``n_phases`` otherwise)."""
+    """Largest load torque i_d = 0 control holds at standstill within the current limit (torque factor
+    n/2: 1.5 for three phases, from the dict's ``n_phases`` otherwise).
+
+    Args:
+        motor: The motor (a mapping of :func:`motor_dict`'s names).
+        current_limit_a: Current limit (peak phase), A.
+
+    Returns:
+        The torque, N m.
+    """
     return 0.5 * motor.get("n_phases", 3) * motor["pole_pairs"] * motor["psi_f"] * current_limit_a
 
 
@@ -176,14 +228,25 @@ def run_flags(
     tolerance_rpm: float = 5.0,
 ) -> dict:
     """How much of a finished speed-step run sat at the voltage and current limits, and whether the speed
-    reached its reference (the mean over the last 10 % before the load step and of the run, within
-    ``tolerance_pct`` % of the reference or ``tolerance_rpm``, whichever is larger).
+    reached its reference.
 
-    `flags`: the command's names for ``speed``, ``load``, ``duration``, ``field_weakening``,
-    ``current_limit`` and ``u_dc`` (``{"speed": "--speed-rpm", ...}``), used in the remedies; a missing
-    one is left out.
-    Returns the JSON-able ``operating_point`` entry: shares, reached flags and ``flags`` (a list of
-    ``{"flag", "cause", "remedy"}``; empty for a run that did what was asked).
+    The speed counts as reached when its mean over the last 10 % before the load step and of the run is
+    within ``tolerance_pct`` % of the reference or ``tolerance_rpm``, whichever is larger.
+
+    Args:
+        trace: The finished run.
+        drive: The drive it ran.
+        load_time_s: Time of the load step, s, or ``None``.
+        field_weakening: Whether the drive weakens the field.
+        flags: The command's names for ``speed``, ``load``, ``duration``, ``field_weakening``,
+            ``current_limit`` and ``u_dc`` (``{"speed": "--speed-rpm", ...}``), used in the remedies; a
+            missing one is left out.
+        tolerance_pct: Speed tolerance, percent of the reference.
+        tolerance_rpm: Speed tolerance, r/min.
+
+    Returns:
+        The JSON-able ``operating_point`` entry: shares, reached flags and ``flags`` (a list of
+        ``{"flag", "cause", "remedy"}``; empty for a run that did what was asked).
     """
     names = dict(flags or {})
     t = np.asarray(trace.t, dtype=float)
@@ -353,9 +416,25 @@ def refuse_unreachable(
     u_dc_flag: str | None = None,
     current_limit_flag: str | None = None,
 ) -> None:
-    """Raise :class:`ParameterError` when (``speed_rpm``, ``load_nm``) is not a steady point of an i_d = 0
-    drive within ``u_limit_v`` and ``current_limit_a`` (a comparison there would describe saturation);
-    ``u_dc_flag``, ``current_limit_flag``: the knobs that raise those limits, named in the fix."""
+    """Refuse a point that is not a steady point of an i_d = 0 drive within the limits (a comparison
+    there would describe saturation).
+
+    Args:
+        motor: The motor (a mapping of :func:`motor_dict`'s names).
+        speed_rpm: Speed, r/min.
+        load_nm: Load torque, N m.
+        u_dc_v: DC-link voltage, V.
+        u_limit_v: Voltage limit (peak phase), V.
+        current_limit_a: Current limit (peak phase), A.
+        what: What is being run, for the message.
+        speed_flag: The command's speed flag.
+        load_flag: The command's load flag.
+        u_dc_flag: The knob that raises the voltage limit, named in the fix.
+        current_limit_flag: The knob that raises the current limit, named in the fix.
+
+    Raises:
+        ParameterError: When the point is out of reach.
+    """
     r = reachable(motor, speed_rpm, load_nm, u_limit_v, current_limit_a)
     if r["ok"]:
         return

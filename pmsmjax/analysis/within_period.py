@@ -40,14 +40,19 @@ def _dense_averaged(drive: Drive, states: MachineState, duties, load, n_samples:
 
 
 def dense_window(drive: Drive, window: Trace, n_samples: int):
-    """Sample each recorded period of ``window`` (an undecimated slice of a trace of ``drive``) at
-    ``t_k + j Ts / n_samples``, j = 1..n_samples.
+    """Sample each recorded period of a window at ``t_k + j Ts / n_samples``, j = 1..n_samples.
 
-    **Returns** ``(states, t_u, u_ab)``: a :class:`MachineState` of ``(N, n_samples)`` leaves; the bounds
-    ``(K+1,)`` s (from the window start) and ``(K, 2)`` stator voltages V of the piecewise-constant
-    applied voltage (one interval per period for the averaged bridge, the switching segments otherwise;
-    ``(K, 2 n_planes)`` stationary VSD voltages for a multi-phase machine, whose period-start states are
-    rebuilt from the recorded phase currents).
+    Args:
+        drive: The drive the trace was simulated with.
+        window: An undecimated slice of a trace of ``drive``.
+        n_samples: Samples per period.
+
+    Returns:
+        ``(states, t_u, u_ab)``: a :class:`MachineState` of ``(N, n_samples)`` leaves; the bounds ``(K+1,)``
+        s (from the window start) and ``(K, 2)`` stator voltages V of the piecewise-constant applied voltage
+        (one interval per period for the averaged bridge, the switching segments otherwise;
+        ``(K, 2 n_planes)`` stationary VSD voltages for a multi-phase machine, whose period-start states
+        are rebuilt from the recorded phase currents).
     """
     machine, Ts = drive.machine, drive.Ts
     n = window.t.shape[0]

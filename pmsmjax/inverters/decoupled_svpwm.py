@@ -32,7 +32,11 @@ __all__ = ["DecoupledSVPWM"]
 
 class DecoupledSVPWM(AbstractModulator):
     """Two three-phase SVPWMs, one per set (module docstring). Reference ``(2,)`` or ``(4,)`` V; linear to
-    ``U_dc/sqrt(3)`` (peak, V)."""
+    ``U_dc/sqrt(3)`` (peak, V).
+
+    Args:
+        name: The modulator's name in tables and figures (static).
+    """
 
     n_phases: ClassVar[int] = 6
     name: str = eqx.field(static=True, default="decoupled")

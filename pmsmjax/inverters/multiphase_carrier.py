@@ -41,8 +41,13 @@ Injection = Literal["min-max", "none"]
 
 
 class ZeroSequencePWM(AbstractModulator):
-    """Carrier PWM with one zero sequence per star (module docstring). `layout` (static, default five
-    phases); `injection` (static): ``"min-max"`` or ``"none"``."""
+    """Carrier PWM with one zero sequence per star (module docstring).
+
+    Args:
+        layout: The winding (static, default five phases).
+        injection: ``"min-max"`` or ``"none"`` (static).
+        name: The modulator's name in tables and figures (static).
+    """
 
     layout: PhaseLayout = eqx.field(static=True, default=FIVE_PHASE)
     injection: Injection = eqx.field(static=True, default="min-max")
@@ -71,7 +76,14 @@ class ZeroSequencePWM(AbstractModulator):
         return self.layout.n
 
     def phase_references(self, u_ref: Array) -> Array:
-        """``(n,)`` phase references, V, of a ``(2,)`` or full VSD reference."""
+        """Phase references of a reference voltage.
+
+        Args:
+            u_ref: ``(2,)`` alpha-beta or full VSD reference, V.
+
+        Returns:
+            ``(n,)`` phase references, V.
+        """
         return inverse_vsd(padded_reference(u_ref, self.layout.n_active), self.layout)
 
     def duties(self, u_ref, u_dc):

@@ -60,10 +60,13 @@ __all__ = ["SpaceVectors", "large_magnitude", "space_vectors"]
 class SpaceVectors(NamedTuple):
     """Switching states of a layout (read-only NumPy float64).
 
-    `states` ``(2^n, n)`` leg states; `vectors` ``(2^n, 2 n_planes)`` their VSD voltages per unit of
-    ``U_dc``; `large`, `second` ``(K,)`` indices of the L states and of the next group at the same
-    directions (``K`` sectors); `bisectors` ``(K, 2)`` unit vectors halfway between L_k and L_k+1;
-    `large_magnitude` ``|L|`` per unit (:func:`large_magnitude`).
+    Attributes:
+        states: ``(2^n, n)`` leg states.
+        vectors: ``(2^n, 2 n_planes)`` their VSD voltages per unit of ``U_dc``.
+        large: ``(K,)`` indices of the L states (``K`` sectors).
+        second: ``(K,)`` indices of the next group at the same directions.
+        bisectors: ``(K, 2)`` unit vectors halfway between L_k and L_k+1.
+        large_magnitude: ``|L|`` per unit (:func:`large_magnitude`).
     """
 
     states: np.ndarray
@@ -81,6 +84,10 @@ def large_magnitude(layout: PhaseLayout, largest_in_table: float) -> float:
     frame, vertices every 60 deg from its first phase axis), the two vertices ``gap`` apart, the smallest
     angle between the two stars' vertex directions; the alpha-beta vector is their mean,
     ``(2/3) cos(gap/2)`` (six phases: ``(2/3) cos 15 deg``, which the table's magnitudes give to 1 ulp).
+
+    Args:
+        layout: The winding layout.
+        largest_in_table: The largest magnitude in the layout's table, per unit.
     """
     if len(layout.neutrals) == 2 and all(len(g) == 3 for g in layout.neutrals):
         first, other = (layout.angles[g[0]] for g in layout.neutrals)
@@ -92,7 +99,11 @@ def large_magnitude(layout: PhaseLayout, largest_in_table: float) -> float:
 
 @functools.lru_cache(maxsize=8)
 def space_vectors(layout: PhaseLayout) -> SpaceVectors:
-    """The switching-state tables of ``layout`` (module docstring)."""
+    """The switching-state tables of ``layout`` (module docstring).
+
+    Args:
+        layout: The winding layout.
+    """
     layout.check()
     n = layout.n
     if n > 12:

@@ -42,7 +42,11 @@ def _duties(u_abc: Array, u_0: Array, u_dc: Array) -> Array:
 
 
 class SinusoidalPWM(AbstractModulator):
-    """Regular-sampled sinusoidal PWM: no zero sequence; linear up to ``U_dc/2`` (phase peak, V)."""
+    """Regular-sampled sinusoidal PWM: no zero sequence; linear up to ``U_dc/2`` (phase peak, V).
+
+    Args:
+        name: The modulator's name in tables and figures (static).
+    """
 
     name: str = eqx.field(static=True, default="sinusoidal")
 
@@ -54,10 +58,16 @@ class SinusoidalPWM(AbstractModulator):
 
 
 def third_harmonic(u_ab: Array) -> Array:
-    """Zero-sequence voltage (V) ``-(|u|/6) cos(3 theta)`` of a ``(2,)`` reference, 0 at the origin.
+    """Zero-sequence voltage ``-(|u|/6) cos(3 theta)`` of a reference, 0 at the origin.
 
-    Double-where: the division by ``|u|^2`` is only evaluated away from zero, so gradients stay finite
-    there (the value tends to 0 as ``|u|``, it is continuous).
+    Double-where: the division by ``|u|^2`` is only evaluated away from zero, so gradients stay finite there
+    (the value tends to 0 as ``|u|``, it is continuous).
+
+    Args:
+        u_ab: ``(2,)`` alpha-beta reference, V.
+
+    Returns:
+        The zero-sequence voltage, V.
     """
     u_a, u_b = u_ab[0], u_ab[1]
     mag2 = u_a * u_a + u_b * u_b
@@ -67,7 +77,11 @@ def third_harmonic(u_ab: Array) -> Array:
 
 
 class ThirdHarmonicPWM(AbstractModulator):
-    """Sinusoidal PWM with 1/6 third-harmonic injection; linear up to ``U_dc/sqrt3`` (phase peak, V)."""
+    """Sinusoidal PWM with 1/6 third-harmonic injection; linear up to ``U_dc/sqrt3`` (phase peak, V).
+
+    Args:
+        name: The modulator's name in tables and figures (static).
+    """
 
     name: str = eqx.field(static=True, default="third_harmonic")
 
@@ -79,7 +93,11 @@ class ThirdHarmonicPWM(AbstractModulator):
 
 
 class MinMaxPWM(AbstractModulator):
-    """Min-max zero-sequence injection (carrier-based SVPWM); linear up to ``U_dc/sqrt3`` (V)."""
+    """Min-max zero-sequence injection (carrier-based SVPWM); linear up to ``U_dc/sqrt3`` (V).
+
+    Args:
+        name: The modulator's name in tables and figures (static).
+    """
 
     name: str = eqx.field(static=True, default="min_max")
 

@@ -49,13 +49,26 @@ CURRENT_LIMIT_SHARE = 0.02
 
 
 def smooth_sign(current: Array, current_scale: Array) -> Array:
-    """``tanh(i / i_eps)``: the sign of ``current`` (A, any shape), smoothed over ``current_scale`` (A)."""
+    """``tanh(i / i_eps)``: the sign of ``current``, smoothed over ``current_scale``.
+
+    Args:
+        current: Current, A (any shape).
+        current_scale: ``i_eps``, A.
+    """
     return jnp.tanh(current / current_scale)
 
 
 def check_dead_time(dead_time, Ts: float, name: str) -> None:
-    """Raise :class:`~pmsmjax.checks.validation.ParameterError` unless ``dead_time`` (s, any shape) is
-    below half the PWM period ``Ts`` (s): both edges of one pulse must fit. `name`: how to call it."""
+    """Refuse a dead time of half the PWM period or more: both edges of one pulse must fit.
+
+    Args:
+        dead_time: Dead time, s (any shape).
+        Ts: PWM period, s.
+        name: How to call the dead time in the message.
+
+    Raises:
+        ParameterError: For ``dead_time >= Ts / 2``.
+    """
     if not is_concrete(dead_time):
         return
     t_d = float(np.max(np.asarray(jax.device_get(dead_time))))  # NumPy: no tracer inside a jit
@@ -68,10 +81,12 @@ def check_dead_time(dead_time, Ts: float, name: str) -> None:
 
 class VoltageError(eqx.Module):
     """Period-average pole-voltage error of two-level legs from dead time and device drops (module
-    docstring).
+    docstring). All array leaves: vmappable and differentiable.
 
-    **Arguments:** `dead_time`: ``t_d``, s (>= 0); `device_drop`: ``V_f``, V (>= 0); `current_scale`:
-    ``i_eps`` of the smoothed sign, A (> 0). All array leaves: vmappable and differentiable.
+    Args:
+        dead_time: ``t_d``, s (>= 0).
+        device_drop: ``V_f``, V (>= 0).
+        current_scale: ``i_eps`` of the smoothed sign, A (> 0).
     """
 
     dead_time: Array
@@ -89,9 +104,18 @@ class VoltageError(eqx.Module):
         check_positive("current_scale (the current sign's smoothing)", self.current_scale, "A")
 
     def pole_error(self, i_phase: Array, duties: Array, u_dc: Array, Ts) -> Array:
-        """``(n,)`` period-average pole-voltage errors, V, of legs with phase currents ``i_phase (n,)`` A
-        and duties ``duties (n,)`` at DC voltage ``u_dc`` V and period ``Ts`` s (common mode included: the
-        caller removes it as the isolated neutral does)."""
+        """Period-average pole-voltage errors of the legs (common mode included: the caller removes it as the
+        isolated neutral does).
+
+        Args:
+            i_phase: ``(n,)`` phase currents, A.
+            duties: ``(n,)`` leg duties.
+            u_dc: DC voltage, V.
+            Ts: PWM period, s.
+
+        Returns:
+            ``(n,)`` errors, V.
+        """
         sign = smooth_sign(i_phase, self.current_scale)
         switching = (duties > 0.0) & (duties < 1.0)  # a clamped leg has no edges
         t_d = jnp.where(switching, self.dead_time, 0.0)

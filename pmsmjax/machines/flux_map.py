@@ -61,12 +61,17 @@ _HERMITE = np.array(
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class FluxMapGrid:
-    """A checked flux map (module docstring); checked on construction, each refusal one
-    :class:`ParameterError` naming `source`.
+    """A checked flux map (module docstring), checked on construction.
 
-    - `i_d`: ``(n_d,)``, `i_q`: ``(n_q,)`` current axes, A, uniformly spaced and increasing;
-    - `psi_d`, `psi_q`: ``(n_d, n_q)`` flux linkages, Wb (row ``j``: ``i_d[j]``; column ``k``: ``i_q[k]``);
-    - `source`: where the map came from (a file path), for messages.
+    Args:
+        i_d: ``(n_d,)`` d-axis current axis, A, uniformly spaced and increasing.
+        i_q: ``(n_q,)`` q-axis current axis, A, uniformly spaced and increasing.
+        psi_d: ``(n_d, n_q)`` d-axis flux linkage, Wb (row ``j``: ``i_d[j]``; column ``k``: ``i_q[k]``).
+        psi_q: ``(n_d, n_q)`` q-axis flux linkage, Wb, laid out as ``psi_d``.
+        source: Where the map came from (a file path), for messages.
+
+    Raises:
+        ParameterError: For a map the interpolant cannot use (:func:`check_grid`), naming ``source``.
     """
 
     i_d: np.ndarray
@@ -96,31 +101,63 @@ class FluxMapGrid:
         return (self.upper - self.lower) / (np.array([self.i_d.size, self.i_q.size]) - 1.0)
 
     def node_inductances(self) -> np.ndarray:
-        """``(n_d, n_q, 2, 2)`` incremental inductance ``dpsi/di`` at every grid point, H (the
-        interpolant's own slopes there)."""
+        """Incremental inductance ``dpsi/di`` at every grid point (the interpolant's own slopes there).
+
+        Returns:
+            ``(n_d, n_q, 2, 2)`` inductances, H.
+        """
         d = _node_slopes(np.stack([self.psi_d, self.psi_q]), self.step, np)
         return np.stack([np.stack([d[0][0], d[1][0]], -1), np.stack([d[0][1], d[1][1]], -1)], -2)
 
     def coefficients(self, xp=np):
-        """``(n_d - 1, n_q - 1, 2, 4, 4)`` bicubic coefficients (:func:`hermite_coefficients`)."""
+        """Bicubic coefficients of every cell (:func:`hermite_coefficients`).
+
+        Args:
+            xp: ``numpy`` or ``jax.numpy``.
+
+        Returns:
+            ``(n_d - 1, n_q - 1, 2, 4, 4)`` coefficients.
+        """
         psi = xp.stack([xp.asarray(self.psi_d), xp.asarray(self.psi_q)])
         return hermite_coefficients(psi, self.step, xp)
 
     def at(self, i_d: float, i_q: float) -> tuple[np.ndarray, np.ndarray]:
-        """``(psi (2,) Wb, L_inc (2, 2) H)`` of the interpolant at one point (NumPy, for design rules)."""
+        """The interpolant at one point (NumPy, for design rules).
+
+        Args:
+            i_d: d-axis current, A.
+            i_q: q-axis current, A.
+
+        Returns:
+            ``(psi (2,) Wb, L_inc (2, 2) H)``.
+        """
         i = np.array([i_d, i_q], dtype=float)
         return flux_and_inductance(self.coefficients(), self.lower, self.step, self.upper, i, np)
 
     def linear_model(self, i_q: float = 0.0) -> dict:
-        """The linear machine a controller designs with: ``psi_f = psi_d(0, 0)`` (Wb) and the incremental
-        inductances ``L_d = dpsi_d/di_d``, ``L_q = dpsi_q/di_q`` at ``(0, i_q)`` (H)."""
+        """The linear machine a controller designs with.
+
+        Args:
+            i_q: q-axis current at which the incremental inductances are taken, A.
+
+        Returns:
+            ``{"psi_f", "L_d", "L_q"}``: ``psi_f = psi_d(0, 0)`` (Wb) and the incremental inductances
+            ``L_d = dpsi_d/di_d``, ``L_q = dpsi_q/di_q`` at ``(0, i_q)`` (H).
+        """
         psi0, _ = self.at(0.0, 0.0)
         _, L = self.at(0.0, i_q)
         return {"psi_f": float(psi0[0]), "L_d": float(L[0, 0]), "L_q": float(L[1, 1])}
 
 
 def check_grid(grid: FluxMapGrid) -> None:
-    """Refuse a map the interpolant cannot use (module docstring, "The grid" and "Reciprocity")."""
+    """Refuse a map the interpolant cannot use (module docstring, "The grid" and "Reciprocity").
+
+    Args:
+        grid: The map.
+
+    Raises:
+        ParameterError: For the first check the map fails, naming its source.
+    """
     where = grid.source
     for name in ("i_d", "i_q"):
         axis = getattr(grid, name)
@@ -198,11 +235,14 @@ def _node_slopes(psi, step, xp):
 def hermite_coefficients(psi, step, xp=np):
     """Bicubic Hermite coefficients of every cell.
 
-    **Arguments:** `psi`: ``(2, n_d, n_q)`` fluxes ``[psi_d, psi_q]``, Wb; `step`: ``(2,)`` grid spacing, A;
-    `xp`: ``numpy`` or ``jax.numpy``.
+    Args:
+        psi: ``(2, n_d, n_q)`` fluxes ``[psi_d, psi_q]``, Wb.
+        step: ``(2,)`` grid spacing, A.
+        xp: ``numpy`` or ``jax.numpy``.
 
-    **Returns:** ``(n_d - 1, n_q - 1, 2, 4, 4)``: ``psi_x(s, t) = [1 s s^2 s^3] C [1 t t^2 t^3]^T`` with
-    ``s, t`` in [0, 1] the position inside the cell along i_d and i_q.
+    Returns:
+        ``(n_d - 1, n_q - 1, 2, 4, 4)``: ``psi_x(s, t) = [1 s s^2 s^3] C [1 t t^2 t^3]^T`` with ``s, t`` in
+        [0, 1] the position inside the cell along i_d and i_q.
     """
     h_d, h_q = step[0], step[1]
     f = psi
@@ -228,26 +268,42 @@ def hermite_coefficients(psi, step, xp=np):
 def flux_and_inductance(coefficients, lower, step, upper, i_dq, xp=np):
     """The map at one current, extended linearly outside the grid (module docstring).
 
-    **Arguments:** `coefficients` from :func:`hermite_coefficients`; `lower`, `step`, `upper`: ``(2,)``
-    grid corners and spacing, A; `i_dq`: ``(2,)`` current, A; `xp`: ``numpy`` or ``jax.numpy``.
+    Args:
+        coefficients: From :func:`hermite_coefficients`.
+        lower: ``(2,)`` lowest grid corner, A.
+        step: ``(2,)`` grid spacing, A.
+        upper: ``(2,)`` highest grid corner, A.
+        i_dq: ``(2,)`` current, A.
+        xp: ``numpy`` or ``jax.numpy``.
 
-    **Returns:** ``psi (2,)`` Wb and the incremental inductance ``L (2, 2)`` H,
-    ``L[r, c] = dpsi_r / di_c``.
+    Returns:
+        ``psi (2,)`` Wb and the incremental inductance ``L (2, 2)`` H, ``L[r, c] = dpsi_r / di_c``.
     """
     where = locate(coefficients.shape[:2], lower, step, upper, i_dq, xp)
     return evaluate(coefficients, step, where, xp)
 
 
 def locate(n_cells, lower, step, upper, i_dq, xp=np):
-    """Where the current ``i_dq (2,)`` (A) lies on the grid: ``(6,)`` ``[cell_d, cell_q, s, t, outside_d,
-    outside_q]``: the cell's indices (as floats), the position inside it (``s, t`` in [0, 1]) and how far the
-    current lies outside the grid along each axis (A, 0 inside), from the grid shape `n_cells` ``(2,)``,
-    corners `lower`, `upper` and spacing `step` (A).
+    """Where a current lies on the grid.
 
     The clamps are comparisons and selects, not ``clip``: XLA:CPU compiles ``clip``'s NaN-propagating
     min/max into several instructions each, and this chain sits on the plant's critical path at every RK4
-    stage (measured: the flux-map plant 11 % faster, the same output to the bit). A NaN current still
-    gives a NaN flux (NaN fails every comparison and passes through)."""
+    stage (docs/performance.md, "Saturated machines"). A NaN current still gives a NaN flux (NaN fails every
+    comparison and passes through).
+
+    Args:
+        n_cells: ``(2,)`` the grid's cell counts.
+        lower: ``(2,)`` lowest grid corner, A.
+        step: ``(2,)`` grid spacing, A.
+        upper: ``(2,)`` highest grid corner, A.
+        i_dq: ``(2,)`` current, A.
+        xp: ``numpy`` or ``jax.numpy``.
+
+    Returns:
+        ``(6,)`` ``[cell_d, cell_q, s, t, outside_d, outside_q]``: the cell's indices (as floats), the
+        position inside it (``s, t`` in [0, 1]) and how far the current lies outside the grid along each
+        axis (A, 0 inside).
+    """
     i_c = xp.where(i_dq < lower, lower, i_dq)
     i_c = xp.where(i_c > upper, upper, i_c)
     x = (i_c - lower) * (1.0 / step)
@@ -258,8 +314,18 @@ def locate(n_cells, lower, step, upper, i_dq, xp=np):
 
 
 def evaluate(coefficients, step, where, xp=np):
-    """``(psi (2,) Wb, L_inc (2, 2) H)`` of the map at the point :func:`locate` gave (`where` ``(6,)``),
-    extended linearly outside the grid with the edge's incremental inductance."""
+    """The map at the point :func:`locate` gave, extended linearly outside the grid with the edge's
+    incremental inductance.
+
+    Args:
+        coefficients: From :func:`hermite_coefficients`.
+        step: ``(2,)`` grid spacing, A.
+        where: ``(6,)`` the point, from :func:`locate`.
+        xp: ``numpy`` or ``jax.numpy``.
+
+    Returns:
+        ``(psi (2,) Wb, L_inc (2, 2) H)``.
+    """
     cell = where[:2].astype(int)
     s, t = where[2], where[3]
     C = coefficients[cell[0], cell[1]]  # (2, 4, 4)
@@ -278,12 +344,15 @@ def evaluate(coefficients, step, where, xp=np):
 def excursion(grid_lower, grid_upper, i_dq) -> dict:
     """How far currents went outside a map's grid.
 
-    **Arguments:** `grid_lower`, `grid_upper`: ``(2,)`` grid corners, A; `i_dq`: ``(..., 2)`` currents of a
-    run, A (any leading shape: periods, batch).
+    Args:
+        grid_lower: ``(2,)`` lowest grid corner, A.
+        grid_upper: ``(2,)`` highest grid corner, A.
+        i_dq: ``(..., 2)`` currents of a run, A (any leading shape: periods, batch).
 
-    **Returns:** ``{"i_d_range", "i_q_range"}`` (reached ``[min, max]``, A), ``"grid_i_d"``, ``"grid_i_q"``
-    (the grid's), ``"outside_a"``: the largest distance outside the grid along either axis, A (0 inside),
-    and ``"warning"``: one line for the user, or ``None`` when the run stayed on the grid.
+    Returns:
+        ``{"i_d_range", "i_q_range"}`` (reached ``[min, max]``, A), ``"grid_i_d"``, ``"grid_i_q"`` (the
+        grid's), ``"outside_a"``: the largest distance outside the grid along either axis, A (0 inside), and
+        ``"warning"``: one line for the user, or ``None`` when the run stayed on the grid.
     """
     i = np.asarray(i_dq, dtype=float).reshape(-1, 2)
     lo, hi = np.asarray(grid_lower, dtype=float), np.asarray(grid_upper, dtype=float)

@@ -39,9 +39,21 @@ def _optional_float(x):
 class MultiPhaseParameters(eqx.Module):
     """Electrical and mechanical parameters of an n-phase PMSM (see the module docstring).
 
-    **Arguments:** `R` ohm (per phase); `L_d`, `L_q` H (VSD fundamental subspace); `psi_f` Wb (per phase,
-    peak); `L_ls` H (phase leakage); `J` kg m^2; `B` N m s/rad; `pole_pairs` (static int); `n_phases`
-    (static int, default 6); `psi_f3` Wb (third-harmonic PM flux, peak) or None (default: none).
+    Args:
+        R: Phase resistance, ohm.
+        L_d: d-axis inductance of the VSD fundamental subspace, H.
+        L_q: q-axis inductance of the VSD fundamental subspace, H.
+        psi_f: PM flux linkage (per phase, peak), Wb.
+        L_ls: Phase leakage inductance, H (below ``min(L_d, L_q)``).
+        J: Total inertia on the shaft, kg m^2.
+        B: Viscous friction coefficient, N m s/rad.
+        pole_pairs: Number of pole pairs (static int).
+        n_phases: Number of phases (static int, at least 3).
+        psi_f3: Third-harmonic PM flux (peak), Wb, or ``None`` (none).
+
+    Raises:
+        ParameterError: For a non-positive resistance, inductance or inertia, a negative flux or friction,
+            bad integer counts, or a leakage not below the axis inductances.
     """
 
     R: Array = eqx.field(converter=as_float)

@@ -46,6 +46,10 @@ class PMSMdq(AbstractMachine):
     Its equations see the rotor angle only through the voltage (a stator-frame voltage read in the rotor
     frame), which lets :func:`pmsmjax.machines.integrate.advance` rotate that voltage by small angle
     increments instead of evaluating trigonometry at every RK4 stage.
+
+    Args:
+        motor: The motor's parameters.
+        mechanics: ``"dynamic"`` or ``"imposed"`` speed.
     """
 
     motor: PMSMParameters
@@ -73,20 +77,40 @@ class PMSMdq(AbstractMachine):
 
 
 class PMSMAlphaBeta(AbstractMachine):
-    """PMSM in the stationary frame; state currents ``(2,)`` = [i_alpha, i_beta], A."""
+    """PMSM in the stationary frame; state currents ``(2,)`` = [i_alpha, i_beta], A.
+
+    Args:
+        motor: The motor's parameters.
+        mechanics: ``"dynamic"`` or ``"imposed"`` speed.
+    """
 
     motor: PMSMParameters
     mechanics: Mechanics = eqx.field(static=True, default="dynamic")
 
     def inductance(self, theta_e) -> Array:
-        """``(2, 2)`` alpha-beta inductance matrix at electrical angle ``theta_e``, H."""
+        """Alpha-beta inductance matrix at an electrical angle.
+
+        Args:
+            theta_e: Electrical rotor angle, rad.
+
+        Returns:
+            ``(2, 2)`` inductances, H.
+        """
         m = self.motor
         L0, L2 = 0.5 * (m.L_d + m.L_q), 0.5 * (m.L_d - m.L_q)
         c2, s2 = jnp.cos(2.0 * theta_e), jnp.sin(2.0 * theta_e)
         return jnp.stack([jnp.stack([L0 + L2 * c2, L2 * s2]), jnp.stack([L2 * s2, L0 - L2 * c2])])
 
     def flux(self, currents, theta_e) -> Array:
-        """``(2,)`` stator flux linkage, Wb."""
+        """Stator flux linkage.
+
+        Args:
+            currents: ``(2,)`` alpha-beta currents, A.
+            theta_e: Electrical rotor angle, rad.
+
+        Returns:
+            ``(2,)`` flux linkage, Wb.
+        """
         pm = self.motor.psi_f * jnp.stack([jnp.cos(theta_e), jnp.sin(theta_e)])
         return self.inductance(theta_e) @ currents + pm
 
@@ -109,12 +133,11 @@ class PMSMAlphaBeta(AbstractMachine):
 class PMSMabc(AbstractMachine):
     """PMSM in the natural frame; state currents ``(3,)`` = [i_a, i_b, i_c], A (star, isolated neutral).
 
-    **Arguments:**
-
-    - `motor`: :class:`PMSMParameters`.
-    - `leakage_inductance`: per-phase leakage ``L_l``, H; it is also the zero-sequence inductance. It does
-      not affect balanced operation; the default is a tenth of ``min(L_d, L_q)``.
-    - `mechanics`: ``"dynamic"`` or ``"imposed"`` speed.
+    Args:
+        motor: The motor's parameters.
+        leakage_inductance: Per-phase leakage ``L_l``, H; it is also the zero-sequence inductance. It does
+            not affect balanced operation; the default (``None``) is a tenth of ``min(L_d, L_q)``.
+        mechanics: ``"dynamic"`` or ``"imposed"`` speed.
     """
 
     motor: PMSMParameters
@@ -129,7 +152,14 @@ class PMSMabc(AbstractMachine):
         self.mechanics = mechanics
 
     def inductance(self, theta_e) -> Array:
-        """``(3, 3)`` phase inductance matrix ``L_abc(theta_e)``, H."""
+        """Phase inductance matrix ``L_abc(theta_e)``.
+
+        Args:
+            theta_e: Electrical rotor angle, rad.
+
+        Returns:
+            ``(3, 3)`` inductances, H.
+        """
         m = self.motor
         L_l = self.leakage_inductance
         L_0m = (m.L_d + m.L_q - 2.0 * L_l) / 3.0
@@ -140,11 +170,26 @@ class PMSMabc(AbstractMachine):
         )
 
     def magnet_flux(self, theta_e) -> Array:
-        """``(3,)`` PM flux linked by each phase, Wb."""
+        """PM flux linked by each phase.
+
+        Args:
+            theta_e: Electrical rotor angle, rad.
+
+        Returns:
+            ``(3,)`` flux linkages, Wb.
+        """
         return self.motor.psi_f * jnp.cos(theta_e - _PHASE_AXES)
 
     def flux(self, currents, theta_e) -> Array:
-        """``(3,)`` phase flux linkages, Wb, of phase currents ``currents (3,)`` A at ``theta_e`` rad."""
+        """Phase flux linkages.
+
+        Args:
+            currents: ``(3,)`` phase currents, A.
+            theta_e: Electrical rotor angle, rad.
+
+        Returns:
+            ``(3,)`` flux linkages, Wb.
+        """
         return self.inductance(theta_e) @ currents + self.magnet_flux(theta_e)
 
     def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):

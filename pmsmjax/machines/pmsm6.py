@@ -34,8 +34,11 @@ __all__ = ["PMSM6DoubleDQ"]
 class PMSM6DoubleDQ(AbstractMultiPhaseMachine):
     """Six-phase PMSM in double-dq coordinates; state ``(4,)`` [i_d1, i_q1, i_d2, i_q2], A.
 
-    **Arguments:** `motor` (six-phase :class:`MultiPhaseParameters`), `mechanics`, `resistance_scale`
-    (``(6,)`` phase resistance factors or None).
+    Args:
+        motor: Six-phase motor parameters (:class:`MultiPhaseParameters`).
+        mechanics: ``"dynamic"`` or ``"imposed"`` speed.
+        resistance_scale: ``(6,)`` phase resistance factors, or ``None`` (balanced).
+        layout: The winding layout; only the dual three-phase ``SIX_PHASE``.
     """
 
     motor: MultiPhaseParameters
@@ -49,12 +52,23 @@ class PMSM6DoubleDQ(AbstractMultiPhaseMachine):
         self._check()
 
     def magnetising(self):
-        """``(L_md, L_mq)``, H: the mutual dq inductances between the sets."""
+        """The mutual dq inductances between the sets.
+
+        Returns:
+            ``(L_md, L_mq)``, H.
+        """
         m = self.motor
         return 0.5 * (m.L_d - m.L_ls), 0.5 * (m.L_q - m.L_ls)
 
     def flux(self, currents: Array) -> Array:
-        """``(4,)`` [psi_d1, psi_q1, psi_d2, psi_q2], Wb."""
+        """Flux linkages of both sets.
+
+        Args:
+            currents: ``(4,)`` [i_d1, i_q1, i_d2, i_q2], A.
+
+        Returns:
+            ``(4,)`` [psi_d1, psi_q1, psi_d2, psi_q2], Wb.
+        """
         m = self.motor
         L_md, L_mq = self.magnetising()
         i_d1, i_q1, i_d2, i_q2 = currents[0], currents[1], currents[2], currents[3]

@@ -46,12 +46,11 @@ def _log_cosh(x):
 class DAxisSaturation(eqx.Module):
     """Parameters of the d-axis flux map (module docstring).
 
-    **Arguments:**
-
-    - `depth`: ``a``, dimensionless in ``[0, 1)``: the relative change of the incremental d-axis inductance
-      far along +d (``1 - a``) and -d (``1 + a``). 0 switches saturation off.
-    - `current_scale`: ``i_s``, A: the d current over which the incremental inductance changes
-      (``tanh(1) = 76 %`` of the change at ``i_d = i_s``).
+    Args:
+        depth: ``a``, dimensionless in ``[0, 1)``: the relative change of the incremental d-axis inductance
+            far along +d (``1 - a``) and -d (``1 + a``). 0 switches saturation off.
+        current_scale: ``i_s``, A: the d current over which the incremental inductance changes
+            (``tanh(1) = 76 %`` of the change at ``i_d = i_s``).
     """
 
     depth: Array = eqx.field(converter=as_float)
@@ -66,32 +65,48 @@ class DAxisSaturation(eqx.Module):
             )
 
     def incremental_inductance(self, L_d, i_d):
-        """``L_dd(i_d) = dpsi_d/di_d``, H."""
+        """``L_dd(i_d) = dpsi_d/di_d``, H.
+
+        Args:
+            L_d: Incremental d inductance at ``i_d = 0``, H.
+            i_d: d-axis current, A.
+        """
         return L_d * (1.0 - self.depth * jnp.tanh(i_d / self.current_scale))
 
     def flux(self, psi_f, L_d, i_d):
-        """``psi_d(i_d)``, Wb (magnet flux included)."""
+        """``psi_d(i_d)``, Wb (magnet flux included).
+
+        Args:
+            psi_f: PM flux linkage, Wb.
+            L_d: Incremental d inductance at ``i_d = 0``, H.
+            i_d: d-axis current, A.
+        """
         s = self.current_scale
         return psi_f + L_d * (i_d - self.depth * s * _log_cosh(i_d / s))
 
 
 class SaturatedPMSMdq(PMSMdq):
-    """The rotor-frame PMSM of :class:`~pmsmjax.machines.PMSMdq` with d-axis saturation; state currents
-    ``(2,)`` = [i_d, i_q], A.
+    """The rotor-frame PMSM of :class:`~pmsmjax.machines.PMSMdq` with d-axis saturation; state
+    currents ``(2,)`` = [i_d, i_q], A.
 
-    **Arguments:**
-
-    - `motor`: :class:`~pmsmjax.machines.PMSMParameters`; ``L_d`` is the incremental d inductance at
-      ``i_d = 0``.
-    - `saturation`: :class:`DAxisSaturation`, or ``None`` for the linear machine (the parent's equations).
-    - `mechanics`: ``"dynamic"`` or ``"imposed"`` speed.
+    Args:
+        motor: The motor's parameters; ``L_d`` is the incremental d inductance at ``i_d = 0``.
+        mechanics: ``"dynamic"`` or ``"imposed"`` speed.
+        saturation: The d-axis flux map, or ``None`` for the linear machine (the parent's equations).
     """
 
     saturation: DAxisSaturation | None = None
     angle_only_in_voltage: ClassVar[bool] = True
 
     def flux_dq(self, currents) -> Array:
-        """``(2,)`` rotor-frame flux linkage ``[psi_d, psi_q]``, Wb."""
+        """Rotor-frame flux linkage ``[psi_d, psi_q]``.
+
+        Args:
+            currents: ``(2,)`` dq currents, A.
+
+        Returns:
+            ``(2,)`` flux linkage, Wb.
+        """
         m = self.motor
         if self.saturation is None:
             psi_d = m.L_d * currents[0] + m.psi_f
@@ -121,12 +136,17 @@ class SaturatedPMSMdq(PMSMdq):
 def saturated_machine(
     motor, depth=0.3, current_scale=8.0, mechanics: Mechanics = "dynamic"
 ) -> SaturatedPMSMdq:
-    """``motor`` as a :class:`SaturatedPMSMdq` with a d-axis flux map of ``depth`` (a) and
-    ``current_scale`` (i_s, A).
+    """``motor`` as a :class:`SaturatedPMSMdq` with a d-axis flux map.
 
     Defaults for the book's salient machine (no measured flux map is available: docs/book_reference.md,
-    "Parameters the book's text is not available for"): with ``a = 0.3``, ``i_s = 8 A`` a +-8 A pulse
-    sees secant d inductances of ``L_d (1 -+ 0.13)``, a contrast of the order reported for IPM machines by
+    "Parameters the book's text is not available for"): with ``a = 0.3``, ``i_s = 8 A`` a +-8 A pulse sees
+    secant d inductances of ``L_d (1 -+ 0.13)``, a contrast of the order reported for IPM machines by
     Jeong et al.
+
+    Args:
+        motor: The motor's parameters.
+        depth: ``a``, the saturation depth in ``[0, 1)``.
+        current_scale: ``i_s``, A.
+        mechanics: ``"dynamic"`` or ``"imposed"`` speed.
     """
     return SaturatedPMSMdq(motor, mechanics=mechanics, saturation=DAxisSaturation(depth, current_scale))
