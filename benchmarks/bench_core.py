@@ -1,14 +1,16 @@
-"""Core speed benchmark: the simulator's own figures (:mod:`pmsmjax.studies.engine_timing`, what
-``pmsmjax bench`` reports: compile time, one run, a vmapped batch, gradients, forward- vs reverse-mode
-crossover, the machine) and, timed in the same rounds as the single run, the hand-written minimal loop
-(:mod:`benchmarks.minimal_loop`) it is measured against: with literal constants and with run-time
-parameters, the library/minimal time ratio of each, and the largest difference between the library's and
-the minimal loop's speed trajectories (r/min).
+"""Core speed benchmark: the simulator's own figures
+([`pmsmjax.studies.engine_timing`][pmsmjax.studies.engine_timing], what ``pmsmjax bench`` reports: compile
+time, one run, a vmapped batch, gradients, forward- vs reverse-mode crossover, the machine) and, timed in the
+same rounds as the single run, the hand-written minimal loop (`benchmarks.minimal_loop`) it is measured
+against: with literal constants and with run-time parameters, the library/minimal time ratio of each, and the
+largest difference between the library's and the minimal loop's speed trajectories (r/min).
 
 ``python -m benchmarks.bench_core [--quick] [--json FILE]`` prints a table and writes the figures as JSON
 (atomically). ``--quick`` shrinks every size so the whole benchmark runs in seconds (for smoke tests); its
-timings mean nothing. The other benchmarks report through :func:`publish` and take the timing helpers
-(:func:`time_interleaved`, :func:`compile_time`, :func:`machine_info`) from here.
+timings mean nothing. The other benchmarks report through `publish` and take the timing helpers
+([`time_interleaved`][pmsmjax.studies.engine_timing.time_interleaved],
+[`compile_time`][pmsmjax.studies.engine_timing.compile_time],
+[`machine_info`][pmsmjax.studies.engine_timing.machine_info]) from here.
 """
 
 import argparse
@@ -49,8 +51,9 @@ REQUIRED_KEYS = (
 
 
 def run(quick: bool = False) -> dict:
-    """:func:`pmsmjax.studies.engine_timing.run` with the two minimal loops timed alongside the single run
-    (same drive settings and scenario sampled on the period grid), their ratios and speed differences."""
+    """[`pmsmjax.studies.engine_timing.run`][pmsmjax.studies.engine_timing.run] with the two minimal loops
+    timed alongside the single run (same drive settings and scenario sampled on the period grid), their ratios
+    and speed differences."""
     drive, scenario = engine_timing.book_problem(engine_timing.QUICK if quick else engine_timing.FULL)
     xs = period_inputs(scenario, drive.Ts)
     literal = make_minimal_loop(Ts=drive.Ts, n_sub=drive.n_substeps)
@@ -72,7 +75,9 @@ def run(quick: bool = False) -> dict:
 
 
 def format_table(r: dict) -> str:
-    """The simulator's table (:func:`pmsmjax.studies.engine_timing.format_table`) and the minimal loops."""
+    """The simulator's table
+    ([`pmsmjax.studies.engine_timing.format_table`][pmsmjax.studies.engine_timing.format_table]) and the
+    minimal loops."""
     lines = [
         engine_timing.format_table(r),
         "",
@@ -95,7 +100,8 @@ def format_table(r: dict) -> str:
 
 
 def write_json_atomic(path: str, data: dict) -> None:
-    """Write ``data`` as JSON to ``path`` atomically (:func:`pmsmjax.io.logs.atomic_write`)."""
+    """Write ``data`` as JSON to ``path`` atomically
+    ([`pmsmjax.io.logs.atomic_write`][pmsmjax.io.logs.atomic_write])."""
     text = json.dumps(data, indent=2) + "\n"
     atomic_write(path, lambda f: f.write(text.encode()))
 

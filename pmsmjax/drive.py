@@ -5,7 +5,7 @@ One step is one control period ``Ts``:
 1. With imposed speed, the shaft speed is set from the scenario (a dynamometer).
 2. **Sample** at the period start: phase currents ``(n,)`` and their alpha-beta components, the DC
    voltage, the voltage commanded over the last period, and the ideal shaft sensor
-   (:class:`pmsmjax.signals.Sample`).
+   ([`pmsmjax.signals.Sample`][pmsmjax.signals.Sample]).
 3. **Estimator** -> angle and speed (and, for HF-injection estimators, an injection voltage added to the
    controller's voltage command and the carrier-free current the controller gets instead of ``i_ab``).
 4. **Controller** -> a stator-frame voltage for the **modulator** (``command_kind == "voltage"``) or
@@ -153,7 +153,7 @@ class Drive(eqx.Module):
             last_duties: ``(n,)`` duties applied over the last period (for the commanded voltage).
 
         Returns:
-            The :class:`~pmsmjax.signals.Sample`: phase and alpha-beta currents, DC voltage, last
+            The [`Sample`][pmsmjax.signals.Sample]: phase and alpha-beta currents, DC voltage, last
             commanded voltage, and the ideal shaft sensor.
         """
         i_ab = self.machine.stationary_currents(ms)
@@ -175,7 +175,7 @@ class Drive(eqx.Module):
             theta_e: Electrical angle, rad.
 
         Returns:
-            The :class:`DriveState`, duties at 0.5 (zero average voltage).
+            The [`DriveState`][pmsmjax.drive.DriveState], duties at 0.5 (zero average voltage).
         """
         machine_state = self.machine.initial_state((0.0, 0.0), speed_m, theta_e)
         dtype = machine_state.omega_m.dtype
@@ -189,7 +189,7 @@ class Drive(eqx.Module):
         )
 
     def step(self, state: DriveState, x: PeriodInputs) -> tuple[DriveState, PeriodRecord]:
-        """One control period (the body of the :func:`pmsmjax.simulate.simulate` scan).
+        """One control period (the body of the [`pmsmjax.simulate.simulate`][pmsmjax.simulate.simulate] scan).
 
         Sample the machine at the period start, estimate, control, modulate, then integrate the machine
         over the period under the duties in force (last period's with a computational delay).
@@ -199,9 +199,9 @@ class Drive(eqx.Module):
             x: This period's references (speed rad/s, currents A) and load torque (N m).
 
         Returns:
-            The state at the period end, and the :class:`PeriodRecord` of this period (the period-start
-            machine state, the applied duties, the dq voltage command V and current reference A, and the
-            estimate when recorded).
+            The state at the period end, and the [`PeriodRecord`][pmsmjax.drive.PeriodRecord] of this period
+            (the period-start machine state, the applied duties, the dq voltage command V and current
+            reference A, and the estimate when recorded).
         """
         ms = state.machine
         if self.machine.mechanics == "imposed":

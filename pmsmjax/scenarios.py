@@ -1,10 +1,10 @@
 """Reference and load profiles as array pytrees (vmappable, differentiable in their values and times).
 
-A :class:`Profile` is piecewise: breakpoints ``times (K,)`` s with ``values (K,)``; on
+A [`Profile`][pmsmjax.scenarios.Profile] is piecewise: breakpoints ``times (K,)`` s with ``values (K,)``; on
 ``[times[k], times[k+1])`` the value is held (``linear[k] = 0``) or interpolated linearly towards
 ``values[k+1]`` (``linear[k] = 1``). Before ``times[0]`` the first value holds, after the last breakpoint
 the last value. Steps, ramps, reversals and arbitrary staircases are all of this form, so a batch of
-different scenarios is one stacked pytree (pad with :func:`stack_scenarios`).
+different scenarios is one stacked pytree (pad with [`stack_scenarios`][pmsmjax.scenarios.stack_scenarios]).
 """
 
 from collections.abc import Sequence
@@ -211,7 +211,8 @@ def stack_scenarios(scenarios: Sequence[Scenario]) -> Scenario:
         scenarios: Scenarios of one ``duration_s``.
 
     Returns:
-        A :class:`Scenario` whose profile leaves have a leading axis of one row per scenario.
+        A [`Scenario`][pmsmjax.scenarios.Scenario] whose profile leaves have a leading axis of one row per
+        scenario.
 
     Raises:
         ParameterError: For no scenarios or different durations.

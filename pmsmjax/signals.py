@@ -1,5 +1,5 @@
 """The values that flow between the blocks of a drive in one control period (the
-sampled-data step of :mod:`pmsmjax.drive`).
+sampled-data step of [`pmsmjax.drive`][pmsmjax.drive]).
 
 ``Sample`` (what the controller's hardware measures at the period start) -> estimator -> ``Estimate`` ->
 controller (with the ``References``) -> ``ControlOutput``. Controllers read only these, never the plant's
@@ -50,18 +50,20 @@ class Estimate(eqx.Module):
         u_injection_ab: ``(2,)`` stator-frame voltage to add to the controller's command, V (HF injection);
             ``None`` for estimators that inject nothing.
         psi_ab: ``(2,)`` stator flux linkage in the stationary frame, Wb; ``None`` for estimators that do
-            not estimate it (direct torque control needs it: :mod:`pmsmjax.estimators.flux_observer`).
+            not estimate it (direct torque control needs it:
+            [`pmsmjax.estimators.flux_observer`][pmsmjax.estimators.flux_observer]).
         torque: Electromagnetic torque, N m; ``None`` where not estimated.
         back_emf_ab: ``(2,)`` the observer's stationary-frame back-EMF estimate at the sampling instant, V
             (chapter 5 observers); ``None`` for position sensors.
         startup_weight: Weight in [0, 1] of the start-up current reference ``startup_i_dq`` in the
             controller's current reference (1: open-loop I/f start, 0: speed loop in charge); ``None`` for
-            estimators without a start-up (:mod:`pmsmjax.estimators.startup`).
+            estimators without a start-up ([`pmsmjax.estimators.startup`][pmsmjax.estimators.startup]).
         startup_i_dq: ``(2,)`` the start-up current reference in the estimate's frame, A; ``None`` likewise.
         i_ab_fundamental: ``(2,)`` stationary-frame current with the injected carrier filtered out, A: the
             drive gives it to the controller in place of the sampled ``i_ab`` so that the current loop never
-            acts on the carrier (HF injection, :mod:`pmsmjax.estimators.hfi_signal`); ``None``: the
-            controller gets the sampled currents.
+            acts on the carrier (HF injection,
+            [`pmsmjax.estimators.hfi_signal`][pmsmjax.estimators.hfi_signal]); ``None``: the controller gets
+            the sampled currents.
     """
 
     theta_e: Array

@@ -7,8 +7,8 @@
 - ``decimate=D`` records the first period of every block of D: an outer scan over blocks, an inner scan
   over the D - 1 unrecorded periods whose record is dead code that XLA removes.
 - The scan over periods is a plain ``lax.scan``, not cut into blocks of periods: with the loop limit
-  :mod:`pmsmjax.xla_cpu` sets, XLA:CPU compiles the loops of a period into one kernel each, and blocks do
-  not change the run time (docs/performance.md, "Engine").
+  [`pmsmjax.xla_cpu`][pmsmjax.xla_cpu] sets, XLA:CPU compiles the loops of a period into one kernel each, and
+  blocks do not change the run time (docs/performance.md, "Engine").
 - ``simulate`` checks concrete inputs before compiling (period count, decimation, sub-step length) and
   composes with ``jax.vmap``/``jax.grad``/``jax.jit`` (checks are skipped on traced values).
 """
@@ -35,15 +35,15 @@ __all__ = ["simulate", "check_simulation", "period_inputs"]
 def period_inputs(scenario: Scenario, Ts: float) -> PeriodInputs:
     """Scenario values at every period start ``k Ts``.
 
-    Sampled by integer period index (:meth:`Profile.sample_periods`), so an event at a whole number of
-    periods lands in that period in float32 as in float64.
+    Sampled by integer period index ([`Profile.sample_periods`][pmsmjax.scenarios.Profile.sample_periods]), so
+    an event at a whole number of periods lands in that period in float32 as in float64.
 
     Args:
         scenario: The references and load to sample.
         Ts: Control period, s.
 
     Returns:
-        A :class:`~pmsmjax.drive.PeriodInputs` of ``(N,)`` arrays, ``N`` the scenario's period count.
+        A [`PeriodInputs`][pmsmjax.drive.PeriodInputs] of ``(N,)`` arrays, ``N`` the scenario's period count.
     """
     n = scenario.n_periods(Ts)
     return PeriodInputs(
@@ -106,17 +106,18 @@ def simulate(
 ) -> Trace:
     """Simulate ``drive`` through ``scenario``.
 
-    Concrete inputs are checked first (:func:`check_simulation`); under ``jax.vmap``, ``jax.grad`` or
-    ``jax.jit`` the checks of traced values are skipped.
+    Concrete inputs are checked first ([`check_simulation`][pmsmjax.simulate.check_simulation]); under
+    ``jax.vmap``, ``jax.grad`` or ``jax.jit`` the checks of traced values are skipped.
 
     Args:
-        drive: The drive (:class:`pmsmjax.drive.Drive`).
-        scenario: The scenario (:class:`pmsmjax.scenarios.Scenario`), unbatched; ``jax.vmap`` for batches.
+        drive: The drive ([`pmsmjax.drive.Drive`][pmsmjax.drive.Drive]).
+        scenario: The scenario ([`pmsmjax.scenarios.Scenario`][pmsmjax.scenarios.Scenario]), unbatched;
+            ``jax.vmap`` for batches.
         decimate: Record every this many periods (an int dividing the period count).
         initial_state: Start from this state instead of rest.
 
     Returns:
-        A :class:`Trace` of ``N / decimate`` rows, ``N`` the scenario's period count.
+        A [`Trace`][pmsmjax.trace.Trace] of ``N / decimate`` rows, ``N`` the scenario's period count.
 
     Raises:
         ParameterError: For inputs that would give a wrong or unstable simulation.
@@ -170,7 +171,7 @@ def trace_from_records(drive: Drive, rec: PeriodRecord, xs: PeriodInputs, dt: fl
         dt: Time between recorded rows, s (``Ts`` times the decimation).
 
     Returns:
-        The :class:`Trace` of the ``N`` recorded periods.
+        The [`Trace`][pmsmjax.trace.Trace] of the ``N`` recorded periods.
     """
     machine = drive.machine
     ms = rec.machine

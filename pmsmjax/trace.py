@@ -65,7 +65,8 @@ COLUMN_UNITS = {
     "omega_m_est": "rad/s (estimator's mechanical speed)",
 }
 
-#: The further columns of a six-phase trace (the second set U, V, W; :meth:`Trace.columns`).
+#: The further columns of a six-phase trace (the second set U, V, W;
+#: [`Trace.columns`][pmsmjax.trace.Trace.columns]).
 SIX_PHASE_COLUMN_UNITS = {
     **{f"i_{x}": "A" for x in "uvw"},
     **{f"u_{x}": "V (period-average phase voltage applied)" for x in "uvw"},
@@ -160,8 +161,8 @@ class Trace(eqx.Module):
         """The same trace with NumPy leaves.
 
         Figures of merit, plots and files computed from it are then plain NumPy
-        (:mod:`pmsmjax.analysis.metrics` dispatches on the array type), so post-processing a run compiles
-        nothing. Waits for the simulation to finish.
+        ([`pmsmjax.analysis.metrics`][pmsmjax.analysis.metrics] dispatches on the array type), so
+        post-processing a run compiles nothing. Waits for the simulation to finish.
         """
         import jax
 

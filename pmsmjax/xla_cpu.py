@@ -5,16 +5,16 @@ than a few kernels pays a dispatch per kernel per iteration (tens of ns; more wh
 large enough for the executor to schedule it as a task graph). A drive simulation is loops of tiny
 bodies (one PWM period, its RK4 sub-steps), so that dispatch, not arithmetic, sets its cost. XLA's
 small-while-loop pass compiles a whole loop into one kernel instead, but by default only when the loop
-touches at most 1 kB; a flux map's coefficient table (:mod:`pmsmjax.machines.flux_map`, 100 to 400 kB)
-and any batched run exceed that.
+touches at most 1 kB; a flux map's coefficient table
+([`pmsmjax.machines.flux_map`][pmsmjax.machines.flux_map], 100 to 400 kB) and any batched run exceed that.
 
-:func:`request_small_loop_kernels` raises the limit to :data:`SMALL_LOOP_BYTES` through ``XLA_FLAGS``
-(``--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=N``) when :mod:`pmsmjax` is
-imported. Measured on the book drive (float32, 2 cores, ``python -m benchmarks.flux_map_cost``, the
-same command with the limit set back to 1024): one run 1.27 -> 0.82 us per period with the linear plant
-and 10.7 -> 1.8 us with the flux-map plant; a batch of 64, 0.19 -> 0.12 and 3.4 -> 0.95 us per run and
-period. Loops over more than the limit (large Monte Carlo batches) keep XLA's default, multi-threaded
-execution.
+[`request_small_loop_kernels`][pmsmjax.xla_cpu.request_small_loop_kernels] raises the limit to
+[`SMALL_LOOP_BYTES`][pmsmjax.xla_cpu.SMALL_LOOP_BYTES] through ``XLA_FLAGS``
+(``--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=N``) when [`pmsmjax`][pmsmjax] is
+imported. Measured on the book drive (float32, 2 cores, ``python -m benchmarks.flux_map_cost``, the same
+command with the limit set back to 1024): one run 1.27 -> 0.82 us per period with the linear plant
+and 10.7 -> 1.8 us with the flux-map plant; a batch of 64, 0.19 -> 0.12 and 3.4 -> 0.95 us per run and period.
+Loops over more than the limit (large Monte Carlo batches) keep XLA's default, multi-threaded execution.
 
 It is a request, not a requirement: XLA reads ``XLA_FLAGS`` when it compiles, so it applies to every
 computation compiled after ``import pmsmjax``. A user's own ``xla_backend_extra_options`` (XLA's

@@ -165,8 +165,8 @@ def write_gains_toml(path, names, values, header: str = "") -> Path:
 
 
 def read_gains_toml(path) -> dict[str, float]:
-    """The ``[gains]`` table of a gains file (as :func:`write_gains_toml` writes it), name -> value; a
-    missing file or table raises ``ParameterError``."""
+    """The ``[gains]`` table of a gains file (as [`write_gains_toml`][tuning.parameters.write_gains_toml]
+    writes it), name -> value; a missing file or table raises ``ParameterError``."""
     path = Path(path)
     if not path.is_file():
         raise ParameterError(f"gains file {path} does not exist.")

@@ -3,8 +3,9 @@
 Forward mode (``jax.jvp``, one pass per parameter) costs about one extra forward simulation per
 parameter and stores nothing; reverse mode (``jax.grad``) costs a few forward simulations whatever the
 number of parameters, recomputing each period from the per-period checkpoints. ``mode="auto"`` picks
-forward mode up to :data:`FORWARD_MODE_MAX_PARAMS` parameters, the crossover measured by
-``pmsmjax bench`` (:mod:`pmsmjax.studies.engine_timing`) on the book drive.
+forward mode up to [`FORWARD_MODE_MAX_PARAMS`][pmsmjax.analysis.gradients.FORWARD_MODE_MAX_PARAMS] parameters,
+the crossover measured by ``pmsmjax bench`` ([`pmsmjax.studies.engine_timing`][pmsmjax.studies.engine_timing])
+on the book drive.
 """
 
 from collections.abc import Callable

@@ -8,16 +8,25 @@ Quantities that are undefined for a given signal (never rises, never settles) ar
 
 Step figures come in two families:
 
-- **of a step response** (:func:`rise_time`, :func:`overshoot`, :func:`settling_time`): relative to the
-  step from ``y_start`` to ``y_final``, as read off one step (:mod:`pmsmjax.analysis.speed_step_summary`);
-- **against the reference** (:func:`excess_over_reference`, :func:`settling_time_to_reference`):
-  relative to the reference's magnitude sample by sample, so they apply to any scenario (reversals,
-  ramps) and to one period at a time (:mod:`tuning.autotune.objectives`, :mod:`tuning.montecarlo.kernel`).
+- **of a step response** ([`rise_time`][pmsmjax.analysis.metrics.rise_time],
+  [`overshoot`][pmsmjax.analysis.metrics.overshoot],
+  [`settling_time`][pmsmjax.analysis.metrics.settling_time]): relative to the step from ``y_start`` to
+  ``y_final``, as read off one step
+  ([`pmsmjax.analysis.speed_step_summary`][pmsmjax.analysis.speed_step_summary]);
+- **against the reference** ([`excess_over_reference`][pmsmjax.analysis.metrics.excess_over_reference],
+  [`settling_time_to_reference`][pmsmjax.analysis.metrics.settling_time_to_reference]): relative to the
+  reference's magnitude sample by sample, so they apply to any scenario (reversals, ramps) and to one period
+  at a time ([`tuning.autotune.objectives`][tuning.autotune.objectives],
+  [`tuning.montecarlo.kernel`][tuning.montecarlo.kernel]).
 
 For a step from rest the two coincide. Figures that a scan accumulates period by period
-(:mod:`tuning.montecarlo.kernel`) use the per-sample terms defined here (:func:`tracking_error`,
-:func:`itae_term`, :func:`excess_over_reference`, :func:`outside_reference_band`,
-:func:`peak_phase_current` of one period) and sum them or keep their maximum.
+([`tuning.montecarlo.kernel`][tuning.montecarlo.kernel]) use the per-sample terms defined here
+([`tracking_error`][pmsmjax.analysis.metrics.tracking_error],
+[`itae_term`][pmsmjax.analysis.metrics.itae_term],
+[`excess_over_reference`][pmsmjax.analysis.metrics.excess_over_reference],
+[`outside_reference_band`][pmsmjax.analysis.metrics.outside_reference_band],
+[`peak_phase_current`][pmsmjax.analysis.metrics.peak_phase_current] of one period) and sum them or keep their
+maximum.
 
 ``active`` arguments are ``(N,)`` weights, 1.0 for the samples that count and 0.0 for the others (a
 scenario's own duration inside a batch's common horizon): traced, so windows can differ across a ``vmap``.
@@ -63,11 +72,12 @@ def tracking_error(reference: Array, y: Array) -> Array:
 
 
 def itae_term(t: Array, error: Array) -> Array:
-    """The per-sample term of ITAE, ``t |e|``; :func:`itae` is its sum times ``dt``.
+    """The per-sample term of ITAE, ``t |e|``; [`itae`][pmsmjax.analysis.metrics.itae] is its sum times
+    ``dt``.
 
     Args:
         t: Sample times, s.
-        error: The error (:func:`tracking_error`).
+        error: The error ([`tracking_error`][pmsmjax.analysis.metrics.tracking_error]).
 
     Returns:
         ``t |e|``, units of e times s.
@@ -81,7 +91,7 @@ def itae(t: Array, error: Array) -> Array:
 
     Args:
         t: ``(..., N)`` sample times, s (uniformly spaced).
-        error: ``(..., N)`` error (:func:`tracking_error`).
+        error: ``(..., N)`` error ([`tracking_error`][pmsmjax.analysis.metrics.tracking_error]).
 
     Returns:
         ITAE, units of e times s^2.
@@ -207,8 +217,9 @@ def _reference_scale(reference):
 def excess_over_reference(y: Array, reference: Array) -> Array:
     """``sign(reference) (y - reference)``: how far ``y`` lies beyond the reference in its direction.
 
-    Its largest value over a step's window, in :func:`percent_of_reference` and floored at 0, is the
-    overshoot against the reference; for a step from rest it equals :func:`overshoot`.
+    Its largest value over a step's window, in
+    [`percent_of_reference`][pmsmjax.analysis.metrics.percent_of_reference] and floored at 0, is the overshoot
+    against the reference; for a step from rest it equals [`overshoot`][pmsmjax.analysis.metrics.overshoot].
 
     Args:
         y: Response, per sample.
@@ -221,7 +232,8 @@ def excess_over_reference(y: Array, reference: Array) -> Array:
 
 
 def percent_of_reference(x: Array, reference: Array) -> Array:
-    """``100 x / |reference|``, with ``|reference|`` floored at :data:`REFERENCE_FLOOR`.
+    """``100 x / |reference|``, with ``|reference|`` floored at
+    [`REFERENCE_FLOOR`][pmsmjax.analysis.metrics.REFERENCE_FLOOR].
 
     Args:
         x: A quantity in the reference's units.
@@ -232,7 +244,7 @@ def percent_of_reference(x: Array, reference: Array) -> Array:
 
 def outside_reference_band(y: Array, reference: Array, band: float) -> Array:
     """``True`` where ``|y - reference| > band |reference|`` (``|reference|`` floored at
-    :data:`REFERENCE_FLOOR`); per sample.
+    [`REFERENCE_FLOOR`][pmsmjax.analysis.metrics.REFERENCE_FLOOR]); per sample.
 
     Args:
         y: Response.
@@ -245,7 +257,7 @@ def outside_reference_band(y: Array, reference: Array, band: float) -> Array:
 
 def settling_time_to_reference(t: Array, y: Array, reference: Array, band: float, active: Array) -> Array:
     """Time of the first sample after the last ``active`` one outside ``band`` of the reference
-    (:func:`outside_reference_band`).
+    ([`outside_reference_band`][pmsmjax.analysis.metrics.outside_reference_band]).
 
     Censored rather than NaN, so that it stays usable in a cost: a window that ends unsettled gives the time
     of the sample after it (the record's last sample when the window reaches the end).
@@ -266,7 +278,8 @@ def settling_time_to_reference(t: Array, y: Array, reference: Array, band: float
 
 
 def steady_state_error(y: Array, reference: Array, window: int) -> Array:
-    """Mean :func:`tracking_error` ``reference - y`` over the last ``window`` samples.
+    """Mean [`tracking_error`][pmsmjax.analysis.metrics.tracking_error] ``reference - y`` over the last
+    ``window`` samples.
 
     Args:
         y: ``(..., N)`` response.
@@ -346,7 +359,8 @@ def voltage_use(u_dq_ref: Array, u_max) -> Array:
 
 def voltage_saturation(u_dq_ref: Array, u_max, active: Array, soft_width: float = 0.005) -> Array:
     """Fraction of the ``active`` periods with the voltage command on its limit, counted softly (a
-    sigmoid of :func:`voltage_use` about 0.999 of width ``soft_width``) so that it has a gradient.
+    sigmoid of [`voltage_use`][pmsmjax.analysis.metrics.voltage_use] about 0.999 of width ``soft_width``) so
+    that it has a gradient.
 
     Args:
         u_dq_ref: ``(N, 2)`` voltage command, V.
@@ -359,7 +373,8 @@ def voltage_saturation(u_dq_ref: Array, u_max, active: Array, soft_width: float 
 
 
 def control_effort(u_dq_ref: Array, u_max, active: Array) -> Array:
-    """Mean of ``(|u_dq*| / u_max)^2`` over the ``active`` periods (:func:`voltage_use`).
+    """Mean of ``(|u_dq*| / u_max)^2`` over the ``active`` periods
+    ([`voltage_use`][pmsmjax.analysis.metrics.voltage_use]).
 
     Args:
         u_dq_ref: ``(N, 2)`` voltage command, V.
@@ -443,7 +458,8 @@ def current_ripple_rms_a(i: Array, window: int) -> Array:
 
     Args:
         i: ``(..., N)`` samples, A, taken in steady state (the caller slices the window).
-        window: Moving-mean length in samples (see :func:`ripple_about_moving_mean`).
+        window: Moving-mean length in samples (see
+            [`ripple_about_moving_mean`][pmsmjax.analysis.metrics.ripple_about_moving_mean]).
 
     Returns:
         The RMS ripple, A.
@@ -454,7 +470,8 @@ def current_ripple_rms_a(i: Array, window: int) -> Array:
 
 
 def current_ripple_peak_to_peak_a(i: Array, window: int) -> Array:
-    """Peak-to-peak of a current about its moving mean (see :func:`current_ripple_rms_a`).
+    """Peak-to-peak of a current about its moving mean (see
+    [`current_ripple_rms_a`][pmsmjax.analysis.metrics.current_ripple_rms_a]).
 
     Args:
         i: ``(..., N)`` samples, A.

@@ -12,11 +12,14 @@ Steady state of the dq model (the book, ch. 1) at mechanical speed ``w`` (rad/s)
 (the controller's current limit). With i_d = 0 control the top speed at a load follows by bisection;
 with field weakening any ``-I_max <= i_d <= 0`` may be used.
 
-:func:`steady_point`, :func:`top_speed_rpm` and :func:`reachable` are pure Python on a dict of motor
-values (:func:`pmsmjax.io.motor_files.motor_values`), so the command line checks a request before JAX
-starts. :func:`run_flags` judges a finished run from its :class:`~pmsmjax.trace.Trace`: the fraction of
-periods at the voltage limit and at the current limit, and whether the speed reached its reference,
-each shortfall with its cause and remedy (the ``operating_point`` entry of ``summary.json``).
+[`steady_point`][pmsmjax.analysis.operating_point.steady_point],
+[`top_speed_rpm`][pmsmjax.analysis.operating_point.top_speed_rpm] and
+[`reachable`][pmsmjax.analysis.operating_point.reachable] are pure Python on a dict of motor values
+([`pmsmjax.io.motor_files.motor_values`][pmsmjax.io.motor_files.motor_values]), so the command line checks a
+request before JAX starts. [`run_flags`][pmsmjax.analysis.operating_point.run_flags] judges a finished run
+from its [`Trace`][pmsmjax.trace.Trace]: the fraction of periods at the voltage limit and at the current
+limit, and whether the speed reached its reference, each shortfall with its cause and remedy (the
+``operating_point`` entry of ``summary.json``).
 """
 
 import math
@@ -55,7 +58,7 @@ def motor_dict(motor) -> dict:
     """Plain floats ``R, L_d, L_q, psi_f, J, B, pole_pairs`` of a motor.
 
     Args:
-        motor: A mapping or :class:`~pmsmjax.machines.motor.PMSMParameters`.
+        motor: A mapping or [`PMSMParameters`][pmsmjax.machines.motor.PMSMParameters].
     """
     get = (lambda k: motor[k]) if isinstance(motor, Mapping) else (lambda k: getattr(motor, k))
     out = {k: float(np.asarray(get(k))) for k in ("R", "L_d", "L_q", "psi_f", "J", "B")}
@@ -70,7 +73,7 @@ def steady_point(motor: Mapping, speed_rad_s: float, load_nm: float, i_d: float 
     """Steady state at a speed under a load with a given d current (peak phase values).
 
     Args:
-        motor: The motor (a mapping of :func:`motor_dict`'s names).
+        motor: The motor (a mapping of [`motor_dict`][pmsmjax.analysis.operating_point.motor_dict]'s names).
         speed_rad_s: Mechanical speed, rad/s.
         load_nm: Load torque, N m.
         i_d: d current, A.
@@ -95,7 +98,7 @@ def top_speed_rpm(motor: Mapping, u_limit_v: float, load_nm: float, direction: f
     """Largest speed whose steady state with i_d = 0 at ``load_nm`` needs at most ``u_limit_v``.
 
     Args:
-        motor: The motor (a mapping of :func:`motor_dict`'s names).
+        motor: The motor (a mapping of [`motor_dict`][pmsmjax.analysis.operating_point.motor_dict]'s names).
         u_limit_v: Voltage limit (peak phase), V.
         load_nm: Load torque, N m.
         direction: Sign of the speed.
@@ -127,7 +130,7 @@ def reachable(
     """Whether the steady point (``speed_rpm``, ``load_nm``) fits the limits.
 
     Args:
-        motor: The motor (a mapping of :func:`motor_dict`'s names).
+        motor: The motor (a mapping of [`motor_dict`][pmsmjax.analysis.operating_point.motor_dict]'s names).
         speed_rpm: Speed, r/min.
         load_nm: Load torque, N m.
         u_limit_v: Voltage limit (peak phase), V.
@@ -173,10 +176,11 @@ def reachable(
 def field_weakening_top_speed_rpm(
     motor: Mapping, u_limit_v: float, current_limit_a: float, load_nm: float, direction: float = 1.0
 ) -> float:
-    """Largest speed :func:`reachable` with field weakening at ``load_nm``.
+    """Largest speed [`reachable`][pmsmjax.analysis.operating_point.reachable] with field weakening at
+    ``load_nm``.
 
     Args:
-        motor: The motor (a mapping of :func:`motor_dict`'s names).
+        motor: The motor (a mapping of [`motor_dict`][pmsmjax.analysis.operating_point.motor_dict]'s names).
         u_limit_v: Voltage limit (peak phase), V.
         current_limit_a: Current limit (peak phase), A.
         load_nm: Load torque, N m.
@@ -203,7 +207,7 @@ def max_load_nm(motor: Mapping, current_limit_a: float) -> float:
     n/2: 1.5 for three phases, from the dict's ``n_phases`` otherwise).
 
     Args:
-        motor: The motor (a mapping of :func:`motor_dict`'s names).
+        motor: The motor (a mapping of [`motor_dict`][pmsmjax.analysis.operating_point.motor_dict]'s names).
         current_limit_a: Current limit (peak phase), A.
 
     Returns:
@@ -420,7 +424,7 @@ def refuse_unreachable(
     there would describe saturation).
 
     Args:
-        motor: The motor (a mapping of :func:`motor_dict`'s names).
+        motor: The motor (a mapping of [`motor_dict`][pmsmjax.analysis.operating_point.motor_dict]'s names).
         speed_rpm: Speed, r/min.
         load_nm: Load torque, N m.
         u_dc_v: DC-link voltage, V.

@@ -6,18 +6,18 @@ A signal observed over a window ``T_w`` holding ``K`` whole fundamental periods 
 
 Two ways to get the coefficients, one per kind of signal:
 
-- :func:`piecewise_constant_spectrum`: exact coefficients of a piecewise-constant signal (an inverter's
-  phase or line voltage), the integrals of ``e^{-j w t}`` over each constant interval. No sampling, no
-  aliasing: every switching edge is placed exactly.
-- :func:`sampled_spectrum`: FFT of uniform samples covering the window (a phase current, which is
-  continuous and whose harmonics fall off as ``1/(n w L)`` of the voltage's, so a few tens of samples per
-  PWM period leave aliasing far below the components that matter).
+- [`piecewise_constant_spectrum`][pmsmjax.analysis.spectra.piecewise_constant_spectrum]: exact coefficients of
+  a piecewise-constant signal (an inverter's phase or line voltage), the integrals of ``e^{-j w t}`` over each
+  constant interval. No sampling, no aliasing: every switching edge is placed exactly.
+- [`sampled_spectrum`][pmsmjax.analysis.spectra.sampled_spectrum]: FFT of uniform samples covering the window
+  (a phase current, which is continuous and whose harmonics fall off as ``1/(n w L)`` of the voltage's, so a
+  few tens of samples per PWM period leave aliasing far below the components that matter).
 
-:func:`thd`: ``THD = sqrt(sum_{n != 0, K; f_n <= f_max} |X_n|^2) / |X_K|``, i.e. every component of the
-window's Fourier series other than DC and the fundamental, up to ``f_max``. With PWM, the distortion sits
-in carrier groups around multiples of the switching frequency, far above the 40th-50th harmonic of the
-power-quality standards, so ``f_max`` must be stated with every figure; pmsmjax's comparisons use
-``f_max = 4 f_sw`` (the first four carrier groups and their sidebands).
+[`thd`][pmsmjax.analysis.spectra.thd]: ``THD = sqrt(sum_{n != 0, K; f_n <= f_max} |X_n|^2) / |X_K|``, i.e.
+every component of the window's Fourier series other than DC and the fundamental, up to ``f_max``. With PWM,
+the distortion sits in carrier groups around multiples of the switching frequency, far above the 40th-50th
+harmonic of the power-quality standards, so ``f_max`` must be stated with every figure; pmsmjax's comparisons
+use ``f_max = 4 f_sw`` (the first four carrier groups and their sidebands).
 """
 
 import numpy as np
@@ -75,7 +75,7 @@ def piecewise_constant_spectrum(times, values, cycles: int, n_max: int) -> Spect
         n_max: Highest component computed.
 
     Returns:
-        The :class:`Spectrum`.
+        The [`Spectrum`][pmsmjax.analysis.spectra.Spectrum].
     """
     times = np.asarray(times, float)
     values = np.asarray(values, float)
@@ -108,7 +108,7 @@ def sampled_spectrum(samples, window_s: float, cycles: int, n_max: int | None = 
         n_max: Highest component (default and at most ``N // 2 - 1``, below Nyquist).
 
     Returns:
-        The :class:`Spectrum`.
+        The [`Spectrum`][pmsmjax.analysis.spectra.Spectrum].
     """
     x = np.asarray(samples, float)
     _check_window(window_s, cycles)

@@ -4,7 +4,8 @@ A Trace holds the state at each period start only. With centre-aligned PWM those
 middle of the current ripple, so ripple, spectra and torque ripple need the trajectory in between. It is
 recomputed here from each period's recorded start state and applied duties (the same model, so the same
 trajectory the simulation followed): segment by segment for the switching-resolved bridge
-(:meth:`SwitchingBridge.sample_period`), in equal held-voltage steps for the averaged bridge.
+([`SwitchingBridge.sample_period`][pmsmjax.inverters.switching.SwitchingBridge.sample_period]), in equal
+held-voltage steps for the averaged bridge.
 """
 
 import equinox as eqx
@@ -48,11 +49,11 @@ def dense_window(drive: Drive, window: Trace, n_samples: int):
         n_samples: Samples per period.
 
     Returns:
-        ``(states, t_u, u_ab)``: a :class:`MachineState` of ``(N, n_samples)`` leaves; the bounds ``(K+1,)``
-        s (from the window start) and ``(K, 2)`` stator voltages V of the piecewise-constant applied voltage
-        (one interval per period for the averaged bridge, the switching segments otherwise;
-        ``(K, 2 n_planes)`` stationary VSD voltages for a multi-phase machine, whose period-start states
-        are rebuilt from the recorded phase currents).
+        ``(states, t_u, u_ab)``: a [`MachineState`][pmsmjax.machines.base.MachineState] of ``(N, n_samples)``
+        leaves; the bounds ``(K+1,)`` s (from the window start) and ``(K, 2)`` stator voltages V of the
+        piecewise-constant applied voltage (one interval per period for the averaged bridge, the switching
+        segments otherwise; ``(K, 2 n_planes)`` stationary VSD voltages for a multi-phase machine, whose
+        period-start states are rebuilt from the recorded phase currents).
     """
     machine, Ts = drive.machine, drive.Ts
     n = window.t.shape[0]

@@ -1,5 +1,5 @@
 """``pmsmjax compare``: control methods side by side on a drive's scenario (``--motor``: the book drive by
-default, or a drive file; :mod:`pmsmjax.studies.control_comparison`)."""
+default, or a drive file; [`pmsmjax.studies.control_comparison`][pmsmjax.studies.control_comparison])."""
 
 import json
 import time
@@ -14,9 +14,9 @@ WINDOW_CYCLES = 2
 
 def whole_window_speed(speed_rpm: float, spec, given: bool) -> float:
     """The run's speed, r/min: the ripple window spans whole electrical periods at the control rate
-    (:func:`pmsmjax.studies.control_comparison.window_periods`). A speed from the drive file that does not
-    fit is lowered to the nearest one that does (said on the console); one the user gave is refused with
-    the nearest ones that fit."""
+    ([`pmsmjax.studies.control_comparison.window_periods`][pmsmjax.studies.control_comparison.window_periods]).
+    A speed from the drive file that does not fit is lowered to the nearest one that does (said on the
+    console); one the user gave is refused with the nearest ones that fit."""
     from pmsmjax.presets.book_constants import DTC_SAMPLE_PERIOD_S, HYSTERESIS_SAMPLE_PERIOD_S
     from pmsmjax.presets.drive_ratings import common_period_s, whole_period_speed_rpm
 
@@ -148,7 +148,7 @@ def add_parser(sub):
 
 def precheck(args):
     """Checks that need no model (before JAX starts); returns the control (or observer) names and the
-    drive (:class:`~pmsmjax.io.drive_files.DriveSpec`), the scenario flags left unset filled from it."""
+    drive ([`DriveSpec`][pmsmjax.io.drive_files.DriveSpec]), the scenario flags left unset filled from it."""
     from pmsmjax.analysis.operating_point import refuse_unreachable
     from pmsmjax.cli.demo import CONTROL_NAMES, ESTIMATOR_NAMES, MULTIPHASE_NAMES
 
@@ -246,15 +246,16 @@ def precheck(args):
 
 
 #: The chapter 6 estimators ``compare --estimator`` takes (the keys of
-#: :data:`pmsmjax.estimators.INJECTION_OBSERVERS` and ``HYBRID_OBSERVERS``; spelled here so that the
-#: checks run before JAX starts, tests/studies/test_hfi_compare.py checks they agree).
+#: [`pmsmjax.estimators.INJECTION_OBSERVERS`][pmsmjax.estimators.catalogue.INJECTION_OBSERVERS] and
+#: ``HYBRID_OBSERVERS``; spelled here so that the checks run before JAX starts,
+#: tests/studies/test_hfi_compare.py checks they agree).
 CHAPTER6_NAMES = ("hfi-rotating", "hfi-pulsating", "hybrid")
 
 
 def _chapter6_flags(args, names: list[str], chapter6: bool) -> None:
     """Fill in --scenario (book; standstill when an injection method is compared) and refuse what does
     not fit before JAX starts (the scenario-estimator pairs themselves:
-    :func:`pmsmjax.studies.control_comparison.check_estimator_scenario`)."""
+    [`pmsmjax.studies.control_comparison.check_estimator_scenario`][pmsmjax.studies.control_comparison.check_estimator_scenario])."""
     if args.scenario is None:
         injection = any(n.startswith("hfi-") for n in names)
         args.scenario = "standstill" if injection else "book"
@@ -354,8 +355,9 @@ def run(args) -> int:
 
 
 def run_estimators(args, names: list[str], spec) -> int:
-    """``pmsmjax compare --estimator``: the observers side by side (:func:`pmsmjax.studies.control_comparison.
-    compare_estimators`); writes compare.json, compare_estimators.md and figures."""
+    """``pmsmjax compare --estimator``: the observers side by side
+    ([`pmsmjax.studies.control_comparison.compare_estimators`][pmsmjax.studies.control_comparison.compare_estimators]);
+    writes compare.json, compare_estimators.md and figures."""
     import numpy as np
 
     from pmsmjax.analysis.observer_errors import angle_error, angle_error_modulo_pi

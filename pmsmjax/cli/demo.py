@@ -1,14 +1,14 @@
 """``pmsmjax demo`` (alias ``simulate``): the drive's scenario (``--motor``: the book drive by default, or a
-drive file, :mod:`pmsmjax.io.drive_files`) under a chosen control method, written as a trace, summary.json
-and figures; ``--machine six-phase`` runs the dual three-phase drive (book ch. 7-9), ``--machine
-five-phase`` the five-phase drive (book ch. 10).
+drive file, [`pmsmjax.io.drive_files`][pmsmjax.io.drive_files]) under a chosen control method, written as a
+trace, summary.json and figures; ``--machine six-phase`` runs the dual three-phase drive (book ch. 7-9),
+``--machine five-phase`` the five-phase drive (book ch. 10).
 
-Before any work: the flags (:mod:`pmsmjax.cli.checks`), ``--out``, the drive file (its units,
-:mod:`pmsmjax.checks.plausibility`, and its ratings; :mod:`pmsmjax.cli.drive_flags`), the gains file, the
-load step inside the run, and a speed the drive could reach at all. After the run, ``summary.json`` says
-whether the speed reached its reference and how much of the run sat at the voltage or current limit
-(:func:`pmsmjax.analysis.operating_point.run_flags`), and the console repeats every such flag with its
-cause and remedy.
+Before any work: the flags (`pmsmjax.cli.checks`), ``--out``, the drive file (its units,
+[`pmsmjax.checks.plausibility`][pmsmjax.checks.plausibility], and its ratings; `pmsmjax.cli.drive_flags`), the
+gains file, the load step inside the run, and a speed the drive could reach at all. After the run,
+``summary.json`` says whether the speed reached its reference and how much of the run sat at the voltage or
+current limit ([`pmsmjax.analysis.operating_point.run_flags`][pmsmjax.analysis.operating_point.run_flags]),
+and the console repeats every such flag with its cause and remedy.
 """
 
 import json
@@ -52,9 +52,10 @@ SIX_PHASE_FLAG_OPTIONS = {
     "bridge": "bridge",
 }
 
-#: ``--estimator``: the chapter 5 observers (:data:`pmsmjax.estimators.OBSERVERS`; listed here so the
-#: flags are checked before JAX starts) and the controls that can run on one (FOC cascades: they hold the
-#: I/f start-up current).
+#: ``--estimator``: the chapter 5 observers
+#: ([`pmsmjax.estimators.OBSERVERS`][pmsmjax.estimators.catalogue.OBSERVERS]; listed here so the flags are
+#: checked before JAX starts) and the controls that can run on one (FOC cascades: they hold the I/f start-up
+#: current).
 ESTIMATOR_NAMES = ("smo", "smo-pll", "adaptive-smo", "dq-smo", "mras", "ekf")
 SENSORLESS_CONTROLS = ("pi", "smc", "pr")
 
@@ -99,7 +100,7 @@ MAX_SPEED_FACTOR = 3.0
 def six_phase_drive_from_flags(args, spec):
     """``--machine six-phase`` (or ``five-phase``): the multi-phase drive of ``args.control`` on the drive
     file ``spec`` with the flags the user set (a switching bridge gets the file's dead time); flags of the
-    three-phase controls are refused (:func:`check_machine_flags`)."""
+    three-phase controls are refused (`check_machine_flags`)."""
     from pmsmjax.presets.user_drive import spec_drive
 
     options = {}
@@ -160,10 +161,10 @@ def check_machine_flags(args) -> None:
 
 def control_drive_from_flags(args, drive):
     """The three-phase drive of ``args.control`` with the options the user set, on ``drive``: a
-    :class:`~pmsmjax.io.drive_files.DriveSpec` (its DC link, control rate, current limit and bandwidths;
-    :func:`pmsmjax.presets.user_drive.spec_drive`) or a bare motor (the preset's defaults). A flag that does
-    not apply to the chosen control is refused (``--band-a`` with ``--control pi``, say) instead of
-    silently ignored."""
+    [`DriveSpec`][pmsmjax.io.drive_files.DriveSpec] (its DC link, control rate, current limit and bandwidths;
+    [`pmsmjax.presets.user_drive.spec_drive`][pmsmjax.presets.user_drive.spec_drive]) or a bare motor (the
+    preset's defaults). A flag that does not apply to the chosen control is refused (``--band-a`` with
+    ``--control pi``, say) instead of silently ignored."""
     from pmsmjax import presets
     from pmsmjax.io.drive_files import DriveSpec
     from pmsmjax.presets.control_methods import control_drive, control_options
@@ -342,7 +343,7 @@ def add_parser(sub):
 
 def precheck(args):
     """Every check that needs no model (pure Python, before JAX starts); returns the drive
-    (:class:`~pmsmjax.io.drive_files.DriveSpec`) with the scenario flags left unset filled from it."""
+    ([`DriveSpec`][pmsmjax.io.drive_files.DriveSpec]) with the scenario flags left unset filled from it."""
     from pmsmjax.analysis.operating_point import top_speed_rpm
 
     checks.output_folder(args.out)
@@ -574,7 +575,8 @@ DEFINITIONS = {
 
 def flux_map_entry(drive, trace) -> dict:
     """``{"flux_map": ...}`` for summary.json when the plant is a flux map: how far the run's currents went
-    outside the map's grid (:func:`pmsmjax.machines.flux_map.excursion`); ``{}`` otherwise."""
+    outside the map's grid ([`pmsmjax.machines.flux_map.excursion`][pmsmjax.machines.flux_map.excursion]);
+    ``{}`` otherwise."""
     flux_map = getattr(drive.machine, "flux_map", None)
     return {} if flux_map is None else {"flux_map": flux_map.excursion(trace.i_dq)}
 

@@ -1,8 +1,9 @@
 """The user's drive on the command line: ``--motor`` (a preset name or a drive file,
-:mod:`pmsmjax.io.drive_files`), ``--u-dc`` and ``--current-limit`` overriding the file's ``[inverter]
-u_dc_v`` and ``[ratings] max_current_a``, and the scenario flags the user left unset filled from the
-file's ``[scenario]``. Every command that runs a drive resolves it here once, in its precheck (pure
-Python, before JAX starts), and builds everything after from the :class:`~pmsmjax.io.drive_files.DriveSpec`.
+[`pmsmjax.io.drive_files`][pmsmjax.io.drive_files]), ``--u-dc`` and ``--current-limit`` overriding the file's
+``[inverter] u_dc_v`` and ``[ratings] max_current_a``, and the scenario flags the user left unset filled from
+the file's ``[scenario]``. Every command that runs a drive resolves it here once, in its precheck (pure
+Python, before JAX starts), and builds everything after from the
+[`DriveSpec`][pmsmjax.io.drive_files.DriveSpec].
 """
 
 from pathlib import Path
@@ -78,7 +79,7 @@ def scenario_help(key: str, what: str) -> str:
 
 def resolve_drive(args, n_phases: int = 3) -> DriveSpec:
     """The drive of ``args.motor`` with ``--u-dc``/``--current-limit`` applied (when the command has them),
-    checked; a careless value is a one-line :class:`~pmsmjax.checks.validation.ParameterError`."""
+    checked; a careless value is a one-line [`ParameterError`][pmsmjax.checks.validation.ParameterError]."""
     return drive_spec(
         args.motor,
         n_phases=n_phases,

@@ -1,5 +1,5 @@
 """``pmsmjax observe``: run a chapter 5 observer, or the rotating HF-injection estimator of chapter 6, offline
-on a recorded drive log (:mod:`pmsmjax.studies.offline_observer`).
+on a recorded drive log ([`pmsmjax.studies.offline_observer`][pmsmjax.studies.offline_observer]).
 
 ``hfi-rotating`` reads the carrier from the log's voltages (``carrier="measured"``: the log's drive
 injected it, this run does not), and its angle is the d axis modulo pi: ``estimate.csv`` gives it in

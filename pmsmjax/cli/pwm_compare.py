@@ -1,6 +1,6 @@
 """``pmsmjax pwm-compare``: the PWM methods of a three-, six- or five-phase drive (``--motor``: the book
 drive by default, or a drive file: its motor, DC link, switching frequency and dead time) compared at one
-steady operating point (:mod:`pmsmjax.studies.pwm_comparison`)."""
+steady operating point ([`pmsmjax.studies.pwm_comparison`][pmsmjax.studies.pwm_comparison])."""
 
 import json
 import time
@@ -17,7 +17,7 @@ FIVE_PHASE_MODULATOR_NAMES = ("near-four-vector", "carrier", "sinusoidal", "larg
 #: Dead time of the _deadtime variants when the drive file gives none (ideal switches), us.
 DEFAULT_DEAD_TIME_US = 2.0
 #: ``--phases`` -> the control whose drive reaches the operating point and its default modulator
-#: (:attr:`pmsmjax.studies.pwm_comparison.PhaseCount.base_drive`).
+#: ([`pmsmjax.studies.pwm_comparison.PhaseCount.base_drive`][pmsmjax.studies.pwm_comparison.PhaseCount]).
 BASE_CONTROL = {
     3: ("pi", {}),
     6: ("conventional", {"pwm": "four-vector"}),
@@ -108,7 +108,7 @@ def add_parser(sub):
 
 def precheck(args):
     """Checks that need no model (before JAX starts); returns the drive
-    (:class:`~pmsmjax.io.drive_files.DriveSpec`), the flags left unset filled from it."""
+    ([`DriveSpec`][pmsmjax.io.drive_files.DriveSpec]), the flags left unset filled from it."""
     from pmsmjax.analysis.operating_point import refuse_unreachable
 
     checks.output_folder(args.out)

@@ -2,8 +2,9 @@
 the maximum-torque-per-ampere (MTPA) locus as a table ``i_d(i_q)`` for motoring and generating.
 
 The torque is the map's, ``T = 1.5 p (psi_d(i) i_q - psi_q(i) i_d)`` (amplitude-invariant dq, peak values),
-with ``psi`` the map's bicubic Hermite interpolant (:mod:`pmsmjax.machines.flux_map`), so saturation and
-cross-saturation move the locus; on a linear map it is the closed form of :mod:`pmsmjax.controllers.mtpa`.
+with ``psi`` the map's bicubic Hermite interpolant ([`pmsmjax.machines.flux_map`][pmsmjax.machines.flux_map]),
+so saturation and cross-saturation move the locus; on a linear map it is the closed form of
+[`pmsmjax.controllers.mtpa`][pmsmjax.controllers.mtpa].
 
 **MTPA** (the book, ch. 3, for a linear machine; for a flux map e.g. Bianchi and Bolognani, "Parameters and
 volt-ampere ratings of a synchronous motor drive for flux-weakening applications", IEEE Trans. Power
@@ -37,8 +38,8 @@ _SCAN_ANGLES = 48
 
 
 class MapTorque:
-    """NumPy evaluation of a :class:`FluxMapGrid`'s interpolant at single points, its coefficients computed
-    once (``FluxMapGrid.at`` recomputes them per call).
+    """NumPy evaluation of a [`FluxMapGrid`][pmsmjax.machines.flux_map.FluxMapGrid]'s interpolant at single
+    points, its coefficients computed once (``FluxMapGrid.at`` recomputes them per call).
 
     `grid`: the map; `pole_pairs`: ``p``.
     """
@@ -112,8 +113,8 @@ def mtpa_table(
     """The MTPA locus of ``grid`` up to the current magnitude ``max_current_a`` (A, peak), for both torque
     signs (module docstring), ``n_points`` magnitudes per branch.
 
-    Refuses (one :class:`ParameterError` naming the map) a map whose locus does not rise monotonically in
-    ``i_q`` or torque: such a map has no single-valued ``i_d(i_q)``.
+    Refuses (one [`ParameterError`][pmsmjax.checks.validation.ParameterError] naming the map) a map whose
+    locus does not rise monotonically in ``i_q`` or torque: such a map has no single-valued ``i_d(i_q)``.
     """
     if not max_current_a > 0:
         raise ParameterError(

@@ -1,9 +1,9 @@
 """The estimator interface: sampled measurements -> rotor angle and speed (the
-second block of the sampled-data step of :mod:`pmsmjax.drive`).
+second block of the sampled-data step of [`pmsmjax.drive`][pmsmjax.drive]).
 
 An estimator is the block between sampling and control. The exact sensor, an encoder and every observer of
 the later chapters (sliding-mode, MRAS, EKF, HF injection) implement it, so a sensorless drive is the same
-:class:`pmsmjax.drive.Drive` with another ``estimator``.
+[`pmsmjax.drive.Drive`][pmsmjax.drive.Drive] with another ``estimator``.
 
 - ``init(sample)`` gives the estimator's state from the first sample (an observer that does not know the
   initial angle ignores the sensor fields).
@@ -37,16 +37,17 @@ class AbstractEstimator(eqx.Module):
     def step(self, state, sample: Sample, Ts: float) -> tuple[object, Estimate]:
         """One control period: update the estimate from this period's `sample`.
 
-        `state`: as returned by :meth:`init` or the last step; `sample`: the period-start measurements
-        (currents A, DC voltage V, last commanded voltage V, sensor angle rad); `Ts`: control period, s
-        (static). Returns the new state and the :class:`~pmsmjax.signals.Estimate` (electrical angle rad,
-        mechanical speed rad/s, and the optional fields the estimator provides) used by the controller in
-        the same period.
+        `state`: as returned by [`init`][pmsmjax.estimators.base.AbstractEstimator.init] or the last step;
+        `sample`: the period-start measurements (currents A, DC voltage V, last commanded voltage V, sensor
+        angle rad); `Ts`: control period, s (static). Returns the new state and the
+        [`Estimate`][pmsmjax.signals.Estimate] (electrical angle rad, mechanical speed rad/s, and the optional
+        fields the estimator provides) used by the controller in the same period.
         """
         raise NotImplementedError
 
     def check_period(self, Ts: float) -> None:
-        """Raise :class:`pmsmjax.ParameterError` if the estimator's gains are unstable at period ``Ts``, s.
+        """Raise [`pmsmjax.ParameterError`][pmsmjax.checks.validation.ParameterError] if the estimator's gains
+        are unstable at period ``Ts``, s.
 
         Called by the drive before compiling; nothing to check here.
         """

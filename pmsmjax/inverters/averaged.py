@@ -4,10 +4,10 @@ Phase-to-neutral voltages of a star-connected, isolated-neutral machine fed by l
 ``u_xN = U_dc (d_x - (d_a + d_b + d_c)/3)`` (the common-mode part does not reach the windings). The
 voltage is held in the stator frame over the period, as the real inverter holds it.
 
-Optionally the legs' voltage error (:mod:`pmsmjax.inverters.voltage_error`: dead time and device drops,
-period-averaged, the current's sign taken at the period start and smoothed) is added to the pole voltages
-before the common mode is removed. Without it (``dead_time=None`` and ``device_drop=None``, the default)
-the program is the ideal bridge's, bit for bit.
+Optionally the legs' voltage error ([`pmsmjax.inverters.voltage_error`][pmsmjax.inverters.voltage_error]: dead
+time and device drops, period-averaged, the current's sign taken at the period start and smoothed) is added to
+the pole voltages before the common mode is removed. Without it (``dead_time=None`` and ``device_drop=None``,
+the default) the program is the ideal bridge's, bit for bit.
 """
 
 import equinox as eqx
@@ -44,7 +44,8 @@ class AveragedBridge(AbstractBridge):
     Args:
         u_dc: DC-link voltage, V (array leaf: vmappable, differentiable).
         unroll_substeps: Write the period's RK4 sub-steps out rather than loop over them (static;
-            :func:`pmsmjax.machines.integrate.advance`; for GPUs, where it pays).
+            [`pmsmjax.machines.integrate.advance`][pmsmjax.machines.integrate.advance]; for GPUs, where it
+            pays).
         dead_time: Blanking time per switching edge, s (0 <= t_d < Ts/2, checked against the drive's Ts);
             ``None`` leaves the dead time out of the program.
         device_drop: On-state voltage of a switch or diode, V (>= 0); ``None`` leaves it out.

@@ -1,7 +1,7 @@
 """Interfaces of modulators (voltage reference -> duty cycles) and bridges (duties -> machine voltage).
 
 Both carry the number of legs they drive, ``n_phases`` (3 here; the six- and five-phase inverters
-override it); :class:`pmsmjax.drive.Drive` checks that it matches the machine's.
+override it); [`pmsmjax.drive.Drive`][pmsmjax.drive.Drive] checks that it matches the machine's.
 """
 
 from typing import ClassVar
@@ -93,7 +93,8 @@ class AbstractBridge(eqx.Module):
     def check_period(self, Ts: float) -> None:
         """Refuse settings that do not fit the period.
 
-        Called by :class:`pmsmjax.drive.Drive` at construction (before compiling); nothing to check here.
+        Called by [`pmsmjax.drive.Drive`][pmsmjax.drive.Drive] at construction (before compiling); nothing to
+        check here.
 
         Args:
             Ts: PWM period, s.

@@ -3,15 +3,18 @@
 Phase-to-neutral voltage of phase ``x`` in star ``S``: ``u_xN = v_x - mean_{y in S} v_y`` with ``v`` the
 pole voltages (each star's common mode does not reach its windings). The machine is driven by the
 stationary VSD voltage of those phase voltages, ``(2 n_planes,)`` = [alpha, beta, z1, z2, ...]
-(:mod:`pmsmjax.frames.multiphase`); the zero sequences of isolated stars are 0.
+([`pmsmjax.frames.multiphase`][pmsmjax.frames.multiphase]); the zero sequences of isolated stars are 0.
 
-- :class:`MultiPhaseAveragedBridge`: the period-average voltage held over the period (``d`` the duties:
-  ``v = U_dc d``).
-- :class:`MultiPhaseSwitchingBridge`: the period cut at every gate edge of centre-aligned PWM (2n edges,
-  2n + 1 segments; with dead time 4n + 1), the machine integrated over each constant-voltage segment,
-  exactly as :class:`pmsmjax.inverters.switching.SwitchingBridge` does for three legs (same segment
-  function :func:`pmsmjax.inverters.switching.pwm_segments`, same dead-time and device-drop model with
-  the exact or ``tanh`` current sign). Both return the period-average VSD voltage; they agree on it.
+- [`MultiPhaseAveragedBridge`][pmsmjax.inverters.multiphase_bridges.MultiPhaseAveragedBridge]: the
+  period-average voltage held over the period (``d`` the duties: ``v = U_dc d``).
+- [`MultiPhaseSwitchingBridge`][pmsmjax.inverters.multiphase_bridges.MultiPhaseSwitchingBridge]: the period
+  cut at every gate edge of centre-aligned PWM (2n edges, 2n + 1 segments; with dead time 4n + 1), the machine
+  integrated over each constant-voltage segment, exactly as
+  [`pmsmjax.inverters.switching.SwitchingBridge`][pmsmjax.inverters.switching.SwitchingBridge] does for three
+  legs (same segment function
+  [`pmsmjax.inverters.switching.pwm_segments`][pmsmjax.inverters.switching.pwm_segments], same dead-time and
+  device-drop model with the exact or ``tanh`` current sign). Both return the period-average VSD voltage; they
+  agree on it.
 
 ``commanded_voltage`` (what the controller knows it applied) is the alpha-beta part ``(2,)`` of the
 ideal period average, the interface every controller reads.
@@ -129,10 +132,11 @@ class MultiPhaseAveragedBridge(AbstractBridge):
 class MultiPhaseSwitchingBridge(AbstractBridge):
     """n-leg inverter resolved into its switching segments (module docstring).
 
-    The arguments are those of :class:`pmsmjax.inverters.switching.SwitchingBridge`, plus ``layout``.
-    ``device_drop=None`` leaves the device drop out of the program as ``dead_time=None`` does the dead time
-    (``0.0`` keeps it, to vary or differentiate it). With neither, no segment's voltage depends on the
-    current, so all segment voltages are computed at once before the segment loop, which then only
+    The arguments are those of
+    [`pmsmjax.inverters.switching.SwitchingBridge`][pmsmjax.inverters.switching.SwitchingBridge], plus
+    ``layout``. ``device_drop=None`` leaves the device drop out of the program as ``dead_time=None`` does the
+    dead time (``0.0`` keeps it, to vary or differentiate it). With neither, no segment's voltage depends on
+    the current, so all segment voltages are computed at once before the segment loop, which then only
     integrates (docs/performance.md, "Six-phase and five-phase drives").
 
     Args:
@@ -234,7 +238,8 @@ class MultiPhaseSwitchingBridge(AbstractBridge):
         return jnp.tanh(i_phase / self.sign_smoothing)
 
     def segments(self, duties: Array, Ts, extra_times: Array | None = None):
-        """:func:`pmsmjax.inverters.switching.pwm_segments` with this bridge's dead time.
+        """[`pmsmjax.inverters.switching.pwm_segments`][pmsmjax.inverters.switching.pwm_segments] with this
+        bridge's dead time.
 
         Args:
             duties: ``(n,)`` upper-switch duties.
@@ -285,7 +290,7 @@ class MultiPhaseSwitchingBridge(AbstractBridge):
 
     def sample_period(self, machine, state, duties, load_torque, Ts, n_samples: int):
         """States at ``t_j = j Ts / n_samples``, j = 1..n_samples, within one period (as
-        :meth:`pmsmjax.inverters.switching.SwitchingBridge.sample_period`).
+        [`pmsmjax.inverters.switching.SwitchingBridge.sample_period`][pmsmjax.inverters.switching.SwitchingBridge.sample_period]).
 
         Args:
             machine: The machine model.

@@ -2,9 +2,10 @@
 (the book, ch. 8: the six-phase four-vector and two-vector methods; chapter 10: five phases).
 
 In the sector ``k`` of the alpha-beta reference (between the large vectors L_k and L_k+1,
-:mod:`.multiphase_vectors`) :class:`NearFourVectorSVPWM` applies L_k, L_k+1 and the two collinear vectors
-of the next group (six phases: the medium-large vectors ML_k, ML_k+1; five phases: the medium vectors
-M_k, M_k+1) for the dwell fractions that solve
+[`multiphase_vectors`][pmsmjax.inverters.multiphase_vectors])
+[`NearFourVectorSVPWM`][pmsmjax.inverters.multiphase_svpwm.NearFourVectorSVPWM] applies L_k, L_k+1 and the two
+collinear vectors of the next group (six phases: the medium-large vectors ML_k, ML_k+1; five phases: the
+medium vectors M_k, M_k+1) for the dwell fractions that solve
 
     [L_k  L_k+1  S_k  S_k+1] t = [u_alpha, u_beta, u_x, u_y] / U_dc
 
@@ -18,21 +19,22 @@ centre-aligned carrier comparison, so the period average of the applied voltage 
 ``sum_i t_i V_i`` (volt-second balance).
 
 **Linear range** (second-plane reference 0): the dwell times sum to one at the sector bisectors, at
-``|u| = U_dc / (2 cos(pi/10)) = 0.5257 U_dc`` for five phases (:meth:`NearFourVectorSVPWM.linear_limit`
-computes it from the tables: ``1 / sum(t)`` for a unit reference along a bisector). That is the same
-limit as carrier PWM with min-max zero-sequence injection (:mod:`.multiphase_carrier`), and on one star
-(five phases) the two give the same duties inside it (the zero states split equally is min-max
-injection): a check of each against the other. Six phases: each three-phase star then carries the
-reference itself, so its hexagon limits it, ``U_dc/sqrt(3)``, as each set's own SVPWM; the carrier's
-two zero sequences (one per star) give other duties than the dwell times' common one, with the same
-period average.
+``|u| = U_dc / (2 cos(pi/10)) = 0.5257 U_dc`` for five phases
+([`NearFourVectorSVPWM.linear_limit`][pmsmjax.inverters.multiphase_svpwm.NearFourVectorSVPWM.linear_limit]
+computes it from the tables: ``1 / sum(t)`` for a unit reference along a bisector). That is the same limit as
+carrier PWM with min-max zero-sequence injection
+([`multiphase_carrier`][pmsmjax.inverters.multiphase_carrier]), and on one star (five phases) the two give the
+same duties inside it (the zero states split equally is min-max injection): a check of each against the other.
+Six phases: each three-phase star then carries the reference itself, so its hexagon limits it,
+``U_dc/sqrt(3)``, as each set's own SVPWM; the carrier's two zero sequences (one per star) give other duties
+than the dwell times' common one, with the same period average.
 
-:class:`LargeVectorSVPWM` is the contrast (six phases: the two-vector method, preset name
-``two-vector``): only L_k, L_k+1, ``[L_k L_k+1]_ab t = u_ab / U_dc``, the second plane's average left as
-it falls (per unit of dwell time: six phases ``0.1725 U_dc``, driving 5th and 7th harmonic currents
-through the small z1-z2 leakage impedance; five phases ``0.2472 U_dc``, third and seventh); linear to the
-inscribed circle of the L polygon, ``|L| cos(pi/K)`` (six phases ``(2/3) cos^2(15 deg) = 0.6220 U_dc``;
-five phases ``(4/5) cos 36 deg cos 18 deg = 0.6155 U_dc``).
+[`LargeVectorSVPWM`][pmsmjax.inverters.multiphase_svpwm.LargeVectorSVPWM] is the contrast (six phases: the
+two-vector method, preset name ``two-vector``): only L_k, L_k+1, ``[L_k L_k+1]_ab t = u_ab / U_dc``, the
+second plane's average left as it falls (per unit of dwell time: six phases ``0.1725 U_dc``, driving 5th and
+7th harmonic currents through the small z1-z2 leakage impedance; five phases ``0.2472 U_dc``, third and
+seventh); linear to the inscribed circle of the L polygon, ``|L| cos(pi/K)`` (six phases
+``(2/3) cos^2(15 deg) = 0.6220 U_dc``; five phases ``(4/5) cos 36 deg cos 18 deg = 0.6155 U_dc``).
 
 Sequence. The four vectors of a sector do not form a chain of nested states (no centre-aligned order
 switches them one leg at a time), so the carrier realisation passes through other intermediate states

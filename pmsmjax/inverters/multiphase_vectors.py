@@ -1,11 +1,12 @@
 """The ``2^n`` switching states of an n-leg inverter feeding a multi-phase machine with isolated star points,
-projected on the VSD planes, for any :class:`~pmsmjax.frames.multiphase.PhaseLayout` (the book, ch. 8
+projected on the VSD planes, for any [`PhaseLayout`][pmsmjax.frames.multiphase.PhaseLayout] (the book, ch. 8
 and 10; Zhao & Lipo, IEEE TIA 31(5), 1995, for the dual three-phase machine).
 
 State index ``s = sum_x b_x 2^x`` (``b_x`` the upper switch of leg ``x``, leg order of the layout). Each
 state's phase voltages are ``U_dc (b_x - mean of its star)``; their amplitude-invariant VSD gives one
-vector per plane. :func:`space_vectors` returns them with the two groups of states that near-four-vector
-SVPWM uses (:mod:`.multiphase_svpwm`):
+vector per plane. [`space_vectors`][pmsmjax.inverters.multiphase_vectors.space_vectors] returns them with the
+two groups of states that near-four-vector SVPWM uses
+([`multiphase_svpwm`][pmsmjax.inverters.multiphase_svpwm]):
 
 - **large** (L): the states of largest alpha-beta magnitude, one per direction, sorted by angle from
   the first at or after 0 rad; the sectors lie between neighbours (sector ``k`` from L_k to L_k+1);
@@ -13,7 +14,7 @@ SVPWM uses (:mod:`.multiphase_svpwm`):
   alpha-beta magnitude. Its vector in the second plane is opposite to the L state's, so a mix of the two
   nulls that plane's average.
 
-Six phases (:data:`~pmsmjax.frames.multiphase.SIX_PHASE`, two stars 30 deg apart), per unit of ``U_dc``:
+Six phases ([`SIX_PHASE`][pmsmjax.frames.multiphase.SIX_PHASE], two stars 30 deg apart), per unit of ``U_dc``:
 
 ==========  =====  ========================================  ===========  ==================
 alpha-beta  count  name                                      z1-z2        direction
@@ -28,7 +29,7 @@ alpha-beta  count  name                                      z1-z2        direct
 ``|L| = (2/3) cos 15 deg``: an L state puts each star on one of its own hexagon's vertices, the two 30 deg
 apart. 12 sectors of 30 deg, sector ``k`` between the L vectors at ``15 + 30 k`` and ``45 + 30 k`` deg.
 
-Five phases (:data:`~pmsmjax.frames.multiphase.FIVE_PHASE`), per unit of ``U_dc``:
+Five phases ([`FIVE_PHASE`][pmsmjax.frames.multiphase.FIVE_PHASE]), per unit of ``U_dc``:
 
 ==========  =====  ========================================  ===========  ==================
 alpha-beta  count  name                                      x-y          direction
@@ -66,7 +67,8 @@ class SpaceVectors(NamedTuple):
         large: ``(K,)`` indices of the L states (``K`` sectors).
         second: ``(K,)`` indices of the next group at the same directions.
         bisectors: ``(K, 2)`` unit vectors halfway between L_k and L_k+1.
-        large_magnitude: ``|L|`` per unit (:func:`large_magnitude`).
+        large_magnitude: ``|L|`` per unit
+            ([`large_magnitude`][pmsmjax.inverters.multiphase_vectors.SpaceVectors]).
     """
 
     states: np.ndarray

@@ -5,13 +5,14 @@ carrier sampled once per period (regular sampling): leg duty ``d_x = 1/2 + (u_x 
 ``u_abc`` the inverse Clarke of the ``(2,)`` reference. The zero sequence does not reach the windings of an
 isolated-neutral machine, so it only moves the references away from the carrier's limits:
 
-- :class:`SinusoidalPWM`: ``u_0 = 0``; linear while every phase fits in ``+-U_dc/2``: ``|u| <= U_dc/2``.
-- :class:`ThirdHarmonicPWM`: ``u_0 = -(|u|/6) cos(3 theta)`` with ``theta`` the reference angle (1/6 of
-  the fundamental at three times its frequency); the phase peak falls to ``(sqrt3/2)|u|``, linear to
-  ``|u| <= U_dc/sqrt3``. Computed without an angle: ``|u|^3 cos 3theta = Re((u_a + j u_b)^3) =
-  u_a^3 - 3 u_a u_b^2``, so ``u_0 = -(u_a^3 - 3 u_a u_b^2) / (6 |u|^2)`` (0 at ``u = 0``).
-- :class:`MinMaxPWM`: ``u_0 = -(max_x u_x + min_x u_x)/2`` (centres the references in the carrier);
-  linear to ``U_dc/sqrt3`` and identical to SVPWM there.
+- [`SinusoidalPWM`][pmsmjax.inverters.spwm.SinusoidalPWM]: ``u_0 = 0``; linear while every phase fits in
+  ``+-U_dc/2``: ``|u| <= U_dc/2``.
+- [`ThirdHarmonicPWM`][pmsmjax.inverters.spwm.ThirdHarmonicPWM]: ``u_0 = -(|u|/6) cos(3 theta)`` with
+  ``theta`` the reference angle (1/6 of the fundamental at three times its frequency); the phase peak falls to
+  ``(sqrt3/2)|u|``, linear to ``|u| <= U_dc/sqrt3``. Computed without an angle: ``|u|^3 cos 3theta = Re((u_a +
+  j u_b)^3) = u_a^3 - 3 u_a u_b^2``, so ``u_0 = -(u_a^3 - 3 u_a u_b^2) / (6 |u|^2)`` (0 at ``u = 0``).
+- [`MinMaxPWM`][pmsmjax.inverters.spwm.MinMaxPWM]: ``u_0 = -(max_x u_x + min_x u_x)/2`` (centres the
+  references in the carrier); linear to ``U_dc/sqrt3`` and identical to SVPWM there.
 
 Saturation. Beyond the linear range the duties are clipped to [0, 1] (a leg stays on or off the whole
 period); the period average then falls short of the reference and is distorted (low-order harmonics). This

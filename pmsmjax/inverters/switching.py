@@ -29,7 +29,8 @@ At exactly zero current the exact sign is 0 and a dead window puts the pole at `
 voltage is set by the machine then; the window lasts a few microseconds).
 
 Output voltage: phase-to-neutral of a star, isolated-neutral machine, ``u_xN = v_x - mean(v)`` from the
-pole voltages ``v``; :meth:`SwitchingBridge.advance` returns its exact period average in the stator frame.
+pole voltages ``v``; [`SwitchingBridge.advance`][pmsmjax.inverters.switching.SwitchingBridge] returns its
+exact period average in the stator frame.
 """
 
 from typing import Literal
@@ -132,7 +133,7 @@ class SwitchingBridge(AbstractBridge):
 
     def segments(self, duties: Array, Ts, extra_times: Array | None = None):
         """The period cut at every gate edge, the end of every dead window, and ``extra_times``
-        (:func:`pwm_segments` with this bridge's dead time).
+        ([`pwm_segments`][pmsmjax.inverters.switching.pwm_segments] with this bridge's dead time).
 
         Args:
             duties: ``(3,)`` upper-switch duties.
@@ -177,7 +178,8 @@ class SwitchingBridge(AbstractBridge):
         """The states at ``t_j = j Ts / n_samples``, j = 1..n_samples, within one period (ripple plots and
         spectra).
 
-        The period is also cut at the sample instants, so the trajectory is the one :meth:`advance` follows.
+        The period is also cut at the sample instants, so the trajectory is the one
+        [`advance`][pmsmjax.inverters.switching.SwitchingBridge] follows.
 
         Args:
             machine: The machine model.

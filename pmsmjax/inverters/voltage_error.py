@@ -1,12 +1,12 @@
 """The inverter's voltage error, period-averaged: dead time and device drops of a two-level leg.
 
-Centre-aligned PWM (the gate edges of :mod:`pmsmjax.inverters.switching`). After each gate edge both
-switches of a leg are off for the dead time ``t_d`` and the freewheeling diode chosen by the phase current
-sets the pole: for ``i_x > 0`` the lower diode, so the upper switch's turn-on edge comes ``t_d`` late and
-the leg loses ``U_dc t_d`` volt-seconds per period; for ``i_x < 0`` the upper diode, so its turn-off edge
-comes ``t_d`` late and the leg gains as much. The conducting switch or diode also lowers the pole by its
-drop ``V_f`` in the direction of the current. Per period ``Ts`` the average pole voltage error of leg x
-is then (Holtz, "Pulsewidth modulation for electronic power conversion", Proc. IEEE 82(8), 1994,
+Centre-aligned PWM (the gate edges of [`pmsmjax.inverters.switching`][pmsmjax.inverters.switching]). After
+each gate edge both switches of a leg are off for the dead time ``t_d`` and the freewheeling diode chosen by
+the phase current sets the pole: for ``i_x > 0`` the lower diode, so the upper switch's turn-on edge comes
+``t_d`` late and the leg loses ``U_dc t_d`` volt-seconds per period; for ``i_x < 0`` the upper diode, so its
+turn-off edge comes ``t_d`` late and the leg gains as much. The conducting switch or diode also lowers the
+pole by its drop ``V_f`` in the direction of the current. Per period ``Ts`` the average pole voltage error of
+leg x is then (Holtz, "Pulsewidth modulation for electronic power conversion", Proc. IEEE 82(8), 1994,
 doi:10.1109/5.301684, section on dead-time effects; Murai et al., IEEE Trans. Ind. Appl. 23(5), 1987,
 doi:10.1109/TIA.1987.4505004)::
 
@@ -19,17 +19,19 @@ and a leg held at ``d_x = 0`` or ``1`` has no edges and no dead time (the switch
 What is neglected: the current ripple, beyond the smoothed sign below (a current that changes sign inside
 the period splits the error between the two diodes); the switches' own turn-on and turn-off delays; a
 drop that differs between switch and diode or grows with the current (one constant ``V_f`` for both, as
-:class:`~pmsmjax.inverters.switching.SwitchingBridge` has it, so the drop's average does not depend on
-the duty); the parasitic capacitances that slow the pole's swing at small currents.
+[`SwitchingBridge`][pmsmjax.inverters.switching.SwitchingBridge] has it, so the drop's average does not depend
+on the duty); the parasitic capacitances that slow the pole's swing at small currents.
 
 Sign. ``sgn(i)`` is replaced by ``tanh(i / i_eps)`` so that the model is differentiable in the current
 (gradients flow through it). ``i_eps`` stands for the current ripple: near a zero crossing the real
 error moves between its two values over about the ripple's amplitude (largest at mid modulation, well
 under a volt-second estimate ``U_dc Ts / (8 L)`` near standstill, where all legs switch nearly together).
-:data:`CURRENT_LIMIT_SHARE` of the current limit is the drive file's default.
+[`CURRENT_LIMIT_SHARE`][pmsmjax.inverters.voltage_error.CURRENT_LIMIT_SHARE] of the current limit is the drive
+file's default.
 
 The same error, predicted by the controller from its own estimates of ``t_d`` and ``V_f``, is what
-dead-time compensation adds back (:mod:`pmsmjax.controllers.dead_time_compensation`).
+dead-time compensation adds back
+([`pmsmjax.controllers.dead_time_compensation`][pmsmjax.controllers.dead_time_compensation]).
 """
 
 import equinox as eqx

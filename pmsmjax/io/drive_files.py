@@ -6,7 +6,7 @@ Layout (SI units; every table but ``[motor]`` optional)::
     [motor]        R, L_d, L_q, psi_f, pole_pairs, J, B (ohm, H, H, Wb, -, kg m^2, N m s/rad);
                    n_phases = 6 or 5 with L_ls (H) and, five-phase, psi_f3 (Wb); trust_units = true;
                    flux_map = "map.csv" (three-phase: a measured flux map, path relative to the drive
-                   file, :mod:`pmsmjax.io.flux_map_files`; L_d, L_q, psi_f then optional)
+                   file, pmsmjax.io.flux_map_files; L_d, L_q, psi_f then optional)
     [ratings]      rated_speed_rpm, rated_torque_nm or rated_current_a (A peak), max_current_a (A peak)
     [inverter]     u_dc_v, switching_frequency_hz, control_frequency_hz (default: the switching
                    frequency), dead_time_s, device_drop_v (a switch's or diode's on-state voltage, V),
@@ -20,25 +20,27 @@ Layout (SI units; every table but ``[motor]`` optional)::
     [scenario]     speed_rpm, load_nm, load_time_s, duration_s (the demo, compare and Monte Carlo run)
     [tuning]       speed_rpm = [low, high], load_nm = [low, high], duration_s = [low, high]
 
-With a flux map the simulated machine is the map's (:class:`pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq`)
-and ``L_d``, ``L_q``, ``psi_f`` are the linear model the design rules and the controller use; left out,
-they are derived from the map: ``psi_f = psi_d(0, 0)`` and ``L_d``, ``L_q`` the incremental inductances
-``dpsi_d/di_d``, ``dpsi_q/di_q`` at ``i_d = 0``, ``i_q = [ratings] rated_current_a`` when the file gives
-it, else at zero current. The rated point is the choice for a map whose q axis saturates: a current loop
-tuned on the unsaturated ``L_q`` would run several times faster than designed at rated current, one tuned
-on the rated ``L_q`` only slower near zero current.
+With a flux map the simulated machine is the map's
+([`pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq]) and ``L_d``,
+``L_q``, ``psi_f`` are the linear model the design rules and the controller use; left out, they are derived
+from the map: ``psi_f = psi_d(0, 0)`` and ``L_d``, ``L_q`` the incremental inductances ``dpsi_d/di_d``,
+``dpsi_q/di_q`` at ``i_d = 0``, ``i_q = [ratings] rated_current_a`` when the file gives it, else at zero
+current. The rated point is the choice for a map whose q axis saturates: a current loop tuned on the
+unsaturated ``L_q`` would run several times faster than designed at rated current, one tuned on the rated
+``L_q`` only slower near zero current.
 
 A seven-value motor file (the values at top level or under ``[motor]``) is a drive file with every
 other table left out. What a file leaves out is derived from what it gives
-(:mod:`pmsmjax.presets.drive_ratings` has the rules and their sources) and each derived value is listed,
-with how, in :attr:`DriveSpec.derived` (``summary.json``'s ``drive_file.derived``).
+([`pmsmjax.presets.drive_ratings`][pmsmjax.presets.drive_ratings] has the rules and their sources) and each
+derived value is listed, with how, in [`DriveSpec.derived`][pmsmjax.io.drive_files.DriveSpec]
+(``summary.json``'s ``drive_file.derived``).
 
-Checked, each a one-line :class:`~pmsmjax.checks.validation.ParameterError` naming the file, the table and
-key, the value in its unit and the fix: TOML syntax, unknown tables and keys (with the likely meant one),
-types, units (an inductance in mH, :mod:`pmsmjax.checks.plausibility`; a DC link in kV, a switching
-frequency in kHz, a dead time in us), a dead time that eats the switching period, a maximum current
-below the rated current, a rated torque the maximum current cannot give, and a rated point the inverter
-cannot reach (even with field weakening).
+Checked, each a one-line [`ParameterError`][pmsmjax.checks.validation.ParameterError] naming the file, the
+table and key, the value in its unit and the fix: TOML syntax, unknown tables and keys (with the likely meant
+one), types, units (an inductance in mH, [`pmsmjax.checks.plausibility`][pmsmjax.checks.plausibility]; a DC
+link in kV, a switching frequency in kHz, a dead time in us), a dead time that eats the switching period, a
+maximum current below the rated current, a rated torque the maximum current cannot give, and a rated point the
+inverter cannot reach (even with field weakening).
 """
 
 import dataclasses

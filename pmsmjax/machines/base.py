@@ -1,9 +1,11 @@
 """The machine interface shared by every plant model.
 
 A machine is a continuous-time system ``dx/dt = f(t, x, inputs)`` whose state is a
-:class:`MachineState` (frame-specific currents, mechanical speed, electrical angle). The same vector field
-serves the fixed-step scan (:func:`pmsmjax.machines.integrate.advance`), diffrax adaptive solves and
-linearisation (``jax.jacfwd`` of :meth:`AbstractMachine.vector_field`).
+[`MachineState`][pmsmjax.machines.base.MachineState] (frame-specific currents, mechanical speed, electrical
+angle). The same vector field serves the fixed-step scan
+([`pmsmjax.machines.integrate.advance`][pmsmjax.machines.integrate.advance]), diffrax adaptive solves and
+linearisation (``jax.jacfwd`` of
+[`AbstractMachine.vector_field`][pmsmjax.machines.base.AbstractMachine.vector_field]).
 """
 
 from typing import ClassVar, Literal
@@ -79,10 +81,12 @@ class AbstractMachine(eqx.Module):
     """A PMSM model in one reference frame.
 
     ``n_phases`` (class constant) is the number of stator phases, i.e. of inverter legs: 3 here; the
-    multi-phase machines override it and :meth:`phase_currents` / :meth:`stationary_currents`.
-    Subclasses implement the electrical part in their frame; the mechanics are shared:
-    ``J dw_m/dt = T_e - T_L - B w_m`` (``mechanics="dynamic"``) or ``dw_m/dt = 0`` with the speed set from
-    outside each period (``mechanics="imposed"``, a dynamometer); ``dth_e/dt = p_n w_m``.
+    multi-phase machines override it and
+    [`phase_currents`][pmsmjax.machines.base.AbstractMachine.phase_currents] /
+    [`stationary_currents`][pmsmjax.machines.base.AbstractMachine.stationary_currents]. Subclasses implement
+    the electrical part in their frame; the mechanics are shared: ``J dw_m/dt = T_e - T_L - B w_m``
+    (``mechanics="dynamic"``) or ``dw_m/dt = 0`` with the speed set from outside each period
+    (``mechanics="imposed"``, a dynamometer); ``dth_e/dt = p_n w_m``.
     """
 
     motor: eqx.AbstractVar[PMSMParameters]
@@ -160,8 +164,8 @@ class AbstractMachine(eqx.Module):
             inputs: The held voltage and load torque.
 
         Returns:
-            ``dx/dt`` as a :class:`MachineState` (current derivatives A/s, angular acceleration rad/s^2,
-            electrical speed rad/s).
+            ``dx/dt`` as a [`MachineState`][pmsmjax.machines.base.MachineState] (current derivatives A/s,
+            angular acceleration rad/s^2, electrical speed rad/s).
         """
         del t
         m = self.motor

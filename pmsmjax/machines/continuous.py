@@ -1,11 +1,13 @@
 """The machine's continuous-time vector field used outside the fixed-step scan.
 
-- :func:`solve_adaptive`: a diffrax adaptive solve over an interval with a held input (reference
-  accuracy, identification), using the same ``vector_field`` the scan integrates with RK4.
-- :func:`linearise`: the Jacobians ``A = df/dx``, ``B = df/du`` at an operating point, for small-signal
-  analysis and controller design. State order ``[currents..., omega_m, theta_e]``, input order
-  ``[u_1, u_2, load_torque]`` (the held voltage in its hold frame, then the load; a multi-phase machine's
-  ``[u_1, ..., u_m, load_torque]`` with its ``m`` VSD voltage components).
+- [`solve_adaptive`][pmsmjax.machines.continuous.solve_adaptive]: a diffrax adaptive solve over an interval
+  with a held input (reference accuracy, identification), using the same ``vector_field`` the scan integrates
+  with RK4.
+- [`linearise`][pmsmjax.machines.continuous.linearise]: the Jacobians ``A = df/dx``, ``B = df/du`` at an
+  operating point, for small-signal analysis and controller design. State order
+  ``[currents..., omega_m, theta_e]``, input order ``[u_1, u_2, load_torque]`` (the held voltage in its hold
+  frame, then the load; a multi-phase machine's ``[u_1, ..., u_m, load_torque]`` with its ``m`` VSD voltage
+  components).
 """
 
 import jax

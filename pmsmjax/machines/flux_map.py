@@ -1,6 +1,6 @@
 """A measured flux map of a saturated PMSM: ``psi_d(i_d, i_q)``, ``psi_q(i_d, i_q)`` on a rectangular grid,
 its checks and its interpolant (pure NumPy at load; the same interpolant runs in JAX inside the plant,
-:mod:`pmsmjax.machines.pmsm_flux_map`).
+[`pmsmjax.machines.pmsm_flux_map`][pmsmjax.machines.pmsm_flux_map]).
 
 **The grid.** Uniformly spaced, sorted axes ``i_d (n_d,)``, ``i_q (n_q,)`` (A, at least 3 points each) and
 flux arrays ``psi_d, psi_q (n_d, n_q)`` (Wb, peak phase flux linkage, amplitude-invariant dq frame), with
@@ -21,8 +21,8 @@ C2 but needs a global solve and rings near a measured kink; a C1 interpolant is 
 
 **Outside the grid** the flux is extended linearly with the boundary's incremental inductance:
 ``psi(i) = psi(i_c) + L_inc(i_c) (i - i_c)`` with ``i_c`` the current clipped to the grid, so ``L_inc``
-stays continuous and positive definite, but is only an extrapolation: :func:`excursion` reports how far a
-run went outside the measured range.
+stays continuous and positive definite, but is only an extrapolation:
+[`excursion`][pmsmjax.machines.flux_map.excursion] reports how far a run went outside the measured range.
 
 **Reciprocity.** A lossless magnetic circuit has ``dpsi_d/di_q = dpsi_q/di_d``; measured maps miss that by
 a few mH (measurement noise, iron loss, a skewed rotor). They are accepted as measured: the checks need
@@ -71,7 +71,7 @@ class FluxMapGrid:
         source: Where the map came from (a file path), for messages.
 
     Raises:
-        ParameterError: For a map the interpolant cannot use (:func:`check_grid`), naming ``source``.
+        ParameterError: For a map the interpolant cannot use (`check_grid`), naming ``source``.
     """
 
     i_d: np.ndarray
@@ -110,7 +110,8 @@ class FluxMapGrid:
         return np.stack([np.stack([d[0][0], d[1][0]], -1), np.stack([d[0][1], d[1][1]], -1)], -2)
 
     def coefficients(self, xp=np):
-        """Bicubic coefficients of every cell (:func:`hermite_coefficients`).
+        """Bicubic coefficients of every cell
+        ([`hermite_coefficients`][pmsmjax.machines.flux_map.hermite_coefficients]).
 
         Args:
             xp: ``numpy`` or ``jax.numpy``.
@@ -269,7 +270,7 @@ def flux_and_inductance(coefficients, lower, step, upper, i_dq, xp=np):
     """The map at one current, extended linearly outside the grid (module docstring).
 
     Args:
-        coefficients: From :func:`hermite_coefficients`.
+        coefficients: From [`hermite_coefficients`][pmsmjax.machines.flux_map.hermite_coefficients].
         lower: ``(2,)`` lowest grid corner, A.
         step: ``(2,)`` grid spacing, A.
         upper: ``(2,)`` highest grid corner, A.
@@ -314,13 +315,13 @@ def locate(n_cells, lower, step, upper, i_dq, xp=np):
 
 
 def evaluate(coefficients, step, where, xp=np):
-    """The map at the point :func:`locate` gave, extended linearly outside the grid with the edge's
-    incremental inductance.
+    """The map at the point [`locate`][pmsmjax.machines.flux_map.locate] gave, extended linearly outside the
+    grid with the edge's incremental inductance.
 
     Args:
-        coefficients: From :func:`hermite_coefficients`.
+        coefficients: From [`hermite_coefficients`][pmsmjax.machines.flux_map.hermite_coefficients].
         step: ``(2,)`` grid spacing, A.
-        where: ``(6,)`` the point, from :func:`locate`.
+        where: ``(6,)`` the point, from [`locate`][pmsmjax.machines.flux_map.locate].
         xp: ``numpy`` or ``jax.numpy``.
 
     Returns:

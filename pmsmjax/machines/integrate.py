@@ -2,11 +2,12 @@
 
 A rotor-frame (dq) machine fed by a voltage held in the stator frame sees that voltage rotate backwards
 as the rotor turns: at an RK4 stage whose angle is ``theta_n + delta`` it is ``R(-delta) u_dq(theta_n)``.
-:func:`advance` evaluates that rotation by a short Taylor series of ``cos delta`` and ``sin delta``
-(``|delta|`` is at most one sub-step's electrical angle, <= 0.5 rad under the sub-step check of
-:func:`max_stable_substep`, where the series is exact to float64 rounding) instead of a cosine and a
-sine of the absolute angle at every stage: the same equations without the 80 transcendental evaluations
-per period, which dominate a drive step's cost on CPU (docs/performance.md, "Engine").
+[`advance`][pmsmjax.machines.integrate.advance] evaluates that rotation by a short Taylor series of
+``cos delta`` and ``sin delta`` (``|delta|`` is at most one sub-step's electrical angle, <= 0.5 rad under the
+sub-step check of [`max_stable_substep`][pmsmjax.machines.integrate.max_stable_substep], where the series is
+exact to float64 rounding) instead of a cosine and a sine of the absolute angle at every stage: the same
+equations without the 80 transcendental evaluations per period, which dominate a drive step's cost on CPU
+(docs/performance.md, "Engine").
 """
 
 import jax
@@ -78,8 +79,8 @@ def rotate_back(x_dq, delta):
 def rk4_step_rotating_hold(machine: AbstractMachine, state: MachineState, u_dq, load_torque, h):
     """One RK4 step of a dq machine under a voltage held in the stator frame.
 
-    Each stage's voltage is ``u_dq`` rotated back by the stage's angle increment (:func:`rotate_back`), so
-    no absolute-angle trigonometry is evaluated.
+    Each stage's voltage is ``u_dq`` rotated back by the stage's angle increment
+    ([`rotate_back`][pmsmjax.machines.integrate.rotate_back]), so no absolute-angle trigonometry is evaluated.
 
     Args:
         machine: A dq machine model.
@@ -116,8 +117,8 @@ def advance(
 
     Wrapping only at the interval end keeps every RK4 stage on a continuous angle. Machines whose equations
     depend on the angle only through a stator-frame held voltage (``angle_only_in_voltage``, the dq model)
-    take :func:`rk4_step_rotating_hold` (see the module docstring). A machine with a ``split_advance`` (the
-    balanced multi-phase dq model) integrates itself.
+    take [`rk4_step_rotating_hold`][pmsmjax.machines.integrate.rk4_step_rotating_hold] (see the module
+    docstring). A machine with a ``split_advance`` (the balanced multi-phase dq model) integrates itself.
 
     Args:
         machine: The machine model.

@@ -1,12 +1,13 @@
 """Parameters of a multi-phase (n-phase) PMSM, SI units (the book, ch. 7 and 10).
 
-The same fields as :class:`pmsmjax.machines.motor.PMSMParameters` (so every design rule and controller
-written for those reads them unchanged) plus the leakage inductance ``L_ls`` and the phase count:
+The same fields as [`pmsmjax.machines.motor.PMSMParameters`][pmsmjax.machines.motor.PMSMParameters] (so every
+design rule and controller written for those reads them unchanged) plus the leakage inductance ``L_ls`` and
+the phase count:
 
 - ``L_d``, ``L_q``: the fundamental (alpha-beta) subspace's d- and q-axis inductances in VSD coordinates,
   ``L_d = L_ls + (n/2)(L_0m + L_2m)``, ``L_q = L_ls + (n/2)(L_0m - L_2m)`` with ``L_0m``, ``L_2m`` the
   mean and the saliency part of a phase's magnetising inductance (natural frame,
-  :mod:`pmsmjax.machines.pmsm_multiphase`).
+  [`pmsmjax.machines.pmsm_multiphase`][pmsmjax.machines.pmsm_multiphase]).
 - ``L_ls``: phase leakage inductance, H: the only inductance the non-fundamental subspaces (six phases:
   z1-z2; five phases: x-y) and the zero sequences see, so it sets their harmonic and ripple currents.
   ``L_ls < min(L_d, L_q)`` (a positive magnetising inductance).
@@ -16,8 +17,9 @@ written for those reads them unchanged) plus the leakage inductance ``L_ls`` and
 - ``psi_f3``: optional third-harmonic PM flux linkage of one phase (peak), Wb: the phase flux
   ``psi_f cos(th - g) + psi_f3 cos(3 (th - g))``. ``None`` (default) leaves it out of the program. For five
   phases it lies in the x-y plane (order 3), where x-y currents make torque with it
-  (:mod:`pmsmjax.machines.pmsm_multiphase`); layouts without an order-3 plane refuse it (six phases: the
-  third harmonic is each star's zero sequence, which isolated stars carry no current in).
+  ([`pmsmjax.machines.pmsm_multiphase`][pmsmjax.machines.pmsm_multiphase]); layouts without an order-3 plane
+  refuse it (six phases: the third harmonic is each star's zero sequence, which isolated stars carry no
+  current in).
 
 Leakage is taken as the phase's own (diagonal) leakage; mutual leakage between phases sharing slots is
 not modelled (it would lower the z1-z2 inductance below ``L_ls``).

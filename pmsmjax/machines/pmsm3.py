@@ -3,13 +3,13 @@
 Each model is written from its own frame's equations (the book, ch. 1) so that comparing them is an
 independent check of each:
 
-- :class:`PMSMdq`: ``u_d = R i_d + L_d di_d/dt - w_e L_q i_q``,
+- [`PMSMdq`][pmsmjax.machines.pmsm3.PMSMdq]: ``u_d = R i_d + L_d di_d/dt - w_e L_q i_q``,
   ``u_q = R i_q + L_q di_q/dt + w_e (L_d i_d + psi_f)``; ``T_e = 1.5 p_n [psi_f i_q + (L_d - L_q) i_d i_q]``.
-- :class:`PMSMAlphaBeta`: flux ``psi = L_ab(th) i + psi_f [cos th, sin th]`` with
-  ``L_ab = [[L0 + L2 cos 2th, L2 sin 2th], [L2 sin 2th, L0 - L2 cos 2th]]``, ``u = R i + dpsi/dt``,
+- [`PMSMAlphaBeta`][pmsmjax.machines.pmsm3.PMSMAlphaBeta]: flux ``psi = L_ab(th) i + psi_f [cos th, sin th]``
+  with ``L_ab = [[L0 + L2 cos 2th, L2 sin 2th], [L2 sin 2th, L0 - L2 cos 2th]]``, ``u = R i + dpsi/dt``,
   ``T_e = 1.5 p_n (psi_a i_b - psi_b i_a)``.
-- :class:`PMSMabc`: flux ``psi = L_abc(th) i + psi_PM,abc(th)`` with self/mutual inductances
-  ``L_xy = L_l delta_xy + L_0m cos(phi_x - phi_y) + L_2m cos(2 th - phi_x - phi_y)``
+- [`PMSMabc`][pmsmjax.machines.pmsm3.PMSMabc]: flux ``psi = L_abc(th) i + psi_PM,abc(th)`` with self/mutual
+  inductances ``L_xy = L_l delta_xy + L_0m cos(phi_x - phi_y) + L_2m cos(2 th - phi_x - phi_y)``
   (phase axes phi = 0, 2pi/3, -2pi/3), ``u = R i + dpsi/dt``; torque from the co-energy
   ``T_e = p_n dW'/dth_e``, ``W' = 1/2 i^T L i + i^T psi_PM``, taken by automatic differentiation.
   ``L_d = L_l + 1.5 (L_0m + L_2m)``, ``L_q = L_l + 1.5 (L_0m - L_2m)``.
@@ -44,8 +44,8 @@ class PMSMdq(AbstractMachine):
     """PMSM in the rotor frame; state currents ``(2,)`` = [i_d, i_q], A. Surface or salient.
 
     Its equations see the rotor angle only through the voltage (a stator-frame voltage read in the rotor
-    frame), which lets :func:`pmsmjax.machines.integrate.advance` rotate that voltage by small angle
-    increments instead of evaluating trigonometry at every RK4 stage.
+    frame), which lets [`pmsmjax.machines.integrate.advance`][pmsmjax.machines.integrate.advance] rotate that
+    voltage by small angle increments instead of evaluating trigonometry at every RK4 stage.
 
     Args:
         motor: The motor's parameters.

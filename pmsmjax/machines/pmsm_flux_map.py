@@ -1,4 +1,5 @@
-"""A saturated three-phase PMSM in the rotor frame, from a flux map (:mod:`pmsmjax.machines.flux_map`).
+"""A saturated three-phase PMSM in the rotor frame, from a flux map
+([`pmsmjax.machines.flux_map`][pmsmjax.machines.flux_map]).
 
 Voltage equations with the flux a function of both currents (cross-saturation):
 ``u = R i + dpsi/dt + w_e J psi``, ``J = [[0, -1], [1, 0]]``, ``dpsi/dt = L_inc(i) di/dt`` with the
@@ -11,21 +12,23 @@ and ``T_e = 1.5 p_n (psi_d i_q - psi_q i_d)``. The power balance ``1.5 u.i = 1.5
 ``W = 1.5 (psi.i - int psi.di)`` (co-energy subtracted) when the map is reciprocal.
 
 **Current as the state, not flux.** The drive samples currents, every block reads them
-(:meth:`~pmsmjax.machines.base.AbstractMachine.phase_currents`), and a measured map gives ``psi(i)``, not
-``i(psi)``: a flux state would need the inverse map, either by a Newton solve at every RK4 stage or by a
-second, resampled map with its own interpolation error. With current as the state one map evaluation
-gives both ``psi`` and ``L_inc`` (the interpolant's gradient, analytic), and the 2x2 solve is a handful of
-flops; ``L_inc`` is positive definite on and off the grid (the map's checks and the linear extension), so
-the solve is always well posed.
+([`phase_currents`][pmsmjax.machines.base.AbstractMachine.phase_currents]), and a measured map gives
+``psi(i)``, not ``i(psi)``: a flux state would need the inverse map, either by a Newton solve at every RK4
+stage or by a second, resampled map with its own interpolation error. With current as the state one map
+evaluation gives both ``psi`` and ``L_inc`` (the interpolant's gradient, analytic), and the 2x2 solve is a
+handful of flops; ``L_inc`` is positive definite on and off the grid (the map's checks and the linear
+extension), so the solve is always well posed.
 
-**Integration.** :meth:`PMSMFluxMapdq.split_advance` runs the same classical RK4 as the linear plant
-(:func:`pmsmjax.machines.integrate.rk4_step_rotating_hold`) on a packed state (:func:`advance_packed`,
-which says why), with the map evaluated once per stage for both the current derivative and the torque.
+**Integration.** [`PMSMFluxMapdq.split_advance`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq.split_advance]
+runs the same classical RK4 as the linear plant
+([`pmsmjax.machines.integrate.rk4_step_rotating_hold`][pmsmjax.machines.integrate.rk4_step_rotating_hold]) on
+a packed state (`advance_packed`, which says why), with the map evaluated once per stage for both the current
+derivative and the torque.
 
-:class:`FluxMap` is the interpolant's data as JAX leaves; :class:`PMSMFluxMapdq` is the plant. Its
-``motor`` keeps ``R``, ``J``, ``B``, ``pole_pairs`` and the linear model (``L_d``, ``L_q``, ``psi_f``)
-derived from the map, which the sub-step rule and a controller's design read; the electrical equations
-read only the map.
+[`FluxMap`][pmsmjax.machines.pmsm_flux_map.FluxMap] is the interpolant's data as JAX leaves;
+[`PMSMFluxMapdq`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq] is the plant. Its ``motor`` keeps ``R``,
+``J``, ``B``, ``pole_pairs`` and the linear model (``L_d``, ``L_q``, ``psi_f``) derived from the map, which
+the sub-step rule and a controller's design read; the electrical equations read only the map.
 """
 
 from typing import ClassVar
@@ -46,7 +49,7 @@ __all__ = ["FluxMap", "PMSMFluxMapdq", "flux_map_machine"]
 
 
 class FluxMap(eqx.Module):
-    """The bicubic Hermite interpolant of a :class:`~pmsmjax.machines.flux_map.FluxMapGrid`.
+    """The bicubic Hermite interpolant of a [`FluxMapGrid`][pmsmjax.machines.flux_map.FluxMapGrid].
 
     Args:
         coefficients: ``(n_d - 1, n_q - 1, 2, 4, 4)`` per-cell polynomial coefficients, Wb.
@@ -70,7 +73,8 @@ class FluxMap(eqx.Module):
         return flux_and_inductance(self.coefficients, self.lower, self.step, self.upper, i_dq, jnp)
 
     def excursion(self, i_dq) -> dict:
-        """How far the currents of a run went outside the grid (:func:`pmsmjax.machines.flux_map.excursion`).
+        """How far the currents of a run went outside the grid
+        ([`pmsmjax.machines.flux_map.excursion`][pmsmjax.machines.flux_map.excursion]).
 
         Args:
             i_dq: ``(..., 2)`` currents, A.
@@ -82,9 +86,9 @@ class PMSMFluxMapdq(AbstractMachine):
     """PMSM in the rotor frame with a flux map; state currents ``(2,)`` = [i_d, i_q], A (module docstring).
 
     Args:
-        motor: The motor's parameters (:class:`~pmsmjax.machines.PMSMParameters`): ``R``, ``J``, ``B``,
-            ``pole_pairs`` used; ``L_d``, ``L_q``, ``psi_f`` the linear model for sub-step checks and
-            controller design only.
+        motor: The motor's parameters ([`PMSMParameters`][pmsmjax.machines.motor.PMSMParameters]): ``R``,
+            ``J``, ``B``, ``pole_pairs`` used; ``L_d``, ``L_q``, ``psi_f`` the linear model for sub-step
+            checks and controller design only.
         flux_map: The map's interpolant.
         mechanics: ``"dynamic"`` or ``"imposed"`` speed.
     """
@@ -166,7 +170,7 @@ class PMSMFluxMapdq(AbstractMachine):
 
     @property
     def split_advance(self):
-        """``(state, inputs, duration, n_substeps) -> state``: :func:`advance_packed`."""
+        """``(state, inputs, duration, n_substeps) -> state``: `advance_packed`."""
         return lambda state, inputs, duration, n_substeps: advance_packed(
             self, state, inputs, duration, n_substeps
         )
@@ -177,12 +181,13 @@ def advance_packed(
 ) -> MachineState:
     """Classical RK4 over ``duration`` in ``n_substeps`` steps on the packed state.
 
-    The same arithmetic as :func:`pmsmjax.machines.integrate.rk4_step_rotating_hold` (a stator-frame held
-    voltage rotated back by each stage's angle increment), on the packed state
+    The same arithmetic as
+    [`pmsmjax.machines.integrate.rk4_step_rotating_hold`][pmsmjax.machines.integrate.rk4_step_rotating_hold]
+    (a stator-frame held voltage rotated back by each stage's angle increment), on the packed state
     ``[i_d, i_q, omega_m, theta_e]`` with the held voltage, the map evaluated once per stage
-    (:meth:`PMSMFluxMapdq.packed_derivative`). Packed rather than the generic integrator on
-    :class:`MachineState` because it is the fastest of the forms timed (docs/performance.md, "Saturated
-    machines").
+    ([`PMSMFluxMapdq.packed_derivative`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq.packed_derivative]).
+    Packed rather than the generic integrator on [`MachineState`][pmsmjax.machines.base.MachineState] because
+    it is the fastest of the forms timed (docs/performance.md, "Saturated machines").
 
     Args:
         machine: The flux-map machine.
@@ -220,7 +225,7 @@ def flux_map_machine(
     """The plant of a flux map.
 
     Its linear model (for sub-step checks and controller design) is
-    :meth:`FluxMapGrid.linear_model` at ``i_q = design_i_q``.
+    [`FluxMapGrid.linear_model`][pmsmjax.machines.flux_map.FluxMapGrid.linear_model] at ``i_q = design_i_q``.
 
     Args:
         grid: The checked flux map.
@@ -232,7 +237,7 @@ def flux_map_machine(
         mechanics: ``"dynamic"`` or ``"imposed"`` speed.
 
     Returns:
-        The :class:`PMSMFluxMapdq`.
+        The [`PMSMFluxMapdq`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq].
     """
     linear = grid.linear_model(design_i_q)
     motor = PMSMParameters(R=R, J=J, B=B, pole_pairs=pole_pairs, **linear)

@@ -1,22 +1,25 @@
 """n-phase PMSM models in the natural frame and in VSD coordinates (the book, ch. 7; five phases:
-ch. 10), for any :class:`~pmsmjax.frames.multiphase.PhaseLayout` (six phases by default).
+ch. 10), for any [`PhaseLayout`][pmsmjax.frames.multiphase.PhaseLayout] (six phases by default).
 
 Each model is written from its own frame's equations so that comparing them checks each:
 
-- :class:`MultiPhasePMSMNatural`: ``n`` phase currents; flux ``psi = L(th) i + psi_PM(th)`` with
+- [`MultiPhasePMSMNatural`][pmsmjax.machines.pmsm_multiphase.MultiPhasePMSMNatural]: ``n`` phase currents;
+  flux ``psi = L(th) i + psi_PM(th)`` with
   ``L_xy = L_ls delta_xy + L_0m cos(g_x - g_y) + L_2m cos(2 th - g_x - g_y)`` (phase axes ``g``),
   ``psi_PM,x = psi_f cos(th - g_x)``, ``u = R i + dpsi/dt`` with the star-point voltages that keep each
-  isolated star's current sum at zero; torque ``p_n dW'/dth_e`` of the co-energy by automatic
-  differentiation. ``L_0m = (L_d + L_q - 2 L_ls)/n``, ``L_2m = (L_d - L_q)/n``.
-- :class:`MultiPhasePMSMVSD`: stationary VSD currents ``[alpha, beta, planes...]`` (the zero sequences
-  of isolated stars are identically 0 and not states): the fundamental plane as the three-phase
-  alpha-beta model (salient inductance matrix of ``L0 = (L_d + L_q)/2``, ``L2 = (L_d - L_q)/2``), every
-  other plane ``u = R i + L_ls di/dt``: it sees only leakage and links no magnet flux, so it produces
-  no torque. ``T_e = (n/2) p_n (psi_a i_b - psi_b i_a)``.
-- :class:`MultiPhasePMSMdq`: ``[d, q, planes...]``: the fundamental in the rotor frame (the three-phase
-  dq equations), the other planes stationary; ``T_e = (n/2) p_n [psi_f i_q + (L_d - L_q) i_d i_q]``.
-  Its equations see the rotor angle only through the held stator-frame voltage, so it integrates with
-  :func:`pmsmjax.machines.integrate.advance`'s rotating hold (the fast model for drives).
+  isolated star's current sum at zero; torque ``p_n dW'/dth_e`` of the co-energy by automatic differentiation.
+  ``L_0m = (L_d + L_q - 2 L_ls)/n``, ``L_2m = (L_d - L_q)/n``.
+- [`MultiPhasePMSMVSD`][pmsmjax.machines.pmsm_multiphase.MultiPhasePMSMVSD]: stationary VSD currents
+  ``[alpha, beta, planes...]`` (the zero sequences of isolated stars are identically 0 and not states): the
+  fundamental plane as the three-phase alpha-beta model (salient inductance matrix of ``L0 = (L_d + L_q)/2``,
+  ``L2 = (L_d - L_q)/2``), every other plane ``u = R i + L_ls di/dt``: it sees only leakage and links no
+  magnet flux, so it produces no torque. ``T_e = (n/2) p_n (psi_a i_b - psi_b i_a)``.
+- [`MultiPhasePMSMdq`][pmsmjax.machines.pmsm_multiphase.MultiPhasePMSMdq]: ``[d, q, planes...]``: the
+  fundamental in the rotor frame (the three-phase dq equations), the other planes stationary;
+  ``T_e = (n/2) p_n [psi_f i_q + (L_d - L_q) i_d i_q]``. Its equations see the rotor angle only through the
+  held stator-frame voltage, so it integrates with
+  [`pmsmjax.machines.integrate.advance`][pmsmjax.machines.integrate.advance]'s rotating hold (the fast model
+  for drives).
 
 The block structure (the non-fundamental planes decoupled, leakage only) is a property of the natural
 model, not an assumption of the test: the VSD of ``L(th)`` is block-diagonal because
@@ -37,7 +40,7 @@ The natural model takes it in its flux (torque by the co-energy derivative, as a
 the x-y flux; the dq model (x-y stationary) as the two terms above, and then integrates with the angle
 as a state (no rotating hold, no split advance).
 
-Input: :class:`~pmsmjax.machines.base.MachineInput` with ``u`` of ``2 n_planes`` components: the
+Input: [`MachineInput`][pmsmjax.machines.base.MachineInput] with ``u`` of ``2 n_planes`` components: the
 stationary VSD voltage ``[u_alpha, u_beta, u_z1, u_z2, ...]`` (``frame="stator"``), or
 ``[u_d, u_q, u_z1, u_z2, ...]`` with only the fundamental in the rotor frame (``frame="rotor"``).
 """
@@ -72,9 +75,13 @@ def _as_scale(scale):
 class AbstractMultiPhaseMachine(AbstractMachine):
     """An n-phase PMSM in one frame. ``n_phases`` is the layout's phase count.
 
-    Adds to :class:`AbstractMachine`: :meth:`currents_to_vsd` / :meth:`currents_from_vsd` (model frame
-    <-> stationary VSD ``(2 n_planes,)`` [alpha, beta, z1, z2, ...], A), :meth:`vsd_currents` and
-    :meth:`initial_state_vsd`; phase currents are the inverse VSD with zero sequences 0.
+    Adds to [`AbstractMachine`][pmsmjax.machines.base.AbstractMachine]:
+    [`currents_to_vsd`][pmsmjax.machines.pmsm_multiphase.AbstractMultiPhaseMachine.currents_to_vsd] /
+    [`currents_from_vsd`][pmsmjax.machines.pmsm_multiphase.AbstractMultiPhaseMachine.currents_from_vsd] (model
+    frame <-> stationary VSD ``(2 n_planes,)`` [alpha, beta, z1, z2, ...], A),
+    [`vsd_currents`][pmsmjax.machines.pmsm_multiphase.AbstractMultiPhaseMachine.vsd_currents] and
+    [`initial_state_vsd`][pmsmjax.machines.pmsm_multiphase.AbstractMultiPhaseMachine.initial_state_vsd]; phase
+    currents are the inverse VSD with zero sequences 0.
     """
 
     motor: eqx.AbstractVar[MultiPhaseParameters]
@@ -389,8 +396,10 @@ class MultiPhasePMSMVSD(AbstractMultiPhaseMachine):
 
 
 class _Fundamental(AbstractMachine):
-    """The fundamental (dq) subspace of :class:`MultiPhasePMSMdq` with the mechanics, on its own: the
-    three-phase dq equations with the n-phase torque factor (for :meth:`MultiPhasePMSMdq.split_advance`)."""
+    """The fundamental (dq) subspace of
+    [`MultiPhasePMSMdq`][pmsmjax.machines.pmsm_multiphase.MultiPhasePMSMdq] with the mechanics, on its own:
+    the three-phase dq equations with the n-phase torque factor (for
+    [`MultiPhasePMSMdq.split_advance`][pmsmjax.machines.pmsm_multiphase.MultiPhasePMSMdq.split_advance])."""
 
     motor: MultiPhaseParameters
     mechanics: Mechanics = eqx.field(static=True, default="dynamic")
@@ -414,11 +423,12 @@ class MultiPhasePMSMdq(AbstractMultiPhaseMachine):
     [i_d, i_q, z1, z2, ...], A. The fast model for drives (module docstring).
 
     Balanced (``resistance_scale=None``), the planes after the fundamental are independent first-order
-    systems ``L_ls di/dt = u - R i`` under a held voltage: :meth:`split_advance` integrates the fundamental
-    and the mechanics with the rotating-hold RK4 of the three-phase dq model and those planes exactly
-    (``i(t) = e^{-t R/L_ls} i(0) + (1 - e^{-t R/L_ls}) u/R``). The result is the same ODE's solution, at a
-    per-period cost near the three-phase model's, where RK4 over the whole state costs about twice as much
-    (docs/performance.md, "Six-phase and five-phase drives").
+    systems ``L_ls di/dt = u - R i`` under a held voltage:
+    [`split_advance`][pmsmjax.machines.pmsm_multiphase.MultiPhasePMSMdq.split_advance] integrates the
+    fundamental and the mechanics with the rotating-hold RK4 of the three-phase dq model and those planes
+    exactly (``i(t) = e^{-t R/L_ls} i(0) + (1 - e^{-t R/L_ls}) u/R``). The result is the same ODE's solution,
+    at a per-period cost near the three-phase model's, where RK4 over the whole state costs about twice as
+    much (docs/performance.md, "Six-phase and five-phase drives").
 
     Args:
         motor: The motor's parameters.

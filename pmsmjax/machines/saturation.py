@@ -20,7 +20,7 @@ Torque ``T_e = 1.5 p_n (psi_d i_q - psi_q i_d)``: this is ``p_n dW'/dth_e`` at f
 with the co-energy ``W' = 1.5 [integral_0^i_d psi_d(x) dx + L_q i_q^2 / 2]`` (tests check both that and the
 power balance ``1.5 u.i = 1.5 R |i|^2 + dW_field/dt + T_e w_m``).
 
-``a = 0`` gives ``psi_d = psi_f + L_d i_d`` exactly: the linear :class:`~pmsmjax.machines.PMSMdq`
+``a = 0`` gives ``psi_d = psi_f + L_d i_d`` exactly: the linear [`PMSMdq`][pmsmjax.machines.pmsm3.PMSMdq]
 (trajectories agree to rounding; ``saturation=None`` takes the linear equations themselves, bit for bit).
 Everything is smooth in ``i_d``, ``a`` and ``i_s`` (tanh, ln cosh), hence differentiable.
 """
@@ -86,7 +86,7 @@ class DAxisSaturation(eqx.Module):
 
 
 class SaturatedPMSMdq(PMSMdq):
-    """The rotor-frame PMSM of :class:`~pmsmjax.machines.PMSMdq` with d-axis saturation; state
+    """The rotor-frame PMSM of [`PMSMdq`][pmsmjax.machines.pmsm3.PMSMdq] with d-axis saturation; state
     currents ``(2,)`` = [i_d, i_q], A.
 
     Args:
@@ -136,7 +136,7 @@ class SaturatedPMSMdq(PMSMdq):
 def saturated_machine(
     motor, depth=0.3, current_scale=8.0, mechanics: Mechanics = "dynamic"
 ) -> SaturatedPMSMdq:
-    """``motor`` as a :class:`SaturatedPMSMdq` with a d-axis flux map.
+    """``motor`` as a [`SaturatedPMSMdq`][pmsmjax.machines.saturation.SaturatedPMSMdq] with a d-axis flux map.
 
     Defaults for the book's salient machine (no measured flux map is available: docs/book_reference.md,
     "Parameters the book's text is not available for"): with ``a = 0.3``, ``i_s = 8 A`` a +-8 A pulse sees

@@ -1,4 +1,5 @@
-"""Figures of the controller comparison (:mod:`pmsmjax.studies.control_comparison`)."""
+"""Figures of the controller comparison
+([`pmsmjax.studies.control_comparison`][pmsmjax.studies.control_comparison])."""
 
 import matplotlib.pyplot as plt
 import numpy as np

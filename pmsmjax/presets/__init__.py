@@ -1,7 +1,7 @@
-"""Ready-made drives: the book's constants (:mod:`.book_constants`), the book's three-phase drive
-(:mod:`.three_phase`, re-exported here), the six- and five-phase drives (:mod:`.six_phase`,
-:mod:`.five_phase`), the control methods by name (:mod:`.control_methods`) and the motor files in
-``motors/``.
+"""Ready-made drives: the book's constants ([`book_constants`][pmsmjax.presets.book_constants]), the book's
+three-phase drive ([`three_phase`][pmsmjax.presets.three_phase], re-exported here), the six- and five-phase
+drives ([`six_phase`][pmsmjax.presets.six_phase], [`five_phase`][pmsmjax.presets.five_phase]), the control
+methods by name ([`control_methods`][pmsmjax.presets.control_methods]) and the motor files in ``motors/``.
 
 The re-exported names are imported on first use (PEP 562), so that ``pmsmjax.presets.book_constants``
 reads without loading JAX (the command line's checks before a run).

@@ -1,8 +1,8 @@
 """Control methods by name: the one registry behind ``pmsmjax demo --control``, ``pmsmjax compare`` and
 ``pmsmjax tune --control``.
 
-Each name maps to the preset that builds its drive on a given motor (:mod:`pmsmjax.presets`); a later
-chapter adds its method here and every command gains it.
+Each name maps to the preset that builds its drive on a given motor ([`pmsmjax.presets`][pmsmjax.presets]); a
+later chapter adds its method here and every command gains it.
 """
 
 import inspect
@@ -27,8 +27,9 @@ CONTROLS = {
 
 
 def control_options(name: str) -> tuple[str, ...]:
-    """Keyword options the preset of control ``name`` accepts (those of :func:`presets.book_drive` too
-    when the preset passes its extra keywords on to it)."""
+    """Keyword options the preset of control ``name`` accepts (those of
+    [`presets.book_drive`][pmsmjax.presets.three_phase.book_drive] too when the preset passes its extra
+    keywords on to it)."""
     preset = CONTROLS[name][0]
     params = inspect.signature(preset).parameters
     names = [p for p, v in params.items() if v.kind == v.KEYWORD_ONLY]

@@ -1,15 +1,16 @@
 """Control on a flux map: a drive whose plant is a saturated machine's map gets the map's current loop and
-d-axis references (:mod:`pmsmjax.controllers.flux_map_current_loop`,
-:mod:`pmsmjax.controllers.flux_map_references`).
+d-axis references ([`pmsmjax.controllers.flux_map_current_loop`][pmsmjax.controllers.flux_map_current_loop],
+[`pmsmjax.controllers.flux_map_references`][pmsmjax.controllers.flux_map_references]).
 
-- The dq PI current loop becomes :class:`~pmsmjax.controllers.flux_map_current_loop.FluxMapCurrentLoop`
-  with the same bandwidth (read back from the internal-model gains, ``a_c = kp_d / L_d``, so an override
-  of the preset's ``current_bandwidth`` carries over).
+- The dq PI current loop becomes
+  [`FluxMapCurrentLoop`][pmsmjax.controllers.flux_map_current_loop.FluxMapCurrentLoop] with the same bandwidth
+  (read back from the internal-model gains, ``a_c = kp_d / L_d``, so an override of the preset's
+  ``current_bandwidth`` carries over).
 - That cascade (a FOC: the ``pi`` and ``smc`` controls) gets field weakening on the map's MTPA and
-  MTPV tables (:class:`~pmsmjax.controllers.flux_map_references.FluxMapFieldWeakening`), with the voltage
-  loop at :func:`~pmsmjax.presets.three_phase.field_weakening_block`'s bandwidth and margin: MTPA below
-  base speed, the voltage limit above it. In current mode (``mode="current"``) the scenario's ``i_d*``
-  stands: no d-axis reference is installed over it.
+  MTPV tables ([`FluxMapFieldWeakening`][pmsmjax.controllers.flux_map_references.FluxMapFieldWeakening]), with
+  the voltage loop at [`field_weakening_block`][pmsmjax.presets.three_phase.field_weakening_block]'s bandwidth
+  and margin: MTPA below base speed, the voltage limit above it. In current mode (``mode="current"``) the
+  scenario's ``i_d*`` stands: no d-axis reference is installed over it.
 
 The other controls (proportional-resonant and hysteresis current control, direct torque control) are
 kept as they are: on the map's plant, with their linear-model design.

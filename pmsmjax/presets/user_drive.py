@@ -1,20 +1,25 @@
 """The user's drive as a simulation: the motor, inverter, ratings and design-rule gains of a drive file
-(:class:`pmsmjax.io.drive_files.DriveSpec`) put into the presets of every control method.
+([`pmsmjax.io.drive_files.DriveSpec`][pmsmjax.io.drive_files.DriveSpec]) put into the presets of every control
+method.
 
-:func:`spec_drive` builds the drive of a control method (:data:`pmsmjax.presets.control_methods.CONTROLS`,
-or a six- or five-phase scheme) at the file's DC link, control rate, current limit and bandwidths; the
-file's sensor (an encoder) becomes the drive's estimator, and a three-phase drive's averaged bridge gets
-the file's dead time and device drop (:mod:`pmsmjax.inverters.voltage_error`) with, unless the file turns
-it off, the FOC controller's dead-time compensation (:func:`with_inverter_error`). :func:`spec_scenario` is
-the file's scenario,
-:func:`startup_options` its I/f start for sensorless runs. On the book drive file (``--motor book``) all
-three are bit for bit the book presets (tests/presets/test_user_drive.py).
+[`spec_drive`][pmsmjax.presets.user_drive.spec_drive] builds the drive of a control method
+([`pmsmjax.presets.control_methods.CONTROLS`][pmsmjax.presets.control_methods.CONTROLS], or a six- or
+five-phase scheme) at the file's DC link, control rate, current limit and bandwidths; the file's sensor (an
+encoder) becomes the drive's estimator, and a three-phase drive's averaged bridge gets the file's dead time
+and device drop ([`pmsmjax.inverters.voltage_error`][pmsmjax.inverters.voltage_error]) with, unless the file
+turns it off, the FOC controller's dead-time compensation
+([`with_inverter_error`][pmsmjax.presets.user_drive.with_inverter_error]).
+[`spec_scenario`][pmsmjax.presets.user_drive.spec_scenario] is the file's scenario,
+[`startup_options`][pmsmjax.presets.user_drive.startup_options] its I/f start for sensorless runs. On the book
+drive file (``--motor book``) all three are bit for bit the book presets (tests/presets/test_user_drive.py).
 
 A drive file with a flux map (``[motor] flux_map``) gets the map's plant
-(:class:`~pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq`) in place of the linear dq machine, and control
-on the map (:func:`pmsmjax.presets.flux_map_control.with_flux_map_control`: the current loop scheduled on
-its inductances, MTPA and field weakening from its tables); the controller's linear model (the file's or
-the map's derived ``L_d``, ``L_q``, ``psi_f``) remains for the speed loop's design.
+([`PMSMFluxMapdq`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq]) in place of the linear dq machine, and
+control on the map
+([`pmsmjax.presets.flux_map_control.with_flux_map_control`][pmsmjax.presets.flux_map_control.with_flux_map_control]:
+the current loop scheduled on its inductances, MTPA and field weakening from its tables); the controller's
+linear model (the file's or the map's derived ``L_d``, ``L_q``, ``psi_f``) remains for the speed loop's
+design.
 """
 
 import inspect
@@ -39,16 +44,16 @@ __all__ = [
 ]
 
 #: The sliding-mode speed law's design load: the rated torque rising in this time, s (the book's 10 N m in
-#: 10 ms, :func:`pmsmjax.presets.smc_drive`). Its sliding surface's time constant is the speed loop's,
-#: ``1 / beta`` (the book's 20 ms at 50 rad/s).
+#: 10 ms, [`pmsmjax.presets.smc_drive`][pmsmjax.presets.three_phase.smc_drive]). Its sliding surface's time
+#: constant is the speed loop's, ``1 / beta`` (the book's 20 ms at 50 rad/s).
 SMC_LOAD_RISE_S = 0.01
 
 _MOTOR_KEYS = ("R", "L_d", "L_q", "psi_f", "pole_pairs", "J", "B")
 
 
 def spec_motor(spec: DriveSpec):
-    """The drive file's motor: :class:`PMSMParameters`, or a six- or five-phase
-    :class:`~pmsmjax.machines.multiphase_motor.MultiPhaseParameters`."""
+    """The drive file's motor: [`PMSMParameters`][pmsmjax.machines.motor.PMSMParameters], or a six- or
+    five-phase [`MultiPhaseParameters`][pmsmjax.machines.multiphase_motor.MultiPhaseParameters]."""
     if spec.n_phases == 3:
         return PMSMParameters(**{k: spec.motor[k] for k in _MOTOR_KEYS})
     from pmsmjax.presets.five_phase import five_phase_motor
@@ -66,7 +71,7 @@ def spec_motor(spec: DriveSpec):
 
 def spec_flux_map(spec: DriveSpec):
     """The drive file's flux map as the plant's interpolant
-    (:class:`~pmsmjax.machines.pmsm_flux_map.FluxMap`), or None when the file has none."""
+    ([`FluxMap`][pmsmjax.machines.pmsm_flux_map.FluxMap]), or None when the file has none."""
     if "flux_map" not in spec.motor:
         return None
     from pmsmjax.io.flux_map_files import read_flux_map
@@ -92,10 +97,12 @@ def _with_flux_map(drive: Drive, spec: DriveSpec) -> Drive:
 
 def with_map_aware_estimator(spec: DriveSpec, drive: Drive) -> Drive:
     """``drive`` with its sensorless estimator reading the file's flux map: HF injection corrected by the
-    map's cross-saturation angle (:mod:`pmsmjax.estimators.hfi_cross_saturation`), a back-EMF observer or
-    the EKF keeping its constant model with its angle corrected by the map at the operating current
-    (:mod:`pmsmjax.estimators.map_angle_corrected`: the scheduled model of
-    :mod:`pmsmjax.estimators.map_scheduled` oscillates in the closed loop); an I/f start keeps wrapping it."""
+    map's cross-saturation angle
+    ([`pmsmjax.estimators.hfi_cross_saturation`][pmsmjax.estimators.hfi_cross_saturation]), a back-EMF
+    observer or the EKF keeping its constant model with its angle corrected by the map at the operating
+    current ([`pmsmjax.estimators.map_angle_corrected`][pmsmjax.estimators.map_angle_corrected]: the scheduled
+    model of [`pmsmjax.estimators.map_scheduled`][pmsmjax.estimators.map_scheduled] oscillates in the closed
+    loop); an I/f start keeps wrapping it."""
     from pmsmjax.checks.validation import ParameterError
     from pmsmjax.estimators.hfi_cross_saturation import cross_saturation_compensated
     from pmsmjax.estimators.hfi_pulsating import HFIPulsating
@@ -126,9 +133,10 @@ def _accepts(preset) -> set:
 
 
 def drive_options(spec: DriveSpec, control: str = "pi") -> dict:
-    """The preset options (:func:`pmsmjax.presets.control_methods.control_drive`, or the six- and
-    five-phase drives) that put the drive file into control ``control``'s drive: DC link, control period,
-    current limit, bandwidths (and the SMC's design load)."""
+    """The preset options
+    ([`pmsmjax.presets.control_methods.control_drive`][pmsmjax.presets.control_methods.control_drive], or the
+    six- and five-phase drives) that put the drive file into control ``control``'s drive: DC link, control
+    period, current limit, bandwidths (and the SMC's design load)."""
     common = {
         "u_dc": spec.u_dc_v,
         "current_limit": spec.current_limit_a,
@@ -193,7 +201,8 @@ def with_inverter_error(spec: DriveSpec, drive: Drive) -> Drive:
     The engine runs one PWM period per control period ``Ts``; a file whose control rate differs from its
     switching rate loses ``U_dc t_d`` per PWM period, so the dead time is scaled by ``f_sw / f_c`` to keep
     that share of the voltage. The current sign is smoothed over
-    :data:`~pmsmjax.inverters.voltage_error.CURRENT_LIMIT_SHARE` of the controller's current limit.
+    [`CURRENT_LIMIT_SHARE`][pmsmjax.inverters.voltage_error.CURRENT_LIMIT_SHARE] of the controller's current
+    limit.
     """
     from pmsmjax.controllers.dead_time_compensation import DeadTimeCompensation
     from pmsmjax.controllers.foc import FOC
@@ -245,8 +254,9 @@ def spec_scenario(
 
 
 def startup_options(spec: DriveSpec) -> dict:
-    """The I/f start of a sensorless drive on ``spec`` (:class:`pmsmjax.estimators.startup.StartupEstimator`
-    keywords; ``[control]`` startup values)."""
+    """The I/f start of a sensorless drive on ``spec``
+    ([`pmsmjax.estimators.startup.StartupEstimator`][pmsmjax.estimators.startup.StartupEstimator] keywords;
+    ``[control]`` startup values)."""
     c = spec.control
     return {
         "i_start": c["startup_current_a"],

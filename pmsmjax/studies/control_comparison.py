@@ -1,24 +1,28 @@
 """Controllers side by side on the book scenario (the book, ch. 3; later chapters add their methods).
 
 Every controller drives the same motor through the same scenario (speed step from rest, load step). The
-step and load figures come from :func:`pmsmjax.analysis.speed_step_summary.speed_step_summary`; the ripple
-figures from the
-last ``window_cycles`` whole electrical periods of the run (steady state under load):
+step and load figures come from
+[`pmsmjax.analysis.speed_step_summary.speed_step_summary`][pmsmjax.analysis.speed_step_summary.speed_step_summary];
+the ripple figures from the last ``window_cycles`` whole electrical periods of the run (steady state under
+load):
 
-- current THD of phase a up to ``thd_max_frequency_hz`` (:mod:`pmsmjax.analysis.spectra`), from uniform
+- current THD of phase a up to ``thd_max_frequency_hz``
+  ([`pmsmjax.analysis.spectra`][pmsmjax.analysis.spectra]), from uniform
 samples
-  of the trajectory *inside* each period (:func:`pmsmjax.analysis.within_period.dense_window`);
+  of the trajectory *inside* each period
+  ([`pmsmjax.analysis.within_period.dense_window`][pmsmjax.analysis.within_period.dense_window]);
 - torque ripple: RMS and peak-to-peak of the electromagnetic torque about its window mean, same samples;
-- mean switching frequency of the legs (:func:`pmsmjax.analysis.metrics.switching_frequency_hz`);
+- mean switching frequency of the legs
+  ([`pmsmjax.analysis.metrics.switching_frequency_hz`][pmsmjax.analysis.metrics.switching_frequency_hz]);
 - stator flux-magnitude ripple: RMS and peak-to-peak of the plant's true ``|psi|`` about its window mean
   (``psi_dq = [L_d i_d + psi_f, L_q i_q]`` of the same samples), for every controller whether or not it
   estimates the flux (the flux is what direct torque control regulates; under FOC it follows the
   currents).
 
 At equal switching frequency (``equal_switching_hz``): each controller with bands (table DTC, hysteresis
-current control; :mod:`pmsmjax.studies.equal_switching`) is run a second time, as ``"NAME@F kHz"``, with its
-bands scaled so that its mean switching frequency over the same window meets the given frequency (by default
-the
+current control; [`pmsmjax.studies.equal_switching`][pmsmjax.studies.equal_switching]) is run a second time,
+as ``"NAME@F kHz"``, with its bands scaled so that its mean switching frequency over the same window meets the
+given frequency (by default the
 PWM frequency ``1/Ts`` of the voltage-commanding controllers compared).
 
 Voltage-commanding controllers run on the switching-resolved bridge by default (``bridge="switching"``):
@@ -88,8 +92,8 @@ class ControllerCompareSettings:
     equal_switching_hz: float | None = None
 
     def check(self) -> None:
-        """Raise :class:`~pmsmjax.checks.validation.ParameterError` naming the first inconsistent setting
-        (unknown bridge, no speed, load step outside the run, too low a sampling rate for the THD)."""
+        """Raise [`ParameterError`][pmsmjax.checks.validation.ParameterError] naming the first inconsistent
+        setting (unknown bridge, no speed, load step outside the run, too low a sampling rate for the THD)."""
         if self.bridge not in ("switching", "averaged"):
             raise ParameterError(f"bridge must be 'switching' or 'averaged', got {self.bridge!r}.")
         if self.speed_rpm <= 0:
@@ -129,12 +133,14 @@ def compared_drive(
     name: str, motor=None, bridge: str = "averaged", machine: str = "three-phase", spec=None
 ) -> Drive:
     """The drive of control ``name`` for ``motor`` on ``bridge``:
-    :data:`pmsmjax.presets.control_methods.CONTROLS` for the
+    [`pmsmjax.presets.control_methods.CONTROLS`][pmsmjax.presets.control_methods.CONTROLS] for the
     three-phase machine, the six- or five-phase presets' schemes (``vsd``, ...) for ``machine``; ``motor``
-    is then a :class:`pmsmjax.machines.MultiPhaseParameters` (None: the preset's rewind of the book motor).
-    With a drive file ``spec`` (:class:`pmsmjax.io.drive_files.DriveSpec`) instead of ``motor``: its drive
-    (:func:`pmsmjax.presets.user_drive.spec_drive`; a multi-phase switching bridge with the file's dead
-    time)."""
+    is then a
+    [`pmsmjax.machines.MultiPhaseParameters`][pmsmjax.machines.multiphase_motor.MultiPhaseParameters] (None:
+    the preset's rewind of the book motor). With a drive file ``spec``
+    ([`pmsmjax.io.drive_files.DriveSpec`][pmsmjax.io.drive_files.DriveSpec]) instead of ``motor``: its drive
+    ([`pmsmjax.presets.user_drive.spec_drive`][pmsmjax.presets.user_drive.spec_drive]; a multi-phase switching
+    bridge with the file's dead time)."""
     if spec is not None:
         from pmsmjax.presets.user_drive import spec_drive
 
@@ -242,20 +248,22 @@ def compare_controllers(
     machine: str = "three-phase",
     spec=None,
 ) -> dict:
-    """Run each named controller (keys of :data:`pmsmjax.presets.control_methods.CONTROLS`, or of the six- or
-    five-phase
-    schemes with ``machine``: :func:`machine_controls`) on the book scenario.
+    """Run each named controller (keys of
+    [`pmsmjax.presets.control_methods.CONTROLS`][pmsmjax.presets.control_methods.CONTROLS], or of the six- or
+    five-phase schemes with ``machine``:
+    [`machine_controls`][pmsmjax.studies.control_comparison.machine_controls]) on the book scenario.
 
     With ``settings.equal_switching_hz`` each controller with bands is also run with its bands matched
     to that mean switching frequency (``0``: the PWM frequency of the voltage-commanding controllers,
-    :func:`pwm_frequency_hz`), under the name ``"NAME@F kHz"``; its entry adds ``band_factor`` and
-    ``band_search_runs``.
+    [`pwm_frequency_hz`][pmsmjax.studies.control_comparison.pwm_frequency_hz]), under the name
+    ``"NAME@F kHz"``; its entry adds ``band_factor`` and ``band_search_runs``.
 
     Returns ``{"settings", "controllers": name -> figures, "traces": name -> Trace, "windows": name ->
     {t, i_abc, torque, psi_ab}}``; `progress`: optional callable taking a line per controller; `adjust`:
     optional ``(drive, name) -> drive`` applied to each drive before anything runs (tuned gains, say);
-    `spec`: a drive file (:class:`pmsmjax.io.drive_files.DriveSpec`) whose drives run instead of
-    ``motor``'s presets (:func:`compared_drive`).
+    `spec`: a drive file ([`pmsmjax.io.drive_files.DriveSpec`][pmsmjax.io.drive_files.DriveSpec]) whose drives
+    run instead of ``motor``'s presets
+    ([`compared_drive`][pmsmjax.studies.control_comparison.compared_drive]).
     """
     settings.check()
     if machine != "three-phase" and machine not in MULTIPHASE_PRESETS:
@@ -324,7 +332,8 @@ class LowSpeedSweep:
     """The sweep behind ``lowest_held_rpm``: one run per speed in `speeds_rpm`, each from standstill
     (I/f start) to `start_rpm`, the load `load_nm` stepped on at `load_time_s`, then the reference ramped
     from `start_rpm` down to the swept speed over [`ramp_start_s`, `ramp_end_s`], held to `duration_s`;
-    judged from `judge_from_s` to the end (:func:`pmsmjax.analysis.observer_errors.speed_held`).
+    judged from `judge_from_s` to the end
+    ([`pmsmjax.analysis.observer_errors.speed_held`][pmsmjax.analysis.observer_errors.speed_held]).
 
     With the observer's model equal to the plant and no noise, a fundamental-model observer sees the
     small back-EMF exactly and holds very low speeds; what limits it on a real drive is model error. So
@@ -343,7 +352,7 @@ class LowSpeedSweep:
     hot_r_factor: float | None = 1.3
 
     def scenario(self, speed_rpm: float):
-        """The :class:`~pmsmjax.scenarios.Scenario` of one swept speed `speed_rpm` (r/min): the ramp from
+        """The [`Scenario`][pmsmjax.scenarios.Scenario] of one swept speed `speed_rpm` (r/min): the ramp from
         `start_rpm` down to it and the load step (class docstring)."""
         from pmsmjax.scenarios import Profile, Scenario
         from pmsmjax.units import rpm_to_rad_s
@@ -360,8 +369,9 @@ class LowSpeedSweep:
 def observer_drive(
     name: str, motor: PMSMParameters | None = None, bridge: str = "averaged", startup: bool = True
 ) -> Drive:
-    """The book FOC drive with observer ``name`` (:data:`pmsmjax.estimators.OBSERVERS`, design-rule gains
-    for ``motor``) and the I/f start from standstill, on ``bridge``."""
+    """The book FOC drive with observer ``name``
+    ([`pmsmjax.estimators.OBSERVERS`][pmsmjax.estimators.catalogue.OBSERVERS], design-rule gains for
+    ``motor``) and the I/f start from standstill, on ``bridge``."""
     drive = presets.sensorless_drive(name, motor, startup=startup)
     if bridge == "switching":
         drive = eqx.tree_at(lambda d: d.bridge, drive, SwitchingBridge(drive.bridge.u_dc))
@@ -393,9 +403,11 @@ def low_speed_sweep(drive: Drive, sweep: LowSpeedSweep = LowSpeedSweep(), r_fact
     return {"runs": runs, "lowest_held_rpm": lowest, "r_factor": r_factor}
 
 
-#: The scenarios of ``compare --estimator`` (``scenario=`` of :func:`compare_estimators`): name ->
-#: (description, estimator families it suits). ``book``: :func:`_scenario` of the settings; the others are
-#: fixed runs (:func:`estimator_scenario`) at low speed or through zero, where HF injection works.
+#: The scenarios of ``compare --estimator`` (``scenario=`` of
+#: [`compare_estimators`][pmsmjax.studies.control_comparison.compare_estimators]): name -> (description,
+#: estimator families it suits). ``book``: `_scenario` of the settings; the others are fixed runs
+#: ([`estimator_scenario`][pmsmjax.studies.control_comparison.estimator_scenario]) at low speed or through
+#: zero, where HF injection works.
 ESTIMATOR_SCENARIOS = {
     "book": (
         "speed step from standstill, then the load step (the settings' book scenario)",
@@ -418,8 +430,8 @@ CHAPTER6_INITIAL_ANGLE_DEG = 30.0
 
 
 def estimator_family(name: str) -> str:
-    """``"ch5"`` (:data:`pmsmjax.estimators.OBSERVERS`), ``"injection"`` (``INJECTION_OBSERVERS``: angle
-    modulo pi) or ``"hybrid"`` (``HYBRID_OBSERVERS``)."""
+    """``"ch5"`` ([`pmsmjax.estimators.OBSERVERS`][pmsmjax.estimators.catalogue.OBSERVERS]), ``"injection"``
+    (``INJECTION_OBSERVERS``: angle modulo pi) or ``"hybrid"`` (``HYBRID_OBSERVERS``)."""
     from pmsmjax.estimators.registry import HYBRID_OBSERVERS, INJECTION_OBSERVERS, check_observer_name
 
     check_observer_name(name)
@@ -459,8 +471,9 @@ def check_estimator_scenario(names, scenario: str) -> None:
 
 
 def estimator_scenario(scenario: str, load_nm: float):
-    """The fixed chapter 6 scenarios of :data:`ESTIMATOR_SCENARIOS` (all but ``book``) with the load
-    ``load_nm`` (N m; ``reversal`` keeps its 5 N m)."""
+    """The fixed chapter 6 scenarios of
+    [`ESTIMATOR_SCENARIOS`][pmsmjax.studies.control_comparison.ESTIMATOR_SCENARIOS] (all but ``book``) with
+    the load ``load_nm`` (N m; ``reversal`` keeps its 5 N m)."""
     from pmsmjax.scenarios import Profile, Scenario
     from pmsmjax.studies.hybrid_runs import hybrid_scenarios
     from pmsmjax.units import rpm_to_rad_s
@@ -478,8 +491,10 @@ def estimator_scenario(scenario: str, load_nm: float):
 def chapter6_drive(name: str, motor: PMSMParameters | None = None, bridge: str = "averaged") -> Drive:
     """The book FOC drive with the injection or hybrid estimator ``name`` (design rule for ``motor``,
     default the salient book motor), no I/f start (injection sees the rotor at standstill), on the plant
-    with d-axis saturation (:func:`pmsmjax.machines.saturated_machine`, defaults), which the hybrid's
-    polarity pulses read (at ``i_d = 0`` its inductance is the linear machine's), on ``bridge``."""
+    with d-axis saturation
+    ([`pmsmjax.machines.saturated_machine`][pmsmjax.machines.saturation.saturated_machine], defaults), which
+    the hybrid's polarity pulses read (at ``i_d = 0`` its inductance is the linear machine's), on
+    ``bridge``."""
     from pmsmjax.machines.saturation import saturated_machine
 
     motor = presets.book_motor(salient=True) if motor is None else motor
@@ -491,9 +506,11 @@ def chapter6_drive(name: str, motor: PMSMParameters | None = None, bridge: str =
 
 
 def run_estimator_scenario(drive: Drive, scenario, initial_state) -> dict:
-    """Simulate ``drive`` through a fixed scenario (:func:`estimator_scenario`) from ``initial_state``;
+    """Simulate ``drive`` through a fixed scenario
+    ([`estimator_scenario`][pmsmjax.studies.control_comparison.estimator_scenario]) from ``initial_state``;
     its figures (ITAE of the speed error, rad s; largest speed deviation from the reference, r/min, after
-    :data:`pmsmjax.analysis.observer_errors.CONVERGED_AFTER_S`; peak phase current, A) and its trace."""
+    [`pmsmjax.analysis.observer_errors.CONVERGED_AFTER_S`][pmsmjax.analysis.observer_errors.CONVERGED_AFTER_S];
+    peak phase current, A) and its trace."""
     from pmsmjax.analysis.observer_errors import CONVERGED_AFTER_S
 
     check_simulation(drive, scenario)
@@ -526,23 +543,29 @@ def compare_estimators(
     initial_angle_deg: float | None = None,
 ) -> dict:
     """Run the book FOC drive sensorless with each named estimator through ``scenario``
-    (:data:`ESTIMATOR_SCENARIOS`; refused where it makes no sense, :func:`check_estimator_scenario`).
+    ([`ESTIMATOR_SCENARIOS`][pmsmjax.studies.control_comparison.ESTIMATOR_SCENARIOS]; refused where it makes
+    no sense, [`check_estimator_scenario`][pmsmjax.studies.control_comparison.check_estimator_scenario]).
 
-    Chapter 5 observers (:data:`pmsmjax.estimators.OBSERVERS`) start from standstill with I/f; the chapter 6
-    estimators (``hfi-rotating``, ``hfi-pulsating``, ``hybrid``) run :func:`chapter6_drive` (default motor
-    the salient book motor) with the rotor ``initial_angle_deg`` electrical degrees off their initial
-    estimate (default 0 for chapter 5, :data:`CHAPTER6_INITIAL_ANGLE_DEG` for chapter 6).
+    Chapter 5 observers ([`pmsmjax.estimators.OBSERVERS`][pmsmjax.estimators.catalogue.OBSERVERS]) start from
+    standstill with I/f; the chapter 6 estimators (``hfi-rotating``, ``hfi-pulsating``, ``hybrid``) run
+    [`chapter6_drive`][pmsmjax.studies.control_comparison.chapter6_drive] (default motor the salient book
+    motor) with the rotor ``initial_angle_deg`` electrical degrees off their initial estimate (default 0 for
+    chapter 5, [`CHAPTER6_INITIAL_ANGLE_DEG`][pmsmjax.studies.control_comparison.CHAPTER6_INITIAL_ANGLE_DEG]
+    for chapter 6).
 
-    Each entry holds, on ``book``, the figures of :func:`run_control` (rise, dip, ITAE, THD, ripple, ...),
-    on the fixed scenarios those of :func:`run_estimator_scenario`; and the observer's
-    (:func:`pmsmjax.analysis.observer_errors.observer_errors`: angle error RMS/max after convergence in
-    electrical degrees, **modulo pi for the injection estimators** (``angle_modulo``), speed estimation error
-    RMS,
-    speed tracking error RMS, ``lock_lost``, judged on the angle alone off the book scenario), plus, on
-    ``book`` unless ``sweep`` is None, ``lowest_held_rpm`` under ``sweep.load_nm`` and the sweep's runs
-    (:func:`low_speed_sweep`), and ``lowest_held_rpm_hot_r`` with the plant's R off the observer's by
-    ``sweep.hot_r_factor``. Returns the layout of :func:`compare_controllers` (``windows`` None off
-    the book scenario).
+    Each entry holds, on ``book``, the figures of
+    [`run_control`][pmsmjax.studies.control_comparison.run_control] (rise, dip, ITAE, THD, ripple, ...), on
+    the fixed scenarios those of
+    [`run_estimator_scenario`][pmsmjax.studies.control_comparison.run_estimator_scenario]; and the observer's
+    ([`pmsmjax.analysis.observer_errors.observer_errors`][pmsmjax.analysis.observer_errors.observer_errors]:
+    angle error RMS/max after convergence in electrical degrees, **modulo pi for the injection estimators**
+    (``angle_modulo``), speed estimation error RMS, speed tracking error RMS, ``lock_lost``, judged on the
+    angle alone off the book scenario), plus, on ``book`` unless ``sweep`` is None, ``lowest_held_rpm`` under
+    ``sweep.load_nm`` and the sweep's runs
+    ([`low_speed_sweep`][pmsmjax.studies.control_comparison.low_speed_sweep]), and ``lowest_held_rpm_hot_r``
+    with the plant's R off the observer's by ``sweep.hot_r_factor``. Returns the layout of
+    [`compare_controllers`][pmsmjax.studies.control_comparison.compare_controllers] (``windows`` None off the
+    book scenario).
     """
     settings.check()
     check_estimator_scenario(names, scenario)
@@ -606,7 +629,8 @@ ESTIMATOR_COLUMNS = (
 
 
 def estimator_row(name: str, entry: dict) -> str:
-    """One row of the observer table (:data:`ESTIMATOR_COLUMNS`)."""
+    """One row of the observer table
+    ([`ESTIMATOR_COLUMNS`][pmsmjax.studies.control_comparison.ESTIMATOR_COLUMNS])."""
     cells = []
     for _, key, fmt in ESTIMATOR_COLUMNS:
         value = name if key == "observer" else entry.get(key)
@@ -620,7 +644,8 @@ def estimator_row(name: str, entry: dict) -> str:
 
 
 def estimator_table(result: dict) -> str:
-    """The observer table of :func:`compare_estimators`'s result, as Markdown."""
+    """The observer table of [`compare_estimators`][pmsmjax.studies.control_comparison.compare_estimators]'s
+    result, as Markdown."""
     head = "| " + " | ".join(h for h, _, _ in ESTIMATOR_COLUMNS) + " |"
     rule = "|" + "|".join("---" for _ in ESTIMATOR_COLUMNS) + "|"
     rows = []

@@ -14,15 +14,17 @@ Canonical columns (SI units after conversion):
 
 The voltage of row k is the one applied from ``t_k`` to ``t_{k+1}``. Stationary-frame and duty voltages
 are turned into dq with ``theta_e[k]``; how the voltage is held between rows (``hold``) is a property of
-the recording, as in :mod:`pmsmjax.studies.replay`: ``"stator"`` for a real inverter, ``"rotor"`` for a
-dq-model simulator, ``"auto"`` (the command's default) to find it from the log (:mod:`tuning.identify.hold`).
+the recording, as in [`pmsmjax.studies.replay`][pmsmjax.studies.replay]: ``"stator"`` for a real inverter,
+``"rotor"`` for a dq-model simulator, ``"auto"`` (the command's default) to find it from the log
+([`tuning.identify.hold`][tuning.identify.hold]).
 
-Checks, all before any fitting, each a :class:`~pmsmjax.checks.validation.ParameterError` naming the column
-and the fix: missing or unknown columns (with close-name hints; a file column that looks like a
+Checks, all before any fitting, each a [`ParameterError`][pmsmjax.checks.validation.ParameterError] naming the
+column and the fix: missing or unknown columns (with close-name hints; a file column that looks like a
 misspelt canonical one the log lacks, ``omgea_m``, is refused rather than left unused), NaN/inf,
-non-increasing time (:func:`pmsmjax.io.logs.check_columns`), irregular sampling or gaps (refused, or
-resampled with a warning when asked), a sampling step too long for the electrical dynamics, and a speed
-inconsistent with the angle (rpm in a rad/s column, electrical instead of mechanical speed, wrong pole pairs).
+non-increasing time ([`pmsmjax.io.logs.check_columns`][pmsmjax.io.logs.check_columns]), irregular sampling or
+gaps (refused, or resampled with a warning when asked), a sampling step too long for the electrical dynamics,
+and a speed inconsistent with the angle (rpm in a rad/s column, electrical instead of mechanical speed, wrong
+pole pairs).
 """
 
 import dataclasses
@@ -149,7 +151,7 @@ def load_drive_log(
     u_dc: float | None = None,
     resample: bool = False,
 ) -> DriveLog:
-    """Read a ``.csv``/``.npz``/``.mat`` log and return a checked :class:`DriveLog`.
+    """Read a ``.csv``/``.npz``/``.mat`` log and return a checked [`DriveLog`][tuning.identify.log.DriveLog].
 
     `columns`: ``{canonical: name in file}``; `units`: ``{canonical or "current"/"voltage": unit}``;
     `hold`: ``"stator"`` (real inverter) or ``"rotor"`` (dq-model simulator); `u_dc`: DC-link voltage,
@@ -207,7 +209,8 @@ def drive_log_from_columns(
     resample: bool = False,
     source: str = "log",
 ) -> DriveLog:
-    """Build a checked :class:`DriveLog` from canonical columns (NumPy arrays); see :func:`load_drive_log`."""
+    """Build a checked [`DriveLog`][tuning.identify.log.DriveLog] from canonical columns (NumPy arrays); see
+    [`load_drive_log`][tuning.identify.log.load_drive_log]."""
     if not isinstance(pole_pairs, (int, np.integer)) or isinstance(pole_pairs, bool) or pole_pairs < 1:
         raise ParameterError(f"pole_pairs must be a positive integer (poles / 2), got {pole_pairs!r}.")
     if hold not in ("stator", "rotor", "auto"):
@@ -456,13 +459,14 @@ def load_stator_log(
     truth: tuple[str, ...] = (),
     pole_pairs: int | None = None,
 ) -> StatorLog:
-    """Read a ``.csv``/``.npz``/``.mat`` log for an observer and return a checked :class:`StatorLog`.
+    """Read a ``.csv``/``.npz``/``.mat`` log for an observer and return a checked
+    [`StatorLog`][tuning.identify.log.StatorLog].
 
     Voltages ``u_alpha, u_beta`` | ``u_a, u_b, u_c`` | duties ``d_a, d_b, d_c`` with ``U_dc`` (or `u_dc`,
     V); currents ``i_alpha, i_beta`` | ``i_a, i_b, i_c``; other columns are ignored unless named in
     `truth` (a subset of ``theta_e``, ``omega_m``). `columns`, `units`, `resample`: as
-    :func:`load_drive_log`; `pole_pairs` (when both truth columns are given) checks the speed against
-    the angle.
+    [`load_drive_log`][tuning.identify.log.load_drive_log]; `pole_pairs` (when both truth columns are given)
+    checks the speed against the angle.
     """
     bad = [c for c in truth if c not in TRUTH]
     if bad:
@@ -491,8 +495,9 @@ def stator_log_from_columns(
     source: str = "log",
     other_columns: list[str] = (),
 ) -> StatorLog:
-    """A checked :class:`StatorLog` from canonical columns (NumPy arrays); see :func:`load_stator_log`.
-    `other_columns`: the file's other column names, searched for close matches of missing ones."""
+    """A checked [`StatorLog`][tuning.identify.log.StatorLog] from canonical columns (NumPy arrays); see
+    [`load_stator_log`][tuning.identify.log.load_stator_log]. `other_columns`: the file's other column names,
+    searched for close matches of missing ones."""
     if not any(n in cols for n in sum(_STATOR_VOLTAGE_SETS.values(), ())) and all(
         n in cols for n in _VOLTAGE_SETS["dq"]
     ):

@@ -2,7 +2,8 @@
 
 XLA:CPU runs one compiled program (a vmapped scan, say) mostly on a single thread; split into N host
 devices, a batch sharded over them runs N programs at once. This must happen before JAX initialises its
-backends, so the command line and the benchmark call :func:`split_cpu` first thing.
+backends, so the command line and the benchmark call [`split_cpu`][tuning.montecarlo.cpu_devices.split_cpu]
+first thing.
 """
 
 import os
