@@ -1,12 +1,14 @@
 """Cost of every control method's drive relative to the PI drive, in one run.
 
-Each drive of :data:`pmsmjax.presets.control_methods.CONTROLS` (its preset defaults: averaged bridge, float32
-as the command line runs) simulates the same book scenario; the calls are timed interleaved
-(:func:`benchmarks.bench_core.time_interleaved`), so their ratios hold under a varying machine load.
-Figures per drive: control period, periods simulated, best run time, compile time, cost per period and
-per simulated second, and both relative to the PI drive. The cost goal is <= 1.5x per period for the
-methods that run at the PI drive's 10 kHz; hysteresis current control samples its comparators at 100 kHz,
-so its cost is per simulated second at its own rate (ten periods for one of the PI drive's).
+Each drive of [`pmsmjax.presets.control_methods.CONTROLS`][pmsmjax.presets.control_methods.CONTROLS] (its
+preset defaults: averaged bridge, float32 as the command line runs) simulates the same book scenario; the
+calls are timed interleaved
+([`benchmarks.bench_core.time_interleaved`][pmsmjax.jobs.bench.time_interleaved]), so their ratios
+hold under a varying machine load. Figures per drive: control period, periods simulated, best run time,
+compile time, cost per period and per simulated second, and both relative to the PI drive. The cost goal is
+<= 1.5x per period for the methods that run at the PI drive's 10 kHz; hysteresis current control samples its
+comparators at 100 kHz, so its cost is per simulated second at its own rate (ten periods for one of the PI
+drive's).
 
     python -m benchmarks.bench_controllers --json controllers.json
 """

@@ -1,14 +1,16 @@
-"""Core speed benchmark: the simulator's own figures (:mod:`pmsmjax.jobs.bench`, what
+"""Core speed benchmark: the simulator's own figures ([`pmsmjax.jobs.bench`][pmsmjax.jobs.bench], what
 ``pmsmjax bench`` reports: compile time, one run, a vmapped batch, gradients, forward- vs reverse-mode
 crossover, the machine) and, timed in the same rounds as the single run, the hand-written minimal loop
-(:mod:`benchmarks.minimal_loop`) it is measured against: with literal constants and with run-time
+(`benchmarks.minimal_loop`) it is measured against: with literal constants and with run-time
 parameters, the library/minimal time ratio of each, and the largest difference between the library's and
 the minimal loop's speed trajectories (r/min).
 
 ``python -m benchmarks.bench_core [--quick] [--json FILE]`` prints a table and writes the figures as JSON
 (atomically). ``--quick`` shrinks every size so the whole benchmark runs in seconds (for smoke tests); its
-timings mean nothing. The other benchmarks report through :func:`publish` and take the timing helpers
-(:func:`time_interleaved`, :func:`compile_time`, :func:`machine_info`) from here.
+timings mean nothing. The other benchmarks report through `publish` and take the timing helpers
+([`time_interleaved`][pmsmjax.jobs.bench.time_interleaved],
+[`compile_time`][pmsmjax.jobs.bench.compile_time],
+[`machine_info`][pmsmjax.jobs.bench.machine_info]) from here.
 """
 
 import argparse
@@ -51,8 +53,9 @@ REQUIRED_KEYS = (
 
 
 def run(quick: bool = False) -> dict:
-    """:func:`pmsmjax.jobs.bench.run` with the two minimal loops timed alongside the single run
-    (same drive settings and scenario sampled on the period grid), their ratios and speed differences."""
+    """[`pmsmjax.jobs.bench.run`][pmsmjax.jobs.bench.run] with the two minimal loops timed alongside the
+    single run (same drive settings and scenario sampled on the period grid), their ratios and speed
+    differences."""
     drive, scenario = engine_timing.book_problem(engine_timing.QUICK if quick else engine_timing.FULL)
     xs = period_inputs(scenario, drive.Ts)
     literal = make_minimal_loop(Ts=drive.Ts, n_sub=drive.n_substeps)
@@ -74,7 +77,9 @@ def run(quick: bool = False) -> dict:
 
 
 def format_table(r: dict) -> str:
-    """The simulator's table (:func:`pmsmjax.jobs.bench_report.format_table`) and the minimal loops."""
+    """The simulator's table
+    ([`pmsmjax.jobs.bench_report.format_table`][pmsmjax.jobs.bench_report.format_table]) and the minimal
+    loops."""
     lines = [
         library_table(r),
         "",
@@ -97,7 +102,8 @@ def format_table(r: dict) -> str:
 
 
 def write_json_atomic(path: str, data: dict) -> None:
-    """Write ``data`` as JSON to ``path`` atomically (:func:`pmsmjax.io.logs.atomic_write`)."""
+    """Write ``data`` as JSON to ``path`` atomically
+    ([`pmsmjax.io.logs.atomic_write`][pmsmjax.io.logs.atomic_write])."""
     text = json.dumps(data, indent=2) + "\n"
     atomic_write(path, lambda f: f.write(text.encode()))
 

@@ -1,17 +1,19 @@
 """Direct torque control (the book, ch. 4): ripple against bands and sample period, equal switching
 frequency, and the cost per simulated second against the FOC drive.
 
-Operating figures (float64), from :func:`pmsmjax.jobs.control_comparison.run_control` (the book scenario:
-1000
-r/min step, 10 N m at 0.2 s, 0.4 s; the last two electrical periods, sampled 32 times per 100 us):
+Operating figures (float64), from
+[`pmsmjax.jobs.control_comparison.run_control`][pmsmjax.jobs.control_comparison.run_control] (the book
+scenario: 1000 r/min step, 10 N m at 0.2 s, 0.4 s; the last two electrical periods, sampled 32 times per 100
+us):
 
-- switching-table DTC (:func:`pmsmjax.presets.dtc_drive`) at each sample period, with the book bands
-  (1 N m, 10 mWb) times each factor: mean switching frequency, torque ripple (RMS and peak-to-peak about
-  the window mean), flux-magnitude ripple, current THD;
+- switching-table DTC ([`pmsmjax.presets.dtc_drive`][pmsmjax.presets.three_phase.dtc_drive]) at each sample
+  period, with the book bands (1 N m, 10 mWb) times each factor: mean switching frequency, torque ripple (RMS
+  and peak-to-peak about the window mean), flux-magnitude ripple, current THD;
 - the same with the bands matched to the 10 kHz of the SVPWM drives
-  (:func:`pmsmjax.jobs.equal_switching.match_switching_frequency`), where the sample period allows it;
-- sliding-mode DTC (:func:`pmsmjax.presets.smc_dtc_drive`, saturation and sign switching) and the FOC
-  drive, both with SVPWM at 10 kHz on the switching-resolved bridge.
+  ([`pmsmjax.jobs.equal_switching.match_switching_frequency`][pmsmjax.jobs.equal_switching.match_switching_frequency]),
+  where the sample period allows it;
+- sliding-mode DTC ([`pmsmjax.presets.smc_dtc_drive`][pmsmjax.presets.three_phase.smc_dtc_drive], saturation
+  and sign switching) and the FOC drive, both with SVPWM at 10 kHz on the switching-resolved bridge.
 
 Cost: the book scenario with the FOC drive (SVPWM, averaged bridge, 10 kHz, 10 RK4 sub-steps), the SMC-DTC
 drive (same modulation and sub-steps) and the table DTC at 25 us (1 sub-step), in float64 and float32:
@@ -107,7 +109,8 @@ def _operating(sizes: Sizes) -> list[dict]:
 
 def _on_bridge(drive, bridge: str):
     """``drive`` on the switching-resolved bridge when it commands a voltage and ``bridge == "switching"``
-    (as :func:`pmsmjax.jobs.control_comparison.compared_drive` does)."""
+    (as [`pmsmjax.jobs.control_comparison.compared_drive`][pmsmjax.jobs.control_comparison.compared_drive]
+    does)."""
     if bridge == "switching" and drive.controller.command_kind == "voltage":
         drive = eqx.tree_at(lambda d: d.bridge, drive, SwitchingBridge(drive.bridge.u_dc))
     return drive

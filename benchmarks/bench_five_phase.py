@@ -1,13 +1,16 @@
 """Per-period cost of the five-phase drive against the three-phase book drive, in one run (the book, ch. 10).
 
 Every drive simulates the same book scenario (1000 r/min, 10 N m at 0.2 s, 0.4 s; float32 unless x64 is
-enabled, as the command line runs), timed interleaved (:func:`benchmarks.bench_core.time_interleaved`) so
-the ratios hold under a varying machine load:
+enabled, as the command line runs), timed interleaved
+([`benchmarks.bench_core.time_interleaved`][pmsmjax.jobs.bench.time_interleaved]) so the ratios
+hold under a varying machine load:
 
-- ``three-phase``: :func:`pmsmjax.presets.book_drive` (dq machine, SVPWM, averaged bridge, PI FOC);
-- ``five-phase <scheme>``: :func:`pmsmjax.presets.five_phase.five_phase_drive` with each control scheme
-  (dq + x-y machine integrated split, near-four-vector SVPWM, averaged bridge); ``five-phase vsd
-  carrier``: min-max carrier PWM instead;
+- ``three-phase``: [`pmsmjax.presets.book_drive`][pmsmjax.presets.three_phase.book_drive] (dq machine, SVPWM,
+  averaged bridge, PI FOC);
+- ``five-phase <scheme>``:
+  `pmsmjax.presets.five_phase.five_phase_drive` with each
+  control scheme (dq + x-y machine integrated split, near-four-vector SVPWM, averaged bridge);
+  ``five-phase vsd carrier``: min-max carrier PWM instead;
 - ``five-phase vsd third-harmonic``: the preset with ``psi_f3 = 0.1 psi_f`` (the angle then drives x-y:
   the dq model integrates the whole state by RK4, no split);
 - the switching-resolved bridges (7 segments per period for three legs, 11 for five);

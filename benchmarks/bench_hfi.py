@@ -1,15 +1,16 @@
 """Cost of the HF-injection drives (chapter 6): the per-period cost of the salient book drive with
 rotating or pulsating injection relative to the same drive with the exact sensor, in one run.
 
-Each drive (:func:`pmsmjax.presets.sensorless_drive` with ``hfi-rotating`` / ``hfi-pulsating`` on the
-salient book motor, design-rule filters; the sensored :func:`pmsmjax.presets.book_drive` on the same
-motor; averaged bridge, 10 RK4 sub-steps, float32 as the command line runs) simulates the same scenario:
-standstill, 10 N m load step at a quarter of the run. The calls are timed interleaved
-(:func:`benchmarks.bench_core.time_interleaved`) so their ratios hold under a varying machine load. The
-cost goal is <= 1.5x per period. Beside it, the same scan keeping only the speed per period (no Trace
-record: the drive's arithmetic alone), and each estimator alone on the rotating drive's log
-(:func:`pmsmjax.recorded.offline_observer.observe`; the rotating one with the carrier read from the voltages,
-as ``pmsmjax observe`` runs it; the pulsating one for its cost only).
+Each drive ([`pmsmjax.presets.sensorless_drive`][pmsmjax.assemble.sensorless_drive] with ``hfi-rotating`` /
+``hfi-pulsating`` on the salient book motor, design-rule filters; the sensored
+[`pmsmjax.presets.book_drive`][pmsmjax.presets.three_phase.book_drive] on the same motor; averaged bridge, 10
+RK4 sub-steps, float32 as the command line runs) simulates the same scenario: standstill, 10 N m load step at
+a quarter of the run. The calls are timed interleaved
+([`benchmarks.bench_core.time_interleaved`][pmsmjax.jobs.bench.time_interleaved]) so their ratios hold under a
+varying machine load. The cost goal is <= 1.5x per period. Beside it, the same scan keeping only the speed per
+period (no Trace record: the drive's arithmetic alone), and each estimator alone on the rotating drive's log
+([`pmsmjax.recorded.offline_observer.observe`][pmsmjax.recorded.offline_observer.observe]; the rotating one
+with the carrier read from the voltages, as ``pmsmjax observe`` runs it; the pulsating one for its cost only).
 
     python -m benchmarks.bench_hfi --json hfi.json
 """

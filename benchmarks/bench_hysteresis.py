@@ -1,16 +1,17 @@
 """Hysteresis current control: switching frequency and ripple against band and sample period, and the
 cost per simulated second against the PI drive.
 
-Operating figures (float64): :func:`pmsmjax.presets.hysteresis_drive` through the book scenario (1000 r/min
-step, 10 N m at 0.2 s, 0.4 s) for every band, comparator sample period and computational-delay setting;
-over the loaded, settled last quarter (0.3-0.4 s): mean switching frequency (transitions per leg per
+Operating figures (float64):
+[`pmsmjax.presets.hysteresis_drive`][pmsmjax.presets.three_phase.hysteresis_drive] through the book scenario
+(1000 r/min step, 10 N m at 0.2 s, 0.4 s) for every band, comparator sample period and computational-delay
+setting; over the loaded, settled last quarter (0.3-0.4 s): mean switching frequency (transitions per leg per
 second / 2, comparable with a PWM carrier), RMS and peak of the phase-current error ``i_abc - i_abc*``.
 
-Cost: the same scenario with :func:`pmsmjax.presets.book_drive` (FOC, SVPWM, averaged bridge, 10 kHz,
-10 RK4 sub-steps) and with the hysteresis preset at 5, 10 and 20 us (1 sub-step), in float64 and float32:
-compile time (first call minus a steady call) and run time (best of ``reps`` interleaved rounds), as wall
-seconds per simulated second and relative to the PI drive in the same dtype. ``quick=True`` shrinks the
-sizes for a smoke test; its figures mean nothing.
+Cost: the same scenario with [`pmsmjax.presets.book_drive`][pmsmjax.presets.three_phase.book_drive] (FOC,
+SVPWM, averaged bridge, 10 kHz, 10 RK4 sub-steps) and with the hysteresis preset at 5, 10 and 20 us (1
+sub-step), in float64 and float32: compile time (first call minus a steady call) and run time (best of
+``reps`` interleaved rounds), as wall seconds per simulated second and relative to the PI drive in the same
+dtype. ``quick=True`` shrinks the sizes for a smoke test; its figures mean nothing.
 """
 
 import argparse

@@ -1,9 +1,11 @@
 """Identification benchmark: accuracy, 95 % interval coverage and speed against SciPy.
 
-The log: the book drive (design-rule gains) on :data:`pmsmjax.recorded.synthetic_logs.ID_TEST_MOTOR`
-running :func:`tuning.identify.excitation.identification_scenario` (2 s at 10 kHz), plus 1 % current and
-0.5 % voltage noise (:data:`pmsmjax.recorded.synthetic_logs.ID_LOG_NOISE`), one noise seed per fit. Every
-figure from one process:
+The log: the book drive (design-rule gains) on
+[`pmsmjax.recorded.synthetic_logs.ID_TEST_MOTOR`][pmsmjax.recorded.synthetic_logs.ID_TEST_MOTOR] running
+[`tuning.identify.excitation.identification_scenario`][tuning.identify.excitation.identification_scenario] (2
+s at 10 kHz), plus 1 % current and 0.5 % voltage noise
+([`pmsmjax.recorded.synthetic_logs.ID_LOG_NOISE`][pmsmjax.recorded.synthetic_logs.ID_LOG_NOISE]), one noise
+seed per fit. Every figure from one process:
 
 1. ``identify`` on seed 0: wall time of the first call (compile included) and of a second call on
    another seed (the compiled program reused), and each parameter's error against the truth;
@@ -57,7 +59,8 @@ def _values(pmap, theta: np.ndarray) -> dict:
 
 
 def numpy_residuals(theta: np.ndarray, pmap, ed: dict, md: dict) -> np.ndarray:
-    """The residuals of :func:`tuning.identify.fit.joint_residuals` in NumPy (one RK4 sub-step, no dead time).
+    """The residuals of [`tuning.identify.fit.joint_residuals`][tuning.identify.fit.joint_residuals] in NumPy
+    (one RK4 sub-step, no dead time).
 
     `ed`, `md`: the electrical and mechanical window data as dicts of NumPy arrays.
     """

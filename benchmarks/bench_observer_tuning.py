@@ -1,16 +1,18 @@
 """Observer tuning by gradients against Nelder-Mead on the same loss: time to equal cost.
 
 Per observer (default ``smo`` and ``ekf``; ``--observers`` for others): the book FOC drive on the observer
-behind the sensored warm-up (:func:`tuning.autotune.observers.observer_drive`, 1 RK4 sub-step per period),
-its default parameters (:data:`tuning.autotune.observers.TUNABLE_OBSERVERS`) in log-space from the design
-rule, the observer objective (speed ITAE + angle-error RMS) on ``make_observer_batch(BATCH, seed=0)``.
-Both methods start from the design rule (theta = 0) with the same parameterisation and bounds
-(:data:`tuning.autotune.observers.OBSERVER_CONFIG`):
+behind the sensored warm-up
+([`tuning.autotune.observers.observer_drive`][tuning.autotune.observers.observer_drive], 1 RK4 sub-step per
+period), its default parameters (`tuning.autotune.observers.TUNABLE_OBSERVERS`) in log-space from the design
+rule, the observer objective (speed ITAE + angle-error RMS) on ``make_observer_batch(BATCH, seed=0)``. Both
+methods start from the design rule (theta = 0) with the same parameterisation and bounds
+([`tuning.autotune.observers.OBSERVER_CONFIG`][tuning.autotune.observers.OBSERVER_CONFIG]):
 
-1. Nelder-Mead (:func:`tuning.autotune.baselines.nelder_mead`: ``scipy.optimize.minimize(method=
-   "Nelder-Mead")`` on one jit-compiled batch cost, simplex edge 0.5) with ``NM_EVALUATIONS`` evaluations;
-2. the gradient tuner (:func:`tuning.autotune.tuner.tune`, ``OBSERVER_CONFIG``: Adam, lr 0.1), every
-   iteration's exact cost timestamped through its callback;
+1. Nelder-Mead ([`tuning.autotune.baselines.nelder_mead`][tuning.autotune.baselines.nelder_mead]:
+   ``scipy.optimize.minimize(method= "Nelder-Mead")`` on one jit-compiled batch cost, simplex edge 0.5) with
+   ``NM_EVALUATIONS`` evaluations;
+2. the gradient tuner ([`tuning.autotune.tuner.tune`][tuning.autotune.tuner.tune], ``OBSERVER_CONFIG``: Adam,
+   lr 0.1), every iteration's exact cost timestamped through its callback;
 3. the wall time (compile excluded for both) at which each first reaches Nelder-Mead's best cost, and the
    ratio Nelder-Mead / gradient (no ratio when the tuner never reaches it).
 

@@ -1,15 +1,16 @@
 """Cost of each chapter 5 observer: the sensorless drive's per-period cost relative to the sensored book
 drive, and the observer alone on a log (``pmsmjax observe``), in one run.
 
-Every drive of :func:`pmsmjax.presets.sensorless_drive` (design-rule gains, averaged bridge, 10 RK4
-sub-steps, float32 as the command line runs) and the sensored :func:`pmsmjax.presets.book_drive` simulate
-the same scenario: started at 1000 r/min (the observer cold, a flying start; the speed loop's integral
-set as if it had been running), 10 N m load step half way. The calls are timed interleaved
-(:func:`benchmarks.bench_core.time_interleaved`) so their ratios hold under a varying machine load. The
-cost goal is <= 1.5x per period. Two diagnostics beside it: the same drive scan keeping only the speed
-per period (no Trace record: what the drive's arithmetic costs), and
-:func:`pmsmjax.recorded.offline_observer.observe` over the sensored run's log (the observer's own cost per
-sample, without the plant).
+Every drive of [`pmsmjax.presets.sensorless_drive`][pmsmjax.assemble.sensorless_drive] (design-rule gains,
+averaged bridge, 10 RK4 sub-steps, float32 as the command line runs) and the sensored
+[`pmsmjax.presets.book_drive`][pmsmjax.presets.three_phase.book_drive] simulate the same scenario: started at
+1000 r/min (the observer cold, a flying start; the speed loop's integral set as if it had been running), 10 N
+m load step half way. The calls are timed interleaved
+([`benchmarks.bench_core.time_interleaved`][pmsmjax.jobs.bench.time_interleaved]) so their ratios hold under a
+varying machine load. The cost goal is <= 1.5x per period. Two diagnostics beside it: the same drive scan
+keeping only the speed per period (no Trace record: what the drive's arithmetic costs), and
+[`pmsmjax.recorded.offline_observer.observe`][pmsmjax.recorded.offline_observer.observe] over the sensored
+run's log (the observer's own cost per sample, without the plant).
 
     python -m benchmarks.bench_observers --json observers.json
 """
@@ -129,7 +130,7 @@ def time_estimator_drives(drives: dict, states: dict, scenario, offline: dict, r
 
 
 def format_estimator_table(r: dict, title: str, alone: str = "observer alone") -> str:
-    """The figures of :func:`time_estimator_drives` as a text table, headed by ``title``."""
+    """The figures of `time_estimator_drives` as a text table, headed by ``title``."""
     head = f"{alone} us/sample"
     w = len(head)
     lines = [

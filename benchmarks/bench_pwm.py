@@ -4,9 +4,10 @@ The book drive (closed loop, FOC, SVPWM, 10 kHz) at steady state (1000 r/min, 10
 averaged bridge) simulates the same stretch of time with:
 
 - ``averaged``: the averaged bridge (10 RK4 sub-steps per period; no ripple), for scale;
-- ``segments``: :class:`pmsmjax.inverters.SwitchingBridge` (7 segments, 1 RK4 step each);
+- ``segments``: [`pmsmjax.inverters.SwitchingBridge`][pmsmjax.inverters.switching.SwitchingBridge] (7
+  segments, 1 RK4 step each);
 - ``segments_deadtime``: the same with a 2 us dead time (13 segments);
-- ``carrier2000`` / ``carrier4000``: :class:`benchmarks.pwm_reference.CarrierReferenceBridge` with 2000 /
+- ``carrier2000`` / ``carrier4000``: `benchmarks.pwm_reference.CarrierReferenceBridge` with 2000 /
   4000 RK4 steps per period (50 / 25 ns), the fine-step carrier comparison.
 
 Figures: compile time (first call minus a steady call), run time (best of ``reps`` interleaved rounds,

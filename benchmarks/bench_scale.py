@@ -15,13 +15,14 @@ montecarlo`` does; ``--devices`` overrides, ``XLA_FLAGS`` set by you wins):
 2. ``montecarlo short``: the same drive on a 2 ms scenario (20 periods, load step at 1 ms), ``--n-short``
    runs (default 200,000): the kernel is cheap, so the host's share (sampling, chunk files, summary,
    Spearman ranks) shows.
-3. ``tune iteration``: :func:`tuning.autotune.tuner.tune` (BFGS, the 7 PI gains, book drive with one RK4
-   sub-step as ``pmsmjax tune`` runs it) on ``--tune-scenarios`` speed-step scenarios (default 1,024) of
-   20-30 ms, ``--tune-iterations`` iterations, with a progress bar (to stderr) and a checkpoint every 5
-   iterations as the command has.
+3. ``tune iteration``: [`tuning.autotune.tuner.tune`][tuning.autotune.tuner.tune] (BFGS, the 7 PI gains, book
+   drive with one RK4 sub-step as ``pmsmjax tune`` runs it) on ``--tune-scenarios`` speed-step scenarios
+   (default 1,024) of 20-30 ms, ``--tune-iterations`` iterations, with a progress bar (to stderr) and a
+   checkpoint every 5 iterations as the command has.
 
 ``--unroll-substeps`` runs the Monte Carlo rows with the RK4 sub-steps written out
-(:class:`pmsmjax.inverters.averaged.AveragedBridge`), for comparing the two program forms on a device.
+([`pmsmjax.inverters.averaged.AveragedBridge`][pmsmjax.inverters.averaged.AveragedBridge]), for comparing the
+two program forms on a device.
 
 Columns:
 
@@ -35,9 +36,10 @@ Columns:
   threads, so this is the host's own work: dispatch, optimiser step, progress bar, checkpoints).
 - **periods/s, runs/s**: over the kernel time; for tuning, scenario-periods (and scenarios) differentiated
   per second of iteration wall time.
-- the **device** (kind and count), the chunk size and what limited it (:mod:`tuning.montecarlo.chunking`),
-  and the load average of the machine before and after each row (the 2-core machine these figures come
-  from is shared: compare figures taken together, never across runs).
+- the **device** (kind and count), the chunk size and what limited it
+  ([`tuning.montecarlo.chunking`][tuning.montecarlo.chunking]), and the load average of the machine before and
+  after each row (the 2-core machine these figures come from is shared: compare figures taken together, never
+  across runs).
 
 Precision is float32 (JAX's default) unless x64 is enabled. ``quick=True`` shrinks every size so the
 benchmark runs in seconds (smoke tests); its figures mean nothing.

@@ -1,14 +1,18 @@
 """Per-period cost of the six-phase drive against the three-phase book drive, in one run.
 
 Every drive simulates the same book scenario (1000 r/min, 10 N m at 0.2 s, 0.4 s; float32 unless x64 is
-enabled, as the command line runs), timed interleaved (:func:`benchmarks.bench_core.time_interleaved`) so
-the ratios hold under a varying machine load:
+enabled, as the command line runs), timed interleaved
+([`benchmarks.bench_core.time_interleaved`][pmsmjax.jobs.bench.time_interleaved]) so the ratios
+hold under a varying machine load:
 
-- ``three-phase``: :func:`pmsmjax.presets.book_drive` (dq machine, SVPWM, averaged bridge, PI FOC);
-- ``six-phase <scheme>``: :func:`pmsmjax.presets.six_phase.six_phase_drive` with each control scheme
-  (dq + z1-z2 machine, four-vector SVPWM, averaged bridge);
+- ``three-phase``: [`pmsmjax.presets.book_drive`][pmsmjax.presets.three_phase.book_drive] (dq machine, SVPWM,
+  averaged bridge, PI FOC);
+- ``six-phase <scheme>``:
+  `pmsmjax.presets.six_phase.six_phase_drive` with each control
+  scheme (dq + z1-z2 machine, four-vector SVPWM, averaged bridge);
 - the same two with the switching-resolved bridges (7 segments against 13 per period); the six-phase PR
-  scheme against the three-phase PR drive (:func:`pmsmjax.presets.pr_drive`);
+  scheme against the three-phase PR drive
+  ([`pmsmjax.presets.pr_drive`][pmsmjax.presets.three_phase.pr_drive]);
 - a ``vmap`` batch (``--batch``, default 64 runs) of the three-phase and the six-phase VSD drive: the
   per-run cost that Monte Carlo studies and tuning pay.
 

@@ -2,17 +2,17 @@
 
 One process, one problem: the book drive with 1 RK4 sub-step per period (4e-7 of peak current from
 scipy at 10 kHz), the 7 FOC gains in log-space from the design-rule gains, bounds 0.05-20x, a batch of
-64 speed-step scenarios (``make_batch(64, seed=0)``) and the default :class:`ObjectiveWeights`
-(batch-mean ITAE + L1 penalties). On it:
+64 speed-step scenarios (``make_batch(64, seed=0)``) and the default
+[`ObjectiveWeights`][tuning.autotune.objectives.ObjectiveWeights] (batch-mean ITAE + L1 penalties). On it:
 
 1. the design-rule cost (the common starting point);
-2. Nelder-Mead (:func:`tuning.autotune.baselines.nelder_mead`) with 2000 evaluations, and CMA-ES with the same
-   budget when the optional package ``cma`` is installed: best cost, wall time, time to its best, the
-   best-so-far curve against wall time;
-3. the gradient tuner (:func:`tuning.autotune.tuner.tune`) with Adam (up to 300 iterations, its default
-   stopping rules) and with ``method="bfgs"`` (up to 60 iterations; its default penalty rounding, 1 %
-   overshoot and 0.1 A, and a sweep of the rounding widths, exact included, to show how much the
-   outcome depends on them), every iteration's exact cost timestamped through its ``callback``;
+2. Nelder-Mead ([`tuning.autotune.baselines.nelder_mead`][tuning.autotune.baselines.nelder_mead]) with 2000
+   evaluations, and CMA-ES with the same budget when the optional package ``cma`` is installed: best cost,
+   wall time, time to its best, the best-so-far curve against wall time;
+3. the gradient tuner ([`tuning.autotune.tuner.tune`][tuning.autotune.tuner.tune]) with Adam (up to 300
+   iterations, its default stopping rules) and with ``method="bfgs"`` (up to 60 iterations; its default
+   penalty rounding, 1 % overshoot and 0.1 A, and a sweep of the rounding widths, exact included, to show how
+   much the outcome depends on them), every iteration's exact cost timestamped through its ``callback``;
 4. the wall time at which the gradient tuner first reaches (<=) Nelder-Mead's best cost, and the ratio
    Nelder-Mead wall time / that time (``reached: false`` and no ratio when it never does); the converse
    too: when Nelder-Mead first reaches the gradient tuner's best;
@@ -225,8 +225,8 @@ def run(quick: bool = False, learning_rate: float | None = None) -> dict:
 
     Runs in the process's default precision (float32 unless x64 is enabled, as in the test suite);
     ``dtype`` records which. Costs are batch costs (dimensionless sums of weighted metrics), times in s.
-    `learning_rate`: the tuner's Adam step (None: the :class:`TuneConfig` default); its other settings
-    are the defaults but ``max_iterations``.
+    `learning_rate`: the tuner's Adam step (None: the [`TuneConfig`][tuning.autotune.tuner.TuneConfig]
+    default); its other settings are the defaults but ``max_iterations``.
     """
     sizes = QUICK if quick else FULL
     drive = book_drive(n_substeps=N_SUBSTEPS_TUNE)
@@ -357,7 +357,7 @@ def _fmt(x, spec: str = ".4f", none: str = "-") -> str:
 
 
 def format_table(r: dict) -> str:
-    """A readable plain-text table of the figures returned by :func:`run`."""
+    """A readable plain-text table of the figures returned by `run`."""
     m, p = r["machine"], r["problem"]
     quick = "  [QUICK: sizes shrunk, figures not meaningful]" if r["quick"] else ""
     lines = [

@@ -1,7 +1,8 @@
 """The commissioning chain on a drive that is not the book's, as a user runs it, timed step by step:
 
-1. a noisy closed-loop log of the drive, made without the engine (:mod:`tuning.identify.reference_log`:
-   NumPy FOC, SciPy DOP853 plant; 1 % current and 0.5 % voltage noise, as the identification tests);
+1. a noisy closed-loop log of the drive, made without the engine
+   ([`tuning.identify.reference_log`][tuning.identify.reference_log]: NumPy FOC, SciPy DOP853 plant; 1 %
+   current and 0.5 % voltage noise, as the identification tests);
 2. ``pmsmjax identify LOG --motor PRIOR --out ID``: the motor with error bars, written as ID/motor.toml
    (the prior's ratings and inverter carried over);
 3. ``pmsmjax tune --motor ID/motor.toml --robust --out TUNE``: gains trained over plant draws from the
@@ -11,7 +12,7 @@
 
 Prints the identified values against the truth (the bars: R 1 %, L 2 %, psi_f 0.5 %, J 3 %), each step's
 wall time and the total, with the machine named. Each command runs in this process through
-:func:`pmsmjax.cli.main`, with its persistent compilation cache off (a first run).
+`pmsmjax.cli.main`, with its persistent compilation cache off (a first run).
 
 ``python -m benchmarks.commissioning_chain [--drive servo-400w] [--json FILE]``
 """

@@ -4,12 +4,13 @@ XLA:CPU's runtime once ran a loop body sequentially on the calling thread only w
 body touched was at most 512 bytes, and otherwise ran its kernels as a task graph on the thread pool,
 whose hand-offs cost a drive step (kernels on scalars) more than its arithmetic: a flat scan over the
 periods, which slices the whole inputs and writes the whole record, was never sequential, and the
-engine cut its scan into blocks of periods. With the loop limit :mod:`pmsmjax.xla_cpu` sets, a period's
-loops compile into one kernel each and the block length no longer changes the time; this benchmark is
+engine cut its scan into blocks of periods. With the loop limit [`pmsmjax.xla_cpu`][pmsmjax.xla_cpu] sets, a
+period's loops compile into one kernel each and the block length no longer changes the time; this benchmark is
 how to see that again on another machine or jax version. Two tables, every call timed interleaved
-(:func:`benchmarks.bench_core.time_interleaved`, best of ``--reps``), float32 unless x64 is enabled:
+([`benchmarks.bench_core.time_interleaved`][pmsmjax.jobs.bench.time_interleaved], best of
+``--reps``), float32 unless x64 is enabled:
 
-1. **book drive against the hand loop** (:mod:`benchmarks.minimal_loop`, literal constants), 4000 periods
+1. **book drive against the hand loop** (`benchmarks.minimal_loop`, literal constants), 4000 periods
    from rest: the hand loop; ``simulate``; the engine's scan keeping only the speed (its arithmetic); the
    engine's step recording the packed row in one flat scan.
 2. **block length sweep**: the sensored drive (11-element record row) and the ``--observers`` drives

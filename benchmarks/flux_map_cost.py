@@ -1,16 +1,17 @@
 """Cost of the flux-map plant against the linear dq plant in the book drive, and gradient finiteness.
 
 1. The salient book drive (float32 as the command line runs, averaged bridge, 10 RK4 sub-steps) with its
-   linear :class:`~pmsmjax.machines.PMSMdq` plant and with a :class:`~pmsmjax.machines.pmsm_flux_map.
-   PMSMFluxMapdq` plant on the preset saturated IPM's map (41 x 41 points), same scenario: one run, and a
-   batch of ``batch`` runs under ``jax.vmap`` (resistance spread +-10 %, as Monte Carlo and tuning run);
-   all four timed interleaved (:func:`benchmarks.bench_core.time_interleaved`), so the ratios hold under a
-   varying load. Target: the flux-map drive costs at most 2x the linear one per period.
+   linear [`PMSMdq`][pmsmjax.machines.pmsm3.PMSMdq] plant and with a
+   [`PMSMFluxMapdq`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq] plant on the preset saturated IPM's map (41
+   x 41 points), same scenario: one run, and a batch of ``batch`` runs under ``jax.vmap`` (resistance
+   spread +-10 %, as Monte Carlo and tuning run); all four timed interleaved
+   ([`benchmarks.bench_core.time_interleaved`][pmsmjax.jobs.bench.time_interleaved]), so the ratios
+   hold under a varying load. Target: the flux-map drive costs at most 2x the linear one per period.
 2. The plants alone, open loop under a rotating voltage, one run and the batch; beside them the same
-   flux-map plant on a map of one bicubic cell spanning the grid (:class:`~pmsmjax.machines.
-   pmsm_flux_map.FluxMap` with the first cell's coefficients): the cell search, coefficient load, patch
-   and 2x2 solve at every RK4 stage with a table that always answers from one cell, the floor any
-   located piecewise-cubic map pays.
+   flux-map plant on a map of one bicubic cell spanning the grid
+   ([`FluxMap`][pmsmjax.machines.pmsm_flux_map.FluxMap] with the first cell's coefficients): the cell search,
+   coefficient load, patch and 2x2 solve at every RK4 stage with a table that always answers from one cell,
+   the floor any located piecewise-cubic map pays.
 3. Gradients of a flux-map plant run (open loop, rotating voltage, 200 periods) with respect to the
    resistance and voltage amplitude over ``draws`` random draws under ``jax.vmap``: how many are finite.
 

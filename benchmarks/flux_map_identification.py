@@ -1,7 +1,7 @@
 """Flux-map identification benchmark (``python -m benchmarks.flux_map_identification [--json PATH]``).
 
-The log (:mod:`tuning.identify.saturated_reference_log`): the saturated IPM of
-``presets/motors/saturated_ipm_map.csv`` (analytic co-energy model, SciPy DOP853) at +-1000 r/min under
+The log ([`tuning.identify.saturated_reference_log`][tuning.identify.saturated_reference_log]): the saturated
+IPM of ``presets/motors/saturated_ipm_map.csv`` (analytic co-energy model, SciPy DOP853) at +-1000 r/min under
 a NumPy current loop walking the operating points i_d in {-12, -8, -4, 0, 4} A x i_q in {-12 .. 12} A
 (step 4 A, 4 ms each), noise 0.05 A and 0.5 V; a second log adds a bridge's voltage error (1 us dead time
 at 10 kHz and 311 V plus a 0.8 V drop: 3.91 V per phase, its sign ramping over the PWM ripple, not the

@@ -6,11 +6,12 @@ the constant-parameter model and with the flux map's model, in float64.
   an imposed 1000 r/min, current control with ``i_d* = 0`` and ``i_q*`` stepped at 50 ms to each load;
   "constant": the design rule's model, the drive file's linear model (the map's incremental inductances
   at the rated 10 A); "map": the same observer with its model scheduled on the map
-  (:mod:`pmsmjax.estimators.map_scheduled`); the MRAS also with a 30 rad/s operating-current filter
-  ("map, slow current").
+  ([`pmsmjax.estimators.map_scheduled`][pmsmjax.estimators.map_scheduled]); the MRAS also with a 30 rad/s
+  operating-current filter ("map, slow current").
 - HF injection (``hfi-rotating``, ``hfi-pulsating``) at standstill with ``i_d* = -3 A`` (so the map
   cross-saturates) and the same ``i_q*``; designed for the no-load small-signal inductances; "map": the
-  cross-saturation angle taken out (:mod:`pmsmjax.estimators.hfi_cross_saturation`).
+  cross-saturation angle taken out
+  ([`pmsmjax.estimators.hfi_cross_saturation`][pmsmjax.estimators.hfi_cross_saturation]).
 
 "predicted (constant)": the constant model's steady error from the map alone, no simulation (the
 steady-state voltage equation for the observers, the smallest-inductance axis for HF injection; "no
@@ -57,7 +58,8 @@ HFI_I_D = -3.0
 DURATION_S = 0.3
 STEADY = 1000  # periods scored (100 ms at 10 kHz)
 LOST_PTP_DEG, LOST_MEAN_DEG = 20.0, 45.0
-#: The MRAS's extra row: operating-current low-pass, rad/s (:mod:`pmsmjax.estimators.map_scheduled`).
+#: The MRAS's extra row: operating-current low-pass, rad/s
+#: ([`pmsmjax.estimators.map_scheduled`][pmsmjax.estimators.map_scheduled]).
 MRAS_CURRENT_CUTOFF = 30.0
 
 

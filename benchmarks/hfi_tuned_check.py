@@ -2,16 +2,16 @@
 scenarios of ``pmsmjax compare --estimator``: design rule against tuned, outside the batches the
 tuner saw.
 
-The tuning drive (:mod:`tuning.autotune.hfi_tuning`) wraps the estimator in a sensored warm-up (path
-``estimator.observer.*``) and the hybrid there has no polarity detector; the compare drive
-(:func:`pmsmjax.jobs.estimator_comparison.chapter6_drive`) holds the estimator at ``estimator.*`` and the
-hybrid's injection inside its polarity detector (``estimator.injection.observer.*``). The gains are moved to
-those
-paths (:func:`compare_paths`). The hybrid also runs ``compare``'s book scenario (1000 r/min from
+The tuning drive ([`tuning.autotune.hfi_tuning`][tuning.autotune.hfi_tuning]) wraps the estimator in a
+sensored warm-up (path ``estimator.observer.*``) and the hybrid there has no polarity detector; the compare
+drive ([`pmsmjax.jobs.estimator_comparison.chapter6_drive`][pmsmjax.jobs.estimator_comparison.chapter6_drive])
+holds the estimator at ``estimator.*`` and the hybrid's injection inside its polarity detector
+(``estimator.injection.observer.*``). The gains are moved to those
+paths (`compare_paths`). The hybrid also runs ``compare``'s book scenario (1000 r/min from
 standstill, 10 N m step). Each run starts 30 electrical degrees off the estimate, no noise, on the
 saturated salient plant (averaged bridge by default), and is scored by
-:func:`pmsmjax.analysis.observer_errors.observer_errors` (modulo pi for the injection estimators), as
-``compare`` does.
+[`pmsmjax.analysis.observer_errors.observer_errors`][pmsmjax.analysis.observer_errors.observer_errors] (modulo
+pi for the injection estimators), as ``compare`` does.
 
     python -m benchmarks.hfi_tuned_check hfi-rotating=tune_hfi-rotating/gains.toml \
         hfi-pulsating=tune_hfi-pulsating/gains.toml [--bridge switching] [--json out.json]
@@ -38,7 +38,8 @@ from tuning.parameters import read_gains_toml, set_leaves
 
 
 def compare_paths(name: str, gains: dict) -> dict:
-    """Gains of the tuning drive renamed to the paths of :func:`chapter6_drive`'s drive."""
+    """Gains of the tuning drive renamed to the paths of
+    [`chapter6_drive`][pmsmjax.jobs.estimator_comparison.chapter6_drive]'s drive."""
     out = {}
     for path, value in gains.items():
         rest = path.removeprefix("estimator.observer.")

@@ -1,10 +1,11 @@
 """Gradient of a hybrid-estimator objective w.r.t. its crossover band against central differences.
 
 Objective: mean-square angle error (rad^2) from 50 to 100 ms of a start from standstill to 1000 r/min
-(:func:`pmsmjax.jobs.hybrid_runs.hybrid_book_drive`, rotor at 0.3 rad), i.e. through the polarity pulses,
-the hand-over and the carrier fade. ``jax.grad`` w.r.t. ``(low_speed, high_speed)`` (mechanical rad/s)
-against central differences with steps 1e-3 and 1e-4 rad/s, float64. Not a test: the reverse-mode
-compile of the two estimators' scan takes about 30 s on 2 CPU cores, over the test budget.
+([`pmsmjax.jobs.hybrid_runs.hybrid_book_drive`][pmsmjax.jobs.hybrid_runs.hybrid_book_drive], rotor at 0.3
+rad), i.e. through the polarity pulses, the hand-over and the carrier fade. ``jax.grad`` w.r.t.
+``(low_speed, high_speed)`` (mechanical rad/s) against central differences with steps 1e-3 and 1e-4 rad/s,
+float64. Not a test: the reverse-mode compile of the two estimators' scan takes about 30 s on 2 CPU cores,
+over the test budget.
 
     python -m benchmarks.hybrid_gradient
 """

@@ -1,8 +1,8 @@
 """The hybrid estimator's reference table and the contrasts behind its design.
 
-Runs (:mod:`pmsmjax.jobs.hybrid_runs`): the book drive on the salient book motor with d-axis saturation,
-sensorless with the hybrid from standstill at 8 initial rotor angles (every 45 degrees, so the injection
-alone locks to the wrong pole for about half), through
+Runs ([`pmsmjax.jobs.hybrid_runs`][pmsmjax.jobs.hybrid_runs]): the book drive on the salient book motor with
+d-axis saturation, sensorless with the hybrid from standstill at 8 initial rotor angles (every 45 degrees, so
+the injection alone locks to the wrong pole for about half), through
 
 - ``book``: 1000 r/min step, 10 N m load step at 0.2 s;
 - ``reversal``: -1000 r/min, 5 N m from 0.15 s, step to +1000 r/min at 0.3 s.

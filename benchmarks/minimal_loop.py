@@ -38,7 +38,7 @@ def make_minimal_loop(
     """Return ``run(speed_ref (N,), load (N,)) -> (omega (N,), i_dq (N, 2))``, jit-compiled.
 
     With ``runtime_parameters=True`` the motor parameters are arguments instead of literals:
-    ``run(speed_ref, load, params)`` with ``params`` a dict like :data:`BOOK`. A library must take its
+    ``run(speed_ref, load, params)`` with ``params`` a dict like `BOOK`. A library must take its
     parameters at run time (to vmap and differentiate over them); literals let XLA constant-fold, which
     this variant measures the worth of.
     """

@@ -1,11 +1,11 @@
 """Per-period cost of multi-phase drives against the three-phase book drive, timed in one run: the engine
-behind :mod:`benchmarks.bench_six_phase` and :mod:`benchmarks.bench_five_phase`.
+behind `benchmarks.bench_six_phase` and `benchmarks.bench_five_phase`.
 
 Every drive simulates the same book scenario (1000 r/min, 10 N m half way; float32 unless x64 is enabled),
-timed interleaved (:func:`benchmarks.bench_core.time_interleaved`) so the ratios hold under a varying
-machine load. The three-phase references are always timed: ``three-phase`` (book drive), ``three-phase
-switching`` (switching-resolved bridge) and a ``vmap`` batch ``three-phase xB``; each multi-phase drive is
-compared with the reference named in ``pairs`` (default ``three-phase``).
+timed interleaved ([`benchmarks.bench_core.time_interleaved`][pmsmjax.jobs.bench.time_interleaved])
+so the ratios hold under a varying machine load. The three-phase references are always timed: ``three-phase``
+(book drive), ``three-phase switching`` (switching-resolved bridge) and a ``vmap`` batch ``three-phase xB``;
+each multi-phase drive is compared with the reference named in ``pairs`` (default ``three-phase``).
 """
 
 import equinox as eqx
@@ -72,7 +72,7 @@ def time_against_three_phase(
 
 
 def format_cost_table(r: dict, what: str) -> str:
-    """The figures of :func:`time_against_three_phase` as a text table; ``what``: e.g. ``"six-phase"``."""
+    """The figures of `time_against_three_phase` as a text table; ``what``: e.g. ``"six-phase"``."""
     width = max(len(name) for name in r["drives"]) + 2
     lines = [
         f"{what} vs three-phase drive, book scenario ({r['duration_s']:g} s, {r['dtype']}), best of rounds",

@@ -1,8 +1,9 @@
 """Accuracy of the chapter 5 observers on logs made by the project's own drive (2 degrees RMS is the goal).
 
 Logs: the sensored book drive (design-rule FOC, SVPWM, averaged bridge, 10 kHz) with 0.5 % white noise
-on voltages and currents (:mod:`pmsmjax.recorded.synthetic_logs`); each observer runs offline on them with its
-design-rule gains and starts cold (:func:`pmsmjax.recorded.offline_observer.observe`).
+on voltages and currents ([`pmsmjax.recorded.synthetic_logs`][pmsmjax.recorded.synthetic_logs]); each observer
+runs offline on them with its design-rule gains and starts cold
+([`pmsmjax.recorded.offline_observer.observe`][pmsmjax.recorded.offline_observer.observe]).
 
 1. **Speed bands**: speed steps from rest to 400, 1000, 2000 and -1000 r/min with a 10 N m load step at
    0.15 s (0.3 s); the samples after convergence (20 ms after |speed| first reaches 300 r/min) pooled by

@@ -1,17 +1,20 @@
 """Where the per-period cost of a sensorless drive goes (the cost goal: <= 1.5x the sensored drive).
 
-The same drive scan (:func:`pmsmjax.simulate`'s checkpointed drive step from a flying start at 1000 r/min,
-10 N m load step half way) is timed with different per-period outputs, for run lengths of ``--durations``
-seconds, interleaved (:func:`benchmarks.bench_core.time_interleaved`, best of ``--reps``):
+The same drive scan ([`pmsmjax.simulate`][pmsmjax.simulate.simulate]'s checkpointed drive step from a flying
+start at 1000 r/min, 10 N m load step half way) is timed with different per-period outputs, for run lengths of
+``--durations`` seconds, interleaved
+([`benchmarks.bench_core.time_interleaved`][pmsmjax.jobs.bench.time_interleaved], best of
+``--reps``):
 
 - ``none``: no per-period output (the final state only): what the drive's arithmetic costs;
 - ``speed``: the speed only;
-- ``packed``: the packed record row (``ravel_pytree`` of :class:`pmsmjax.drive.PeriodRecord`), as
-  ``simulate`` writes it, without deriving the Trace afterwards;
+- ``packed``: the packed record row (``ravel_pytree`` of
+  [`pmsmjax.drive.PeriodRecord`][pmsmjax.drive.PeriodRecord]), as ``simulate`` writes it, without deriving the
+  Trace afterwards;
 - ``separate``: the packed row without the estimate, and the estimate ``(2,)`` as a second scan output;
 - ``blocked``: the same rows written by an inner scan of 100 periods inside an outer scan (does the size
   of the buffer the row goes into matter?);
-- ``simulate``: :func:`pmsmjax.simulate` itself (rows, then the Trace).
+- ``simulate``: [`pmsmjax.simulate`][pmsmjax.simulate.simulate] itself (rows, then the Trace).
 
 Plus ``dup``: the sensored drive whose record also carries the plant's own angle and speed as an
 "estimate" (what a pass-through estimator records), to separate recording from observing.
@@ -56,7 +59,7 @@ def duplicating(drive: Drive) -> Drive:
 
 
 def scan_with(mode: str):
-    """A jitted ``(drive, state, xs) -> output`` for one of the :data:`MODES` other than simulate."""
+    """A jitted ``(drive, state, xs) -> output`` for one of the `MODES` other than simulate."""
 
     @eqx.filter_jit
     def run(drive, state, xs):

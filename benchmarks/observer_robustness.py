@@ -2,12 +2,13 @@
 per chapter 5 observer, summarised as one Markdown table.
 
 Each study draws the plant's R (+-30 %), L_d, L_q (+-20 % each) and psi_f (+-10 %), uniform, while the
-observer and the controller keep the nominal motor (:mod:`tuning.montecarlo.study`), and runs the book
-scenario form sensorless from standstill (I/f start). Per observer: percentiles over the runs of the
-per-run angle error RMS and max after 50 ms (electrical degrees), of the speed estimation error RMS
-(r/min), the loss-of-lock rate (:mod:`pmsmjax.analysis.observer_errors`), the speed-tracking failure rate
-(``|mean speed error|`` over the last 10 % of the run above 10 r/min) and the rate of any failure, and the
-study's run time (compile excluded; 0 when its chunks were loaded from an earlier run).
+observer and the controller keep the nominal motor ([`tuning.montecarlo.study`][tuning.montecarlo.study]), and
+runs the book scenario form sensorless from standstill (I/f start). Per observer: percentiles over the runs of
+the per-run angle error RMS and max after 50 ms (electrical degrees), of the speed estimation error RMS
+(r/min), the loss-of-lock rate ([`pmsmjax.analysis.observer_errors`][pmsmjax.analysis.observer_errors]), the
+speed-tracking failure rate (``|mean speed error|`` over the last 10 % of the run above 10 r/min) and the rate
+of any failure, and the study's run time (compile excluded; 0 when its chunks were loaded from an earlier
+run).
 
     python -m benchmarks.observer_robustness --n 1000 --out OUT [--speed-rpm 1000]
 

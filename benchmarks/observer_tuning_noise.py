@@ -1,7 +1,7 @@
 """Tuned observer gains on noisy logs: the closed-loop tuning of ``pmsmjax tune --estimator`` sees no
 measurement noise, so this checks what its gains do with it.
 
-The logs and the band table of :mod:`benchmarks.observer_accuracy` (the sensored book drive with 0.5 %
+The logs and the band table of `benchmarks.observer_accuracy` (the sensored book drive with 0.5 %
 white noise on voltages and currents; steps to 400, 1000, 2000 and -1000 r/min with a 10 N m load step;
 each observer offline, cold start; samples after convergence pooled by true speed): angle-error RMS,
 electrical degrees, per band, for the design-rule gains and for the gains of each ``gains.toml`` given.

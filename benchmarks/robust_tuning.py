@@ -9,7 +9,7 @@ then 0.8 x rated torque) with the design-rule gains, the nominally tuned gains a
 
 Prints, per set of gains, the ITAE median, 90th percentile and worst-decile mean (the mean of the worst
 10 % of runs) and the failure rate; the claim is the worst decile with robust gains below the one with
-nominal gains. Each command runs in this process through :func:`pmsmjax.cli.main`.
+nominal gains. Each command runs in this process through `pmsmjax.cli.main`.
 
 ``python -m benchmarks.robust_tuning [--drive servo-400w] [--iterations 30] [--runs 1000] [--json FILE]``
 """

@@ -1,16 +1,16 @@
 """``pmsmjax tune --control pi`` on the example drive files: how much the held-out speed ITAE drops from the
-design rules (:mod:`pmsmjax.spec.design_rules`) on drives other than the book's.
+design rules ([`pmsmjax.spec.design_rules`][pmsmjax.spec.design_rules]) on drives other than the book's.
 
 Per drive (servo-400w, industrial-5k6w, outer-rotor-24v; ``pmsmjax/presets/motors/``): the tune job
-(:func:`tuning.autotune.job.run_tune_job`) on batches from the file's ``[tuning]`` ranges, modest sizes
-(:data:`SETTINGS`: 16 train / 32 held-out scenarios, 30 BFGS iterations, 1 RK4 sub-step while tuning;
-the industrial drive's 1.5-2.5 s scenarios at 5 kHz with fewer scenarios), then prints the held-out ITAE
-before and after, its cut, the held-out scenarios over the current limit and the largest peak current
-(against the file's limit), and the held-out nominal and worst-decile costs over plant draws from the
-file's tolerances. The checks: at least a :data:`MIN_CUT_PCT` % cut and no held-out scenario over the
+([`tuning.autotune.job.run_tune_job`][tuning.autotune.job.run_tune_job]) on batches from the file's
+``[tuning]`` ranges, modest sizes (`SETTINGS`: 16 train / 32 held-out scenarios, 30 BFGS iterations, 1 RK4
+sub-step while tuning; the industrial drive's 1.5-2.5 s scenarios at 5 kHz with fewer scenarios), then prints
+the held-out ITAE before and after, its cut, the held-out scenarios over the current limit and the largest
+peak current (against the file's limit), and the held-out nominal and worst-decile costs over plant draws from
+the file's tolerances. The checks: at least a `MIN_CUT_PCT` % cut and no held-out scenario over the
 limit.
 
-The current limit sets a floor under the ITAE that no gains can cut (:func:`current_limit_floor`): a
+The current limit sets a floor under the ITAE that no gains can cut (`current_limit_floor`): a
 step to ``w`` takes at least ``t_a = J w / T_max`` at the limit's MTPA torque ``T_max``, and its error
 falls at best linearly over it, ``ITAE >= w t_a^2 / 6`` (friction and the load step only add to it).
 The benchmark prints the floor and the cut of the ITAE above it.

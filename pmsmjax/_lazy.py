@@ -1,8 +1,9 @@
 """Names a package imports on first use (PEP 562), from its ``_LAZY`` table: ``{name: (submodule,
 attribute)}``, the submodule relative to the package (``"io.logs"``; a leading dot climbs, as in an import:
 ``"..assemble"`` from ``pmsmjax.presets`` is ``pmsmjax.assemble``) and the attribute None for the submodule
-itself. The packages ``pmsmjax``, :mod:`pmsmjax.presets`, :mod:`pmsmjax.controllers` and
-:mod:`pmsmjax.machines` read their re-exports this way, so that importing them loads no JAX.
+itself. The packages ``pmsmjax``, [`pmsmjax.presets`][pmsmjax.presets],
+[`pmsmjax.controllers`][pmsmjax.controllers] and [`pmsmjax.machines`][pmsmjax.machines] read their re-exports
+this way, so that importing them loads no JAX.
 
 Plain Python (importlib and sys only).
 """

@@ -1,21 +1,26 @@
-"""Where a drive is built: :func:`assemble` turns a drive spec and a choice of control, estimator and
-machine into a :class:`~pmsmjax.drive.Drive`, in one pass, for three, five and six phases; and
-:func:`with_parts`, the one place where a built drive's blocks or leaves are replaced (a bridge swapped for
-a comparison, gains written by tuning).
+"""Where a drive is built: [`assemble`][pmsmjax.assemble.assemble] turns a drive spec and a choice of control,
+estimator and machine into a [`Drive`][pmsmjax.drive.Drive], in one pass, for three, five and six phases; and
+[`with_parts`][pmsmjax.assemble.with_parts], the one place where a built drive's blocks or leaves are replaced
+(a bridge swapped for a comparison, gains written by tuning).
 
-The steps of :func:`assemble`, in order (each a function of this module):
+The steps of [`assemble`][pmsmjax.assemble.assemble], in order (each a function of this module):
 
-1. the control method's preset (:data:`pmsmjax.spec.registry.REGISTRY`) at the drive file's DC link,
-   control rate, current limit and bandwidths (:func:`drive_options`), the user's options over them;
+1. the control method's preset (`pmsmjax.spec.registry.REGISTRY`) at the drive file's DC link,
+   control rate, current limit and bandwidths ([`drive_options`][pmsmjax.assemble.drive_options]), the user's
+   options over them;
 2. a three-phase drive file's ``[inverter]`` dead time and device drop in the averaged bridge, and their
-   compensation in a FOC controller (:func:`inverter_error_parts`);
-3. a ``[motor] flux_map``: the map's plant, current loop and d-axis references (:func:`flux_map_parts`);
+   compensation in a FOC controller ([`inverter_error_parts`][pmsmjax.assemble.inverter_error_parts]);
+3. a ``[motor] flux_map``: the map's plant, current loop and d-axis references
+   ([`flux_map_parts`][pmsmjax.assemble.flux_map_parts]);
 4. the position estimator: the file's encoder (``[sensor]``), or a sensorless observer with its I/f start
-   (:func:`observer`), reading the flux map where the file has one (:func:`map_aware`).
+   ([`observer`][pmsmjax.assemble.observer]), reading the flux map where the file has one
+   ([`map_aware`][pmsmjax.assemble.map_aware]).
 
-The parts of steps 2-4 are collected and put into the preset's drive by one :func:`with_parts` call. The
-presets' own builders (:func:`pmsmjax.presets.book_drive`, ...) remain the per-method factories; on the
-book drive file (``--motor book``) :func:`assemble` gives their drives bit for bit.
+The parts of steps 2-4 are collected and put into the preset's drive by one
+[`with_parts`][pmsmjax.assemble.with_parts] call. The presets' own builders
+([`pmsmjax.presets.book_drive`][pmsmjax.presets.three_phase.book_drive], ...) remain the per-method factories;
+on the book drive file (``--motor book``) [`assemble`][pmsmjax.assemble.assemble] gives their drives bit for
+bit.
 """
 
 from collections.abc import Mapping
@@ -50,14 +55,14 @@ __all__ = [
     "SMC_LOAD_RISE_S",
 ]
 
-#: I/f start-up of the book drive (:func:`observer` with ``startup=True``): current amplitude (A; 1.1 N m/A
-#: torque constant, J = 0.003 kg m^2), ramp acceleration (mechanical rad/s^2), hand-over speed and blend
-#: span (mechanical rad/s: 150 r/min, then 100 r/min of blend).
+#: I/f start-up of the book drive ([`observer`][pmsmjax.assemble.observer] with ``startup=True``): current
+#: amplitude (A; 1.1 N m/A torque constant, J = 0.003 kg m^2), ramp acceleration (mechanical rad/s^2),
+#: hand-over speed and blend span (mechanical rad/s: 150 r/min, then 100 r/min of blend).
 STARTUP_DEFAULTS = dict(i_start=8.0, accel=1000.0, handover_speed=15.7, blend_speed=10.5)
 
 #: The sliding-mode speed law's design load: the rated torque rising in this time, s (the book's 10 N m in
-#: 10 ms, :func:`pmsmjax.presets.smc_drive`). Its sliding surface's time constant is the speed loop's,
-#: ``1 / beta`` (the book's 20 ms at 50 rad/s).
+#: 10 ms, [`pmsmjax.presets.smc_drive`][pmsmjax.presets.three_phase.smc_drive]). Its sliding surface's time
+#: constant is the speed loop's, ``1 / beta`` (the book's 20 ms at 50 rad/s).
 SMC_LOAD_RISE_S = 0.01
 
 
@@ -100,7 +105,7 @@ def drive_options(spec, control: str = "pi", machine: str = "three-phase") -> di
     control period, current limit, bandwidths (and the sliding-mode law's design load).
 
     Args:
-        spec: the drive file (:class:`pmsmjax.spec.DriveSpec`).
+        spec: the drive file ([`pmsmjax.spec.DriveSpec`][pmsmjax.spec.drive_spec.DriveSpec]).
         control: a control method of the registry on ``machine``.
         machine: ``"three-phase"``, ``"six-phase"`` or ``"five-phase"``.
 
@@ -141,12 +146,13 @@ def assemble(
     """The drive of ``control`` on the drive file ``spec`` (module docstring: the steps).
 
     Args:
-        spec: the drive file (:class:`pmsmjax.spec.DriveSpec`).
+        spec: the drive file ([`pmsmjax.spec.DriveSpec`][pmsmjax.spec.drive_spec.DriveSpec]).
         control: a control method of the registry on ``machine`` (default: the machine's default, ``pi``
             for three phases, ``vsd`` for six and five).
         machine: ``"three-phase"``, ``"six-phase"`` or ``"five-phase"``; the file's ``n_phases`` must match.
-        options: the preset options the user set; they override the file's (:func:`drive_options`).
-            Refused in one line when the method does not take them.
+        options: the preset options the user set; they override the file's
+            ([`drive_options`][pmsmjax.assemble.drive_options]). Refused in one line when the method does not
+            take them.
         estimator: a sensorless observer of the registry (three-phase FOC controls), started by the file's
             I/f start; None: the file's ``[sensor]`` (the exact sensor or its encoder).
         observer_model: with a flux map, ``"map"`` (the observer reads the map at the operating current)
@@ -200,7 +206,8 @@ def inverter_error_parts(spec, drive: Drive) -> dict:
     The engine runs one PWM period per control period ``Ts``; a file whose control rate differs from its
     switching rate loses ``U_dc t_d`` per PWM period, so the dead time is scaled by ``f_sw / f_c`` to keep
     that share of the voltage. The current sign is smoothed over
-    :data:`~pmsmjax.inverters.voltage_error.CURRENT_LIMIT_SHARE` of the controller's current limit.
+    [`CURRENT_LIMIT_SHARE`][pmsmjax.inverters.voltage_error.CURRENT_LIMIT_SHARE] of the controller's current
+    limit.
     """
     from pmsmjax.controllers.dead_time_compensation import DeadTimeCompensation
     from pmsmjax.controllers.foc import FOC
@@ -231,16 +238,16 @@ def inverter_error_parts(spec, drive: Drive) -> dict:
 
 def flux_map_parts(drive: Drive, grid, source: str = "flux map", plant: bool = True) -> dict:
     """The parts that run ``drive`` on the flux map ``grid``
-    (:class:`~pmsmjax.machines.flux_map.FluxMapGrid`, of the drive file ``source``): the map's plant
-    (:class:`~pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq`) in place of the linear dq machine and, for a
-    dq PI current loop, the map's current loop
-    (:class:`~pmsmjax.controllers.flux_map_current_loop.FluxMapCurrentLoop`, same bandwidth: ``a_c = kp_d /
-    L_d`` read back from the internal-model gains) and, in speed mode of a FOC cascade (``pi``, ``smc``),
-    field weakening on the map's MTPA and MTPV tables
-    (:func:`~pmsmjax.controllers.flux_map_references.flux_map_field_weakening`) at
-    :func:`~pmsmjax.presets.three_phase.field_weakening_block`'s bandwidth and margin. In current mode the
-    scenario's ``i_d*`` stands. The other controls keep their linear-model design on the map's plant.
-    ``plant=False``: the control parts only (``drive`` already runs on the map).
+    ([`FluxMapGrid`][pmsmjax.machines.flux_map.FluxMapGrid], of the drive file ``source``): the map's plant
+    ([`PMSMFluxMapdq`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq]) in place of the linear dq machine and,
+    for a dq PI current loop, the map's current loop
+    ([`FluxMapCurrentLoop`][pmsmjax.controllers.flux_map_current_loop.FluxMapCurrentLoop], same bandwidth:
+    ``a_c = kp_d / L_d`` read back from the internal-model gains) and, in speed mode of a FOC cascade (``pi``,
+    ``smc``), field weakening on the map's MTPA and MTPV tables
+    ([`flux_map_field_weakening`][pmsmjax.controllers.flux_map_references.flux_map_field_weakening]) at
+    [`field_weakening_block`][pmsmjax.presets.three_phase.field_weakening_block]'s bandwidth and margin. In
+    current mode the scenario's ``i_d*`` stands. The other controls keep their linear-model design on the
+    map's plant. ``plant=False``: the control parts only (``drive`` already runs on the map).
     """
     from pmsmjax.controllers.current_pi import CurrentLoopGains
     from pmsmjax.controllers.flux_map_current_loop import FluxMapCurrentLoop
@@ -283,8 +290,8 @@ def observer(
 ):
     """The chapter 5 or 6 estimator ``name`` for ``drive``: its design rule for ``model`` at the drive's
     period, overridden by ``options`` (unstable gains refused), wrapped in the I/f start from standstill
-    if ``startup`` (:data:`STARTUP_DEFAULTS` overridden by ``startup_options``). The drive's controller
-    must be a FOC cascade (it holds the start-up current)."""
+    if ``startup`` ([`STARTUP_DEFAULTS`][pmsmjax.assemble.STARTUP_DEFAULTS] overridden by
+    ``startup_options``). The drive's controller must be a FOC cascade (it holds the start-up current)."""
     from pmsmjax.estimators.registry import HYBRID_OBSERVERS, INJECTION_OBSERVERS, make_observer
 
     options = dict(options or {})
@@ -301,9 +308,10 @@ def observer(
 
 def map_aware(estimator, spec):
     """``estimator`` reading the file's flux map: HF injection corrected by the map's cross-saturation
-    angle (:mod:`pmsmjax.estimators.hfi_cross_saturation`), a back-EMF observer or the EKF keeping its
-    constant model with its angle corrected by the map at the operating current
-    (:mod:`pmsmjax.estimators.map_angle_corrected`); an I/f start keeps wrapping it."""
+    angle ([`pmsmjax.estimators.hfi_cross_saturation`][pmsmjax.estimators.hfi_cross_saturation]), a back-EMF
+    observer or the EKF keeping its constant model with its angle corrected by the map at the operating
+    current ([`pmsmjax.estimators.map_angle_corrected`][pmsmjax.estimators.map_angle_corrected]); an I/f start
+    keeps wrapping it."""
     from pmsmjax.estimators.hfi_cross_saturation import cross_saturation_compensated
     from pmsmjax.estimators.hfi_pulsating import HFIPulsating
     from pmsmjax.estimators.hfi_rotating import HFIRotating
@@ -330,8 +338,8 @@ def map_aware(estimator, spec):
 
 # --- the drive file's values as blocks ------------------------------------------------------------------
 def spec_motor(spec):
-    """The drive file's motor: :class:`PMSMParameters`, or a six- or five-phase
-    :class:`~pmsmjax.machines.multiphase_motor.MultiPhaseParameters`."""
+    """The drive file's motor: [`PMSMParameters`][pmsmjax.machines.motor.PMSMParameters], or a six- or
+    five-phase [`MultiPhaseParameters`][pmsmjax.machines.multiphase_motor.MultiPhaseParameters]."""
     if spec.n_phases == 3:
         return PMSMParameters(**{k: spec.motor[k] for k in _MOTOR_KEYS})
     from pmsmjax.presets.five_phase import five_phase_motor
@@ -352,7 +360,7 @@ _MOTOR_KEYS = ("R", "L_d", "L_q", "psi_f", "pole_pairs", "J", "B")
 
 def spec_flux_map(spec):
     """The drive file's flux map as the plant's interpolant
-    (:class:`~pmsmjax.machines.pmsm_flux_map.FluxMap`), or None when the file has none."""
+    ([`FluxMap`][pmsmjax.machines.pmsm_flux_map.FluxMap]), or None when the file has none."""
     if spec.flux_map is None:
         return None
     from pmsmjax.machines.pmsm_flux_map import FluxMap
@@ -378,7 +386,8 @@ def spec_scenario(spec, speed_rpm=None, load_nm=None, load_time_s=None, duration
 
 def startup_options(spec) -> dict:
     """The I/f start of a sensorless drive on ``spec``
-    (:class:`~pmsmjax.estimators.startup.StartupEstimator` keywords; ``[control]`` startup values)."""
+    ([`StartupEstimator`][pmsmjax.estimators.startup.StartupEstimator] keywords; ``[control]`` startup
+    values)."""
     c = spec.control
     return {
         "i_start": c["startup_current_a"],
@@ -393,24 +402,26 @@ _MACHINE_OF_PHASES = {3: "three-phase", 6: "six-phase", 5: "five-phase"}
 
 
 def spec_drive(spec, control: str | None = None, **options) -> Drive:
-    """:func:`assemble` of ``control`` on the drive file ``spec`` with preset ``options``, on the file's
-    machine (its ``n_phases``)."""
+    """[`assemble`][pmsmjax.assemble.assemble] of ``control`` on the drive file ``spec`` with preset
+    ``options``, on the file's machine (its ``n_phases``)."""
     return assemble(spec, control, machine=_MACHINE_OF_PHASES[spec.n_phases], options=options)
 
 
 def with_inverter_error(spec, drive: Drive) -> Drive:
-    """``drive`` with the file's dead time and device drop (:func:`inverter_error_parts`)."""
+    """``drive`` with the file's dead time and device drop
+    ([`inverter_error_parts`][pmsmjax.assemble.inverter_error_parts])."""
     return with_parts(drive, inverter_error_parts(spec, drive))
 
 
 def with_flux_map_control(drive: Drive, grid) -> Drive:
     """``drive`` (its plant the map ``grid``'s) with the map's current loop and d-axis references
-    (:func:`flux_map_parts`, without the plant)."""
+    ([`flux_map_parts`][pmsmjax.assemble.flux_map_parts], without the plant)."""
     return with_parts(drive, flux_map_parts(drive, grid, plant=False))
 
 
 def with_map_aware_estimator(spec, drive: Drive) -> Drive:
-    """``drive`` with its sensorless estimator reading the file's flux map (:func:`map_aware`)."""
+    """``drive`` with its sensorless estimator reading the file's flux map
+    ([`map_aware`][pmsmjax.assemble.map_aware])."""
     return with_parts(drive, {"estimator": map_aware(drive.estimator, spec)})
 
 
@@ -422,7 +433,7 @@ def with_observer(
     startup: bool = True,
     startup_options: Mapping[str, float] | None = None,
 ) -> Drive:
-    """``drive`` with the estimator ``observer_name`` (:func:`observer`)."""
+    """``drive`` with the estimator ``observer_name`` ([`observer`][pmsmjax.assemble.observer])."""
     found = observer(drive, observer_name, model, observer_options, startup, startup_options)
     return with_parts(drive, {"estimator": found})
 
@@ -437,16 +448,16 @@ def sensorless_drive(
     startup_options: dict | None = None,
     **kw,
 ) -> Drive:
-    """:func:`pmsmjax.presets.book_drive` (``kw`` go there) with the chapter 5 or 6 estimator
-    ``observer_name`` (the registry's estimators) in place of the exact sensor: the controller runs on the
-    estimate, and the trace's ``theta_e_est``/``omega_m_est`` are the estimator's.
+    """[`pmsmjax.presets.book_drive`][pmsmjax.presets.three_phase.book_drive] (``kw`` go there) with the
+    chapter 5 or 6 estimator ``observer_name`` (the registry's estimators) in place of the exact sensor: the
+    controller runs on the estimate, and the trace's ``theta_e_est``/``omega_m_est`` are the estimator's.
 
     The estimator gets its design-rule gains for ``observer_model`` (default ``motor``: no plant/model
     mismatch) at the drive's period, overridden by ``observer_options``; unstable gains are refused. It
     starts cold, so the drive suits runs that start at speed or take over from another estimator;
     ``startup=True`` wraps it in the I/f start from standstill
-    (:class:`~pmsmjax.estimators.startup.StartupEstimator`, :data:`STARTUP_DEFAULTS` overridden by
-    ``startup_options``).
+    ([`StartupEstimator`][pmsmjax.estimators.startup.StartupEstimator],
+    [`STARTUP_DEFAULTS`][pmsmjax.assemble.STARTUP_DEFAULTS] overridden by ``startup_options``).
     """
     from pmsmjax.presets.three_phase import book_drive, book_motor
 

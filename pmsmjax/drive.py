@@ -5,7 +5,7 @@ One step is one control period ``Ts``:
 1. With imposed speed, the shaft speed is set from the scenario (a dynamometer).
 2. **Sample** at the period start: phase currents ``(n,)`` and their alpha-beta components, the DC
    voltage, the voltage commanded over the last period, and the ideal shaft sensor
-   (:class:`pmsmjax.signals.Sample`).
+   ([`pmsmjax.signals.Sample`][pmsmjax.signals.Sample]).
 3. **Estimator** -> angle and speed (and, for HF-injection estimators, an injection voltage added to the
    controller's voltage command and the carrier-free current the controller gets instead of ``i_ab``).
 4. **Controller** -> a stator-frame voltage for the **modulator** (``command_kind == "voltage"``) or
@@ -35,7 +35,14 @@ from pmsmjax.spec.validation import ParameterError, check_positive
 
 
 class PeriodInputs(eqx.Module):
-    """Scenario values for one period (sampled at its start): speed ref rad/s, load N m, id/iq refs A."""
+    """Scenario values for one period, sampled at its start (leaves ``(N,)`` when stacked over periods).
+
+    Attributes:
+        speed_ref: Speed reference, rad/s (mechanical).
+        load_torque: Load torque, N m.
+        id_ref: d-axis current reference, A.
+        iq_ref: q-axis current reference, A.
+    """
 
     speed_ref: Array
     load_torque: Array
@@ -44,6 +51,16 @@ class PeriodInputs(eqx.Module):
 
 
 class DriveState(eqx.Module):
+    """The drive's state at a period boundary (the carry of the simulation's scan).
+
+    Attributes:
+        machine: The machine's state.
+        estimator: The estimator's state (``None`` for the exact sensor).
+        controller: The controller's state.
+        pending_duties: ``(n,)`` duties to apply this period when there is a computational delay.
+        last_duties: ``(n,)`` duties applied during the last period (the controller knows them).
+    """
+
     machine: MachineState
     estimator: object  # the estimator's state (None for the exact sensor)
     controller: object  # the controller's state
@@ -54,9 +71,16 @@ class DriveState(eqx.Module):
 class PeriodRecord(eqx.Module):
     """What the scan keeps per period; everything else in a Trace is derived from it afterwards.
 
-    Kept small on purpose: each extra scan output costs XLA:CPU a separate per-period write, which was
-    measured to cost as much as the drive step itself (benchmarks/bench_core.py). The estimate is kept
-    only when it can differ from the plant (not for the exact sensor).
+    Kept small on purpose: each extra scan output costs XLA:CPU a separate per-period write, which can
+    cost as much as the drive step itself (docs/performance.md, "Engine"). The estimate is kept only when
+    it can differ from the plant (not for the exact sensor).
+
+    Attributes:
+        machine: The machine's state at the period start (the sampling instant).
+        duties: ``(n,)`` leg duties applied during the period.
+        u_dq_ref: ``(2,)`` controller voltage command, V.
+        i_dq_ref: ``(2,)`` current reference, A.
+        estimate: ``(2,)`` estimated electrical angle (rad) and mechanical speed (rad/s), or ``None``.
     """
 
     machine: MachineState  # state at the period start (sampling instant)
@@ -69,14 +93,19 @@ class PeriodRecord(eqx.Module):
 class Drive(eqx.Module):
     """A complete drive.
 
-    **Arguments:**
+    Args:
+        machine: The plant.
+        controller: The controller.
+        modulator: Stator voltage -> leg duties; ``None`` for a controller that commands switch states.
+        bridge: The inverter bridge, which integrates the machine over a period.
+        Ts: Control and PWM period, s (static).
+        n_substeps: RK4 steps per period for the machine (static).
+        computation_delay: Apply each period's command one period later (static).
+        estimator: Angle and speed for the controller; default the exact sensor.
 
-    - `machine`, `controller`, `modulator`, `bridge`: the blocks. `modulator` may be ``None`` for a
-      controller that commands switch states.
-    - `Ts`: control and PWM period, s (static).
-    - `n_substeps`: RK4 steps per period for the machine (static).
-    - `computation_delay`: apply each period's command one period later (static).
-    - `estimator`: angle and speed for the controller; default the exact sensor.
+    Raises:
+        ParameterError: For a non-positive period, a sub-step count below 1, a voltage-commanding
+            controller without modulator, or blocks of different phase counts.
     """
 
     machine: AbstractMachine
@@ -119,7 +148,16 @@ class Drive(eqx.Module):
         return not isinstance(self.estimator, ExactSensor)
 
     def sample(self, ms: MachineState, last_duties: Array) -> Sample:
-        """What the controller's hardware measures at the start of a period in state ``ms``."""
+        """What the controller's hardware measures at the start of a period.
+
+        Args:
+            ms: The machine's state at the period start.
+            last_duties: ``(n,)`` duties applied over the last period (for the commanded voltage).
+
+        Returns:
+            The [`Sample`][pmsmjax.signals.Sample]: phase and alpha-beta currents, DC voltage, last
+            commanded voltage, and the ideal shaft sensor.
+        """
         i_ab = self.machine.stationary_currents(ms)
         u_ab_last = self.bridge.commanded_voltage(last_duties)
         i_phase = self.machine.phase_currents(ms)
@@ -132,7 +170,15 @@ class Drive(eqx.Module):
         return self.modulator.linear_limit(self.bridge.u_dc)
 
     def init(self, speed_m=0.0, theta_e=0.0) -> DriveState:
-        """State at rest (or at the given speed, rad/s, and angle, rad) with zero currents."""
+        """State at rest (or at the given speed and angle) with zero currents.
+
+        Args:
+            speed_m: Mechanical speed, rad/s.
+            theta_e: Electrical angle, rad.
+
+        Returns:
+            The [`DriveState`][pmsmjax.drive.DriveState], duties at 0.5 (zero average voltage).
+        """
         machine_state = self.machine.initial_state((0.0, 0.0), speed_m, theta_e)
         dtype = machine_state.omega_m.dtype
         duties = jnp.full((self.machine.n_phases,), 0.5, dtype)
@@ -145,14 +191,19 @@ class Drive(eqx.Module):
         )
 
     def step(self, state: DriveState, x: PeriodInputs) -> tuple[DriveState, PeriodRecord]:
-        """One control period (the body of the :func:`pmsmjax.simulate.simulate` scan).
+        """One control period (the body of the [`pmsmjax.simulate.simulate`][pmsmjax.simulate.simulate] scan).
 
         Sample the machine at the period start, estimate, control, modulate, then integrate the machine
-        over the period under the duties in force (last period's with a computational delay). `state`: the
-        drive's state at the period start; `x`: this period's references (speed rad/s, currents A) and
-        load torque (N m). Returns the state at the period end and the :class:`PeriodRecord` of this
-        period (the period-start machine state, the applied duties, the dq voltage command V and current
-        reference A, and the estimate when recorded).
+        over the period under the duties in force (last period's with a computational delay).
+
+        Args:
+            state: The drive's state at the period start.
+            x: This period's references (speed rad/s, currents A) and load torque (N m).
+
+        Returns:
+            The state at the period end, and the [`PeriodRecord`][pmsmjax.drive.PeriodRecord] of this period
+            (the period-start machine state, the applied duties, the dq voltage command V and current
+            reference A, and the estimate when recorded).
         """
         ms = state.machine
         if self.machine.mechanics == "imposed":

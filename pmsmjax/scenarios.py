@@ -1,10 +1,10 @@
 """Reference and load profiles as array pytrees (vmappable, differentiable in their values and times).
 
-A :class:`Profile` is piecewise: breakpoints ``times (K,)`` s with ``values (K,)``; on
+A [`Profile`][pmsmjax.scenarios.Profile] is piecewise: breakpoints ``times (K,)`` s with ``values (K,)``; on
 ``[times[k], times[k+1])`` the value is held (``linear[k] = 0``) or interpolated linearly towards
 ``values[k+1]`` (``linear[k] = 1``). Before ``times[0]`` the first value holds, after the last breakpoint
 the last value. Steps, ramps, reversals and arbitrary staircases are all of this form, so a batch of
-different scenarios is one stacked pytree (pad with :func:`stack_scenarios`).
+different scenarios is one stacked pytree (pad with [`stack_scenarios`][pmsmjax.scenarios.stack_scenarios]).
 """
 
 from collections.abc import Sequence
@@ -20,7 +20,19 @@ from pmsmjax.spec.validation import ParameterError, check_finite, check_positive
 
 
 class Profile(eqx.Module):
-    """Piecewise hold/linear profile. ``times``, ``values``, ``linear``: ``(K,)`` (or ``(batch, K)``)."""
+    """Piecewise hold/linear profile of a scenario signal against time.
+
+    Each segment from breakpoint ``k`` to ``k + 1`` holds ``values[k]`` (``linear[k] == 0``) or
+    interpolates to ``values[k + 1]`` (``linear[k] == 1``); the last value is held.
+
+    Args:
+        times: ``(K,)`` (or ``(batch, K)``) non-decreasing breakpoint times, s.
+        values: ``(K,)`` (or ``(batch, K)``) values at the breakpoints, in the signal's unit.
+        linear: ``(K,)`` (or ``(batch, K)``) 1 where the segment from the breakpoint is linear, 0 where held.
+
+    Raises:
+        ParameterError: For arrays of different shapes, non-finite values or unsorted times.
+    """
 
     times: Array = eqx.field(converter=as_float)
     values: Array = eqx.field(converter=as_float)
@@ -41,21 +53,44 @@ class Profile(eqx.Module):
 
     @staticmethod
     def constant(value) -> "Profile":
+        """``value`` at all times."""
         return Profile([0.0], [value], [0.0])
 
     @staticmethod
     def step(time_s, before, after) -> "Profile":
-        """``before`` until ``time_s`` (s), then ``after``."""
+        """``before`` until ``time_s``, then ``after``.
+
+        Args:
+            time_s: Time of the step, s.
+            before: Value before the step.
+            after: Value from the step on.
+        """
         return Profile([0.0, time_s], [before, after], [0.0, 0.0])
 
     @staticmethod
     def ramp(start_s, end_s, start_value, end_value) -> "Profile":
-        """``start_value`` until ``start_s``, linear to ``end_value`` at ``end_s``, then held."""
+        """``start_value`` until ``start_s``, linear to ``end_value`` at ``end_s``, then held.
+
+        Args:
+            start_s: Start of the ramp, s.
+            end_s: End of the ramp, s.
+            start_value: Value until the ramp starts.
+            end_value: Value from the ramp's end on.
+        """
         return Profile([0.0, start_s, end_s], [start_value, start_value, end_value], [0.0, 1.0, 0.0])
 
     @staticmethod
     def piecewise(times, values, interpolation: str = "hold") -> "Profile":
-        """Breakpoints with one interpolation for all segments: ``"hold"`` or ``"linear"``."""
+        """Breakpoints with one interpolation for all segments.
+
+        Args:
+            times: ``(K,)`` breakpoint times, s (non-decreasing).
+            values: ``(K,)`` values at the breakpoints.
+            interpolation: ``"hold"`` or ``"linear"``.
+
+        Raises:
+            ParameterError: For another interpolation.
+        """
         if interpolation not in ("hold", "linear"):
             raise ParameterError(f"interpolation must be 'hold' or 'linear', got {interpolation!r}.")
         times = np.asarray(times, dtype=float)
@@ -67,16 +102,30 @@ class Profile(eqx.Module):
         return _evaluate(self.times, self.values, self.linear, t)
 
     def sample(self, t: Array) -> Array:
-        """Values at the times ``t (N,)`` s -> ``(N,)``."""
+        """Values at the times ``t``.
+
+        Args:
+            t: ``(N,)`` times, s.
+
+        Returns:
+            ``(N,)`` values.
+        """
         return jax.vmap(self)(t)
 
     def sample_periods(self, n: int, Ts: float) -> Array:
-        """Values at the period starts ``k Ts``, ``k = 0..n-1`` -> ``(n,)``, by integer period index.
+        """Values at the period starts ``k Ts``, ``k = 0..n-1``, by integer period index.
 
         Breakpoints are placed on the period grid as ``times / Ts`` periods, snapped to the nearest whole
         period when within rounding (``1e-3`` period plus a few ulps), so a load step at 0.2352 s with
-        ``Ts = 1e-4`` s acts from period 2352 on in float32 too (comparing float times ``k Ts`` put it one
-        period late). The snap passes gradients straight through (``x + stop_gradient(round(x) - x)``).
+        ``Ts = 1e-4`` s acts from period 2352 on in float32 too (comparing float times ``k Ts`` would put it
+        one period late). The snap passes gradients straight through (``x + stop_gradient(round(x) - x)``).
+
+        Args:
+            n: Number of periods.
+            Ts: Control period, s.
+
+        Returns:
+            ``(n,)`` values.
         """
         k = jnp.arange(n, dtype=self.times.dtype)
         position = self.times / Ts
@@ -87,7 +136,14 @@ class Profile(eqx.Module):
         return jax.vmap(lambda x: _evaluate(grid, self.values, self.linear, x))(k)
 
     def padded(self, K: int) -> "Profile":
-        """The same profile with ``K`` breakpoints (the last one repeated, held)."""
+        """The same profile with ``K`` breakpoints (the last one repeated, held).
+
+        Args:
+            K: Breakpoint count, at least the profile's own.
+
+        Raises:
+            ParameterError: When the profile has more than ``K`` breakpoints.
+        """
         n = self.times.shape[-1]
         if n > K:
             raise ParameterError(f"cannot pad a profile of {n} breakpoints to {K}.")
@@ -119,14 +175,13 @@ def _zero() -> Profile:
 class Scenario(eqx.Module):
     """What the drive is asked to do over ``duration_s``.
 
-    **Arguments:**
-
-    - `duration_s`: simulated time, s (static: it sets the number of control periods).
-    - `speed_ref`: speed reference, mechanical rad/s; with ``mechanics="imposed"`` it is the speed a
-      dynamometer imposes on the shaft.
-    - `load_torque`: load torque, N m (opposes positive speed when positive).
-    - `id_ref`: d-axis current reference, A (0 for i_d = 0 control).
-    - `iq_ref`: q-axis current reference, A (used by controllers in current mode).
+    Args:
+        duration_s: Simulated time, s (static: it sets the number of control periods).
+        speed_ref: Speed reference, mechanical rad/s; with ``mechanics="imposed"`` it is the speed a
+            dynamometer imposes on the shaft.
+        load_torque: Load torque, N m (opposes positive speed when positive).
+        id_ref: d-axis current reference, A (0 for i_d = 0 control).
+        iq_ref: q-axis current reference, A (used by controllers in current mode).
     """
 
     duration_s: float = eqx.field(static=True)
@@ -139,12 +194,29 @@ class Scenario(eqx.Module):
         check_positive("Scenario.duration_s", self.duration_s, "s")
 
     def n_periods(self, Ts: float) -> int:
-        """Number of control periods of length ``Ts`` (s) in the scenario (rounded to nearest)."""
+        """Number of control periods of length ``Ts`` in the scenario (rounded to nearest).
+
+        Args:
+            Ts: Control period, s.
+        """
         return int(round(self.duration_s / Ts))
 
 
 def stack_scenarios(scenarios: Sequence[Scenario]) -> Scenario:
-    """Stack scenarios of equal duration into one batched Scenario (leading axis = scenario)."""
+    """Stack scenarios of equal duration into one batched Scenario.
+
+    Profiles with fewer breakpoints are padded (their last value held) to the longest one's.
+
+    Args:
+        scenarios: Scenarios of one ``duration_s``.
+
+    Returns:
+        A [`Scenario`][pmsmjax.scenarios.Scenario] whose profile leaves have a leading axis of one row per
+        scenario.
+
+    Raises:
+        ParameterError: For no scenarios or different durations.
+    """
     if len(scenarios) == 0:
         raise ParameterError("stack_scenarios needs at least one scenario.")
     durations = {s.duration_s for s in scenarios}

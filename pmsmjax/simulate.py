@@ -6,10 +6,9 @@
   recomputes the sub-steps, so memory grows with periods, not with RK4 stages.
 - ``decimate=D`` records the first period of every block of D: an outer scan over blocks, an inner scan
   over the D - 1 unrecorded periods whose record is dead code that XLA removes.
-- The scan over periods is a plain ``lax.scan``: with the loop limit :mod:`pmsmjax.xla_cpu` sets, XLA:CPU
-  compiles the loops of a period into one kernel each, and cutting the scan into blocks of periods (which
-  once let XLA's runtime execute the body sequentially) no longer changes the run time (``python -m
-  benchmarks.engine_cost_profile``: the book drive 0.52-0.53 us per period in blocks of 1, 10 or 100).
+- The scan over periods is a plain ``lax.scan``, not cut into blocks of periods: with the loop limit
+  [`pmsmjax.xla_cpu`][pmsmjax.xla_cpu] sets, XLA:CPU compiles the loops of a period into one kernel each, and
+  blocks do not change the run time (docs/performance.md, "Engine").
 - ``simulate`` checks concrete inputs before compiling (period count, decimation, sub-step length) and
   composes with ``jax.vmap``/``jax.grad``/``jax.jit`` (checks are skipped on traced values).
 """
@@ -34,10 +33,17 @@ __all__ = ["simulate", "check_simulation", "period_inputs"]
 
 
 def period_inputs(scenario: Scenario, Ts: float) -> PeriodInputs:
-    """Scenario values at every period start ``k Ts``: a PeriodInputs of ``(N,)`` arrays.
+    """Scenario values at every period start ``k Ts``.
 
-    Sampled by integer period index (:meth:`Profile.sample_periods`), so an event at a whole number of
-    periods lands in that period in float32 as in float64.
+    Sampled by integer period index ([`Profile.sample_periods`][pmsmjax.scenarios.Profile.sample_periods]), so
+    an event at a whole number of periods lands in that period in float32 as in float64.
+
+    Args:
+        scenario: The references and load to sample.
+        Ts: Control period, s.
+
+    Returns:
+        A [`PeriodInputs`][pmsmjax.drive.PeriodInputs] of ``(N,)`` arrays, ``N`` the scenario's period count.
     """
     n = scenario.n_periods(Ts)
     return PeriodInputs(
@@ -49,7 +55,21 @@ def period_inputs(scenario: Scenario, Ts: float) -> PeriodInputs:
 
 
 def check_simulation(drive: Drive, scenario: Scenario, decimate: int = 1) -> None:
-    """Raise :class:`ParameterError` for inputs that would give a wrong or unstable simulation."""
+    """Refuse inputs that would give a wrong or unstable simulation.
+
+    Checked: the scenario is a whole number of control periods, ``decimate`` divides the period count, the
+    bridge accepts the control period, and (for concrete values) the sub-step ``Ts / n_substeps`` is
+    within the stable step of the machine's fastest electrical rate at 1.5 times the largest speed
+    reference.
+
+    Args:
+        drive: The drive to simulate.
+        scenario: The scenario to run it through.
+        decimate: Record every this many periods.
+
+    Raises:
+        ParameterError: For the first check that fails, saying what to change.
+    """
     n_exact = scenario.duration_s / drive.Ts
     n = int(round(n_exact))
     if n < 1 or abs(n_exact - n) > 1e-6 * max(n, 1):
@@ -84,14 +104,23 @@ def simulate(
     decimate: int = 1,
     initial_state: DriveState | None = None,
 ) -> Trace:
-    """Simulate ``drive`` through ``scenario``; returns a :class:`Trace` of ``N / decimate`` rows.
+    """Simulate ``drive`` through ``scenario``.
 
-    **Arguments:**
+    Concrete inputs are checked first ([`check_simulation`][pmsmjax.simulate.check_simulation]); under
+    ``jax.vmap``, ``jax.grad`` or ``jax.jit`` the checks of traced values are skipped.
 
-    - `drive`: :class:`pmsmjax.drive.Drive`.
-    - `scenario`: :class:`pmsmjax.scenarios.Scenario` (unbatched; ``jax.vmap`` for batches).
-    - `decimate`: record every this many periods (int dividing the period count).
-    - `initial_state`: start from this state instead of rest.
+    Args:
+        drive: The drive ([`pmsmjax.drive.Drive`][pmsmjax.drive.Drive]).
+        scenario: The scenario ([`pmsmjax.scenarios.Scenario`][pmsmjax.scenarios.Scenario]), unbatched;
+            ``jax.vmap`` for batches.
+        decimate: Record every this many periods (an int dividing the period count).
+        initial_state: Start from this state instead of rest.
+
+    Returns:
+        A [`Trace`][pmsmjax.trace.Trace] of ``N / decimate`` rows, ``N`` the scenario's period count.
+
+    Raises:
+        ParameterError: For inputs that would give a wrong or unstable simulation.
     """
     check_simulation(drive, scenario, decimate)
     return _simulate(drive, scenario, decimate, initial_state)
@@ -133,7 +162,17 @@ def _simulate(drive: Drive, scenario: Scenario, decimate: int, initial_state) ->
 
 
 def trace_from_records(drive: Drive, rec: PeriodRecord, xs: PeriodInputs, dt: float) -> Trace:
-    """Derive every Trace signal from the per-period records in one vectorised pass."""
+    """Derive every Trace signal from the per-period records in one vectorised pass.
+
+    Args:
+        drive: The simulated drive (its machine turns states into currents and torque).
+        rec: The stacked per-period records, ``(N, ...)`` leaves.
+        xs: The period inputs at the recorded periods.
+        dt: Time between recorded rows, s (``Ts`` times the decimation).
+
+    Returns:
+        The [`Trace`][pmsmjax.trace.Trace] of the ``N`` recorded periods.
+    """
     machine = drive.machine
     ms = rec.machine
     i_dq = jax.vmap(machine.currents_dq)(ms)

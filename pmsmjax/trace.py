@@ -65,7 +65,8 @@ COLUMN_UNITS = {
     "omega_m_est": "rad/s (estimator's mechanical speed)",
 }
 
-#: The further columns of a six-phase trace (the second set U, V, W; :meth:`Trace.columns`).
+#: The further columns of a six-phase trace (the second set U, V, W;
+#: [`Trace.columns`][pmsmjax.trace.Trace.columns]).
 SIX_PHASE_COLUMN_UNITS = {
     **{f"i_{x}": "A" for x in "uvw"},
     **{f"u_{x}": "V (period-average phase voltage applied)" for x in "uvw"},
@@ -83,15 +84,25 @@ FIVE_PHASE_COLUMN_UNITS = {
 class Trace(eqx.Module):
     """Recorded signals; the leading axis is time (after any batch axes from ``vmap``).
 
-    - `t`: ``(N,)`` period start times, s.
-    - `omega_m`, `speed_ref`: mechanical speed and its reference, rad/s. `theta_e`: electrical angle, rad.
-    - `i_dq`, `i_dq_ref`: ``(N, 2)`` measured and reference dq currents, A. `i_abc`: ``(N, n)`` phase
-      currents, A (``n`` = 3; six phases: A, B, C, U, V, W).
-    - `u_dq_ref`: ``(N, 2)`` controller voltage command, V. `u_abc`: ``(N, n)`` period-average applied
-      phase voltages, V. `duties`: ``(N, n)`` applied leg duty cycles.
-    - `torque`: electromagnetic torque, N m. `load_torque`: load torque, N m.
-    - `theta_e_est`, `omega_m_est`: the estimator's electrical angle (rad) and mechanical speed (rad/s)
-      that the controller used (equal to `theta_e`, `omega_m` with the exact sensor).
+    ``N`` is the number of recorded periods, ``n`` the phase count (3; six phases: A, B, C, U, V, W).
+
+    Attributes:
+        t: ``(N,)`` period start times, s.
+        omega_m: Mechanical speed, rad/s.
+        speed_ref: Speed reference, rad/s.
+        theta_e: Electrical angle, rad.
+        i_dq: ``(N, 2)`` measured dq currents, A.
+        i_dq_ref: ``(N, 2)`` reference dq currents, A.
+        i_abc: ``(N, n)`` phase currents, A.
+        u_dq_ref: ``(N, 2)`` controller voltage command, V.
+        u_abc: ``(N, n)`` period-average applied phase voltages, V.
+        duties: ``(N, n)`` applied leg duty cycles.
+        torque: Electromagnetic torque, N m.
+        load_torque: Load torque, N m.
+        theta_e_est: The estimator's electrical angle that the controller used, rad (equal to ``theta_e``
+            with the exact sensor).
+        omega_m_est: The estimator's mechanical speed that the controller used, rad/s (equal to
+            ``omega_m`` with the exact sensor).
     """
 
     t: Array
@@ -120,7 +131,14 @@ class Trace(eqx.Module):
         return rad_s_to_rpm(self.speed_ref)
 
     def columns(self) -> dict[str, np.ndarray]:
-        """Flat named columns (NumPy) for a single (unbatched) trace."""
+        """Flat named columns (NumPy) for a single (unbatched) trace.
+
+        Returns:
+            Column name -> ``(N,)`` array (the names of the trace files, one column per phase and axis).
+
+        Raises:
+            ValueError: For a batched trace (index the batch first, e.g. ``trace[i]``).
+        """
         if np.ndim(self.t) != 1:
             raise ValueError("columns() needs a single trace; index the batch first, e.g. trace[i].")
         out = {}
@@ -140,9 +158,12 @@ class Trace(eqx.Module):
         return out
 
     def to_numpy(self) -> "Trace":
-        """The same trace with NumPy leaves: figures of merit, plots and files computed from it are plain
-        NumPy (:mod:`pmsmjax.analysis.metrics` dispatches on the array type), so post-processing a run
-        compiles nothing. Waits for the simulation to finish."""
+        """The same trace with NumPy leaves.
+
+        Figures of merit, plots and files computed from it are then plain NumPy
+        ([`pmsmjax.analysis.metrics`][pmsmjax.analysis.metrics] dispatches on the array type), so
+        post-processing a run compiles nothing. Waits for the simulation to finish.
+        """
         import jax
 
         return jax.tree.map(np.asarray, self)

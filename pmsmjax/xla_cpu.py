@@ -5,13 +5,14 @@ than a few kernels pays a dispatch per kernel per iteration (tens of ns; more wh
 large enough for the executor to schedule it as a task graph). A drive simulation is loops of tiny
 bodies (one PWM period, its RK4 sub-steps), so that dispatch, not arithmetic, sets its cost. XLA's
 small-while-loop pass compiles a whole loop into one kernel instead, but by default only when the loop
-touches at most 1 kB; a flux map's coefficient table (:mod:`pmsmjax.machines.flux_map`, 100 to 400 kB)
-and any batched run exceed that.
+touches at most 1 kB; a flux map's coefficient table
+([`pmsmjax.machines.flux_map`][pmsmjax.machines.flux_map], 100 to 400 kB) and any batched run exceed that.
 
-:func:`request_small_loop_kernels` raises the limit to :data:`SMALL_LOOP_BYTES` through ``XLA_FLAGS``
-(``--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=N``) when :mod:`pmsmjax` is
-imported (its effect on the linear and flux-map drives: docs/performance.md, ``python -m
-benchmarks.flux_map_cost``). Loops over more than the limit (large Monte Carlo batches) keep XLA's
+[`request_small_loop_kernels`][pmsmjax.xla_cpu.request_small_loop_kernels] raises the limit to
+[`SMALL_LOOP_BYTES`][pmsmjax.xla_cpu.SMALL_LOOP_BYTES] through ``XLA_FLAGS``
+(``--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=N``) when [`pmsmjax`][pmsmjax] is
+imported (its effect on the linear and flux-map drives: docs/performance.md,
+``python -m benchmarks.flux_map_cost``). Loops over more than the limit (large Monte Carlo batches) keep XLA's
 default, multi-threaded execution.
 
 It is a request, not a requirement: XLA reads ``XLA_FLAGS`` when it compiles, so it applies to every

@@ -15,7 +15,8 @@ PACKAGES = sorted(
     {
         m
         for page in (ROOT / "docs" / "api").glob("*.md")
-        for m in re.findall(r"^::: ([\w.]+)", page.read_text(), re.M)
+        # a ``:::`` block, or the marker from which docs/hooks/api_pages.py lays out a package's pages
+        for m in re.findall(r"^(?:::: |<!--\s*api-modules:\s*)([\w.]+)", page.read_text(), re.M)
     }
 )
 

@@ -147,12 +147,15 @@ class LogParameterisation(eqx.Module):
         self.log_lower, self.log_upper = math.log(lower), math.log(upper)
 
     def initial_theta(self) -> jnp.ndarray:
+        """The starting point, ``theta = 0`` (every leaf at its starting value ``p0``)."""
         return jnp.zeros_like(self.p0)
 
     def project(self, theta):
+        """``theta`` clipped to ``[log lower, log upper]``, the bounds as factors on ``p0``."""
         return jnp.clip(theta, self.log_lower, self.log_upper)
 
     def values(self, theta) -> jnp.ndarray:
+        """The leaves' values ``p0 exp(theta)``, shape ``(n,)``."""
         return self.p0 * jnp.exp(theta)
 
     def apply(self, drive: Drive, theta) -> Drive:
@@ -170,6 +173,8 @@ def write_gains_toml(path, names, values, header: str = "") -> Path:
 
 
 def read_gains_toml(path) -> dict[str, float]:
+    """The ``[gains]`` table of a gains file (as [`write_gains_toml`][tuning.parameters.write_gains_toml]
+    writes it), name -> value; a missing file or table raises ``ParameterError``."""
     path = Path(path)
     if not path.is_file():
         raise ParameterError(f"gains file {path} does not exist.")

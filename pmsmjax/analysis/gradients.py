@@ -3,8 +3,8 @@
 Forward mode (``jax.jvp``, one pass per parameter) costs about one extra forward simulation per
 parameter and stores nothing; reverse mode (``jax.grad``) costs a few forward simulations whatever the
 number of parameters, recomputing each period from the per-period checkpoints. ``mode="auto"`` picks
-forward mode up to :data:`FORWARD_MODE_MAX_PARAMS` parameters, the crossover measured by
-``pmsmjax bench`` (:mod:`pmsmjax.jobs.bench`) on the book drive.
+forward mode up to [`FORWARD_MODE_MAX_PARAMS`][pmsmjax.analysis.gradients.FORWARD_MODE_MAX_PARAMS] parameters,
+the crossover measured by ``pmsmjax bench`` ([`pmsmjax.jobs.bench`][pmsmjax.jobs.bench]) on the book drive.
 """
 
 from collections.abc import Callable
@@ -26,13 +26,15 @@ def value_and_grad(
 ) -> tuple[jax.Array, object]:
     """``fn(params, *args, **kwargs)`` and its gradient with respect to the array leaves of ``params``.
 
-    **Arguments:**
+    Args:
+        fn: Returns a scalar.
+        params: A pytree (e.g. a Drive, or a dict of arrays); non-array leaves are held fixed.
+        *args: Further positional arguments of ``fn``.
+        mode: ``"forward"``, ``"reverse"`` or ``"auto"`` (by the number of scalar parameters).
+        **kwargs: Further keyword arguments of ``fn``.
 
-    - `fn`: returns a scalar.
-    - `params`: a pytree (e.g. a Drive, or a dict of arrays); non-array leaves are held fixed.
-    - `mode`: ``"forward"``, ``"reverse"`` or ``"auto"`` (by the number of scalar parameters).
-
-    **Returns:** ``(value, grads)`` with ``grads`` shaped like ``params`` (None at non-array leaves).
+    Returns:
+        ``(value, grads)`` with ``grads`` shaped like ``params`` (None at non-array leaves).
     """
     dynamic, static = eqx.partition(params, eqx.is_inexact_array)
     f = lambda p: fn(eqx.combine(p, static), *args, **kwargs)

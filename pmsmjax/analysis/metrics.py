@@ -8,16 +8,25 @@ Quantities that are undefined for a given signal (never rises, never settles) ar
 
 Step figures come in two families:
 
-- **of a step response** (:func:`rise_time`, :func:`overshoot`, :func:`settling_time`): relative to the
-  step from ``y_start`` to ``y_final``, as read off one step (:mod:`pmsmjax.analysis.speed_step_summary`);
-- **against the reference** (:func:`excess_over_reference`, :func:`settling_time_to_reference`):
-  relative to the reference's magnitude sample by sample, so they apply to any scenario (reversals,
-  ramps) and to one period at a time (:mod:`tuning.autotune.objectives`, :mod:`tuning.montecarlo.kernel`).
+- **of a step response** ([`rise_time`][pmsmjax.analysis.metrics.rise_time],
+  [`overshoot`][pmsmjax.analysis.metrics.overshoot],
+  [`settling_time`][pmsmjax.analysis.metrics.settling_time]): relative to the step from ``y_start`` to
+  ``y_final``, as read off one step
+  ([`pmsmjax.analysis.speed_step_summary`][pmsmjax.analysis.speed_step_summary]);
+- **against the reference** ([`excess_over_reference`][pmsmjax.analysis.metrics.excess_over_reference],
+  [`settling_time_to_reference`][pmsmjax.analysis.metrics.settling_time_to_reference]): relative to the
+  reference's magnitude sample by sample, so they apply to any scenario (reversals, ramps) and to one period
+  at a time ([`tuning.autotune.objectives`][tuning.autotune.objectives],
+  [`tuning.montecarlo.kernel`][tuning.montecarlo.kernel]).
 
 For a step from rest the two coincide. Figures that a scan accumulates period by period
-(:mod:`tuning.montecarlo.kernel`) use the per-sample terms defined here (:func:`tracking_error`,
-:func:`itae_term`, :func:`excess_over_reference`, :func:`outside_reference_band`,
-:func:`peak_phase_current` of one period) and sum them or keep their maximum.
+([`tuning.montecarlo.kernel`][tuning.montecarlo.kernel]) use the per-sample terms defined here
+([`tracking_error`][pmsmjax.analysis.metrics.tracking_error],
+[`itae_term`][pmsmjax.analysis.metrics.itae_term],
+[`excess_over_reference`][pmsmjax.analysis.metrics.excess_over_reference],
+[`outside_reference_band`][pmsmjax.analysis.metrics.outside_reference_band],
+[`peak_phase_current`][pmsmjax.analysis.metrics.peak_phase_current] of one period) and sum them or keep their
+maximum.
 
 ``active`` arguments are ``(N,)`` weights, 1.0 for the samples that count and 0.0 for the others (a
 scenario's own duration inside a batch's common horizon): traced, so windows can differ across a ``vmap``.
@@ -48,31 +57,73 @@ def _dt(t: Array) -> Array:
 
 
 def tracking_error(reference: Array, y: Array) -> Array:
-    """``reference - y`` (units of y): positive while ``y`` falls short of a positive reference. The error
-    of every integral criterion, dip and steady-state figure here."""
+    """``reference - y``: positive while ``y`` falls short of a positive reference.
+
+    The error of every integral criterion, dip and steady-state figure here.
+
+    Args:
+        reference: The reference.
+        y: The response, in the reference's units.
+
+    Returns:
+        The error, in the units of ``y``.
+    """
     return reference - y
 
 
 def itae_term(t: Array, error: Array) -> Array:
-    """The per-sample term of ITAE, ``t |e|`` (units of e times s); :func:`itae` is its sum times ``dt``."""
+    """The per-sample term of ITAE, ``t |e|``; [`itae`][pmsmjax.analysis.metrics.itae] is its sum times
+    ``dt``.
+
+    Args:
+        t: Sample times, s.
+        error: The error ([`tracking_error`][pmsmjax.analysis.metrics.tracking_error]).
+
+    Returns:
+        ``t |e|``, units of e times s.
+    """
     xp = _namespace(t, error)
     return t * xp.abs(error)
 
 
 def itae(t: Array, error: Array) -> Array:
-    """Integral of time-weighted absolute error, ``sum t |e| dt`` (units of e times s^2)."""
+    """Integral of time-weighted absolute error, ``sum t |e| dt``.
+
+    Args:
+        t: ``(..., N)`` sample times, s (uniformly spaced).
+        error: ``(..., N)`` error ([`tracking_error`][pmsmjax.analysis.metrics.tracking_error]).
+
+    Returns:
+        ITAE, units of e times s^2.
+    """
     xp = _namespace(t, error)
     return xp.sum(itae_term(t, error), axis=-1) * _dt(t)
 
 
 def iae(t: Array, error: Array) -> Array:
-    """Integral of absolute error, ``sum |e| dt``."""
+    """Integral of absolute error, ``sum |e| dt``.
+
+    Args:
+        t: ``(..., N)`` sample times, s (uniformly spaced).
+        error: ``(..., N)`` error.
+
+    Returns:
+        IAE, units of e times s.
+    """
     xp = _namespace(t, error)
     return xp.sum(xp.abs(error), axis=-1) * _dt(t)
 
 
 def ise(t: Array, error: Array) -> Array:
-    """Integral of squared error, ``sum e^2 dt``."""
+    """Integral of squared error, ``sum e^2 dt``.
+
+    Args:
+        t: ``(..., N)`` sample times, s (uniformly spaced).
+        error: ``(..., N)`` error.
+
+    Returns:
+        ISE, units of e squared times s.
+    """
     xp = _namespace(t, error)
     return xp.sum(error * error, axis=-1) * _dt(t)
 
@@ -94,28 +145,63 @@ def _first_crossing(t, z, level):
 
 
 def first_sample_after_last(flags: Array) -> Array:
-    """Index of the first sample after the last ``True`` of ``flags (..., N)``: 0 when none is set, ``N``
-    when the last sample is set. Where a settling or recovery time starts to hold."""
+    """Index of the first sample after the last ``True``: where a settling or recovery time starts to hold.
+
+    Args:
+        flags: ``(..., N)`` booleans.
+
+    Returns:
+        The index: 0 when none is set, ``N`` when the last sample is set.
+    """
     xp = _namespace(flags)
     n = flags.shape[-1]
     return xp.max(xp.where(flags, xp.arange(1, n + 1), 0), axis=-1)
 
 
 def rise_time(t: Array, y: Array, y_start, y_final, low: float = 0.1, high: float = 0.9) -> Array:
-    """``low``-``high`` rise time (s) of a step response from ``y_start`` to ``y_final`` (either sign)."""
+    """``low``-``high`` rise time of a step response from ``y_start`` to ``y_final`` (either sign).
+
+    Args:
+        t: ``(N,)`` sample times, s.
+        y: ``(N,)`` response.
+        y_start: Value before the step.
+        y_final: Value the step goes to.
+        low: Lower fraction of the step.
+        high: Upper fraction of the step.
+
+    Returns:
+        The rise time, s.
+    """
     z = _normalised(y, y_start, y_final)
     return _first_crossing(t, z, high) - _first_crossing(t, z, low)
 
 
 def overshoot(y: Array, y_start, y_final) -> Array:
-    """Peak overshoot beyond ``y_final``, percent of the step size (0 when there is none)."""
+    """Peak overshoot beyond ``y_final``, percent of the step size (0 when there is none).
+
+    Args:
+        y: ``(N,)`` response.
+        y_start: Value before the step.
+        y_final: Value the step goes to.
+    """
     xp = _namespace(y, y_start, y_final)
     z = _normalised(y, y_start, y_final)
     return 100.0 * xp.maximum(xp.max(z) - 1.0, 0.0)
 
 
 def settling_time(t: Array, y: Array, y_start, y_final, band: float = 0.02) -> Array:
-    """Time (s, from ``t[0]``) after which ``y`` stays within ``band`` of the step; NaN if never."""
+    """Time after which ``y`` stays within ``band`` of the step.
+
+    Args:
+        t: ``(N,)`` sample times, s.
+        y: ``(N,)`` response.
+        y_start: Value before the step.
+        y_final: Value the step goes to.
+        band: Band as a fraction of the step size.
+
+    Returns:
+        The settling time, s, from ``t[0]``; NaN if never.
+    """
     xp = _namespace(t, y, y_start, y_final, band)
     z = _normalised(y, y_start, y_final)
     n = t.shape[0]
@@ -129,38 +215,77 @@ def _reference_scale(reference):
 
 
 def excess_over_reference(y: Array, reference: Array) -> Array:
-    """``sign(reference) (y - reference)``: how far ``y`` lies beyond the reference in its direction
-    (units of y; negative: short of it); per sample, same shapes. Its largest value over a step's window,
-    in :func:`percent_of_reference` and floored at 0, is the overshoot against the reference; for a step
-    from rest it equals :func:`overshoot`."""
+    """``sign(reference) (y - reference)``: how far ``y`` lies beyond the reference in its direction.
+
+    Its largest value over a step's window, in
+    [`percent_of_reference`][pmsmjax.analysis.metrics.percent_of_reference] and floored at 0, is the overshoot
+    against the reference; for a step from rest it equals [`overshoot`][pmsmjax.analysis.metrics.overshoot].
+
+    Args:
+        y: Response, per sample.
+        reference: Reference, same shape.
+
+    Returns:
+        The excess per sample, units of y (negative: short of the reference).
+    """
     return jnp.sign(reference) * (y - reference)
 
 
 def percent_of_reference(x: Array, reference: Array) -> Array:
-    """``100 x / |reference|``, with ``|reference|`` floored at :data:`REFERENCE_FLOOR`."""
+    """``100 x / |reference|``, with ``|reference|`` floored at
+    [`REFERENCE_FLOOR`][pmsmjax.analysis.metrics.REFERENCE_FLOOR].
+
+    Args:
+        x: A quantity in the reference's units.
+        reference: The reference.
+    """
     return 100.0 * x / _reference_scale(reference)
 
 
 def outside_reference_band(y: Array, reference: Array, band: float) -> Array:
-    """``True`` where ``|y - reference| > band |reference|`` (``band`` a fraction, ``|reference|`` floored
-    at :data:`REFERENCE_FLOOR`); per sample."""
+    """``True`` where ``|y - reference| > band |reference|`` (``|reference|`` floored at
+    [`REFERENCE_FLOOR`][pmsmjax.analysis.metrics.REFERENCE_FLOOR]); per sample.
+
+    Args:
+        y: Response.
+        reference: Reference, same shape.
+        band: Band as a fraction of the reference.
+    """
     xp = _namespace(y, reference, band)
     return xp.abs(y - reference) > band * _reference_scale(reference)
 
 
 def settling_time_to_reference(t: Array, y: Array, reference: Array, band: float, active: Array) -> Array:
-    """Time (s, from ``t[0]``) of the first sample after the last ``active`` one outside ``band`` of the
-    reference (:func:`outside_reference_band`); ``0`` when none is.
+    """Time of the first sample after the last ``active`` one outside ``band`` of the reference
+    ([`outside_reference_band`][pmsmjax.analysis.metrics.outside_reference_band]).
 
-    Censored rather than NaN, so that it stays usable in a cost: a window that ends unsettled gives the
-    time of the sample after it (the record's last sample when the window reaches the end)."""
+    Censored rather than NaN, so that it stays usable in a cost: a window that ends unsettled gives the time
+    of the sample after it (the record's last sample when the window reaches the end).
+
+    Args:
+        t: ``(..., N)`` sample times, s.
+        y: ``(..., N)`` response.
+        reference: ``(..., N)`` reference.
+        band: Band as a fraction of the reference.
+        active: ``(..., N)`` booleans, the samples of the window.
+
+    Returns:
+        The settling time, s, from ``t[0]``; ``0`` when no sample is outside.
+    """
     xp = _namespace(t, y, reference, band, active)
     k = first_sample_after_last(outside_reference_band(y, reference, band) & (active > 0))
     return t[xp.minimum(k, t.shape[-1] - 1)] - t[0]
 
 
 def steady_state_error(y: Array, reference: Array, window: int) -> Array:
-    """Mean :func:`tracking_error` ``reference - y`` over the last ``window`` samples."""
+    """Mean [`tracking_error`][pmsmjax.analysis.metrics.tracking_error] ``reference - y`` over the last
+    ``window`` samples.
+
+    Args:
+        y: ``(..., N)`` response.
+        reference: ``(..., N)`` reference.
+        window: Number of final samples.
+    """
     xp = _namespace(y, reference, window)
     return xp.mean(tracking_error(reference[..., -window:], y[..., -window:]), axis=-1)
 
@@ -168,9 +293,17 @@ def steady_state_error(y: Array, reference: Array, window: int) -> Array:
 def disturbance_dip(t: Array, y: Array, t_event: float, y_nominal, band: float) -> tuple[Array, Array]:
     """Response to a disturbance (load step) at ``t_event``.
 
-    **Returns:** ``(dip, recovery_time)``: the largest drop of ``y`` below ``y_nominal`` after the event
-    (same units as y), and the time (s, from the event) after which ``y`` stays within ``band`` (same
-    units) of ``y_nominal``; NaN if it does not recover.
+    Args:
+        t: ``(N,)`` sample times, s.
+        y: ``(N,)`` response.
+        t_event: Time of the disturbance, s.
+        y_nominal: Value ``y`` should hold.
+        band: Recovery band, in the units of ``y``.
+
+    Returns:
+        ``(dip, recovery_time)``: the largest drop of ``y`` below ``y_nominal`` after the event (same units
+        as y), and the time (s, from the event) after which ``y`` stays within ``band`` of ``y_nominal``;
+        NaN if it does not recover.
     """
     xp = _namespace(t, y, t_event, y_nominal, band)
     after = t >= t_event
@@ -182,14 +315,30 @@ def disturbance_dip(t: Array, y: Array, t_event: float, y_nominal, band: float) 
 
 
 def peak_phase_current(i_abc: Array) -> Array:
-    """Largest absolute phase current (A) over ``i_abc (N, n_phases)`` (one period: ``(1, n_phases)``).
-    Over a window: pass ``i_abc * active[:, None]``."""
+    """Largest absolute phase current.
+
+    Over a window: pass ``i_abc * active[:, None]``.
+
+    Args:
+        i_abc: ``(N, n_phases)`` phase currents, A (one period: ``(1, n_phases)``).
+
+    Returns:
+        The peak, A.
+    """
     xp = _namespace(i_abc)
     return xp.max(xp.abs(i_abc), axis=(-2, -1))
 
 
 def rms_phase_current(i_abc: Array, active: Array | None = None) -> Array:
-    """RMS phase current (A) over the record (or the ``active`` samples), averaged over the phases."""
+    """RMS phase current over the record (or the ``active`` samples), averaged over the phases.
+
+    Args:
+        i_abc: ``(N, n_phases)`` phase currents, A.
+        active: ``(N,)`` booleans, or ``None`` for all samples.
+
+    Returns:
+        The RMS current, A.
+    """
     xp = _namespace(i_abc, active)
     if active is None:
         return xp.sqrt(xp.mean(i_abc * i_abc, axis=(-2, -1)))
@@ -198,27 +347,55 @@ def rms_phase_current(i_abc: Array, active: Array | None = None) -> Array:
 
 
 def voltage_use(u_dq_ref: Array, u_max) -> Array:
-    """``|u_dq*| / u_max`` per sample (``u_dq_ref (N, 2)`` V, ``u_max`` V, the modulator's linear limit)."""
+    """``|u_dq*| / u_max`` per sample.
+
+    Args:
+        u_dq_ref: ``(N, 2)`` voltage command, V.
+        u_max: The modulator's linear limit, V.
+    """
     xp = _namespace(u_dq_ref, u_max)
     return xp.sqrt(xp.sum(u_dq_ref**2, axis=-1) + 1e-12) / u_max
 
 
 def voltage_saturation(u_dq_ref: Array, u_max, active: Array, soft_width: float = 0.005) -> Array:
     """Fraction of the ``active`` periods with the voltage command on its limit, counted softly (a
-    sigmoid of :func:`voltage_use` about 0.999 of width ``soft_width``) so that it has a gradient."""
+    sigmoid of [`voltage_use`][pmsmjax.analysis.metrics.voltage_use] about 0.999 of width ``soft_width``) so
+    that it has a gradient.
+
+    Args:
+        u_dq_ref: ``(N, 2)`` voltage command, V.
+        u_max: The modulator's linear limit, V.
+        active: ``(N,)`` booleans, the periods counted.
+        soft_width: Width of the sigmoid, in units of ``u_max``.
+    """
     on_limit = jax.nn.sigmoid((voltage_use(u_dq_ref, u_max) - 0.999) / soft_width)
     return jnp.sum(on_limit * active) / jnp.sum(active)
 
 
 def control_effort(u_dq_ref: Array, u_max, active: Array) -> Array:
-    """Mean of ``(|u_dq*| / u_max)^2`` over the ``active`` periods (:func:`voltage_use`)."""
+    """Mean of ``(|u_dq*| / u_max)^2`` over the ``active`` periods
+    ([`voltage_use`][pmsmjax.analysis.metrics.voltage_use]).
+
+    Args:
+        u_dq_ref: ``(N, 2)`` voltage command, V.
+        u_max: The modulator's linear limit, V.
+        active: ``(N,)`` booleans, the periods counted.
+    """
     xp = _namespace(u_dq_ref, u_max, active)
     return xp.sum(voltage_use(u_dq_ref, u_max) ** 2 * active) / xp.sum(active)
 
 
 def ripple_rms_about_mean(y: Array, active: Array) -> Array:
-    """RMS deviation of ``y (N,)`` about its mean over the ``active`` samples (0 if none): the torque
-    ripple of a steady window (units of y)."""
+    """RMS deviation of ``y`` about its mean over the ``active`` samples (0 if none): the torque ripple of a
+    steady window.
+
+    Args:
+        y: ``(N,)`` samples.
+        active: ``(N,)`` booleans.
+
+    Returns:
+        The RMS deviation, units of y.
+    """
     xp = _namespace(y, active)
     n = xp.maximum(xp.sum(active), 1.0)
     mean = xp.sum(y * active) / n
@@ -226,13 +403,19 @@ def ripple_rms_about_mean(y: Array, active: Array) -> Array:
 
 
 def switching_frequency_hz(duties: Array, Ts: float) -> Array:
-    """Mean switching frequency of the legs, Hz, comparable with a PWM carrier frequency.
+    """Mean switching frequency of the legs, comparable with a PWM carrier frequency.
 
-    ``duties (N, n)`` are the legs' duties over ``N`` periods of ``Ts`` s: centre-aligned pulses (a leg
-    with ``0 < d < 1`` switches on and off once each in its period, and is low at both period ends unless
-    ``d = 1``) or switch states held over the period (0 or 1: a leg switches only where its state
-    changes between periods). Transitions per leg per second, halved: one on-off pair is one switching
-    period, so a carrier-based PWM at 10 kHz reads 10 kHz.
+    The duties are centre-aligned pulses (a leg with ``0 < d < 1`` switches on and off once each in its
+    period, and is low at both period ends unless ``d = 1``) or switch states held over the period (0 or 1:
+    a leg switches only where its state changes between periods). Transitions per leg per second, halved:
+    one on-off pair is one switching period, so a carrier-based PWM at 10 kHz reads 10 kHz.
+
+    Args:
+        duties: ``(N, n)`` the legs' duties over ``N`` periods.
+        Ts: The period, s.
+
+    Returns:
+        The frequency, Hz.
     """
     xp = _namespace(duties, Ts)
     inside = 2.0 * xp.sum((duties > 0.0) & (duties < 1.0), axis=(-2, -1))
@@ -243,14 +426,20 @@ def switching_frequency_hz(duties: Array, Ts: float) -> Array:
 
 
 def ripple_about_moving_mean(y: Array, window: int) -> Array:
-    """Deviation of ``y (..., N)`` from its centred ``window``-sample moving mean: ``(..., N - window + 1)``.
+    """Deviation of ``y`` from its centred ``window``-sample moving mean.
 
-    ``window`` (static int, odd for exact centring) should span several periods of the ripple and be short
-    beside the slow trends it removes: a 101-sample window at 10 kHz (10 ms) spans four periods of the
-    420 Hz sign-law chattering of the book SMC drive, and leaves of a 20 ms exponential decay a residual of
-    ``sinh(W/2 tau)/(W/2 tau) - 1`` = 1 % of its local value (W = 10 ms, tau = 20 ms). The mean is a
-    difference of cumulative sums of ``y - mean(y)`` (centred first, so float32 records of large offsets
-    keep their precision).
+    ``window`` should span several periods of the ripple and be short beside the slow trends it removes:
+    a 101-sample window at 10 kHz (10 ms) spans four periods of the 420 Hz sign-law chattering of the book
+    SMC drive, and leaves of a 20 ms exponential decay a residual of ``sinh(W/2 tau)/(W/2 tau) - 1`` = 1 %
+    of its local value (W = 10 ms, tau = 20 ms). The mean is a difference of cumulative sums of
+    ``y - mean(y)`` (centred first, so float32 records of large offsets keep their precision).
+
+    Args:
+        y: ``(..., N)`` samples.
+        window: Moving-mean length in samples (static int, odd for exact centring).
+
+    Returns:
+        ``(..., N - window + 1)`` deviations, units of y.
     """
     xp = _namespace(y, window)
     n = y.shape[-1]
@@ -265,10 +454,15 @@ def ripple_about_moving_mean(y: Array, window: int) -> Array:
 
 
 def current_ripple_rms_a(i: Array, window: int) -> Array:
-    """RMS (A) of a current (e.g. the speed loop's ``i_q*``) about its moving mean: the chattering metric.
+    """RMS of a current (e.g. the speed loop's ``i_q*``) about its moving mean: the chattering metric.
 
-    `i`: ``(..., N)`` samples, A, taken in steady state (the caller slices the window); `window`: moving
-    mean length in samples (see :func:`ripple_about_moving_mean`).
+    Args:
+        i: ``(..., N)`` samples, A, taken in steady state (the caller slices the window).
+        window: Moving-mean length in samples (see
+            [`ripple_about_moving_mean`][pmsmjax.analysis.metrics.ripple_about_moving_mean]).
+
+    Returns:
+        The RMS ripple, A.
     """
     xp = _namespace(i, window)
     dev = ripple_about_moving_mean(i, window)
@@ -276,7 +470,16 @@ def current_ripple_rms_a(i: Array, window: int) -> Array:
 
 
 def current_ripple_peak_to_peak_a(i: Array, window: int) -> Array:
-    """Peak-to-peak (A) of a current about its moving mean (see :func:`current_ripple_rms_a`)."""
+    """Peak-to-peak of a current about its moving mean (see
+    [`current_ripple_rms_a`][pmsmjax.analysis.metrics.current_ripple_rms_a]).
+
+    Args:
+        i: ``(..., N)`` samples, A.
+        window: Moving-mean length in samples.
+
+    Returns:
+        The peak-to-peak ripple, A.
+    """
     xp = _namespace(i, window)
     dev = ripple_about_moving_mean(i, window)
     return xp.max(dev, axis=-1) - xp.min(dev, axis=-1)
@@ -286,21 +489,34 @@ def current_ripple_peak_to_peak_a(i: Array, window: int) -> Array:
 
 
 def reference_phase_currents(i_dq_ref: Array, theta_e_est: Array) -> Array:
-    """``(N, 3)`` reference phase currents, A, from ``i_dq_ref (N, 2)`` A and the controller's
-    (estimated) electrical angle ``theta_e_est (N,)`` rad: what a hysteresis controller compares with.
+    """Reference phase currents: what a hysteresis controller compares with.
 
     From a trace: ``reference_phase_currents(trace.i_dq_ref, trace.theta_e_est)``.
+
+    Args:
+        i_dq_ref: ``(N, 2)`` dq current reference, A.
+        theta_e_est: ``(N,)`` the controller's (estimated) electrical angle, rad.
+
+    Returns:
+        ``(N, 3)`` phase currents, A.
     """
     return dq_to_abc(i_dq_ref, theta_e_est)
 
 
 def current_error_rms_a(i_abc: Array, i_abc_ref: Array) -> Array:
-    """RMS of the phase-current error ``i_abc - i_abc_ref`` (A) over the record and the phases.
+    """RMS of the phase-current error ``i_abc - i_abc_ref`` over the record and the phases.
 
-    ``i_abc, i_abc_ref (N, 3)`` A; pass a steady-state window (e.g. ``trace[k0:]``). It includes any mean
-    tracking error as well as the ripple (hysteresis control has almost none). With switch states held
-    between samples the current is nearly linear between samples, so its extremes lie on the samples
-    and sampled records resolve the ripple.
+    Pass a steady-state window (e.g. ``trace[k0:]``). It includes any mean tracking error as well as the
+    ripple (hysteresis control has almost none). With switch states held between samples the current is
+    nearly linear between samples, so its extremes lie on the samples and sampled records resolve the
+    ripple.
+
+    Args:
+        i_abc: ``(N, 3)`` phase currents, A.
+        i_abc_ref: ``(N, 3)`` reference phase currents, A.
+
+    Returns:
+        The RMS error, A.
     """
     xp = _namespace(i_abc, i_abc_ref)
     err = i_abc - i_abc_ref
@@ -308,6 +524,14 @@ def current_error_rms_a(i_abc: Array, i_abc_ref: Array) -> Array:
 
 
 def current_error_peak_a(i_abc: Array, i_abc_ref: Array) -> Array:
-    """Largest absolute phase-current error ``|i_abc - i_abc_ref|`` (A) over the record and the phases."""
+    """Largest absolute phase-current error ``|i_abc - i_abc_ref|`` over the record and the phases.
+
+    Args:
+        i_abc: ``(N, 3)`` phase currents, A.
+        i_abc_ref: ``(N, 3)`` reference phase currents, A.
+
+    Returns:
+        The peak error, A.
+    """
     xp = _namespace(i_abc, i_abc_ref)
     return xp.max(xp.abs(i_abc - i_abc_ref), axis=(-2, -1))

@@ -1,9 +1,9 @@
 """Did a finished run reach its operating point? The share of the run at the voltage and current limits
 and whether the speed reached its reference, each shortfall with its cause and remedy (the
-``operating_point`` entry of ``summary.json``), judged from a :class:`~pmsmjax.trace.Trace`.
+``operating_point`` entry of ``summary.json``), judged from a [`Trace`][pmsmjax.trace.Trace].
 
-Whether a point is reachable before any run is :mod:`pmsmjax.spec.steady_state`'s (the same steady-state
-equations, :mod:`pmsmjax.machines.dq_equations`).
+Whether a point is reachable before any run is [`pmsmjax.spec.steady_state`][pmsmjax.spec.steady_state]'s (the
+same steady-state equations, [`pmsmjax.machines.dq_equations`][pmsmjax.machines.dq_equations]).
 """
 
 from collections.abc import Mapping
@@ -48,14 +48,25 @@ def run_flags(
     tolerance_rpm: float = 5.0,
 ) -> dict:
     """How much of a finished speed-step run sat at the voltage and current limits, and whether the speed
-    reached its reference (the mean over the last 10 % before the load step and of the run, within
-    ``tolerance_pct`` % of the reference or ``tolerance_rpm``, whichever is larger).
+    reached its reference.
 
-    `flags`: the command's names for ``speed``, ``load``, ``duration``, ``field_weakening``,
-    ``current_limit`` and ``u_dc`` (``{"speed": "--speed-rpm", ...}``), used in the remedies; a missing
-    one is left out.
-    Returns the JSON-able ``operating_point`` entry: shares, reached flags and ``flags`` (a list of
-    ``{"flag", "cause", "remedy"}``; empty for a run that did what was asked).
+    The speed counts as reached when its mean over the last 10 % before the load step and of the run is
+    within ``tolerance_pct`` % of the reference or ``tolerance_rpm``, whichever is larger.
+
+    Args:
+        trace: The finished run.
+        drive: The drive it ran.
+        load_time_s: Time of the load step, s, or ``None``.
+        field_weakening: Whether the drive weakens the field.
+        flags: The command's names for ``speed``, ``load``, ``duration``, ``field_weakening``,
+            ``current_limit`` and ``u_dc`` (``{"speed": "--speed-rpm", ...}``), used in the remedies; a
+            missing one is left out.
+        tolerance_pct: Speed tolerance, percent of the reference.
+        tolerance_rpm: Speed tolerance, r/min.
+
+    Returns:
+        The JSON-able ``operating_point`` entry: shares, reached flags and ``flags`` (a list of
+        ``{"flag", "cause", "remedy"}``; empty for a run that did what was asked).
     """
     names = dict(flags or {})
     t = np.asarray(trace.t, dtype=float)

@@ -6,18 +6,18 @@ A signal observed over a window ``T_w`` holding ``K`` whole fundamental periods 
 
 Two ways to get the coefficients, one per kind of signal:
 
-- :func:`piecewise_constant_spectrum`: exact coefficients of a piecewise-constant signal (an inverter's
-  phase or line voltage), the integrals of ``e^{-j w t}`` over each constant interval. No sampling, no
-  aliasing: every switching edge is placed exactly.
-- :func:`sampled_spectrum`: FFT of uniform samples covering the window (a phase current, which is
-  continuous and whose harmonics fall off as ``1/(n w L)`` of the voltage's, so a few tens of samples per
-  PWM period leave aliasing far below the components that matter).
+- [`piecewise_constant_spectrum`][pmsmjax.analysis.spectra.piecewise_constant_spectrum]: exact coefficients of
+  a piecewise-constant signal (an inverter's phase or line voltage), the integrals of ``e^{-j w t}`` over each
+  constant interval. No sampling, no aliasing: every switching edge is placed exactly.
+- [`sampled_spectrum`][pmsmjax.analysis.spectra.sampled_spectrum]: FFT of uniform samples covering the window
+  (a phase current, which is continuous and whose harmonics fall off as ``1/(n w L)`` of the voltage's, so a
+  few tens of samples per PWM period leave aliasing far below the components that matter).
 
-:func:`thd`: ``THD = sqrt(sum_{n != 0, K; f_n <= f_max} |X_n|^2) / |X_K|``, i.e. every component of the
-window's Fourier series other than DC and the fundamental, up to ``f_max``. With PWM, the distortion sits
-in carrier groups around multiples of the switching frequency, far above the 40th-50th harmonic of the
-power-quality standards, so ``f_max`` must be stated with every figure; pmsmjax's comparisons use
-``f_max = 4 f_sw`` (the first four carrier groups and their sidebands).
+[`thd`][pmsmjax.analysis.spectra.thd]: ``THD = sqrt(sum_{n != 0, K; f_n <= f_max} |X_n|^2) / |X_K|``, i.e.
+every component of the window's Fourier series other than DC and the fundamental, up to ``f_max``. With PWM,
+the distortion sits in carrier groups around multiples of the switching frequency, far above the 40th-50th
+harmonic of the power-quality standards, so ``f_max`` must be stated with every figure; pmsmjax's comparisons
+use ``f_max = 4 f_sw`` (the first four carrier groups and their sidebands).
 """
 
 import numpy as np
@@ -26,8 +26,13 @@ __all__ = ["Spectrum", "piecewise_constant_spectrum", "sampled_spectrum", "thd"]
 
 
 class Spectrum:
-    """Peak amplitudes ``(n_max + 1, ...)`` at ``frequencies_hz`` (``n / window_s``); the fundamental is
-    component ``cycles`` (the number of whole fundamental periods in the window)."""
+    """Peak amplitudes at ``frequencies_hz`` (``n / window_s``); the fundamental is component ``cycles``.
+
+    Args:
+        amplitudes: ``(n_max + 1, ...)`` peak amplitudes, in the signal's unit.
+        window_s: Length of the analysed window, s.
+        cycles: Number of whole fundamental periods in the window.
+    """
 
     def __init__(self, amplitudes: np.ndarray, window_s: float, cycles: int):
         self.amplitudes = np.asarray(amplitudes)
@@ -61,11 +66,16 @@ def _check_window(window_s, cycles):
 def piecewise_constant_spectrum(times, values, cycles: int, n_max: int) -> Spectrum:
     """Exact Fourier amplitudes of a piecewise-constant signal.
 
-    **Arguments:** `times`: ``(K+1,)`` non-decreasing interval bounds, s (the window is ``times[0]`` to
-    ``times[-1]``); `values`: ``(K, ...)`` value held in each interval; `cycles`: whole fundamental
-    periods in the window; `n_max`: highest component computed.
-
     ``X_n = (2/T_w) sum_k v_k int_{t_k}^{t_{k+1}} e^{-j w_n t} dt`` for ``n >= 1`` (``1/T_w`` for DC).
+
+    Args:
+        times: ``(K+1,)`` non-decreasing interval bounds, s (the window is ``times[0]`` to ``times[-1]``).
+        values: ``(K, ...)`` value held in each interval.
+        cycles: Whole fundamental periods in the window.
+        n_max: Highest component computed.
+
+    Returns:
+        The [`Spectrum`][pmsmjax.analysis.spectra.Spectrum].
     """
     times = np.asarray(times, float)
     values = np.asarray(values, float)
@@ -89,9 +99,17 @@ def piecewise_constant_spectrum(times, values, cycles: int, n_max: int) -> Spect
 
 
 def sampled_spectrum(samples, window_s: float, cycles: int, n_max: int | None = None) -> Spectrum:
-    """Fourier amplitudes from ``(N, ...)`` uniform samples spanning exactly the window (``N`` samples,
-    spacing ``window_s / N``). Components up to ``n_max`` (default and at most ``N // 2 - 1``, below
-    Nyquist)."""
+    """Fourier amplitudes from uniform samples spanning exactly the window.
+
+    Args:
+        samples: ``(N, ...)`` samples, spacing ``window_s / N``.
+        window_s: Length of the window, s.
+        cycles: Whole fundamental periods in the window.
+        n_max: Highest component (default and at most ``N // 2 - 1``, below Nyquist).
+
+    Returns:
+        The [`Spectrum`][pmsmjax.analysis.spectra.Spectrum].
+    """
     x = np.asarray(samples, float)
     _check_window(window_s, cycles)
     N = x.shape[0]
@@ -106,8 +124,18 @@ def sampled_spectrum(samples, window_s: float, cycles: int, n_max: int | None = 
 
 
 def thd(spectrum: Spectrum, f_max_hz: float) -> np.ndarray:
-    """Total harmonic distortion (ratio, not %) of every component but DC and the fundamental up to
-    ``f_max_hz``; raises if the spectrum does not reach ``f_max_hz``."""
+    """Total harmonic distortion of every component but DC and the fundamental up to ``f_max_hz``.
+
+    Args:
+        spectrum: The spectrum.
+        f_max_hz: Highest frequency counted, Hz.
+
+    Returns:
+        The THD as a ratio (not %).
+
+    Raises:
+        ValueError: When the spectrum does not reach ``f_max_hz``.
+    """
     f = spectrum.frequencies_hz
     if f[-1] + 0.5 / spectrum.window_s < f_max_hz:
         raise ValueError(f"the spectrum stops at {f[-1]:g} Hz, below f_max = {f_max_hz:g} Hz.")

@@ -18,8 +18,21 @@ def speed_step_summary(
     """Metrics of a run whose speed reference steps at t = 0 and whose load steps at ``load_time_s``.
 
     Step metrics (rise, overshoot, settling, steady-state error) are taken on ``[0, load_time_s)``; the
-    load response (dip, recovery to within ``recovery_band_rpm``) after it. Speeds in r/min, times in s,
-    currents in A. ITAE is of the speed error in rad/s over the whole run (rad s).
+    load response (dip, recovery to within ``recovery_band_rpm``) after it. ITAE is of the speed error in
+    rad/s over the whole run (rad s).
+
+    Args:
+        trace: The run.
+        load_time_s: Time of the load step, s, or ``None`` (no load response).
+        current_limit_a: The drive's phase-current limit, A.
+        settle_band: Settling band, fraction of the step.
+        recovery_band_rpm: Recovery band of the load response, r/min.
+
+    Returns:
+        The figures by name: speeds in r/min, times in s, currents in A (``rise_time_s``,
+        ``overshoot_pct``, ``settling_time_s``, ``steady_state_error_rpm``, ``itae_rad_s``,
+        ``peak_phase_current_a``, ``current_limit_respected``, with a load step ``speed_dip_rpm`` and
+        ``recovery_time_s``, and more).
     """
     t = np.asarray(trace.t)
     w = np.asarray(trace.omega_m)

@@ -4,7 +4,7 @@ A Trace holds the state at each period start only. With centre-aligned PWM those
 middle of the current ripple, so ripple, spectra and torque ripple need the trajectory in between. It is
 recomputed here from each period's recorded start state and applied duties (the same model, so the same
 trajectory the simulation followed): segment by segment for the switching-resolved bridges (their
-``sample_period``, :attr:`~pmsmjax.inverters.base.AbstractBridge.switching_resolved`), in equal
+``sample_period``, [`switching_resolved`][pmsmjax.inverters.base.AbstractBridge.switching_resolved]), in equal
 held-voltage steps for the averaged ones.
 """
 
@@ -40,14 +40,19 @@ def _dense_averaged(drive: Drive, states: MachineState, duties, load, n_samples:
 
 
 def dense_window(drive: Drive, window: Trace, n_samples: int):
-    """Sample each recorded period of ``window`` (an undecimated slice of a trace of ``drive``) at
-    ``t_k + j Ts / n_samples``, j = 1..n_samples.
+    """Sample each recorded period of a window at ``t_k + j Ts / n_samples``, j = 1..n_samples.
 
-    **Returns** ``(states, t_u, u_ab)``: a :class:`MachineState` of ``(N, n_samples)`` leaves; the bounds
-    ``(K+1,)`` s (from the window start) and ``(K, 2)`` stator voltages V of the piecewise-constant
-    applied voltage (one interval per period for the averaged bridge, the switching segments otherwise;
-    ``(K, 2 n_planes)`` stationary VSD voltages for a multi-phase machine, whose period-start states are
-    rebuilt from the recorded phase currents).
+    Args:
+        drive: The drive the trace was simulated with.
+        window: An undecimated slice of a trace of ``drive``.
+        n_samples: Samples per period.
+
+    Returns:
+        ``(states, t_u, u_ab)``: a [`MachineState`][pmsmjax.machines.base.MachineState] of ``(N, n_samples)``
+        leaves; the bounds ``(K+1,)`` s (from the window start) and ``(K, 2)`` stator voltages V of the
+        piecewise-constant applied voltage (one interval per period for the averaged bridge, the switching
+        segments otherwise; ``(K, 2 n_planes)`` stationary VSD voltages for a multi-phase machine, whose
+        period-start states are rebuilt from the recorded phase currents).
     """
     machine, Ts = drive.machine, drive.Ts
     n = window.t.shape[0]

@@ -4,20 +4,20 @@
 Every subcommand checks its input before compiling anything and writes each output file atomically
 (temporary file in the same folder, then rename), so an interrupted or failed run leaves no half file.
 
-One command at a time per output folder: for a command with an output folder (``--out``), :func:`main`
-takes the folder's lock ``--out/.pmsmjax.lock`` (:mod:`pmsmjax.io.folder_lock`) right after parsing the
-flags, before the command checks or writes anything, and removes it when the command ends, however it
-ends. A second command on the same folder is refused (exit 2) with the first one's command line, pid,
-host and start time; a lock left by a command that died is taken over with a warning. A command refused
+One command at a time per output folder: for a command with an output folder (``--out``), `main`
+takes the folder's lock ``--out/.pmsmjax.lock`` ([`pmsmjax.io.folder_lock`][pmsmjax.io.folder_lock]) right
+after parsing the flags, before the command checks or writes anything, and removes it when the command ends,
+however it ends. A second command on the same folder is refused (exit 2) with the first one's command line,
+pid, host and start time; a lock left by a command that died is taken over with a warning. A command refused
 for its input leaves nothing: the folder made for the lock goes again when it is empty.
 
 Each subcommand is one module of this package with ``add_parser(subparsers)``, which adds its parser and
 sets ``func`` to its ``run(args) -> int`` (the exit status); a module imports what its ``run`` needs
 inside ``run``, so ``pmsmjax --help`` and refusals of bad flags stay quick (no JAX at start-up; the
 package ``pmsmjax`` loads its names lazily). A new subcommand is a new module and its name in
-:data:`SUBCOMMANDS`; :mod:`pmsmjax.cli.checks` has the shared flag checks.
+`SUBCOMMANDS`; `pmsmjax.cli.checks` has the shared flag checks.
 
-What the user sees when something goes wrong, from :func:`main`, always one line on stderr:
+What the user sees when something goes wrong, from `main`, always one line on stderr:
 
 - bad input (a flag, a file, a column), or an output folder in use by another command:
   ``pmsmjax CMD: error: <what, where, the fix>``, exit 2;
@@ -52,7 +52,7 @@ SUBCOMMANDS = (
 
 
 def build_parser() -> Parser:
-    """The ``pmsmjax`` argument parser: one subparser per module of :data:`SUBCOMMANDS`, each with
+    """The ``pmsmjax`` argument parser: one subparser per module of `SUBCOMMANDS`, each with
     ``--no-compile-cache``."""
     parser = Parser(prog="pmsmjax", description="Differentiable, batched PMSM drive simulation in JAX.")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
@@ -117,8 +117,8 @@ def main(argv=None) -> int:
 @contextlib.contextmanager
 def _output_folder_held(args, command_line):
     """Hold the lock of the command's output folder (``args.out``) while it runs; yields the
-    :class:`~pmsmjax.io.folder_lock.FolderLock`, or None for a command without one. The folder is checked
-    first (an existing file there is refused as by the command itself)."""
+    [`FolderLock`][pmsmjax.io.folder_lock.FolderLock], or None for a command without one. The folder is
+    checked first (an existing file there is refused as by the command itself)."""
     out = getattr(args, "out", None)
     if not out:
         yield None

@@ -1,4 +1,5 @@
-"""``pmsmjax bench``: how fast the simulator runs on this machine (:mod:`pmsmjax.jobs.bench`).
+"""``pmsmjax bench``: how fast the simulator runs on this machine
+([`pmsmjax.jobs.bench`][pmsmjax.jobs.bench]).
 
 The comparison with a hand-written loop is a benchmark of the repository, not of an installation:
 ``python -m benchmarks.bench_core``.

@@ -14,11 +14,11 @@ How a subcommand uses it (``pmsmjax/cli/demo.py`` is the worked example):
 
   A bad value ends as ``pmsmjax demo: error: argument --load-nm: nan is not a finite number of N m:
   give one, e.g. 10 (see pmsmjax demo --help)`` (the parser's ``error`` prints that one line).
-- first thing in ``run(args)``, before importing anything heavy: :func:`output_folder` for ``--out`` and
-  the checks that involve several flags, raising :class:`~pmsmjax.spec.validation.ParameterError` with
-  :func:`flag` to name each flag as the user typed it.
-- a :class:`~pmsmjax.spec.validation.ParameterError` raised later by the library is printed as one line by
-  :func:`pmsmjax.cli.main`; :func:`user_terms` turns the library's names (``Drive.n_substeps``) into the
+- first thing in ``run(args)``, before importing anything heavy: `output_folder` for ``--out`` and
+  the checks that involve several flags, raising [`ParameterError`][pmsmjax.spec.validation.ParameterError]
+  with `flag` to name each flag as the user typed it.
+- a [`ParameterError`][pmsmjax.spec.validation.ParameterError] raised later by the library is printed as one
+  line by `pmsmjax.cli.main`; `user_terms` turns the library's names (``Drive.n_substeps``) into the
   flags (``--substeps``) where a subcommand maps them.
 """
 

@@ -1,7 +1,8 @@
 """``pmsmjax compare``: control methods side by side on a drive's scenario (``--motor``: the book drive by
 default, or a drive file), or observers (``--estimator``). The comparison itself is
-:mod:`pmsmjax.jobs.compare`: this module parses the flags into its :class:`~pmsmjax.jobs.compare.CompareSpec`
-and writes its :class:`~pmsmjax.jobs.compare.CompareResult`."""
+[`pmsmjax.jobs.compare`][pmsmjax.jobs.compare]: this module parses the flags into its
+[`CompareSpec`][pmsmjax.jobs.compare.CompareSpec] and writes its
+[`CompareResult`][pmsmjax.jobs.compare.CompareResult]."""
 
 import json
 
@@ -100,7 +101,7 @@ def add_parser(sub):
 
 def precheck(args):
     """Checks that need no model (before JAX starts); returns the control (or observer) names and the
-    drive (:class:`~pmsmjax.spec.drive_spec.DriveSpec`), the scenario flags left unset filled from it."""
+    drive ([`DriveSpec`][pmsmjax.spec.drive_spec.DriveSpec]), the scenario flags left unset filled from it."""
     multiphase = args.machine != "three-phase"
     if multiphase:
         for flag, value in (("--estimator", args.estimator), ("--equal-switching", args.equal_switching)):
@@ -188,15 +189,16 @@ def precheck(args):
 
 
 #: The chapter 6 estimators ``compare --estimator`` takes (the keys of
-#: :data:`pmsmjax.estimators.INJECTION_OBSERVERS` and ``HYBRID_OBSERVERS``; spelled here so that the
-#: checks run before JAX starts, tests/studies/test_hfi_compare.py checks they agree).
+#: [`pmsmjax.estimators.INJECTION_OBSERVERS`][pmsmjax.estimators.catalogue.INJECTION_OBSERVERS] and
+#: ``HYBRID_OBSERVERS``; spelled here so that the checks run before JAX starts,
+#: tests/studies/test_hfi_compare.py checks they agree).
 CHAPTER6_NAMES = registry.names("estimator", group="injection") + registry.names("estimator", group="hybrid")
 
 
 def _chapter6_flags(args, names: list[str], chapter6: bool) -> None:
     """Fill in --scenario (book; standstill when an injection method is compared) and refuse what does
     not fit before JAX starts (the scenario-estimator pairs themselves:
-    :func:`pmsmjax.jobs.estimator_comparison.check_estimator_scenario`)."""
+    [`pmsmjax.jobs.estimator_comparison.check_estimator_scenario`][pmsmjax.jobs.estimator_comparison.check_estimator_scenario])."""
     if args.scenario is None:
         injection = any(n.startswith("hfi-") for n in names)
         args.scenario = "standstill" if injection else "book"

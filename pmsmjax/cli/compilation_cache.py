@@ -6,7 +6,7 @@ figures.
 Where: ``$PMSMJAX_CACHE_DIR`` if set (empty, ``0`` or ``off`` turns the cache off), else
 ``$XDG_CACHE_HOME/pmsmjax/jax``, else ``~/.cache/pmsmjax/jax``. ``--no-compile-cache`` on any command turns
 it off for that run. A cache directory the user chose for JAX itself (``JAX_COMPILATION_CACHE_DIR``, or
-``jax.config`` in a process that runs :func:`pmsmjax.cli.main`) is left as it is. JAX keys each entry on
+``jax.config`` in a process that runs `pmsmjax.cli.main`) is left as it is. JAX keys each entry on
 the program, the compile options and the jaxlib version, so a stale entry is never used; deleting the
 folder is always safe.
 """

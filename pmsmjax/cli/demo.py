@@ -1,17 +1,17 @@
 """``pmsmjax demo`` (alias ``simulate``): the drive's scenario (``--motor``: the book drive by default, or a
-drive file, :mod:`pmsmjax.io.drive_files`) under a chosen control method, written as a trace, summary.json
-and figures; ``--machine six-phase`` runs the dual three-phase drive (book ch. 7-9), ``--machine
-five-phase`` the five-phase drive (book ch. 10).
+drive file, [`pmsmjax.io.drive_files`][pmsmjax.io.drive_files]) under a chosen control method, written as a
+trace, summary.json and figures; ``--machine six-phase`` runs the dual three-phase drive (book ch. 7-9),
+``--machine five-phase`` the five-phase drive (book ch. 10).
 
-Before any work: the flags (:mod:`pmsmjax.cli.checks`), ``--out``, the drive file (its units,
-:mod:`pmsmjax.spec.plausibility`, and its ratings; :mod:`pmsmjax.cli.drive_flags`), the gains file, the
-load step inside the run, and a speed the drive could reach at all. After the run, ``summary.json`` says
-whether the speed reached its reference and how much of the run sat at the voltage or current limit
-(:func:`pmsmjax.analysis.operating_point.run_flags`), and the console repeats every such flag with its
-cause and remedy.
+Before any work: the flags (`pmsmjax.cli.checks`), ``--out``, the drive file (its units,
+[`pmsmjax.spec.plausibility`][pmsmjax.spec.plausibility], and its ratings; `pmsmjax.cli.drive_flags`), the
+gains file, the load step inside the run, and a speed the drive could reach at all. After the run,
+``summary.json`` says whether the speed reached its reference and how much of the run sat at the voltage or
+current limit ([`pmsmjax.analysis.operating_point.run_flags`][pmsmjax.analysis.operating_point.run_flags]),
+and the console repeats every such flag with its cause and remedy.
 
-The run itself is :mod:`pmsmjax.jobs.demo`: this module parses the flags into its
-:class:`~pmsmjax.jobs.demo.DemoSpec` and writes its :class:`~pmsmjax.jobs.demo.DemoResult`.
+The run itself is [`pmsmjax.jobs.demo`][pmsmjax.jobs.demo]: this module parses the flags into its
+[`DemoSpec`][pmsmjax.jobs.demo.DemoSpec] and writes its [`DemoResult`][pmsmjax.jobs.demo.DemoResult].
 """
 
 import json
@@ -149,8 +149,9 @@ def options_from_flags(args, spec) -> dict:
             drive's defaults.
 
     Returns:
-        ``{option: value}`` for :func:`pmsmjax.assemble.assemble`, without ``d_axis``: the field weakening
-        of ``--field-weakening`` is built by the job (:attr:`pmsmjax.jobs.demo.DemoSpec.field_weakening`).
+        ``{option: value}`` for [`pmsmjax.assemble.assemble`][pmsmjax.assemble.assemble], without ``d_axis``:
+        the field weakening of ``--field-weakening`` is built by the job
+        ([`pmsmjax.jobs.demo.DemoSpec.field_weakening`][pmsmjax.jobs.demo.DemoSpec]).
     """
     if args.machine in MULTIPHASE_NAMES:
         options = {}
@@ -306,7 +307,7 @@ def add_parser(sub):
 
 def precheck(args):
     """Every check that needs no model (pure Python, before JAX starts); returns the drive
-    (:class:`~pmsmjax.spec.drive_spec.DriveSpec`) with the scenario flags left unset filled from it."""
+    ([`DriveSpec`][pmsmjax.spec.drive_spec.DriveSpec]) with the scenario flags left unset filled from it."""
     checks.output_folder(args.out)
     check_machine_flags(args)
     if getattr(args, "estimator", None) and args.control not in SENSORLESS_CONTROLS:
@@ -336,9 +337,9 @@ def precheck(args):
 
 
 def demo_spec(args, spec) -> demo_job.DemoSpec:
-    """The job's :class:`~pmsmjax.jobs.demo.DemoSpec` of the checked flags ``args`` on the drive ``spec``
-    (from :func:`precheck`); a flag that does not apply to the control is refused
-    (:func:`options_from_flags`)."""
+    """The job's [`DemoSpec`][pmsmjax.jobs.demo.DemoSpec] of the checked flags ``args`` on the drive ``spec``
+    (from `precheck`); a flag that does not apply to the control is refused
+    (`options_from_flags`)."""
     multiphase = args.machine in MULTIPHASE_NAMES
     return demo_job.DemoSpec(
         drive=spec,

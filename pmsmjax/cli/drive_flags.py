@@ -1,8 +1,9 @@
 """The user's drive on the command line: ``--motor`` (a preset name or a drive file,
-:mod:`pmsmjax.io.drive_files`), ``--u-dc`` and ``--current-limit`` overriding the file's ``[inverter]
-u_dc_v`` and ``[ratings] max_current_a``, and the scenario flags the user left unset filled from the
-file's ``[scenario]``. Every command that runs a drive resolves it here once, in its precheck (pure
-Python, before JAX starts), and builds everything after from the :class:`~pmsmjax.spec.drive_spec.DriveSpec`.
+[`pmsmjax.io.drive_files`][pmsmjax.io.drive_files]), ``--u-dc`` and ``--current-limit`` overriding the file's
+``[inverter] u_dc_v`` and ``[ratings] max_current_a``, and the scenario flags the user left unset filled from
+the file's ``[scenario]``. Every command that runs a drive resolves it here once, in its precheck (pure
+Python, before JAX starts), and builds everything after from the
+[`DriveSpec`][pmsmjax.spec.drive_spec.DriveSpec].
 """
 
 from pathlib import Path
@@ -54,7 +55,7 @@ _BOOK_SCENARIO = {
 
 def add_drive_flags(p, out: str, motor: str | None = "book", motor_text: str | None = None) -> None:
     """The flags every command that runs the user's drive opens with: ``--out`` (default `out`),
-    ``--motor`` (default `motor`, said as `motor_text`, :func:`add_motor_flag`) and the overrides
+    ``--motor`` (default `motor`, said as `motor_text`, `add_motor_flag`) and the overrides
     ``--u-dc``, ``--current-limit``."""
     checks.add_out_flag(p, out)
     add_motor_flag(p, motor, motor_text)
@@ -92,7 +93,7 @@ def add_override_flags(p, current_limit: bool = True) -> None:
 
 
 def add_trust_units_flag(p, help: str = "accept motor values outside the plausible ranges") -> None:
-    """``--trust-units``: skip the drive file's unit plausibility check (:func:`resolve_drive`)."""
+    """``--trust-units``: skip the drive file's unit plausibility check (`resolve_drive`)."""
     p.add_argument("--trust-units", action="store_true", help=help)
 
 
@@ -109,8 +110,8 @@ def add_logged_motor_flags(p, role: str) -> None:
 
 
 def add_scenario_flags(p, keys=SCENARIO_KEYS, types=None, whats=None) -> None:
-    """The scenario flags of `keys` (argparse dests of :data:`SCENARIO_KEYS`), each defaulting to the
-    drive file's ``[scenario]`` (:func:`fill_scenario`): a finite speed and load, a load time >= 0 and a
+    """The scenario flags of `keys` (argparse dests of `SCENARIO_KEYS`), each defaulting to the
+    drive file's ``[scenario]`` (`fill_scenario`): a finite speed and load, a load time >= 0 and a
     duration > 0, unless `types` (dest -> argparse ``type``) checks more; `whats` (dest -> text): what
     the help calls a flag whose meaning is narrower than a step's."""
     types = {
@@ -132,7 +133,7 @@ def scenario_help(key: str, what: str) -> str:
 
 def resolve_drive(args, n_phases: int = 3) -> DriveSpec:
     """The drive of ``args.motor`` with ``--u-dc``/``--current-limit`` applied (when the command has them),
-    checked; a careless value is a one-line :class:`~pmsmjax.spec.validation.ParameterError`."""
+    checked; a careless value is a one-line [`ParameterError`][pmsmjax.spec.validation.ParameterError]."""
     return drive_spec(
         args.motor,
         n_phases=n_phases,

@@ -1,8 +1,8 @@
 """``--gains FILE`` for every command that builds a drive: the gains ``pmsmjax tune`` wrote (its
 ``gains.toml``: a ``[gains]`` table of ``"dotted.name" = value``, SI units) replace the design-rule gains.
 
-:func:`add_gains_flag` adds the flag; :func:`read_gains_flag` reads and checks the file before any work
-(pure Python); :func:`apply_gains_flag` sets the gains on a built drive, refusing names the drive does not
+`add_gains_flag` adds the flag; `read_gains_flag` reads and checks the file before any work
+(pure Python); `apply_gains_flag` sets the gains on a built drive, refusing names the drive does not
 have (gains tuned for another control) with the names it does have.
 """
 

@@ -1,5 +1,6 @@
-"""``pmsmjax identify``: motor parameters with error bars from a logged run (:mod:`tuning.identify`), and
-the identified motor as a drive file (:mod:`tuning.identify.motor_file`)."""
+"""``pmsmjax identify``: motor parameters with error bars from a logged run
+([`tuning.identify`][tuning.identify]), and the identified motor as a drive file
+([`tuning.identify.motor_file`][tuning.identify.motor_file])."""
 
 import sys
 

@@ -1,5 +1,5 @@
 """``pmsmjax montecarlo``: a Monte Carlo robustness study of the user's drive (a drive file or preset,
-``--motor``; :mod:`tuning.montecarlo`)."""
+``--motor``; [`tuning.montecarlo`][tuning.montecarlo])."""
 
 import argparse
 import os

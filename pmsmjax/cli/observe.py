@@ -1,5 +1,5 @@
 """``pmsmjax observe``: run a chapter 5 observer, or the rotating HF-injection estimator of chapter 6, offline
-on a recorded drive log (:mod:`pmsmjax.jobs.observe`).
+on a recorded drive log ([`pmsmjax.jobs.observe`][pmsmjax.jobs.observe]).
 
 ``hfi-rotating`` reads the carrier from the log's voltages (``carrier="measured"``: the log's drive
 injected it, this run does not), and its angle is the d axis modulo pi: ``estimate.csv`` gives it in
@@ -104,8 +104,8 @@ def _number_or_text(value: str):
 
 
 def run(args) -> int:
-    """Run the chosen observer offline on the log (:mod:`pmsmjax.jobs.observe`); writes estimate.csv,
-    observe.json and observe.png to ``--out``. Returns the exit status."""
+    """Run the chosen observer offline on the log ([`pmsmjax.jobs.observe`][pmsmjax.jobs.observe]); writes
+    estimate.csv, observe.json and observe.png to ``--out``. Returns the exit status."""
     from pmsmjax.io.drive_files import drive_spec
 
     drive = drive_spec(args.motor)  # checked before JAX starts
@@ -164,7 +164,7 @@ def run(args) -> int:
 
 def _write(result, out, figure_title: str | None) -> list[str]:
     """Write estimate.csv, observe.json and (with a `figure_title`) observe.png of a
-    :class:`~pmsmjax.jobs.observe.ObserveResult` into the folder `out`; returns the names written."""
+    [`ObserveResult`][pmsmjax.jobs.observe.ObserveResult] into the folder `out`; returns the names written."""
     from pmsmjax.io.logs import atomic_write, write_csv_atomic
 
     out.mkdir(parents=True, exist_ok=True)

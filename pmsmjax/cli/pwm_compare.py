@@ -1,8 +1,8 @@
 """``pmsmjax pwm-compare``: the PWM methods of a three-, six- or five-phase drive (``--motor``: the book
 drive by default, or a drive file: its motor, DC link, switching frequency and dead time) compared at one
-steady operating point. The comparison itself is :mod:`pmsmjax.jobs.pwm_compare`: this module parses the
-flags into its :class:`~pmsmjax.jobs.pwm_compare.PwmCompareSpec` and writes its
-:class:`~pmsmjax.jobs.pwm_compare.PwmCompareResult`."""
+steady operating point. The comparison itself is [`pmsmjax.jobs.pwm_compare`][pmsmjax.jobs.pwm_compare]: this
+module parses the flags into its [`PwmCompareSpec`][pmsmjax.jobs.pwm_compare.PwmCompareSpec] and writes its
+[`PwmCompareResult`][pmsmjax.jobs.pwm_compare.PwmCompareResult]."""
 
 import json
 
@@ -99,7 +99,7 @@ def add_parser(sub):
 
 def precheck(args):
     """Checks that need no model (before JAX starts); returns the drive
-    (:class:`~pmsmjax.spec.drive_spec.DriveSpec`), the flags left unset filled from it."""
+    ([`DriveSpec`][pmsmjax.spec.drive_spec.DriveSpec]), the flags left unset filled from it."""
     checks.output_folder(args.out)
     read_gains_flag(args.gains)
     names = {3: MODULATOR_NAMES, 5: FIVE_PHASE_MODULATOR_NAMES, 6: SIX_PHASE_MODULATOR_NAMES}[args.phases]

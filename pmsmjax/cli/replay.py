@@ -1,4 +1,5 @@
-"""``pmsmjax replay``: run the machine under a recorded voltage sequence (:mod:`pmsmjax.jobs.replay`)."""
+"""``pmsmjax replay``: run the machine under a recorded voltage sequence
+([`pmsmjax.jobs.replay`][pmsmjax.jobs.replay])."""
 
 from pathlib import Path
 
@@ -44,8 +45,8 @@ def add_parser(sub):
 
 
 def run(args) -> int:
-    """Run the machine under the log's recorded voltages (:mod:`pmsmjax.jobs.replay`); writes the simulated
-    dq currents, speed and angle (replay.csv) to ``--out``. Returns the exit status."""
+    """Run the machine under the log's recorded voltages ([`pmsmjax.jobs.replay`][pmsmjax.jobs.replay]);
+    writes the simulated dq currents, speed and angle (replay.csv) to ``--out``. Returns the exit status."""
     checks.existing_file(args.log, "log", "log file")
     checks.output_folder(args.out)
     from pmsmjax.io.drive_files import drive_spec
@@ -70,8 +71,8 @@ def run(args) -> int:
 
 
 def _write(result, out) -> Path:
-    """Write ``out/replay.csv`` (atomically) from a :class:`~pmsmjax.jobs.replay.ReplayResult`; returns its
-    path."""
+    """Write ``out/replay.csv`` (atomically) from a [`ReplayResult`][pmsmjax.jobs.replay.ReplayResult];
+    returns its path."""
     from pmsmjax.io.logs import write_csv_atomic
 
     out = Path(out)

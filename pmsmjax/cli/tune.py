@@ -1,5 +1,6 @@
 """``pmsmjax tune``: gradient auto-tuning of a control method's or an observer's gains on the book drive or
-the user's drive file (:mod:`tuning.autotune.job`), optionally robust to the file's tolerances.
+the user's drive file ([`tuning.autotune.job`][tuning.autotune.job]), optionally robust to the file's
+tolerances.
 
 Ctrl-C saves the checkpoint of the last finished iteration and ends with one line saying where, exit 130;
 the same command resumes from it.
@@ -131,7 +132,8 @@ MACHINE_PHASES = {None: 3, "three-phase": 3, "six-phase": 6, "five-phase": 5}
 
 
 def precheck(args):
-    """Checks that need no model (before JAX starts); returns the drive (:class:`DriveSpec`)."""
+    """Checks that need no model (before JAX starts); returns the drive
+    ([`DriveSpec`][pmsmjax.io.drive_files.DriveSpec])."""
     from pmsmjax.cli.gains import read_gains_flag
     from pmsmjax.io.drive_files import drive_spec
 

@@ -4,8 +4,8 @@ hysteresis current control; switching-table and sliding-mode direct torque contr
 five-phase cascade (VSD, double dq, PR current loops).
 
 The re-exported names are imported on first use (PEP 562), so that the plain-NumPy modules here (the
-flux map's MTPA and MTPV tables, :mod:`.flux_map_loci`) read without loading JAX: the drive file's checks
-before a run build an MTPA table.
+flux map's MTPA and MTPV tables, [`flux_map_loci`][pmsmjax.controllers.flux_map_loci]) read without loading
+JAX: the drive file's checks before a run build an MTPA table.
 """
 
 from pmsmjax._lazy import by_module, lazy_exports

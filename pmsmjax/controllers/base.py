@@ -1,20 +1,20 @@
-"""Controller interfaces: the third block of the drive's sampled-data step (:mod:`pmsmjax.drive`).
+"""Controller interfaces: the third block of the drive's sampled-data step ([`pmsmjax.drive`][pmsmjax.drive]).
 
-A drive's controller (:class:`AbstractController`) reads only the :class:`~pmsmjax.signals.Sample`, the
-estimator's :class:`~pmsmjax.signals.Estimate` and the references, and returns a
-:class:`~pmsmjax.signals.ControlOutput`. Whether that output is a stator-frame voltage (to the modulator)
-or leg switch states (to the bridge directly) is the class constant ``command_kind``, so the drive step
-has no runtime branch.
+A drive's controller ([`AbstractController`][pmsmjax.controllers.base.AbstractController]) reads only the
+[`Sample`][pmsmjax.signals.Sample], the estimator's [`Estimate`][pmsmjax.signals.Estimate] and the references,
+and returns a [`ControlOutput`][pmsmjax.signals.ControlOutput]. Whether that output is a stator-frame voltage
+(to the modulator) or leg switch states (to the bridge directly) is the class constant ``command_kind``, so
+the drive step has no runtime branch.
 
 The cascaded controllers are built from smaller blocks with their own small state, so a method of the
 book is one block swapped into the same cascade:
 
-- :class:`AbstractSpeedController`: speed error -> torque-producing current ``i_q*`` (PI with active
-  damping, sliding mode);
-- :class:`AbstractCurrentController`: dq current reference -> stator-frame voltage (dq PI with
-  decoupling, proportional-resonant in alpha-beta);
-- :class:`AbstractDAxisReference`: the d-axis current reference (from the scenario, MTPA, field
-  weakening).
+- [`AbstractSpeedController`][pmsmjax.controllers.base.AbstractSpeedController]: speed error ->
+  torque-producing current ``i_q*`` (PI with active damping, sliding mode);
+- [`AbstractCurrentController`][pmsmjax.controllers.base.AbstractCurrentController]: dq current reference ->
+  stator-frame voltage (dq PI with decoupling, proportional-resonant in alpha-beta);
+- [`AbstractDAxisReference`][pmsmjax.controllers.base.AbstractDAxisReference]: the d-axis current reference
+  (from the scenario, MTPA, field weakening).
 """
 
 import abc
@@ -33,8 +33,9 @@ class AbstractController(eqx.Module):
     ``step(state, sample, estimate, refs, Ts, u_max, delayed)``: `Ts` the control period, s (static);
     `u_max` the modulator's linear voltage limit, V; `delayed` (static) whether the command is applied
     one period after it is computed. ``current_limit`` (A, peak phase current) is read by the metrics and
-    objectives that judge a run. ``speed``: the speed loop (:class:`AbstractSpeedController`, in charge
-    in speed mode), whose state the controller's state holds as its ``speed`` field.
+    objectives that judge a run. ``speed``: the speed loop
+    ([`AbstractSpeedController`][pmsmjax.controllers.base.AbstractSpeedController], in charge in speed mode),
+    whose state the controller's state holds as its ``speed`` field.
     """
 
     command_kind: ClassVar[CommandKind] = "voltage"
@@ -46,7 +47,8 @@ class AbstractController(eqx.Module):
         """The controller's state before the first period (integrators and memories at zero).
 
         `dtype`: the floating dtype of the state's arrays (the drive's, float32 or float64). Returns a
-        pytree (the concrete controller's own state type) that :meth:`step` takes and returns.
+        pytree (the concrete controller's own state type) that
+        [`step`][pmsmjax.controllers.base.AbstractController.step] takes and returns.
         """
 
     @abc.abstractmethod
@@ -55,12 +57,12 @@ class AbstractController(eqx.Module):
     ) -> tuple[object, ControlOutput]:
         """One control period: the command to apply from the measurements and the estimate.
 
-        `state`: as returned by :meth:`init` or the last step; `sample`: the period-start measurements;
-        `estimate`: the estimator's angle (rad) and speed (rad/s) for this period; `refs`: speed
-        (mechanical rad/s) and current (A) references; `Ts`: control period, s (static); `u_max`: the
-        modulator's linear voltage limit, V; `delayed` (static): the command is applied one period after
-        it is computed (a computational delay). Returns the new state and the
-        :class:`~pmsmjax.signals.ControlOutput` (a ``(2,)`` V stator-frame voltage or ``(n,)`` switch
+        `state`: as returned by [`init`][pmsmjax.controllers.base.AbstractController.init] or the last step;
+        `sample`: the period-start measurements; `estimate`: the estimator's angle (rad) and speed (rad/s) for
+        this period; `refs`: speed (mechanical rad/s) and current (A) references; `Ts`: control period, s
+        (static); `u_max`: the modulator's linear voltage limit, V; `delayed` (static): the command is applied
+        one period after it is computed (a computational delay). Returns the new state and the
+        [`ControlOutput`][pmsmjax.signals.ControlOutput] (a ``(2,)`` V stator-frame voltage or ``(n,)`` switch
         states by ``command_kind``, with the dq voltage command and current reference).
         """
 
@@ -116,9 +118,10 @@ class AbstractCurrentController(eqx.Module):
     """Current loop: ``step(state, i_dq_ref, i_ab, theta_e, omega_e, ctx) -> (state, u_ab, u_dq)``.
 
     `i_dq_ref (2,)` A; `i_ab (2,)` measured stationary-frame currents, A; `theta_e` the estimated angle,
-    rad; `omega_e` the estimated electrical speed, rad/s; `ctx` a :class:`CurrentLoopContext`. Returns the
-    stator-frame voltage command ``u_ab (2,)`` V (with the angle lead that the PWM hold and the delay need)
-    and the same command in the estimated rotor frame ``u_dq (2,)`` V.
+    rad; `omega_e` the estimated electrical speed, rad/s; `ctx` a
+    [`CurrentLoopContext`][pmsmjax.controllers.base.CurrentLoopContext]. Returns the stator-frame voltage
+    command ``u_ab (2,)`` V (with the angle lead that the PWM hold and the delay need) and the same command in
+    the estimated rotor frame ``u_dq (2,)`` V.
     """
 
     @abc.abstractmethod
@@ -131,9 +134,9 @@ class AbstractCurrentController(eqx.Module):
 
         `i_dq_ref`: ``(2,)`` dq current reference, A; `i_ab`: ``(2,)`` measured stationary-frame currents,
         A; `theta_e`: estimated electrical angle, rad; `omega_e`: estimated electrical speed, rad/s; `ctx`:
-        the cascade's :class:`CurrentLoopContext`. Returns ``(state, u_ab (2,) V, u_dq (2,) V)``: the
-        stationary-frame command (with the angle lead of the PWM hold and delay) and the same command in
-        the estimated rotor frame, within ``ctx.u_max``.
+        the cascade's [`CurrentLoopContext`][pmsmjax.controllers.base.CurrentLoopContext]. Returns
+        ``(state, u_ab (2,) V, u_dq (2,) V)``: the stationary-frame command (with the angle lead of the PWM
+        hold and delay) and the same command in the estimated rotor frame, within ``ctx.u_max``.
         """
 
 
@@ -142,9 +145,9 @@ class AbstractDAxisReference(eqx.Module):
 
     ``step(state, id_ref, iq_ref_prev, omega_e, ctx, current_limit) -> (state, id_ref)``:
     `id_ref` the scenario's reference, A; `iq_ref_prev` last period's ``i_q*``, A; `omega_e` electrical
-    speed, rad/s; `ctx` a :class:`CurrentLoopContext` (last voltage command, limit); `current_limit` A.
-    MTPA and field weakening use last period's ``i_q*``: one period of lag, far below the speed loop's
-    bandwidth.
+    speed, rad/s; `ctx` a [`CurrentLoopContext`][pmsmjax.controllers.base.CurrentLoopContext] (last voltage
+    command, limit); `current_limit` A. MTPA and field weakening use last period's ``i_q*``: one period of
+    lag, far below the speed loop's bandwidth.
     """
 
     @abc.abstractmethod
@@ -156,6 +159,7 @@ class AbstractDAxisReference(eqx.Module):
         """One period: the d-axis current reference.
 
         `id_ref`: the scenario's d-axis reference, A; `iq_ref_prev`: last period's ``i_q*``, A; `omega_e`:
-        estimated electrical speed, rad/s; `ctx`: the cascade's :class:`CurrentLoopContext`;
-        `current_limit`: peak phase-current limit, A. Returns the new state and ``i_d*`` (scalar, A).
+        estimated electrical speed, rad/s; `ctx`: the cascade's
+        [`CurrentLoopContext`][pmsmjax.controllers.base.CurrentLoopContext]; `current_limit`: peak
+        phase-current limit, A. Returns the new state and ``i_d*`` (scalar, A).
         """

@@ -1,10 +1,11 @@
 """Dead-time compensation: the controller adds the inverter's predicted voltage error back to its command.
 
 Drive firmware knows its inverter's dead time ``t_d`` and, roughly, its device drop ``V_f``; the legs'
-period-average error is ``-(U_dc t_d / Ts + V_f) sgn(i_x)`` (:mod:`pmsmjax.inverters.voltage_error`),
-so adding ``+(U_dc t_d / Ts + V_f) sgn(i_x)`` to each leg's command cancels it on average (the
-feed-forward of Murai et al., IEEE Trans. Ind. Appl. 23(5), 1987, doi:10.1109/TIA.1987.4505004; Choi and
-Sul, IEEE Trans. Power Electron. 11(2), 1996, doi:10.1109/63.486173).
+period-average error is ``-(U_dc t_d / Ts + V_f) sgn(i_x)``
+([`pmsmjax.inverters.voltage_error`][pmsmjax.inverters.voltage_error]), so adding
+``+(U_dc t_d / Ts + V_f) sgn(i_x)`` to each leg's command cancels it on average (the feed-forward of Murai et
+al., IEEE Trans. Ind. Appl. 23(5), 1987, doi:10.1109/TIA.1987.4505004; Choi and Sul, IEEE Trans. Power
+Electron. 11(2), 1996, doi:10.1109/63.486173).
 
 The sign is that of the phase current while the command is applied: the period after the sample with a
 computational delay, the sampled one without. It is predicted from the dq current (the loop's reference,
@@ -34,7 +35,7 @@ class DeadTimeCompensation(eqx.Module):
 
     **Arguments:**
 
-    - `estimate`: the controller's :class:`~pmsmjax.inverters.voltage_error.VoltageError` (its ``t_d``
+    - `estimate`: the controller's [`VoltageError`][pmsmjax.inverters.voltage_error.VoltageError] (its ``t_d``
       s, ``V_f`` V and sign smoothing ``i_eps`` A).
     - `current_source` (static): ``"reference"`` (default) or ``"measured"``, the dq current whose
       phase signs are predicted.

@@ -38,7 +38,8 @@ def speed_loop_active_damping(
 ) -> SpeedLoopGains:
     """Speed PI with active damping for closed-loop bandwidth ``beta`` (rad/s).
 
-    `anti_windup`: see :class:`SpeedLoopGains` (it acts only while the output is limited).
+    `anti_windup`: see [`SpeedLoopGains`][pmsmjax.controllers.speed_pi.SpeedLoopGains] (it acts only while the
+    output is limited).
     """
     check_positive("speed-loop bandwidth beta", bandwidth_rad_s, "rad/s")
     beta = jnp.asarray(bandwidth_rad_s, motor.R.dtype)

@@ -5,16 +5,17 @@ direct torque control in permanent magnet synchronous motor drives", IEEE Trans.
 528-536, 1997).
 
 Per comparator sample (the drive's period ``Ts``, typically 20-50 us; no modulator), on the estimator's
-stator flux ``psi_ab`` and torque ``T`` (:class:`pmsmjax.estimators.StatorFluxObserver`):
+stator flux ``psi_ab`` and torque ``T``
+([`pmsmjax.estimators.StatorFluxObserver`][pmsmjax.estimators.flux_observer.StatorFluxObserver]):
 
-1. the speed loop (:class:`~pmsmjax.controllers.base.AbstractSpeedController`, the PI with active damping
-   by default) every ``speed_divider`` samples. Its output is a q-axis current (A) in the FOC cascade; here
-   it is scaled by the controller model's torque constant ``K_t = 1.5 p_n psi_f`` into the torque
-   reference ``T* = K_t i_q*`` (N m), limited to the torque that keeps the current inside
-   ``current_limit`` at the flux reference (:func:`torque_current_limit`: 16.1 N m on the book drive).
-   With an ideal torque loop the mechanics see the same ``K_t i_q*`` as under FOC, so the same design
-   rule gives the same speed loop.
-   ``mode="torque"``: ``T* = K_t i_q*`` with the scenario's ``i_q*``.
+1. the speed loop ([`AbstractSpeedController`][pmsmjax.controllers.base.AbstractSpeedController], the PI with
+   active damping by default) every ``speed_divider`` samples. Its output is a q-axis current (A) in the FOC
+   cascade; here it is scaled by the controller model's torque constant ``K_t = 1.5 p_n psi_f`` into the
+   torque reference ``T* = K_t i_q*`` (N m), limited to the torque that keeps the current inside
+   ``current_limit`` at the flux reference
+   ([`torque_current_limit`][pmsmjax.controllers.dtc.torque_current_limit]: 16.1 N m on the book drive). With
+   an ideal torque loop the mechanics see the same ``K_t i_q*`` as under FOC, so the same design rule gives
+   the same speed loop. ``mode="torque"``: ``T* = K_t i_q*`` with the scenario's ``i_q*``.
 2. the flux comparator, two-level with full band ``h_psi`` (Wb) on ``e_psi = psi* - |psi|``::
 
        phi = 1 (raise the flux)  if e_psi >  h_psi/2
@@ -37,8 +38,9 @@ stator flux ``psi_ab`` and torque ``T`` (:class:`pmsmjax.estimators.StatorFluxOb
      active vectors only (Zhong et al.), no zero vectors, faster and noisier.
 
 4. the flux sector ``k`` (1..6) of ``psi_ab``: sector 1 from -30 to 30 deg, sector k centred on
-   ``(k - 1) 60 deg``; and the switching table (:data:`SWITCHING_TABLE`), with the basic vectors ``V1``
-   (100) at 0 deg, ``V2`` (110) at 60 deg, ... ``V6`` (101) at 300 deg, ``V0`` (000) and ``V7`` (111)::
+   ``(k - 1) 60 deg``; and the switching table ([`SWITCHING_TABLE`][pmsmjax.controllers.dtc.SWITCHING_TABLE]),
+   with the basic vectors ``V1`` (100) at 0 deg, ``V2`` (110) at 60 deg, ... ``V6`` (101) at 300 deg, ``V0``
+   (000) and ``V7`` (111)::
 
         phi  tau   sector k = 1    2    3    4    5    6
          1   +1              V2   V3   V4   V5   V6   V1     V(k+1)
@@ -72,8 +74,9 @@ has no current reference).
 
 Gradients: the comparators, sector and table are piecewise constant, so the derivative of a run with
 respect to the bands is zero almost everywhere, and no smooth surrogate is offered here; tune DTC with
-:class:`~pmsmjax.controllers.smc_dtc.SlidingModeDTC`, whose switching function has one, and set the
-bands of this one by search (:func:`pmsmjax.jobs.equal_switching.match_switching_frequency`).
+[`SlidingModeDTC`][pmsmjax.controllers.smc_dtc.SlidingModeDTC], whose switching function has one, and set the
+bands of this one by search
+([`pmsmjax.jobs.equal_switching.match_switching_frequency`][pmsmjax.jobs.equal_switching.match_switching_frequency]).
 """
 
 from typing import ClassVar, Literal
@@ -179,7 +182,7 @@ class SwitchingTableDTC(AbstractController):
     - `torque_band_nm`: full torque band ``h_T``, N m.
     - `flux_band_wb`: full flux band ``h_psi``, Wb.
     - `current_limit`: peak phase-current limit, A: the torque reference is limited to what it allows at
-      the flux reference (:func:`torque_current_limit`).
+      the flux reference ([`torque_current_limit`][pmsmjax.controllers.dtc.torque_current_limit]).
     - `speed`: the speed block (its output a current, A); ``None`` takes the PI with active damping at
       `speed_bandwidth` rad/s.
     - `flux_ref_wb`: stator flux reference ``psi*``, Wb; ``None`` takes ``model.psi_f``.
@@ -187,7 +190,8 @@ class SwitchingTableDTC(AbstractController):
     - `mode`: ``"speed"`` (cascade) or ``"torque"`` (``T* = K_t i_q*`` of the scenario) (static).
     - `speed_divider`: the speed loop runs every this many samples (static).
 
-    The drive's estimator must estimate the flux and torque (:class:`~pmsmjax.estimators.StatorFluxObserver`).
+    The drive's estimator must estimate the flux and torque
+    ([`StatorFluxObserver`][pmsmjax.estimators.flux_observer.StatorFluxObserver]).
     """
 
     command_kind: ClassVar[CommandKind] = "switches"
@@ -318,7 +322,8 @@ def torque_current_limit(model: PMSMParameters, flux_ref_wb: Array, current_limi
 def speed_torque_reference(controller, state, estimate: Estimate, refs: References, Ts):
     """``(T* N m, speed state, counter)``: the speed block's current scaled by ``K_t``, every
     ``speed_divider`` samples (held in between), or ``K_t i_q*`` of the scenario in torque mode; limited
-    to ``K_t`` times :func:`torque_current_limit`, the current circle at the flux reference."""
+    to ``K_t`` times [`torque_current_limit`][pmsmjax.controllers.dtc.torque_current_limit], the current
+    circle at the flux reference."""
     k_t = controller.model.torque_constant
     i_max = torque_current_limit(controller.model, controller.flux_ref_wb, controller.current_limit)
     speed_state, counter = state.speed, state.counter

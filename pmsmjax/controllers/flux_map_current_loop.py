@@ -3,8 +3,9 @@ decoupling feed-forward from the map's flux (Harnefors and Nee, "Model-based cur
 machines using the internal model control method", IEEE Trans. Ind. Appl. 34(1), 1998,
 doi:10.1109/28.658735, with the model's inductance made current-dependent).
 
-The machine (:mod:`pmsmjax.machines.pmsm_flux_map`) is ``dpsi/dt = u - R i - w_e J psi(i)``,
-``psi(i)`` the map. With the feed-forward ``w_e J psi(i)`` and the voltage
+The machine ([`pmsmjax.machines.pmsm_flux_map`][pmsmjax.machines.pmsm_flux_map]) is
+``dpsi/dt = u - R i - w_e J psi(i)``, ``psi(i)`` the map. With the feed-forward ``w_e J psi(i)`` and the
+voltage
 
     ``u = w_e J psi(i) + a_c (psi(i*) - psi(i)) + a_c R int e``,   ``e = i* - i``
 
@@ -27,15 +28,16 @@ anti-windup parks the integral so far below that the current creeps up for tens 
 the preset saturated-ipm map: 10 A after 20 ms of a 25 A step); a current-error integral with the flux
 proportional leaves ``z`` excited and a tail with the slow pole ``R / L_inc``.
 
-The constant-inductance design of :func:`pmsmjax.controllers.design.current_loop_imc` built from the
+The constant-inductance design of
+[`pmsmjax.controllers.design.current_loop_imc`][pmsmjax.controllers.design.current_loop_imc] built from the
 zero-current inductance has ``L_0 / L_inc(i)`` times the gain where the machine saturates: faster than
 designed by at least that ratio, with a slow tail where its PI zero misses the plant pole
 (tests/controllers/test_flux_map_current_loop.py).
 
-The proportional part goes through :func:`~pmsmjax.controllers.pi.pi_update`'s feed-forward (it is a flux
-difference, not a gain times the error), so the anti-windup is the dq PI's: the integral is reset to
+The proportional part goes through [`pi_update`][pmsmjax.controllers.pi.pi_update]'s feed-forward (it is a
+flux difference, not a gain times the error), so the anti-windup is the dq PI's: the integral is reset to
 the voltage limit when the command is limited. Delay compensation predicts the current one period ahead
-with the map's own model (:mod:`pmsmjax.controllers.current_pi`).
+with the map's own model ([`pmsmjax.controllers.current_pi`][pmsmjax.controllers.current_pi]).
 """
 
 import equinox as eqx
@@ -57,12 +59,13 @@ __all__ = ["FluxMapCurrentLoop"]
 class FluxMapCurrentLoop(AbstractCurrentController):
     """dq current PI scheduled on the flux map (module docstring); state ``(2,)`` integral, V.
 
-    The gains are those of :class:`~pmsmjax.controllers.current_pi.CurrentLoopGains` (same names, so
-    tuning and gains files treat both alike), stated at the design inductances `L_design`: the
+    The gains are those of [`CurrentLoopGains`][pmsmjax.controllers.current_pi.CurrentLoopGains] (same names,
+    so tuning and gains files treat both alike), stated at the design inductances `L_design`: the
     proportional action is ``diag(kp / L_design) (psi(i*) - psi(i))``, which is ``a_c (psi(i*) - psi(i))``
-    for the internal-model gains ``kp = a_c L_design`` (:meth:`imc`).
+    for the internal-model gains ``kp = a_c L_design``
+    ([`imc`][pmsmjax.controllers.flux_map_current_loop.FluxMapCurrentLoop.imc]).
 
-    - `flux_map`: the controller's :class:`~pmsmjax.machines.pmsm_flux_map.FluxMap` (may differ from the
+    - `flux_map`: the controller's [`FluxMap`][pmsmjax.machines.pmsm_flux_map.FluxMap] (may differ from the
       plant's);
     - `kp_d`, `kp_q`: proportional gains at `L_design`, V/A; `ki_d`, `ki_q`: integral gains, V/(A s);
     - `L_design`: ``(2,)`` the inductances ``[L_d, L_q]`` the proportional gains refer to, H.
@@ -78,8 +81,9 @@ class FluxMapCurrentLoop(AbstractCurrentController):
     @classmethod
     def imc(cls, flux_map: FluxMap, model: PMSMParameters, bandwidth_rad_s) -> "FluxMapCurrentLoop":
         """Internal-model gains for the closed-loop bandwidth ``a_c`` (rad/s), stated at the linear
-        ``model``'s ``L_d``, ``L_q`` (so ``kp``, ``ki`` equal :func:`~pmsmjax.controllers.design.
-        current_loop_imc`'s on that model) with its resistance ``R``."""
+        ``model``'s ``L_d``, ``L_q`` (so ``kp``, ``ki`` equal
+        [`current_loop_imc`][pmsmjax.controllers.design.current_loop_imc]'s on that model) with its resistance
+        ``R``."""
         check_positive("current-loop bandwidth a_c", bandwidth_rad_s, "rad/s")
         a = jnp.asarray(bandwidth_rad_s, model.R.dtype)
         L = jnp.stack([model.L_d, model.L_q])

@@ -3,8 +3,9 @@ finder for MTPV; no JAX): the maximum-torque-per-ampere (MTPA) locus as a table 
 and generating.
 
 The torque is the map's, ``T = 1.5 p (psi_d(i) i_q - psi_q(i) i_d)`` (amplitude-invariant dq, peak values),
-with ``psi`` the map's bicubic Hermite interpolant (:mod:`pmsmjax.machines.flux_map`), so saturation and
-cross-saturation move the locus; on a linear map it is the closed form of :mod:`pmsmjax.controllers.mtpa`.
+with ``psi`` the map's bicubic Hermite interpolant ([`pmsmjax.machines.flux_map`][pmsmjax.machines.flux_map]),
+so saturation and cross-saturation move the locus; on a linear map it is the closed form of
+[`pmsmjax.controllers.mtpa`][pmsmjax.controllers.mtpa].
 
 **MTPA** (the book, ch. 3, for a linear machine; for a flux map e.g. Bianchi and Bolognani, "Parameters and
 volt-ampere ratings of a synchronous motor drive for flux-weakening applications", IEEE Trans. Power
@@ -19,7 +20,7 @@ a bounded Brent search inside the bracket (the torque at fixed ``I`` has one max
 interior-PM map; the scan guards against a flat start). The table is the union of both signs, sorted by
 ``i_q``; ``i_q`` rises with ``I`` on each branch (checked), so ``i_d`` is a function of ``i_q``. Every
 magnitude is searched at once: the scan is one evaluation of the map on all angles of all magnitudes, and
-the Brent search (SciPy's bounded one, written on arrays: :func:`_bounded_minimum`) one evaluation per
+the Brent search (SciPy's bounded one, written on arrays: `_bounded_minimum`) one evaluation per
 step on the magnitudes still searching, so a table is a few dozen NumPy calls (the drive file's checks
 build one before every run).
 """
@@ -42,9 +43,10 @@ _SCAN_ANGLES = 48
 
 
 class MapTorque:
-    """NumPy evaluation of a :class:`FluxMapGrid`'s interpolant (the plant's,
-    :func:`pmsmjax.machines.flux_map.flux_and_inductance`) and torque (the plant's,
-    :func:`pmsmjax.machines.dq_equations.torque`), at one point or at many in one call.
+    """NumPy evaluation of a [`FluxMapGrid`][pmsmjax.machines.flux_map.FluxMapGrid]'s interpolant (the
+    plant's, [`pmsmjax.machines.flux_map.flux_and_inductance`][pmsmjax.machines.flux_map.flux_and_inductance])
+    and torque (the plant's, [`pmsmjax.machines.dq_equations.torque`][pmsmjax.machines.dq_equations.torque]),
+    at one point or at many in one call.
 
     `grid`: the map; `pole_pairs`: ``p``.
     """
@@ -67,7 +69,7 @@ class MapTorque:
 
 
 def _cos_sin(angles) -> tuple[np.ndarray, np.ndarray]:
-    """``cos``, ``sin`` of ``angles`` by :mod:`math` (the platform's libm) element by element: NumPy's SIMD
+    """``cos``, ``sin`` of ``angles`` by `math` (the platform's libm) element by element: NumPy's SIMD
     sine and cosine may differ from it in the last bit on some builds, and the table's numbers are those
     of the scalar search it replaces."""
     flat = np.asarray(angles, dtype=float).ravel().tolist()
@@ -212,8 +214,8 @@ def mtpa_table(
     """The MTPA locus of ``grid`` up to the current magnitude ``max_current_a`` (A, peak), for both torque
     signs (module docstring), ``n_points`` magnitudes per branch.
 
-    Refuses (one :class:`ParameterError` naming the map) a map whose locus does not rise monotonically in
-    ``i_q`` or torque: such a map has no single-valued ``i_d(i_q)``.
+    Refuses (one [`ParameterError`][pmsmjax.spec.validation.ParameterError] naming the map) a map whose
+    locus does not rise monotonically in ``i_q`` or torque: such a map has no single-valued ``i_d(i_q)``.
     """
     if not max_current_a > 0:
         raise ParameterError(

@@ -1,13 +1,15 @@
 """d-axis references of a saturated machine from its flux map: the MTPA and MTPV tables of
-:mod:`pmsmjax.controllers.flux_map_loci` (computed at load) interpolated in JAX, and field weakening on
-them.
+[`pmsmjax.controllers.flux_map_loci`][pmsmjax.controllers.flux_map_loci] (computed at load) interpolated in
+JAX, and field weakening on them.
 
-**Field weakening** (:class:`FluxMapFieldWeakening`): above base speed the voltage limit bounds the flux,
-``|psi| <~ u_max / w_e``. The voltage-feedback integrator of
-:mod:`pmsmjax.controllers.field_weakening` (Kim and Sul 1997) finds the d current that holds
-``|u_dq| = m u_max`` without a model of the voltage limit; on a flux map its base is the map's MTPA
-``i_d(i_q)`` and its floor the map's MTPV ``i_d(i_q)`` (no lower: beyond it the torque per flux falls) or
-the current circle, whichever is higher. The FOC's current circle then gives the q axis what is left.
+**Field weakening**
+([`FluxMapFieldWeakening`][pmsmjax.controllers.flux_map_references.FluxMapFieldWeakening]): above base speed
+the voltage limit bounds the flux, ``|psi| <~ u_max / w_e``. The voltage-feedback integrator of
+[`pmsmjax.controllers.field_weakening`][pmsmjax.controllers.field_weakening] (Kim and Sul 1997) finds the d
+current that holds ``|u_dq| = m u_max`` without a model of the voltage limit; on a flux map its base is the
+map's MTPA ``i_d(i_q)`` and its floor the map's MTPV ``i_d(i_q)`` (no lower: beyond it the torque per flux
+falls) or the current circle, whichever is higher. The FOC's current circle then gives the q axis what is
+left.
 
 **Interpolation.** The table's nodes ``(i_q_k, i_d_k)`` are not uniform in ``i_q`` (they are uniform in the
 current magnitude), so a node is found by ``searchsorted``; between nodes ``i_d(i_q)`` is the cubic Hermite
@@ -73,9 +75,10 @@ class TableCurve(eqx.Module):
 
 class FluxMapMTPA(AbstractDAxisReference):
     """d-axis reference on the flux map's MTPA locus, from last period's ``i_q*`` (like
-    :class:`~pmsmjax.controllers.mtpa.MTPA` on the linear model). Stateless.
+    [`MTPA`][pmsmjax.controllers.mtpa.MTPA] on the linear model). Stateless.
 
-    `locus`: :class:`TableCurve` ``i_d(i_q)``, A (build with :func:`flux_map_mtpa`).
+    `locus`: [`TableCurve`][pmsmjax.controllers.flux_map_references.TableCurve] ``i_d(i_q)``, A (build with
+    [`flux_map_mtpa`][pmsmjax.controllers.flux_map_references.flux_map_mtpa]).
     """
 
     locus: TableCurve
@@ -88,12 +91,13 @@ class FluxMapMTPA(AbstractDAxisReference):
 
 
 def mtpa_curve(table: MTPATable) -> TableCurve:
-    """The table's ``i_d(i_q)`` as a :class:`TableCurve`."""
+    """The table's ``i_d(i_q)`` as a [`TableCurve`][pmsmjax.controllers.flux_map_references.TableCurve]."""
     return TableCurve.pchip(table.i_q, table.i_d)
 
 
 def flux_map_mtpa(grid: FluxMapGrid, pole_pairs: int, max_current_a: float) -> FluxMapMTPA:
-    """:class:`FluxMapMTPA` of ``grid`` up to ``max_current_a`` (A) (:func:`flux_map_loci.mtpa_table`)."""
+    """[`FluxMapMTPA`][pmsmjax.controllers.flux_map_references.FluxMapMTPA] of ``grid`` up to
+    ``max_current_a`` (A) ([`flux_map_loci.mtpa_table`][pmsmjax.controllers.flux_map_loci.mtpa_table])."""
     return FluxMapMTPA(mtpa_curve(mtpa_table(grid, pole_pairs, max_current_a)))
 
 
@@ -101,7 +105,9 @@ class FluxMapFieldWeakening(AbstractDAxisReference):
     """Voltage-feedback field weakening on the flux map's MTPA (base) and MTPV (floor) loci (module
     docstring). State: ``delta_i_d``, A (<= 0).
 
-    - `mtpa`, `mtpv`: :class:`TableCurve` ``i_d(i_q)``, A (build with :func:`flux_map_field_weakening`);
+    - `mtpa`, `mtpv`: [`TableCurve`][pmsmjax.controllers.flux_map_references.TableCurve] ``i_d(i_q)``, A
+      (build with
+      [`flux_map_field_weakening`][pmsmjax.controllers.flux_map_references.flux_map_field_weakening]);
     - `bandwidth`: the voltage loop's bandwidth, rad/s;
     - `voltage_margin`: the fraction of ``u_max`` held, in (0, 1].
     """
@@ -125,8 +131,9 @@ class FluxMapFieldWeakening(AbstractDAxisReference):
 def flux_map_field_weakening(
     grid: FluxMapGrid, pole_pairs: int, max_current_a: float, bandwidth: float, voltage_margin: float = 0.95
 ) -> FluxMapFieldWeakening:
-    """:class:`FluxMapFieldWeakening` of ``grid`` up to ``max_current_a`` (A): MTPA and MTPV tables at
-    load; `bandwidth` rad/s, `voltage_margin` of ``u_max``."""
+    """[`FluxMapFieldWeakening`][pmsmjax.controllers.flux_map_references.FluxMapFieldWeakening] of ``grid`` up
+    to ``max_current_a`` (A): MTPA and MTPV tables at load; `bandwidth` rad/s, `voltage_margin` of
+    ``u_max``."""
     mtpa = mtpa_table(grid, pole_pairs, max_current_a)
     away = mtpa.i_q != 0.0  # MTPV is undefined without torque
     mtpv = mtpv_table(grid, pole_pairs, mtpa.i_q[away], mtpa.i_d[away])

@@ -3,17 +3,17 @@
 Sampled-data, once per control period ``Ts``, on the estimator's angle and speed:
 
 1. the d-axis reference: the scenario's ``i_d*`` (i_d = 0 control by default), or a
-   :class:`~pmsmjax.controllers.base.AbstractDAxisReference` block (MTPA, field weakening) working from
-   last period's ``i_q*`` and voltage;
-2. the speed loop (:class:`~pmsmjax.controllers.base.AbstractSpeedController`: the PI with active damping
-   of :mod:`.speed_pi` by default, or sliding mode), every ``speed_divider`` periods with period
-   ``speed_divider * Ts``, its output limited so that ``|i_dq*|`` stays inside ``current_limit``; in
-   ``mode="current"`` the scenario's ``i_q*`` instead;
-3. the current loop (:class:`~pmsmjax.controllers.base.AbstractCurrentController`: the dq PIs with
-   decoupling and delay compensation of :mod:`.current_pi` by default, or proportional-resonant in
-   alpha-beta), limited to the modulator's linear range;
-4. optionally, dead-time compensation (:mod:`.dead_time_compensation`, not in the book): the inverter's
-   predicted voltage error added back to the command.
+   [`AbstractDAxisReference`][pmsmjax.controllers.base.AbstractDAxisReference] block (MTPA, field weakening)
+   working from last period's ``i_q*`` and voltage;
+2. the speed loop ([`AbstractSpeedController`][pmsmjax.controllers.base.AbstractSpeedController]: the PI with
+   active damping of [`speed_pi`][pmsmjax.controllers.speed_pi] by default, or sliding mode), every
+   ``speed_divider`` periods with period ``speed_divider * Ts``, its output limited so that ``|i_dq*|`` stays
+   inside ``current_limit``; in ``mode="current"`` the scenario's ``i_q*`` instead;
+3. the current loop ([`AbstractCurrentController`][pmsmjax.controllers.base.AbstractCurrentController]: the dq
+   PIs with decoupling and delay compensation of [`current_pi`][pmsmjax.controllers.current_pi] by default, or
+   proportional-resonant in alpha-beta), limited to the modulator's linear range;
+4. optionally, dead-time compensation ([`dead_time_compensation`][pmsmjax.controllers.dead_time_compensation],
+   not in the book): the inverter's predicted voltage error added back to the command.
 """
 
 from typing import Literal
@@ -54,21 +54,22 @@ class FOC(AbstractController):
     **Arguments:**
 
     - `model`: the controller's motor model (decoupling, prediction, MTPA); may differ from the plant.
-    - `speed`: the speed block, e.g. :class:`SpeedLoopGains` (kp A/(rad/s), ki A/rad, active damping
-      A/(rad/s)) or a sliding-mode speed controller.
-    - `current`: the current block, e.g. :class:`CurrentLoopGains` (kp V/A, ki V/(A s) per axis) or a
-      proportional-resonant controller.
+    - `speed`: the speed block, e.g. [`SpeedLoopGains`][pmsmjax.controllers.speed_pi.SpeedLoopGains] (kp
+      A/(rad/s), ki A/rad, active damping A/(rad/s)) or a sliding-mode speed controller.
+    - `current`: the current block, e.g. [`CurrentLoopGains`][pmsmjax.controllers.current_pi.CurrentLoopGains]
+      (kp V/A, ki V/(A s) per axis) or a proportional-resonant controller.
     - `current_limit`: peak phase-current limit, A (|i_dq*| is kept inside this circle).
     - `d_axis`: a d-axis reference block (MTPA, field weakening); ``None`` takes the scenario's ``i_d*``.
     - `mode`: ``"speed"`` (cascade) or ``"current"`` (current references come from the scenario).
     - `speed_divider`: the speed loop runs every this many control periods.
     - `decoupling`: apply the dq decoupling feed-forward (dq PI current loop).
     - `delay_compensation`: with a computational delay, run the current loop on the current predicted
-      for the next sampling instant (see :mod:`.current_pi`).
-    - `dead_time_compensation`: a :class:`DeadTimeCompensation` with the controller's estimate of the
-      inverter's dead time and device drop, its voltage added to the current loop's command (which the
-      loop's own state, ``u_dq_prev``, does not include: it is the voltage the machine should see);
-      ``None`` (default, as in the book): none.
+      for the next sampling instant (see [`current_pi`][pmsmjax.controllers.current_pi]).
+    - `dead_time_compensation`: a
+      [`DeadTimeCompensation`][pmsmjax.controllers.dead_time_compensation.DeadTimeCompensation] with the
+      controller's estimate of the inverter's dead time and device drop, its voltage added to the current
+      loop's command (which the loop's own state, ``u_dq_prev``, does not include: it is the voltage the
+      machine should see); ``None`` (default, as in the book): none.
     """
 
     model: PMSMParameters
@@ -125,19 +126,20 @@ class FOC(AbstractController):
         return new_state, ControlOutput(u_ab, u_dq, i_dq_ref)
 
     def context(self, state: FOCState, Ts, u_max, delayed) -> CurrentLoopContext:
-        """The current loop's :class:`CurrentLoopContext` for this period."""
+        """The current loop's [`CurrentLoopContext`][pmsmjax.controllers.base.CurrentLoopContext] for this
+        period."""
         return CurrentLoopContext(
             self.model, Ts, u_max, delayed, state.u_dq_prev, self.decoupling, self.delay_compensation
         )
 
 
 def cascade_references(controller, state: FOCState, estimate: Estimate, refs: References, ctx):
-    """Steps 1-2 of the cascade (d-axis reference, speed loop) of ``controller`` (a :class:`FOC`, or a
-    controller with the same ``model``, ``speed``, ``d_axis``, ``current_limit``, ``mode`` and
-    ``speed_divider`` fields and a state with :class:`FOCState`'s ``speed``, ``d_axis``, ``iq_ref`` and
-    ``counter``, such as the multi-phase
-    :class:`pmsmjax.controllers.multiphase.MultiPhaseFOC` and
-    :class:`pmsmjax.controllers.hysteresis.HysteresisCurrentControl`).
+    """Steps 1-2 of the cascade (d-axis reference, speed loop) of ``controller`` (a
+    [`FOC`][pmsmjax.controllers.foc.FOC], or a controller with the same ``model``, ``speed``, ``d_axis``,
+    ``current_limit``, ``mode`` and ``speed_divider`` fields and a state with `FOCState`'s ``speed``,
+    ``d_axis``, ``iq_ref`` and ``counter``, such as the multi-phase
+    [`pmsmjax.controllers.multiphase.MultiPhaseFOC`][pmsmjax.controllers.multiphase.MultiPhaseFOC] and
+    [`pmsmjax.controllers.hysteresis.HysteresisCurrentControl`][pmsmjax.controllers.hysteresis.HysteresisCurrentControl]).
 
     During a sensorless start (``estimate.startup_weight`` set) the start-up current is blended in.
 

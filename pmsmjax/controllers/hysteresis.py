@@ -3,9 +3,9 @@
 Per comparator sample (the drive's period ``Ts``, typically 5-20 us), on the estimator's angle:
 
 1. the d-axis reference: the scenario's ``i_d*`` (i_d = 0 control) or an
-   :class:`~pmsmjax.controllers.base.AbstractDAxisReference` block;
-2. the speed loop (:class:`~pmsmjax.controllers.base.AbstractSpeedController`, the PI with active
-   damping by default) every ``speed_divider`` samples, with period ``speed_divider * Ts`` (10 with a
+   [`AbstractDAxisReference`][pmsmjax.controllers.base.AbstractDAxisReference] block;
+2. the speed loop ([`AbstractSpeedController`][pmsmjax.controllers.base.AbstractSpeedController], the PI with
+   active damping by default) every ``speed_divider`` samples, with period ``speed_divider * Ts`` (10 with a
    10 us sample gives the book's 10 kHz speed loop), its output limited to the current circle; in
    ``mode="current"`` the scenario's ``i_q*``;
 3. the reference phase currents ``i_abc* = dq_to_abc(i_dq*, theta_e_est)`` and, per phase ``x``, the
@@ -107,7 +107,8 @@ class HysteresisCurrentControl(AbstractController):
     - `band_a`: full hysteresis band ``h``, A (array leaf: tunable, vmappable).
     - `current_limit`: peak phase-current limit, A (``|i_dq*|`` is kept inside this circle).
     - `speed`: the speed block; ``None`` takes the PI with active damping of
-      :func:`~pmsmjax.controllers.design.speed_loop_active_damping` for ``model`` at `speed_bandwidth`.
+      [`speed_loop_active_damping`][pmsmjax.controllers.design.speed_loop_active_damping] for ``model`` at
+      `speed_bandwidth`.
     - `d_axis`: a d-axis reference block (MTPA, field weakening); ``None`` takes the scenario's ``i_d*``.
     - `mode`: ``"speed"`` (cascade) or ``"current"`` (``i_dq*`` from the scenario).
     - `speed_divider`: the speed loop runs every this many comparator samples (static).

@@ -1,61 +1,69 @@
 """Vector control of the multi-phase PMSM: the dual three-phase machine (the book, ch. 9) and the
 five-phase machine (ch. 10), the FOC cascade with an n-phase current loop.
 
-:class:`MultiPhaseFOC` is the cascade of :class:`~pmsmjax.controllers.foc.FOC` (the same d-axis reference
-and speed loop, :func:`~pmsmjax.controllers.foc.cascade_references`) whose current loop reads all six phase
-currents and commands the four-vector ``[u_alpha, u_beta, u_z1, u_z2]`` (V) that the six-phase modulators
-take (:mod:`pmsmjax.inverters.multiphase_svpwm`). Its current blocks
-(:class:`AbstractMultiPhaseCurrentController`):
+[`MultiPhaseFOC`][pmsmjax.controllers.multiphase.MultiPhaseFOC] is the cascade of
+[`FOC`][pmsmjax.controllers.foc.FOC] (the same d-axis reference and speed loop,
+[`cascade_references`][pmsmjax.controllers.foc.cascade_references]) whose current loop reads all six phase
+currents and commands the four-vector ``[u_alpha, u_beta, u_z1, u_z2]`` (V) that the six-phase modulators take
+([`pmsmjax.inverters.multiphase_svpwm`][pmsmjax.inverters.multiphase_svpwm]). Its current blocks
+([`AbstractMultiPhaseCurrentController`][pmsmjax.controllers.multiphase.AbstractMultiPhaseCurrentController]):
 
-- :class:`VSDCurrentControl`: the fundamental (alpha-beta -> dq) loop is any three-phase current block
-  (the dq PI of :mod:`.current_pi`, the PR of :mod:`.pr`) on the VSD alpha-beta currents, plus a z1-z2
-  block on the z1-z2 currents ``vsd(i_phase)[2:4]``. With ``z=None`` the z1-z2 voltage is zero: the
-  **conventional** scheme (z open loop; any unbalance or inverter non-ideality drives z1-z2 currents
-  limited only by ``R + j w L_ls``). With :class:`ZCurrentPI` it is the **VSD** scheme; with
-  :class:`ZProportionalResonant` (and the PR fundamental block) the **stationary-frame PR** scheme.
-- :class:`DoubleDQCurrentPI`: the **double dq** scheme: four PIs on ``[i_d1, i_q1, i_d2, i_q2]``
-  (each set's own Park, :func:`pmsmjax.frames.multiphase.double_dq`) with cross-coupling compensation.
+- [`VSDCurrentControl`][pmsmjax.controllers.multiphase.VSDCurrentControl]: the fundamental (alpha-beta -> dq)
+  loop is any three-phase current block (the dq PI of [`current_pi`][pmsmjax.controllers.current_pi], the PR
+  of [`pr`][pmsmjax.controllers.pr]) on the VSD alpha-beta currents, plus a z1-z2 block on the z1-z2 currents
+  ``vsd(i_phase)[2:4]``. With ``z=None`` the z1-z2 voltage is zero: the **conventional** scheme (z open loop;
+  any unbalance or inverter non-ideality drives z1-z2 currents limited only by ``R + j w L_ls``). With
+  [`ZCurrentPI`][pmsmjax.controllers.multiphase.ZCurrentPI] it is the **VSD** scheme; with
+  [`ZProportionalResonant`][pmsmjax.controllers.multiphase.ZProportionalResonant] (and the PR fundamental
+  block) the **stationary-frame PR** scheme.
+- [`DoubleDQCurrentPI`][pmsmjax.controllers.multiphase.DoubleDQCurrentPI]: the **double dq** scheme: four PIs
+  on ``[i_d1, i_q1, i_d2, i_q2]`` (each set's own Park,
+  [`pmsmjax.frames.multiphase.double_dq`][pmsmjax.frames.multiphase.double_dq]) with cross-coupling
+  compensation.
 
 **z1-z2 PI frame.** Unbalance between the two sets (unequal resistances, gains, dead times) puts a
 fundamental-frequency current in z1-z2 that rotates *backwards* (``conj(i_ab1 - i_ab2)/2``). In the frame
-rotating at ``-w_e`` (:func:`~pmsmjax.frames.multiphase.z_to_counter_rotating`) it is constant, so a PI
-there removes it with zero steady-state error (Che et al., "Current control methods for an asymmetrical
-six-phase induction motor drive", IEEE TPEL 29(1), 2014). Its plant in that frame is
+rotating at ``-w_e`` ([`z_to_counter_rotating`][pmsmjax.frames.multiphase.z_to_counter_rotating]) it is
+constant, so a PI there removes it with zero steady-state error (Che et al., "Current control methods for an
+asymmetrical six-phase induction motor drive", IEEE TPEL 29(1), 2014). Its plant in that frame is
 ``u' = R i' + L_ls di'/dt - j w_e L_ls i'``: internal-model gains ``Kp = a_z L_ls``, ``Ki = a_z R`` and
 the decoupling ``-j w_e L_ls i'``, the same structure as the dq loop.
 
 **Equivalence (book 9.5).** By the linear relation ``[dq, z'] = M [dq1, dq2]``
-(:data:`~pmsmjax.frames.multiphase.DOUBLE_DQ_TO_VSD`), the VSD scheme with dq gains ``(Kp_dq, Ki)`` and
-z' gains ``(Kp_z, Ki)`` *is* a double-dq controller whose set-k output is
+([`DOUBLE_DQ_TO_VSD`][pmsmjax.frames.multiphase.DOUBLE_DQ_TO_VSD]), the VSD scheme with dq gains
+``(Kp_dq, Ki)`` and z' gains ``(Kp_z, Ki)`` *is* a double-dq controller whose set-k output is
 ``((Kp_dq + Kp_z)/2) e_k + ((Kp_dq - Kp_z)/2) e_other + integral + decoupling``. With the internal-model
 gains the self gain is ``a_c (L_d + L_ls)/2 = a_c L_self`` (the set's own inductance: the double-dq loop's
 own design) and the cross gain ``a_c (L_d - L_ls)/2 = a_c M`` is the cross-coupling compensation: the
 mutual voltage ``M di_other/dt`` with the other loop's demand ``di_other/dt = a_c e_other``. The speed
-voltages ``w_e psi_k`` of each set, mutual flux included, are the decoupling. :func:`double_dq_design`
-builds that controller; tests/controllers/test_multiphase_control.py shows both give the same response (and
-that without the cross-coupling compensation they do not).
+voltages ``w_e psi_k`` of each set, mutual flux included, are the decoupling.
+[`double_dq_design`][pmsmjax.controllers.multiphase.double_dq_design] builds that controller;
+tests/controllers/test_multiphase_control.py shows both give the same response (and that without the
+cross-coupling compensation they do not).
 
 **Prediction and integral action in z1-z2.** With a computational delay the loops act on the current
-predicted one period ahead by the controller's model (delay compensation, as :mod:`.current_pi`). Any
-voltage the model lacks biases that prediction by ``Ts u_unmodelled / L``; through the small leakage
-``L_ls`` it is large (``Ts/L_ls = 0.76 A/V`` on the six-phase preset): with the integral on the predicted
-current, a PI holds the *predicted* current at zero and leaves the measured one off by that bias (on the
-preset with set UVW's resistance 1.5 times ABC's at 1000 r/min and 10 N m: 0.83 A of z1-z2 current left
-from the 1.97 A of open-loop z1-z2). So the z1-z2 PI integrates the *measured* current (its proportional
-path and decoupling use the prediction): zero steady-state error for any constant z1-z2 disturbance. The
-double-dq scheme integrates the same thing in its coordinates: the measured difference between the sets
-and the predicted mean (the dq loop of the VSD scheme, :class:`~.current_pi.CurrentLoopGains`, integrates
-its prediction, as for three phases).
+predicted one period ahead by the controller's model (delay compensation, as
+[`current_pi`][pmsmjax.controllers.current_pi]). Any voltage the model lacks biases that prediction by
+``Ts u_unmodelled / L``; through the small leakage ``L_ls`` it is large (``Ts/L_ls = 0.76 A/V`` on the
+six-phase preset): with the integral on the predicted current, a PI holds the *predicted* current at zero and
+leaves the measured one off by that bias (on the preset with set UVW's resistance 1.5 times ABC's at 1000
+r/min and 10 N m: 0.83 A of z1-z2 current left from the 1.97 A of open-loop z1-z2). So the z1-z2 PI integrates
+the *measured* current (its proportional path and decoupling use the prediction): zero steady-state error for
+any constant z1-z2 disturbance. The double-dq scheme integrates the same thing in its coordinates: the
+measured difference between the sets and the predicted mean (the dq loop of the VSD scheme,
+[`CurrentLoopGains`][pmsmjax.controllers.current_pi.CurrentLoopGains], integrates its prediction, as for three
+phases).
 
 **Five phases (the book, ch. 10).** The same cascade drives the five-phase machine: the VSD current block
-takes the winding ``layout`` (:data:`~pmsmjax.frames.multiphase.FIVE_PHASE`: the second plane is x-y), and
-the x-y PI's frame is a static choice, ``rotation``: the frame at ``rotation theta_e``. Six phases use
+takes the winding ``layout`` ([`FIVE_PHASE`][pmsmjax.frames.multiphase.FIVE_PHASE]: the second plane is x-y),
+and the x-y PI's frame is a static choice, ``rotation``: the frame at ``rotation theta_e``. Six phases use
 ``-1`` (the counter-rotating frame above); five phases ``+3``, the third-harmonic synchronous frame, in
 which the x-y disturbances of a five-phase drive are constant: a third-harmonic back-EMF
-(``psi_f3 e^{j 3 th}``, :mod:`pmsmjax.machines.pmsm_multiphase`) and the third harmonic of dead-time
-voltage errors (phase harmonic 3 maps into x-y). In the frame at ``r theta_e`` the plant is
-``u' = R i' + L_ls di'/dt + j r w_e L_ls i'``: the same internal-model gains, decoupling ``j r w_e L_ls i'``.
-:class:`MultiPhaseFOC` checks that the model's phase count is the current block's layout's.
+(``psi_f3 e^{j 3 th}``, [`pmsmjax.machines.pmsm_multiphase`][pmsmjax.machines.pmsm_multiphase]) and the third
+harmonic of dead-time voltage errors (phase harmonic 3 maps into x-y). In the frame at ``r theta_e`` the plant
+is ``u' = R i' + L_ls di'/dt + j r w_e L_ls i'``: the same internal-model gains, decoupling
+``j r w_e L_ls i'``. [`MultiPhaseFOC`][pmsmjax.controllers.multiphase.MultiPhaseFOC] checks that the model's
+phase count is the current block's layout's.
 
 Voltage limits: the dq (or each set's dq) command is limited to the modulator's linear limit ``u_max``;
 the z1-z2 command to ``z_limit_fraction u_max`` (it shares the DC link with the fundamental; small z1-z2
@@ -123,9 +131,9 @@ class AbstractZCurrentController(eqx.Module):
     """z1-z2 current loop (reference 0): ``step(state, i_z, theta_e, omega_e, ctx) -> (state, u_z)``.
 
     `i_z (2,)` A: measured stationary z1-z2 currents; `theta_e` rad, `omega_e` rad/s: the estimate; `ctx`:
-    the cascade's :class:`~pmsmjax.controllers.base.CurrentLoopContext` (``ctx.model`` a multi-phase
-    :class:`~pmsmjax.machines.multiphase_motor.MultiPhaseParameters`). Returns the stationary z1-z2
-    voltage command ``u_z (2,)`` V.
+    the cascade's [`CurrentLoopContext`][pmsmjax.controllers.base.CurrentLoopContext] (``ctx.model`` a
+    multi-phase [`MultiPhaseParameters`][pmsmjax.machines.multiphase_motor.MultiPhaseParameters]). Returns the
+    stationary z1-z2 voltage command ``u_z (2,)`` V.
     """
 
     @abc.abstractmethod
@@ -138,8 +146,8 @@ class AbstractZCurrentController(eqx.Module):
 
         `i_z`: ``(2,)`` measured stationary z1-z2 (five phases: x-y) currents, A; `theta_e`: estimated
         electrical angle, rad; `omega_e`: estimated electrical speed, rad/s; `ctx`: the cascade's
-        :class:`~pmsmjax.controllers.base.CurrentLoopContext`. Returns the new state and the stationary
-        command ``u_z (2,)`` V, within the block's fraction of ``ctx.u_max``.
+        [`CurrentLoopContext`][pmsmjax.controllers.base.CurrentLoopContext]. Returns the new state and the
+        stationary command ``u_z (2,)`` V, within the block's fraction of ``ctx.u_max``.
         """
 
 
@@ -150,8 +158,8 @@ class AbstractMultiPhaseCurrentController(eqx.Module):
     `i_dq_ref (2,)` A (the dq reference of the fundamental subspace; z1-z2 reference 0); `i_phase (n,)` A
     sampled phase currents; returns the stationary command ``[u_alpha, u_beta, u_z1, u_z2]`` V (with
     the angle lead that the PWM hold and the delay need) and its fundamental part in the rotor frame.
-    ``layout``: the winding the loop serves (:data:`~pmsmjax.frames.multiphase.SIX_PHASE`, ``FIVE_PHASE``),
-    whose phase count the cascade checks against its motor model's.
+    ``layout``: the winding the loop serves ([`SIX_PHASE`][pmsmjax.frames.multiphase.SIX_PHASE],
+    ``FIVE_PHASE``), whose phase count the cascade checks against its motor model's.
     """
 
     layout: eqx.AbstractVar[PhaseLayout]
@@ -167,18 +175,18 @@ class AbstractMultiPhaseCurrentController(eqx.Module):
         `i_dq_ref`: ``(2,)`` fundamental dq current reference, A (the other planes' reference is 0);
         `i_phase`: ``(n,)`` sampled phase currents, A; `theta_e`: estimated electrical angle, rad;
         `omega_e`: estimated electrical speed, rad/s; `ctx`: the cascade's
-        :class:`~pmsmjax.controllers.base.CurrentLoopContext`. Returns ``(state, u_vsd (4,) V, u_dq (2,)
-        V)``: the stationary command ``[u_alpha, u_beta, u_z1, u_z2]`` (with the angle lead of the PWM hold
-        and delay) and its fundamental part in the estimated rotor frame.
+        [`CurrentLoopContext`][pmsmjax.controllers.base.CurrentLoopContext]. Returns ``(state, u_vsd (4,) V,
+        u_dq (2,) V)``: the stationary command ``[u_alpha, u_beta, u_z1, u_z2]`` (with the angle lead of the
+        PWM hold and delay) and its fundamental part in the estimated rotor frame.
         """
 
 
 # --- the controller ---------------------------------------------------------------------------------
 class MultiPhaseFOC(AbstractController):
     """Cascaded FOC of the six- and five-phase machines (module docstring). The arguments are those of
-    :class:`~pmsmjax.controllers.foc.FOC`, with `current` a multi-phase current block and `model` the
-    :class:`~pmsmjax.machines.multiphase_motor.MultiPhaseParameters` of the block's phase count. Command:
-    ``(4,)`` [u_alpha, u_beta, u_z1, u_z2] (five phases: [u_alpha, u_beta, u_x, u_y]), V."""
+    [`FOC`][pmsmjax.controllers.foc.FOC], with `current` a multi-phase current block and `model` the
+    [`MultiPhaseParameters`][pmsmjax.machines.multiphase_motor.MultiPhaseParameters] of the block's phase
+    count. Command: ``(4,)`` [u_alpha, u_beta, u_z1, u_z2] (five phases: [u_alpha, u_beta, u_x, u_y]), V."""
 
     model: MultiPhaseParameters
     speed: AbstractSpeedController
@@ -267,7 +275,8 @@ class VSDCurrentControl(AbstractMultiPhaseCurrentController):
 
 class ZCurrentPI(AbstractZCurrentController):
     """z1-z2 PI in the frame rotating at ``-w_e`` (module docstring), with decoupling and, with a
-    computational delay, prediction of the current one period ahead (as :mod:`.current_pi`).
+    computational delay, prediction of the current one period ahead (as
+    [`current_pi`][pmsmjax.controllers.current_pi]).
 
     **Arguments:** `kp` V/A, `ki` V/(A s); `z_limit_fraction` (static): the command is limited to this
     fraction of the modulator's linear limit; `rotation` (static int, default -1): the PI's frame is at
@@ -334,8 +343,8 @@ class ZCurrentPI(AbstractZCurrentController):
 class ZProportionalResonant(AbstractZCurrentController):
     """z1-z2 proportional-resonant control in the stationary frame, resonant at ``w_e`` (a real-coefficient
     resonator acts on the backward-rotating unbalance as on a forward one): the z1-z2 counterpart of
-    :class:`~pmsmjax.controllers.pr.ProportionalResonant` (same discretisations, phase lead and
-    back-calculation anti-windup; no feed-forward: z1-z2 links no magnet flux).
+    [`ProportionalResonant`][pmsmjax.controllers.pr.ProportionalResonant] (same discretisations, phase lead
+    and back-calculation anti-windup; no feed-forward: z1-z2 links no magnet flux).
 
     **Arguments:** `kp` V/A, `kr` V/A, `w_c` rad/s; `discretisation`, `phase_lead` (static);
     `z_limit_fraction` (static). State ``(2, 2)`` resonator states, V.
@@ -387,7 +396,8 @@ def _double_dq_flux(m, i_dd):
 
 
 def _double_dq_derivative(m, i_dd, u_dd, omega_e):
-    """d i_dd/dt (A/s) of the double-dq model under ``u_dd (4,)`` V (:mod:`pmsmjax.machines.pmsm6`)."""
+    """d i_dd/dt (A/s) of the double-dq model under ``u_dd (4,)`` V
+    ([`pmsmjax.machines.pmsm6`][pmsmjax.machines.pmsm6])."""
     L_md, L_mq = 0.5 * (m.L_d - m.L_ls), 0.5 * (m.L_q - m.L_ls)
     psi = _double_dq_flux(m, i_dd)
     dpsi = u_dd - m.R * i_dd - omega_e * jnp.stack([-psi[1], psi[0], -psi[3], psi[2]])
@@ -474,16 +484,18 @@ def vsd_current_design(
     layout: PhaseLayout = SIX_PHASE,
     rotation: int = -1,
 ):
-    """VSD current control from the internal-model rules: the dq PI (:func:`current_loop_imc`) and, with
-    ``z=True``, the second plane's PI (:func:`z_current_imc`, bandwidth default the dq loop's, frame at
-    ``rotation theta_e``); ``z=False`` is the conventional scheme. `layout`: the winding (five phases:
-    :data:`~pmsmjax.frames.multiphase.FIVE_PHASE` with ``rotation=3``)."""
+    """VSD current control from the internal-model rules: the dq PI
+    ([`current_loop_imc`][pmsmjax.controllers.design.current_loop_imc]) and, with ``z=True``, the second
+    plane's PI ([`z_current_imc`][pmsmjax.controllers.multiphase.z_current_imc], bandwidth default the dq
+    loop's, frame at ``rotation theta_e``); ``z=False`` is the conventional scheme. `layout`: the winding
+    (five phases: [`FIVE_PHASE`][pmsmjax.frames.multiphase.FIVE_PHASE] with ``rotation=3``)."""
     z_block = z_current_imc(motor, z_bandwidth_rad_s or bandwidth_rad_s, rotation=rotation) if z else None
     return VSDCurrentControl(current_loop_imc(motor, bandwidth_rad_s), z_block, layout)
 
 
 def double_dq_design(motor, bandwidth_rad_s=1100.0, cross_coupling: bool = True) -> DoubleDQCurrentPI:
-    """Double-dq PIs designed equivalently to :func:`vsd_current_design` at the same bandwidth ``a_c``
+    """Double-dq PIs designed equivalently to
+    [`vsd_current_design`][pmsmjax.controllers.multiphase.vsd_current_design] at the same bandwidth ``a_c``
     (book 9.5): self gains ``Kp = a_c (L + L_ls)/2`` (the set's own inductance), ``Ki = a_c R``;
     cross-coupling ``kc = a_c (L - L_ls)/2`` (``a_c`` times the mutual inductance), or 0 without it."""
     check_positive("current-loop bandwidth a_c", bandwidth_rad_s, "rad/s")
@@ -501,7 +513,7 @@ def double_dq_design(motor, bandwidth_rad_s=1100.0, cross_coupling: bool = True)
 
 def z_pr_design(motor, bandwidth_rad_s=1100.0, w_c=2.0, **options) -> ZProportionalResonant:
     """z1-z2 PR equivalent to the z1-z2 PI of bandwidth ``a_z``: ``Kp = a_z L_ls``, ``Kr w_c = a_z R``
-    (as :func:`pmsmjax.controllers.pr.pr_design`)."""
+    (as [`pmsmjax.controllers.pr.pr_design`][pmsmjax.controllers.pr.pr_design])."""
     check_positive("z-loop bandwidth a_z", bandwidth_rad_s, "rad/s")
     check_positive("resonator damping w_c", w_c, "rad/s")
     a = jnp.asarray(bandwidth_rad_s, motor.R.dtype)
@@ -510,9 +522,10 @@ def z_pr_design(motor, bandwidth_rad_s=1100.0, w_c=2.0, **options) -> ZProportio
 
 
 def pr_current_design(motor, bandwidth_rad_s=1100.0, w_c=2.0, **options) -> VSDCurrentControl:
-    """Stationary-frame PR for six phases: the alpha-beta PR (:func:`pr_design`) and the z1-z2 PR
-    (:func:`z_pr_design`) at the same bandwidth and damping; ``options`` go to the alpha-beta PR
-    (``discretisation``, ``phase_lead``, ``back_emf_feedforward``), the first two to the z1-z2 PR too."""
+    """Stationary-frame PR for six phases: the alpha-beta PR ([`pr_design`][pmsmjax.controllers.pr.pr_design])
+    and the z1-z2 PR ([`z_pr_design`][pmsmjax.controllers.multiphase.z_pr_design]) at the same bandwidth and
+    damping; ``options`` go to the alpha-beta PR (``discretisation``, ``phase_lead``,
+    ``back_emf_feedforward``), the first two to the z1-z2 PR too."""
     dq: ProportionalResonant = pr_design(motor, bandwidth_rad_s, w_c, **options)
     z_options = {k: v for k, v in options.items() if k in ("discretisation", "phase_lead")}
     return VSDCurrentControl(dq, z_pr_design(motor, bandwidth_rad_s, w_c, **z_options))

@@ -13,13 +13,13 @@ vanishes, so ``g`` never changes the small-signal (linear) design.
 - ``g = 1`` (the default, used by the current loop): the integral is reset each period so that
   ``kp e + x + ff`` sits exactly on the limit. The loop leaves saturation as soon as the unsaturated
   output moves back inside the limit by one period's change of ``kp e + ff``.
-- ``g = Ts ki/kp`` (:func:`realisable_reference_tracking`, used by the speed loop): ``T_t = kp/ki``.
-  Then ``x <- x + Ts (ki/kp)(u - x - ff)``: the integral is driven by the error to the *realisable
-  reference*, the reference that would have produced the limited output (Hanus et al., "Conditioning
-  technique, a general anti-windup and bumpless transfer method", Automatica 23(6), 1987; the 2DOF PI of
-  Harnefors et al., *Control of Variable-Speed Drives*, and motulator's ``PIController``, which updates
-  ``u_i += Ts (k_i/k_t)(u - v)``). The integral does not jump with the proportional and feed-forward terms,
-  so a limited speed loop holds its limit until the speed nears the reference.
+- ``g = Ts ki/kp`` ([`realisable_reference_tracking`][pmsmjax.controllers.pi.realisable_reference_tracking],
+  used by the speed loop): ``T_t = kp/ki``. Then ``x <- x + Ts (ki/kp)(u - x - ff)``: the integral is driven
+  by the error to the *realisable reference*, the reference that would have produced the limited output (Hanus
+  et al., "Conditioning technique, a general anti-windup and bumpless transfer method", Automatica 23(6),
+  1987; the 2DOF PI of Harnefors et al., *Control of Variable-Speed Drives*, and motulator's ``PIController``,
+  which updates ``u_i += Ts (k_i/k_t)(u - v)``). The integral does not jump with the proportional and
+  feed-forward terms, so a limited speed loop holds its limit until the speed nears the reference.
 
 The limiter is exact (non-smoothed): its gradient is zero beyond the limit, which tuning objectives
 penalise separately.

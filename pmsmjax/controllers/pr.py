@@ -26,10 +26,10 @@ Consequences:
 - the gain at ``w_0`` is ``Kp + Kr``, finite: the steady-state error is about
   ``|u_unmodelled| / |Kp + Kr|``, where ``u_unmodelled`` is the steady voltage the feed-forward does not
   supply (tests/controllers/test_pr.py checks the measured error against the exact discrete prediction);
-- with ``Kr w_c = Ki`` held (the design rule :func:`pr_design`) the gain at a frequency mismatch
-  ``delta`` is ``Ki / |w_c + j delta|``: for ``|delta| > w_c`` it does not depend on ``w_c``. ``w_c``
-  raises the peak's width only when ``Kr`` is held instead; with the design rule it sets how fast the
-  resonator forgets (time constant ``1/w_c``) and the finite peak ``Kp + Ki/w_c``.
+- with ``Kr w_c = Ki`` held (the design rule [`pr_design`][pmsmjax.controllers.pr.pr_design]) the gain at a
+  frequency mismatch ``delta`` is ``Ki / |w_c + j delta|``: for ``|delta| > w_c`` it does not depend on
+  ``w_c``. ``w_c`` raises the peak's width only when ``Kr`` is held instead; with the design rule it sets how
+  fast the resonator forgets (time constant ``1/w_c``) and the finite peak ``Kp + Ki/w_c``.
 
 **Angles.** The reference ``i_ab* = inverse_park(i_dq*, theta_e)`` uses the angle at the sampling
 instant, because it is compared with the current sampled at that instant; advancing it would make the
@@ -53,7 +53,8 @@ tracking time constant equal to the equivalent PI's integral time ``Kp/Ki`` (Ast
 two resonator states a consistent (in-quadrature) pair, which freezing them would not.
 
 **Discretisations** (static ``discretisation``), both exact at ``w_0``, coefficients recomputed each
-period (:func:`resonant_coefficients`). The resonant term in two-integrator state-space form::
+period ([`resonant_coefficients`][pmsmjax.controllers.pr.resonant_coefficients]). The resonant term in
+two-integrator state-space form::
 
     x1' = 2 Kr w_c e - 2 w_c x1 - w_0 x2,   x2' = w_0 x1,   y_r = cos(phi) x1 - sin(phi) x2
 
@@ -256,7 +257,8 @@ def pr_design(motor: PMSMParameters, bandwidth_rad_s=1100.0, w_c=2.0, **options)
     (rad/s, default 2) sets the finite resonant peak ``Kp + Ki/w_c``: with the back-EMF feed-forward the
     remaining steady voltage at 1000 r/min and 9.9 A is about 24 V, so the fundamental error is about
     24 V / 533 V/A = 0.045 A, 0.45 % (w_c = 5 would give 1.1 %). ``options`` go to
-    :class:`ProportionalResonant` (``discretisation``, ``phase_lead``, ``back_emf_feedforward``).
+    [`ProportionalResonant`][pmsmjax.controllers.pr.ProportionalResonant] (``discretisation``, ``phase_lead``,
+    ``back_emf_feedforward``).
     """
     check_positive("current-loop bandwidth a_c", bandwidth_rad_s, "rad/s")
     check_positive("resonator damping w_c", w_c, "rad/s")

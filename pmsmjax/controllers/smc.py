@@ -11,7 +11,8 @@
     i_q* = (1/D) int (c x2 + eps sgn(s) + q s) dt,
 
 and then ``ds/dt = -eps sgn(s) - q s + d(t)`` with ``d = (dT_L/dt)/J - (B/J) x2``: the surface is
-reached and kept while ``eps > |d|`` (:func:`smc_design` sizes eps from that bound).
+reached and kept while ``eps > |d|`` ([`smc_design`][pmsmjax.controllers.smc.smc_design] sizes eps from that
+bound).
 
 Units: ``c`` and ``q`` 1/s; ``eps`` rad/s^3 (it is a rate of change of ``s``, which is in rad/s^2);
 ``boundary`` rad/s^2 (units of ``s``).
@@ -99,7 +100,7 @@ class SlidingModeSpeed(AbstractSpeedController):
     - `boundary`: boundary-layer width, rad/s^2 (units of s); ignored by ``switching="sign"``.
     - `switching`: ``"sign"`` (default, the book's), ``"saturation"`` or ``"tanh"`` (static).
 
-    State: :class:`SlidingModeState` (the integral i_q*, A; last speed error, rad/s).
+    State: `SlidingModeState` (the integral i_q*, A; last speed error, rad/s).
     """
 
     c: Array = eqx.field(converter=as_float)

@@ -38,15 +38,17 @@ steady state exact: ``v = 0`` holds it, so ``s = 0`` without an integral (with t
 resistance error ``dR`` leaves ``dR |i| / (K/phi)`` of error).
 
 **Discrete implementation.** Once per PWM period, on the sampled current and the estimator's flux and
-torque (:class:`pmsmjax.estimators.StatorFluxObserver`); ``u*`` is rotated by ``omega_e`` times the time
-from the sample to the middle of the period it acts in (half a period, one more with a computational
-delay: :func:`pmsmjax.controllers.current_pi.angle_lead`), as the flux turns that far meanwhile, limited
-to the modulator's linear range (direction kept) and applied by SVPWM: a constant switching frequency,
-the PWM frequency. With the one-period delay the in-layer loop ``x[k+1] = x[k] - a Ts x[k-1]`` is stable
-for ``a Ts < 1`` and not oscillatory for ``a Ts <= 1/4`` (:func:`smc_dtc_design` refuses ``a Ts >= 1/2``).
+torque ([`pmsmjax.estimators.StatorFluxObserver`][pmsmjax.estimators.flux_observer.StatorFluxObserver]);
+``u*`` is rotated by ``omega_e`` times the time from the sample to the middle of the period it acts in (half a
+period, one more with a computational delay:
+[`pmsmjax.controllers.current_pi.angle_lead`][pmsmjax.controllers.current_pi.angle_lead]), as the flux turns
+that far meanwhile, limited to the modulator's linear range (direction kept) and applied by SVPWM: a constant
+switching frequency, the PWM frequency. With the one-period delay the in-layer loop
+``x[k+1] = x[k] - a Ts x[k-1]`` is stable for ``a Ts < 1`` and not oscillatory for ``a Ts <= 1/4``
+([`smc_dtc_design`][pmsmjax.controllers.smc_dtc.smc_dtc_design] refuses ``a Ts >= 1/2``).
 
 The speed loop and the torque reference are the table DTC's
-(:func:`pmsmjax.controllers.dtc.speed_torque_reference`: the speed block's current times ``K_t``).
+(`pmsmjax.controllers.dtc.speed_torque_reference`: the speed block's current times ``K_t``).
 """
 
 from typing import ClassVar
@@ -94,7 +96,8 @@ class SlidingModeDTC(AbstractController):
       ``"sign"``).
     - `flux_gain_v`: ``K_psi``, V. `flux_boundary_wb`: ``phi_psi``, Wb.
     - `current_limit`: peak phase-current limit, A (the torque reference is limited to what it allows at
-      the flux reference: :func:`pmsmjax.controllers.dtc.torque_current_limit`).
+      the flux reference:
+      [`pmsmjax.controllers.dtc.torque_current_limit`][pmsmjax.controllers.dtc.torque_current_limit]).
     - `speed`: the speed block (output a current, A); ``None``: the PI with active damping at
       `speed_bandwidth` rad/s.
     - `flux_ref_wb`: ``psi*``, Wb; ``None`` takes ``model.psi_f``.
@@ -209,7 +212,8 @@ def smc_dtc_design(
     flux_bandwidth_rad_s=2000.0,
     Ts=1e-4,
 ) -> dict:
-    """Gains of :class:`SlidingModeDTC` from the reaching rates and the in-layer bandwidths.
+    """Gains of [`SlidingModeDTC`][pmsmjax.controllers.smc_dtc.SlidingModeDTC] from the reaching rates and the
+    in-layer bandwidths.
 
     **Arguments:**
 
@@ -224,7 +228,7 @@ def smc_dtc_design(
     - `Ts`: control period, s: ``a Ts < 1/2`` is required (the one-period delay; module docstring).
 
     **Returns:** the keyword arguments ``torque_gain_v, torque_boundary_nm, flux_gain_v,
-    flux_boundary_wb`` of :class:`SlidingModeDTC`.
+    flux_boundary_wb`` of [`SlidingModeDTC`][pmsmjax.controllers.smc_dtc.SlidingModeDTC].
     """
     for name, value, unit in (
         ("torque_rate_nm_per_ms", torque_rate_nm_per_ms, "N m/ms"),

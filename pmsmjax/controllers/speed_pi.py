@@ -2,16 +2,17 @@
 
 Discrete, once per speed-loop period, with the output limited to ``+-iq_max`` and realisable-reference
 anti-windup: back-calculation with tracking time constant ``T_t = Kp_w/Ki_w``
-(:func:`pmsmjax.controllers.pi.realisable_reference_tracking`). With the active-damping term this is
-the 2DOF PI of Harnefors et al. (motulator's ``SpeedController``: ``k_t = Kp_w`` on the error, ``B_a`` on
-the speed alone, integral ``u_i += Ts (Ki_w/Kp_w)(i_q* - v)`` with ``v`` the output less ``k_t e``).
-Unsaturated, the anti-windup term is zero and the loop is exactly the linear design ``beta/(s + beta)``.
+([`pmsmjax.controllers.pi.realisable_reference_tracking`][pmsmjax.controllers.pi.realisable_reference_tracking]).
+With the active-damping term this is the 2DOF PI of Harnefors et al. (motulator's ``SpeedController``:
+``k_t = Kp_w`` on the error, ``B_a`` on the speed alone, integral ``u_i += Ts (Ki_w/Kp_w)(i_q* - v)`` with
+``v`` the output less ``k_t e``). Unsaturated, the anti-windup term is zero and the loop is exactly the linear
+design ``beta/(s + beta)``.
 
 Why not the per-period reset (tracking gain 1, the plain back-calculation of
-:func:`pmsmjax.controllers.pi.pi_update`): it resets the integral to ``limit - Kp_w e + B_a w`` every
-period, so while the motor accelerates at the limit the next unsaturated output is
-``limit - (Kp_w + B_a) dw + Ts Ki_w e`` with ``dw`` the speed gained in one period. With the design rule
-(``Kp_w ~ B_a ~ beta J/K_t``, ``dw ~ K_t I_max Ts/J``) this falls below the limit as soon as
+[`pmsmjax.controllers.pi.pi_update`][pmsmjax.controllers.pi.pi_update]): it resets the integral to
+``limit - Kp_w e + B_a w`` every period, so while the motor accelerates at the limit the next unsaturated
+output is ``limit - (Kp_w + B_a) dw + Ts Ki_w e`` with ``dw`` the speed gained in one period. With the design
+rule (``Kp_w ~ B_a ~ beta J/K_t``, ``dw ~ K_t I_max Ts/J``) this falls below the limit as soon as
 ``e < 2 I_max K_t/(beta J)``: 219 rad/s for the book drive, so a 1500 r/min (157 rad/s) step left the
 15 A limit 1.3 ms after the step (11.7 A at 10 ms) and rose 10-90 % in 55 ms. Tracking with
 ``T_t = Kp_w/Ki_w`` = 1/beta keeps the integral from following the falling proportional and damping terms

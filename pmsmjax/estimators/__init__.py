@@ -1,16 +1,23 @@
 """Estimators: the block between sampling and control that gives the rotor angle and speed.
 
-Position sensors (:class:`ExactSensor`, :class:`Encoder`), the stator flux observer of direct torque
-control (:class:`StatorFluxObserver`, chapter 4) and the fundamental-model observers of chapter 5
-(:data:`OBSERVERS`: ``smo``, ``smo-pll``, ``adaptive-smo``, ``dq-smo``, ``mras``, ``ekf``), all implementing
-:class:`AbstractEstimator`; :class:`StartupEstimator` wraps an observer in the I/f start from
-standstill; :func:`make_observer` builds an observer by name with its design rule. The HF-injection
-estimators of chapter 6 (:class:`HFIRotating`, :class:`HFIPulsating`; ``hfi-rotating``, ``hfi-pulsating``)
-read the saliency at standstill and low speed. On a saturated machine given by a flux map,
-:func:`cross_saturation_compensated` takes the map's cross-saturation angle out of HF injection and
-:func:`map_scheduled` gives a fundamental-model observer the map's model at the operating current and
-:func:`map_angle_corrected` keeps its constant model and takes the map's steady angle error out (the one
-that runs the closed loop cleanly).
+Position sensors ([`ExactSensor`][pmsmjax.estimators.position_sensors.ExactSensor],
+[`Encoder`][pmsmjax.estimators.position_sensors.Encoder]), the stator flux observer of direct torque control
+([`StatorFluxObserver`][pmsmjax.estimators.flux_observer.StatorFluxObserver], chapter 4) and the
+fundamental-model observers of chapter 5 ([`OBSERVERS`][pmsmjax.estimators.catalogue.OBSERVERS]: ``smo``,
+``smo-pll``, ``adaptive-smo``, ``dq-smo``, ``mras``, ``ekf``), all implementing
+[`AbstractEstimator`][pmsmjax.estimators.base.AbstractEstimator];
+[`StartupEstimator`][pmsmjax.estimators.startup.StartupEstimator] wraps an observer in the I/f start from
+standstill; [`make_observer`][pmsmjax.estimators.registry.make_observer] builds an observer by name with its
+design rule. The HF-injection estimators of chapter 6
+([`HFIRotating`][pmsmjax.estimators.hfi_rotating.HFIRotating],
+[`HFIPulsating`][pmsmjax.estimators.hfi_pulsating.HFIPulsating]; ``hfi-rotating``, ``hfi-pulsating``) read the
+saliency at standstill and low speed. On a saturated machine given by a flux map,
+[`cross_saturation_compensated`][pmsmjax.estimators.hfi_cross_saturation.cross_saturation_compensated] takes
+the map's cross-saturation angle out of HF injection and
+[`map_scheduled`][pmsmjax.estimators.map_scheduled.map_scheduled] gives a fundamental-model observer the map's
+model at the operating current and
+[`map_angle_corrected`][pmsmjax.estimators.map_angle_corrected.map_angle_corrected] keeps its constant model
+and takes the map's steady angle error out (the one that runs the closed loop cleanly).
 """
 
 from pmsmjax.estimators.adaptive_smo import AdaptiveSMO, adaptive_smo_design

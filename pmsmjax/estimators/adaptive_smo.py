@@ -4,7 +4,7 @@ filter replaced by a back-EMF model with speed adaptation, so the back-EMF estim
 Equations (Qiao, Shi, Wang, Yan, Xia, He, "New sliding-mode observer for position sensorless control of
 permanent-magnet synchronous motor", IEEE TIE 60(2), 2013, doi:10.1109/TIE.2012.2206359)::
 
-    L di^/dt = -R i^ + u - z,  z = k F(i^ - i)          (the classic SMO's current observer, :mod:`.smo`)
+    L di^/dt = -R i^ + u - z,  z = k F(i^ - i)          (the classic SMO's current observer, smo)
     de^/dt   = w^ J e^ + l (z - e^)                     (back-EMF model, J = [[0, -1], [1, 0]])
     dw^/dt   = gamma (e^ x z) / |e^|^2                  (speed adaptation)
     th^      = atan2(-e^_a, e^_b)  (+ pi for w^ < 0)
@@ -15,14 +15,14 @@ at ``w`` with unit gain and no phase shift, and the adaptation law (Lyapunov: ``
 ``w``. The law is normalised by ``|e^|^2`` (plus ``emf_floor^2``) so the loop's bandwidth does not change
 with speed.
 
-Sampled form: the current observer as in :mod:`.smo`; the model rotates ``e^`` exactly by ``w^ Ts`` and
-blends it towards ``z`` with ``a = 1 - exp(-l Ts)``. ``z`` sees the back-EMF through the observer's own
-sampled filter (about half a period and the linear-zone pole, the first two terms of
-:meth:`.smo.SlidingModeObserver.chain_lag`), so ``e^`` is turned forward by that phase at the output
-(outside the loop). Linearised, the angle error between ``e^`` and ``z`` obeys the sampled type-2
-tracking loop of :mod:`.pll` with ``a = 1 - exp(-l Ts)``, ``b = gamma Ts^2``: design rule ``l = 2 w_n``,
-``gamma = w_n^2`` (double pole at ``-w_n``), and ``check_period`` refuses gains whose sampled loop is
-unstable.
+Sampled form: the current observer as in [`smo`][pmsmjax.estimators.smo]; the model rotates ``e^`` exactly by
+``w^ Ts`` and blends it towards ``z`` with ``a = 1 - exp(-l Ts)``. ``z`` sees the back-EMF through the
+observer's own sampled filter (about half a period and the linear-zone pole, the first two terms of
+[`smo.SlidingModeObserver.chain_lag`][pmsmjax.estimators.smo.SlidingModeObserver.chain_lag]), so ``e^`` is
+turned forward by that phase at the output (outside the loop). Linearised, the angle error between ``e^`` and
+``z`` obeys the sampled type-2 tracking loop of [`pll`][pmsmjax.estimators.pll] with ``a = 1 - exp(-l Ts)``,
+``b = gamma Ts^2``: design rule ``l = 2 w_n``, ``gamma = w_n^2`` (double pole at ``-w_n``), and
+``check_period`` refuses gains whose sampled loop is unstable.
 """
 
 import math
@@ -140,7 +140,7 @@ class AdaptiveSMO(AbstractModelObserver):
         return new_state, Estimate(theta, omega / m.pole_pairs, back_emf_ab=emf_now)
 
 
-#: Design-rule defaults of :func:`adaptive_smo_design`.
+#: Design-rule defaults of [`adaptive_smo_design`][pmsmjax.estimators.adaptive_smo.adaptive_smo_design].
 ADAPTIVE_SMO_BANDWIDTH = 1000.0
 
 
@@ -158,9 +158,10 @@ def adaptive_smo_design(
 ) -> AdaptiveSMO:
     """The adaptive SMO with design-rule gains for ``motor`` at period ``Ts`` (s).
 
-    Current observer as :func:`pmsmjax.estimators.smo.smo_design` (``k``, ``width`` from ``k_margin``,
-    ``pole``, ``max_speed_rpm``); back-EMF model and adaptation with a double pole at ``-bandwidth``
-    (rad/s): ``l = 2 bandwidth``, ``gamma = bandwidth^2``; ``emf_floor = emf_floor_fraction psi_f w_max``.
+    Current observer as [`pmsmjax.estimators.smo.smo_design`][pmsmjax.estimators.smo.smo_design] (``k``,
+    ``width`` from ``k_margin``, ``pole``, ``max_speed_rpm``); back-EMF model and adaptation with a double
+    pole at ``-bandwidth`` (rad/s): ``l = 2 bandwidth``, ``gamma = bandwidth^2``;
+    ``emf_floor = emf_floor_fraction psi_f w_max``.
     """
     check_positive("Ts (control period)", Ts, "s")
     check_positive("bandwidth (back-EMF model and speed adaptation)", bandwidth, "rad/s")

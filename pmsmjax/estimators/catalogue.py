@@ -1,13 +1,15 @@
-"""The single estimators by name: the chapter 5 observers (:data:`OBSERVERS`) and the chapter 6
-HF-injection estimators (:data:`INJECTION_OBSERVERS`), and :func:`build`, which makes one from a name
-table with its checks.
+"""The single estimators by name: the chapter 5 observers
+([`OBSERVERS`][pmsmjax.estimators.catalogue.OBSERVERS]) and the chapter 6 HF-injection estimators
+([`INJECTION_OBSERVERS`][pmsmjax.estimators.catalogue.INJECTION_OBSERVERS]), and
+[`build`][pmsmjax.estimators.catalogue.build], which makes one from a name table with its checks.
 
 Each name maps to the design rule that builds the estimator from a motor and the control period; options
 are the design rule's keyword arguments (e.g. ``switching="sign"``, ``pll_bandwidth=500.0``,
 ``model=...`` for an observer whose motor model differs from the plant's; ``hf_voltage`` (V) and
 ``hf_frequency`` (Hz) for the injection estimators). The estimators built from these (the whole-speed-range
-hybrid, :mod:`.hybrid`) and the estimators' registry (:mod:`.registry`) sit above this module; names,
-descriptions and options are :mod:`pmsmjax.spec.registry`'s.
+hybrid, [`hybrid`][pmsmjax.estimators.hybrid]) and the estimators' registry
+([`registry`][pmsmjax.estimators.registry]) sit above this module; names, descriptions and options are
+[`pmsmjax.spec.registry`][pmsmjax.spec.registry]'s.
 """
 
 import difflib
@@ -31,12 +33,13 @@ def _design_rules(group: str) -> dict:
 
 
 #: Observer name -> (design rule ``f(motor, Ts, **options)``, one-line description): the chapter 5
-#: back-EMF observers of :data:`pmsmjax.spec.registry.REGISTRY`.
+#: back-EMF observers of `pmsmjax.spec.registry.REGISTRY`.
 OBSERVERS = _design_rules("observer")
 
-#: The HF-injection estimators of chapter 6, same form. Kept apart from :data:`OBSERVERS` (the chapter 5
-#: fundamental-model observers, which the chapter 5 studies, benchmarks and ``demo --estimator`` iterate
-#: over on the surface book motor): these need a salient machine and give the d axis modulo pi.
+#: The HF-injection estimators of chapter 6, same form. Kept apart from
+#: [`OBSERVERS`][pmsmjax.estimators.catalogue.OBSERVERS] (the chapter 5 fundamental-model observers, which the
+#: chapter 5 studies, benchmarks and ``demo --estimator`` iterate over on the surface book motor): these need
+#: a salient machine and give the d axis modulo pi.
 INJECTION_OBSERVERS = _design_rules("injection")
 
 

@@ -15,7 +15,7 @@ equation reads, up to a term ``(w^ - w)(L_d - L_q) J i`` that is small when the 
 term in place of the EEMF::
 
     L_d di^/dt = -R i^ + u - w^ L_q J i - z,    z = k F(i^ - i)      (i, u: measured, in the frame)
-    E^ = LPF(z),     PLL on  -E^_gamma / |E^|  ~  sin(dth)           (:mod:`.pll`)
+    E^ = LPF(z),     PLL on  -E^_gamma / |E^|  ~  sin(dth)           (pll)
 
 Because the EEMF is constant in a frame that turns with the rotor, the low-pass filter adds no lag at
 steady state (unlike the stationary-frame SMO, whose back-EMF is a sinusoid); it is inside the PLL's loop
@@ -26,12 +26,14 @@ the two sampled currents are turned into the frame at the period's middle angle,
 ``t_k`` at the end angle, and the observer is propagated exactly per axis with ``L_d``. When the PLL
 corrects the frame angle the observer's vectors are re-expressed in the corrected frame. Like the other
 PLLs here, the loop tracks the EEMF's direction, i.e. the rotor angle for ``w >= 0`` and the rotor angle
-plus pi below (the model is the same in both frames; :func:`.stator_model.rotor_angle`).
+plus pi below (the model is the same in both frames;
+[`stator_model.rotor_angle`][pmsmjax.estimators.stator_model.rotor_angle]).
 
-Design rule (:func:`dq_smo_design`): ``k``, ``width`` as :func:`.smo.smo_design` with ``L_d``; the PLL at
-``pll_bandwidth`` (:func:`.pll.pll_design`), the low-pass cut-off ``omega_c`` above it. ``check_period``
-refuses an unstable linear zone, and PLL gains whose loop through the observer and the filter is unstable
-(:func:`dq_loop_matrix`).
+Design rule ([`dq_smo_design`][pmsmjax.estimators.dq_smo.dq_smo_design]): ``k``, ``width`` as
+[`smo.smo_design`][pmsmjax.estimators.smo.smo_design] with ``L_d``; the PLL at ``pll_bandwidth``
+([`pll.pll_design`][pmsmjax.estimators.pll.pll_design]), the low-pass cut-off ``omega_c`` above it.
+``check_period`` refuses an unstable linear zone, and PLL gains whose loop through the observer and the filter
+is unstable ([`dq_loop_matrix`][pmsmjax.estimators.dq_smo.dq_loop_matrix]).
 """
 
 import math
@@ -169,7 +171,7 @@ class DQSlidingModeObserver(AbstractModelObserver):
         return new_state, estimate
 
 
-#: Design-rule defaults of :func:`dq_smo_design`.
+#: Design-rule defaults of [`dq_smo_design`][pmsmjax.estimators.dq_smo.dq_smo_design].
 DQ_SMO_OMEGA_C = 2000.0
 DQ_SMO_PLL_BANDWIDTH = 1000.0
 
@@ -190,9 +192,9 @@ def dq_smo_design(
     """The rotating-frame EEMF SMO with design-rule gains for ``motor`` at period ``Ts`` (s).
 
     ``k = k_margin psi_f p_n w_max`` (V); ``width = k Gamma_d / (Phi_d - pole)`` (A) with the winding
-    coefficients of ``L_d``; PLL :func:`pmsmjax.estimators.pll.pll_design` at ``pll_bandwidth`` (rad/s);
-    low-pass cut-off ``omega_c`` (rad/s), above the PLL's bandwidth since it sits inside the loop;
-    ``emf_floor = emf_floor_fraction psi_f w_max``.
+    coefficients of ``L_d``; PLL [`pmsmjax.estimators.pll.pll_design`][pmsmjax.estimators.pll.pll_design] at
+    ``pll_bandwidth`` (rad/s); low-pass cut-off ``omega_c`` (rad/s), above the PLL's bandwidth since it sits
+    inside the loop; ``emf_floor = emf_floor_fraction psi_f w_max``.
     """
     check_positive("Ts (control period)", Ts, "s")
     model = motor if model is None else model

@@ -4,7 +4,8 @@
 Model (Bolognani, Oboe, Zigliotto, "Sensorless full-digital PMSM drive with EKF estimation of speed and
 rotor position", IEEE TIE 46(1), 1999, doi:10.1109/41.744410): the surface machine in the stationary
 frame, ``L di/dt = u - R i - w psi_f [-sin th, cos th]``, speed constant over a period (its changes are
-process noise), ``dth/dt = w``. Sampled exactly over the period as in :mod:`.stator_model`::
+process noise), ``dth/dt = w``. Sampled exactly over the period as in
+[`stator_model`][pmsmjax.estimators.stator_model]::
 
     i_k  = Phi i + Gamma (u_{k-1} - w psi_f [-sin th_w, cos th_w]),   th_w = th + w Ts - lag_W(w)
     w_k  = w,     th_k = th + w Ts
@@ -13,11 +14,12 @@ process noise), ``dth/dt = w``. Sampled exactly over the period as in :mod:`.sta
 with this model and its Jacobian (``jax.jacfwd``: exact for the model as written), then corrects with the
 sampled current; the covariance update is Joseph's form (stays symmetric positive definite in float32).
 ``L`` is the model's ``L_q`` and ``psi_f`` is the active flux ``psi_f + (L_d - L_q) i_d`` with ``i_d`` the
-state's current in the state's rotor frame (:func:`active_flux`; :mod:`.stator_model`): the salient
-machine's EMF in steady state (the transient term ``(L_d - L_q) di_d/dt`` is left to the process noise).
+state's current in the state's rotor frame ([`active_flux`][pmsmjax.estimators.ekf.active_flux];
+[`stator_model`][pmsmjax.estimators.stator_model]): the salient machine's EMF in steady state (the transient
+term ``(L_d - L_q) di_d/dt`` is left to the process noise).
 
-Design rule (:func:`ekf_design`, following the physical reading of Bolognani, Tubiana, Zigliotto,
-"Extended Kalman filter tuning in sensorless PMSM drives", IEEE TIA 39(6), 2003,
+Design rule ([`ekf_design`][pmsmjax.estimators.ekf.ekf_design], following the physical reading of Bolognani,
+Tubiana, Zigliotto, "Extended Kalman filter tuning in sensorless PMSM drives", IEEE TIA 39(6), 2003,
 doi:10.1109/TIA.2003.818991): ``R = sigma_i^2`` (current-sensor noise), ``Q_i = (Gamma sigma_u)^2`` (the
 current a voltage error ``sigma_u`` makes in a period), ``Q_w = (Ts a_w)^2`` (the speed change of a period
 at the acceleration ``a_w`` the filter must follow), ``Q_th`` a small angle random walk, and ``P0`` the
@@ -120,8 +122,9 @@ class EKF(AbstractModelObserver):
 def active_flux(model: PMSMParameters, i_ab, theta) -> Array:
     """The active flux ``psi_f + (L_d - L_q) i_d`` (Wb) of ``model`` for the stationary-frame current
     ``i_ab (2,)`` (A) seen in a rotor frame at angle ``theta`` (rad): the flux whose rotation drives the
-    back-EMF of the salient machine written with ``L = L_q`` (:mod:`.stator_model`; Boldea et al. 2008).
-    ``psi_f`` exactly for ``L_d = L_q``.
+    back-EMF of the salient machine written with ``L = L_q``
+    ([`stator_model`][pmsmjax.estimators.stator_model]; Boldea et al. 2008). ``psi_f`` exactly for
+    ``L_d = L_q``.
 
     Why it is in the filter's model and not taken as ``psi_f``: ``i_d = 0`` is held in the *estimated*
     frame, so an angle error ``d`` gives the machine ``i_d = -i_q sin d`` and an EMF ``w (L_d - L_q) i_d``
@@ -140,7 +143,7 @@ def _mm(a, b):
     return jnp.sum(a[:, :, None] * b[None, :, :], axis=1)
 
 
-#: Design-rule defaults of :func:`ekf_design`.
+#: Design-rule defaults of [`ekf_design`][pmsmjax.estimators.ekf.ekf_design].
 EKF_CURRENT_NOISE_A = 0.05
 EKF_VOLTAGE_ERROR_V = 1.0
 EKF_ACCELERATION_TORQUE_NM = 10.0

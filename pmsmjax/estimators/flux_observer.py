@@ -24,8 +24,8 @@ decays as ``exp(-w_c t)``, and a current-model error ``epsilon`` reaches the est
 ``crossover_rad_s = 0`` is the pure voltage model (to show the drift).
 
 **Discrete form and the half-sample bookkeeping.** At sample ``t_k`` the drive reports
-``u_ab_last`` (:class:`pmsmjax.signals.Sample`): the mean of the voltage the legs applied over
-``[t_{k-1}, t_k)`` (held switch states or the PWM period's average, both bridges), and the currents
+``u_ab_last`` ([`pmsmjax.signals.Sample`][pmsmjax.signals.Sample]): the mean of the voltage the legs applied
+over ``[t_{k-1}, t_k)`` (held switch states or the PWM period's average, both bridges), and the currents
 ``i_ab`` sampled *at* ``t_k``. So over the interval that ends at ``t_k``:
 
     int u dt = Ts u_ab_last                          (exact for both bridges)
@@ -99,7 +99,7 @@ class StatorFluxObserver(AbstractModelObserver):
     - `crossover_rad_s`: blending crossover ``w_c``, rad/s (>= 0; 0 is the pure voltage model).
     - `position`: the estimator of the rotor angle and speed (default the exact sensor).
 
-    State: :class:`StatorFluxObserverState`. Estimate: the position estimator's, with ``psi_ab (2,)`` Wb
+    State: `StatorFluxObserverState`. Estimate: the position estimator's, with ``psi_ab (2,)`` Wb
     and ``torque`` N m.
     """
 

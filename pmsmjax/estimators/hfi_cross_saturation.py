@@ -3,10 +3,10 @@ taken out of the estimate.
 
 **Where HF injection locks.** The carrier sees the incremental inductance ``L_inc = dpsi/di`` at the
 operating point (the small-signal flux ``psi_h = L_inc i_h``; resistance and back-EMF neglected as in
-:mod:`.hfi_signal`). With cross-saturation ``L_inc = [[L_dd, L_dq], [L_qd, L_qq]]`` has off-diagonal terms;
-with its symmetric part ``L_s`` (``M = (L_dq + L_qd) / 2``) and the admittance ``G = L_s^-1 =
-[[L_qq, -M], [-M, L_dd]] / det``, a d-axis flux in a frame ``dth = th - th^`` behind the rotor gives the
-q-axis current (frame rotation of a symmetric matrix)
+[`hfi_signal`][pmsmjax.estimators.hfi_signal]). With cross-saturation ``L_inc = [[L_dd, L_dq], [L_qd, L_qq]]``
+has off-diagonal terms; with its symmetric part ``L_s`` (``M = (L_dq + L_qd) / 2``) and the admittance ``G =
+L_s^-1 = [[L_qq, -M], [-M, L_dd]] / det``, a d-axis flux in a frame ``dth = th - th^`` behind the rotor gives
+the q-axis current (frame rotation of a symmetric matrix)
 
     i_qh^ / psi_dh = (G_dd - G_qq) / 2 sin(2 dth) + G_dq cos(2 dth)
                    = [(L_qq - L_dd) / 2 sin(2 dth) - M cos(2 dth)] / det,
@@ -26,15 +26,18 @@ control of PM brushless AC motors", IEMDC 2007, doi:10.1109/IEMDC.2007.383578 (i
 
 **The operating point.** The controller regulates its reference ``i_ref`` in the estimated frame, so the
 machine carries ``i = R(theta_err) i_ref`` (``R`` the rotation) and the lock angle is the fixed point
-``theta_err = f(R(theta_err) i_ref)`` (:func:`predicted_angle_error`). The rotation feeds back: on the
-saturated-ipm map with ``i_d < 0`` a negative error turns the current towards the q axis, which saturates
-it further and turns the saliency axis further; beyond a few amperes of ``i_q`` there is no lock near d.
+``theta_err = f(R(theta_err) i_ref)``
+([`predicted_angle_error`][pmsmjax.estimators.hfi_cross_saturation.predicted_angle_error]). The rotation feeds
+back: on the saturated-ipm map with ``i_d < 0`` a negative error turns the current towards the q axis, which
+saturates it further and turns the saliency axis further; beyond a few amperes of ``i_q`` there is no lock
+near d.
 
-**Compensation** (:class:`CrossSaturationCompensated`): wraps a rotating or pulsating injection estimator,
-which keeps injecting and demodulating on the axis it locks to; each sample the fundamental current in the
-corrected frame ``th^ - theta_err`` (the true rotor frame once converged), low-passed as slowly as the
-estimator's PLL follows, gives ``L_inc`` from the map and ``theta_err``, and the estimate handed to the
-controller is ``th^ - theta_err``.
+**Compensation**
+([`CrossSaturationCompensated`][pmsmjax.estimators.hfi_cross_saturation.CrossSaturationCompensated]): wraps a
+rotating or pulsating injection estimator, which keeps injecting and demodulating on the axis it locks to;
+each sample the fundamental current in the corrected frame ``th^ - theta_err`` (the true rotor frame once
+converged), low-passed as slowly as the estimator's PLL follows, gives ``L_inc`` from the map and
+``theta_err``, and the estimate handed to the controller is ``th^ - theta_err``.
 """
 
 import dataclasses
@@ -138,8 +141,9 @@ class CrossSaturationCompensated(AbstractEstimator):
 
     **Arguments:**
 
-    - `injection`: :class:`~pmsmjax.estimators.HFIRotating` or :class:`~pmsmjax.estimators.HFIPulsating`.
-    - `flux_map`: the machine's :class:`~pmsmjax.machines.pmsm_flux_map.FluxMap`.
+    - `injection`: [`HFIRotating`][pmsmjax.estimators.hfi_rotating.HFIRotating] or
+      [`HFIPulsating`][pmsmjax.estimators.hfi_pulsating.HFIPulsating].
+    - `flux_map`: the machine's [`FluxMap`][pmsmjax.machines.pmsm_flux_map.FluxMap].
     - `current_cutoff`: low-pass cut-off of the current the correction reads, rad/s.
     """
 

@@ -4,7 +4,7 @@ and the speed from the saliency, at standstill and low speed.
 Injection: ``u_dh = V_h cos(w_h t)``, ``u_qh = 0`` in the estimated rotor frame, turned to the stationary
 frame with the estimate (``u_injection_ab``). With the estimate ``dth = th - th^`` off the d axis, the HF
 flux ``psi_dh = Psi cos(phi)`` along the estimated d axis drives, through the inverse inductance in the
-estimated frame (:mod:`.hfi_signal`),
+estimated frame ([`hfi_signal`][pmsmjax.estimators.hfi_signal]),
 
     i_qh^ = (L_q - L_d) / (2 L_d L_q) sin(2 dth) psi_dh = I_n sin(2 dth) cos(phi),
 
@@ -13,8 +13,8 @@ the same ``I_n = (L_q - L_d) V_h / (2 L_d L_q w_eff)`` as the rotating method's 
 
 Signal chain per sample:
 
-1. **band-pass** ``i_h = BPF(i_ab)`` (the resonator of :mod:`.hfi_signal`); ``i_ab - i_h`` is the
-   fundamental current the controller gets;
+1. **band-pass** ``i_h = BPF(i_ab)`` (the resonator of [`hfi_signal`][pmsmjax.estimators.hfi_signal]);
+   ``i_ab - i_h`` is the fundamental current the controller gets;
 2. **q-axis HF current** in the estimated frame: ``i_qh^ = Park(i_h, th^ + s)[q]``, where ``s`` is the
    resonator's rotation of the pulsating vector when the frame turns at the electrical speed ``w_e``:
    its two images at ``w_h + w_e`` and ``-(w_h - w_e)`` are shifted by ``arg H(w_h + w_e)`` and
@@ -22,14 +22,15 @@ Signal chain per sample:
    (``~ -2 w_e / B``) and the carrier by half their sum (``~ 0``);
 3. **demodulation**: ``eps = LPF(2 cos(phi) i_qh^) = I_n sin(2 dth)`` (the product's ``2 w_h`` part
    filtered), scaled by ``1 / (2 I_n)`` of the model: ``~ dth`` for small errors;
-4. **PLL** (:class:`pmsmjax.estimators.pll.PLL`) -> ``th^`` (the injection axis) and ``w^``.
+4. **PLL** ([`pmsmjax.estimators.pll.PLL`][pmsmjax.estimators.pll.PLL]) -> ``th^`` (the injection axis) and
+   ``w^``.
 
 Because the demodulation frame follows the band-passed vector, the loop locks to the rotor's d axis
 itself; the resonator's delay only sits in the loop as a delay of the error signal, not as an angle offset.
 
-Filter design (:func:`hfi_pulsating_design`): the rotating method's (:mod:`.hfi_rotating`): carrier
-``f_s / 10``, ``B = w_h / 5``, error low-pass ``w_h / 3``, PLL bandwidth a seventh of it, ``V_h`` for
-``I_n = 0.25 A``.
+Filter design ([`hfi_pulsating_design`][pmsmjax.estimators.hfi_pulsating.hfi_pulsating_design]): the rotating
+method's ([`hfi_rotating`][pmsmjax.estimators.hfi_rotating]): carrier ``f_s / 10``, ``B = w_h / 5``, error
+low-pass ``w_h / 3``, PLL bandwidth a seventh of it, ``V_h`` for ``I_n = 0.25 A``.
 
 Reference: J.-I. Ha, S.-K. Sul, "Sensorless field-orientation control of an induction machine by high-
 frequency signal injection", IEEE TIA 35(1), 1999, doi:10.1109/28.740843; M. Linke, R. Kennel, J. Holtz,
@@ -141,7 +142,8 @@ class HFIPulsating(AbstractEstimator):
     def pull(
         self, state: HFIPulsatingState, estimate: Estimate, theta_e, omega_m, strength
     ) -> HFIPulsatingState:
-        """The PLL moved by the estimate's distance to the target (:func:`.pll.pull_pll`)."""
+        """The PLL moved by the estimate's distance to the target
+        ([`pll.pull_pll`][pmsmjax.estimators.pll.pull_pll])."""
         pll = pull_pll(state.pll, self.pole_pairs, estimate, theta_e, omega_m, strength)
         return dataclasses.replace(state, pll=pll)
 

@@ -4,7 +4,8 @@ saliency, at standstill and low speed.
 Injection: ``u_ab,h = V_h [cos w_h t, sin w_h t]`` added to the controller's command (``u_injection_ab``,
 sampled at the period start, held by the drive). The salient machine answers with a positive-sequence
 current ``I_p e^{j phi}`` and a negative-sequence current ``I_n e^{j (2 th - phi)}``, ``phi`` the HF flux
-phase (:mod:`.hfi_signal`, where ``I_n = (L_q - L_d) V_h / (2 L_d L_q w_eff)`` is derived).
+phase ([`hfi_signal`][pmsmjax.estimators.hfi_signal], where ``I_n = (L_q - L_d) V_h / (2 L_d L_q w_eff)`` is
+derived).
 
 Signal chain per sample ``k`` (complex notation ``x_a + j x_b``):
 
@@ -15,28 +16,29 @@ Signal chain per sample ``k`` (complex notation ``x_a + j x_b``):
 3. **heterodyne demodulation**: ``z = i_n e^{j phi} = I_n e^{j 2 th}`` (exactly, at standstill);
    ``eps = Im(z e^{-j 2 th^}) = I_n sin(2 (th - th^))``, low-passed (cut-off ``w_l``, inside the loop so it
    costs no steady-state lag) and scaled by ``1 / (2 I_n)`` of the model: ``~ th - th^`` for small errors;
-4. **PLL** (:class:`pmsmjax.estimators.pll.PLL`, type 2) -> ``th^``, ``w^``.
+4. **PLL** ([`pmsmjax.estimators.pll.PLL`][pmsmjax.estimators.pll.PLL], type 2) -> ``th^``, ``w^``.
 
 The resonator and the sequence filter delay the rotor's image, which turns at ``2 w_e`` (``w_e`` the
 electrical speed): it sits at ``-(w_h - 2 w_e)`` in the stationary frame, where the resonator shifts it
 by ``-arg H(w_h - 2 w_e)`` (``~ -4 w_e / B``), and the sequence filter's complement shifts it by
-:func:`.hfi_signal.highpass_complement_phase`. The PLL locks onto ``2 th`` less these; half of them,
-evaluated exactly at the PLL's speed, is added to its output angle (not to the angle it locks to, see
-:mod:`.pll`). The resistance, neglected in the HF model, turns the negative sequence too: with the
-admittances ``1 / (R + j w L)`` in place of ``1 / (j w L)`` the image ``(Y_d - Y_q) / 2`` is turned by
-``atan(R / (w L_d)) + atan(R / (w L_q))`` (2.4 degrees on the salient book motor at 1 kHz, i.e. a 1.2
-degree angle bias, measured 1.15 degrees before compensation); half of it is added too.
+[`hfi_signal.highpass_complement_phase`][pmsmjax.estimators.hfi_signal.highpass_complement_phase]. The PLL
+locks onto ``2 th`` less these; half of them, evaluated exactly at the PLL's speed, is added to its output
+angle (not to the angle it locks to, see [`pll`][pmsmjax.estimators.pll]). The resistance, neglected in the HF
+model, turns the negative sequence too: with the admittances ``1 / (R + j w L)`` in place of ``1 / (j w L)``
+the image ``(Y_d - Y_q) / 2`` is turned by ``atan(R / (w L_d)) + atan(R / (w L_q))`` (2.4 degrees on the
+salient book motor at 1 kHz, i.e. a 1.2 degree angle bias, measured 1.15 degrees before compensation); half of
+it is added too.
 
 Carrier phase: ``"internal"`` uses the estimator's own carrier and the drive's known delay
 (``delay_periods``: 1.5 with a computational delay, 0.5 without); ``"measured"`` takes it from the
 band-passed voltage applied over the last period (``u_ab_last``), for logs whose carrier started
 elsewhere (``pmsmjax observe``): the flux at ``t_k`` leads that voltage's phase by ``x/2 - pi/2``.
 
-Filter design (:func:`hfi_rotating_design`; defaults for the book's 10 kHz control):
-``f_h = f_s / 10`` (1 kHz: 10 samples a carrier period, Nyquist 5 kHz, 6x the 175 Hz current-loop
-bandwidth); ``B = w_h / 5`` (1257 rad/s, second order); ``w_p = w_h / 50`` (126 rad/s, first order:
-the positive sequence is constant at standstill, its 2 w_h image in the error is removed, not filtered);
-``w_l = w_h / 3`` (2094 rad/s, first order: attenuates what is left at ``2 w_h`` 6-fold); PLL
+Filter design ([`hfi_rotating_design`][pmsmjax.estimators.hfi_rotating.hfi_rotating_design]; defaults for the
+book's 10 kHz control): ``f_h = f_s / 10`` (1 kHz: 10 samples a carrier period, Nyquist 5 kHz, 6x the 175 Hz
+current-loop bandwidth); ``B = w_h / 5`` (1257 rad/s, second order); ``w_p = w_h / 50`` (126 rad/s, first
+order: the positive sequence is constant at standstill, its 2 w_h image in the error is removed, not
+filtered); ``w_l = w_h / 3`` (2094 rad/s, first order: attenuates what is left at ``2 w_h`` 6-fold); PLL
 bandwidth ``w_l / 7`` (299 rad/s, double pole; the continuous loop with the in-loop low-pass is stable
 for a bandwidth below ``2 w_l`` by Routh, and a seventh keeps its damping). Measured on the salient book
 drive (speed-loop bandwidth 50 rad/s): a PLL bandwidth of 105 rad/s, twice the speed loop's, let the
@@ -146,7 +148,8 @@ class HFIRotating(AbstractEstimator):
         )
 
     def negative_sequence_amplitude(self, Ts: float) -> Array:
-        """The model's ``I_n``, A (:func:`.hfi_signal.negative_sequence_amplitude`)."""
+        """The model's ``I_n``, A
+        ([`hfi_signal.negative_sequence_amplitude`][pmsmjax.estimators.hfi_signal.negative_sequence_amplitude])."""
         return hs.negative_sequence_amplitude(self.L_d, self.L_q, self.hf_voltage, self.hf_omega, Ts)
 
     def step(self, state: HFIRotatingState, sample: Sample, Ts: float) -> tuple[HFIRotatingState, Estimate]:
@@ -195,7 +198,8 @@ class HFIRotating(AbstractEstimator):
     def pull(
         self, state: HFIRotatingState, estimate: Estimate, theta_e, omega_m, strength
     ) -> HFIRotatingState:
-        """The PLL moved by the estimate's distance to the target (:func:`.pll.pull_pll`)."""
+        """The PLL moved by the estimate's distance to the target
+        ([`pll.pull_pll`][pmsmjax.estimators.pll.pull_pll])."""
         pll = pull_pll(state.pll, self.pole_pairs, estimate, theta_e, omega_m, strength)
         return dataclasses.replace(state, pll=pll)
 

@@ -22,8 +22,9 @@ voltages, the flux at sample ``n`` is exactly
     psi_n = V_h Ts / (2 sin(x/2)) e^{j (x n - delay_periods x - pi/2)},
 
 so the flux amplitude is ``Psi = V_h / w_eff`` with ``w_eff = 2 sin(x/2)/Ts`` (``w_h`` for ``Ts -> 0``:
-1.6 % below ``w_h`` at 1 kHz, 10 kHz) and its phase :func:`flux_phase` lags the command by
-``delay_periods x + pi/2``. The demodulators use this phase, so the delay is compensated exactly.
+1.6 % below ``w_h`` at 1 kHz, 10 kHz) and its phase [`flux_phase`][pmsmjax.estimators.hfi_signal.flux_phase]
+lags the command by ``delay_periods x + pi/2``. The demodulators use this phase, so the delay is compensated
+exactly.
 
 **Band-pass filter.** A second-order digital resonator (Bristow-Johnson's audio-EQ-cookbook band-pass,
 constant 0 dB peak) centred exactly at ``x``: unit gain and zero phase at ``w_h`` whatever the bandwidth,
@@ -31,7 +32,8 @@ zeros at DC and Nyquist, -3 dB bandwidth ``B`` (rad/s; ``Q = w_h / B``). ``i - B
 notch: the fundamental current the current loop sees (the carrier never enters its feedback). Off-centre
 the resonator delays: a carrier image at ``w_h + d`` is shifted by ``arg H(e^{j (x + d Ts)})``
 (``-atan(2 d / B)`` in the analog limit), which at low speed is a delay of ``2/B`` s on the rotor's image;
-each estimator takes it out of its output angle exactly (:func:`bandpass_phase`).
+each estimator takes it out of its output angle exactly
+([`bandpass_phase`][pmsmjax.estimators.hfi_signal.bandpass_phase]).
 """
 
 import math
@@ -108,7 +110,8 @@ def effective_frequency(w_h, Ts: float) -> Array:
 def negative_sequence_amplitude(L_d, L_q, V_h, w_h, Ts: float) -> Array:
     """``I_n = (L_q - L_d) V_h / (2 L_d L_q w_eff)``, A: the negative-sequence (rotating injection) and
     the q-axis error-signal (pulsating injection) amplitude for carrier amplitude ``V_h`` (V) at ``w_h``
-    (rad/s) held over periods ``Ts`` (s); ``w_eff`` from :func:`effective_frequency`."""
+    (rad/s) held over periods ``Ts`` (s); ``w_eff`` from
+    [`effective_frequency`][pmsmjax.estimators.hfi_signal.effective_frequency]."""
     return (L_q - L_d) * V_h / (2.0 * L_d * L_q * effective_frequency(w_h, Ts))
 
 
@@ -151,8 +154,9 @@ def carrier_design(owner: str, motor, Ts: float, hf_frequency, hf_voltage, bandp
     """The carrier both injection design rules share: ``(w_h rad/s, V_h V, error low-pass cut-off rad/s)``.
 
     The carrier frequency defaults to ``f_s / 10`` (``hf_frequency`` Hz overrides), ``V_h`` to the voltage
-    giving a :data:`TARGET_NEGATIVE_SEQUENCE_A` error-signal amplitude at the held carrier's effective
-    frequency, the error low-pass to ``w_h / 3``; ``owner`` names the estimator in the errors.
+    giving a [`TARGET_NEGATIVE_SEQUENCE_A`][pmsmjax.estimators.hfi_signal.TARGET_NEGATIVE_SEQUENCE_A]
+    error-signal amplitude at the held carrier's effective frequency, the error low-pass to ``w_h / 3``;
+    ``owner`` names the estimator in the errors.
     """
     f_h = 0.1 / Ts if hf_frequency is None else float(hf_frequency)
     check_positive("hf_frequency", f_h, "Hz", f"a carrier near {0.1 / Ts:g} Hz (f_s / 10)")

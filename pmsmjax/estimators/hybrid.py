@@ -15,34 +15,36 @@ voltage is scaled by ``a = clip((w_off - |w|) / (w_off - w_high), 0, 1)``: full 
 out at ``w_off`` (the carrier costs losses, noise and voltage at speed, where it is not needed).
 
 Polarity. The injection knows the d axis modulo pi. From standstill the polarity is found by
-:class:`.polarity.PolarityDetector` wrapped around the injection estimator (pass it as ``injection``).
-Back from high speed (e.g. a reversal through zero), the injection estimator re-locks to either pole
-while the carrier fades in; while the observer is trusted (``w >= 1/2``) the hybrid therefore keeps a
-correction ``c`` in {0, pi} that puts the injection's angle on the observer's side:
+[`polarity.PolarityDetector`][pmsmjax.estimators.polarity.PolarityDetector] wrapped around the injection
+estimator (pass it as ``injection``). Back from high speed (e.g. a reversal through zero), the injection
+estimator re-locks to either pole while the carrier fades in; while the observer is trusted (``w >= 1/2``) the
+hybrid therefore keeps a correction ``c`` in {0, pi} that puts the injection's angle on the observer's side:
 ``c = pi`` iff ``|wrap(th_obs - th_inj)| > pi/2``, held below ``w = 1/2``. This is a comparator (exact; its
 derivative is zero almost everywhere): it only selects one of two branches of the same estimate.
 
 The band ``(w_low, w_high, w_off)`` and the filter are parameters (tunable; differentiable: the weight
-and the fade are smooth in them). Defaults (:func:`hybrid_design`): 5 % to 15 % of the book drive's
-1000 r/min (50 to 150 r/min), the carrier gone at 25 %; measured on the book scenario and a -1000 -> 1000
-r/min reversal (benchmarks/hybrid_table.py): 30/100/200 and 80/200/300 r/min hold as well (peak errors
-6.4 and 10.5 degrees after the 60 ms start-up, against 7.9 for the default; README.md).
+and the fade are smooth in them). Defaults ([`hybrid_design`][pmsmjax.estimators.hybrid.hybrid_design]): 5 %
+to 15 % of the book drive's 1000 r/min (50 to 150 r/min), the carrier gone at 25 %; measured on the book
+scenario and a -1000 -> 1000 r/min reversal (benchmarks/hybrid_table.py): 30/100/200 and 80/200/300 r/min hold
+as well (peak errors 6.4 and 10.5 degrees after the 60 ms start-up, against 7.9 for the default; README.md).
 
 Slaving. A fundamental-model observer sees no back-EMF at standstill and runs wherever its equations take
 it; left alone it would have to converge while the drive accelerates through the band (a few ms at the
 book drive's current limit). So below the band the hybrid pulls the observer's angle and speed to its own
 estimate: after each step the observer's angle and speed states move so that its estimate goes
 ``(1 - w)`` of its difference to the hybrid's (the observer's
-:meth:`~pmsmjax.estimators.base.AbstractEstimator.pull`: fully slaved at ``w = 0``, free at ``w = 1``).
-:class:`.smo.SlidingModeObserver` with a PLL (the PLL tracks the back-EMF angle: rotor angle, plus pi below
-zero speed) and :class:`.ekf.EKF` (``x = [i_a, i_b, w_e, th_e]``) implement it; other observers run free.
-Likewise above the band the injection estimator's PLL is pulled so that its estimate goes ``w`` of the way
-to the hybrid's (less the polarity correction; :func:`.pll.pull_pll`, through a
-:class:`.polarity.PolarityDetector`), so that when the carrier fades back in (a reversal) it is already
-locked on the right pole at the right speed instead of re-acquiring during the deceleration. Both pulls
-shift the states by the *estimate's* distance to the target: an estimator's output can be its state plus
-a compensation (the rotating injection adds half its filters' lag to its PLL angle, 13 degrees at 335
-r/min), and setting the state to the target instead biased the blend inside the band (README.md).
+[`pull`][pmsmjax.estimators.base.AbstractEstimator.pull]: fully slaved at ``w = 0``, free at ``w = 1``).
+[`smo.SlidingModeObserver`][pmsmjax.estimators.smo.SlidingModeObserver] with a PLL (the PLL tracks the
+back-EMF angle: rotor angle, plus pi below zero speed) and [`ekf.EKF`][pmsmjax.estimators.ekf.EKF]
+(``x = [i_a, i_b, w_e, th_e]``) implement it; other observers run free. Likewise above the band the injection
+estimator's PLL is pulled so that its estimate goes ``w`` of the way to the hybrid's (less the polarity
+correction; [`pll.pull_pll`][pmsmjax.estimators.pll.pull_pll], through a
+[`polarity.PolarityDetector`][pmsmjax.estimators.polarity.PolarityDetector]), so that when the carrier fades
+back in (a reversal) it is already locked on the right pole at the right speed instead of re-acquiring during
+the deceleration. Both pulls shift the states by the *estimate's* distance to the target: an estimator's
+output can be its state plus a compensation (the rotating injection adds half its filters' lag to its PLL
+angle, 13 degrees at 335 r/min), and setting the state to the target instead biased the blend inside the band
+(README.md).
 
 Start-up fields (``startup_weight``, ``startup_i_dq``) and the carrier-free current
 (``i_ab_fundamental``) come from the injection estimate (the polarity pulses, the carrier filter).
@@ -152,8 +154,8 @@ class HybridEstimator(AbstractEstimator):
         return HybridState(inj_state, obs_state, speed, correction), estimate
 
 
-#: Crossover band of :func:`hybrid_design`, r/min: observer weight from 0 at ``low`` to 1 at ``high``,
-#: carrier faded out at ``off``.
+#: Crossover band of [`hybrid_design`][pmsmjax.estimators.hybrid.hybrid_design], r/min: observer weight from 0
+#: at ``low`` to 1 at ``high``, carrier faded out at ``off``.
 HYBRID_BAND_RPM = dict(low=50.0, high=150.0, off=250.0)
 
 
@@ -174,11 +176,12 @@ def hybrid_design(
     polarity_options: dict | None = None,
 ) -> HybridEstimator:
     """The hybrid for ``motor`` at period ``Ts`` (s): injection ``injection`` (a name of
-    :data:`.catalogue.INJECTION_OBSERVERS`), inside a :class:`.polarity.PolarityDetector` if ``polarity``,
-    and the observer ``observer`` (a name of :data:`.catalogue.OBSERVERS`),
-    crossover band in r/min, scheduling-speed filter in rad/s (200 rad/s: well below the injection's
-    error filter, above the speed loop's 50 rad/s). ``delay_periods``: the drive's command delay for the
-    injection's carrier phase (1.5 periods with a computational delay, 0.5 without).
+    [`catalogue.INJECTION_OBSERVERS`][pmsmjax.estimators.catalogue.INJECTION_OBSERVERS]), inside a
+    [`polarity.PolarityDetector`][pmsmjax.estimators.polarity.PolarityDetector] if ``polarity``, and the
+    observer ``observer`` (a name of [`catalogue.OBSERVERS`][pmsmjax.estimators.catalogue.OBSERVERS]),
+    crossover band in r/min, scheduling-speed filter in rad/s (200 rad/s: well below the injection's error
+    filter, above the speed loop's 50 rad/s). ``delay_periods``: the drive's command delay for the injection's
+    carrier phase (1.5 periods with a computational delay, 0.5 without).
 
     The default observer is the EKF: with the smo-pll the book scenario lost lock at every band tried
     (50-150, 100-200, 150-250 r/min; the SMO is not reliable below about 150 r/min and the injection lags

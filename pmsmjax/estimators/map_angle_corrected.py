@@ -1,13 +1,13 @@
 """A back-EMF observer with its constant model kept, and its steady angle error on a saturated machine
 taken out by the flux map: the map-aware observer for the closed loop.
 
-**Why not schedule the model.** :mod:`.map_scheduled` gives the observer, each sample, the map's ``L_q``
-at the operating current. In the closed loop from standstill on the saturated-ipm drive file that
-oscillates (``python -m pmsmjax demo --motor saturated-ipm --control pi --estimator smo --observer-model
-map --load-nm 5``: 33-41 A against the 25 A limit, a +-7 degree limit cycle under load): the observer's
-current equation ``L di/dt = u - R i - e`` with a time-varying ``L`` misses ``i dL/dt``, which it reads
-as back-EMF; a current ripple then moves ``L`` (the secant ``L_q`` goes from 12 mH at no load to 6.4 mH
-at 10 A), hence the angle, hence the current. Keeping the flux ``L i`` across each change of ``L``
+**Why not schedule the model.** [`map_scheduled`][pmsmjax.estimators.map_scheduled] gives the observer, each
+sample, the map's ``L_q`` at the operating current. In the closed loop from standstill on the saturated-ipm
+drive file that oscillates (``python -m pmsmjax demo --motor saturated-ipm --control pi --estimator
+smo --observer-model map --load-nm 5``: 33-41 A against the 25 A limit, a +-7 degree limit cycle under load):
+the observer's current equation ``L di/dt = u - R i - e`` with a time-varying ``L`` misses ``i dL/dt``, which
+it reads as back-EMF; a current ripple then moves ``L`` (the secant ``L_q`` goes from 12 mH at no load to 6.4
+mH at 10 A), hence the angle, hence the current. Keeping the flux ``L i`` across each change of ``L``
 (the missing term restored) halved the ripple but left +-3 degrees; a slower schedule (30-300 rad/s) did
 not remove it.
 
@@ -66,9 +66,9 @@ class MapAngleCorrectedState(eqx.Module):
 class MapAngleCorrected(AbstractEstimator):
     """A constant-model observer whose angle is corrected by the flux map (module docstring).
 
-    **Arguments:** `observer`: an estimator with a ``model`` (:class:`PMSMParameters`; its ``L_q`` is the
-    inductance corrected for); `flux_map`: the machine's map; `current_cutoff`: operating-current
-    low-pass, rad/s.
+    **Arguments:** `observer`: an estimator with a ``model``
+    ([`PMSMParameters`][pmsmjax.machines.motor.PMSMParameters]; its ``L_q`` is the inductance corrected for);
+    `flux_map`: the machine's map; `current_cutoff`: operating-current low-pass, rad/s.
     """
 
     observer: AbstractModelObserver

@@ -14,11 +14,11 @@ flux map ``psi(i)`` that holds at the operating current ``i`` with
     L_d = dpsi_d/di_d (i)          (incremental, the d dynamics),
     psi_f = psi_d(i) - L_d i_d     (so psi_f + L_d i_d = psi_d(i): the active flux is exact),
 
-and ``L_q`` falls back to the incremental ``dpsi_q/di_q`` for ``|i_q|`` under :data:`SECANT_FLOOR_A`
-(the secant's limit there when ``psi_q(i_d, 0) = 0``, a q-symmetric rotor). A constant model taken from the
-map at one current (the drive file's rated point) misreads ``L_q`` everywhere else: the saturated-ipm
-map's secant ``L_q`` is 12 mH at no load and 6.4 mH at the rated 10 A against its 2.8 mH incremental
-value there.
+and ``L_q`` falls back to the incremental ``dpsi_q/di_q`` for ``|i_q|`` under
+[`SECANT_FLOOR_A`][pmsmjax.estimators.map_scheduled.SECANT_FLOOR_A] (the secant's limit there when
+``psi_q(i_d, 0) = 0``, a q-symmetric rotor). A constant model taken from the map at one current (the drive
+file's rated point) misreads ``L_q`` everywhere else: the saturated-ipm map's secant ``L_q`` is 12 mH at no
+load and 6.4 mH at the rated 10 A against its 2.8 mH incremental value there.
 
 **Where the current comes from.** The operating current is the measured one in the observer's last
 estimated frame, low-passed (``current_cutoff``) so the model does not follow the PWM ripple or the
@@ -33,14 +33,16 @@ follows a load change in tens of milliseconds.
 
 **In the closed loop** the scheduled model oscillates (current-limit overshoot, a limit cycle under
 load; its current equation misses ``i dL/dt``): the drive's map-aware observer is
-:mod:`.map_angle_corrected`, the constant model with the map's steady angle error taken out.
+[`map_angle_corrected`][pmsmjax.estimators.map_angle_corrected], the constant model with the map's steady
+angle error taken out.
 
-**What a constant model costs** (:func:`constant_model_angle_error`). In steady state the rotor-frame
-voltage is ``u = R i + w J psi(i)``; an observer with inductance ``L`` extracts the EMF ``w J (psi(i) -
-L i)`` and takes its flux ``psi(i) - L i`` for the d axis, so the estimate leads the rotor by
+**What a constant model costs**
+([`constant_model_angle_error`][pmsmjax.estimators.map_scheduled.constant_model_angle_error]). In steady state
+the rotor-frame voltage is ``u = R i + w J psi(i)``; an observer with inductance ``L`` extracts the EMF
+``w J (psi(i) - L i)`` and takes its flux ``psi(i) - L i`` for the d axis, so the estimate leads the rotor by
 ``atan2(psi_q - L i_q, psi_d - L i_d)``. The controller holds its reference in the estimated frame, so the
 machine carries that reference turned by the error: a fixed point, as for HF injection
-(:mod:`.hfi_cross_saturation`).
+([`hfi_cross_saturation`][pmsmjax.estimators.hfi_cross_saturation]).
 """
 
 import math
@@ -116,8 +118,8 @@ class MapScheduled(AbstractEstimator):
     """A fundamental-model observer whose motor model follows the flux map (module docstring).
 
     **Arguments:** `observer`: a fundamental-model observer
-    (:class:`~pmsmjax.estimators.base.AbstractModelObserver`: the chapter 5 observers, the EKF);
-    `flux_map`: the machine's map; `current_cutoff`: operating-current low-pass, rad/s.
+    ([`AbstractModelObserver`][pmsmjax.estimators.base.AbstractModelObserver]: the chapter 5 observers, the
+    EKF); `flux_map`: the machine's map; `current_cutoff`: operating-current low-pass, rad/s.
     """
 
     observer: AbstractModelObserver

@@ -12,16 +12,17 @@ Approach*, 1979), surface machine, in the estimated frame with ``i'_d = i_d + ps
 
 The adjustable model is the same machine in the stationary frame, ``L di^/dt = u - R i^ - w^ psi_f
 [-sin th^, cos th^]``, so it is propagated there exactly over each period (with the back-EMF of the
-period's weighted middle, :mod:`.stator_model`), and the adaptation error is evaluated there: the first
-two terms are the cross product ``i x i^`` (rotation invariant), the third the current error along the
-estimated q axis. ``L`` is the model's ``L_q`` (active flux, :mod:`.stator_model`).
+period's weighted middle, [`stator_model`][pmsmjax.estimators.stator_model]), and the adaptation error is
+evaluated there: the first two terms are the cross product ``i x i^`` (rotation invariant), the third the
+current error along the estimated q axis. ``L`` is the model's ``L_q`` (active flux,
+[`stator_model`][pmsmjax.estimators.stator_model]).
 
-Design rule (:func:`mras_design`): linearised about a tracked rotor with ``R << w L``, a speed error
-``dw`` makes the q-current error grow as ``L d(i - i^)_q/dt = psi_f dw`` and the adaptation error is
-``-(psi_f/L)(i - i^)_q``: the loop is ``s^2 + Kp (psi_f/L)^2 s + Ki (psi_f/L)^2``. A double pole at
-``-bandwidth`` gives ``Kp = 2 bw (L/psi_f)^2``, ``Ki = bw^2 (L/psi_f)^2``. ``check_period`` refuses gains
-whose sampled version of that loop (the winding discretised exactly, resistance included, one period of
-delay in the model: :func:`mras_loop_matrix`) is unstable.
+Design rule ([`mras_design`][pmsmjax.estimators.mras.mras_design]): linearised about a tracked rotor with
+``R << w L``, a speed error ``dw`` makes the q-current error grow as ``L d(i - i^)_q/dt = psi_f dw`` and the
+adaptation error is ``-(psi_f/L)(i - i^)_q``: the loop is ``s^2 + Kp (psi_f/L)^2 s + Ki (psi_f/L)^2``. A
+double pole at ``-bandwidth`` gives ``Kp = 2 bw (L/psi_f)^2``, ``Ki = bw^2 (L/psi_f)^2``. ``check_period``
+refuses gains whose sampled version of that loop (the winding discretised exactly, resistance included, one
+period of delay in the model: [`mras_loop_matrix`][pmsmjax.estimators.mras.mras_loop_matrix]) is unstable.
 
 The angle is corrected only through the coupling of the two axes at speed (the ``w L`` terms), so near
 standstill the MRAS estimates speed but lets the angle drift: a known limit of the method.
@@ -112,7 +113,7 @@ class MRAS(AbstractModelObserver):
         )
 
 
-#: Design-rule default of :func:`mras_design`, rad/s.
+#: Design-rule default of [`mras_design`][pmsmjax.estimators.mras.mras_design], rad/s.
 MRAS_BANDWIDTH = 1000.0
 
 
@@ -125,7 +126,7 @@ def mras_design(
 ) -> MRAS:
     """The MRAS with a double pole of the linearised adaptation loop at ``-bandwidth`` (rad/s):
     ``Kp = 2 bw (L/psi_f)^2``, ``Ki = bw^2 (L/psi_f)^2`` (module docstring). ``Ts`` (s) is checked by
-    :meth:`MRAS.check_period`."""
+    [`MRAS.check_period`][pmsmjax.estimators.mras.MRAS]."""
     check_positive("Ts (control period)", Ts, "s")
     check_positive("bandwidth (MRAS adaptation)", bandwidth, "rad/s")
     model = motor if model is None else model

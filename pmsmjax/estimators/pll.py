@@ -12,10 +12,10 @@ motors", IEEE TIE 47(1), 2000, doi:10.1109/41.824128): for a bandwidth ``bw`` (r
 loop ``s^2 + kp s + ki`` gets a double pole at ``-bw``: ``kp = 2 bw``, ``ki = bw^2``. The loop tracks a
 constant speed with zero angle error (type 2). The sampled loop's characteristic polynomial is
 ``z^2 - (2 - a - b) z + (1 - a)`` with ``a = Ts kp``, ``b = Ts^2 ki``
-(:func:`pmsmjax.estimators.stability.tracking_loop_matrix`): stable iff ``0 < a < 2``, ``0 < b < 4 - 2a``
-(ODrive refuses the stricter ``a >= 1``). A lag compensation computed from the PLL's own speed belongs on
-its output, not on the angle it locks to: there it would feed the speed back into the phase error and
-shrink the stable gains several-fold.
+([`pmsmjax.estimators.stability.tracking_loop_matrix`][pmsmjax.estimators.stability.tracking_loop_matrix]):
+stable iff ``0 < a < 2``, ``0 < b < 4 - 2a`` (ODrive refuses the stricter ``a >= 1``). A lag compensation
+computed from the PLL's own speed belongs on its output, not on the angle it locks to: there it would feed the
+speed back into the phase error and shrink the stable gains several-fold.
 """
 
 import equinox as eqx
@@ -82,7 +82,7 @@ class PLL(eqx.Module):
 def pull_pll(pll: PLLState, pole_pairs, estimate: Estimate, theta_e, omega_m, strength) -> PLLState:
     """``pll`` moved so that the estimate read from it (`estimate`) goes ``strength`` (in [0, 1]) of the way
     to ``theta_e`` (rad) and ``omega_m`` (mechanical rad/s; ``pole_pairs`` turns it electrical): the
-    :meth:`~pmsmjax.estimators.base.AbstractEstimator.pull` of the estimators whose angle and speed are a
+    [`pull`][pmsmjax.estimators.base.AbstractEstimator.pull] of the estimators whose angle and speed are a
     PLL's (the HF-injection estimators).
 
     Shifted by the estimate's distance to the target, not set to it: the rotating injection's output is

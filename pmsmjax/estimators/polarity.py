@@ -5,14 +5,15 @@ Noguchi, Yamada, Kondo, Takahashi, "Initial rotor position estimation method of 
 motor with no sensitivity to armature resistance", IEEE Trans. Ind. Electron. 45(1), 1998).
 
 A saliency-based (HF injection) estimator locks onto the d axis modulo pi: its error signal goes with
-``sin 2 dtheta``. With the d-axis iron biased by the magnet (:mod:`pmsmjax.machines.saturation`), current
-along +d saturates the iron and current along -d does not, so the flux needed per ampere (the secant
-inductance ``L = dpsi_d / di_d``) is smaller along the true +d axis. This wrapper, at standstill:
+``sin 2 dtheta``. With the d-axis iron biased by the magnet
+([`pmsmjax.machines.saturation`][pmsmjax.machines.saturation]), current along +d saturates the iron and
+current along -d does not, so the flux needed per ampere (the secant inductance ``L = dpsi_d / di_d``) is
+smaller along the true +d axis. This wrapper, at standstill:
 
 1. lets the wrapped estimator converge for ``settle_time`` with zero current;
 2. holds ``i_d* = +I_p`` along the estimated d axis for ``pulse_time``, then zero for ``rest_time``; then
    ``-I_p`` and zero again (current controlled, through ``Estimate.startup_weight/startup_i_dq`` as the
-   I/f start does, :mod:`.startup`), so the pulses are equal whatever the inductance;
+   I/f start does, [`startup`][pmsmjax.estimators.startup]), so the pulses are equal whatever the inductance;
 3. over each pulse window measures the flux change from the sampled voltage and current,
    ``dpsi = sum (u_d - R i_d) Ts`` (``u_d``: last period's applied voltage in the estimated frame;
    trapezoidal ``i_d``), and the current change ``di``; at standstill ``u_d - R i_d = dpsi_d/dt`` exactly,
@@ -184,8 +185,9 @@ def polarity_detector(
     release_time: float = 0.01,
     decision: Decision = "exact",
 ) -> PolarityDetector:
-    """:class:`PolarityDetector` with defaults for the book drive (current loop 1100 rad/s: a 4 ms pulse
-    is 4.4 time constants; 8 A is the default flux map's current scale, inside the 15 A limit)."""
+    """[`PolarityDetector`][pmsmjax.estimators.polarity.PolarityDetector] with defaults for the book drive
+    (current loop 1100 rad/s: a 4 ms pulse is 4.4 time constants; 8 A is the default flux map's current scale,
+    inside the 15 A limit)."""
     return PolarityDetector(
         observer, R, pulse_current, settle_time, pulse_time, rest_time, release_time, decision=decision
     )

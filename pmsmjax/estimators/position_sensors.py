@@ -1,16 +1,18 @@
 """Shaft position sensors as estimators: the ideal sensor and an incremental encoder.
 
-:class:`ExactSensor` passes the true electrical angle and speed through (what chapters 1-3 assume).
+[`ExactSensor`][pmsmjax.estimators.position_sensors.ExactSensor] passes the true electrical angle and speed
+through (what chapters 1-3 assume).
 
-:class:`Encoder` models an incremental quadrature encoder with ``lines`` lines per revolution (``4 lines``
-counts per mechanical revolution, so an electrical-angle quantum of ``2 pi p_n / (4 lines)``), read
-``delay_s`` late (a transport delay: the count latched ``delay_s`` before the sampling instant, taken as
-``theta_e - omega_e delay_s``), and a speed from a type-2 tracking loop on the counted angle
-(ODrive's encoder estimator, ``Firmware/MotorControl/encoder.cpp``): ``e = wrap(theta_count - theta^)``,
-``theta^ += Ts (omega^ + kp e)``, ``omega^ += Ts ki e`` with ``kp = 2 bw``, ``ki = bw^2`` (both poles at
-``-bw``). Differencing the count over one period instead would give a speed quantum of
-``2 pi / (4 lines Ts)``: 6.3 rad/s (60 r/min) for 2500 lines at 10 kHz. The controller gets the counted
-angle (advanced by the tracked speed times the delay, as firmware does) and the tracked speed.
+[`Encoder`][pmsmjax.estimators.position_sensors.Encoder] models an incremental quadrature encoder with
+``lines`` lines per revolution (``4 lines`` counts per mechanical revolution, so an electrical-angle quantum
+of ``2 pi p_n / (4 lines)``), read ``delay_s`` late (a transport delay: the count latched ``delay_s`` before
+the sampling instant, taken as ``theta_e - omega_e delay_s``), and a speed from a type-2 tracking loop on the
+counted angle (ODrive's encoder estimator, ``Firmware/MotorControl/encoder.cpp``):
+``e = wrap(theta_count - theta^)``, ``theta^ += Ts (omega^ + kp e)``, ``omega^ += Ts ki e`` with
+``kp = 2 bw``, ``ki = bw^2`` (both poles at ``-bw``). Differencing the count over one period instead would
+give a speed quantum of ``2 pi / (4 lines Ts)``: 6.3 rad/s (60 r/min) for 2500 lines at 10 kHz. The controller
+gets the counted angle (advanced by the tracked speed times the delay, as firmware does) and the tracked
+speed.
 """
 
 import math

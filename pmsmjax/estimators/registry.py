@@ -1,9 +1,12 @@
-"""Estimators by name: the one registry behind ``pmsmjax observe --observer``, :func:`pmsmjax.presets.
-sensorless_drive` and the chapter 5 and 6 workflows (tuning, Monte Carlo, comparison).
+"""Estimators by name: the one registry behind ``pmsmjax observe --observer``,
+[`pmsmjax.presets.sensorless_drive`][pmsmjax.assemble.sensorless_drive] and the chapter 5 and 6
+workflows (tuning, Monte Carlo, comparison).
 
-It joins the single estimators of :mod:`.catalogue` (:data:`OBSERVERS`, chapter 5; the HF-injection
-estimators :data:`INJECTION_OBSERVERS`, chapter 6, whose options include ``hf_voltage`` (V) and
-``hf_frequency`` (Hz)) with the whole-speed-range ``hybrid`` (:data:`HYBRID_OBSERVERS`, :mod:`.hybrid`),
+It joins the single estimators of [`catalogue`][pmsmjax.estimators.catalogue]
+([`OBSERVERS`][pmsmjax.estimators.catalogue.OBSERVERS], chapter 5; the HF-injection estimators
+[`INJECTION_OBSERVERS`][pmsmjax.estimators.catalogue.INJECTION_OBSERVERS], chapter 6, whose options include
+``hf_voltage`` (V) and ``hf_frequency`` (Hz)) with the whole-speed-range ``hybrid``
+([`HYBRID_OBSERVERS`][pmsmjax.estimators.registry.HYBRID_OBSERVERS], [`hybrid`][pmsmjax.estimators.hybrid]),
 which takes its band, its two parts' names and their options.
 """
 
@@ -22,9 +25,11 @@ __all__ = [
     "observer_options",
 ]
 
-#: Whole-speed-range estimators (chapter 6 with chapter 5), same form as :data:`OBSERVERS`; apart from
-#: :data:`INJECTION_OBSERVERS` because they are no modulo-pi injection estimators (studies of those
-#: iterate over that registry), though they inject a carrier at low speed.
+#: Whole-speed-range estimators (chapter 6 with chapter 5), same form as
+#: [`OBSERVERS`][pmsmjax.estimators.catalogue.OBSERVERS]; apart from
+#: [`INJECTION_OBSERVERS`][pmsmjax.estimators.catalogue.INJECTION_OBSERVERS] because they are no modulo-pi
+#: injection estimators (studies of those iterate over that registry), though they inject a carrier at low
+#: speed.
 HYBRID_OBSERVERS = {"hybrid": (hybrid_design, method("estimator", "hybrid").description)}
 
 #: Every name, in the order a refusal lists them.

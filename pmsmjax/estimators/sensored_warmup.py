@@ -2,12 +2,12 @@
 the background, then on the observer (used by the observer tuning).
 
 Why: to tune an observer by gradients the loss must be a smooth function of its gains. A start from
-standstill with the I/f hand-over (:mod:`.startup`) is continuous, but whether a back-EMF observer locks
-after it depends on the scenario (measured: smo-pll and adaptive-smo lose the angle when the I/f start is
-followed by 100 r/min or by a reversal), and a lost lock is a jump in the loss. Starting the plant at speed
-with the observer cold lets the controller act on an unconverged estimate. This wrapper starts at speed
-(``simulate(initial_state=drive.init(speed_m, theta_e))``) with the controller on the sensor for
-``warmup_s`` and then hands over in one period. The hand-over time depends on time only, never on a
+standstill with the I/f hand-over ([`startup`][pmsmjax.estimators.startup]) is continuous, but whether a
+back-EMF observer locks after it depends on the scenario (measured: smo-pll and adaptive-smo lose the angle
+when the I/f start is followed by 100 r/min or by a reversal), and a lost lock is a jump in the loss. Starting
+the plant at speed with the observer cold lets the controller act on an unconverged estimate. This wrapper
+starts at speed (``simulate(initial_state=drive.init(speed_m, theta_e))``) with the controller on the sensor
+for ``warmup_s`` and then hands over in one period. The hand-over time depends on time only, never on a
 traced value, so the whole run is differentiable w.r.t. every observer gain; the jump at the hand-over
 is the observer's (converged) angle error, a fraction of a degree.
 
@@ -25,8 +25,9 @@ its own stream), never of a gain: the loss stays a smooth, deterministic functio
 An injecting estimator (chapter 6) keeps injecting through the wrapper (``injects_voltage`` is the
 wrapped one's), and its carrier-free current for the controller is taken from the clean sample.
 
-The path of the wrapped observer is ``estimator.observer``, as in :class:`.startup.StartupEstimator`, so
-gains tuned on a warm-up drive (``estimator.observer.k``) apply unchanged to a drive with the I/f start.
+The path of the wrapped observer is ``estimator.observer``, as in
+[`startup.StartupEstimator`][pmsmjax.estimators.startup.StartupEstimator], so gains tuned on a warm-up drive
+(``estimator.observer.k``) apply unchanged to a drive with the I/f start.
 """
 
 import dataclasses
@@ -53,7 +54,8 @@ class SensoredWarmup(AbstractEstimator):
 
     **Arguments:**
 
-    - `observer`: the observer that takes over (any :class:`AbstractEstimator`).
+    - `observer`: the observer that takes over (any
+      [`AbstractEstimator`][pmsmjax.estimators.base.AbstractEstimator]).
     - `warmup_s`: time on the sensor, s (the observer is in charge from the first period starting at or
       after it).
     - `current_noise_a`, `voltage_noise_v`: standard deviation of the noise on the observer's current (A)

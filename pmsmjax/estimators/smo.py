@@ -7,28 +7,31 @@ for washing machine applications", IEEE TIA 45(2), 2009, doi:10.1109/TIA.2009.20
     L di^/dt = -R i^ + u - z,     z = k F(i^ - i)           (current observer, F: sign/saturation/sigmoid)
     e^ = LPF(z)                                              (back-EMF, cut-off w_c)
     th^ = -atan2(e^_a, e^_b) + lag(w^)                       (arctan; book: lag = atan(w^/w_c))
-      or a PLL on -e_a cos th^ - e_b sin th^, plus lag(w^)   (:mod:`pmsmjax.estimators.pll`)
+      or a PLL on -e_a cos th^ - e_b sin th^, plus lag(w^)   (pmsmjax.estimators.pll)
 
-Sampled form (module docstring of :mod:`.stator_model`): the current observer is propagated exactly over
-the period with the held voltage and last period's ``z``,
+Sampled form (module docstring of [`stator_model`][pmsmjax.estimators.stator_model]): the current observer is
+propagated exactly over the period with the held voltage and last period's ``z``,
 ``i^_k = Phi i^_{k-1} + Gamma (u_{k-1} - z_{k-1})``, then ``z_k = k F(i^_k - i_k)``. In the linear zone of a
 smoothed ``F`` (gain ``G = k / width``) the error ``i^ - i`` obeys ``x_k = p x_{k-1} + Gamma (e_bar - z)``
 with ``p = Phi - Gamma G``, so ``z`` is the back-EMF through the filter ``G Gamma W / (1 - p z^-1)``. The
 angle is compensated with the *whole* chain's phase at the estimated speed, exactly for the sampled
-filters: the period weighting ``W`` (about half a period, :func:`.stator_model.period_weight_phase`), the
-observer pole ``p`` and the low-pass filter's pole ``exp(-w_c Ts)`` (:func:`.stator_model.first_order_lag`;
-it tends to the book's ``atan(w/w_c)`` as ``Ts -> 0``). For ``F = sign`` the chain is taken as deadbeat
-(``p = 0``: the switching output's average is the last period's back-EMF).
+filters: the period weighting ``W`` (about half a period,
+[`stator_model.period_weight_phase`][pmsmjax.estimators.stator_model.period_weight_phase]), the observer pole
+``p`` and the low-pass filter's pole ``exp(-w_c Ts)``
+([`stator_model.first_order_lag`][pmsmjax.estimators.stator_model.first_order_lag]; it tends to the book's
+``atan(w/w_c)`` as ``Ts -> 0``). For ``F = sign`` the chain is taken as deadbeat (``p = 0``: the switching
+output's average is the last period's back-EMF).
 
 Speed (``smo``): the rotation of ``e^`` between samples, ``atan2(e_{k-1} x e_k, e_{k-1} . e_k) / Ts``,
 through a first-order filter of bandwidth ``speed_bandwidth``; its sign also tells which of the two
 angles the back-EMF allows is meant. ``smo-pll``: the PLL's speed.
 
-Design rule (:func:`smo_design`): ``k = k_margin psi_f w_e,max`` (``k > max|e|``, the sliding condition,
-with a margin; Utkin, Guldner, Shi, *Sliding Mode Control in Electro-Mechanical Systems*, 2nd ed., 2009,
-ch. 10); ``width`` such that the linear-zone pole is ``p = pole`` (``G = (Phi - p)/Gamma``; ``p = 0`` would
-be deadbeat); ``w_c`` and the speed/PLL bandwidths are fixed values chosen for 10 kHz sampling and 0.5 %
-measurement noise (see :func:`smo_design`). ``check_period`` refuses ``|p| >= 1`` (``G`` above
+Design rule ([`smo_design`][pmsmjax.estimators.smo.smo_design]): ``k = k_margin psi_f w_e,max``
+(``k > max|e|``, the sliding condition, with a margin; Utkin, Guldner, Shi, *Sliding Mode Control in
+Electro-Mechanical Systems*, 2nd ed., 2009, ch. 10); ``width`` such that the linear-zone pole is ``p = pole``
+(``G = (Phi - p)/Gamma``; ``p = 0`` would be deadbeat); ``w_c`` and the speed/PLL bandwidths are fixed values
+chosen for 10 kHz sampling and 0.5 % measurement noise (see
+[`smo_design`][pmsmjax.estimators.smo.smo_design]). ``check_period`` refuses ``|p| >= 1`` (``G`` above
 ``(1 + Phi)/Gamma``, about ``2 L / Ts``: 105 V/A on the book motor at 10 kHz) and unstable PLL gains.
 
 Why the smoothed function is the default: the sign observer's current jumps by ``k Ts / L`` each period
@@ -240,7 +243,7 @@ class SlidingModeObserver(AbstractModelObserver):
         return dataclasses.replace(state, theta=theta, omega=omega)
 
 
-#: Design-rule defaults of :func:`smo_design` (see there for why).
+#: Design-rule defaults of [`smo_design`][pmsmjax.estimators.smo.smo_design] (see there for why).
 SMO_MAX_SPEED_RPM = 3000.0
 SMO_K_MARGIN = 3.0
 SMO_POLE = 0.5
@@ -274,8 +277,8 @@ def smo_design(
     - ``omega_c`` (rad/s): the low-pass lag is compensated exactly, so it trades noise against the effect
       of speed-estimate errors on the compensation; ``speed_bandwidth`` (rad/s, ``"arctan"``: a slower
       filter lags the load step's speed dip, and the compensation with it); ``pll_bandwidth`` (rad/s,
-      ``"pll"``, :func:`pmsmjax.estimators.pll.pll_design`: a type-2 loop's error under acceleration
-      falls as 1/bw^2). Each default was chosen on the design-sensitivity table of
+      ``"pll"``, [`pmsmjax.estimators.pll.pll_design`][pmsmjax.estimators.pll.pll_design]: a type-2 loop's
+      error under acceleration falls as 1/bw^2). Each default was chosen on the design-sensitivity table of
       benchmarks/observer_accuracy.py (book drive logs, 0.5 % noise; README.md).
     - ``emf_floor = emf_floor_fraction psi_f p_n w_max`` (V): the PLL's detector normalisation floor.
 

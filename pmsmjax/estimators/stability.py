@@ -3,10 +3,11 @@ refuses ``Ts kp >= 1``, ``Firmware/MotorControl/sensorless_estimator.cpp``).
 
 Every observer's ``check_period(Ts)`` writes the small-signal model of its loop *as sampled* (one
 period of the implementation, linearised about a rotor tracked at constant speed) as a matrix and hands
-it to :func:`check_loop`, which raises :class:`~pmsmjax.spec.validation.ParameterError` naming the gains and
-the fix when an eigenvalue lies on or outside the unit circle. Batched (vmapped) gains are checked
-element by element; traced gains are skipped (checks are for the values a user passes in).
-tests/estimators/test_observers.py runs each observer just inside and just outside the boundary found here.
+it to [`check_loop`][pmsmjax.estimators.stability.check_loop], which raises
+[`ParameterError`][pmsmjax.spec.validation.ParameterError] naming the gains and the fix when an eigenvalue
+lies on or outside the unit circle. Batched (vmapped) gains are checked element by element; traced gains are
+skipped (checks are for the values a user passes in). tests/estimators/test_observers.py runs each observer
+just inside and just outside the boundary found here.
 """
 
 from collections.abc import Callable

@@ -13,8 +13,9 @@ A fundamental-model observer sees no back-EMF at standstill, so the drive starts
 2. **Hand-over**: while ``w_if`` runs from the hand-over speed ``w_h`` to ``w_h + w_b`` the weight
    ``w = (w_if - w_h) / w_b`` blends linearly (a) the angle from the I/f angle to the observer's (along the
    shorter arc, so no jump of 2 pi), (b) the speed from ``w_if`` to the observer's, and (c) the current
-   reference from the I/f current to the speed loop's output (in :class:`pmsmjax.controllers.FOC`,
-   through ``Estimate.startup_weight``/``Estimate.startup_i_dq``). After that the observer is in charge.
+   reference from the I/f current to the speed loop's output (in
+   [`pmsmjax.controllers.FOC`][pmsmjax.controllers.foc.FOC], through
+   ``Estimate.startup_weight``/``Estimate.startup_i_dq``). After that the observer is in charge.
 
 The weight is a function of the ramp, i.e. of time only, so the sequence is continuous (no comparator)
 and the whole start is differentiable w.r.t. every field. The observer runs from the first period on the
@@ -46,7 +47,8 @@ class StartupEstimator(AbstractEstimator):
 
     **Arguments:**
 
-    - `observer`: the observer that takes over (any :class:`AbstractEstimator`).
+    - `observer`: the observer that takes over (any
+      [`AbstractEstimator`][pmsmjax.estimators.base.AbstractEstimator]).
     - `pole_pairs`: pole-pair number of the motor (I/f electrical angle = ``p`` times the mechanical ramp).
     - `i_start`: I/f current amplitude, A (on the I/f frame's q axis).
     - `accel`: ramp acceleration, mechanical rad/s^2.

@@ -1,10 +1,10 @@
 """The observers' shared arithmetic: the winding discretised over one period, the back-EMF direction, and
 the phase lag of the sampled chain between the true back-EMF and an observer's estimate of it.
 
-Sampling convention (what every observer of chapter 5 sees, :class:`pmsmjax.signals.Sample`): at ``t_k``
-the current ``i_k`` is sampled and ``u_{k-1}``, the stator voltage held over ``[t_{k-1}, t_k)``, is known.
-An observer therefore propagates its own model from ``t_{k-1}`` to ``t_k`` with ``u_{k-1}`` and corrects it
-with ``i_k``.
+Sampling convention (what every observer of chapter 5 sees,
+[`pmsmjax.signals.Sample`][pmsmjax.signals.Sample]): at ``t_k`` the current ``i_k`` is sampled and
+``u_{k-1}``, the stator voltage held over ``[t_{k-1}, t_k)``, is known. An observer therefore propagates its
+own model from ``t_{k-1}`` to ``t_k`` with ``u_{k-1}`` and corrects it with ``i_k``.
 
 **The winding over one period** (surface model ``L di/dt = u - R i - e``, ``u`` held): exactly
 
@@ -12,11 +12,12 @@ with ``i_k``.
 
 where ``e_bar`` is the back-EMF over the period weighted by ``exp(-R (t_k - tau) / L)``. For a back-EMF
 rotating at ``omega`` that weighted mean is the back-EMF at ``t_k`` times
-``W = (1 - exp(-(R/L + j omega) Ts)) / ((R + j omega L) Gamma)`` (:func:`period_weight_phase`), whose
-phase is ``-omega Ts/2 (1 - R Ts/(6 L))`` up to third-order terms: the period's back-EMF is the one at
-its *middle* (a little after it: the winding's decay weights the period's end more). Taking it at
-either end instead costs ``omega Ts / 2`` of angle: 1.2 electrical degrees at 1000 r/min on the book motor
-(4 pole pairs, 10 kHz). This is the "half-sample bookkeeping".
+``W = (1 - exp(-(R/L + j omega) Ts)) / ((R + j omega L) Gamma)``
+([`period_weight_phase`][pmsmjax.estimators.stator_model.period_weight_phase]), whose phase is
+``-omega Ts/2 (1 - R Ts/(6 L))`` up to third-order terms: the period's back-EMF is the one at its *middle* (a
+little after it: the winding's decay weights the period's end more). Taking it at either end instead costs
+``omega Ts / 2`` of angle: 1.2 electrical degrees at 1000 r/min on the book motor (4 pole pairs, 10 kHz). This
+is the "half-sample bookkeeping".
 
 **Back-EMF direction.** ``e_ab = omega_e psi_f [-sin th, cos th]`` (the book, ch. 1), so
 ``th = atan2(-e_a, e_b)`` for positive speed and ``th = atan2(e_a, -e_b)`` for negative speed: the EMF
@@ -80,8 +81,9 @@ def phase_detector(v_ab, phi, floor) -> Array:
     and stays bounded near standstill, where ``|v| -> 0``.
 
     The PLL fed by it tracks the *back-EMF's* angle, which equals the rotor angle for positive speed and
-    the rotor angle plus pi for negative speed (:func:`rotor_angle`): tracking the EMF's angle keeps the
-    loop's dynamics the same in both directions and lets it lock from standstill in either.
+    the rotor angle plus pi for negative speed ([`rotor_angle`][pmsmjax.estimators.stator_model.rotor_angle]):
+    tracking the EMF's angle keeps the loop's dynamics the same in both directions and lets it lock from
+    standstill in either.
     """
     raw = -v_ab[0] * jnp.cos(phi) - v_ab[1] * jnp.sin(phi)
     return raw / jnp.sqrt(v_ab[0] ** 2 + v_ab[1] ** 2 + floor**2)

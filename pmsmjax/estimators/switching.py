@@ -10,8 +10,9 @@
   gradients exist everywhere.
 
 Inside the linear zone the smoothed observers are linear with gain ``G = k / width`` (V/A): the
-quantity their design rules and stability checks use (:func:`linear_gain`). ``sign`` has no linear zone;
-it is the exact element, and ``sigmoid`` is both the default and its smooth surrogate.
+quantity their design rules and stability checks use
+([`linear_gain`][pmsmjax.estimators.switching.linear_gain]). ``sign`` has no linear zone; it is the exact
+element, and ``sigmoid`` is both the default and its smooth surrogate.
 """
 
 from typing import Literal

@@ -1,5 +1,5 @@
-"""Reference frames: three-phase Clarke/Park (:mod:`.three_phase`, re-exported here) and the n-phase
-vector space decomposition and double dq (:mod:`.multiphase`).
+"""Reference frames: three-phase Clarke/Park ([`three_phase`][pmsmjax.frames.three_phase], re-exported here)
+and the n-phase vector space decomposition and double dq ([`multiphase`][pmsmjax.frames.multiphase]).
 """
 
 from pmsmjax.frames import three_phase

@@ -1,13 +1,15 @@
 """Multi-phase reference frames: vector space decomposition (VSD) of n phases, and the six-phase double dq
 (the book, ch. 7); the five-phase layout of chapter 10.
 
-**Phase layout.** A machine's windings are described by a :class:`PhaseLayout`: the angle of each phase's
-magnetic axis (rad, from the A axis), the groups of phases that share an isolated star point, and the
-harmonic order of each two-dimensional subspace of the VSD. :data:`SIX_PHASE` is the dual three-phase
-winding of chapter 7: sets ABC at 0, 120, 240 deg and UVW at 30, 150, 270 deg, two isolated neutrals,
-subspaces alpha-beta (order 1) and z1-z2 (order 5). :data:`FIVE_PHASE` is the symmetrical five-phase
-winding of chapter 10: phases A..E at ``72 k`` deg, one star point, subspaces alpha-beta (order 1) and x-y
-(order 3), so the 5x5 VSD is the five-phase Clarke (rows alpha, beta, x, y, zero sequence).
+**Phase layout.** A machine's windings are described by a
+[`PhaseLayout`][pmsmjax.frames.multiphase.PhaseLayout]: the angle of each phase's magnetic axis (rad, from the
+A axis), the groups of phases that share an isolated star point, and the harmonic order of each
+two-dimensional subspace of the VSD. [`SIX_PHASE`][pmsmjax.frames.multiphase.SIX_PHASE] is the dual
+three-phase winding of chapter 7: sets ABC at 0, 120, 240 deg and UVW at 30, 150, 270 deg, two isolated
+neutrals, subspaces alpha-beta (order 1) and z1-z2 (order 5).
+[`FIVE_PHASE`][pmsmjax.frames.multiphase.FIVE_PHASE] is the symmetrical five-phase winding of chapter 10:
+phases A..E at ``72 k`` deg, one star point, subspaces alpha-beta (order 1) and x-y (order 3), so the 5x5 VSD
+is the five-phase Clarke (rows alpha, beta, x, y, zero sequence).
 
 **VSD** (Zhao & Lipo, "Space vector PWM control of dual three-phase induction machine using vector space
 decomposition", IEEE TIA 31(5), 1995). Row pairs ``(2/n) [cos(h g_k), sin(h g_k)]`` for each harmonic
@@ -19,7 +21,7 @@ order ``h`` of the layout, then one row per star point: the mean of its phases (
 
 Amplitude-invariant (default, as the three-phase Clarke): a balanced set ``x_k = X cos(th - g_k)`` gives
 ``|alpha + j beta| = X``; with three phases and order 1 this is exactly
-:func:`pmsmjax.frames.abc_to_alpha_beta_zero`.
+[`pmsmjax.frames.abc_to_alpha_beta_zero`][pmsmjax.frames.three_phase.abc_to_alpha_beta_zero].
 ``power_invariant=True`` scales every row to unit length (an orthogonal matrix). The rows are mutually
 orthogonal (checked when the matrix is built), so the inverse is ``T^T diag(1/|row|^2)`` exactly: no
 numerical inversion.
@@ -33,7 +35,8 @@ the common stationary frame, while ``alpha + j beta = (x_ab1 + x_ab2)/2``. The 5
 the U axis at pi/6) at ``th - pi/6``, so both dq frames are aligned with the rotor: ``[d1, q1, d2, q2]``.
 
 **The linear relation** (derived from the two identities above): with the z1-z2 vector seen from a frame
-that rotates *backwards* with the rotor, ``z' = e^{j th} (z1 + j z2)`` (:func:`z_to_counter_rotating`)::
+that rotates *backwards* with the rotor, ``z' = e^{j th} (z1 + j z2)``
+([`z_to_counter_rotating`][pmsmjax.frames.multiphase.z_to_counter_rotating])::
 
     [d, q, z'_d, z'_q] = M [d1, q1, d2, q2]
     M = 1/2 [[1, 0, 1, 0], [0, 1, 0, 1], [1, 0, -1, 0], [0, -1, 0, 1]]
@@ -108,7 +111,7 @@ class PhaseLayout(NamedTuple):
         return 2 * len(self.harmonics)
 
     def check(self) -> None:
-        """Raise :class:`~pmsmjax.spec.validation.ParameterError` unless the layout is consistent:
+        """Raise [`ParameterError`][pmsmjax.spec.validation.ParameterError] unless the layout is consistent:
         ``2 n_planes + n_stars == n`` and the star-point groups cover every phase once."""
         n = self.n
         if 2 * len(self.harmonics) + len(self.neutrals) != n:
@@ -177,7 +180,8 @@ def vsd_matrix(layout: PhaseLayout = SIX_PHASE, power_invariant: bool = False) -
 
 @functools.lru_cache(maxsize=32)
 def inverse_vsd_matrix(layout: PhaseLayout = SIX_PHASE, power_invariant: bool = False) -> np.ndarray:
-    """``T^-1 = T^T diag(1/|row|^2)`` of :func:`vsd_matrix` (exact for orthogonal rows), ``(n, n)``."""
+    """``T^-1 = T^T diag(1/|row|^2)`` of [`vsd_matrix`][pmsmjax.frames.multiphase.vsd_matrix] (exact for
+    orthogonal rows), ``(n, n)``."""
     T = vsd_matrix(layout, power_invariant)
     T_inv = T.T / np.sum(T * T, axis=1)[None, :]
     T_inv.setflags(write=False)
@@ -247,7 +251,8 @@ def z_to_counter_rotating(x_z: ArrayLike, theta_e: ArrayLike) -> Array:
 
 
 def z_from_counter_rotating(x_zc: ArrayLike, theta_e: ArrayLike) -> Array:
-    """Inverse of :func:`z_to_counter_rotating`: ``e^{-j th} (z'_d + j z'_q)``, ``(..., 2)``."""
+    """Inverse of [`z_to_counter_rotating`][pmsmjax.frames.multiphase.z_to_counter_rotating]:
+    ``e^{-j th} (z'_d + j z'_q)``, ``(..., 2)``."""
     return park(x_zc, theta_e)
 
 

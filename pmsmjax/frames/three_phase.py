@@ -39,7 +39,8 @@ __all__ = [
 def abc_to_alpha_beta(x_abc: ArrayLike, power_invariant: bool = False) -> Array:
     """Clarke transform. ``x_abc: (..., 3)`` -> ``(..., 2)`` alpha-beta (zero sequence dropped).
 
-    Use :func:`abc_to_alpha_beta_zero` when the zero sequence is wanted.
+    Use [`abc_to_alpha_beta_zero`][pmsmjax.frames.three_phase.abc_to_alpha_beta_zero] when the zero sequence
+    is wanted.
     """
     return abc_to_alpha_beta_zero(x_abc, power_invariant)[..., :2]
 
@@ -104,6 +105,7 @@ def wrap_angle(theta: ArrayLike) -> ArrayLike:
 
     Written with operators only, so it keeps its input's kind: JAX in, JAX out (traceable); NumPy in,
     NumPy out in the input's precision (figures of merit score float32 runs in float64,
-    :mod:`pmsmjax.analysis.observer_errors`). Both give the same bits for the same float64 input.
+    [`pmsmjax.analysis.observer_errors`][pmsmjax.analysis.observer_errors]). Both give the same bits for the
+    same float64 input.
     """
     return (theta + jnp.pi) % (2.0 * jnp.pi) - jnp.pi

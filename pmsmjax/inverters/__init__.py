@@ -1,5 +1,5 @@
 """Modulators and inverter bridge models: three-phase; n-phase modulators and n-leg bridges for any
-:class:`~pmsmjax.frames.multiphase.PhaseLayout` (the six- and five-phase presets name them)."""
+[`PhaseLayout`][pmsmjax.frames.multiphase.PhaseLayout] (the six- and five-phase presets name them)."""
 
 from pmsmjax.inverters.averaged import AveragedBridge, phase_voltages
 from pmsmjax.inverters.base import AbstractBridge, AbstractModulator

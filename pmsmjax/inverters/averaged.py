@@ -4,10 +4,10 @@ Phase-to-neutral voltages of a star-connected, isolated-neutral machine fed by l
 ``u_xN = U_dc (d_x - (d_a + d_b + d_c)/3)`` (the common-mode part does not reach the windings). The
 voltage is held in the stator frame over the period, as the real inverter holds it.
 
-Optionally the legs' voltage error (:mod:`pmsmjax.inverters.voltage_error`: dead time and device drops,
-period-averaged, the current's sign taken at the period start and smoothed) is added to the pole voltages
-before the common mode is removed. Without it (``dead_time=None`` and ``device_drop=None``, the default)
-the program is the ideal bridge's, bit for bit.
+Optionally the legs' voltage error ([`pmsmjax.inverters.voltage_error`][pmsmjax.inverters.voltage_error]: dead
+time and device drops, period-averaged, the current's sign taken at the period start and smoothed) is added to
+the pole voltages before the common mode is removed. Without it (``dead_time=None`` and ``device_drop=None``,
+the default) the program is the ideal bridge's, bit for bit.
 """
 
 import equinox as eqx
@@ -24,24 +24,32 @@ from pmsmjax.spec.validation import check_positive
 
 
 def phase_voltages(duties: Array, u_dc: Array) -> Array:
-    """Period-average phase-to-neutral voltages ``(3,)`` V from leg duties ``(3,)``."""
+    """Period-average phase-to-neutral voltages from leg duties.
+
+    Args:
+        duties: ``(3,)`` leg duty cycles.
+        u_dc: DC-link voltage, V.
+
+    Returns:
+        ``(3,)`` voltages, V.
+    """
     return u_dc * (duties - jnp.mean(duties, axis=-1, keepdims=True))
 
 
 class AveragedBridge(AbstractBridge):
     """Averaged inverter, ideal or with the legs' voltage error.
 
-    **Arguments:**
-
-    - `u_dc`: DC-link voltage, V (array leaf: vmappable, differentiable).
-    - `dead_time`: blanking time per switching edge, s (0 <= t_d < Ts/2, checked against the drive's Ts);
-      ``None`` (default) leaves the dead time out of the program.
-    - `device_drop`: on-state voltage of a switch or diode, V (>= 0); ``None`` (default) leaves it out.
-    - `sign_smoothing`: ``i_eps`` of the ``tanh(i / i_eps)`` current sign, A (used with either error).
-    - `unroll_substeps` (static): write the period's RK4 sub-steps out rather than loop over them
-      (:func:`pmsmjax.machines.integrate.advance`; for GPUs, where it was measured to pay).
-
     With a dead time or a drop, ``voltage_error`` holds them (``None`` otherwise).
+
+    Args:
+        u_dc: DC-link voltage, V (array leaf: vmappable, differentiable).
+        unroll_substeps: Write the period's RK4 sub-steps out rather than loop over them (static;
+            [`pmsmjax.machines.integrate.advance`][pmsmjax.machines.integrate.advance]; for GPUs, where it
+            pays).
+        dead_time: Blanking time per switching edge, s (0 <= t_d < Ts/2, checked against the drive's Ts);
+            ``None`` leaves the dead time out of the program.
+        device_drop: On-state voltage of a switch or diode, V (>= 0); ``None`` leaves it out.
+        sign_smoothing: ``i_eps`` of the ``tanh(i / i_eps)`` current sign, A (used with either error).
     """
 
     u_dc: Array
@@ -70,13 +78,29 @@ class AveragedBridge(AbstractBridge):
         check_positive("u_dc (DC-link voltage)", self.u_dc, "V")
 
     def check_period(self, Ts: float) -> None:
-        """Raise unless the dead time fits the PWM period: ``t_d < Ts/2`` (both edges of one pulse)."""
+        """Refuse a dead time that does not fit the PWM period: ``t_d < Ts/2`` (both edges of one pulse).
+
+        Args:
+            Ts: PWM period, s.
+
+        Raises:
+            ParameterError: For a dead time of half the period or more.
+        """
         if self.voltage_error is not None:
             check_dead_time(self.voltage_error.dead_time, Ts, "AveragedBridge.dead_time")
 
     def output_voltages(self, machine, state, duties, Ts) -> Array:
-        """``(3,)`` period-average phase-to-neutral voltages, V, for the legs' ``duties (3,)`` from the
-        machine state at the period start (its currents set the voltage error's sign)."""
+        """Period-average phase-to-neutral voltages for the legs' duties.
+
+        Args:
+            machine: The machine model.
+            state: The machine state at the period start (its currents set the voltage error's sign).
+            duties: ``(3,)`` leg duty cycles.
+            Ts: PWM period, s.
+
+        Returns:
+            ``(3,)`` voltages, V.
+        """
         u = phase_voltages(duties, self.u_dc)
         if self.voltage_error is None:
             return u

@@ -1,7 +1,7 @@
 """Interfaces of modulators (voltage reference -> duty cycles) and bridges (duties -> machine voltage).
 
 Both carry the number of legs they drive, ``n_phases`` (3 here; the six- and five-phase inverters
-override it); :class:`pmsmjax.drive.Drive` checks that it matches the machine's.
+override it); [`pmsmjax.drive.Drive`][pmsmjax.drive.Drive] checks that it matches the machine's.
 """
 
 import abc
@@ -16,10 +16,10 @@ from pmsmjax.machines.base import AbstractMachine, MachineState
 
 
 class AbstractModulator(eqx.Module):
-    """Turns a stator-frame voltage reference into three leg duty cycles.
+    """Turns a stator-frame voltage reference into leg duty cycles.
 
-    ``duties(u_ab_ref, u_dc)``: ``u_ab_ref: (2,)`` V, ``u_dc`` V -> ``(3,)`` duty cycles in [0, 1]
-    (fraction of the period each upper switch conducts, centre-aligned).
+    ``duties(u_ab_ref, u_dc)``: ``u_ab_ref: (2,)`` V, ``u_dc`` V -> ``(3,)`` duty cycles in [0, 1] (fraction
+    of the period each upper switch conducts, centre-aligned).
     """
 
     n_phases: ClassVar[int] = 3
@@ -28,11 +28,17 @@ class AbstractModulator(eqx.Module):
     def duties(self, u_ab_ref: Array, u_dc: Array) -> Array:
         """Leg duty cycles that reproduce the stationary-frame reference on average over one period.
 
-        `u_ab_ref`: ``(2,)`` voltage reference, V (``(2 n_planes,)`` for the multi-phase modulators:
-        alpha-beta first, then the other planes); `u_dc`: DC-link voltage, V. Returns ``(n_phases,)`` duty
-        cycles in [0, 1] (the fraction of the period each upper switch conducts, centre-aligned); beyond
-        the linear range each modulator saturates in its own way (duties clipped to [0, 1], or the vector
-        limited to the hexagon).
+        Beyond the linear range each modulator saturates in its own way (duties clipped to [0, 1], or the
+        vector limited to the hexagon).
+
+        Args:
+            u_ab_ref: ``(2,)`` voltage reference, V (``(2 n_planes,)`` for the multi-phase modulators:
+                alpha-beta first, then the other planes).
+            u_dc: DC-link voltage, V.
+
+        Returns:
+            ``(n_phases,)`` duty cycles in [0, 1] (the fraction of the period each upper switch conducts,
+            centre-aligned).
         """
 
     @abc.abstractmethod
@@ -43,36 +49,57 @@ class AbstractModulator(eqx.Module):
 class AbstractBridge(eqx.Module):
     """A two-level voltage-source inverter fed from a DC link, coupled to the machine for one period.
 
-    ``advance`` integrates the machine over one PWM period ``Ts`` (s) under the bridge's output voltage
-    for the given duties and returns the new state and the period-average stator-frame voltage ``(2,)``
-    V. The averaged bridge applies the period-average voltage throughout; a switching-resolved bridge
-    integrates segment by segment and must return the same average.
+    ``advance`` integrates the machine over one PWM period ``Ts`` (s) under the bridge's output voltage for
+    the given duties and returns the new state and the period-average stator-frame voltage ``(2,)`` V. The
+    averaged bridge applies the period-average voltage throughout; a switching-resolved bridge integrates
+    segment by segment and must return the same average.
     """
 
     u_dc: eqx.AbstractVar[Array]
     n_phases: ClassVar[int] = 3
     #: The bridge integrates each constant-voltage switching segment of a period and samples the
     #: trajectory inside it with ``sample_period(machine, state, duties, load_torque, Ts, n_samples)``
-    #: (:mod:`pmsmjax.analysis.within_period`); otherwise the period-average voltage is held over it.
+    #: ([`pmsmjax.analysis.within_period`][pmsmjax.analysis.within_period]); otherwise the period-average
+    #: voltage is held over it.
     switching_resolved: ClassVar[bool] = False
 
     def commanded_voltage(self, duties: Array) -> Array:
-        """``(2,)`` stator-frame period-average voltage, V, that ideal legs with ``duties (n,)`` give.
+        """Stator-frame period-average voltage that ideal legs with ``duties`` give.
 
-        What the controller knows it applied (``duties`` times the DC voltage), without the bridge's
-        dead-time and device-drop errors.
+        What the controller knows it applied (``duties`` times the DC voltage), without the bridge's dead-time
+        and device-drop errors.
+
+        Args:
+            duties: ``(n,)`` leg duty cycles.
+
+        Returns:
+            ``(2,)`` voltage, V.
         """
         return abc_to_alpha_beta(self.u_dc * (duties - jnp.mean(duties, axis=-1, keepdims=True)))
 
     def phase_voltages(self, duties: Array) -> Array:
-        """``(..., n)`` ideal period-average phase-to-neutral voltages, V, of duties ``(..., n)`` (one star
-        point; the multi-phase bridges override it for several)."""
+        """Ideal period-average phase-to-neutral voltages (one star point; the multi-phase bridges override it
+        for several).
+
+        Args:
+            duties: ``(..., n)`` leg duty cycles.
+
+        Returns:
+            ``(..., n)`` voltages, V.
+        """
         return self.u_dc * (duties - jnp.mean(duties, axis=-1, keepdims=True))
 
     def check_period(self, Ts: float) -> None:
-        """Raise :class:`pmsmjax.ParameterError` if the bridge's settings do not fit the period ``Ts`` (s).
+        """Refuse settings that do not fit the period.
 
-        Called by :class:`pmsmjax.drive.Drive` at construction (before compiling); nothing to check here.
+        Called by [`pmsmjax.drive.Drive`][pmsmjax.drive.Drive] at construction (before compiling); nothing to
+        check here.
+
+        Args:
+            Ts: PWM period, s.
+
+        Raises:
+            ParameterError: In the bridges that have such settings.
         """
 
     @abc.abstractmethod
@@ -85,12 +112,18 @@ class AbstractBridge(eqx.Module):
         Ts: float,
         n_substeps: int,
     ) -> tuple[MachineState, Array]:
-        """Integrate `machine` over one PWM period under the bridge's output for `duties`.
+        """Integrate ``machine`` over one PWM period under the bridge's output for ``duties``.
 
-        `state`: the machine state at the period start; `duties`: ``(n_phases,)`` leg duty cycles in [0, 1]
-        (or switch states in {0, 1}); `load_torque`: N m, held over the period; `Ts`: the period, s
-        (static); `n_substeps`: RK4 steps over the period (static; a switching-resolved bridge integrates
-        each constant-voltage segment with its own ``segment_substeps`` instead). Returns
-        the state at the period end and the period-average stator-frame voltage applied, ``(2,)`` V
-        (``(2 n_planes,)`` for the multi-phase bridges).
+        Args:
+            machine: The machine model.
+            state: The machine state at the period start.
+            duties: ``(n_phases,)`` leg duty cycles in [0, 1] (or switch states in {0, 1}).
+            load_torque: Load torque held over the period, N m.
+            Ts: The period, s (static).
+            n_substeps: RK4 steps over the period (static; a switching-resolved bridge integrates each
+                constant-voltage segment with its own ``segment_substeps`` instead).
+
+        Returns:
+            The state at the period end and the period-average stator-frame voltage applied, ``(2,)`` V
+            (``(2 n_planes,)`` for the multi-phase bridges).
         """

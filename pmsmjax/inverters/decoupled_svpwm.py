@@ -2,14 +2,16 @@
 book, ch. 8.4).
 
 The reference ``[alpha, beta, z1, z2]`` (z1-z2 zero for a ``(2,)`` reference) is split into the two
-sets' phase references by the inverse VSD (:func:`pmsmjax.frames.multiphase.inverse_vsd`; each star's
-zero sequence 0): equivalently each set's stationary vector is ``u_ab +- conj(u_z)`` in the common frame.
-Each set is then modulated on its own by :func:`pmsmjax.inverters.svpwm.switching_times`, set UVW in its
-own alpha-beta frame (its alpha axis is the U axis, 30 deg ahead).
+sets' phase references by the inverse VSD
+([`pmsmjax.frames.multiphase.inverse_vsd`][pmsmjax.frames.multiphase.inverse_vsd]; each star's zero
+sequence 0): equivalently each set's stationary vector is ``u_ab +- conj(u_z)`` in the common frame. Each set
+is then modulated on its own by
+[`pmsmjax.inverters.svpwm.switching_times`][pmsmjax.inverters.svpwm.switching_times], set UVW in its own
+alpha-beta frame (its alpha axis is the U axis, 30 deg ahead).
 
 Inside the linear range this gives the duties of carrier PWM with one min-max zero sequence per set
-(:class:`~pmsmjax.inverters.multiphase_carrier.ZeroSequencePWM` on the six-phase layout, preset name
-``double-zs``; min-max injection is SVPWM, the book, ch. 2). With ``u_z = 0`` both sets carry the same
+([`ZeroSequencePWM`][pmsmjax.inverters.multiphase_carrier.ZeroSequencePWM] on the six-phase layout, preset
+name ``double-zs``; min-max injection is SVPWM, the book, ch. 2). With ``u_z = 0`` both sets carry the same
 vector, so each set's hexagon limits it: linear to ``U_dc/sqrt(3)``; a commanded ``u_z`` is exact while
 ``|u_ab +- conj(u_z)|`` stays inside both hexagons. Beyond it SVPWM scales a set's dwell times to the
 period (direction kept), where carrier PWM clips its duties.
@@ -32,7 +34,11 @@ __all__ = ["DecoupledSVPWM"]
 
 class DecoupledSVPWM(AbstractModulator):
     """Two three-phase SVPWMs, one per set (module docstring). Reference ``(2,)`` or ``(4,)`` V; linear to
-    ``U_dc/sqrt(3)`` (peak, V)."""
+    ``U_dc/sqrt(3)`` (peak, V).
+
+    Args:
+        name: The modulator's name in tables and figures (static).
+    """
 
     n_phases: ClassVar[int] = 6
     name: str = eqx.field(static=True, default="decoupled")

@@ -3,15 +3,18 @@
 Phase-to-neutral voltage of phase ``x`` in star ``S``: ``u_xN = v_x - mean_{y in S} v_y`` with ``v`` the
 pole voltages (each star's common mode does not reach its windings). The machine is driven by the
 stationary VSD voltage of those phase voltages, ``(2 n_planes,)`` = [alpha, beta, z1, z2, ...]
-(:mod:`pmsmjax.frames.multiphase`); the zero sequences of isolated stars are 0.
+([`pmsmjax.frames.multiphase`][pmsmjax.frames.multiphase]); the zero sequences of isolated stars are 0.
 
-- :class:`MultiPhaseAveragedBridge`: the period-average voltage held over the period (``d`` the duties:
-  ``v = U_dc d``).
-- :class:`MultiPhaseSwitchingBridge`: the period cut at every gate edge of centre-aligned PWM (2n edges,
-  2n + 1 segments; with dead time 4n + 1), the machine integrated over each constant-voltage segment,
-  exactly as :class:`pmsmjax.inverters.switching.SwitchingBridge` does for three legs (same segment
-  function :func:`pmsmjax.inverters.switching.pwm_segments`, same dead-time and device-drop model with
-  the exact or ``tanh`` current sign). Both return the period-average VSD voltage; they agree on it.
+- [`MultiPhaseAveragedBridge`][pmsmjax.inverters.multiphase_bridges.MultiPhaseAveragedBridge]: the
+  period-average voltage held over the period (``d`` the duties: ``v = U_dc d``).
+- [`MultiPhaseSwitchingBridge`][pmsmjax.inverters.multiphase_bridges.MultiPhaseSwitchingBridge]: the period
+  cut at every gate edge of centre-aligned PWM (2n edges, 2n + 1 segments; with dead time 4n + 1), the machine
+  integrated over each constant-voltage segment, exactly as
+  [`pmsmjax.inverters.switching.SwitchingBridge`][pmsmjax.inverters.switching.SwitchingBridge] does for three
+  legs (same segment function
+  [`pmsmjax.inverters.switching.pwm_segments`][pmsmjax.inverters.switching.pwm_segments], same dead-time and
+  device-drop model with the exact or ``tanh`` current sign). Both return the period-average VSD voltage; they
+  agree on it.
 
 ``commanded_voltage`` (what the controller knows it applied) is the alpha-beta part ``(2,)`` of the
 ideal period average, the interface every controller reads.
@@ -42,8 +45,15 @@ __all__ = [
 
 
 def star_phase_voltages(pole: Array, layout: PhaseLayout = SIX_PHASE) -> Array:
-    """Phase-to-neutral voltages ``(..., n)`` from pole voltages ``(..., n)`` (V): each phase less the mean
-    of its star."""
+    """Phase-to-neutral voltages from pole voltages: each phase less the mean of its star.
+
+    Args:
+        pole: ``(..., n)`` pole voltages, V.
+        layout: The winding layout (its stars).
+
+    Returns:
+        ``(..., n)`` phase voltages, V.
+    """
     out = pole
     for group in layout.neutrals:
         idx = np.asarray(group)
@@ -55,14 +65,26 @@ def star_phase_voltages(pole: Array, layout: PhaseLayout = SIX_PHASE) -> Array:
 
 
 def vsd_voltage(phase_voltages: Array, layout: PhaseLayout = SIX_PHASE) -> Array:
-    """``(..., 2 n_planes)`` stationary VSD voltage [alpha, beta, z1, z2, ...] of phase voltages
-    ``(..., n)`` V (the zero sequences dropped)."""
+    """Stationary VSD voltage of phase voltages (the zero sequences dropped).
+
+    Args:
+        phase_voltages: ``(..., n)`` phase voltages, V.
+        layout: The winding layout.
+
+    Returns:
+        ``(..., 2 n_planes)`` voltage [alpha, beta, z1, z2, ...], V.
+    """
     T = vsd_matrix(layout)[: layout.n_active]
     return phase_voltages @ jnp.asarray(T.T, phase_voltages.dtype)
 
 
 class MultiPhaseAveragedBridge(AbstractBridge):
-    """Ideal averaged n-leg inverter. `u_dc`: DC-link voltage, V; `layout`: the winding (static)."""
+    """Ideal averaged n-leg inverter.
+
+    Args:
+        u_dc: DC-link voltage, V.
+        layout: The winding (static).
+    """
 
     u_dc: Array
     layout: PhaseLayout = eqx.field(static=True)
@@ -80,11 +102,25 @@ class MultiPhaseAveragedBridge(AbstractBridge):
         return self.layout.n
 
     def phase_voltages(self, duties: Array) -> Array:
-        """``(..., n)`` period-average phase-to-neutral voltages, V, of duties ``(..., n)``."""
+        """Period-average phase-to-neutral voltages.
+
+        Args:
+            duties: ``(..., n)`` leg duties.
+
+        Returns:
+            ``(..., n)`` voltages, V.
+        """
         return star_phase_voltages(self.u_dc * duties, self.layout)
 
     def vsd_voltage(self, duties: Array) -> Array:
-        """``(..., 2 n_planes)`` period-average stationary VSD voltage, V."""
+        """Period-average stationary VSD voltage.
+
+        Args:
+            duties: ``(..., n)`` leg duties.
+
+        Returns:
+            ``(..., 2 n_planes)`` voltage, V.
+        """
         return vsd_voltage(self.phase_voltages(duties), self.layout)
 
     def commanded_voltage(self, duties):
@@ -98,12 +134,21 @@ class MultiPhaseAveragedBridge(AbstractBridge):
 class MultiPhaseSwitchingBridge(AbstractBridge):
     """n-leg inverter resolved into its switching segments (module docstring).
 
-    **Arguments:** as :class:`pmsmjax.inverters.switching.SwitchingBridge` (`u_dc`, `dead_time` s or
-    None, `device_drop` V, `sign_smoothing` A, `current_sign`, `segment_substeps`), plus `layout`.
-    ``device_drop=None`` (default) leaves the device drop out of the program as ``dead_time=None`` does
-    the dead time (``0.0`` keeps it, to vary or differentiate it). With neither, no segment's voltage
-    depends on the current, so all segment voltages are computed at once before the segment loop (the
-    loop then only integrates: measured 1.7 times faster on the six-phase book drive).
+    The arguments are those of
+    [`pmsmjax.inverters.switching.SwitchingBridge`][pmsmjax.inverters.switching.SwitchingBridge], plus
+    ``layout``. ``device_drop=None`` leaves the device drop out of the program as ``dead_time=None`` does the
+    dead time (``0.0`` keeps it, to vary or differentiate it). With neither, no segment's voltage depends on
+    the current, so all segment voltages are computed at once before the segment loop, which then only
+    integrates (docs/performance.md, "Six-phase and five-phase drives").
+
+    Args:
+        u_dc: DC-link voltage, V.
+        dead_time: Blanking time per switching edge, s, or ``None``.
+        device_drop: On-state voltage of a switch or diode, V, or ``None``.
+        sign_smoothing: Current scale of the ``tanh`` sign surrogate, A.
+        current_sign: ``"exact"`` or ``"smooth"`` (static).
+        segment_substeps: RK4 steps per segment (static).
+        layout: The winding (static).
     """
 
     u_dc: Array
@@ -153,7 +198,14 @@ class MultiPhaseSwitchingBridge(AbstractBridge):
         return self.layout.n
 
     def check_period(self, Ts: float) -> None:
-        """Raise unless the dead time fits the PWM period: ``t_d < Ts/2``."""
+        """Refuse a dead time that does not fit the PWM period: ``t_d < Ts/2``.
+
+        Args:
+            Ts: PWM period, s.
+
+        Raises:
+            ParameterError: For a dead time of half the period or more.
+        """
         if not is_concrete(self.dead_time):
             return
         t_d = float(np.max(np.asarray(jax.device_get(self.dead_time))))
@@ -164,21 +216,39 @@ class MultiPhaseSwitchingBridge(AbstractBridge):
             )
 
     def phase_voltages(self, duties: Array) -> Array:
-        """``(..., n)`` ideal period-average phase-to-neutral voltages, V."""
+        """Ideal period-average phase-to-neutral voltages.
+
+        Args:
+            duties: ``(..., n)`` leg duties.
+
+        Returns:
+            ``(..., n)`` voltages, V.
+        """
         return star_phase_voltages(self.u_dc * duties, self.layout)
 
     def commanded_voltage(self, duties):
         return vsd_voltage(self.phase_voltages(duties), self.layout)[..., :2]
 
     def phase_current_sign(self, i_phase: Array) -> Array:
-        """``(n,)`` sign of each phase current ``i_phase (n,)`` A, which sets the dead-time and device-drop
-        voltage error: exact (``sign``) or smooth (``tanh(i / sign_smoothing)``, for gradients)."""
+        """Sign of each phase current, which sets the dead-time and device-drop voltage error: exact
+        (``sign``) or smooth (``tanh(i / sign_smoothing)``, for gradients).
+
+        Args:
+            i_phase: ``(n,)`` phase currents, A.
+        """
         if self.current_sign == "exact":
             return jnp.sign(i_phase)
         return jnp.tanh(i_phase / self.sign_smoothing)
 
     def segments(self, duties: Array, Ts, extra_times: Array | None = None):
-        """:func:`pmsmjax.inverters.switching.pwm_segments` with this bridge's dead time."""
+        """[`pmsmjax.inverters.switching.pwm_segments`][pmsmjax.inverters.switching.pwm_segments] with this
+        bridge's dead time.
+
+        Args:
+            duties: ``(n,)`` upper-switch duties.
+            Ts: PWM period, s.
+            extra_times: Optional ``(M,)`` further cut points in [0, Ts], s.
+        """
         return pwm_segments(duties, Ts, self.dead_time, self.resolve_dead_time, extra_times)
 
     def _integrate(self, machine, state, times, high, dead, load_torque):
@@ -223,8 +293,20 @@ class MultiPhaseSwitchingBridge(AbstractBridge):
 
     def sample_period(self, machine, state, duties, load_torque, Ts, n_samples: int):
         """States at ``t_j = j Ts / n_samples``, j = 1..n_samples, within one period (as
-        :meth:`pmsmjax.inverters.switching.SwitchingBridge.sample_period`); returns ``(MachineState of
-        (n_samples,) leaves, (K+1,) interval bounds s, (K, 2 n_planes) VSD voltage of each interval V)``."""
+        [`pmsmjax.inverters.switching.SwitchingBridge.sample_period`][pmsmjax.inverters.switching.SwitchingBridge.sample_period]).
+
+        Args:
+            machine: The machine model.
+            state: The machine state at the period start.
+            duties: ``(n,)`` leg duty cycles.
+            load_torque: Load torque, N m.
+            Ts: PWM period, s.
+            n_samples: Number of sample instants.
+
+        Returns:
+            ``(MachineState of (n_samples,) leaves, (K+1,) interval bounds s, (K, 2 n_planes) VSD voltage of
+            each interval V)``.
+        """
         self._checked(duties, Ts)
         samples = Ts * jnp.arange(1, n_samples + 1, dtype=state.omega_m.dtype) / n_samples
         times, high, dead, order = self.segments(duties, Ts, samples)

@@ -2,18 +2,19 @@
 min-max zero sequence per three-phase set, preset name ``double-zs``; chapter 10: five phases).
 
 The VSD reference (``(2,)`` alpha-beta, the other planes 0, or the full ``(2 n_planes,)``) becomes phase
-references by the inverse VSD (:func:`pmsmjax.frames.multiphase.inverse_vsd`, each star's zero sequence
-0; six phases: each set's stationary vector is ``u_ab +- conj(u_z)`` in the common frame); each star then
-gets one zero sequence, which its isolated neutral removes from the windings, and each leg is compared
-with the centre-aligned carrier: ``d_x = 1/2 + (u_x + u_0,S)/U_dc``, clipped to [0, 1].
+references by the inverse VSD
+([`pmsmjax.frames.multiphase.inverse_vsd`][pmsmjax.frames.multiphase.inverse_vsd], each star's zero sequence
+0; six phases: each set's stationary vector is ``u_ab +- conj(u_z)`` in the common frame); each star then gets
+one zero sequence, which its isolated neutral removes from the windings, and each leg is compared with the
+centre-aligned carrier: ``d_x = 1/2 + (u_x + u_0,S)/U_dc``, clipped to [0, 1].
 
 - ``injection="min-max"`` (default): ``u_0,S = -(max_S u + min_S u)/2`` centres each star's references
   in the DC link. For a balanced star of ``m`` phases (``m`` odd) the spread ``max - min`` of a set of
   amplitude ``U`` peaks at ``2 U cos(pi/(2m))``, so the linear range is ``U_dc / (2 cos(pi/(2m)))``:
   five phases ``0.5257 U_dc`` (5.15 % above sinusoidal PWM), three-phase stars ``U_dc/sqrt(3)``. On a
-  three-phase star min-max injection is the three-phase :class:`~pmsmjax.inverters.MinMaxPWM`, which is
-  SVPWM inside the linear range (the book, ch. 2): for six phases these duties equal those of
-  :class:`~pmsmjax.inverters.decoupled_svpwm.DecoupledSVPWM` (one book SVPWM per set), two different
+  three-phase star min-max injection is the three-phase [`MinMaxPWM`][pmsmjax.inverters.spwm.MinMaxPWM], which
+  is SVPWM inside the linear range (the book, ch. 2): for six phases these duties equal those of
+  [`DecoupledSVPWM`][pmsmjax.inverters.decoupled_svpwm.DecoupledSVPWM] (one book SVPWM per set), two different
   constructions checked against each other in the tests.
 - ``injection="none"``: sinusoidal PWM, linear to ``U_dc/2``.
 
@@ -41,8 +42,13 @@ Injection = Literal["min-max", "none"]
 
 
 class ZeroSequencePWM(AbstractModulator):
-    """Carrier PWM with one zero sequence per star (module docstring). `layout` (static, default five
-    phases); `injection` (static): ``"min-max"`` or ``"none"``."""
+    """Carrier PWM with one zero sequence per star (module docstring).
+
+    Args:
+        layout: The winding (static, default five phases).
+        injection: ``"min-max"`` or ``"none"`` (static).
+        name: The modulator's name in tables and figures (static).
+    """
 
     layout: PhaseLayout = eqx.field(static=True, default=FIVE_PHASE)
     injection: Injection = eqx.field(static=True, default="min-max")
@@ -71,7 +77,14 @@ class ZeroSequencePWM(AbstractModulator):
         return self.layout.n
 
     def phase_references(self, u_ref: Array) -> Array:
-        """``(n,)`` phase references, V, of a ``(2,)`` or full VSD reference."""
+        """Phase references of a reference voltage.
+
+        Args:
+            u_ref: ``(2,)`` alpha-beta or full VSD reference, V.
+
+        Returns:
+            ``(n,)`` phase references, V.
+        """
         return inverse_vsd(padded_reference(u_ref, self.layout.n_active), self.layout)
 
     def duties(self, u_ref, u_dc):

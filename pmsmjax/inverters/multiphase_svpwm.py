@@ -2,9 +2,10 @@
 (the book, ch. 8: the six-phase four-vector and two-vector methods; chapter 10: five phases).
 
 In the sector ``k`` of the alpha-beta reference (between the large vectors L_k and L_k+1,
-:mod:`.multiphase_vectors`) :class:`NearFourVectorSVPWM` applies L_k, L_k+1 and the two collinear vectors
-of the next group (six phases: the medium-large vectors ML_k, ML_k+1; five phases: the medium vectors
-M_k, M_k+1) for the dwell fractions that solve
+[`multiphase_vectors`][pmsmjax.inverters.multiphase_vectors])
+[`NearFourVectorSVPWM`][pmsmjax.inverters.multiphase_svpwm.NearFourVectorSVPWM] applies L_k, L_k+1 and the two
+collinear vectors of the next group (six phases: the medium-large vectors ML_k, ML_k+1; five phases: the
+medium vectors M_k, M_k+1) for the dwell fractions that solve
 
     [L_k  L_k+1  S_k  S_k+1] t = [u_alpha, u_beta, u_x, u_y] / U_dc
 
@@ -18,21 +19,22 @@ centre-aligned carrier comparison, so the period average of the applied voltage 
 ``sum_i t_i V_i`` (volt-second balance).
 
 **Linear range** (second-plane reference 0): the dwell times sum to one at the sector bisectors, at
-``|u| = U_dc / (2 cos(pi/10)) = 0.5257 U_dc`` for five phases (:meth:`NearFourVectorSVPWM.linear_limit`
-computes it from the tables: ``1 / sum(t)`` for a unit reference along a bisector). That is the same
-limit as carrier PWM with min-max zero-sequence injection (:mod:`.multiphase_carrier`), and on one star
-(five phases) the two give the same duties inside it (the zero states split equally is min-max
-injection): a check of each against the other. Six phases: each three-phase star then carries the
-reference itself, so its hexagon limits it, ``U_dc/sqrt(3)``, as each set's own SVPWM; the carrier's
-two zero sequences (one per star) give other duties than the dwell times' common one, with the same
-period average.
+``|u| = U_dc / (2 cos(pi/10)) = 0.5257 U_dc`` for five phases
+([`NearFourVectorSVPWM.linear_limit`][pmsmjax.inverters.multiphase_svpwm.NearFourVectorSVPWM.linear_limit]
+computes it from the tables: ``1 / sum(t)`` for a unit reference along a bisector). That is the same limit as
+carrier PWM with min-max zero-sequence injection
+([`multiphase_carrier`][pmsmjax.inverters.multiphase_carrier]), and on one star (five phases) the two give the
+same duties inside it (the zero states split equally is min-max injection): a check of each against the other.
+Six phases: each three-phase star then carries the reference itself, so its hexagon limits it,
+``U_dc/sqrt(3)``, as each set's own SVPWM; the carrier's two zero sequences (one per star) give other duties
+than the dwell times' common one, with the same period average.
 
-:class:`LargeVectorSVPWM` is the contrast (six phases: the two-vector method, preset name
-``two-vector``): only L_k, L_k+1, ``[L_k L_k+1]_ab t = u_ab / U_dc``, the second plane's average left as
-it falls (per unit of dwell time: six phases ``0.1725 U_dc``, driving 5th and 7th harmonic currents
-through the small z1-z2 leakage impedance; five phases ``0.2472 U_dc``, third and seventh); linear to the
-inscribed circle of the L polygon, ``|L| cos(pi/K)`` (six phases ``(2/3) cos^2(15 deg) = 0.6220 U_dc``;
-five phases ``(4/5) cos 36 deg cos 18 deg = 0.6155 U_dc``).
+[`LargeVectorSVPWM`][pmsmjax.inverters.multiphase_svpwm.LargeVectorSVPWM] is the contrast (six phases: the
+two-vector method, preset name ``two-vector``): only L_k, L_k+1, ``[L_k L_k+1]_ab t = u_ab / U_dc``, the
+second plane's average left as it falls (per unit of dwell time: six phases ``0.1725 U_dc``, driving 5th and
+7th harmonic currents through the small z1-z2 leakage impedance; five phases ``0.2472 U_dc``, third and
+seventh); linear to the inscribed circle of the L polygon, ``|L| cos(pi/K)`` (six phases
+``(2/3) cos^2(15 deg) = 0.6220 U_dc``; five phases ``(4/5) cos 36 deg cos 18 deg = 0.6155 U_dc``).
 
 Sequence. The four vectors of a sector do not form a chain of nested states (no centre-aligned order
 switches them one leg at a time), so the carrier realisation passes through other intermediate states
@@ -61,7 +63,15 @@ __all__ = ["LargeVectorSVPWM", "NearFourVectorSVPWM", "four_vector_tables", "pad
 
 
 def padded_reference(u_ref: Array, n_active: int = 4) -> Array:
-    """``(n_active,)`` VSD reference from a ``(2,)`` alpha-beta one (other planes 0) or a full one."""
+    """VSD reference from an alpha-beta one (other planes 0) or a full one.
+
+    Args:
+        u_ref: ``(2,)`` or ``(n_active,)`` reference, V.
+        n_active: Length of the full reference.
+
+    Returns:
+        ``(n_active,)`` reference, V.
+    """
     shape = jnp.shape(u_ref)
     if shape == (2,):
         return jnp.concatenate([u_ref, jnp.zeros(n_active - 2, jnp.result_type(u_ref))])
@@ -74,8 +84,15 @@ def padded_reference(u_ref: Array, n_active: int = 4) -> Array:
 
 @functools.lru_cache(maxsize=8)
 def four_vector_tables(layout: PhaseLayout) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per sector ``k``: ``inv (K, 4, 4)`` the inverse of ``[L_k L_k+1 S_k S_k+1]`` (columns the states'
-    VSD vectors per unit of ``U_dc``), ``states (K, 4, n)`` their leg states, ``bisectors (K, 2)``."""
+    """Per-sector tables of the near-four-vector SVPWM.
+
+    Args:
+        layout: The winding layout.
+
+    Returns:
+        ``inv (K, 4, 4)`` the inverse of ``[L_k L_k+1 S_k S_k+1]`` (columns the states' VSD vectors per
+        unit of ``U_dc``), ``states (K, 4, n)`` their leg states, ``bisectors (K, 2)``.
+    """
     if layout.n_active != 4:
         raise ParameterError(
             f"near-four-vector SVPWM needs two VSD planes; the layout {layout.name!r} has {layout.n_planes}."
@@ -97,7 +114,14 @@ def four_vector_tables(layout: PhaseLayout) -> tuple[np.ndarray, np.ndarray, np.
 
 @functools.lru_cache(maxsize=8)
 def large_vector_tables(layout: PhaseLayout) -> tuple[np.ndarray, np.ndarray]:
-    """Per sector: ``inv (K, 2, 2)`` of ``[L_k L_k+1]`` on alpha-beta, ``states (K, 2, n)``."""
+    """Per-sector tables of the large-vector SVPWM.
+
+    Args:
+        layout: The winding layout.
+
+    Returns:
+        ``inv (K, 2, 2)`` of ``[L_k L_k+1]`` on alpha-beta, ``states (K, 2, n)``.
+    """
     sv = space_vectors(layout)
     K = len(sv.large)
     inv = np.empty((K, 2, 2))
@@ -129,7 +153,12 @@ def _duties(t: Array, states: Array) -> Array:
 
 class NearFourVectorSVPWM(AbstractModulator):
     """Near-four-vector SVPWM (module docstring): two large and two next vectors per sector, the second
-    plane's average nulled (or as commanded). `layout` (static): the winding, default five phases."""
+    plane's average nulled (or as commanded).
+
+    Args:
+        layout: The winding (static), default five phases.
+        name: The modulator's name in tables and figures (static).
+    """
 
     layout: PhaseLayout = eqx.field(static=True, default=FIVE_PHASE)
     name: str = eqx.field(static=True, default="near-four-vector")
@@ -142,12 +171,24 @@ class NearFourVectorSVPWM(AbstractModulator):
         return self.layout.n
 
     def sector(self, u_ab: Array) -> Array:
-        """Sector index (int) of a ``(2,)`` alpha-beta vector: the bisector it projects most on."""
+        """Sector index (int) of an alpha-beta vector: the bisector it projects most on.
+
+        Args:
+            u_ab: ``(2,)`` vector.
+        """
         _, _, bisectors = four_vector_tables(self.layout)
         return jnp.argmax(jnp.asarray(bisectors, u_ab.dtype) @ u_ab)
 
     def dwell_times(self, u_ref: Array, u_dc: Array) -> tuple[Array, Array]:
-        """``(k, t (4,))``: sector and dwell fractions of L_k, L_k+1, S_k, S_k+1 before any scaling."""
+        """Sector and dwell fractions of L_k, L_k+1, S_k, S_k+1 before any scaling.
+
+        Args:
+            u_ref: ``(2,)`` or full VSD reference, V.
+            u_dc: DC-link voltage, V.
+
+        Returns:
+            ``(k, t (4,))``.
+        """
         u = padded_reference(u_ref, self.layout.n_active)
         inv, _, _ = four_vector_tables(self.layout)
         k = self.sector(u[:2])
@@ -160,8 +201,12 @@ class NearFourVectorSVPWM(AbstractModulator):
 
     def linear_limit(self, u_dc):
         """``U_dc / sum(t)`` for a unit reference along a bisector (second plane 0), V peak (five phases:
-        ``U_dc / (2 cos 18 deg)``); stars of three phases: ``U_dc/sqrt(3)`` in closed form (module
-        docstring; the tables give it to 2 ulp)."""
+        ``U_dc / (2 cos 18 deg)``); stars of three phases: ``U_dc/sqrt(3)`` in closed form (module docstring;
+        the tables give it to 2 ulp).
+
+        Args:
+            u_dc: DC-link voltage, V.
+        """
         if all(len(g) == 3 for g in self.layout.neutrals):
             return u_dc / np.sqrt(3.0)
         inv, _, bisectors = four_vector_tables(self.layout)
@@ -171,7 +216,12 @@ class NearFourVectorSVPWM(AbstractModulator):
 
 class LargeVectorSVPWM(AbstractModulator):
     """SVPWM with the two adjacent large vectors only (module docstring): the second plane's average is
-    not controlled. `layout` (static), default five phases. Linear to ``|L| cos(pi/K) U_dc`` (peak, V)."""
+    not controlled. Linear to ``|L| cos(pi/K) U_dc`` (peak, V).
+
+    Args:
+        layout: The winding (static), default five phases.
+        name: The modulator's name in tables and figures (static).
+    """
 
     layout: PhaseLayout = eqx.field(static=True, default=FIVE_PHASE)
     name: str = eqx.field(static=True, default="large-vector")
@@ -181,7 +231,15 @@ class LargeVectorSVPWM(AbstractModulator):
         return self.layout.n
 
     def dwell_times(self, u_ref: Array, u_dc: Array) -> tuple[Array, Array]:
-        """``(k, t (2,))``: sector and dwell fractions of L_k, L_k+1 before any scaling."""
+        """Sector and dwell fractions of L_k, L_k+1 before any scaling.
+
+        Args:
+            u_ref: ``(2,)`` or full VSD reference, V.
+            u_dc: DC-link voltage, V.
+
+        Returns:
+            ``(k, t (2,))``.
+        """
         u = padded_reference(u_ref, self.layout.n_active)
         inv, _ = large_vector_tables(self.layout)
         _, _, bisectors = four_vector_tables(self.layout)

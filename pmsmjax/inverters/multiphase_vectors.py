@@ -1,11 +1,12 @@
 """The ``2^n`` switching states of an n-leg inverter feeding a multi-phase machine with isolated star points,
-projected on the VSD planes, for any :class:`~pmsmjax.frames.multiphase.PhaseLayout` (the book, ch. 8
+projected on the VSD planes, for any [`PhaseLayout`][pmsmjax.frames.multiphase.PhaseLayout] (the book, ch. 8
 and 10; Zhao & Lipo, IEEE TIA 31(5), 1995, for the dual three-phase machine).
 
 State index ``s = sum_x b_x 2^x`` (``b_x`` the upper switch of leg ``x``, leg order of the layout). Each
 state's phase voltages are ``U_dc (b_x - mean of its star)``; their amplitude-invariant VSD gives one
-vector per plane. :func:`space_vectors` returns them with the two groups of states that near-four-vector
-SVPWM uses (:mod:`.multiphase_svpwm`):
+vector per plane. [`space_vectors`][pmsmjax.inverters.multiphase_vectors.space_vectors] returns them with the
+two groups of states that near-four-vector SVPWM uses
+([`multiphase_svpwm`][pmsmjax.inverters.multiphase_svpwm]):
 
 - **large** (L): the states of largest alpha-beta magnitude, one per direction, sorted by angle from
   the first at or after 0 rad; the sectors lie between neighbours (sector ``k`` from L_k to L_k+1);
@@ -13,7 +14,7 @@ SVPWM uses (:mod:`.multiphase_svpwm`):
   alpha-beta magnitude. Its vector in the second plane is opposite to the L state's, so a mix of the two
   nulls that plane's average.
 
-Six phases (:data:`~pmsmjax.frames.multiphase.SIX_PHASE`, two stars 30 deg apart), per unit of ``U_dc``:
+Six phases ([`SIX_PHASE`][pmsmjax.frames.multiphase.SIX_PHASE], two stars 30 deg apart), per unit of ``U_dc``:
 
 ==========  =====  ========================================  ===========  ==================
 alpha-beta  count  name                                      z1-z2        direction
@@ -28,7 +29,7 @@ alpha-beta  count  name                                      z1-z2        direct
 ``|L| = (2/3) cos 15 deg``: an L state puts each star on one of its own hexagon's vertices, the two 30 deg
 apart. 12 sectors of 30 deg, sector ``k`` between the L vectors at ``15 + 30 k`` and ``45 + 30 k`` deg.
 
-Five phases (:data:`~pmsmjax.frames.multiphase.FIVE_PHASE`), per unit of ``U_dc``:
+Five phases ([`FIVE_PHASE`][pmsmjax.frames.multiphase.FIVE_PHASE]), per unit of ``U_dc``:
 
 ==========  =====  ========================================  ===========  ==================
 alpha-beta  count  name                                      x-y          direction
@@ -60,10 +61,14 @@ __all__ = ["SpaceVectors", "large_magnitude", "space_vectors"]
 class SpaceVectors(NamedTuple):
     """Switching states of a layout (read-only NumPy float64).
 
-    `states` ``(2^n, n)`` leg states; `vectors` ``(2^n, 2 n_planes)`` their VSD voltages per unit of
-    ``U_dc``; `large`, `second` ``(K,)`` indices of the L states and of the next group at the same
-    directions (``K`` sectors); `bisectors` ``(K, 2)`` unit vectors halfway between L_k and L_k+1;
-    `large_magnitude` ``|L|`` per unit (:func:`large_magnitude`).
+    Attributes:
+        states: ``(2^n, n)`` leg states.
+        vectors: ``(2^n, 2 n_planes)`` their VSD voltages per unit of ``U_dc``.
+        large: ``(K,)`` indices of the L states (``K`` sectors).
+        second: ``(K,)`` indices of the next group at the same directions.
+        bisectors: ``(K, 2)`` unit vectors halfway between L_k and L_k+1.
+        large_magnitude: ``|L|`` per unit
+            ([`large_magnitude`][pmsmjax.inverters.multiphase_vectors.SpaceVectors]).
     """
 
     states: np.ndarray
@@ -81,6 +86,10 @@ def large_magnitude(layout: PhaseLayout, largest_in_table: float) -> float:
     frame, vertices every 60 deg from its first phase axis), the two vertices ``gap`` apart, the smallest
     angle between the two stars' vertex directions; the alpha-beta vector is their mean,
     ``(2/3) cos(gap/2)`` (six phases: ``(2/3) cos 15 deg``, which the table's magnitudes give to 1 ulp).
+
+    Args:
+        layout: The winding layout.
+        largest_in_table: The largest magnitude in the layout's table, per unit.
     """
     if len(layout.neutrals) == 2 and all(len(g) == 3 for g in layout.neutrals):
         first, other = (layout.angles[g[0]] for g in layout.neutrals)
@@ -92,7 +101,11 @@ def large_magnitude(layout: PhaseLayout, largest_in_table: float) -> float:
 
 @functools.lru_cache(maxsize=8)
 def space_vectors(layout: PhaseLayout) -> SpaceVectors:
-    """The switching-state tables of ``layout`` (module docstring)."""
+    """The switching-state tables of ``layout`` (module docstring).
+
+    Args:
+        layout: The winding layout.
+    """
     layout.check()
     n = layout.n
     if n > 12:

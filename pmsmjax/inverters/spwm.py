@@ -5,13 +5,14 @@ carrier sampled once per period (regular sampling): leg duty ``d_x = 1/2 + (u_x 
 ``u_abc`` the inverse Clarke of the ``(2,)`` reference. The zero sequence does not reach the windings of an
 isolated-neutral machine, so it only moves the references away from the carrier's limits:
 
-- :class:`SinusoidalPWM`: ``u_0 = 0``; linear while every phase fits in ``+-U_dc/2``: ``|u| <= U_dc/2``.
-- :class:`ThirdHarmonicPWM`: ``u_0 = -(|u|/6) cos(3 theta)`` with ``theta`` the reference angle (1/6 of
-  the fundamental at three times its frequency); the phase peak falls to ``(sqrt3/2)|u|``, linear to
-  ``|u| <= U_dc/sqrt3``. Computed without an angle: ``|u|^3 cos 3theta = Re((u_a + j u_b)^3) =
-  u_a^3 - 3 u_a u_b^2``, so ``u_0 = -(u_a^3 - 3 u_a u_b^2) / (6 |u|^2)`` (0 at ``u = 0``).
-- :class:`MinMaxPWM`: ``u_0 = -(max_x u_x + min_x u_x)/2`` (centres the references in the carrier);
-  linear to ``U_dc/sqrt3`` and identical to SVPWM there.
+- [`SinusoidalPWM`][pmsmjax.inverters.spwm.SinusoidalPWM]: ``u_0 = 0``; linear while every phase fits in
+  ``+-U_dc/2``: ``|u| <= U_dc/2``.
+- [`ThirdHarmonicPWM`][pmsmjax.inverters.spwm.ThirdHarmonicPWM]: ``u_0 = -(|u|/6) cos(3 theta)`` with
+  ``theta`` the reference angle (1/6 of the fundamental at three times its frequency); the phase peak falls to
+  ``(sqrt3/2)|u|``, linear to ``|u| <= U_dc/sqrt3``. Computed without an angle: ``|u|^3 cos 3theta = Re((u_a +
+  j u_b)^3) = u_a^3 - 3 u_a u_b^2``, so ``u_0 = -(u_a^3 - 3 u_a u_b^2) / (6 |u|^2)`` (0 at ``u = 0``).
+- [`MinMaxPWM`][pmsmjax.inverters.spwm.MinMaxPWM]: ``u_0 = -(max_x u_x + min_x u_x)/2`` (centres the
+  references in the carrier); linear to ``U_dc/sqrt3`` and identical to SVPWM there.
 
 Saturation. Beyond the linear range the duties are clipped to [0, 1] (a leg stays on or off the whole
 period); the period average then falls short of the reference and is distorted (low-order harmonics). This
@@ -42,7 +43,11 @@ def _duties(u_abc: Array, u_0: Array, u_dc: Array) -> Array:
 
 
 class SinusoidalPWM(AbstractModulator):
-    """Regular-sampled sinusoidal PWM: no zero sequence; linear up to ``U_dc/2`` (phase peak, V)."""
+    """Regular-sampled sinusoidal PWM: no zero sequence; linear up to ``U_dc/2`` (phase peak, V).
+
+    Args:
+        name: The modulator's name in tables and figures (static).
+    """
 
     name: str = eqx.field(static=True, default="sinusoidal")
 
@@ -54,10 +59,16 @@ class SinusoidalPWM(AbstractModulator):
 
 
 def third_harmonic(u_ab: Array) -> Array:
-    """Zero-sequence voltage (V) ``-(|u|/6) cos(3 theta)`` of a ``(2,)`` reference, 0 at the origin.
+    """Zero-sequence voltage ``-(|u|/6) cos(3 theta)`` of a reference, 0 at the origin.
 
-    Double-where: the division by ``|u|^2`` is only evaluated away from zero, so gradients stay finite
-    there (the value tends to 0 as ``|u|``, it is continuous).
+    Double-where: the division by ``|u|^2`` is only evaluated away from zero, so gradients stay finite there
+    (the value tends to 0 as ``|u|``, it is continuous).
+
+    Args:
+        u_ab: ``(2,)`` alpha-beta reference, V.
+
+    Returns:
+        The zero-sequence voltage, V.
     """
     u_a, u_b = u_ab[0], u_ab[1]
     mag2 = u_a * u_a + u_b * u_b
@@ -67,7 +78,11 @@ def third_harmonic(u_ab: Array) -> Array:
 
 
 class ThirdHarmonicPWM(AbstractModulator):
-    """Sinusoidal PWM with 1/6 third-harmonic injection; linear up to ``U_dc/sqrt3`` (phase peak, V)."""
+    """Sinusoidal PWM with 1/6 third-harmonic injection; linear up to ``U_dc/sqrt3`` (phase peak, V).
+
+    Args:
+        name: The modulator's name in tables and figures (static).
+    """
 
     name: str = eqx.field(static=True, default="third_harmonic")
 
@@ -79,7 +94,11 @@ class ThirdHarmonicPWM(AbstractModulator):
 
 
 class MinMaxPWM(AbstractModulator):
-    """Min-max zero-sequence injection (carrier-based SVPWM); linear up to ``U_dc/sqrt3`` (V)."""
+    """Min-max zero-sequence injection (carrier-based SVPWM); linear up to ``U_dc/sqrt3`` (V).
+
+    Args:
+        name: The modulator's name in tables and figures (static).
+    """
 
     name: str = eqx.field(static=True, default="min_max")
 

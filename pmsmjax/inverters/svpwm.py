@@ -37,7 +37,14 @@ _LEG_ONE_HOT = np.eye(3)[_LEG_TABLE]  # (8, 3, 3)
 
 
 def sector_code(u_ab: Array) -> Array:
-    """The book's sector code N (int, 1..6; 0 for a zero reference) of a ``(2,)`` alpha-beta vector."""
+    """The book's sector code N of an alpha-beta vector.
+
+    Args:
+        u_ab: ``(2,)`` vector.
+
+    Returns:
+        N (int, 1..6; 0 for a zero reference).
+    """
     u_a, u_b = u_ab[0], u_ab[1]
     U1 = u_b
     U2 = 0.5 * (SQRT3 * u_a - u_b)
@@ -48,11 +55,15 @@ def sector_code(u_ab: Array) -> Array:
 def switching_times(u_ab: Array, u_dc: Array, Ts) -> tuple[Array, Array, Array]:
     """Book SVPWM for one period.
 
-    **Arguments:** `u_ab`: ``(2,)`` reference, V; `u_dc`: DC-link voltage, V; `Ts`: PWM period, s.
+    Args:
+        u_ab: ``(2,)`` reference, V.
+        u_dc: DC-link voltage, V.
+        Ts: PWM period, s.
 
-    **Returns:** ``(T_cm, T1, T2)``: ``(3,)`` comparison times of legs a, b, c (s, a leg is high while
-    the centre-aligned carrier is above its T_cm) and the dwell times of the two active vectors (s),
-    after over-modulation scaling.
+    Returns:
+        ``(T_cm, T1, T2)``: ``(3,)`` comparison times of legs a, b, c (s, a leg is high while the
+        centre-aligned carrier is above its T_cm) and the dwell times of the two active vectors (s), after
+        over-modulation scaling.
     """
     u_a, u_b = u_ab[0], u_ab[1]
     k = SQRT3 * Ts / u_dc
@@ -80,6 +91,9 @@ class SVPWM(AbstractModulator):
 
     Beyond the hexagon the dwell times are scaled to the period, which keeps the voltage direction and
     clips the magnitude to the hexagon boundary.
+
+    Args:
+        name: The modulator's name in tables and figures (static).
     """
 
     name: str = eqx.field(static=True, default="svpwm")

@@ -29,7 +29,8 @@ At exactly zero current the exact sign is 0 and a dead window puts the pole at `
 voltage is set by the machine then; the window lasts a few microseconds).
 
 Output voltage: phase-to-neutral of a star, isolated-neutral machine, ``u_xN = v_x - mean(v)`` from the
-pole voltages ``v``; :meth:`SwitchingBridge.advance` returns its exact period average in the stator frame.
+pole voltages ``v``; [`SwitchingBridge.advance`][pmsmjax.inverters.switching.SwitchingBridge] returns its
+exact period average in the stator frame.
 """
 
 from typing import ClassVar, Literal
@@ -53,19 +54,18 @@ CurrentSign = Literal["exact", "smooth"]
 class SwitchingBridge(AbstractBridge):
     """Two-level inverter resolved into its switching segments (see the module docstring).
 
-    **Arguments:**
-
-    - `u_dc`: DC-link voltage, V.
-    - `dead_time`: blanking time per switching edge, s (0 <= t_d < Ts/2, checked against the drive's
-      Ts). ``None`` (default): no dead time, and the 6 dead-window cuts are left out of the program (7
-      segments instead of 13); ``0.0`` keeps them (to vary or differentiate ``t_d`` from 0).
-    - `device_drop`: constant on-state voltage of a switch or diode, V (>= 0).
-    - `sign_smoothing`: current scale ``eps`` of the ``tanh(i/eps)`` sign surrogate, A (used when
-      ``current_sign="smooth"``).
-    - `current_sign`: ``"exact"`` or ``"smooth"`` (static).
-    - `segment_substeps`: RK4 steps per segment (static). Segments are at most one period long, so one
-      step is as accurate as the averaged bridge with one sub-step per period (4e-7 of the peak current
-      on the book drive); the drive's ``n_substeps`` is not used by this bridge.
+    Args:
+        u_dc: DC-link voltage, V.
+        dead_time: Blanking time per switching edge, s (0 <= t_d < Ts/2, checked against the drive's Ts).
+            ``None``: no dead time, and the 6 dead-window cuts are left out of the program (7 segments
+            instead of 13); ``0.0`` keeps them (to vary or differentiate ``t_d`` from 0).
+        device_drop: Constant on-state voltage of a switch or diode, V (>= 0).
+        sign_smoothing: Current scale ``eps`` of the ``tanh(i/eps)`` sign surrogate, A (used when
+            ``current_sign="smooth"``).
+        current_sign: ``"exact"`` or ``"smooth"`` (static).
+        segment_substeps: RK4 steps per segment (static). Segments are at most one period long, so one step
+            is as accurate as the averaged bridge with one sub-step per period (4e-7 of the peak current on
+            the book drive); the drive's ``n_substeps`` is not used by this bridge.
     """
 
     u_dc: Array
@@ -105,7 +105,14 @@ class SwitchingBridge(AbstractBridge):
             raise ParameterError(f"segment_substeps must be an int >= 1, got {self.segment_substeps!r}.")
 
     def check_period(self, Ts: float) -> None:
-        """Raise unless the dead time fits the PWM period: ``t_d < Ts/2`` (both edges of one pulse)."""
+        """Refuse a dead time that does not fit the PWM period: ``t_d < Ts/2`` (both edges of one pulse).
+
+        Args:
+            Ts: PWM period, s.
+
+        Raises:
+            ParameterError: For a dead time of half the period or more.
+        """
         if not is_concrete(self.dead_time):
             return
         t_d = float(np.max(np.asarray(jax.device_get(self.dead_time))))  # NumPy: no tracer inside a jit
@@ -116,21 +123,31 @@ class SwitchingBridge(AbstractBridge):
             )
 
     def phase_current_sign(self, i_abc: Array) -> Array:
-        """``(3,)`` sign of the phase currents (A), exact or the ``tanh`` surrogate."""
+        """Sign of the phase currents, exact or the ``tanh`` surrogate.
+
+        Args:
+            i_abc: ``(3,)`` phase currents, A.
+        """
         if self.current_sign == "exact":
             return jnp.sign(i_abc)
         return jnp.tanh(i_abc / self.sign_smoothing)
 
     def segments(self, duties: Array, Ts, extra_times: Array | None = None):
         """The period cut at every gate edge, the end of every dead window, and ``extra_times``
-        (:func:`pwm_segments` with this bridge's dead time)."""
+        ([`pwm_segments`][pmsmjax.inverters.switching.pwm_segments] with this bridge's dead time).
+
+        Args:
+            duties: ``(3,)`` upper-switch duties.
+            Ts: PWM period, s.
+            extra_times: Optional ``(M,)`` further cut points in [0, Ts], s.
+        """
         return pwm_segments(duties, Ts, self.dead_time, self.resolve_dead_time, extra_times)
 
     def _integrate(self, machine, state, times, high, dead, load_torque):
         """Integrate interval by interval; the pole voltages use the current at each interval start.
 
         Returns the final state, the ``(K,)``-stacked states at interval ends, and ``(K, 2)`` voltages, V.
-        A rolled loop: unrolling the 7-13 segments was measured slower to compile and to run on CPU.
+        A rolled loop: unrolled, the 7-13 segments compile and run slower on CPU.
         """
 
         def body(s, seg):
@@ -160,9 +177,22 @@ class SwitchingBridge(AbstractBridge):
 
     def sample_period(self, machine, state, duties, load_torque, Ts, n_samples: int):
         """The states at ``t_j = j Ts / n_samples``, j = 1..n_samples, within one period (ripple plots and
-        spectra); the period is also cut at the sample instants, so the trajectory is the one
-        :meth:`advance` follows. Returns ``(MachineState of (n_samples,) leaves, (K,) interval bounds s,
-        (K-1, 2) stator-frame voltage of each interval V)``.
+        spectra).
+
+        The period is also cut at the sample instants, so the trajectory is the one
+        [`advance`][pmsmjax.inverters.switching.SwitchingBridge] follows.
+
+        Args:
+            machine: The machine model.
+            state: The machine state at the period start.
+            duties: ``(3,)`` leg duty cycles.
+            load_torque: Load torque, N m.
+            Ts: PWM period, s.
+            n_samples: Number of sample instants.
+
+        Returns:
+            ``(MachineState of (n_samples,) leaves, (K,) interval bounds s, (K-1, 2) stator-frame voltage of
+            each interval V)``.
         """
         self._checked(duties, Ts)
         samples = Ts * jnp.arange(1, n_samples + 1, dtype=state.omega_m.dtype) / n_samples
@@ -177,14 +207,18 @@ def pwm_segments(duties: Array, Ts, dead_time, resolve_dead_time: bool, extra_ti
     """The period cut at every gate edge of centre-aligned PWM, the end of every dead window, and
     ``extra_times``; for any number of legs.
 
-    **Arguments:** `duties`: ``(n,)`` upper-switch duties; `Ts`: period, s; `dead_time`: s (used when
-    `resolve_dead_time`, static); `extra_times`: optional ``(M,)`` further cut points in [0, Ts], s
-    (sampling instants).
+    Args:
+        duties: ``(n,)`` upper-switch duties.
+        Ts: PWM period, s.
+        dead_time: Dead time, s (used when ``resolve_dead_time``).
+        resolve_dead_time: Whether to cut the dead windows (static).
+        extra_times: Optional ``(M,)`` further cut points in [0, Ts], s (sampling instants).
 
-    **Returns:** ``(times, high, dead, order)``: ``(K+1,)`` sorted bounds from 0 to Ts; ``(K, n)``
-    gate state (1 = upper gate on) and ``(K, n)`` dead-window indicator of every leg in every interval;
-    and the argsort that put the cut points in order (edges and window ends first, ``extra_times``
-    last). K = 2n + 1 + M without dead time, 4n + 1 + M with it (7 and 13 for three legs).
+    Returns:
+        ``(times, high, dead, order)``: ``(K+1,)`` sorted bounds from 0 to Ts; ``(K, n)`` gate state
+        (1 = upper gate on) and ``(K, n)`` dead-window indicator of every leg in every interval; and the
+        argsort that put the cut points in order (edges and window ends first, ``extra_times`` last).
+        K = 2n + 1 + M without dead time, 4n + 1 + M with it (7 and 13 for three legs).
     """
     on = 0.5 * Ts * (1.0 - duties)
     off = 0.5 * Ts * (1.0 + duties)

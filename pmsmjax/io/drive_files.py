@@ -1,10 +1,10 @@
 """Drive files: read a drive file (TOML) or a preset by name into a checked
-:class:`~pmsmjax.spec.drive_spec.DriveSpec`, and write one.
+[`DriveSpec`][pmsmjax.spec.drive_spec.DriveSpec], and write one.
 
 Reading is the file's part only: the TOML, its tables and the ``[motor] flux_map`` file beside it
-(:mod:`pmsmjax.io.flux_map_files`); the checks, defaults and derivations are the spec's
-(:mod:`pmsmjax.spec.drive_spec`, whose docstring has the layout). The presets are drive files in
-``pmsmjax/presets/motors/``.
+([`pmsmjax.io.flux_map_files`][pmsmjax.io.flux_map_files]); the checks, defaults and derivations are the
+spec's ([`pmsmjax.spec.drive_spec`][pmsmjax.spec.drive_spec], whose docstring has the layout). The presets are
+drive files in ``pmsmjax/presets/motors/``.
 """
 
 from collections.abc import Mapping
@@ -102,9 +102,9 @@ def read_drive_file(
     overrides: Mapping[str, float] | None = None,
     flags: Mapping[str, str] | None = None,
 ) -> DriveSpec:
-    """Read the drive file ``path`` and check and complete it (:func:`pmsmjax.spec.drive_spec.complete`).
-    `n_phases`: the machine the command runs (a file for another is refused); `overrides`:
-    ``u_dc_v``/``max_current_a`` from flags."""
+    """Read the drive file ``path`` and check and complete it
+    ([`pmsmjax.spec.drive_spec.complete`][pmsmjax.spec.drive_spec.complete]). `n_phases`: the machine the
+    command runs (a file for another is refused); `overrides`: ``u_dc_v``/``max_current_a`` from flags."""
     path = Path(path)
     where = f"drive file {path}"
     if not path.is_file():

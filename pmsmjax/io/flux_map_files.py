@@ -1,4 +1,4 @@
-"""Flux-map files: read a measured map into a checked :class:`~pmsmjax.machines.flux_map.FluxMapGrid`.
+"""Flux-map files: read a measured map into a checked [`FluxMapGrid`][pmsmjax.machines.flux_map.FluxMapGrid].
 
 Formats (SI units: A, Wb peak phase flux linkage in the amplitude-invariant dq frame):
 
@@ -7,14 +7,15 @@ Formats (SI units: A, Wb peak phase flux linkage in the amplitude-invariant dq f
   An optional fifth column ``measured`` (1 or 0) marks the grid points a measurement determined; a 0
   point holds a value only so the interpolant has one everywhere (``pmsmjax identify --flux-map`` fills
   the points its log did not reach from their neighbours): do not trust the map there.
-  :func:`read_flux_map_measured` returns the marks; the plant uses every point alike;
+  [`read_flux_map_measured`][pmsmjax.io.flux_map_files.read_flux_map_measured] returns the marks; the plant
+  uses every point alike;
 - **NPZ** or **MAT** (MATLAB) with 1-D axes ``i_d (n_d,)``, ``i_q (n_q,)`` and 2-D ``psi_d``, ``psi_q``
   ``(n_d, n_q)``;
 - **NPZ** or **MAT** with complex 2-D grids ``i_s_dq = i_d + j i_q`` and ``psi_s_dq = psi_d + j psi_q``
   (the layout some public machine-design tools write), rows along either axis.
 
 A careless file (a missing column or array, a grid with holes or uneven steps, NaN, currents in mA) is
-refused with one :class:`~pmsmjax.spec.validation.ParameterError` naming the file and the fix.
+refused with one [`ParameterError`][pmsmjax.spec.validation.ParameterError] naming the file and the fix.
 """
 
 from pathlib import Path
@@ -112,7 +113,8 @@ def _distinct(values: np.ndarray) -> np.ndarray:
 
 def read_flux_map_measured(path) -> np.ndarray | None:
     """``(n_d, n_q)`` bool marks of a CSV map's ``measured`` column (rows along i_d, as the grid), or None
-    when the file has no such column (every point measured); the file is checked as :func:`read_flux_map`."""
+    when the file has no such column (every point measured); the file is checked as
+    [`read_flux_map`][pmsmjax.io.flux_map_files.read_flux_map]."""
     read_flux_map(path)
     return _read_csv(Path(path), f"flux map {path}")[4] if Path(path).suffix.lower() == ".csv" else None
 

@@ -11,9 +11,9 @@ runs on this host. A stale lock is taken over with a warning. Who takes it over 
 atomic file, ``FOLDER/.pmsmjax.lock.break``, so two commands finding the same stale lock cannot both
 proceed. A lock written on another host cannot be checked from here and is always refused (the message
 says which file to delete if that command is known to be gone); so is a lock whose content cannot be read
-(it is being written, or is not ours) unless it is older than :data:`UNREADABLE_STALE_S`.
+(it is being written, or is not ours) unless it is older than `UNREADABLE_STALE_S`.
 
-Pure Python (no JAX): :func:`pmsmjax.cli.main` takes the lock right after parsing the flags, before the
+Pure Python (no JAX): `pmsmjax.cli.main` takes the lock right after parsing the flags, before the
 command checks or writes anything.
 """
 
@@ -39,7 +39,7 @@ UNREADABLE_STALE_S = 10.0
 class FolderLock:
     """A held lock: `path` the lock file, `took_over` the stale lock's content it replaced (or None);
     `failed`: set by the holder when its command failed without raising (a nonzero exit status), so that
-    :func:`held_folder` tidies up as after an exception."""
+    [`held_folder`][pmsmjax.io.folder_lock.held_folder] tidies up as after an exception."""
 
     def __init__(self, path: Path, took_over: dict | None = None):
         self.path = path
@@ -112,8 +112,8 @@ def _describe(content: dict | None, path: Path) -> str:
 
 def acquire(folder, argv: Sequence[str], attempts: int = 50) -> FolderLock:
     """Take the lock of the existing folder `folder` for the command line `argv` (what the message of a
-    refused second command shows). Raises :class:`ParameterError` if another command holds it; takes a
-    stale lock over with a warning (module docstring)."""
+    refused second command shows). Raises [`ParameterError`][pmsmjax.spec.validation.ParameterError] if
+    another command holds it; takes a stale lock over with a warning (module docstring)."""
     path = Path(folder) / LOCK_NAME
     mine = {
         "pid": os.getpid(),

@@ -8,14 +8,15 @@ A log is a set of equally long 1-D numeric columns, one of which is usually the 
 - ``.npz``: one array per column, the key is the column name (``np.savez(path, time=t, u_d=...)``).
 - ``.mat``: one variable per column (``save log.mat time u_d u_q`` in MATLAB); row or column vectors.
 
-:func:`read_log` returns the requested columns as float64 NumPy arrays after :func:`check_columns` has
-checked them: required columns present, no NaN/inf, at least two rows, equal lengths, time strictly
-increasing. Every failure is a :class:`~pmsmjax.spec.validation.ParameterError` naming the column, the row
-and the fix. Extra columns are allowed and ignored.
+[`read_log`][pmsmjax.io.logs.read_log] returns the requested columns as float64 NumPy arrays after
+[`check_columns`][pmsmjax.io.logs.check_columns] has checked them: required columns present, no NaN/inf, at
+least two rows, equal lengths, time strictly increasing. Every failure is a
+[`ParameterError`][pmsmjax.spec.validation.ParameterError] naming the column, the row and the fix. Extra
+columns are allowed and ignored.
 
-Writers go through :func:`atomic_write`: the data is written to a temporary file in the destination
-folder and renamed over the target only once complete, so an interrupted or failed run never leaves a
-half-written file (``os.replace`` is atomic within one file system).
+Writers go through [`atomic_write`][pmsmjax.io.logs.atomic_write]: the data is written to a temporary file in
+the destination folder and renamed over the target only once complete, so an interrupted or failed run never
+leaves a half-written file (``os.replace`` is atomic within one file system).
 """
 
 import difflib
@@ -39,7 +40,7 @@ __all__ = [
     "LOG_SUFFIXES",
 ]
 
-#: File suffixes :func:`read_log` understands.
+#: File suffixes [`read_log`][pmsmjax.io.logs.read_log] understands.
 LOG_SUFFIXES = (".csv", ".txt", ".npz", ".mat")
 
 
@@ -65,9 +66,10 @@ def read_log(
 
     Only the required and the present optional columns are returned (in that order); other columns are
     ignored, and their names appended to `unused` when a list is given (to report them, or to catch a
-    misspelt optional column with :func:`misspelt_columns`). Raises :class:`ParameterError` for a
-    missing file, an unknown format, a missing required
-    column, NaN/inf values, fewer than two rows, unequal lengths or a time column that does not increase.
+    misspelt optional column with [`misspelt_columns`][pmsmjax.io.logs.misspelt_columns]). Raises
+    [`ParameterError`][pmsmjax.spec.validation.ParameterError] for a missing file, an unknown format, a
+    missing required column, NaN/inf values, fewer than two rows, unequal lengths or a time column that does
+    not increase.
     """
     path = Path(path)
     required, optional = tuple(required), tuple(optional)
@@ -94,7 +96,7 @@ def read_log(
 
 def column_names(path: str | os.PathLike) -> list[str]:
     """Every column name in the log at ``path`` (for hints about misspelt columns); ``[]`` if it cannot be
-    read (:func:`read_log` reports why)."""
+    read ([`read_log`][pmsmjax.io.logs.read_log] reports why)."""
     path = Path(path)
     readers = {".csv": _read_csv, ".txt": _read_csv, ".npz": _read_npz, ".mat": _read_mat}
     reader = readers.get(path.suffix.lower())
@@ -110,7 +112,7 @@ def column_names(path: str | os.PathLike) -> list[str]:
 def misspelt_columns(unused, absent, cutoff: float = 0.75) -> list[tuple[str, str]]:
     """``[(column, known name)]`` for each unused column that looks like a known column the log lacks
     (``omega`` for ``omega_m``, ``omgea_m``): a misspelt optional column silently changes what is computed,
-    so callers refuse it with the hint. Case-insensitive, :func:`difflib.get_close_matches` at `cutoff`."""
+    so callers refuse it with the hint. Case-insensitive, `difflib.get_close_matches` at `cutoff`."""
     absent = list(absent)
     lower = {a.lower(): a for a in absent}
     out = []
@@ -130,7 +132,8 @@ def check_columns(
     source: str = "log",
     line_offset: Mapping[int, int] | int | None = None,
 ) -> dict[str, np.ndarray]:
-    """Check a mapping of columns as :func:`read_log` does and return the selected float64 columns.
+    """Check a mapping of columns as [`read_log`][pmsmjax.io.logs.read_log] does and return the selected
+    float64 columns.
 
     `source` names the data in messages; `line_offset` maps a row index to its line in a text file (an
     ``int`` offset or a mapping from row to line) so messages can point at the file line as well.

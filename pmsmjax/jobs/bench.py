@@ -11,14 +11,17 @@ sub-steps) in the process's precision (float32 unless x64 is enabled), every fig
    and 2 sub-steps per period;
 5. forward- vs reverse-mode time of the ITAE gradient with respect to n parameters, for one scenario
    (n up to all 21 array leaves of the drive) and for the batch loss (n up to the 7 gains), and the
-   crossover n of each (what :data:`pmsmjax.analysis.gradients.FORWARD_MODE_MAX_PARAMS` is chosen from).
-   The two differ: in a batch each extra tangent costs about one more forward pass, while for one
-   scenario extra tangents cost far less (scalar arithmetic leaves vector units idle, most likely);
+   crossover n of each (what
+   [`pmsmjax.analysis.gradients.FORWARD_MODE_MAX_PARAMS`][pmsmjax.analysis.gradients.FORWARD_MODE_MAX_PARAMS]
+   is chosen from). The two differ: in a batch each extra tangent costs about one more forward pass, while for
+   one scenario extra tangents cost far less (scalar arithmetic leaves vector units idle, most likely);
 6. the machine: CPU, core count, JAX version, backend.
 
-Calls being compared are timed interleaved (:func:`time_interleaved`), so their ratios hold when another
+Calls being compared are timed interleaved
+([`time_interleaved`][pmsmjax.jobs.bench.time_interleaved]), so their ratios hold when another
 process takes the CPU for a while. ``quick=True`` shrinks every size so the whole run takes seconds; its
-timings mean nothing. The plain-text table of the figures is :mod:`pmsmjax.jobs.bench_report`.
+timings mean nothing. The plain-text table of the figures is
+[`pmsmjax.jobs.bench_report`][pmsmjax.jobs.bench_report].
 """
 
 import dataclasses
@@ -111,7 +114,7 @@ QUICK = Sizes(
     batch_mode_reps=2,
 )
 
-#: Keys :func:`run` always returns.
+#: Keys [`run`][pmsmjax.jobs.bench.run] always returns.
 REQUIRED_KEYS = (
     "periods_per_s_single",
     "periods_per_s_batch256",
@@ -231,7 +234,7 @@ def batch_of_scenarios(n: int, duration_s: float, seed: int = 0) -> Scenario:
 
 
 def get_parameters(drive: Drive, names) -> dict[str, jax.Array]:
-    """The named leaves of ``drive`` (keys of :data:`PARAMETERS`) as a dict of scalar arrays."""
+    """The named leaves of ``drive`` (keys of `PARAMETERS`) as a dict of scalar arrays."""
     return {name: part(drive, PARAMETERS[name]) for name in names}
 
 
@@ -329,9 +332,10 @@ def measure_batch_gradient(drive: Drive, scenarios: Scenario, reps: int) -> dict
 def measure_modes(loss: Callable, drive: Drive, scenario: Scenario, n_params: int, reps: int) -> dict:
     """Forward- and reverse-mode gradient of ``loss`` w.r.t. the first ``n_params`` leaves of PARAMETERS.
 
-    ``loss(params, drive, scenario)`` is :func:`parameter_itae` or :func:`parameter_batch_itae`. Times
-    (s) via :func:`pmsmjax.analysis.gradients.value_and_grad`; ``grad_rel_diff`` is the largest difference
-    between the two gradients relative to the largest reverse-mode component.
+    ``loss(params, drive, scenario)`` is `parameter_itae` or `parameter_batch_itae`. Times
+    (s) via [`pmsmjax.analysis.gradients.value_and_grad`][pmsmjax.analysis.gradients.value_and_grad];
+    ``grad_rel_diff`` is the largest difference between the two gradients relative to the largest reverse-mode
+    component.
     """
     params = get_parameters(drive, tuple(PARAMETERS)[:n_params])
     fns = {
@@ -355,7 +359,8 @@ def mode_crossover(rows: list[dict]) -> int:
     """Largest measured parameter count up to which forward mode beat reverse mode at every count.
 
     0 when reverse mode wins already at the smallest count. When forward mode wins at every measured
-    count the true crossover lies above the largest one (see ``crossover_bracketed`` in :func:`run`).
+    count the true crossover lies above the largest one (see ``crossover_bracketed`` in
+    [`run`][pmsmjax.jobs.bench.run]).
     """
     crossover = 0
     for row in sorted(rows, key=lambda r: r["n_params"]):
@@ -373,9 +378,10 @@ def run(quick: bool = False, references: Mapping[str, Callable[[], object]] | No
 
     **Arguments:**
 
-    - `quick`: the :data:`QUICK` sizes instead of :data:`FULL`.
+    - `quick`: the `QUICK` sizes instead of `FULL`.
     - `references`: calls to time in the same rounds as the single run, by name (e.g. a hand-written loop
-      of :func:`book_problem`'s scenario); their best times are ``references_ms``.
+      of [`book_problem`][pmsmjax.jobs.bench.book_problem]'s scenario); their best times are
+      ``references_ms``.
 
     Runs in the process's default precision: float32 unless x64 is enabled; ``dtype`` records which. The
     precision is not switched here because modules build constant tables at import in the precision of
@@ -429,14 +435,15 @@ def run(quick: bool = False, references: Mapping[str, Callable[[], object]] | No
 
 @dataclasses.dataclass(frozen=True)
 class BenchResult:
-    """What ``pmsmjax bench`` gives its writer: `figures` (:func:`run`'s dict, the JSON file's content) and
-    `table` (their plain-text table for the console, :func:`pmsmjax.jobs.bench_report.format_table`)."""
+    """What ``pmsmjax bench`` gives its writer: `figures` ([`run`][pmsmjax.jobs.bench.run]'s dict, the JSON
+    file's content) and `table` (their plain-text table for the console,
+    [`pmsmjax.jobs.bench_report.format_table`][pmsmjax.jobs.bench_report.format_table])."""
 
     figures: dict
     table: str
 
 
 def bench(quick: bool = False) -> BenchResult:
-    """:func:`run` (the :data:`QUICK` sizes with ``quick``) and its table."""
+    """[`run`][pmsmjax.jobs.bench.run] (the `QUICK` sizes with ``quick``) and its table."""
     figures = run(quick=quick)
     return BenchResult(figures=figures, table=format_table(figures))

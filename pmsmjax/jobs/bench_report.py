@@ -1,6 +1,6 @@
-"""The plain-text table of ``pmsmjax bench``'s figures (:func:`pmsmjax.jobs.bench.run`): the single run,
-the batch, the batch gradient and the forward- against reverse-mode tables with their crossovers. Plain
-Python: the figures are a dict.
+"""The plain-text table of ``pmsmjax bench``'s figures ([`pmsmjax.jobs.bench.run`][pmsmjax.jobs.bench.run]):
+the single run, the batch, the batch gradient and the forward- against reverse-mode tables with their
+crossovers. Plain Python: the figures are a dict.
 """
 
 __all__ = ["format_table", "row"]
@@ -12,7 +12,7 @@ def row(label: str, value: str, note: str = "") -> str:
 
 
 def format_table(r: dict) -> str:
-    """A readable plain-text table of the figures returned by :func:`run`."""
+    """A readable plain-text table of the figures returned by `run`."""
     m = r["machine"]
     quick = "  [QUICK: sizes shrunk, timings not meaningful]" if r["quick"] else ""
     n_batch_loss = r["grad_batch_size"] * r["n_periods"] / r["forward_batch64_s"]
@@ -64,7 +64,7 @@ def format_table(r: dict) -> str:
 
 def _mode_table(title: str, rows: list[dict], n: int) -> list[str]:
     """Lines of a forward- vs reverse-mode table (times in s) ending with its crossover ``n``
-    (:func:`pmsmjax.jobs.bench.mode_crossover` of ``rows``)."""
+    ([`pmsmjax.jobs.bench.mode_crossover`][pmsmjax.jobs.bench.mode_crossover] of ``rows``)."""
     lines = [
         "",
         f"{title}: best times and compile times, s",

@@ -1,11 +1,13 @@
-"""``pmsmjax compare``: control methods (:mod:`pmsmjax.jobs.control_comparison`) or observers
-(:mod:`pmsmjax.jobs.estimator_comparison`) side by side on a drive's scenario, from a :class:`CompareSpec`
-to a :class:`CompareResult` (compare.json's content, the observer table, the console's warnings and what
-the figures need).
+"""``pmsmjax compare``: control methods ([`pmsmjax.jobs.control_comparison`][pmsmjax.jobs.control_comparison])
+or observers ([`pmsmjax.jobs.estimator_comparison`][pmsmjax.jobs.estimator_comparison]) side by side on a
+drive's scenario, from a [`CompareSpec`][pmsmjax.jobs.compare.CompareSpec] to a
+[`CompareResult`][pmsmjax.jobs.compare.CompareResult] (compare.json's content, the observer table, the
+console's warnings and what the figures need).
 
-Importing this module loads no JAX: :func:`fitting_speed` and :func:`check_operating_point` belong to the
-command's checks before any work; :func:`compare_controls` and :func:`compare_observers` import the
-engine when called.
+Importing this module loads no JAX: [`fitting_speed`][pmsmjax.jobs.compare.fitting_speed] and
+[`check_operating_point`][pmsmjax.jobs.compare.check_operating_point] belong to the command's checks before
+any work; [`compare_controls`][pmsmjax.jobs.compare.compare_controls] and
+[`compare_observers`][pmsmjax.jobs.compare.compare_observers] import the engine when called.
 """
 
 import dataclasses
@@ -33,7 +35,7 @@ class CompareSpec:
     """What one comparison is asked for (the command's flags, checked, the drive file's scenario filling
     what the user left unset).
 
-    - `drive`: the drive file (:class:`~pmsmjax.spec.drive_spec.DriveSpec`); `names`: the control methods
+    - `drive`: the drive file ([`DriveSpec`][pmsmjax.spec.drive_spec.DriveSpec]); `names`: the control methods
       (or, with `estimators`, the observers) compared; `machine`: ``three-phase``, ``six-phase`` or
       ``five-phase`` (control methods only).
     - `speed_rpm`, `load_nm`, `load_time_s`, `duration_s`: the book scenario (speed step at 0, load step).
@@ -64,9 +66,11 @@ class CompareResult:
     """What a comparison gives its writer.
 
     - `report`: compare.json's content.
-    - `comparison`: the engine's result (:func:`pmsmjax.jobs.control_comparison.compare_controllers` or
-      :func:`pmsmjax.jobs.estimator_comparison.compare_estimators`: settings, figures, traces, ripple
-      windows), which the figures read.
+    - `comparison`: the engine's result
+      ([`pmsmjax.jobs.control_comparison.compare_controllers`][pmsmjax.jobs.control_comparison.compare_controllers]
+      or
+      [`pmsmjax.jobs.estimator_comparison.compare_estimators`][pmsmjax.jobs.estimator_comparison.compare_estimators]:
+      settings, figures, traces, ripple windows), which the figures read.
     - `warnings`: a console line per operating-point flag of each run.
     - `table`: compare_estimators.md (the observers only).
     - `angle_errors`: the observers' angle errors for their figure (``t`` s, ``speed_rpm`` r/min of the
@@ -85,10 +89,10 @@ class CompareResult:
 
 def fitting_speed(speed_rpm: float, drive, given: bool) -> tuple[float, str | None]:
     """The run's speed, r/min: the ripple window spans whole electrical periods at the control rate
-    (:func:`pmsmjax.jobs.control_comparison.window_periods`). A speed from the drive file ``drive`` that does
-    not fit is lowered to the nearest one that does, with a note for the console; one the user gave
-    (``given``) is refused with the nearest ones that fit. Returns ``(speed, note or None)``; pure
-    Python."""
+    ([`pmsmjax.jobs.control_comparison.window_periods`][pmsmjax.jobs.control_comparison.window_periods]). A
+    speed from the drive file ``drive`` that does not fit is lowered to the nearest one that does, with a note
+    for the console; one the user gave (``given``) is refused with the nearest ones that fit. Returns
+    ``(speed, note or None)``; pure Python."""
     from pmsmjax.presets.book_constants import DTC_SAMPLE_PERIOD_S, HYSTERESIS_SAMPLE_PERIOD_S
     from pmsmjax.spec.design_rules import common_period_s, whole_period_speed_rpm
 
@@ -116,8 +120,8 @@ def fitting_speed(speed_rpm: float, drive, given: bool) -> tuple[float, str | No
 
 def check_operating_point(drive, speed_rpm: float, load_nm: float, u_dc_flag: str) -> None:
     """Refuse an operating point the drive file ``drive`` cannot hold with i_d = 0
-    (:func:`pmsmjax.spec.steady_state.refuse_unreachable`): its ripple figures would describe
-    saturation. ``u_dc_flag``: the DC-link knob the fix names; pure Python."""
+    ([`pmsmjax.spec.steady_state.refuse_unreachable`][pmsmjax.spec.steady_state.refuse_unreachable]): its
+    ripple figures would describe saturation. ``u_dc_flag``: the DC-link knob the fix names; pure Python."""
     from pmsmjax.spec.steady_state import refuse_unreachable
 
     refuse_unreachable(
@@ -161,8 +165,9 @@ def compare_controls(
     spec: CompareSpec, adjust: Callable | None = None, progress: Callable[[str], None] | None = None
 ) -> CompareResult:
     """Run each control method of ``spec`` on the drive file's drives
-    (:func:`pmsmjax.jobs.control_comparison.compare_controllers`). ``adjust``: ``(drive, name) -> drive``
-    applied to each drive before anything runs (tuned gains, say); ``progress``: takes a line per run."""
+    ([`pmsmjax.jobs.control_comparison.compare_controllers`][pmsmjax.jobs.control_comparison.compare_controllers]).
+    ``adjust``: ``(drive, name) -> drive`` applied to each drive before anything runs (tuned gains, say);
+    ``progress``: takes a line per run."""
     from pmsmjax.jobs.control_comparison import compare_controllers
 
     settings = _settings(spec, equal_switching_hz=spec.equal_switching_hz)
@@ -186,8 +191,9 @@ def compare_controls(
 
 def compare_observers(spec: CompareSpec, progress: Callable[[str], None] | None = None) -> CompareResult:
     """Run the book FOC drive sensorless with each observer of ``spec`` through its scenario
-    (:func:`pmsmjax.jobs.estimator_comparison.compare_estimators`), the drive file's motor in the
-    observers' design rules. ``progress``: takes the table's header, then a row per observer."""
+    ([`pmsmjax.jobs.estimator_comparison.compare_estimators`][pmsmjax.jobs.estimator_comparison.compare_estimators]),
+    the drive file's motor in the observers' design rules. ``progress``: takes the table's header, then a row
+    per observer."""
     import numpy as np
 
     from pmsmjax.analysis.observer_errors import angle_error, angle_error_modulo_pi

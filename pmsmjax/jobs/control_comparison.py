@@ -1,24 +1,28 @@
 """Controllers side by side on the book scenario (the book, ch. 3; later chapters add their methods).
 
 Every controller drives the same motor through the same scenario (speed step from rest, load step). The
-step and load figures come from :func:`pmsmjax.analysis.speed_step_summary.speed_step_summary`; the ripple
-figures from the
-last ``window_cycles`` whole electrical periods of the run (steady state under load):
+step and load figures come from
+[`pmsmjax.analysis.speed_step_summary.speed_step_summary`][pmsmjax.analysis.speed_step_summary.speed_step_summary];
+the ripple figures from the last ``window_cycles`` whole electrical periods of the run (steady state under
+load):
 
-- current THD of phase a up to ``thd_max_frequency_hz`` (:mod:`pmsmjax.analysis.spectra`), from uniform
+- current THD of phase a up to ``thd_max_frequency_hz``
+  ([`pmsmjax.analysis.spectra`][pmsmjax.analysis.spectra]), from uniform
 samples
-  of the trajectory *inside* each period (:func:`pmsmjax.analysis.within_period.dense_window`);
+  of the trajectory *inside* each period
+  ([`pmsmjax.analysis.within_period.dense_window`][pmsmjax.analysis.within_period.dense_window]);
 - torque ripple: RMS and peak-to-peak of the electromagnetic torque about its window mean, same samples;
-- mean switching frequency of the legs (:func:`pmsmjax.analysis.metrics.switching_frequency_hz`);
+- mean switching frequency of the legs
+  ([`pmsmjax.analysis.metrics.switching_frequency_hz`][pmsmjax.analysis.metrics.switching_frequency_hz]);
 - stator flux-magnitude ripple: RMS and peak-to-peak of the plant's true ``|psi|`` about its window mean
   (``psi_dq = [L_d i_d + psi_f, L_q i_q]`` of the same samples), for every controller whether or not it
   estimates the flux (the flux is what direct torque control regulates; under FOC it follows the
   currents).
 
 At equal switching frequency (``equal_switching_hz``): each controller with bands (table DTC, hysteresis
-current control; :mod:`pmsmjax.jobs.equal_switching`) is run a second time, as ``"NAME@F kHz"``, with its
-bands scaled so that its mean switching frequency over the same window meets the given frequency (by default
-the
+current control; [`pmsmjax.jobs.equal_switching`][pmsmjax.jobs.equal_switching]) is run a second time, as
+``"NAME@F kHz"``, with its bands scaled so that its mean switching frequency over the same window meets the
+given frequency (by default the
 PWM frequency ``1/Ts`` of the voltage-commanding controllers compared).
 
 Voltage-commanding controllers run on the switching-resolved bridge by default (``bridge="switching"``):
@@ -26,7 +30,7 @@ with the averaged bridge the PWM ripple is not in the model, and its THD and tor
 near zero next to the hysteresis controller's, which switches in the model itself.
 
 The observers side by side (``compare --estimator``) run on this module's figures:
-:mod:`pmsmjax.jobs.estimator_comparison`.
+[`pmsmjax.jobs.estimator_comparison`][pmsmjax.jobs.estimator_comparison].
 """
 
 import dataclasses
@@ -88,8 +92,8 @@ class ControllerCompareSettings:
     equal_switching_hz: float | None = None
 
     def check(self) -> None:
-        """Raise :class:`~pmsmjax.spec.validation.ParameterError` naming the first inconsistent setting
-        (unknown bridge, no speed, load step outside the run, too low a sampling rate for the THD)."""
+        """Raise [`ParameterError`][pmsmjax.spec.validation.ParameterError] naming the first inconsistent
+        setting (unknown bridge, no speed, load step outside the run, too low a sampling rate for the THD)."""
         if self.bridge not in ("switching", "averaged"):
             raise ParameterError(f"bridge must be 'switching' or 'averaged', got {self.bridge!r}.")
         if self.speed_rpm <= 0:
@@ -129,12 +133,14 @@ def compared_drive(
     name: str, motor=None, bridge: str = "averaged", machine: str = "three-phase", spec=None
 ) -> Drive:
     """The drive of control ``name`` for ``motor`` on ``bridge``:
-    :data:`pmsmjax.presets.control_methods.CONTROLS` for the
+    [`pmsmjax.presets.control_methods.CONTROLS`][pmsmjax.presets.control_methods.CONTROLS] for the
     three-phase machine, the six- or five-phase presets' schemes (``vsd``, ...) for ``machine``; ``motor``
-    is then a :class:`pmsmjax.machines.MultiPhaseParameters` (None: the preset's rewind of the book motor).
-    With a drive file ``spec`` (:class:`pmsmjax.spec.drive_spec.DriveSpec`) instead of ``motor``: its drive
-    (:func:`pmsmjax.assemble.spec_drive`; a multi-phase switching bridge with the file's dead
-    time)."""
+    is then a
+    [`pmsmjax.machines.MultiPhaseParameters`][pmsmjax.machines.multiphase_motor.MultiPhaseParameters] (None:
+    the preset's rewind of the book motor). With a drive file ``spec``
+    ([`pmsmjax.spec.drive_spec.DriveSpec`][pmsmjax.spec.drive_spec.DriveSpec]) instead of ``motor``: its drive
+    ([`pmsmjax.assemble.spec_drive`][pmsmjax.assemble.spec_drive]; a multi-phase switching bridge with the
+    file's dead time)."""
     if spec is not None:
         from pmsmjax.assemble import spec_drive
 
@@ -242,20 +248,22 @@ def compare_controllers(
     machine: str = "three-phase",
     spec=None,
 ) -> dict:
-    """Run each named controller (keys of :data:`pmsmjax.presets.control_methods.CONTROLS`, or of the six- or
-    five-phase
-    schemes with ``machine``: :func:`machine_controls`) on the book scenario.
+    """Run each named controller (keys of
+    [`pmsmjax.presets.control_methods.CONTROLS`][pmsmjax.presets.control_methods.CONTROLS], or of the six- or
+    five-phase schemes with ``machine``:
+    [`machine_controls`][pmsmjax.jobs.control_comparison.machine_controls]) on the book scenario.
 
     With ``settings.equal_switching_hz`` each controller with bands is also run with its bands matched
     to that mean switching frequency (``0``: the PWM frequency of the voltage-commanding controllers,
-    :func:`pwm_frequency_hz`), under the name ``"NAME@F kHz"``; its entry adds ``band_factor`` and
-    ``band_search_runs``.
+    [`pwm_frequency_hz`][pmsmjax.jobs.control_comparison.pwm_frequency_hz]), under the name ``"NAME@F kHz"``;
+    its entry adds ``band_factor`` and ``band_search_runs``.
 
     Returns ``{"settings", "controllers": name -> figures, "traces": name -> Trace, "windows": name ->
     {t, i_abc, torque, psi_ab}}``; `progress`: optional callable taking a line per controller; `adjust`:
     optional ``(drive, name) -> drive`` applied to each drive before anything runs (tuned gains, say);
-    `spec`: a drive file (:class:`pmsmjax.spec.drive_spec.DriveSpec`) whose drives run instead of
-    ``motor``'s presets (:func:`compared_drive`).
+    `spec`: a drive file ([`pmsmjax.spec.drive_spec.DriveSpec`][pmsmjax.spec.drive_spec.DriveSpec]) whose
+    drives run instead of ``motor``'s presets
+    ([`compared_drive`][pmsmjax.jobs.control_comparison.compared_drive]).
     """
     settings.check()
     if machine != "three-phase" and machine not in MULTIPHASE_PRESETS:

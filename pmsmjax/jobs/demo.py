@@ -1,10 +1,12 @@
-"""``pmsmjax demo``: one drive's scenario under one control method, from a :class:`DemoSpec` (what the
-command's flags ask for) to a :class:`DemoResult` (the trace, summary.json's content, the console's lines
-and what the figures need).
+"""``pmsmjax demo``: one drive's scenario under one control method, from a
+[`DemoSpec`][pmsmjax.jobs.demo.DemoSpec] (what the command's flags ask for) to a
+[`DemoResult`][pmsmjax.jobs.demo.DemoResult] (the trace, summary.json's content, the console's lines and what
+the figures need).
 
-Importing this module loads no JAX: :func:`check_reference_speed` belongs to the command's checks before
-any work; :func:`build` (the drive and the scenario, every refusal before the first compile) and
-:func:`run` (the simulation and its summary) import the engine when called.
+Importing this module loads no JAX: [`check_reference_speed`][pmsmjax.jobs.demo.check_reference_speed] belongs
+to the command's checks before any work; [`build`][pmsmjax.jobs.demo.build] (the drive and the scenario, every
+refusal before the first compile) and [`run`][pmsmjax.jobs.demo.run] (the simulation and its summary) import
+the engine when called.
 """
 
 import dataclasses
@@ -53,18 +55,18 @@ class DemoSpec:
     """What one demo run is asked for (the command's flags, checked, with the drive file's scenario
     filling what the user left unset).
 
-    - `drive`: the drive file (:class:`~pmsmjax.spec.drive_spec.DriveSpec`); `motor`: ``--motor`` as
+    - `drive`: the drive file ([`DriveSpec`][pmsmjax.spec.drive_spec.DriveSpec]); `motor`: ``--motor`` as
       given; `name`: the drive as the console and the figures name it.
     - `machine`: ``three-phase``, ``six-phase`` or ``five-phase``; `control`: a control method of the
       registry on it; `estimator`: a sensorless observer (three-phase FOC only) or None for the file's
       sensor; `observer_model`: ``map`` or ``constant`` with a flux map (None: ``map``).
     - `speed_rpm`, `load_nm`, `load_time_s`, `duration_s`: the scenario (speed step at 0, load step).
-    - `options`: the preset options the flags set (:func:`pmsmjax.assemble.assemble`); with
-      `field_weakening` the MTPA and voltage-feedback field weakening is added, its voltage loop a third
+    - `options`: the preset options the flags set ([`pmsmjax.assemble.assemble`][pmsmjax.assemble.assemble]);
+      with `field_weakening` the MTPA and voltage-feedback field weakening is added, its voltage loop a third
       of `current_bandwidth` (rad/s; None: the drive file's current loop).
     - `flags`: the flags the user set, by name, as summary.json repeats them; `operating_flags`: the
       command's names of the knobs the operating-point remedies name
-      (:func:`pmsmjax.analysis.operating_point.run_flags`).
+      ([`pmsmjax.analysis.operating_point.run_flags`][pmsmjax.analysis.operating_point.run_flags]).
     - `frame`, `pwm`, `bridge`: the model frame and the multi-phase modulator and bridge asked for (None:
       the defaults), as summary.json reports them; `gains`: the gains file, or None.
     - `decimate`: record every n-th control period.
@@ -102,13 +104,13 @@ class DemoSpec:
 class DemoResult:
     """What a demo run gives its writer.
 
-    - `trace`: the run's :class:`~pmsmjax.trace.Trace` (NumPy arrays, every `decimate`-th period).
+    - `trace`: the run's [`Trace`][pmsmjax.trace.Trace] (NumPy arrays, every `decimate`-th period).
     - `summary`: summary.json's content.
     - `console`: the lines the console reports, in order (the drive, the step, the load step, each
       operating-point flag, a flux-map warning, the timing).
     - `current_limit_a`, `voltage_limit_v`: the limits the figures draw, A and V (peak).
-    - `layout`: the multi-phase winding's :class:`~pmsmjax.frames.multiphase.PhaseLayout` (its second-plane
-      currents' figure), None for three phases.
+    - `layout`: the multi-phase winding's [`PhaseLayout`][pmsmjax.frames.multiphase.PhaseLayout] (its
+      second-plane currents' figure), None for three phases.
     """
 
     trace: object
@@ -120,10 +122,11 @@ class DemoResult:
 
 
 def check_reference_speed(drive, speed_rpm: float, field_weakening: bool, u_dc_flag: str) -> None:
-    """Refuse a speed reference beyond :data:`MAX_SPEED_FACTOR` times the no-load top speed of the
-    three-phase drive file ``drive`` (with i_d = 0, or with field weakening: the closed form of
-    :func:`pmsmjax.spec.steady_state.no_load_field_weakening_top_speed_rpm`); pure Python.
-    ``u_dc_flag``: the DC-link knob the fix names."""
+    """Refuse a speed reference beyond [`MAX_SPEED_FACTOR`][pmsmjax.jobs.demo.MAX_SPEED_FACTOR] times the
+    no-load top speed of the three-phase drive file ``drive`` (with i_d = 0, or with field weakening: the
+    closed form of
+    [`pmsmjax.spec.steady_state.no_load_field_weakening_top_speed_rpm`][pmsmjax.spec.steady_state.no_load_field_weakening_top_speed_rpm]);
+    pure Python. ``u_dc_flag``: the DC-link knob the fix names."""
     from pmsmjax.spec.steady_state import no_load_field_weakening_top_speed_rpm, top_speed_rpm
 
     motor, u_dc, u_limit, limit = drive.motor, drive.u_dc_v, drive.voltage_limit_v, drive.current_limit_a
@@ -146,10 +149,10 @@ def check_reference_speed(drive, speed_rpm: float, field_weakening: bool, u_dc_f
 def build(spec: DemoSpec, adjust: Callable | None = None):
     """The drive and the scenario of ``spec``, checked: a duration that is not a whole number of control
     periods, a ``decimate`` that does not divide them, or what
-    :func:`pmsmjax.simulate.check_simulation` refuses is a :class:`~pmsmjax.spec.validation.ParameterError`
-    before anything compiles. ``adjust``: ``(drive, control) -> drive`` applied once the drive is built
-    (tuned gains, say; after the observer is in, so gains may name ``estimator.*``). Returns
-    ``(drive, scenario)``."""
+    [`pmsmjax.simulate.check_simulation`][pmsmjax.simulate.check_simulation] refuses is a
+    [`ParameterError`][pmsmjax.spec.validation.ParameterError] before anything compiles. ``adjust``:
+    ``(drive, control) -> drive`` applied once the drive is built (tuned gains, say; after the observer is in,
+    so gains may name ``estimator.*``). Returns ``(drive, scenario)``."""
     from pmsmjax.assemble import assemble, spec_scenario
     from pmsmjax.simulate import check_simulation
 
@@ -186,9 +189,11 @@ def build(spec: DemoSpec, adjust: Callable | None = None):
 
 
 def run(spec: DemoSpec, drive, scenario) -> DemoResult:
-    """Simulate ``drive`` through ``scenario`` (from :func:`build`) twice, the second call timed without
-    compiling; judge the run (:func:`pmsmjax.analysis.speed_step_summary.speed_step_summary`,
-    :func:`pmsmjax.analysis.operating_point.run_flags`) and describe it."""
+    """Simulate ``drive`` through ``scenario`` (from [`build`][pmsmjax.jobs.demo.build]) twice, the second
+    call timed without compiling; judge the run
+    ([`pmsmjax.analysis.speed_step_summary.speed_step_summary`][pmsmjax.analysis.speed_step_summary.speed_step_summary],
+    [`pmsmjax.analysis.operating_point.run_flags`][pmsmjax.analysis.operating_point.run_flags]) and describe
+    it."""
     import jax
     import numpy as np
 
@@ -266,7 +271,7 @@ def run(spec: DemoSpec, drive, scenario) -> DemoResult:
 
 
 def _console(spec: DemoSpec, summary: dict, Ts: float) -> tuple[str, ...]:
-    """The console's report of a finished run (:attr:`DemoResult.console`)."""
+    """The console's report of a finished run ([`DemoResult.console`][pmsmjax.jobs.demo.DemoResult])."""
     m, limit = summary["metrics"], summary["drive"]["current_limit_a"]
     lines = [
         f"{spec.name} drive ({spec.machine}, U_dc {plain(summary['drive']['u_dc_v'])} V, current limit "
@@ -326,7 +331,8 @@ def dead_time_entry(spec, drive) -> dict:
 
 def flux_map_entry(drive, trace) -> dict:
     """``{"flux_map": ...}`` for summary.json when the plant is a flux map: how far the run's currents went
-    outside the map's grid (:func:`pmsmjax.machines.flux_map.excursion`); ``{}`` otherwise."""
+    outside the map's grid ([`pmsmjax.machines.flux_map.excursion`][pmsmjax.machines.flux_map.excursion]);
+    ``{}`` otherwise."""
     from pmsmjax.machines.pmsm_flux_map import PMSMFluxMapdq
 
     if not isinstance(drive.machine, PMSMFluxMapdq):

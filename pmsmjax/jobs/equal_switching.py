@@ -3,11 +3,11 @@ switching losses, the book, ch. 4).
 
 A hysteresis-type controller (table DTC, hysteresis current control) switches at a frequency that follows
 from its bands, its sample period and the operating point, while a PWM controller switches at its carrier
-frequency. To compare them at equal mean switching frequency, :func:`match_switching_frequency` scales
-all of the controller's bands by one factor ``k`` (keeping their ratio: the table DTC's torque and flux
-bands together) and searches ``k`` so that the mean switching frequency over the last ``window_periods``
-periods of a run through ``scenario`` meets the target. The bands are array leaves, so every run reuses
-one compiled program.
+frequency. To compare them at equal mean switching frequency,
+[`match_switching_frequency`][pmsmjax.jobs.equal_switching.match_switching_frequency] scales all of the
+controller's bands by one factor ``k`` (keeping their ratio: the table DTC's torque and flux bands together)
+and searches ``k`` so that the mean switching frequency over the last ``window_periods`` periods of a run
+through ``scenario`` meets the target. The bands are array leaves, so every run reuses one compiled program.
 
 The frequency falls with the bands roughly as a power law but in steps (a band change moves switching
 instants by whole samples) and it cannot exceed ``1/(2 Ts)`` per leg, so the search works in
@@ -48,7 +48,8 @@ def _band_names(drive: Drive) -> tuple[str, ...]:
 
 
 def scale_bands(drive: Drive, factor) -> Drive:
-    """``drive`` with every band of its controller (:data:`BAND_LEAVES`) multiplied by ``factor``."""
+    """``drive`` with every band of its controller ([`BAND_LEAVES`][pmsmjax.jobs.equal_switching.BAND_LEAVES])
+    multiplied by ``factor``."""
     paths = [f"controller.{name}" for name in _band_names(drive)]
     return with_parts(drive, {path: part(drive, path) * factor for path in paths})
 
@@ -74,7 +75,8 @@ def match_switching_frequency(
 
     **Arguments:**
 
-    - `drive`: a drive whose controller has bands (:data:`BAND_LEAVES`).
+    - `drive`: a drive whose controller has bands
+      ([`BAND_LEAVES`][pmsmjax.jobs.equal_switching.BAND_LEAVES]).
     - `scenario`: the run it is judged on (the comparison's scenario).
     - `target_hz`: the mean switching frequency wanted, Hz (a PWM drive's carrier frequency).
     - `window_periods`: the last periods of the run over which the frequency is measured.

@@ -3,10 +3,13 @@ sensorless from standstill with the I/f start, and the chapter 6 estimators (HF 
 the salient book motor with d-axis saturation, each in a scenario it is made for.
 
 Each estimator's run gives the figures of the controller comparison
-(:func:`pmsmjax.jobs.control_comparison.run_control`) on the book scenario, or those of
-:func:`run_estimator_scenario` on the fixed ones, plus the observer's
-(:func:`pmsmjax.analysis.observer_errors.observer_errors`) and, on the book scenario, the lowest speed held
-under load (:class:`LowSpeedSweep`). :func:`estimator_table` lays them out as Markdown.
+([`pmsmjax.jobs.control_comparison.run_control`][pmsmjax.jobs.control_comparison.run_control]) on the book
+scenario, or those of [`run_estimator_scenario`][pmsmjax.jobs.estimator_comparison.run_estimator_scenario] on
+the fixed ones, plus the observer's
+([`pmsmjax.analysis.observer_errors.observer_errors`][pmsmjax.analysis.observer_errors.observer_errors]) and,
+on the book scenario, the lowest speed held under load
+([`LowSpeedSweep`][pmsmjax.jobs.estimator_comparison.LowSpeedSweep]).
+[`estimator_table`][pmsmjax.jobs.estimator_comparison.estimator_table] lays them out as Markdown.
 """
 
 import dataclasses
@@ -37,7 +40,8 @@ class LowSpeedSweep:
     """The sweep behind ``lowest_held_rpm``: one run per speed in `speeds_rpm`, each from standstill
     (I/f start) to `start_rpm`, the load `load_nm` stepped on at `load_time_s`, then the reference ramped
     from `start_rpm` down to the swept speed over [`ramp_start_s`, `ramp_end_s`], held to `duration_s`;
-    judged from `judge_from_s` to the end (:func:`pmsmjax.analysis.observer_errors.speed_held`).
+    judged from `judge_from_s` to the end
+    ([`pmsmjax.analysis.observer_errors.speed_held`][pmsmjax.analysis.observer_errors.speed_held]).
 
     With the observer's model equal to the plant and no noise, a fundamental-model observer sees the
     small back-EMF exactly and holds very low speeds; what limits it on a real drive is model error. So
@@ -56,7 +60,7 @@ class LowSpeedSweep:
     hot_r_factor: float | None = 1.3
 
     def scenario(self, speed_rpm: float):
-        """The :class:`~pmsmjax.scenarios.Scenario` of one swept speed `speed_rpm` (r/min): the ramp from
+        """The [`Scenario`][pmsmjax.scenarios.Scenario] of one swept speed `speed_rpm` (r/min): the ramp from
         `start_rpm` down to it and the load step (class docstring)."""
         from pmsmjax.scenarios import Profile, Scenario
         from pmsmjax.units import rpm_to_rad_s
@@ -73,8 +77,9 @@ class LowSpeedSweep:
 def observer_drive(
     name: str, motor: PMSMParameters | None = None, bridge: str = "averaged", startup: bool = True
 ) -> Drive:
-    """The book FOC drive with observer ``name`` (:data:`pmsmjax.estimators.OBSERVERS`, design-rule gains
-    for ``motor``) and the I/f start from standstill, on ``bridge``."""
+    """The book FOC drive with observer ``name``
+    ([`pmsmjax.estimators.OBSERVERS`][pmsmjax.estimators.catalogue.OBSERVERS], design-rule gains for
+    ``motor``) and the I/f start from standstill, on ``bridge``."""
     drive = presets.sensorless_drive(name, motor, startup=startup)
     if bridge == "switching":
         drive = with_parts(drive, {"bridge": SwitchingBridge(drive.bridge.u_dc)})
@@ -106,9 +111,11 @@ def low_speed_sweep(drive: Drive, sweep: LowSpeedSweep = LowSpeedSweep(), r_fact
     return {"runs": runs, "lowest_held_rpm": lowest, "r_factor": r_factor}
 
 
-#: The scenarios of ``compare --estimator`` (``scenario=`` of :func:`compare_estimators`): name ->
-#: (description, estimator families it suits). ``book``: :func:`_scenario` of the settings; the others are
-#: fixed runs (:func:`estimator_scenario`) at low speed or through zero, where HF injection works.
+#: The scenarios of ``compare --estimator`` (``scenario=`` of
+#: [`compare_estimators`][pmsmjax.jobs.estimator_comparison.compare_estimators]): name -> (description,
+#: estimator families it suits). ``book``: `_scenario` of the settings; the others are fixed runs
+#: ([`estimator_scenario`][pmsmjax.jobs.estimator_comparison.estimator_scenario]) at low speed or through
+#: zero, where HF injection works.
 ESTIMATOR_SCENARIOS = {
     "book": (
         "speed step from standstill, then the load step (the settings' book scenario)",
@@ -131,8 +138,8 @@ CHAPTER6_INITIAL_ANGLE_DEG = 30.0
 
 
 def estimator_family(name: str) -> str:
-    """``"ch5"`` (:data:`pmsmjax.estimators.OBSERVERS`), ``"injection"`` (``INJECTION_OBSERVERS``: angle
-    modulo pi) or ``"hybrid"`` (``HYBRID_OBSERVERS``)."""
+    """``"ch5"`` ([`pmsmjax.estimators.OBSERVERS`][pmsmjax.estimators.catalogue.OBSERVERS]), ``"injection"``
+    (``INJECTION_OBSERVERS``: angle modulo pi) or ``"hybrid"`` (``HYBRID_OBSERVERS``)."""
     from pmsmjax.estimators.registry import HYBRID_OBSERVERS, INJECTION_OBSERVERS, check_observer_name
 
     check_observer_name(name)
@@ -172,8 +179,9 @@ def check_estimator_scenario(names, scenario: str) -> None:
 
 
 def estimator_scenario(scenario: str, load_nm: float):
-    """The fixed chapter 6 scenarios of :data:`ESTIMATOR_SCENARIOS` (all but ``book``) with the load
-    ``load_nm`` (N m; ``reversal`` keeps its 5 N m)."""
+    """The fixed chapter 6 scenarios of
+    [`ESTIMATOR_SCENARIOS`][pmsmjax.jobs.estimator_comparison.ESTIMATOR_SCENARIOS] (all but ``book``) with the
+    load ``load_nm`` (N m; ``reversal`` keeps its 5 N m)."""
     from pmsmjax.jobs.hybrid_runs import hybrid_scenarios
     from pmsmjax.scenarios import Profile, Scenario
     from pmsmjax.units import rpm_to_rad_s
@@ -191,8 +199,10 @@ def estimator_scenario(scenario: str, load_nm: float):
 def chapter6_drive(name: str, motor: PMSMParameters | None = None, bridge: str = "averaged") -> Drive:
     """The book FOC drive with the injection or hybrid estimator ``name`` (design rule for ``motor``,
     default the salient book motor), no I/f start (injection sees the rotor at standstill), on the plant
-    with d-axis saturation (:func:`pmsmjax.machines.saturated_machine`, defaults), which the hybrid's
-    polarity pulses read (at ``i_d = 0`` its inductance is the linear machine's), on ``bridge``."""
+    with d-axis saturation
+    ([`pmsmjax.machines.saturated_machine`][pmsmjax.machines.saturation.saturated_machine], defaults), which
+    the hybrid's polarity pulses read (at ``i_d = 0`` its inductance is the linear machine's), on
+    ``bridge``."""
     from pmsmjax.machines.saturation import saturated_machine
 
     motor = presets.book_motor(salient=True) if motor is None else motor
@@ -204,9 +214,11 @@ def chapter6_drive(name: str, motor: PMSMParameters | None = None, bridge: str =
 
 
 def run_estimator_scenario(drive: Drive, scenario, initial_state) -> dict:
-    """Simulate ``drive`` through a fixed scenario (:func:`estimator_scenario`) from ``initial_state``;
-    its figures (ITAE of the speed error, rad s; largest speed deviation from the reference, r/min, after
-    :data:`pmsmjax.analysis.observer_errors.CONVERGED_AFTER_S`; peak phase current, A) and its trace."""
+    """Simulate ``drive`` through a fixed scenario
+    ([`estimator_scenario`][pmsmjax.jobs.estimator_comparison.estimator_scenario]) from ``initial_state``; its
+    figures (ITAE of the speed error, rad s; largest speed deviation from the reference, r/min, after
+    [`pmsmjax.analysis.observer_errors.CONVERGED_AFTER_S`][pmsmjax.analysis.observer_errors.CONVERGED_AFTER_S];
+    peak phase current, A) and its trace."""
     from pmsmjax.analysis.observer_errors import CONVERGED_AFTER_S
 
     check_simulation(drive, scenario)
@@ -239,23 +251,29 @@ def compare_estimators(
     initial_angle_deg: float | None = None,
 ) -> dict:
     """Run the book FOC drive sensorless with each named estimator through ``scenario``
-    (:data:`ESTIMATOR_SCENARIOS`; refused where it makes no sense, :func:`check_estimator_scenario`).
+    ([`ESTIMATOR_SCENARIOS`][pmsmjax.jobs.estimator_comparison.ESTIMATOR_SCENARIOS]; refused where it makes no
+    sense, [`check_estimator_scenario`][pmsmjax.jobs.estimator_comparison.check_estimator_scenario]).
 
-    Chapter 5 observers (:data:`pmsmjax.estimators.OBSERVERS`) start from standstill with I/f; the chapter 6
-    estimators (``hfi-rotating``, ``hfi-pulsating``, ``hybrid``) run :func:`chapter6_drive` (default motor
-    the salient book motor) with the rotor ``initial_angle_deg`` electrical degrees off their initial
-    estimate (default 0 for chapter 5, :data:`CHAPTER6_INITIAL_ANGLE_DEG` for chapter 6).
+    Chapter 5 observers ([`pmsmjax.estimators.OBSERVERS`][pmsmjax.estimators.catalogue.OBSERVERS]) start from
+    standstill with I/f; the chapter 6 estimators (``hfi-rotating``, ``hfi-pulsating``, ``hybrid``) run
+    [`chapter6_drive`][pmsmjax.jobs.estimator_comparison.chapter6_drive] (default motor the salient book
+    motor) with the rotor ``initial_angle_deg`` electrical degrees off their initial estimate (default 0 for
+    chapter 5, [`CHAPTER6_INITIAL_ANGLE_DEG`][pmsmjax.jobs.estimator_comparison.CHAPTER6_INITIAL_ANGLE_DEG]
+    for chapter 6).
 
-    Each entry holds, on ``book``, the figures of :func:`~pmsmjax.jobs.control_comparison.run_control`
-    (rise, dip, ITAE, THD, ripple, ...), on the fixed scenarios those of :func:`run_estimator_scenario`;
-    and the observer's (:func:`pmsmjax.analysis.observer_errors.observer_errors`: angle error RMS/max after
-    convergence in electrical degrees, **modulo pi for the injection estimators** (``angle_modulo``), speed
-    estimation error RMS, speed tracking error RMS, ``lock_lost``, judged on the angle alone off the book
-    scenario), plus, on ``book`` unless ``sweep`` is None, ``lowest_held_rpm`` under ``sweep.load_nm`` and
-    the sweep's runs (:func:`low_speed_sweep`), and ``lowest_held_rpm_hot_r`` with the plant's R off the
-    observer's by ``sweep.hot_r_factor``. Returns the layout of
-    :func:`~pmsmjax.jobs.control_comparison.compare_controllers` (``windows`` None off the book scenario).
-    ``settings`` None: the default :class:`~pmsmjax.jobs.control_comparison.ControllerCompareSettings`.
+    Each entry holds, on ``book``, the figures of [`run_control`][pmsmjax.jobs.control_comparison.run_control]
+    (rise, dip, ITAE, THD, ripple, ...), on the fixed scenarios those of
+    [`run_estimator_scenario`][pmsmjax.jobs.estimator_comparison.run_estimator_scenario]; and the observer's
+    ([`pmsmjax.analysis.observer_errors.observer_errors`][pmsmjax.analysis.observer_errors.observer_errors]:
+    angle error RMS/max after convergence in electrical degrees, **modulo pi for the injection estimators**
+    (``angle_modulo``), speed estimation error RMS, speed tracking error RMS, ``lock_lost``, judged on the
+    angle alone off the book scenario), plus, on ``book`` unless ``sweep`` is None, ``lowest_held_rpm`` under
+    ``sweep.load_nm`` and the sweep's runs
+    ([`low_speed_sweep`][pmsmjax.jobs.estimator_comparison.low_speed_sweep]), and ``lowest_held_rpm_hot_r``
+    with the plant's R off the observer's by ``sweep.hot_r_factor``. Returns the layout of
+    [`compare_controllers`][pmsmjax.jobs.control_comparison.compare_controllers] (``windows`` None off the
+    book scenario). ``settings`` None: the default
+    [`ControllerCompareSettings`][pmsmjax.jobs.control_comparison.ControllerCompareSettings].
     """
     settings = ControllerCompareSettings() if settings is None else settings
     settings.check()
@@ -320,7 +338,8 @@ ESTIMATOR_COLUMNS = (
 
 
 def estimator_row(name: str, entry: dict) -> str:
-    """One row of the observer table (:data:`ESTIMATOR_COLUMNS`)."""
+    """One row of the observer table
+    ([`ESTIMATOR_COLUMNS`][pmsmjax.jobs.estimator_comparison.ESTIMATOR_COLUMNS])."""
     cells = []
     for _, key, fmt in ESTIMATOR_COLUMNS:
         value = name if key == "observer" else entry.get(key)
@@ -334,7 +353,8 @@ def estimator_row(name: str, entry: dict) -> str:
 
 
 def estimator_table(result: dict) -> str:
-    """The observer table of :func:`compare_estimators`'s result, as Markdown."""
+    """The observer table of [`compare_estimators`][pmsmjax.jobs.estimator_comparison.compare_estimators]'s
+    result, as Markdown."""
     head = "| " + " | ".join(h for h, _, _ in ESTIMATOR_COLUMNS) + " |"
     rule = "|" + "|".join("---" for _ in ESTIMATOR_COLUMNS) + "|"
     rows = []

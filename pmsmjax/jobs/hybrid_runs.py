@@ -1,7 +1,8 @@
 """The hybrid estimator's two reference runs, shared by tests/estimators/test_hybrid.py and
 benchmarks/hybrid_table.py: the book drive on the salient book motor with d-axis saturation
-(:func:`pmsmjax.machines.saturated_machine`), sensorless with :func:`pmsmjax.estimators.hybrid.hybrid_design`
-from standstill at several initial rotor angles.
+([`pmsmjax.machines.saturated_machine`][pmsmjax.machines.saturation.saturated_machine]), sensorless with
+[`pmsmjax.estimators.hybrid.hybrid_design`][pmsmjax.estimators.hybrid.hybrid_design] from standstill at
+several initial rotor angles.
 
 - ``book``: the book scenario (1000 r/min step at t = 0, 10 N m load step at 0.2 s, 0.4 s);
 - ``reversal``: -1000 r/min from standstill, 5 N m load from 0.15 s, speed step to +1000 r/min at 0.3 s,
@@ -66,8 +67,8 @@ def run_from_angles(drive, scenario, angles) -> dict:
 def summary(result: dict) -> dict:
     """Per initial angle: max and RMS angle error after start-up (electrical degrees), final speed error
     (r/min, plant minus reference), and whether lock held: no period out of lock by angle
-    (:data:`pmsmjax.analysis.observer_errors.LOCK_ANGLE_RAD`, 90 degrees; a slip by a pole would show as
-    180)."""
+    ([`pmsmjax.analysis.observer_errors.LOCK_ANGLE_RAD`][pmsmjax.analysis.observer_errors.LOCK_ANGLE_RAD], 90
+    degrees; a slip by a pole would show as 180)."""
     after = result["t"] >= STARTUP_S
     err = result["angle_error"][:, after]
     rms, largest = rms_and_max_abs(err, axis=1)

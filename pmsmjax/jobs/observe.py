@@ -1,11 +1,11 @@
 """``pmsmjax observe``: a chapter 5 observer, or the rotating HF-injection estimator of chapter 6, run offline
-on a recorded drive log (:mod:`pmsmjax.recorded.offline_observer`), scored against the log's truth columns
-when it has them.
+on a recorded drive log ([`pmsmjax.recorded.offline_observer`][pmsmjax.recorded.offline_observer]), scored
+against the log's truth columns when it has them.
 
 ``hfi-rotating`` reads the carrier from the log's voltages (``carrier="measured"``: the log's drive
 injected it, this run does not), and its angle is the d axis modulo pi: the estimate is given in
 [-pi/2, pi/2) and the errors are taken modulo pi, unless the polarity is known. ``hfi-pulsating`` and
-``hybrid`` are refused (:func:`check_observer`).
+``hybrid`` are refused ([`check_observer`][pmsmjax.jobs.observe.check_observer]).
 """
 
 import dataclasses
@@ -83,8 +83,9 @@ class ObserveResult:
 
 def run_observer(spec: ObserveSpec, log) -> ObserveResult:
     """Run the observer of `spec` over `log` (a stator-frame log: ``time``, ``u_ab``, ``i_ab``, ``Ts``,
-    ``truth``, ``n``, ``notes``, as :class:`tuning.identify.stator_log.StatorLog`); a diverging estimate
-    is refused (:class:`ParameterError`)."""
+    ``truth``, ``n``, ``notes``, as
+    [`tuning.identify.stator_log.StatorLog`][tuning.identify.stator_log.StatorLog]); a diverging estimate is
+    refused ([`ParameterError`][pmsmjax.spec.validation.ParameterError])."""
     motor = spec_motor(spec.drive)
     injection = spec.observer in INJECTION_OBSERVERS
     options = dict(spec.options)

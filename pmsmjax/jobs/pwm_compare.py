@@ -1,9 +1,12 @@
 """``pmsmjax pwm-compare``: the PWM methods of a drive file's three-, six- or five-phase drive at one steady
-operating point (:mod:`pmsmjax.jobs.pwm_comparison`), from a :class:`PwmCompareSpec` to a
-:class:`PwmCompareResult` (pwm.json's content, waveforms.npz's arrays and what the figures need).
+operating point ([`pmsmjax.jobs.pwm_comparison`][pmsmjax.jobs.pwm_comparison]), from a
+[`PwmCompareSpec`][pmsmjax.jobs.pwm_compare.PwmCompareSpec] to a
+[`PwmCompareResult`][pmsmjax.jobs.pwm_compare.PwmCompareResult] (pwm.json's content, waveforms.npz's arrays
+and what the figures need).
 
-Importing this module loads no JAX: :func:`check_speed` and :func:`check_operating_point` belong to the
-command's checks before any work; :func:`compare_pwm` imports the engine when called.
+Importing this module loads no JAX: [`check_speed`][pmsmjax.jobs.pwm_compare.check_speed] and
+[`check_operating_point`][pmsmjax.jobs.pwm_compare.check_operating_point] belong to the command's checks
+before any work; [`compare_pwm`][pmsmjax.jobs.pwm_compare.compare_pwm] imports the engine when called.
 """
 
 import dataclasses
@@ -22,7 +25,7 @@ __all__ = [
 ]
 
 #: Phase count -> the control whose drive reaches the operating point and its default modulator
-#: (:attr:`pmsmjax.jobs.pwm_comparison.PhaseCount.base_drive`).
+#: ([`pmsmjax.jobs.pwm_comparison.PhaseCount.base_drive`][pmsmjax.jobs.pwm_comparison.PhaseCount]).
 BASE_CONTROL = {
     3: ("pi", {}),
     6: ("conventional", {"pwm": "four-vector"}),
@@ -34,7 +37,7 @@ BASE_CONTROL = {
 class PwmCompareSpec:
     """What one PWM comparison is asked for (the command's flags, checked).
 
-    - `drive`: the drive file (:class:`~pmsmjax.spec.drive_spec.DriveSpec`) with `phases` phases.
+    - `drive`: the drive file ([`DriveSpec`][pmsmjax.spec.drive_spec.DriveSpec]) with `phases` phases.
     - `speed_rpm`, `load_nm`: the operating point; `dead_time_s`: the ``_deadtime`` variants' dead time.
     - `settle_cycles`, `window_cycles`: fundamental periods settled, then analysed.
     - `modulators`: the modulators compared; `bridges`: the bridge variants (None: the phase count's).
@@ -56,8 +59,9 @@ class PwmCompareSpec:
 @dataclasses.dataclass(frozen=True)
 class PwmCompareResult:
     """What a PWM comparison gives its writer: `report` (pwm.json's content), `arrays` (waveforms.npz:
-    ``"VARIANT/KEY"`` -> array) and `comparison` (:func:`pmsmjax.jobs.pwm_comparison.compare`'s result,
-    which the figures read)."""
+    ``"VARIANT/KEY"`` -> array) and `comparison`
+    ([`pmsmjax.jobs.pwm_comparison.compare`][pmsmjax.jobs.pwm_comparison.compare]'s result, which the figures
+    read)."""
 
     report: dict
     arrays: dict
@@ -87,8 +91,9 @@ def check_speed(drive, speed_rpm: float) -> None:
 
 def check_operating_point(drive, speed_rpm: float, load_nm: float, u_dc_flag: str) -> None:
     """Refuse an operating point the drive file ``drive`` cannot hold with i_d = 0
-    (:func:`pmsmjax.spec.steady_state.refuse_unreachable`): the spectra of a saturated drive compare
-    nothing. ``u_dc_flag``: the DC-link knob the fix names; pure Python."""
+    ([`pmsmjax.spec.steady_state.refuse_unreachable`][pmsmjax.spec.steady_state.refuse_unreachable]): the
+    spectra of a saturated drive compare nothing. ``u_dc_flag``: the DC-link knob the fix names; pure
+    Python."""
     from pmsmjax.spec.steady_state import refuse_unreachable
 
     refuse_unreachable(
@@ -107,9 +112,11 @@ def check_operating_point(drive, speed_rpm: float, load_nm: float, u_dc_flag: st
 def compare_pwm(
     spec: PwmCompareSpec, adjust: Callable | None = None, progress: Callable[[str], None] | None = None
 ) -> PwmCompareResult:
-    """Compare the modulators of ``spec`` on the drive file's drive (:data:`BASE_CONTROL` of its phase
-    count; :func:`pmsmjax.jobs.pwm_comparison.compare`). ``adjust``: ``(drive, control) -> drive``
-    applied to the base drive (tuned gains, say); ``progress``: takes a line per variant."""
+    """Compare the modulators of ``spec`` on the drive file's drive
+    ([`BASE_CONTROL`][pmsmjax.jobs.pwm_compare.BASE_CONTROL] of its phase count;
+    [`pmsmjax.jobs.pwm_comparison.compare`][pmsmjax.jobs.pwm_comparison.compare]). ``adjust``:
+    ``(drive, control) -> drive`` applied to the base drive (tuned gains, say); ``progress``: takes a line per
+    variant."""
     from pmsmjax.assemble import spec_drive
     from pmsmjax.jobs.pwm_comparison import CompareSettings, compare
 

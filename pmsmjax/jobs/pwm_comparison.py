@@ -5,35 +5,37 @@ five).
 Procedure (all variants at the same operating point, so at equal fundamental voltage up to what the
 closed loop needs):
 
-1. The base drive (:attr:`PhaseCount.base_drive`) runs the book scenario (speed step from rest, load step
-   at 0.2 s, 0.4 s) to a steady state. Three phases: the book drive (SVPWM, averaged bridge). Six and five
-   phases: **conventional** control (dq current loops only: the second plane's voltage reference is zero
-   and nothing corrects its currents, so each modulator's own second-plane voltage shows in the currents;
-   a second-plane loop would fight the methods that cannot apply one) with four-vector (near-four-vector)
-   SVPWM on the averaged bridge. Inside the linear range every modulator gives the averaged bridge the same
-   period-average voltage, so this state is every variant's starting point.
+1. The base drive ([`PhaseCount.base_drive`][pmsmjax.jobs.pwm_comparison.PhaseCount]) runs the book
+   scenario (speed step from rest, load step at 0.2 s, 0.4 s) to a steady state. Three phases: the book drive
+   (SVPWM, averaged bridge). Six and five phases: **conventional** control (dq current loops only: the second
+   plane's voltage reference is zero and nothing corrects its currents, so each modulator's own second-plane
+   voltage shows in the currents; a second-plane loop would fight the methods that cannot apply one) with
+   four-vector (near-four-vector) SVPWM on the averaged bridge. Inside the linear range every modulator gives
+   the averaged bridge the same period-average voltage, so this state is every variant's starting point.
 2. Each variant (modulator x bridge) continues from there at the final speed reference and load for
    ``settle_cycles`` fundamental periods (the switching ripple and any dead-time disturbance settle), then
    ``window_cycles`` are analysed.
 3. Within every analysed period the phase currents are sampled ``samples_per_period`` times on a uniform
-   grid (:func:`pmsmjax.analysis.within_period.dense_window`: from the model's own period-start state and
-   duties, so it is the trajectory the model followed) and the phase voltages are rebuilt exactly from the
-   bridge's constant-voltage intervals.
-4. Spectra (:mod:`pmsmjax.analysis.spectra`): exact Fourier coefficients of the piecewise-constant
-   voltages, FFT of the current samples; THD up to ``f_max = thd_max_carriers * f_sw``, mean over the
-   phases.
+   grid ([`pmsmjax.analysis.within_period.dense_window`][pmsmjax.analysis.within_period.dense_window]: from
+   the model's own period-start state and duties, so it is the trajectory the model followed) and the phase
+   voltages are rebuilt exactly from the bridge's constant-voltage intervals.
+4. Spectra ([`pmsmjax.analysis.spectra`][pmsmjax.analysis.spectra]): exact Fourier coefficients of the
+   piecewise-constant voltages, FFT of the current samples; THD up to ``f_max = thd_max_carriers * f_sw``,
+   mean over the phases.
 
 Figures of merit (per variant): the modulator's ``linear_limit_v`` (alpha-beta peak), the fundamental
 phase voltage and current, the voltage and current THD. Three phases add the line-to-line voltages, the
 modulation index and the DC-bus utilisation against sinusoidal PWM. Six and five phases add the second VSD
-plane (:class:`SecondPlane`): its period-average voltage (RMS and peak over the window's periods: zero for
-the methods that null it), its current, and the harmonic phase currents of the orders that live in it
-(six phases the 5th and 7th, keys ``z_*``; five phases the 3rd and 7th, keys ``xy_*``).
+plane ([`SecondPlane`][pmsmjax.jobs.pwm_comparison.SecondPlane]): its period-average voltage (RMS and peak
+over the window's periods: zero for the methods that null it), its current, and the harmonic phase currents of
+the orders that live in it (six phases the 5th and 7th, keys ``z_*``; five phases the 3rd and 7th, keys
+``xy_*``).
 
 Variants: ``<modulator>`` (averaged bridge), ``<modulator>_switching`` (switching bridge, no dead time)
 and ``<modulator>_switching_deadtime`` (dead time ``dead_time_s``), for the modulators of
-:data:`PHASE_COUNTS` (three phases: ``sinusoidal``, ``third_harmonic``, ``min_max``, ``svpwm``; six:
-:data:`~pmsmjax.presets.six_phase.SIX_PHASE_PWMS`; five: :data:`~pmsmjax.presets.five_phase.FIVE_PHASE_PWMS`).
+[`PHASE_COUNTS`][pmsmjax.jobs.pwm_comparison.PHASE_COUNTS] (three phases: ``sinusoidal``,
+``third_harmonic``, ``min_max``, ``svpwm``; six: [`SIX_PHASE_PWMS`][pmsmjax.presets.six_phase.SIX_PHASE_PWMS];
+five: [`FIVE_PHASE_PWMS`][pmsmjax.presets.five_phase.FIVE_PHASE_PWMS]).
 """
 
 import dataclasses
@@ -166,7 +168,7 @@ def _multi_phase(layout: PhaseLayout, modulators, base_drive, plane: SecondPlane
     )
 
 
-#: The phase counts compared: 3, 6 and 5 -> :class:`PhaseCount`.
+#: The phase counts compared: 3, 6 and 5 -> [`PhaseCount`][pmsmjax.jobs.pwm_comparison.PhaseCount].
 PHASE_COUNTS = {
     3: PhaseCount(
         n=3,
@@ -222,7 +224,7 @@ class CompareSettings:
 
     @property
     def phase_count(self) -> PhaseCount:
-        """The :class:`PhaseCount` of `phases` (raises for another)."""
+        """The [`PhaseCount`][pmsmjax.jobs.pwm_comparison.PhaseCount] of `phases` (raises for another)."""
         if self.phases not in PHASE_COUNTS:
             raise ParameterError(
                 f"phases must be one of {', '.join(map(str, PHASE_COUNTS))}, got {self.phases!r}."
@@ -382,11 +384,13 @@ def _progress_line(name: str, e: dict, plane: SecondPlane | None) -> str:
 
 def compare(settings: CompareSettings = CompareSettings(), base: Drive | None = None, progress=None) -> dict:
     """Run every variant; return a dict with ``settings`` (the report's record), ``entries`` (name ->
-    figures), ``waves`` and ``spectra`` (name -> the :func:`run_variant` waveforms and the
-    :class:`pmsmjax.analysis.spectra.Spectrum` s).
+    figures), ``waves`` and ``spectra`` (name -> the
+    [`run_variant`][pmsmjax.jobs.pwm_comparison.run_variant] waveforms and the
+    [`pmsmjax.analysis.spectra.Spectrum`][pmsmjax.analysis.spectra.Spectrum] s).
 
-    `base`: the drive to compare on (default: the phase count's :attr:`PhaseCount.base_drive`), with
-    `settings.phases` phases; `progress`: optional callable taking a line.
+    `base`: the drive to compare on (default: the phase count's
+    [`PhaseCount.base_drive`][pmsmjax.jobs.pwm_comparison.PhaseCount]), with `settings.phases` phases;
+    `progress`: optional callable taking a line.
     """
     pc = settings.phase_count
     base = pc.base_drive() if base is None else base

@@ -1,5 +1,5 @@
-"""``pmsmjax replay``: the machine run under a log's recorded voltages (:mod:`pmsmjax.recorded.replay`),
-returned for the command line to write."""
+"""``pmsmjax replay``: the machine run under a log's recorded voltages
+([`pmsmjax.recorded.replay`][pmsmjax.recorded.replay]), returned for the command line to write."""
 
 import dataclasses
 import os
@@ -15,7 +15,7 @@ class ReplaySpec:
     """What to replay: `log` a ``.csv``/``.npz``/``.mat`` log, `motor` a preset name or drive file, `hold`
     ``"auto"``, ``"rotor"`` or ``"stator"``, `n_substeps` RK4 steps per row (None: automatic),
     `time_unit` of the log's time column (``"s"``, ``"ms"``, ``"us"``), `check_units` refuse implausible
-    units (see :func:`pmsmjax.recorded.replay.replay_log`)."""
+    units (see [`pmsmjax.recorded.replay.replay_log`][pmsmjax.recorded.replay.replay_log])."""
 
     log: str | os.PathLike
     motor: str | os.PathLike

@@ -2,8 +2,9 @@
 their parameters and integrators.
 
 The re-exported names are imported on first use (PEP 562), so that the plain-array modules here (the
-steady-state dq equations, :mod:`.dq_equations`; the flux map's grid and interpolant,
-:mod:`.flux_map`) read without loading JAX: the command line's checks before a run use them.
+steady-state dq equations, [`dq_equations`][pmsmjax.machines.dq_equations]; the flux map's grid and
+interpolant, [`flux_map`][pmsmjax.machines.flux_map]) read without loading JAX: the command line's checks
+before a run use them.
 """
 
 from pmsmjax._lazy import by_module, lazy_exports

@@ -1,9 +1,11 @@
 """The machine interface shared by every plant model.
 
 A machine is a continuous-time system ``dx/dt = f(t, x, inputs)`` whose state is a
-:class:`MachineState` (frame-specific currents, mechanical speed, electrical angle). The same vector field
-serves the fixed-step scan (:func:`pmsmjax.machines.integrate.rk4`), diffrax adaptive solves and
-linearisation (``jax.jacfwd`` of :meth:`AbstractMachine.vector_field`).
+[`MachineState`][pmsmjax.machines.base.MachineState] (frame-specific currents, mechanical speed, electrical
+angle). The same vector field serves the fixed-step scan
+([`pmsmjax.machines.integrate.advance`][pmsmjax.machines.integrate.advance]), diffrax adaptive solves and
+linearisation (``jax.jacfwd`` of
+[`AbstractMachine.vector_field`][pmsmjax.machines.base.AbstractMachine.vector_field]).
 """
 
 import abc
@@ -24,9 +26,10 @@ HoldFrame = Literal["stator", "rotor"]
 class MachineState(eqx.Module):
     """State of a machine model.
 
-    - `currents`: ``(n,)`` stator currents in the model's own frame (dq, alpha-beta or abc), A.
-    - `omega_m`: mechanical speed, rad/s.
-    - `theta_e`: electrical rotor angle (d axis from the A axis), rad; wrapped once per control period.
+    Attributes:
+        currents: ``(n,)`` stator currents in the model's own frame (dq, alpha-beta or abc), A.
+        omega_m: Mechanical speed, rad/s.
+        theta_e: Electrical rotor angle (d axis from the A axis), rad; wrapped once per control period.
     """
 
     currents: Array
@@ -37,13 +40,15 @@ class MachineState(eqx.Module):
 class MachineInput(eqx.Module):
     """What drives the machine over an interval: a held voltage and a load torque.
 
-    - `u`: ``(2,)`` held voltage, V; alpha-beta if ``frame == "stator"``, dq if ``frame == "rotor"``.
-      A real inverter holds its voltage in the stator frame; a log replayed from another simulator's dq
-      model usually held it in the rotor frame. Multi-phase machines take ``(2 n_planes,)``: the
-      fundamental plane first (alpha-beta or dq by ``frame``), then the other VSD planes (z1-z2, ...),
-      which are always stationary.
-    - `load_torque`: load torque opposing motion, N m.
-    - `frame`: which frame the voltage is held in (static).
+    A real inverter holds its voltage in the stator frame; a log replayed from another simulator's dq model
+    usually held it in the rotor frame.
+
+    Attributes:
+        u: ``(2,)`` held voltage, V; alpha-beta if ``frame == "stator"``, dq if ``frame == "rotor"``.
+            Multi-phase machines take ``(2 n_planes,)``: the fundamental plane first (alpha-beta or dq by
+            ``frame``), then the other VSD planes (z1-z2, ...), which are always stationary.
+        load_torque: Load torque opposing motion, N m.
+        frame: Which frame the voltage is held in (static): ``"stator"`` or ``"rotor"``.
     """
 
     u: Array
@@ -51,11 +56,19 @@ class MachineInput(eqx.Module):
     frame: HoldFrame = eqx.field(static=True, default="stator")
 
     def alpha_beta(self, theta_e: Array) -> Array:
-        """The held voltage seen in the stator frame at rotor angle ``theta_e`` (rad)."""
+        """The held voltage seen in the stator frame.
+
+        Args:
+            theta_e: Electrical rotor angle, rad.
+        """
         return self.u if self.frame == "stator" else _first_plane(inverse_park, self.u, theta_e)
 
     def dq(self, theta_e: Array) -> Array:
-        """The held voltage seen in the rotor frame at rotor angle ``theta_e`` (rad)."""
+        """The held voltage seen in the rotor frame.
+
+        Args:
+            theta_e: Electrical rotor angle, rad.
+        """
         return _first_plane(park, self.u, theta_e) if self.frame == "stator" else self.u
 
 
@@ -70,26 +83,29 @@ class AbstractMachine(eqx.Module):
     """A PMSM model in one reference frame.
 
     ``n_phases`` (class constant) is the number of stator phases, i.e. of inverter legs: 3 here; the
-    multi-phase machines override it and :meth:`phase_currents` / :meth:`stationary_currents`.
-    Subclasses implement the electrical part in their frame; the mechanics are shared:
-    ``J dw_m/dt = T_e - T_L - B w_m`` (``mechanics="dynamic"``) or ``dw_m/dt = 0`` with the speed set from
-    outside each period (``mechanics="imposed"``, a dynamometer); ``dth_e/dt = p_n w_m``.
+    multi-phase machines override it and
+    [`phase_currents`][pmsmjax.machines.base.AbstractMachine.phase_currents] /
+    [`stationary_currents`][pmsmjax.machines.base.AbstractMachine.stationary_currents]. Subclasses implement
+    the electrical part in their frame; the mechanics are shared: ``J dw_m/dt = T_e - T_L - B w_m``
+    (``mechanics="dynamic"``) or ``dw_m/dt = 0`` with the speed set from outside each period
+    (``mechanics="imposed"``, a dynamometer); ``dth_e/dt = p_n w_m``.
     """
 
     motor: eqx.AbstractVar[PMSMParameters]
     mechanics: eqx.AbstractVar[Mechanics]
     n_phases: ClassVar[int] = 3
     #: The equations see the rotor angle only through a stator-frame held voltage read in the rotor frame
-    #: (the dq models): :func:`pmsmjax.machines.integrate.advance` then rotates that voltage by each RK4
-    #: stage's angle increment instead of evaluating trigonometry of the absolute angle.
+    #: (the dq models): [`pmsmjax.machines.integrate.advance`][pmsmjax.machines.integrate.advance] then
+    #: rotates that voltage by each RK4 stage's angle increment instead of evaluating trigonometry of the
+    #: absolute angle.
     angle_only_in_voltage: ClassVar[bool] = False
 
     @property
     def split_advance(self) -> Callable[[MachineState, MachineInput, float, int], MachineState] | None:
         """``(state, inputs, duration, n_substeps) -> state``: this machine's own integrator over an
-        interval, which :func:`pmsmjax.machines.integrate.advance` uses in place of its RK4 (the flux-map
-        model's packed state, the balanced multi-phase model's separately integrated planes); ``None``
-        (here): the generic RK4."""
+        interval, which [`pmsmjax.machines.integrate.advance`][pmsmjax.machines.integrate.advance] uses in
+        place of its RK4 (the flux-map model's packed state, the balanced multi-phase model's separately
+        integrated planes); ``None`` (here): the generic RK4."""
         return None
 
     # --- frame-specific part -------------------------------------------------------------------
@@ -111,14 +127,30 @@ class AbstractMachine(eqx.Module):
 
     # --- shared ----------------------------------------------------------------------------------
     def initial_state(self, i_dq=(0.0, 0.0), omega_m=0.0, theta_e=0.0) -> MachineState:
-        """State with the given dq currents (A), mechanical speed (rad/s) and electrical angle (rad)."""
+        """State with the given dq currents, speed and angle.
+
+        Args:
+            i_dq: ``(2,)`` dq currents, A.
+            omega_m: Mechanical speed, rad/s.
+            theta_e: Electrical rotor angle, rad.
+        """
         dtype = self.motor.R.dtype
         theta = jnp.asarray(theta_e, dtype)
         i_dq = jnp.asarray(i_dq, dtype)
         return MachineState(self.currents_from_dq(i_dq, theta), jnp.asarray(omega_m, dtype), theta)
 
     def vector_field(self, t, state: MachineState, inputs: MachineInput) -> MachineState:
-        """Continuous-time dynamics ``dx/dt`` (diffrax signature ``f(t, y, args)``)."""
+        """Continuous-time dynamics ``dx/dt`` (diffrax signature ``f(t, y, args)``).
+
+        Args:
+            t: Time (unused: the dynamics are autonomous under a held input).
+            state: The state ``x``.
+            inputs: The held voltage and load torque.
+
+        Returns:
+            ``dx/dt`` as a [`MachineState`][pmsmjax.machines.base.MachineState] (current derivatives A/s,
+            angular acceleration rad/s^2, electrical speed rad/s).
+        """
         del t
         m = self.motor
         omega_e = m.pole_pairs * state.omega_m
@@ -131,17 +163,42 @@ class AbstractMachine(eqx.Module):
         return MachineState(di, domega, omega_e)
 
     def currents_dq(self, state: MachineState) -> Array:
-        """``(2,)`` dq currents of `state` (fundamental plane, at the state's rotor angle), A."""
+        """dq currents of ``state`` (fundamental plane, at the state's rotor angle).
+
+        Args:
+            state: The machine's state.
+
+        Returns:
+            ``(2,)`` dq currents, A.
+        """
         return self.currents_to_dq(state.currents, state.theta_e)
 
     def electromagnetic_torque(self, state: MachineState) -> Array:
-        """Electromagnetic torque of `state`, N m (positive accelerates positive rotation)."""
+        """Electromagnetic torque of ``state``, N m (positive accelerates positive rotation).
+
+        Args:
+            state: The machine's state.
+        """
         return self.torque(state.currents, state.theta_e)
 
     def phase_currents(self, state: MachineState) -> Array:
-        """``(n,)`` phase currents, A (what the drive's current sensors measure)."""
+        """Phase currents, what the drive's current sensors measure.
+
+        Args:
+            state: The machine's state.
+
+        Returns:
+            ``(n,)`` phase currents, A.
+        """
         return dq_to_abc(self.currents_dq(state), state.theta_e)
 
     def stationary_currents(self, state: MachineState) -> Array:
-        """``(2,)`` alpha-beta (fundamental-plane) currents, A."""
+        """Alpha-beta (fundamental-plane) currents.
+
+        Args:
+            state: The machine's state.
+
+        Returns:
+            ``(2,)`` alpha-beta currents, A.
+        """
         return inverse_park(self.currents_dq(state), state.theta_e)

@@ -1,6 +1,6 @@
 """A measured flux map of a saturated PMSM: ``psi_d(i_d, i_q)``, ``psi_q(i_d, i_q)`` on a rectangular grid,
 its checks and its interpolant (pure NumPy at load; the same interpolant runs in JAX inside the plant,
-:mod:`pmsmjax.machines.pmsm_flux_map`).
+[`pmsmjax.machines.pmsm_flux_map`][pmsmjax.machines.pmsm_flux_map]).
 
 **The grid.** Uniformly spaced, sorted axes ``i_d (n_d,)``, ``i_q (n_q,)`` (A, at least 3 points each) and
 flux arrays ``psi_d, psi_q (n_d, n_q)`` (Wb, peak phase flux linkage, amplitude-invariant dq frame), with
@@ -21,8 +21,8 @@ C2 but needs a global solve and rings near a measured kink; a C1 interpolant is 
 
 **Outside the grid** the flux is extended linearly with the boundary's incremental inductance:
 ``psi(i) = psi(i_c) + L_inc(i_c) (i - i_c)`` with ``i_c`` the current clipped to the grid, so ``L_inc``
-stays continuous and positive definite, but is only an extrapolation: :func:`excursion` reports how far a
-run went outside the measured range.
+stays continuous and positive definite, but is only an extrapolation:
+[`excursion`][pmsmjax.machines.flux_map.excursion] reports how far a run went outside the measured range.
 
 **Reciprocity.** A lossless magnetic circuit has ``dpsi_d/di_q = dpsi_q/di_d``; measured maps miss that by
 a few mH (measurement noise, iron loss, a skewed rotor). They are accepted as measured: the checks need
@@ -62,12 +62,17 @@ _HERMITE = np.array(
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class FluxMapGrid:
-    """A checked flux map (module docstring); checked on construction, each refusal one
-    :class:`ParameterError` naming `source`.
+    """A checked flux map (module docstring), checked on construction.
 
-    - `i_d`: ``(n_d,)``, `i_q`: ``(n_q,)`` current axes, A, uniformly spaced and increasing;
-    - `psi_d`, `psi_q`: ``(n_d, n_q)`` flux linkages, Wb (row ``j``: ``i_d[j]``; column ``k``: ``i_q[k]``);
-    - `source`: where the map came from (a file path), for messages.
+    Args:
+        i_d: ``(n_d,)`` d-axis current axis, A, uniformly spaced and increasing.
+        i_q: ``(n_q,)`` q-axis current axis, A, uniformly spaced and increasing.
+        psi_d: ``(n_d, n_q)`` d-axis flux linkage, Wb (row ``j``: ``i_d[j]``; column ``k``: ``i_q[k]``).
+        psi_q: ``(n_d, n_q)`` q-axis flux linkage, Wb, laid out as ``psi_d``.
+        source: Where the map came from (a file path), for messages.
+
+    Raises:
+        ParameterError: For a map the interpolant cannot use (`check_grid`), naming ``source``.
     """
 
     i_d: np.ndarray
@@ -97,24 +102,37 @@ class FluxMapGrid:
         return (self.upper - self.lower) / (np.array([self.i_d.size, self.i_q.size]) - 1.0)
 
     def node_inductances(self) -> np.ndarray:
-        """``(n_d, n_q, 2, 2)`` incremental inductance ``dpsi/di`` at every grid point, H (the
-        interpolant's own slopes there)."""
+        """Incremental inductance ``dpsi/di`` at every grid point (the interpolant's own slopes there).
+
+        Returns:
+            ``(n_d, n_q, 2, 2)`` inductances, H.
+        """
         d = _node_slopes(np.stack([self.psi_d, self.psi_q]), self.step, np)
         return np.stack([np.stack([d[0][0], d[1][0]], -1), np.stack([d[0][1], d[1][1]], -1)], -2)
 
     def coefficients(self, xp=np):
-        """``(n_d - 1, n_q - 1, 2, 4, 4)`` bicubic coefficients (:func:`hermite_coefficients`)."""
+        """Bicubic coefficients of every cell
+        ([`hermite_coefficients`][pmsmjax.machines.flux_map.hermite_coefficients]).
+
+        Args:
+            xp: ``numpy`` or ``jax.numpy``.
+
+        Returns:
+            ``(n_d - 1, n_q - 1, 2, 4, 4)`` coefficients.
+        """
         psi = xp.stack([xp.asarray(self.psi_d), xp.asarray(self.psi_q)])
         return hermite_coefficients(psi, self.step, xp)
 
     @functools.cached_property
     def _numpy_coefficients(self) -> np.ndarray:
-        """:meth:`coefficients` in NumPy, computed once per map (the checks evaluate it many times)."""
+        """[`coefficients`][pmsmjax.machines.flux_map.FluxMapGrid.coefficients] in NumPy, computed once per
+        map (the checks evaluate it many times)."""
         return self.coefficients()
 
     def flux(self, i_dq) -> tuple[np.ndarray, np.ndarray]:
         """``(psi (..., 2) Wb, L_inc (..., 2, 2) H)`` of the interpolant at the currents ``i_dq (..., 2)`` A,
-        in NumPy, all points in one call (:func:`flux_and_inductance`, the plant's own)."""
+        in NumPy, all points in one call
+        ([`flux_and_inductance`][pmsmjax.machines.flux_map.flux_and_inductance], the plant's own)."""
         i = np.asarray(i_dq, dtype=float)
         return flux_and_inductance(self._numpy_coefficients, self.lower, self.step, self.upper, i, np)
 
@@ -123,15 +141,29 @@ class FluxMapGrid:
         return self.flux(np.array([i_d, i_q], dtype=float))
 
     def linear_model(self, i_q: float = 0.0) -> dict:
-        """The linear machine a controller designs with: ``psi_f = psi_d(0, 0)`` (Wb) and the incremental
-        inductances ``L_d = dpsi_d/di_d``, ``L_q = dpsi_q/di_q`` at ``(0, i_q)`` (H)."""
+        """The linear machine a controller designs with.
+
+        Args:
+            i_q: q-axis current at which the incremental inductances are taken, A.
+
+        Returns:
+            ``{"psi_f", "L_d", "L_q"}``: ``psi_f = psi_d(0, 0)`` (Wb) and the incremental inductances
+            ``L_d = dpsi_d/di_d``, ``L_q = dpsi_q/di_q`` at ``(0, i_q)`` (H).
+        """
         psi0, _ = self.at(0.0, 0.0)
         _, L = self.at(0.0, i_q)
         return {"psi_f": float(psi0[0]), "L_d": float(L[0, 0]), "L_q": float(L[1, 1])}
 
 
 def check_grid(grid: FluxMapGrid) -> None:
-    """Refuse a map the interpolant cannot use (module docstring, "The grid" and "Reciprocity")."""
+    """Refuse a map the interpolant cannot use (module docstring, "The grid" and "Reciprocity").
+
+    Args:
+        grid: The map.
+
+    Raises:
+        ParameterError: For the first check the map fails, naming its source.
+    """
     where = grid.source
     for name in ("i_d", "i_q"):
         axis = getattr(grid, name)
@@ -209,11 +241,14 @@ def _node_slopes(psi, step, xp):
 def hermite_coefficients(psi, step, xp=np):
     """Bicubic Hermite coefficients of every cell.
 
-    **Arguments:** `psi`: ``(2, n_d, n_q)`` fluxes ``[psi_d, psi_q]``, Wb; `step`: ``(2,)`` grid spacing, A;
-    `xp`: ``numpy`` or ``jax.numpy``.
+    Args:
+        psi: ``(2, n_d, n_q)`` fluxes ``[psi_d, psi_q]``, Wb.
+        step: ``(2,)`` grid spacing, A.
+        xp: ``numpy`` or ``jax.numpy``.
 
-    **Returns:** ``(n_d - 1, n_q - 1, 2, 4, 4)``: ``psi_x(s, t) = [1 s s^2 s^3] C [1 t t^2 t^3]^T`` with
-    ``s, t`` in [0, 1] the position inside the cell along i_d and i_q.
+    Returns:
+        ``(n_d - 1, n_q - 1, 2, 4, 4)``: ``psi_x(s, t) = [1 s s^2 s^3] C [1 t t^2 t^3]^T`` with ``s, t`` in
+        [0, 1] the position inside the cell along i_d and i_q.
     """
     h_d, h_q = step[0], step[1]
     f = psi
@@ -239,8 +274,9 @@ def hermite_coefficients(psi, step, xp=np):
 def flux_and_inductance(coefficients, lower, step, upper, i_dq, xp=np):
     """The map at one current or many, extended linearly outside the grid (module docstring).
 
-    **Arguments:** `coefficients` from :func:`hermite_coefficients`; `lower`, `step`, `upper`: ``(2,)``
-    grid corners and spacing, A; `i_dq`: ``(..., 2)`` currents, A; `xp`: ``numpy`` or ``jax.numpy``.
+    **Arguments:** `coefficients` from
+    [`hermite_coefficients`][pmsmjax.machines.flux_map.hermite_coefficients]; `lower`, `step`, `upper`:
+    ``(2,)`` grid corners and spacing, A; `i_dq`: ``(..., 2)`` currents, A; `xp`: ``numpy`` or ``jax.numpy``.
 
     **Returns:** ``psi (..., 2)`` Wb and the incremental inductance ``L (..., 2, 2)`` H,
     ``L[..., r, c] = dpsi_r / di_c``.
@@ -263,8 +299,22 @@ def locate(n_cells, lower, step, upper, i_dq, xp=np):
 
     The clamps are comparisons and selects, not ``clip``: XLA:CPU compiles ``clip``'s NaN-propagating
     min/max into several instructions each, and this chain sits on the plant's critical path at every RK4
-    stage (measured: the flux-map plant 11 % faster, the same output to the bit). A NaN current still
-    gives a NaN flux (NaN fails every comparison and passes through)."""
+    stage (docs/performance.md, "Saturated machines"). A NaN current still gives a NaN flux (NaN fails every
+    comparison and passes through).
+
+    Args:
+        n_cells: ``(2,)`` the grid's cell counts.
+        lower: ``(2,)`` lowest grid corner, A.
+        step: ``(2,)`` grid spacing, A.
+        upper: ``(2,)`` highest grid corner, A.
+        i_dq: ``(2,)`` current, A.
+        xp: ``numpy`` or ``jax.numpy``.
+
+    Returns:
+        ``(6,)`` ``[cell_d, cell_q, s, t, outside_d, outside_q]``: the cell's indices (as floats), the
+        position inside it (``s, t`` in [0, 1]) and how far the current lies outside the grid along each
+        axis (A, 0 inside).
+    """
     i_c = xp.where(i_dq < lower, lower, i_dq)
     i_c = xp.where(i_c > upper, upper, i_c)
     x = (i_c - lower) * (1.0 / step)
@@ -281,8 +331,9 @@ def _per_point(x):
 
 
 def evaluate(coefficients, step, where, xp=np):
-    """``(psi (..., 2) Wb, L_inc (..., 2, 2) H)`` of the map at the points :func:`locate` gave (`where`
-    ``(..., 6)``), extended linearly outside the grid with the edge's incremental inductance."""
+    """``(psi (..., 2) Wb, L_inc (..., 2, 2) H)`` of the map at the points
+    [`locate`][pmsmjax.machines.flux_map.locate] gave (`where` ``(..., 6)``), extended linearly outside the
+    grid with the edge's incremental inductance."""
     cell = where[..., :2].astype(int)
     s, t = _per_point(where[..., 2]), _per_point(where[..., 3])
     C = coefficients[cell[..., 0], cell[..., 1]]  # (..., 2, 4, 4)
@@ -301,12 +352,15 @@ def evaluate(coefficients, step, where, xp=np):
 def excursion(grid_lower, grid_upper, i_dq) -> dict:
     """How far currents went outside a map's grid.
 
-    **Arguments:** `grid_lower`, `grid_upper`: ``(2,)`` grid corners, A; `i_dq`: ``(..., 2)`` currents of a
-    run, A (any leading shape: periods, batch).
+    Args:
+        grid_lower: ``(2,)`` lowest grid corner, A.
+        grid_upper: ``(2,)`` highest grid corner, A.
+        i_dq: ``(..., 2)`` currents of a run, A (any leading shape: periods, batch).
 
-    **Returns:** ``{"i_d_range", "i_q_range"}`` (reached ``[min, max]``, A), ``"grid_i_d"``, ``"grid_i_q"``
-    (the grid's), ``"outside_a"``: the largest distance outside the grid along either axis, A (0 inside),
-    and ``"warning"``: one line for the user, or ``None`` when the run stayed on the grid.
+    Returns:
+        ``{"i_d_range", "i_q_range"}`` (reached ``[min, max]``, A), ``"grid_i_d"``, ``"grid_i_q"`` (the
+        grid's), ``"outside_a"``: the largest distance outside the grid along either axis, A (0 inside), and
+        ``"warning"``: one line for the user, or ``None`` when the run stayed on the grid.
     """
     i = np.asarray(i_dq, dtype=float).reshape(-1, 2)
     lo, hi = np.asarray(grid_lower, dtype=float), np.asarray(grid_upper, dtype=float)

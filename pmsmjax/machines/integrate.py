@@ -2,12 +2,12 @@
 
 A rotor-frame (dq) machine fed by a voltage held in the stator frame sees that voltage rotate backwards
 as the rotor turns: at an RK4 stage whose angle is ``theta_n + delta`` it is ``R(-delta) u_dq(theta_n)``.
-:func:`advance` evaluates that rotation by a short Taylor series of ``cos delta`` and ``sin delta``
-(``|delta|`` is at most one sub-step's electrical angle, <= 0.5 rad under the sub-step check of
-:func:`max_stable_substep`, where the series is exact to float64 rounding) instead of a cosine and a
-sine of the absolute angle at every stage: the same equations, about three times faster on CPU, where
-the 80 transcendental evaluations per period took two thirds of a drive step's time (measured on the
-Monte Carlo kernel, float32, batch 1024, by replacing them with a cheap polynomial).
+[`advance`][pmsmjax.machines.integrate.advance] evaluates that rotation by a short Taylor series of
+``cos delta`` and ``sin delta`` (``|delta|`` is at most one sub-step's electrical angle, <= 0.5 rad under the
+sub-step check of [`max_stable_substep`][pmsmjax.machines.integrate.max_stable_substep], where the series is
+exact to float64 rounding) instead of a cosine and a sine of the absolute angle at every stage: the same
+equations without the 80 transcendental evaluations per period, which dominate a drive step's cost on CPU
+(docs/performance.md, "Engine").
 """
 
 import jax
@@ -20,7 +20,17 @@ from pmsmjax.spec.validation import is_concrete
 
 
 def rk4_step(machine: AbstractMachine, state: MachineState, inputs: MachineInput, h) -> MachineState:
-    """One classical Runge-Kutta step of length ``h`` (s)."""
+    """One classical Runge-Kutta step.
+
+    Args:
+        machine: The machine model.
+        state: The state at the step's start.
+        inputs: The input held over the step.
+        h: Step length, s.
+
+    Returns:
+        The state after ``h``.
+    """
     f = lambda x: machine.vector_field(None, x, inputs)
     add = lambda x, k, a: jax.tree.map(lambda xi, ki: xi + a * ki, x, k)
     k1 = f(state)
@@ -40,12 +50,16 @@ _SIN_DENOMINATORS = (6.0, 20.0, 42.0, 72.0, 110.0, 156.0)
 
 
 def rotate_back(x_dq, delta):
-    """``x_dq (2,)`` seen from a rotor frame advanced by ``delta`` rad: ``R(-delta) x_dq``. A longer
-    vector (a multi-phase machine's ``[d, q, z1, z2, ...]``) has only its first two components rotated.
+    """``x_dq`` seen from a rotor frame advanced by ``delta``: ``R(-delta) x_dq``.
 
     Taylor series of cos and sin. In float64 to ``delta^14`` (truncation below 1e-16 for
     ``|delta| <= 0.5``, 1e-12 at 1 rad); in float32 to ``delta^9`` (below 3e-10 at 0.5 rad, far under
-    float32's 6e-8 resolution, and 15 % faster again).
+    float32's 6e-8 resolution).
+
+    Args:
+        x_dq: ``(2,)`` rotor-frame vector; a longer vector (a multi-phase machine's ``[d, q, z1, z2, ...]``)
+            has only its first two components rotated.
+        delta: Angle the frame advanced, rad.
     """
     d2 = delta * delta
     short = jnp.finfo(jnp.result_type(d2)).eps > 1e-10
@@ -63,11 +77,20 @@ def rotate_back(x_dq, delta):
 
 
 def rk4_step_rotating_hold(machine: AbstractMachine, state: MachineState, u_dq, load_torque, h):
-    """One RK4 step of a dq machine under a stator-frame voltage that reads ``u_dq (2,)`` V at the
-    step's start angle; returns ``(state after h, the voltage read at the end angle)``.
+    """One RK4 step of a dq machine under a voltage held in the stator frame.
 
-    Each stage's voltage is ``u_dq`` rotated back by the stage's angle increment (:func:`rotate_back`),
-    so no absolute-angle trigonometry is evaluated.
+    Each stage's voltage is ``u_dq`` rotated back by the stage's angle increment
+    ([`rotate_back`][pmsmjax.machines.integrate.rotate_back]), so no absolute-angle trigonometry is evaluated.
+
+    Args:
+        machine: A dq machine model.
+        state: The state at the step's start.
+        u_dq: ``(2,)`` the held voltage as read at the step's start angle, V.
+        load_torque: Load torque, N m.
+        h: Step length, s.
+
+    Returns:
+        ``(state after h, the voltage read at the end angle)``.
     """
     f = lambda x, delta: machine.vector_field(
         None, x, MachineInput(rotate_back(u_dq, delta), load_torque, "rotor")
@@ -90,18 +113,26 @@ def advance(
     n_substeps: int,
     unroll: bool = False,
 ) -> MachineState:
-    """Integrate over ``duration`` (s) with ``n_substeps`` RK4 steps; the angle is wrapped at the end.
+    """Integrate over ``duration`` with ``n_substeps`` RK4 steps; the angle is wrapped at the end.
 
     Wrapping only at the interval end keeps every RK4 stage on a continuous angle. Machines whose
     equations depend on the angle only through a stator-frame held voltage (``angle_only_in_voltage``,
-    the dq model) take :func:`rk4_step_rotating_hold` (see the module docstring). A machine with a
-    :attr:`~pmsmjax.machines.base.AbstractMachine.split_advance` (the flux-map model, the balanced
-    multi-phase dq model) integrates itself.
+    the dq model) take [`rk4_step_rotating_hold`][pmsmjax.machines.integrate.rk4_step_rotating_hold] (see the
+    module docstring). A machine with a [`split_advance`][pmsmjax.machines.base.AbstractMachine.split_advance]
+    (the flux-map model, the balanced multi-phase dq model) integrates itself.
 
-    `unroll` (static): write the sub-steps out instead of looping over them: the same arithmetic, one
-    larger fused program per period. On one H100 it took the Monte Carlo kernel from 682 to
-    896 M periods/s and one unbatched run from 0.58 to 0.24 s; on 2 CPU cores it is 2 % faster with
-    bitwise the same results and a compile 1.1 s longer (measured), so it is off by default.
+    Args:
+        machine: The machine model.
+        state: The state at the interval's start.
+        inputs: The input held over the interval.
+        duration: Length of the interval, s.
+        n_substeps: RK4 steps over the interval.
+        unroll: Write the sub-steps out instead of looping over them (static): the same arithmetic, one
+            larger fused program per period. It pays on GPUs, hardly on CPU, and compiles longer, so it is
+            off by default (docs/performance.md, "Engine").
+
+    Returns:
+        The state at the interval's end, angle wrapped to one turn.
     """
     split = machine.split_advance
     if split is not None:  # a multi-phase model whose planes integrate separately (pmsm_multiphase.py)
@@ -122,12 +153,19 @@ def advance(
 
 
 def max_stable_substep(motor_or_machine, max_speed_m) -> float:
-    """Longest RK4 sub-step (s) we accept: 0.5 / (fastest electrical rate), from concrete values.
+    """Longest RK4 sub-step we accept: 0.5 / (fastest electrical rate), from concrete values.
 
-    The electrical rates are ``R/L`` (the current's own pole; L the smallest inductance, the leakage for
-    a multi-phase machine) and ``omega_e`` (rotation of the flux); RK4
-    is stable to about 2.8 on both axes and accurate to 1e-4 per period at 0.5. Used by the input checks,
-    so it works on NumPy values (it must not create JAX tracers inside a jit).
+    The electrical rates are ``R/L`` (the current's own pole; L the smallest inductance, the leakage for a
+    multi-phase machine) and ``omega_e`` (rotation of the flux); RK4 is stable to about 2.8 on both axes and
+    accurate to 1e-4 per period at 0.5. Used by the input checks, so it works on NumPy values (it must not
+    create JAX tracers inside a jit).
+
+    Args:
+        motor_or_machine: Motor parameters, or a machine (its ``motor`` is read).
+        max_speed_m: Largest mechanical speed, rad/s.
+
+    Returns:
+        The sub-step, s.
     """
     motor = motor_or_machine.motor if isinstance(motor_or_machine, AbstractMachine) else motor_or_machine
     R, L_d, L_q = (np.asarray(jax.device_get(x), dtype=float) for x in (motor.R, motor.L_d, motor.L_q))

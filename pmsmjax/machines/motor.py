@@ -10,24 +10,32 @@ from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_pos
 
 
 def as_float(x) -> Array:
-    """Convert a number or array to a JAX float array of the default precision."""
+    """Convert a number or array to a JAX float array of the default precision.
+
+    Args:
+        x: A number or array.
+    """
     return jnp.asarray(x, dtype=jnp.result_type(float))
 
 
 class PMSMParameters(eqx.Module):
     """Electrical and mechanical parameters of a three-phase PMSM.
 
-    Every field but ``pole_pairs`` is an array leaf: tunable, vmappable and differentiable. Values may
-    carry leading batch axes (one motor per row) when used under ``jax.vmap``.
+    Every field but ``pole_pairs`` is an array leaf: tunable, vmappable and differentiable. Values may carry
+    leading batch axes (one motor per row) when used under ``jax.vmap``.
 
-    **Arguments:**
+    Args:
+        R: Stator phase resistance, ohm.
+        L_d: d-axis inductance, H.
+        L_q: q-axis inductance, H (equal to ``L_d`` for a surface-mounted machine).
+        psi_f: Permanent-magnet flux linkage amplitude (phase, peak), Wb.
+        J: Total inertia on the shaft, kg m^2.
+        B: Viscous friction coefficient, N m s/rad.
+        pole_pairs: Number of pole pairs (static: it is an integer, not a tunable parameter).
 
-    - `R`: stator phase resistance, ohm.
-    - `L_d`, `L_q`: d- and q-axis inductances, H (equal for a surface-mounted machine).
-    - `psi_f`: permanent-magnet flux linkage amplitude (phase, peak), Wb.
-    - `J`: total inertia on the shaft, kg m^2.
-    - `B`: viscous friction coefficient, N m s/rad.
-    - `pole_pairs`: number of pole pairs (static: it is an integer, not a tunable parameter).
+    Raises:
+        ParameterError: For a non-integer or non-positive pole-pair count, or a non-positive resistance,
+            inductance or inertia, or a negative flux or friction.
     """
 
     R: Array = eqx.field(converter=as_float)

@@ -1,12 +1,13 @@
 """Parameters of a multi-phase (n-phase) PMSM, SI units (the book, ch. 7 and 10).
 
-The same fields as :class:`pmsmjax.machines.motor.PMSMParameters` (so every design rule and controller
-written for those reads them unchanged) plus the leakage inductance ``L_ls`` and the phase count:
+The same fields as [`pmsmjax.machines.motor.PMSMParameters`][pmsmjax.machines.motor.PMSMParameters] (so every
+design rule and controller written for those reads them unchanged) plus the leakage inductance ``L_ls`` and
+the phase count:
 
 - ``L_d``, ``L_q``: the fundamental (alpha-beta) subspace's d- and q-axis inductances in VSD coordinates,
   ``L_d = L_ls + (n/2)(L_0m + L_2m)``, ``L_q = L_ls + (n/2)(L_0m - L_2m)`` with ``L_0m``, ``L_2m`` the
   mean and the saliency part of a phase's magnetising inductance (natural frame,
-  :mod:`pmsmjax.machines.pmsm_multiphase`).
+  [`pmsmjax.machines.pmsm_multiphase`][pmsmjax.machines.pmsm_multiphase]).
 - ``L_ls``: phase leakage inductance, H: the only inductance the non-fundamental subspaces (six phases:
   z1-z2; five phases: x-y) and the zero sequences see, so it sets their harmonic and ripple currents.
   ``L_ls < min(L_d, L_q)`` (a positive magnetising inductance).
@@ -16,8 +17,9 @@ written for those reads them unchanged) plus the leakage inductance ``L_ls`` and
 - ``psi_f3``: optional third-harmonic PM flux linkage of one phase (peak), Wb: the phase flux
   ``psi_f cos(th - g) + psi_f3 cos(3 (th - g))``. ``None`` (default) leaves it out of the program. For five
   phases it lies in the x-y plane (order 3), where x-y currents make torque with it
-  (:mod:`pmsmjax.machines.pmsm_multiphase`); layouts without an order-3 plane refuse it (six phases: the
-  third harmonic is each star's zero sequence, which isolated stars carry no current in).
+  ([`pmsmjax.machines.pmsm_multiphase`][pmsmjax.machines.pmsm_multiphase]); layouts without an order-3 plane
+  refuse it (six phases: the third harmonic is each star's zero sequence, which isolated stars carry no
+  current in).
 
 Leakage is taken as the phase's own (diagonal) leakage; mutual leakage between phases sharing slots is
 not modelled (it would lower the z1-z2 inductance below ``L_ls``).
@@ -42,9 +44,21 @@ def _optional_float(x):
 class MultiPhaseParameters(eqx.Module):
     """Electrical and mechanical parameters of an n-phase PMSM (see the module docstring).
 
-    **Arguments:** `R` ohm (per phase); `L_d`, `L_q` H (VSD fundamental subspace); `psi_f` Wb (per phase,
-    peak); `L_ls` H (phase leakage); `J` kg m^2; `B` N m s/rad; `pole_pairs` (static int); `n_phases`
-    (static int, default 6); `psi_f3` Wb (third-harmonic PM flux, peak) or None (default: none).
+    Args:
+        R: Phase resistance, ohm.
+        L_d: d-axis inductance of the VSD fundamental subspace, H.
+        L_q: q-axis inductance of the VSD fundamental subspace, H.
+        psi_f: PM flux linkage (per phase, peak), Wb.
+        L_ls: Phase leakage inductance, H (below ``min(L_d, L_q)``).
+        J: Total inertia on the shaft, kg m^2.
+        B: Viscous friction coefficient, N m s/rad.
+        pole_pairs: Number of pole pairs (static int).
+        n_phases: Number of phases (static int, at least 3).
+        psi_f3: Third-harmonic PM flux (peak), Wb, or ``None`` (none).
+
+    Raises:
+        ParameterError: For a non-positive resistance, inductance or inertia, a negative flux or friction,
+            bad integer counts, or a leakage not below the axis inductances.
     """
 
     R: Array = eqx.field(converter=as_float)
@@ -57,7 +71,8 @@ class MultiPhaseParameters(eqx.Module):
     pole_pairs: int = eqx.field(static=True, default=4)
     n_phases: int = eqx.field(static=True, default=6)
     psi_f3: Array | None = eqx.field(default=None, converter=_optional_float)
-    #: The leakage inductance's field (see :attr:`pmsmjax.machines.motor.PMSMParameters.leakage_fields`).
+    #: The leakage inductance's field (see
+    #: [`PMSMParameters.leakage_fields`][pmsmjax.machines.motor.PMSMParameters.leakage_fields]).
     leakage_fields: ClassVar[tuple[str, ...]] = ("L_ls",)
 
     def __check_init__(self):

@@ -3,13 +3,13 @@
 Each model is written from its own frame's equations (the book, ch. 1) so that comparing them is an
 independent check of each:
 
-- :class:`PMSMdq`: ``u_d = R i_d + L_d di_d/dt - w_e L_q i_q``,
+- [`PMSMdq`][pmsmjax.machines.pmsm3.PMSMdq]: ``u_d = R i_d + L_d di_d/dt - w_e L_q i_q``,
   ``u_q = R i_q + L_q di_q/dt + w_e (L_d i_d + psi_f)``; ``T_e = 1.5 p_n [psi_f i_q + (L_d - L_q) i_d i_q]``.
-- :class:`PMSMAlphaBeta`: flux ``psi = L_ab(th) i + psi_f [cos th, sin th]`` with
-  ``L_ab = [[L0 + L2 cos 2th, L2 sin 2th], [L2 sin 2th, L0 - L2 cos 2th]]``, ``u = R i + dpsi/dt``,
+- [`PMSMAlphaBeta`][pmsmjax.machines.pmsm3.PMSMAlphaBeta]: flux ``psi = L_ab(th) i + psi_f [cos th, sin th]``
+  with ``L_ab = [[L0 + L2 cos 2th, L2 sin 2th], [L2 sin 2th, L0 - L2 cos 2th]]``, ``u = R i + dpsi/dt``,
   ``T_e = 1.5 p_n (psi_a i_b - psi_b i_a)``.
-- :class:`PMSMabc`: flux ``psi = L_abc(th) i + psi_PM,abc(th)`` with self/mutual inductances
-  ``L_xy = L_l delta_xy + L_0m cos(phi_x - phi_y) + L_2m cos(2 th - phi_x - phi_y)``
+- [`PMSMabc`][pmsmjax.machines.pmsm3.PMSMabc]: flux ``psi = L_abc(th) i + psi_PM,abc(th)`` with self/mutual
+  inductances ``L_xy = L_l delta_xy + L_0m cos(phi_x - phi_y) + L_2m cos(2 th - phi_x - phi_y)``
   (phase axes phi = 0, 2pi/3, -2pi/3), ``u = R i + dpsi/dt``; torque from the co-energy
   ``T_e = p_n dW'/dth_e``, ``W' = 1/2 i^T L i + i^T psi_PM``, taken by automatic differentiation.
   ``L_d = L_l + 1.5 (L_0m + L_2m)``, ``L_q = L_l + 1.5 (L_0m - L_2m)``.
@@ -43,12 +43,13 @@ def _solve2(L: Array, b: Array) -> Array:
 
 class AbstractPMSMdq(AbstractMachine):
     """A three-phase PMSM in the rotor frame, state currents ``(2,)`` = [i_d, i_q], A: the frame
-    conversions and the linear (unsaturated) equations that :class:`PMSMdq` and
-    :class:`~pmsmjax.machines.saturation.SaturatedPMSMdq` share.
+    conversions and the linear (unsaturated) equations that [`PMSMdq`][pmsmjax.machines.pmsm3.PMSMdq] and
+    [`SaturatedPMSMdq`][pmsmjax.machines.saturation.SaturatedPMSMdq] share.
 
     Its equations see the rotor angle only through the voltage (a stator-frame voltage read in the rotor
-    frame), which lets :func:`pmsmjax.machines.integrate.advance` rotate that voltage by small angle
-    increments instead of evaluating trigonometry at every RK4 stage.
+    frame), which lets [`pmsmjax.machines.integrate.advance`][pmsmjax.machines.integrate.advance] rotate that
+    voltage by small angle increments instead of evaluating trigonometry at every RK4 stage. Its concrete
+    classes hold the motor's parameters and the mechanics (``"dynamic"`` or ``"imposed"`` speed).
     """
 
     angle_only_in_voltage: ClassVar[bool] = True
@@ -77,10 +78,10 @@ class AbstractPMSMdq(AbstractMachine):
 
 class PMSMdq(AbstractPMSMdq):
     """PMSM in the rotor frame; state currents ``(2,)`` = [i_d, i_q], A. Surface or salient (the equations
-    of :class:`AbstractPMSMdq`).
+    of [`AbstractPMSMdq`][pmsmjax.machines.pmsm3.AbstractPMSMdq]).
 
-    **Arguments:** `motor` (:class:`~pmsmjax.machines.PMSMParameters`); `mechanics`: ``"dynamic"`` or
-    ``"imposed"`` speed.
+    **Arguments:** `motor` ([`PMSMParameters`][pmsmjax.machines.motor.PMSMParameters]); `mechanics`:
+    ``"dynamic"`` or ``"imposed"`` speed.
     """
 
     motor: PMSMParameters
@@ -94,20 +95,40 @@ class PMSMdq(AbstractPMSMdq):
 
 
 class PMSMAlphaBeta(AbstractMachine):
-    """PMSM in the stationary frame; state currents ``(2,)`` = [i_alpha, i_beta], A."""
+    """PMSM in the stationary frame; state currents ``(2,)`` = [i_alpha, i_beta], A.
+
+    Args:
+        motor: The motor's parameters.
+        mechanics: ``"dynamic"`` or ``"imposed"`` speed.
+    """
 
     motor: PMSMParameters
     mechanics: Mechanics = eqx.field(static=True, default="dynamic")
 
     def inductance(self, theta_e) -> Array:
-        """``(2, 2)`` alpha-beta inductance matrix at electrical angle ``theta_e``, H."""
+        """Alpha-beta inductance matrix at an electrical angle.
+
+        Args:
+            theta_e: Electrical rotor angle, rad.
+
+        Returns:
+            ``(2, 2)`` inductances, H.
+        """
         m = self.motor
         L0, L2 = 0.5 * (m.L_d + m.L_q), 0.5 * (m.L_d - m.L_q)
         c2, s2 = jnp.cos(2.0 * theta_e), jnp.sin(2.0 * theta_e)
         return jnp.stack([jnp.stack([L0 + L2 * c2, L2 * s2]), jnp.stack([L2 * s2, L0 - L2 * c2])])
 
     def flux(self, currents, theta_e) -> Array:
-        """``(2,)`` stator flux linkage, Wb."""
+        """Stator flux linkage.
+
+        Args:
+            currents: ``(2,)`` alpha-beta currents, A.
+            theta_e: Electrical rotor angle, rad.
+
+        Returns:
+            ``(2,)`` flux linkage, Wb.
+        """
         pm = self.motor.psi_f * jnp.stack([jnp.cos(theta_e), jnp.sin(theta_e)])
         return self.inductance(theta_e) @ currents + pm
 
@@ -130,12 +151,11 @@ class PMSMAlphaBeta(AbstractMachine):
 class PMSMabc(AbstractMachine):
     """PMSM in the natural frame; state currents ``(3,)`` = [i_a, i_b, i_c], A (star, isolated neutral).
 
-    **Arguments:**
-
-    - `motor`: :class:`PMSMParameters`.
-    - `leakage_inductance`: per-phase leakage ``L_l``, H; it is also the zero-sequence inductance. It does
-      not affect balanced operation; the default is a tenth of ``min(L_d, L_q)``.
-    - `mechanics`: ``"dynamic"`` or ``"imposed"`` speed.
+    Args:
+        motor: The motor's parameters.
+        leakage_inductance: Per-phase leakage ``L_l``, H; it is also the zero-sequence inductance. It does
+            not affect balanced operation; the default (``None``) is a tenth of ``min(L_d, L_q)``.
+        mechanics: ``"dynamic"`` or ``"imposed"`` speed.
     """
 
     motor: PMSMParameters
@@ -150,7 +170,14 @@ class PMSMabc(AbstractMachine):
         self.mechanics = mechanics
 
     def inductance(self, theta_e) -> Array:
-        """``(3, 3)`` phase inductance matrix ``L_abc(theta_e)``, H."""
+        """Phase inductance matrix ``L_abc(theta_e)``.
+
+        Args:
+            theta_e: Electrical rotor angle, rad.
+
+        Returns:
+            ``(3, 3)`` inductances, H.
+        """
         m = self.motor
         L_l = self.leakage_inductance
         L_0m = (m.L_d + m.L_q - 2.0 * L_l) / 3.0
@@ -161,11 +188,26 @@ class PMSMabc(AbstractMachine):
         )
 
     def magnet_flux(self, theta_e) -> Array:
-        """``(3,)`` PM flux linked by each phase, Wb."""
+        """PM flux linked by each phase.
+
+        Args:
+            theta_e: Electrical rotor angle, rad.
+
+        Returns:
+            ``(3,)`` flux linkages, Wb.
+        """
         return self.motor.psi_f * jnp.cos(theta_e - _PHASE_AXES)
 
     def flux(self, currents, theta_e) -> Array:
-        """``(3,)`` phase flux linkages, Wb, of phase currents ``currents (3,)`` A at ``theta_e`` rad."""
+        """Phase flux linkages.
+
+        Args:
+            currents: ``(3,)`` phase currents, A.
+            theta_e: Electrical rotor angle, rad.
+
+        Returns:
+            ``(3,)`` flux linkages, Wb.
+        """
         return self.inductance(theta_e) @ currents + self.magnet_flux(theta_e)
 
     def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):

@@ -1,11 +1,11 @@
 """The six-phase (dual three-phase) PMSM in double-dq coordinates (the book, ch. 7 and 9).
 
 Each three-phase set has its own Park transform, ABC at ``th`` and UVW at ``th - pi/6``
-(:func:`pmsmjax.frames.multiphase.double_dq`); both dq frames lie on the rotor. State
-``[i_d1, i_q1, i_d2, i_q2]``, A. From the natural-frame inductances (``L_ls`` leakage, ``L_0m``, ``L_2m``
-magnetising, :mod:`.pmsm_multiphase`), a set's own dq inductance is ``L_ls + L_m{d,q}`` and the mutual
-inductance between the sets ``L_m{d,q}``, with ``L_md = 1.5 (L_0m + L_2m)`` and
-``L_mq = 1.5 (L_0m - L_2m)``; each set links the magnet flux ``psi_f`` on its d axis::
+([`pmsmjax.frames.multiphase.double_dq`][pmsmjax.frames.multiphase.double_dq]); both dq frames lie on the
+rotor. State ``[i_d1, i_q1, i_d2, i_q2]``, A. From the natural-frame inductances (``L_ls`` leakage, ``L_0m``,
+``L_2m`` magnetising, [`pmsm_multiphase`][pmsmjax.machines.pmsm_multiphase]), a set's own dq inductance is
+``L_ls + L_m{d,q}`` and the mutual inductance between the sets ``L_m{d,q}``, with ``L_md = 1.5 (L_0m + L_2m)``
+and ``L_mq = 1.5 (L_0m - L_2m)``; each set links the magnet flux ``psi_f`` on its d axis::
 
     psi_d1 = (L_ls + L_md) i_d1 + L_md i_d2 + psi_f,   psi_q1 = (L_ls + L_mq) i_q1 + L_mq i_q2
     psi_d2 = (L_ls + L_md) i_d2 + L_md i_d1 + psi_f,   psi_q2 = (L_ls + L_mq) i_q2 + L_mq i_q1
@@ -14,7 +14,7 @@ inductance between the sets ``L_m{d,q}``, with ``L_md = 1.5 (L_0m + L_2m)`` and
 
 (``L_md = (L_d - L_ls)/2``, ``L_mq = (L_q - L_ls)/2`` in terms of the VSD inductances.) The mutual terms
 couple the two sets' current loops: the cross-coupling that the double-dq controller of chapter 9
-compensates (:mod:`pmsmjax.controllers.multiphase`).
+compensates ([`pmsmjax.controllers.multiphase`][pmsmjax.controllers.multiphase]).
 """
 
 import equinox as eqx
@@ -34,8 +34,12 @@ __all__ = ["PMSM6DoubleDQ"]
 class PMSM6DoubleDQ(AbstractMultiPhaseMachine):
     """Six-phase PMSM in double-dq coordinates; state ``(4,)`` [i_d1, i_q1, i_d2, i_q2], A.
 
-    **Arguments:** `motor` (six-phase :class:`MultiPhaseParameters`), `mechanics`, `resistance_scale`
-    (``(6,)`` phase resistance factors or None).
+    Args:
+        motor: Six-phase motor parameters
+            ([`MultiPhaseParameters`][pmsmjax.machines.multiphase_motor.MultiPhaseParameters]).
+        mechanics: ``"dynamic"`` or ``"imposed"`` speed.
+        resistance_scale: ``(6,)`` phase resistance factors, or ``None`` (balanced).
+        layout: The winding layout; only the dual three-phase ``SIX_PHASE``.
     """
 
     motor: MultiPhaseParameters
@@ -49,12 +53,23 @@ class PMSM6DoubleDQ(AbstractMultiPhaseMachine):
         self._check()
 
     def magnetising(self):
-        """``(L_md, L_mq)``, H: the mutual dq inductances between the sets."""
+        """The mutual dq inductances between the sets.
+
+        Returns:
+            ``(L_md, L_mq)``, H.
+        """
         m = self.motor
         return 0.5 * (m.L_d - m.L_ls), 0.5 * (m.L_q - m.L_ls)
 
     def flux(self, currents: Array) -> Array:
-        """``(4,)`` [psi_d1, psi_q1, psi_d2, psi_q2], Wb."""
+        """Flux linkages of both sets.
+
+        Args:
+            currents: ``(4,)`` [i_d1, i_q1, i_d2, i_q2], A.
+
+        Returns:
+            ``(4,)`` [psi_d1, psi_q1, psi_d2, psi_q2], Wb.
+        """
         m = self.motor
         L_md, L_mq = self.magnetising()
         i_d1, i_q1, i_d2, i_q2 = currents[0], currents[1], currents[2], currents[3]

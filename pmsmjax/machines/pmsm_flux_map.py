@@ -1,4 +1,5 @@
-"""A saturated three-phase PMSM in the rotor frame, from a flux map (:mod:`pmsmjax.machines.flux_map`).
+"""A saturated three-phase PMSM in the rotor frame, from a flux map
+([`pmsmjax.machines.flux_map`][pmsmjax.machines.flux_map]).
 
 Voltage equations with the flux a function of both currents (cross-saturation):
 ``u = R i + dpsi/dt + w_e J psi``, ``J = [[0, -1], [1, 0]]``, ``dpsi/dt = L_inc(i) di/dt`` with the
@@ -11,21 +12,23 @@ and ``T_e = 1.5 p_n (psi_d i_q - psi_q i_d)``. The power balance ``1.5 u.i = 1.5
 ``W = 1.5 (psi.i - int psi.di)`` (co-energy subtracted) when the map is reciprocal.
 
 **Current as the state, not flux.** The drive samples currents, every block reads them
-(:meth:`~pmsmjax.machines.base.AbstractMachine.phase_currents`), and a measured map gives ``psi(i)``, not
-``i(psi)``: a flux state would need the inverse map, either by a Newton solve at every RK4 stage or by a
-second, resampled map with its own interpolation error. With current as the state one map evaluation
-gives both ``psi`` and ``L_inc`` (the interpolant's gradient, analytic), and the 2x2 solve is a handful of
-flops; ``L_inc`` is positive definite on and off the grid (the map's checks and the linear extension), so
-the solve is always well posed.
+([`phase_currents`][pmsmjax.machines.base.AbstractMachine.phase_currents]), and a measured map gives
+``psi(i)``, not ``i(psi)``: a flux state would need the inverse map, either by a Newton solve at every RK4
+stage or by a second, resampled map with its own interpolation error. With current as the state one map
+evaluation gives both ``psi`` and ``L_inc`` (the interpolant's gradient, analytic), and the 2x2 solve is a
+handful of flops; ``L_inc`` is positive definite on and off the grid (the map's checks and the linear
+extension), so the solve is always well posed.
 
-**Integration.** :meth:`PMSMFluxMapdq.split_advance` runs the same classical RK4 as the linear plant
-(:func:`pmsmjax.machines.integrate.rk4_step_rotating_hold`) on a packed state (:func:`advance_packed`,
-which says why), with the map evaluated once per stage for both the current derivative and the torque.
+**Integration.** [`PMSMFluxMapdq.split_advance`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq.split_advance]
+runs the same classical RK4 as the linear plant
+([`pmsmjax.machines.integrate.rk4_step_rotating_hold`][pmsmjax.machines.integrate.rk4_step_rotating_hold]) on
+a packed state (`advance_packed`, which says why), with the map evaluated once per stage for both the current
+derivative and the torque.
 
-:class:`FluxMap` is the interpolant's data as JAX leaves; :class:`PMSMFluxMapdq` is the plant. Its
-``motor`` keeps ``R``, ``J``, ``B``, ``pole_pairs`` and the linear model (``L_d``, ``L_q``, ``psi_f``)
-derived from the map, which the sub-step rule and a controller's design read; the electrical equations
-read only the map.
+[`FluxMap`][pmsmjax.machines.pmsm_flux_map.FluxMap] is the interpolant's data as JAX leaves;
+[`PMSMFluxMapdq`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq] is the plant. Its ``motor`` keeps ``R``,
+``J``, ``B``, ``pole_pairs`` and the linear model (``L_d``, ``L_q``, ``psi_f``) derived from the map, which
+the sub-step rule and a controller's design read; the electrical equations read only the map.
 """
 
 from typing import ClassVar
@@ -47,10 +50,13 @@ __all__ = ["FluxMap", "PMSMFluxMapdq", "flux_map_machine"]
 
 
 class FluxMap(eqx.Module):
-    """The bicubic Hermite interpolant of a :class:`~pmsmjax.machines.flux_map.FluxMapGrid`.
+    """The bicubic Hermite interpolant of a [`FluxMapGrid`][pmsmjax.machines.flux_map.FluxMapGrid].
 
-    - `coefficients`: ``(n_d - 1, n_q - 1, 2, 4, 4)`` per-cell polynomial coefficients, Wb;
-    - `lower`, `upper`, `step`: ``(2,)`` grid corners and spacing ``[i_d, i_q]``, A.
+    Args:
+        coefficients: ``(n_d - 1, n_q - 1, 2, 4, 4)`` per-cell polynomial coefficients, Wb.
+        lower: ``(2,)`` lowest grid corner ``[i_d, i_q]``, A.
+        upper: ``(2,)`` highest grid corner, A.
+        step: ``(2,)`` grid spacing, A.
     """
 
     coefficients: Array = eqx.field(converter=as_float)
@@ -60,6 +66,7 @@ class FluxMap(eqx.Module):
 
     @classmethod
     def from_grid(cls, grid: FluxMapGrid) -> "FluxMap":
+        """The interpolant of a checked map (its coefficients as JAX arrays)."""
         return cls(grid.coefficients(jnp), grid.lower, grid.upper, grid.step)
 
     def __call__(self, i_dq: Array) -> tuple[Array, Array]:
@@ -67,20 +74,24 @@ class FluxMap(eqx.Module):
         return flux_and_inductance(self.coefficients, self.lower, self.step, self.upper, i_dq, jnp)
 
     def excursion(self, i_dq) -> dict:
-        """How far the currents ``i_dq (..., 2)`` (A) of a run went outside the grid
-        (:func:`pmsmjax.machines.flux_map.excursion`)."""
+        """How far the currents of a run went outside the grid
+        ([`pmsmjax.machines.flux_map.excursion`][pmsmjax.machines.flux_map.excursion]).
+
+        Args:
+            i_dq: ``(..., 2)`` currents, A.
+        """
         return excursion(self.lower, self.upper, i_dq)
 
 
 class PMSMFluxMapdq(AbstractMachine):
     """PMSM in the rotor frame with a flux map; state currents ``(2,)`` = [i_d, i_q], A (module docstring).
 
-    **Arguments:**
-
-    - `motor`: :class:`~pmsmjax.machines.PMSMParameters`: ``R``, ``J``, ``B``, ``pole_pairs`` used;
-      ``L_d``, ``L_q``, ``psi_f`` the linear model for sub-step checks and controller design only.
-    - `flux_map`: :class:`FluxMap`.
-    - `mechanics`: ``"dynamic"`` or ``"imposed"`` speed.
+    Args:
+        motor: The motor's parameters ([`PMSMParameters`][pmsmjax.machines.motor.PMSMParameters]): ``R``,
+            ``J``, ``B``, ``pole_pairs`` used; ``L_d``, ``L_q``, ``psi_f`` the linear model for sub-step
+            checks and controller design only.
+        flux_map: The map's interpolant.
+        mechanics: ``"dynamic"`` or ``"imposed"`` speed.
     """
 
     motor: PMSMParameters
@@ -90,7 +101,14 @@ class PMSMFluxMapdq(AbstractMachine):
     angle_only_in_voltage: ClassVar[bool] = True
 
     def flux_dq(self, currents) -> Array:
-        """``(2,)`` rotor-frame flux linkage ``[psi_d, psi_q]``, Wb."""
+        """Rotor-frame flux linkage ``[psi_d, psi_q]``.
+
+        Args:
+            currents: ``(2,)`` dq currents, A.
+
+        Returns:
+            ``(2,)`` flux linkage, Wb.
+        """
         return self.flux_map(currents)[0]
 
     def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
@@ -110,9 +128,17 @@ class PMSMFluxMapdq(AbstractMachine):
         return i_dq
 
     def packed_derivative(self, x, u_dq, load_torque) -> Array:
-        """``(4,)`` time derivative of the packed state ``x = [i_d, i_q, omega_m, theta_e]`` under the
-        rotor-frame voltage ``u_dq (2,)`` V and load torque (N m), from one evaluation of the map (the
-        current derivative and the torque share its flux)."""
+        """Time derivative of the packed state, from one evaluation of the map (the current derivative and
+        the torque share its flux).
+
+        Args:
+            x: ``(4,)`` packed state ``[i_d, i_q, omega_m, theta_e]``.
+            u_dq: ``(2,)`` rotor-frame voltage, V.
+            load_torque: Load torque, N m.
+
+        Returns:
+            ``(4,)`` derivative of ``x``.
+        """
         m = self.motor
         i = x[:2]
         psi, L = self.flux_map(i)
@@ -131,7 +157,13 @@ class PMSMFluxMapdq(AbstractMachine):
         return jnp.stack([di_d, di_q, domega, omega_e])
 
     def vector_field(self, t, state: MachineState, inputs: MachineInput) -> MachineState:
-        """Continuous-time dynamics (diffrax signature), with the map evaluated once."""
+        """Continuous-time dynamics (diffrax signature), with the map evaluated once.
+
+        Args:
+            t: Time (unused).
+            state: The state.
+            inputs: The held voltage and load torque.
+        """
         del t
         x = jnp.concatenate([state.currents, jnp.stack([state.omega_m, state.theta_e])])
         dx = self.packed_derivative(x, inputs.dq(state.theta_e), inputs.load_torque)
@@ -139,7 +171,7 @@ class PMSMFluxMapdq(AbstractMachine):
 
     @property
     def split_advance(self):
-        """``(state, inputs, duration, n_substeps) -> state``: :func:`advance_packed`."""
+        """``(state, inputs, duration, n_substeps) -> state``: `advance_packed`."""
         return lambda state, inputs, duration, n_substeps: advance_packed(
             self, state, inputs, duration, n_substeps
         )
@@ -148,15 +180,25 @@ class PMSMFluxMapdq(AbstractMachine):
 def advance_packed(
     machine: PMSMFluxMapdq, state: MachineState, inputs: MachineInput, duration, n_substeps: int
 ) -> MachineState:
-    """Classical RK4 over ``duration`` (s) in ``n_substeps`` steps, the same arithmetic as
-    :func:`pmsmjax.machines.integrate.rk4_step_rotating_hold` (a stator-frame held voltage rotated back by
-    each stage's angle increment), on the packed state ``[i_d, i_q, omega_m, theta_e]`` with the held
-    voltage, the map evaluated once per stage (:meth:`PMSMFluxMapdq.packed_derivative`).
+    """Classical RK4 over ``duration`` in ``n_substeps`` steps on the packed state.
 
-    Why packed, not the generic integrator on :class:`MachineState`: measured, not derived. With the
-    loop compiled into one kernel (:mod:`pmsmjax.xla_cpu`), the plant alone over the preset saturated map
-    (float32, 2 cores, 10 sub-steps) costs 1.75 us per period packed, 3.0 us through the generic
-    integrator and 2.1 us as a loop over single RK4 stages (the form that suited XLA's per-kernel runtime).
+    The same arithmetic as
+    [`pmsmjax.machines.integrate.rk4_step_rotating_hold`][pmsmjax.machines.integrate.rk4_step_rotating_hold]
+    (a stator-frame held voltage rotated back by each stage's angle increment), on the packed state
+    ``[i_d, i_q, omega_m, theta_e]`` with the held voltage, the map evaluated once per stage
+    ([`PMSMFluxMapdq.packed_derivative`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq.packed_derivative]).
+    Packed rather than the generic integrator on [`MachineState`][pmsmjax.machines.base.MachineState] because
+    it is the fastest of the forms timed (docs/performance.md, "Saturated machines").
+
+    Args:
+        machine: The flux-map machine.
+        state: The state at the interval's start.
+        inputs: The input held over the interval.
+        duration: Length of the interval, s.
+        n_substeps: RK4 steps over the interval.
+
+    Returns:
+        The state at the interval's end, angle wrapped to one turn.
     """
     h = duration / n_substeps
     rotating = inputs.frame == "stator"
@@ -181,8 +223,23 @@ def advance_packed(
 def flux_map_machine(
     grid: FluxMapGrid, R, J, B, pole_pairs: int, *, design_i_q: float = 0.0, mechanics: Mechanics = "dynamic"
 ) -> PMSMFluxMapdq:
-    """The plant of ``grid`` with resistance ``R`` (ohm), inertia ``J`` (kg m^2), friction ``B``
-    (N m s/rad); its linear model is :meth:`FluxMapGrid.linear_model` at ``i_q = design_i_q`` (A)."""
+    """The plant of a flux map.
+
+    Its linear model (for sub-step checks and controller design) is
+    [`FluxMapGrid.linear_model`][pmsmjax.machines.flux_map.FluxMapGrid.linear_model] at ``i_q = design_i_q``.
+
+    Args:
+        grid: The checked flux map.
+        R: Phase resistance, ohm.
+        J: Inertia, kg m^2.
+        B: Viscous friction, N m s/rad.
+        pole_pairs: Number of pole pairs.
+        design_i_q: q current of the linear model's inductances, A.
+        mechanics: ``"dynamic"`` or ``"imposed"`` speed.
+
+    Returns:
+        The [`PMSMFluxMapdq`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq].
+    """
     linear = grid.linear_model(design_i_q)
     motor = PMSMParameters(R=R, J=J, B=B, pole_pairs=pole_pairs, **linear)
     return PMSMFluxMapdq(motor, FluxMap.from_grid(grid), mechanics)

@@ -1,22 +1,25 @@
 """n-phase PMSM models in the natural frame and in VSD coordinates (the book, ch. 7; five phases:
-ch. 10), for any :class:`~pmsmjax.frames.multiphase.PhaseLayout` (six phases by default).
+ch. 10), for any [`PhaseLayout`][pmsmjax.frames.multiphase.PhaseLayout] (six phases by default).
 
 Each model is written from its own frame's equations so that comparing them checks each:
 
-- :class:`MultiPhasePMSMNatural`: ``n`` phase currents; flux ``psi = L(th) i + psi_PM(th)`` with
+- [`MultiPhasePMSMNatural`][pmsmjax.machines.pmsm_multiphase.MultiPhasePMSMNatural]: ``n`` phase currents;
+  flux ``psi = L(th) i + psi_PM(th)`` with
   ``L_xy = L_ls delta_xy + L_0m cos(g_x - g_y) + L_2m cos(2 th - g_x - g_y)`` (phase axes ``g``),
   ``psi_PM,x = psi_f cos(th - g_x)``, ``u = R i + dpsi/dt`` with the star-point voltages that keep each
-  isolated star's current sum at zero; torque ``p_n dW'/dth_e`` of the co-energy by automatic
-  differentiation. ``L_0m = (L_d + L_q - 2 L_ls)/n``, ``L_2m = (L_d - L_q)/n``.
-- :class:`MultiPhasePMSMVSD`: stationary VSD currents ``[alpha, beta, planes...]`` (the zero sequences
-  of isolated stars are identically 0 and not states): the fundamental plane as the three-phase
-  alpha-beta model (salient inductance matrix of ``L0 = (L_d + L_q)/2``, ``L2 = (L_d - L_q)/2``), every
-  other plane ``u = R i + L_ls di/dt``: it sees only leakage and links no magnet flux, so it produces
-  no torque. ``T_e = (n/2) p_n (psi_a i_b - psi_b i_a)``.
-- :class:`MultiPhasePMSMdq`: ``[d, q, planes...]``: the fundamental in the rotor frame (the three-phase
-  dq equations), the other planes stationary; ``T_e = (n/2) p_n [psi_f i_q + (L_d - L_q) i_d i_q]``.
-  Its equations see the rotor angle only through the held stator-frame voltage, so it integrates with
-  :func:`pmsmjax.machines.integrate.advance`'s rotating hold (the fast model for drives).
+  isolated star's current sum at zero; torque ``p_n dW'/dth_e`` of the co-energy by automatic differentiation.
+  ``L_0m = (L_d + L_q - 2 L_ls)/n``, ``L_2m = (L_d - L_q)/n``.
+- [`MultiPhasePMSMVSD`][pmsmjax.machines.pmsm_multiphase.MultiPhasePMSMVSD]: stationary VSD currents
+  ``[alpha, beta, planes...]`` (the zero sequences of isolated stars are identically 0 and not states): the
+  fundamental plane as the three-phase alpha-beta model (salient inductance matrix of ``L0 = (L_d + L_q)/2``,
+  ``L2 = (L_d - L_q)/2``), every other plane ``u = R i + L_ls di/dt``: it sees only leakage and links no
+  magnet flux, so it produces no torque. ``T_e = (n/2) p_n (psi_a i_b - psi_b i_a)``.
+- [`MultiPhasePMSMdq`][pmsmjax.machines.pmsm_multiphase.MultiPhasePMSMdq]: ``[d, q, planes...]``: the
+  fundamental in the rotor frame (the three-phase dq equations), the other planes stationary;
+  ``T_e = (n/2) p_n [psi_f i_q + (L_d - L_q) i_d i_q]``. Its equations see the rotor angle only through the
+  held stator-frame voltage, so it integrates with
+  [`pmsmjax.machines.integrate.advance`][pmsmjax.machines.integrate.advance]'s rotating hold (the fast model
+  for drives).
 
 The block structure (the non-fundamental planes decoupled, leakage only) is a property of the natural
 model, not an assumption of the test: the VSD of ``L(th)`` is block-diagonal because
@@ -33,11 +36,11 @@ phase magnet flux gains ``psi_f3 cos(3 (th - g_x))``. Its VSD lies in the order-
 x-y) as ``psi_f3 [cos 3th, sin 3th]`` (``(2/n) sum_k cos(3 th - 3 g_k) e^{j 3 g_k} = e^{j 3 th}``), so that
 plane gains the back-EMF ``3 w_e psi_f3 [-sin 3th, cos 3th]`` and the torque
 ``(n/2) p_n 3 psi_f3 (i_y cos 3th - i_x sin 3th)`` (co-energy derivative): x-y currents then make torque.
-The natural model takes it in its flux (torque by the co-energy derivative as before); the VSD model in
+The natural model takes it in its flux (torque by the co-energy derivative, as above); the VSD model in
 the x-y flux; the dq model (x-y stationary) as the two terms above, and then integrates with the angle
 as a state (no rotating hold, no split advance).
 
-Input: :class:`~pmsmjax.machines.base.MachineInput` with ``u`` of ``2 n_planes`` components: the
+Input: [`MachineInput`][pmsmjax.machines.base.MachineInput] with ``u`` of ``2 n_planes`` components: the
 stationary VSD voltage ``[u_alpha, u_beta, u_z1, u_z2, ...]`` (``frame="stator"``), or
 ``[u_d, u_q, u_z1, u_z2, ...]`` with only the fundamental in the rotor frame (``frame="rotor"``).
 """
@@ -74,9 +77,13 @@ def _as_scale(scale):
 class AbstractMultiPhaseMachine(AbstractMachine):
     """An n-phase PMSM in one frame. ``n_phases`` is the layout's phase count.
 
-    Adds to :class:`AbstractMachine`: :meth:`currents_to_vsd` / :meth:`currents_from_vsd` (model frame
-    <-> stationary VSD ``(2 n_planes,)`` [alpha, beta, z1, z2, ...], A), :meth:`vsd_currents` and
-    :meth:`initial_state_vsd`; phase currents are the inverse VSD with zero sequences 0.
+    Adds to [`AbstractMachine`][pmsmjax.machines.base.AbstractMachine]:
+    [`currents_to_vsd`][pmsmjax.machines.pmsm_multiphase.AbstractMultiPhaseMachine.currents_to_vsd] /
+    [`currents_from_vsd`][pmsmjax.machines.pmsm_multiphase.AbstractMultiPhaseMachine.currents_from_vsd] (model
+    frame <-> stationary VSD ``(2 n_planes,)`` [alpha, beta, z1, z2, ...], A),
+    [`vsd_currents`][pmsmjax.machines.pmsm_multiphase.AbstractMultiPhaseMachine.vsd_currents] and
+    [`initial_state_vsd`][pmsmjax.machines.pmsm_multiphase.AbstractMultiPhaseMachine.initial_state_vsd]; phase
+    currents are the inverse VSD with zero sequences 0.
     """
 
     motor: eqx.AbstractVar[MultiPhaseParameters]
@@ -115,7 +122,14 @@ class AbstractMultiPhaseMachine(AbstractMachine):
         return 2 * self.layout.harmonics.index(3)
 
     def third_harmonic_flux(self, theta_e) -> Array:
-        """``(2,)`` PM flux of the order-3 plane, Wb: ``psi_f3 [cos 3th, sin 3th]`` (requires psi_f3)."""
+        """PM flux of the order-3 plane, ``psi_f3 [cos 3th, sin 3th]`` (requires ``psi_f3``).
+
+        Args:
+            theta_e: Electrical rotor angle, rad.
+
+        Returns:
+            ``(2,)`` flux, Wb.
+        """
         return self.motor.psi_f3 * jnp.stack([jnp.cos(3.0 * theta_e), jnp.sin(3.0 * theta_e)])
 
     # --- frame conversions ---------------------------------------------------------------------
@@ -135,11 +149,25 @@ class AbstractMultiPhaseMachine(AbstractMachine):
         return self.currents_from_vsd(jnp.concatenate([inverse_park(i_dq, theta_e), rest]), theta_e)
 
     def vsd_currents(self, state: MachineState) -> Array:
-        """``(2 n_planes,)`` stationary VSD currents [alpha, beta, z1, z2, ...], A."""
+        """Stationary VSD currents of a state.
+
+        Args:
+            state: The machine's state.
+
+        Returns:
+            ``(2 n_planes,)`` currents [alpha, beta, z1, z2, ...], A.
+        """
         return self.currents_to_vsd(state.currents, state.theta_e)
 
     def phase_currents(self, state: MachineState) -> Array:
-        """``(n,)`` phase currents, A."""
+        """Phase currents (the inverse VSD, zero sequences 0).
+
+        Args:
+            state: The machine's state.
+
+        Returns:
+            ``(n,)`` phase currents, A.
+        """
         T_inv = jnp.asarray(inverse_vsd_matrix(self.layout)[:, : self.layout.n_active])
         return T_inv @ self.vsd_currents(state)
 
@@ -147,7 +175,13 @@ class AbstractMultiPhaseMachine(AbstractMachine):
         return self.vsd_currents(state)[:2]
 
     def initial_state_vsd(self, i_vsd, omega_m=0.0, theta_e=0.0) -> MachineState:
-        """State with stationary VSD currents ``i_vsd (2 n_planes,)`` A, speed rad/s, angle rad."""
+        """State with the given stationary VSD currents, speed and angle.
+
+        Args:
+            i_vsd: ``(2 n_planes,)`` VSD currents, A.
+            omega_m: Mechanical speed, rad/s.
+            theta_e: Electrical rotor angle, rad.
+        """
         dtype = self.motor.R.dtype
         theta = jnp.asarray(theta_e, dtype)
         return MachineState(
@@ -156,8 +190,15 @@ class AbstractMultiPhaseMachine(AbstractMachine):
 
     # --- the resistive voltage, balanced or not -------------------------------------------------
     def resistive_voltage_vsd(self, i_vsd: Array) -> Array:
-        """``(2 n_planes,)`` resistive voltage of stationary VSD currents, V: ``R i`` when balanced,
-        ``T_act diag(R k) T_act^-1 i`` with the phase factors ``k`` (module docstring)."""
+        """Resistive voltage of stationary VSD currents: ``R i`` when balanced,
+        ``T_act diag(R k) T_act^-1 i`` with the phase factors ``k`` (module docstring).
+
+        Args:
+            i_vsd: ``(2 n_planes,)`` VSD currents, A.
+
+        Returns:
+            ``(2 n_planes,)`` voltage, V.
+        """
         if self.resistance_scale is None:
             return self.motor.R * i_vsd
         m = self.layout.n_active
@@ -169,8 +210,11 @@ class AbstractMultiPhaseMachine(AbstractMachine):
 class MultiPhasePMSMNatural(AbstractMultiPhaseMachine):
     """n-phase PMSM in the natural frame; state currents ``(n,)`` phase currents, A (module docstring).
 
-    **Arguments:** `motor` (:class:`MultiPhaseParameters`), `layout` (static, default :data:`SIX_PHASE`),
-    `mechanics`, `resistance_scale` (``(n,)`` or None).
+    Args:
+        motor: The motor's parameters.
+        layout: The winding layout (static).
+        mechanics: ``"dynamic"`` or ``"imposed"`` speed.
+        resistance_scale: ``(n,)`` phase resistance factors, or ``None`` (balanced).
     """
 
     motor: MultiPhaseParameters
@@ -185,7 +229,14 @@ class MultiPhasePMSMNatural(AbstractMultiPhaseMachine):
         return jnp.asarray(np.asarray(self.layout.angles), dtype)
 
     def inductance(self, theta_e) -> Array:
-        """``(n, n)`` phase inductance matrix at ``theta_e`` (rad), H."""
+        """Phase inductance matrix at an electrical angle.
+
+        Args:
+            theta_e: Electrical rotor angle, rad.
+
+        Returns:
+            ``(n, n)`` inductances, H.
+        """
         m = self.motor
         n = self.layout.n
         L_0m = (m.L_d + m.L_q - 2.0 * m.L_ls) / n
@@ -195,7 +246,14 @@ class MultiPhasePMSMNatural(AbstractMultiPhaseMachine):
         return m.L_ls * jnp.eye(n) + L_0m * jnp.cos(gx - gy) + L_2m * jnp.cos(2.0 * theta_e - gx - gy)
 
     def magnet_flux(self, theta_e) -> Array:
-        """``(n,)`` PM flux linked by each phase, Wb (with the third harmonic if ``psi_f3`` is given)."""
+        """PM flux linked by each phase (with the third harmonic if ``psi_f3`` is given).
+
+        Args:
+            theta_e: Electrical rotor angle, rad.
+
+        Returns:
+            ``(n,)`` flux linkages, Wb.
+        """
         angle = theta_e - self._axes(jnp.result_type(theta_e, self.motor.R))
         flux = self.motor.psi_f * jnp.cos(angle)
         if self.motor.psi_f3 is not None:
@@ -203,7 +261,15 @@ class MultiPhasePMSMNatural(AbstractMultiPhaseMachine):
         return flux
 
     def flux(self, currents, theta_e) -> Array:
-        """``(n,)`` phase flux linkages, Wb, of phase currents ``currents (n,)`` A at ``theta_e`` rad."""
+        """Phase flux linkages.
+
+        Args:
+            currents: ``(n,)`` phase currents, A.
+            theta_e: Electrical rotor angle, rad.
+
+        Returns:
+            ``(n,)`` flux linkages, Wb.
+        """
         return self.inductance(theta_e) @ currents + self.magnet_flux(theta_e)
 
     def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
@@ -245,7 +311,14 @@ class MultiPhasePMSMNatural(AbstractMultiPhaseMachine):
 
 
 class MultiPhasePMSMVSD(AbstractMultiPhaseMachine):
-    """n-phase PMSM in stationary VSD coordinates; state ``(2 n_planes,)`` [alpha, beta, z1, z2, ...], A."""
+    """n-phase PMSM in stationary VSD coordinates; state ``(2 n_planes,)`` [alpha, beta, z1, z2, ...], A.
+
+    Args:
+        motor: The motor's parameters.
+        layout: The winding layout (static).
+        mechanics: ``"dynamic"`` or ``"imposed"`` speed.
+        resistance_scale: ``(n,)`` phase resistance factors, or ``None`` (balanced).
+    """
 
     motor: MultiPhaseParameters
     layout: PhaseLayout = eqx.field(static=True, default=SIX_PHASE)
@@ -256,14 +329,29 @@ class MultiPhasePMSMVSD(AbstractMultiPhaseMachine):
         self._check()
 
     def inductance(self, theta_e) -> Array:
-        """``(2, 2)`` alpha-beta inductance matrix at ``theta_e`` (rad), H."""
+        """Alpha-beta inductance matrix at an electrical angle.
+
+        Args:
+            theta_e: Electrical rotor angle, rad.
+
+        Returns:
+            ``(2, 2)`` inductances, H.
+        """
         m = self.motor
         L0, L2 = 0.5 * (m.L_d + m.L_q), 0.5 * (m.L_d - m.L_q)
         c2, s2 = jnp.cos(2.0 * theta_e), jnp.sin(2.0 * theta_e)
         return jnp.stack([jnp.stack([L0 + L2 * c2, L2 * s2]), jnp.stack([L2 * s2, L0 - L2 * c2])])
 
     def flux(self, currents, theta_e) -> Array:
-        """``(2 n_planes,)`` stator flux linkage in VSD coordinates, Wb."""
+        """Stator flux linkage in VSD coordinates.
+
+        Args:
+            currents: ``(2 n_planes,)`` VSD currents, A.
+            theta_e: Electrical rotor angle, rad.
+
+        Returns:
+            ``(2 n_planes,)`` flux linkage, Wb.
+        """
         pm = self.motor.psi_f * jnp.stack([jnp.cos(theta_e), jnp.sin(theta_e)])
         psi_ab = self.inductance(theta_e) @ currents[:2] + pm
         psi_rest = self.motor.L_ls * currents[2:]
@@ -294,8 +382,10 @@ class MultiPhasePMSMVSD(AbstractMultiPhaseMachine):
 
 
 class _Fundamental(AbstractMachine):
-    """The fundamental (dq) subspace of :class:`MultiPhasePMSMdq` with the mechanics, on its own: the
-    three-phase dq equations with the n-phase torque factor (for :meth:`MultiPhasePMSMdq.split_advance`)."""
+    """The fundamental (dq) subspace of
+    [`MultiPhasePMSMdq`][pmsmjax.machines.pmsm_multiphase.MultiPhasePMSMdq] with the mechanics, on its own:
+    the three-phase dq equations with the n-phase torque factor (for
+    [`MultiPhasePMSMdq.split_advance`][pmsmjax.machines.pmsm_multiphase.MultiPhasePMSMdq.split_advance])."""
 
     motor: MultiPhaseParameters
     mechanics: Mechanics = eqx.field(static=True, default="dynamic")
@@ -325,11 +415,18 @@ class MultiPhasePMSMdq(AbstractMultiPhaseMachine):
     [i_d, i_q, z1, z2, ...], A. The fast model for drives (module docstring).
 
     Balanced (``resistance_scale=None``), the planes after the fundamental are independent first-order
-    systems ``L_ls di/dt = u - R i`` under a held voltage: :meth:`split_advance` integrates the fundamental
-    and the mechanics with the rotating-hold RK4 of the three-phase dq model and those planes exactly
-    (``i(t) = e^{-t R/L_ls} i(0) + (1 - e^{-t R/L_ls}) u/R``). The result is the same ODE's solution; the
-    per-period cost stays near the three-phase model's (benchmarks/bench_six_phase.py), where RK4 over
-    the whole state cost 2.2 times as much.
+    systems ``L_ls di/dt = u - R i`` under a held voltage:
+    [`split_advance`][pmsmjax.machines.pmsm_multiphase.MultiPhasePMSMdq.split_advance] integrates the
+    fundamental and the mechanics with the rotating-hold RK4 of the three-phase dq model and those planes
+    exactly (``i(t) = e^{-t R/L_ls} i(0) + (1 - e^{-t R/L_ls}) u/R``). The result is the same ODE's solution,
+    at a per-period cost near the three-phase model's, where RK4 over the whole state costs about twice as
+    much (docs/performance.md, "Six-phase and five-phase drives").
+
+    Args:
+        motor: The motor's parameters.
+        layout: The winding layout (static).
+        mechanics: ``"dynamic"`` or ``"imposed"`` speed.
+        resistance_scale: ``(n,)`` phase resistance factors, or ``None`` (balanced).
     """
 
     motor: MultiPhaseParameters

@@ -20,7 +20,7 @@ Torque ``T_e = 1.5 p_n (psi_d i_q - psi_q i_d)``: this is ``p_n dW'/dth_e`` at f
 with the co-energy ``W' = 1.5 [integral_0^i_d psi_d(x) dx + L_q i_q^2 / 2]`` (tests check both that and the
 power balance ``1.5 u.i = 1.5 R |i|^2 + dW_field/dt + T_e w_m``).
 
-``a = 0`` gives ``psi_d = psi_f + L_d i_d`` exactly: the linear :class:`~pmsmjax.machines.PMSMdq`
+``a = 0`` gives ``psi_d = psi_f + L_d i_d`` exactly: the linear [`PMSMdq`][pmsmjax.machines.pmsm3.PMSMdq]
 (trajectories agree to rounding; ``saturation=None`` takes the linear equations themselves, bit for bit).
 Everything is smooth in ``i_d``, ``a`` and ``i_s`` (tanh, ln cosh), hence differentiable.
 """
@@ -45,12 +45,11 @@ def _log_cosh(x):
 class DAxisSaturation(eqx.Module):
     """Parameters of the d-axis flux map (module docstring).
 
-    **Arguments:**
-
-    - `depth`: ``a``, dimensionless in ``[0, 1)``: the relative change of the incremental d-axis inductance
-      far along +d (``1 - a``) and -d (``1 + a``). 0 switches saturation off.
-    - `current_scale`: ``i_s``, A: the d current over which the incremental inductance changes
-      (``tanh(1) = 76 %`` of the change at ``i_d = i_s``).
+    Args:
+        depth: ``a``, dimensionless in ``[0, 1)``: the relative change of the incremental d-axis inductance
+            far along +d (``1 - a``) and -d (``1 + a``). 0 switches saturation off.
+        current_scale: ``i_s``, A: the d current over which the incremental inductance changes
+            (``tanh(1) = 76 %`` of the change at ``i_d = i_s``).
     """
 
     depth: Array = eqx.field(converter=as_float)
@@ -65,26 +64,38 @@ class DAxisSaturation(eqx.Module):
             )
 
     def incremental_inductance(self, L_d, i_d):
-        """``L_dd(i_d) = dpsi_d/di_d``, H."""
+        """``L_dd(i_d) = dpsi_d/di_d``, H.
+
+        Args:
+            L_d: Incremental d inductance at ``i_d = 0``, H.
+            i_d: d-axis current, A.
+        """
         return L_d * (1.0 - self.depth * jnp.tanh(i_d / self.current_scale))
 
     def flux(self, psi_f, L_d, i_d):
-        """``psi_d(i_d)``, Wb (magnet flux included)."""
+        """``psi_d(i_d)``, Wb (magnet flux included).
+
+        Args:
+            psi_f: PM flux linkage, Wb.
+            L_d: Incremental d inductance at ``i_d = 0``, H.
+            i_d: d-axis current, A.
+        """
         s = self.current_scale
         return psi_f + L_d * (i_d - self.depth * s * _log_cosh(i_d / s))
 
 
 class SaturatedPMSMdq(AbstractPMSMdq):
-    """The rotor-frame PMSM of :class:`~pmsmjax.machines.PMSMdq` with d-axis saturation; state currents
-    ``(2,)`` = [i_d, i_q], A.
+    """The rotor-frame PMSM of [`PMSMdq`][pmsmjax.machines.pmsm3.PMSMdq] with d-axis saturation; state
+    currents ``(2,)`` = [i_d, i_q], A.
 
     **Arguments:**
 
-    - `motor`: :class:`~pmsmjax.machines.PMSMParameters`; ``L_d`` is the incremental d inductance at
-      ``i_d = 0``.
+    - `motor`: [`PMSMParameters`][pmsmjax.machines.motor.PMSMParameters]; ``L_d`` is the incremental d
+      inductance at ``i_d = 0``.
     - `mechanics`: ``"dynamic"`` or ``"imposed"`` speed.
-    - `saturation`: :class:`DAxisSaturation`, or ``None`` for the linear machine (the linear equations of
-      :class:`~pmsmjax.machines.pmsm3.AbstractPMSMdq`, as :class:`~pmsmjax.machines.PMSMdq`).
+    - `saturation`: [`DAxisSaturation`][pmsmjax.machines.saturation.DAxisSaturation], or ``None`` for the
+      linear machine (the linear equations of [`AbstractPMSMdq`][pmsmjax.machines.pmsm3.AbstractPMSMdq], as
+      [`PMSMdq`][pmsmjax.machines.pmsm3.PMSMdq]).
     """
 
     motor: PMSMParameters
@@ -92,7 +103,14 @@ class SaturatedPMSMdq(AbstractPMSMdq):
     saturation: DAxisSaturation | None = None
 
     def flux_dq(self, currents) -> Array:
-        """``(2,)`` rotor-frame flux linkage ``[psi_d, psi_q]``, Wb."""
+        """Rotor-frame flux linkage ``[psi_d, psi_q]``.
+
+        Args:
+            currents: ``(2,)`` dq currents, A.
+
+        Returns:
+            ``(2,)`` flux linkage, Wb.
+        """
         m = self.motor
         if self.saturation is None:
             psi_d = m.L_d * currents[0] + m.psi_f
@@ -122,12 +140,17 @@ class SaturatedPMSMdq(AbstractPMSMdq):
 def saturated_machine(
     motor, depth=0.3, current_scale=8.0, mechanics: Mechanics = "dynamic"
 ) -> SaturatedPMSMdq:
-    """``motor`` as a :class:`SaturatedPMSMdq` with a d-axis flux map of ``depth`` (a) and
-    ``current_scale`` (i_s, A).
+    """``motor`` as a [`SaturatedPMSMdq`][pmsmjax.machines.saturation.SaturatedPMSMdq] with a d-axis flux map.
 
     Defaults for the book's salient machine (no measured flux map is available: docs/book_reference.md,
-    "Parameters the book's text is not available for"): with ``a = 0.3``, ``i_s = 8 A`` a +-8 A pulse
-    sees secant d inductances of ``L_d (1 -+ 0.13)``, a contrast of the order reported for IPM machines by
+    "Parameters the book's text is not available for"): with ``a = 0.3``, ``i_s = 8 A`` a +-8 A pulse sees
+    secant d inductances of ``L_d (1 -+ 0.13)``, a contrast of the order reported for IPM machines by
     Jeong et al.
+
+    Args:
+        motor: The motor's parameters.
+        depth: ``a``, the saturation depth in ``[0, 1)``.
+        current_scale: ``i_s``, A.
+        mechanics: ``"dynamic"`` or ``"imposed"`` speed.
     """
     return SaturatedPMSMdq(motor, mechanics=mechanics, saturation=DAxisSaturation(depth, current_scale))

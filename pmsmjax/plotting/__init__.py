@@ -1,5 +1,6 @@
-"""Figures: a trace against time (:mod:`.traces`, re-exported here) and the figures of the comparisons
-(:mod:`.compare`, :mod:`.observers`, :mod:`.pwm`, :mod:`.six_phase`).
+"""Figures: a trace against time ([`traces`][pmsmjax.plotting.traces], re-exported here) and the figures of
+the comparisons ([`compare`][pmsmjax.plotting.compare], [`observers`][pmsmjax.plotting.observers],
+[`pwm`][pmsmjax.plotting.pwm], [`six_phase`][pmsmjax.plotting.six_phase]).
 """
 
 from pmsmjax.plotting.traces import (

@@ -1,4 +1,5 @@
-"""Figures of the controller comparison (:mod:`pmsmjax.jobs.control_comparison`)."""
+"""Figures of the controller comparison
+([`pmsmjax.jobs.control_comparison`][pmsmjax.jobs.control_comparison])."""
 
 import matplotlib.pyplot as plt
 import numpy as np

@@ -1,6 +1,7 @@
-"""Figures of the PWM comparison (:mod:`pmsmjax.jobs.pwm_comparison`): waveforms, spectra and the THD
-table of the three-phase comparison; :func:`comparison_figures` picks those of any phase count (the six- and
-five-phase ones are in :mod:`.six_phase`).
+"""Figures of the PWM comparison ([`pmsmjax.jobs.pwm_comparison`][pmsmjax.jobs.pwm_comparison]): waveforms,
+spectra and the THD table of the three-phase comparison;
+[`comparison_figures`][pmsmjax.plotting.pwm.comparison_figures] picks those of any phase count (the six- and
+five-phase ones are in [`six_phase`][pmsmjax.plotting.six_phase]).
 
 The variants differ only in the switching ripple, which is a few per cent of the current: drawn on top of
 each other they are indistinguishable. So every figure gives each variant its own panel or its own
@@ -140,7 +141,8 @@ def thd_figure(result: dict):
 
 
 def comparison_figures(result: dict) -> list:
-    """``[(file name, figure)]`` of a :func:`pmsmjax.jobs.pwm_comparison.compare` result.
+    """``[(file name, figure)]`` of a
+    [`pmsmjax.jobs.pwm_comparison.compare`][pmsmjax.jobs.pwm_comparison.compare] result.
 
     Three phases: ``pwm_waveforms.png`` and ``pwm_spectra.png`` (sinusoidal PWM and SVPWM on the switching
     bridge, those compared) and ``pwm_thd.png``. ``n`` = 6 or 5 phases: ``pwm<n>_trajectories.png`` (every

@@ -13,7 +13,8 @@ from pmsmjax.units import rad_s_to_rpm
 
 
 def save_figure(fig, path: Path) -> Path:
-    """Write a figure as PNG atomically (:func:`pmsmjax.io.logs.atomic_write`) and close it."""
+    """Write a figure as PNG atomically ([`pmsmjax.io.logs.atomic_write`][pmsmjax.io.logs.atomic_write]) and
+    close it."""
     try:
         return atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=120, bbox_inches="tight"))
     finally:

@@ -1,7 +1,7 @@
-"""Ready-made drives: the book's constants (:mod:`.book_constants`), the book's three-phase drive
-(:mod:`.three_phase`, re-exported here), the six- and five-phase drives (:mod:`.six_phase`,
-:mod:`.five_phase`), the control methods by name (:mod:`.control_methods`) and the motor files in
-``motors/``.
+"""Ready-made drives: the book's constants ([`book_constants`][pmsmjax.presets.book_constants]), the book's
+three-phase drive ([`three_phase`][pmsmjax.presets.three_phase], re-exported here), the six- and five-phase
+drives ([`six_phase`][pmsmjax.presets.six_phase], [`five_phase`][pmsmjax.presets.five_phase]), the control
+methods by name ([`control_methods`][pmsmjax.presets.control_methods]) and the motor files in ``motors/``.
 
 The re-exported names are imported on first use (PEP 562), so that ``pmsmjax.presets.book_constants``
 reads without loading JAX (the command line's checks before a run).
@@ -40,8 +40,8 @@ _THREE_PHASE = (
     "dtc_drive",
     "smc_dtc_drive",
 )
-#: Sensorless drives are assembled (:mod:`pmsmjax.assemble`); their names stay here, where users find the
-#: book's drives.
+#: Sensorless drives are assembled ([`pmsmjax.assemble`][pmsmjax.assemble]); their names stay here, where
+#: users find the book's drives.
 _ASSEMBLED = ("sensorless_drive", "with_observer", "STARTUP_DEFAULTS")
 #: Public name -> (module, attribute), the layout of ``pmsmjax._LAZY``.
 _LAZY = by_module({"book_constants": _BOOK_CONSTANTS, "three_phase": _THREE_PHASE, "..assemble": _ASSEMBLED})

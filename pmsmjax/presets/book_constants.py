@@ -23,7 +23,8 @@ BOOK_J_KG_M2 = 0.003
 #: Viscous friction B, N m s/rad.
 BOOK_B_NM_S = 0.008
 
-#: The surface motor as the fields of :class:`pmsmjax.machines.motor.PMSMParameters` (SI units as above);
+#: The surface motor as the fields of
+#: [`pmsmjax.machines.motor.PMSMParameters`][pmsmjax.machines.motor.PMSMParameters] (SI units as above);
 #: read-only (copy it to change a value).
 BOOK_MOTOR = MappingProxyType(
     dict(
@@ -53,9 +54,10 @@ BOOK_CURRENT_BANDWIDTH = 1100.0
 BOOK_SPEED_BANDWIDTH = 50.0
 
 #: Comparator sample period of the hysteresis current control drive, s (100 kHz;
-#: :func:`pmsmjax.presets.hysteresis_drive` says why).
+#: [`pmsmjax.presets.hysteresis_drive`][pmsmjax.presets.three_phase.hysteresis_drive] says why).
 HYSTERESIS_SAMPLE_PERIOD_S = 10e-6
-#: Comparator sample period of the switching-table DTC drive, s (40 kHz; :func:`pmsmjax.presets.dtc_drive`).
+#: Comparator sample period of the switching-table DTC drive, s (40 kHz;
+#: [`pmsmjax.presets.dtc_drive`][pmsmjax.presets.three_phase.dtc_drive]).
 DTC_SAMPLE_PERIOD_S = 25e-6
 
 # The scenario.

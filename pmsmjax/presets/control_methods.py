@@ -1,4 +1,4 @@
-"""Control methods by name: the three-phase controls of :data:`pmsmjax.spec.registry.REGISTRY` with the
+"""Control methods by name: the three-phase controls of `pmsmjax.spec.registry.REGISTRY` with the
 presets that build their drives, behind ``pmsmjax demo --control``, ``pmsmjax compare`` and
 ``pmsmjax tune --control``. A method added to the registry is known to every command.
 """

@@ -28,17 +28,19 @@ fundamental's ``L_d/R = 5.3 ms``.
 **Third-harmonic back-EMF** (optional, off by default): ``five_phase_motor(third_harmonic=0.1)`` sets
 ``psi_f3 = 0.1 psi_f`` (a magnet shape with a flatter-topped back-EMF; the fraction is the caller's
 choice, the book gives none). It makes x-y currents produce torque
-(:mod:`pmsmjax.machines.pmsm_multiphase`); the drives here keep the x-y current reference at zero, so it
-is a disturbance the x-y loops reject (in the third-harmonic frame it is a constant voltage).
+([`pmsmjax.machines.pmsm_multiphase`][pmsmjax.machines.pmsm_multiphase]); the drives here keep the x-y current
+reference at zero, so it is a disturbance the x-y loops reject (in the third-harmonic frame it is a constant
+voltage).
 
 The same numbers are in the motor file ``pmsmjax/presets/motors/five_phase_book.toml``.
 
-**Drives** (:func:`five_phase_drive`): the book drive's settings (311 V, 10 kHz, one-period computational
+**Drives** (`five_phase_drive`): the book drive's settings (311 V, 10 kHz, one-period computational
 delay, design-rule gains at a_c = 1100 rad/s and beta = 50 rad/s, 15 A limit) with a control of
-:data:`FIVE_PHASE_CONTROLS` and a modulator of :data:`FIVE_PHASE_PWMS`; the controller is the n-phase
-cascade :class:`~pmsmjax.controllers.multiphase.MultiPhaseFOC` with the five-phase VSD current block (dq PI
+[`FIVE_PHASE_CONTROLS`][pmsmjax.presets.five_phase.FIVE_PHASE_CONTROLS] and a modulator of
+[`FIVE_PHASE_PWMS`][pmsmjax.presets.five_phase.FIVE_PHASE_PWMS]; the controller is the n-phase cascade
+[`MultiPhaseFOC`][pmsmjax.controllers.multiphase.MultiPhaseFOC] with the five-phase VSD current block (dq PI
 + x-y PI in the frame at ``3 theta_e``), the bridges the n-leg ones
-(:mod:`pmsmjax.inverters.multiphase_bridges`) with the five-phase layout.
+([`pmsmjax.inverters.multiphase_bridges`][pmsmjax.inverters.multiphase_bridges]) with the five-phase layout.
 """
 
 from pathlib import Path
@@ -138,12 +140,13 @@ FIVE_PHASE_PWMS = {
     "large-vector": _large,
 }
 
-#: Control schemes by name -> one-line description (:data:`pmsmjax.spec.registry.REGISTRY`).
+#: Control schemes by name -> one-line description (`pmsmjax.spec.registry.REGISTRY`).
 FIVE_PHASE_CONTROLS = machine_controls("five-phase")
 
 
 def five_phase_machine(motor=None, frame: str = "dq", mechanics: str = "dynamic", resistance_scale=None):
-    """The five-phase machine model of ``motor`` in ``frame`` (:data:`FIVE_PHASE_FRAMES`)."""
+    """The five-phase machine model of ``motor`` in ``frame``
+    ([`FIVE_PHASE_FRAMES`][pmsmjax.presets.five_phase.FIVE_PHASE_FRAMES])."""
     motor = five_phase_motor() if motor is None else motor
     return multiphase_machine(
         "five-phase", FIVE_PHASE_FRAMES, motor, frame, mechanics, resistance_scale, layout=FIVE_PHASE
@@ -151,13 +154,14 @@ def five_phase_machine(motor=None, frame: str = "dq", mechanics: str = "dynamic"
 
 
 def five_phase_current_block(control: str, motor, current_bandwidth: float, w_c: float = PR_W_C):
-    """The five-phase current block of ``control`` (:data:`FIVE_PHASE_CONTROLS`) from the design rules.
+    """The five-phase current block of ``control``
+    ([`FIVE_PHASE_CONTROLS`][pmsmjax.presets.five_phase.FIVE_PHASE_CONTROLS]) from the design rules.
 
-    ``pr``: the alpha-beta PR (:func:`~pmsmjax.controllers.pr.pr_design`) and the x-y PR
-    (:func:`~pmsmjax.controllers.multiphase.z_pr_design`), both resonant at ``w_e``: a phase-resistance
-    unbalance puts x-y currents at ``+-w_e`` (not constant in the ``3 theta_e`` frame of the ``vsd`` x-y
-    PI, which removes third-harmonic disturbances instead); a real-coefficient resonator at ``w_e``
-    removes both directions."""
+    ``pr``: the alpha-beta PR ([`pr_design`][pmsmjax.controllers.pr.pr_design]) and the x-y PR
+    ([`z_pr_design`][pmsmjax.controllers.multiphase.z_pr_design]), both resonant at ``w_e``: a
+    phase-resistance unbalance puts x-y currents at ``+-w_e`` (not constant in the ``3 theta_e`` frame of the
+    ``vsd`` x-y PI, which removes third-harmonic disturbances instead); a real-coefficient resonator at
+    ``w_e`` removes both directions."""
     if control == "vsd":
         return vsd_current_design(motor, current_bandwidth, layout=FIVE_PHASE, rotation=XY_ROTATION)
     if control == "conventional":
@@ -174,10 +178,13 @@ def five_phase_current_block(control: str, motor, current_bandwidth: float, w_c:
 five_phase_drive = multiphase_drive_function(
     "five_phase_drive",
     __name__,
-    """A five-phase drive: `control` (:data:`FIVE_PHASE_CONTROLS`), `pwm` (:data:`FIVE_PHASE_PWMS`),
-    `bridge` (``averaged`` or ``switching``, the latter with optional `dead_time` s), `frame`
-    (:data:`FIVE_PHASE_FRAMES`); the rest as :func:`pmsmjax.presets.book_drive`. `resistance_scale`:
-    ``(5,)`` phase resistance factors of the plant (unbalance); `w_c` rad/s: the PR resonators' damping.
+    """A five-phase drive: `control`
+    ([`FIVE_PHASE_CONTROLS`][pmsmjax.presets.five_phase.FIVE_PHASE_CONTROLS]), `pwm`
+    ([`FIVE_PHASE_PWMS`][pmsmjax.presets.five_phase.FIVE_PHASE_PWMS]), `bridge` (``averaged`` or
+    ``switching``, the latter with optional `dead_time` s), `frame`
+    ([`FIVE_PHASE_FRAMES`][pmsmjax.presets.five_phase.FIVE_PHASE_FRAMES]); the rest as
+    [`pmsmjax.presets.book_drive`][pmsmjax.presets.three_phase.book_drive]. `resistance_scale`: ``(5,)`` phase
+    resistance factors of the plant (unbalance); `w_c` rad/s: the PR resonators' damping.
 
     The controller's model is the plant's motor (its ``psi_f3`` unused by the controller): the speed PI
     with active damping at ``speed_bandwidth``, the current loops at ``current_bandwidth``.

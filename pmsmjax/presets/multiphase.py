@@ -1,8 +1,8 @@
 """What the six- and five-phase presets share: their drive function, one signature and one body
-(:func:`multiphase_drive_function`), which each machine's module makes from its own motor, modulators,
-machine models and current blocks (:func:`pmsmjax.presets.six_phase.six_phase_drive`,
-:func:`pmsmjax.presets.five_phase.five_phase_drive`): the n-leg bridge, the FOC cascade with the design-rule
-speed PI around the machine's current block.
+([`multiphase_drive_function`][pmsmjax.presets.multiphase.multiphase_drive_function]), which each machine's
+module makes from its own motor, modulators, machine models and current blocks
+(`pmsmjax.presets.six_phase.six_phase_drive`, `pmsmjax.presets.five_phase.five_phase_drive`): the n-leg
+bridge, the FOC cascade with the design-rule speed PI around the machine's current block.
 """
 
 from collections.abc import Callable
@@ -29,7 +29,7 @@ __all__ = ["machine_controls", "multiphase_bridge", "multiphase_drive_function",
 
 def machine_controls(machine: str) -> dict[str, str]:
     """The control schemes of ``machine`` by name -> one-line description
-    (:data:`pmsmjax.spec.registry.REGISTRY`)."""
+    (`pmsmjax.spec.registry.REGISTRY`)."""
     return {m.name: m.description for m in REGISTRY if m.kind == "control" and machine in m.machines}
 
 

@@ -12,7 +12,8 @@ halved and the copper cross-section per turn unchanged:
 - ``R``: half the length of the same conductor: 0.958/2 = 0.479 ohm;
 - the phase's magnetising inductances ``L_0m``, ``L_2m`` and leakage ``L_ls`` proportional to N^2: a
   quarter of the three-phase machine's. The three-phase machine's leakage is not given; the project takes
-  ``L_ls3 = 0.1 L_d = 0.525 mH`` (:class:`pmsmjax.machines.PMSMabc`'s default), so ``L_ls = 0.131 mH``;
+  ``L_ls3 = 0.1 L_d = 0.525 mH`` ([`pmsmjax.machines.PMSMabc`][pmsmjax.machines.pmsm3.PMSMabc]'s default), so
+  ``L_ls = 0.131 mH``;
 - hence, in VSD coordinates (``L_d = L_ls + 3 (L_0m + L_2m)`` with six phases against ``L_ls + 1.5 (...)``
   with three): ``L_d6 = L_d3/2 - L_ls3/4 = 2.494 mH``, ``L_q6 = 2.494 mH`` (salient: 12/2 - 0.131 =
   5.869 mH);
@@ -27,9 +28,10 @@ modelled (it would lower the z1-z2 inductance below ``L_ls``). The z1-z2 subspac
 controlled (four-vector SVPWM, z1-z2 current loops). The same numbers are in the motor file
 ``pmsmjax/presets/motors/six_phase_book.toml``.
 
-**Drives** (:func:`six_phase_drive`): the book drive's settings (311 V, 10 kHz, one-period computational
-delay, design-rule gains at a_c = 1100 rad/s and beta = 50 rad/s, 15 A limit) with a control scheme of
-:data:`SIX_PHASE_CONTROLS` and a modulator of :data:`SIX_PHASE_PWMS`.
+**Drives** (`six_phase_drive`): the book drive's settings (311 V,
+10 kHz, one-period computational delay, design-rule gains at a_c = 1100 rad/s and beta = 50 rad/s, 15 A limit)
+with a control scheme of [`SIX_PHASE_CONTROLS`][pmsmjax.presets.six_phase.SIX_PHASE_CONTROLS] and a modulator
+of [`SIX_PHASE_PWMS`][pmsmjax.presets.six_phase.SIX_PHASE_PWMS].
 """
 
 from pathlib import Path
@@ -100,7 +102,7 @@ def load_six_phase_motor(name_or_path) -> MultiPhaseParameters:
 
 
 def read_multiphase_motor_file(name_or_path, n_phases: int, optional=()) -> MultiPhaseParameters:
-    """An ``n_phases`` motor from a TOML file with :data:`SIX_PHASE_FIELDS` (the n-phase fields, SI units)
+    """An ``n_phases`` motor from a TOML file with `SIX_PHASE_FIELDS` (the n-phase fields, SI units)
     and the keys of `optional` (e.g. ``("psi_f3",)``), at top level or under ``[motor]``; ``n_phases``
     may be given and must match."""
     key = str(name_or_path)
@@ -171,18 +173,20 @@ SIX_PHASE_PWMS = {
     "double-zs": _double_zs,
 }
 
-#: Control schemes by name -> one-line description (:data:`pmsmjax.spec.registry.REGISTRY`).
+#: Control schemes by name -> one-line description (`pmsmjax.spec.registry.REGISTRY`).
 SIX_PHASE_CONTROLS = machine_controls("six-phase")
 
 
 def six_phase_machine(motor=None, frame: str = "dq", mechanics: str = "dynamic", resistance_scale=None):
-    """The six-phase machine model of ``motor`` in ``frame`` (:data:`SIX_PHASE_FRAMES`)."""
+    """The six-phase machine model of ``motor`` in ``frame``
+    ([`SIX_PHASE_FRAMES`][pmsmjax.presets.six_phase.SIX_PHASE_FRAMES])."""
     motor = six_phase_motor() if motor is None else motor
     return multiphase_machine("six-phase", SIX_PHASE_FRAMES, motor, frame, mechanics, resistance_scale)
 
 
 def six_phase_current_block(control: str, motor, current_bandwidth: float, w_c: float = PR_W_C):
-    """The six-phase current block of ``control`` (:data:`SIX_PHASE_CONTROLS`) from the design rules."""
+    """The six-phase current block of ``control``
+    ([`SIX_PHASE_CONTROLS`][pmsmjax.presets.six_phase.SIX_PHASE_CONTROLS]) from the design rules."""
     if control == "vsd":
         return vsd_current_design(motor, current_bandwidth)
     if control == "conventional":
@@ -199,14 +203,16 @@ def six_phase_current_block(control: str, motor, current_bandwidth: float, w_c: 
 six_phase_drive = multiphase_drive_function(
     "six_phase_drive",
     __name__,
-    """A six-phase drive: `control` (:data:`SIX_PHASE_CONTROLS`), `pwm` (:data:`SIX_PHASE_PWMS`),
-    `bridge` (``averaged`` or ``switching``, the latter with optional `dead_time` s), `frame`
-    (:data:`SIX_PHASE_FRAMES`); the rest as :func:`pmsmjax.presets.book_drive`. `w_c` rad/s: the PR
-    resonators' damping; `resistance_scale`: ``(6,)`` phase resistance factors of the plant (unbalance).
+    """A six-phase drive: `control` ([`SIX_PHASE_CONTROLS`][pmsmjax.presets.six_phase.SIX_PHASE_CONTROLS]),
+    `pwm` ([`SIX_PHASE_PWMS`][pmsmjax.presets.six_phase.SIX_PHASE_PWMS]), `bridge` (``averaged`` or
+    ``switching``, the latter with optional `dead_time` s), `frame`
+    ([`SIX_PHASE_FRAMES`][pmsmjax.presets.six_phase.SIX_PHASE_FRAMES]); the rest as
+    [`pmsmjax.presets.book_drive`][pmsmjax.presets.three_phase.book_drive]. `w_c` rad/s: the PR resonators'
+    damping; `resistance_scale`: ``(6,)`` phase resistance factors of the plant (unbalance).
 
     Every control uses the design-rule gains of the same motor (the controller's model is the plant's
     balanced motor): the speed PI with active damping at ``speed_bandwidth``, current loops at
-    ``current_bandwidth`` (:mod:`pmsmjax.controllers.multiphase`).
+    ``current_bandwidth`` ([`pmsmjax.controllers.multiphase`][pmsmjax.controllers.multiphase]).
     """,
     machine="six-phase",
     layout=SIX_PHASE,

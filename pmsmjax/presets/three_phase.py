@@ -2,8 +2,9 @@
 
 Their numbers (docs/book_reference.md, chapters 1-6: the surface motor and its salient variant for HF
 injection, 311 V, 10 kHz, the 1000 r/min step with a 10 N m load at 0.2 s) are
-:mod:`pmsmjax.presets.book_constants`.
-Drives: :func:`book_drive` (FOC, SVPWM) and :func:`hysteresis_drive` (hysteresis current control).
+[`pmsmjax.presets.book_constants`][pmsmjax.presets.book_constants].
+Drives: [`book_drive`][pmsmjax.presets.three_phase.book_drive] (FOC, SVPWM) and
+[`hysteresis_drive`][pmsmjax.presets.three_phase.hysteresis_drive] (hysteresis current control).
 """
 
 import inspect
@@ -51,7 +52,8 @@ PR_W_C = 2.0
 
 def book_motor(salient: bool = False) -> PMSMParameters:
     """The book's three-phase PMSM (surface; ``salient=True``: L_q = 12 mH for HF injection); the values
-    are :data:`pmsmjax.presets.book_constants.BOOK_MOTOR` and ``BOOK_SALIENT_MOTOR``."""
+    are [`pmsmjax.presets.book_constants.BOOK_MOTOR`][pmsmjax.presets.book_constants.BOOK_MOTOR] and
+    ``BOOK_SALIENT_MOTOR``."""
     return PMSMParameters(**(BOOK_SALIENT_MOTOR if salient else BOOK_MOTOR))
 
 
@@ -86,10 +88,11 @@ def book_drive(
     """The book's FOC drive: design-rule PI gains, SVPWM, averaged bridge, dq machine.
 
     The controller's motor model is the plant's motor (pass a different ``FOC.model`` to study
-    mismatch); gains follow :func:`current_loop_imc` and :func:`speed_loop_active_damping`. ``d_axis``:
-    a d-axis reference block (:class:`~pmsmjax.controllers.MTPA`,
-    :class:`~pmsmjax.controllers.VoltageFeedbackFieldWeakening`); ``None`` is i_d = 0 control (the
-    scenario's ``i_d*``).
+    mismatch); gains follow [`current_loop_imc`][pmsmjax.controllers.design.current_loop_imc] and
+    [`speed_loop_active_damping`][pmsmjax.controllers.design.speed_loop_active_damping]. ``d_axis``: a d-axis
+    reference block ([`MTPA`][pmsmjax.controllers.mtpa.MTPA],
+    [`VoltageFeedbackFieldWeakening`][pmsmjax.controllers.field_weakening.VoltageFeedbackFieldWeakening]);
+    ``None`` is i_d = 0 control (the scenario's ``i_d*``).
     """
     motor = book_motor() if motor is None else motor
     speed = speed_loop_active_damping(motor, speed_bandwidth)
@@ -102,9 +105,10 @@ def book_drive(
 
 
 def _book_options(options) -> dict:
-    """The keyword options of :func:`book_drive`: `options` (as the variants of its cascade,
-    :func:`smc_drive` and :func:`pr_drive`, take them) and its defaults for the others; one it does not
-    take is a TypeError."""
+    """The keyword options of [`book_drive`][pmsmjax.presets.three_phase.book_drive]: `options` (as the
+    variants of its cascade, [`smc_drive`][pmsmjax.presets.three_phase.smc_drive] and
+    [`pr_drive`][pmsmjax.presets.three_phase.pr_drive], take them) and its defaults for the others; one it
+    does not take is a TypeError."""
     bound = inspect.signature(book_drive).bind(**options)
     bound.apply_defaults()
     return {name: value for name, value in bound.arguments.items() if name != "motor"}
@@ -114,8 +118,9 @@ def _foc_drive(
     motor, speed, current, *, frame, mechanics, mode, current_limit, u_dc, Ts, n_substeps, computation_delay,
     speed_divider, d_axis,
 ) -> Drive:  # fmt: skip
-    """The FOC drive of :func:`book_drive` with the given speed and current blocks (the variants of the
-    book's cascade: :func:`smc_drive`, :func:`pr_drive`), SVPWM on the averaged bridge."""
+    """The FOC drive of [`book_drive`][pmsmjax.presets.three_phase.book_drive] with the given speed and
+    current blocks (the variants of the book's cascade: [`smc_drive`][pmsmjax.presets.three_phase.smc_drive],
+    [`pr_drive`][pmsmjax.presets.three_phase.pr_drive]), SVPWM on the averaged bridge."""
     controller = FOC(
         model=motor,
         speed=speed,
@@ -167,13 +172,14 @@ def smc_drive(
     margin: float = 1.2,
     **drive_kw,
 ) -> Drive:
-    """The book's FOC drive (:func:`book_drive`) with the sliding-mode speed block (the book, ch. 3).
+    """The book's FOC drive ([`book_drive`][pmsmjax.presets.three_phase.book_drive]) with the sliding-mode
+    speed block (the book, ch. 3).
 
-    ``drive_kw`` go to :func:`book_drive` (frame, Ts, current_limit, current_bandwidth, ...; the
-    ``speed_bandwidth`` there is unused). The sliding-mode gains follow
-    :func:`pmsmjax.controllers.smc.smc_design` from the same motor, current limit, current-loop bandwidth
-    and speed-loop period: defaults c = 50 1/s (20 ms surface time constant), q = 250 1/s,
-    eps = 4.2e5 rad/s^3 (10 N m in 10 ms plus friction, 20 % margin), boundary 1.39e3 rad/s^2.
+    ``drive_kw`` go to [`book_drive`][pmsmjax.presets.three_phase.book_drive] (frame, Ts, current_limit,
+    current_bandwidth, ...; the ``speed_bandwidth`` there is unused). The sliding-mode gains follow
+    [`pmsmjax.controllers.smc.smc_design`][pmsmjax.controllers.smc.smc_design] from the same motor, current
+    limit, current-loop bandwidth and speed-loop period: defaults c = 50 1/s (20 ms surface time constant),
+    q = 250 1/s, eps = 4.2e5 rad/s^3 (10 N m in 10 ms plus friction, 20 % margin), boundary 1.39e3 rad/s^2.
     """
     motor = book_motor() if motor is None else motor
     kw = _book_options(drive_kw)
@@ -194,7 +200,7 @@ def smc_drive(
 
 
 #: Hysteresis drive defaults: full band, A; comparator sample period, s; speed-loop period, s (the book's
-#: 10 kHz). See :func:`hysteresis_drive` for why.
+#: 10 kHz). See [`hysteresis_drive`][pmsmjax.presets.three_phase.hysteresis_drive] for why.
 HYSTERESIS_BAND_A = 0.5
 HYSTERESIS_SPEED_PERIOD_S = BOOK_TS
 
@@ -230,12 +236,12 @@ def hysteresis_drive(
       tests/controllers/test_hysteresis.py checks the switch sequence and currents against scipy ``solve_ivp``
       at rtol 1e-10.
     - `band_a` = 0.5 A: at 10 us sampling it switches at 12 kHz per leg on average (transitions / 2;
-      11-14 kHz in the phases of the book scenario), about the 10 kHz carrier of :func:`book_drive`, so
-      the two are compared at about equal switching losses; it keeps the phase-current error within
-      0.8 A peak (0.23 A RMS) at 1000 r/min with 10 N m. It is also about the narrowest band that still
-      sets the ripple: one 10 us sample moves the current by up to 0.6 A at that point, and below about
-      0.5 A the sampling takes over (0.25 A: 1.8x the switching frequency of 0.5 A instead of 2x, peak
-      error twice the band).
+      11-14 kHz in the phases of the book scenario), about the 10 kHz carrier of
+      [`book_drive`][pmsmjax.presets.three_phase.book_drive], so the two are compared at about equal switching
+      losses; it keeps the phase-current error within 0.8 A peak (0.23 A RMS) at 1000 r/min with 10 N m. It is
+      also about the narrowest band that still sets the ripple: one 10 us sample moves the current by up
+      to 0.6 A at that point, and below about 0.5 A the sampling takes over (0.25 A: 1.8x the switching
+      frequency of 0.5 A instead of 2x, peak error twice the band).
     - `computation_delay` = False: hysteresis comparators are analog circuits or FPGA logic whose
       latency (well under 1 us) is small next to the sample, so a state acts from the sample that chose
       it. A DSP-style one-sample delay (``True``) lets the current run on for one more sample past the
@@ -267,13 +273,15 @@ def field_weakening_drive(
     voltage_margin: float = 0.95,
     **kwargs,
 ) -> Drive:
-    """:func:`book_drive` with MTPA and voltage-feedback field weakening, for speeds above base speed.
+    """[`book_drive`][pmsmjax.presets.three_phase.book_drive] with MTPA and voltage-feedback field weakening,
+    for speeds above base speed.
 
     With the book's 311 V link the i_d = 0 drive runs out of voltage at 1995 r/min under 15 A and at
     2321 r/min at no load; this one reaches 3000 r/min (tests/controllers/test_field_weakening.py).
     ``field_weakening_bandwidth`` (rad/s) defaults to a third of the current-loop bandwidth (367 rad/s for
     the book's 1100 rad/s; 50 to 800 rad/s all reach 2500 and 3000 r/min, the slower ones touching the
-    voltage limit more often on the way). ``kwargs`` go to :func:`book_drive`.
+    voltage limit more often on the way). ``kwargs`` go to
+    [`book_drive`][pmsmjax.presets.three_phase.book_drive].
     """
     current_bandwidth = kwargs.get("current_bandwidth", BOOK_CURRENT_BANDWIDTH)
     fw = field_weakening_block(current_bandwidth, field_weakening_bandwidth, voltage_margin)
@@ -287,7 +295,8 @@ def field_weakening_block(
 ) -> VoltageFeedbackFieldWeakening:
     """MTPA plus voltage-feedback field weakening whose voltage loop runs at ``field_weakening_bandwidth``
     (rad/s; default a third of the current loop's ``current_bandwidth``), holding ``voltage_margin`` of the
-    modulator's linear limit (see :func:`field_weakening_drive`)."""
+    modulator's linear limit (see
+    [`field_weakening_drive`][pmsmjax.presets.three_phase.field_weakening_drive])."""
     if field_weakening_bandwidth is None:
         field_weakening_bandwidth = current_bandwidth / 3.0
     return VoltageFeedbackFieldWeakening(field_weakening_bandwidth, voltage_margin, mtpa=True)
@@ -304,8 +313,9 @@ def pr_drive(
 ) -> Drive:
     """The book drive with the proportional-resonant current loop in alpha-beta (the book, ch. 3).
 
-    Same speed loop, limits, modulator, bridge and machine as :func:`book_drive` (``kw`` goes there);
-    the current block is :func:`pmsmjax.controllers.pr.pr_design` at the same current bandwidth, with
+    Same speed loop, limits, modulator, bridge and machine as
+    [`book_drive`][pmsmjax.presets.three_phase.book_drive] (``kw`` goes there); the current block is
+    [`pmsmjax.controllers.pr.pr_design`][pmsmjax.controllers.pr.pr_design] at the same current bandwidth, with
     resonator damping ``w_c`` (rad/s) and the given static options.
     """
     motor = book_motor() if motor is None else motor
@@ -338,7 +348,7 @@ def book_scenario(
 
 def load_motor(name_or_path: str | Path, *, check_units: bool = True) -> PMSMParameters:
     """A three-phase motor by preset name (``book``, ``book_salient``, ``servo-400w``, ...) or from a
-    drive file (:mod:`pmsmjax.io.drive_files`; a seven-value motor file is one).
+    drive file ([`pmsmjax.io.drive_files`][pmsmjax.io.drive_files]; a seven-value motor file is one).
 
     The file holds ``R, L_d, L_q, psi_f, pole_pairs, J, B`` under ``[motor]`` (or, for a motor file, at
     top level), SI units: ohm, H, H, Wb, -, kg m^2, N m s; values implausible in those units (an
@@ -353,8 +363,8 @@ def load_motor(name_or_path: str | Path, *, check_units: bool = True) -> PMSMPar
     return PMSMParameters(**{f: values[f] for f in MOTOR_FIELDS})
 
 
-#: Table DTC defaults (see :func:`dtc_drive`): comparator sample period s, torque band N m, flux band Wb,
-#: speed-loop period s, flux-observer crossover rad/s.
+#: Table DTC defaults (see [`dtc_drive`][pmsmjax.presets.three_phase.dtc_drive]): comparator sample period s,
+#: torque band N m, flux band Wb, speed-loop period s, flux-observer crossover rad/s.
 DTC_TORQUE_BAND_NM = 1.0
 DTC_FLUX_BAND_WB = 0.01
 DTC_SPEED_PERIOD_S = BOOK_TS
@@ -382,10 +392,10 @@ def dtc_drive(
 ) -> Drive:
     """The book's motor under switching-table DTC (the book, ch. 4) with the design-rule speed PI.
 
-    :class:`~pmsmjax.controllers.SwitchingTableDTC` on the flux and torque of a
-    :class:`~pmsmjax.estimators.StatorFluxObserver` (voltage model blended with the current model below
-    ``crossover_rad_s``; the exact position sensor); no modulator, the table's leg states held for one
-    comparator sample ``sample_period_s``; the speed loop every ``round(speed_period_s /
+    [`SwitchingTableDTC`][pmsmjax.controllers.dtc.SwitchingTableDTC] on the flux and torque of a
+    [`StatorFluxObserver`][pmsmjax.estimators.flux_observer.StatorFluxObserver] (voltage model blended with
+    the current model below ``crossover_rad_s``; the exact position sensor); no modulator, the table's leg
+    states held for one comparator sample ``sample_period_s``; the speed loop every ``round(speed_period_s /
     sample_period_s)`` samples (4 at 25 us: the book's 10 kHz).
 
     Choices (measured on the book scenario, tests/controllers/test_dtc.py and README.md):
@@ -444,11 +454,13 @@ def smc_dtc_drive(
 ) -> Drive:
     """The book's motor under sliding-mode DTC with SVPWM (the book, ch. 4) and the design-rule speed PI.
 
-    :class:`~pmsmjax.controllers.SlidingModeDTC` with the gains of
-    :func:`pmsmjax.controllers.smc_dtc.smc_dtc_design` (torque slew 10 N m/ms, flux slew 20 Wb/s, 2000
-    rad/s inside the boundary layers: K_T = 47.9 V, phi_T = 5.0 N m, K_psi = 20 V, phi_psi = 10 mWb on the
-    book motor), on the same :class:`~pmsmjax.estimators.StatorFluxObserver` as :func:`dtc_drive`; SVPWM,
-    averaged bridge, 10 kHz, one-period computational delay and 10 RK4 sub-steps as :func:`book_drive`.
+    [`SlidingModeDTC`][pmsmjax.controllers.smc_dtc.SlidingModeDTC] with the gains of
+    [`pmsmjax.controllers.smc_dtc.smc_dtc_design`][pmsmjax.controllers.smc_dtc.smc_dtc_design] (torque slew 10
+    N m/ms, flux slew 20 Wb/s, 2000 rad/s inside the boundary layers: K_T = 47.9 V, phi_T = 5.0 N m, K_psi =
+    20 V, phi_psi = 10 mWb on the book motor), on the same
+    [`StatorFluxObserver`][pmsmjax.estimators.flux_observer.StatorFluxObserver] as
+    [`dtc_drive`][pmsmjax.presets.three_phase.dtc_drive]; SVPWM, averaged bridge, 10 kHz, one-period
+    computational delay and 10 RK4 sub-steps as [`book_drive`][pmsmjax.presets.three_phase.book_drive].
     `switching`: ``"saturation"`` (default), ``"sign"`` or ``"tanh"``.
     """
     motor = book_motor() if motor is None else motor

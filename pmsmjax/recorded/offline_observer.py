@@ -1,14 +1,14 @@
 """Run an estimator offline on recorded stator-frame signals (``pmsmjax observe``, tests, tuning).
 
-The estimator sees exactly what it sees inside :class:`pmsmjax.drive.Drive`: at row ``k`` a
-:class:`~pmsmjax.signals.Sample` with the current sampled at ``t_k`` and the voltage held over
+The estimator sees exactly what it sees inside [`pmsmjax.drive.Drive`][pmsmjax.drive.Drive]: at row ``k`` a
+[`Sample`][pmsmjax.signals.Sample] with the current sampled at ``t_k`` and the voltage held over
 ``[t_{k-1}, t_k)`` (row ``k - 1`` of the log, whose voltage is "applied from row k to row k+1"); the
 voltage before the first row is unknown and taken as zero. The sensor fields are zero: an observer never
 reads them. Running an observer on the sensored drive's own trace is therefore the drive's "shadow
 mode": the observer runs alongside, and its estimate changes nothing.
 
-Pure JAX: :func:`observe` composes with ``jax.vmap`` (batches of logs or of observers) and ``jax.grad``
-(observer tuning).
+Pure JAX: [`observe`][pmsmjax.recorded.offline_observer.observe] composes with ``jax.vmap`` (batches of logs
+or of observers) and ``jax.grad`` (observer tuning).
 """
 
 import equinox as eqx

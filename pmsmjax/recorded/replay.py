@@ -1,10 +1,10 @@
 """Replay a recorded voltage sequence through the machine model.
 
 A log gives row times ``t_k`` and the dq voltages ``u_dq[k]`` a drive applied; the voltage of row k is
-held over ``[t_k, t_{k+1})``. The rows may be irregularly spaced. The machine (:class:`PMSMdq`) is
-integrated over each interval with a fixed number of RK4 sub-steps inside one jit-compiled ``lax.scan``
-(one compile per log length, sub-step count and hold). Row k of the result is the state at ``t_k``
-(row 0 is the initial state), so result and log line up row by row.
+held over ``[t_k, t_{k+1})``. The rows may be irregularly spaced. The machine
+([`PMSMdq`][pmsmjax.machines.pmsm3.PMSMdq]) is integrated over each interval with a fixed number of RK4
+sub-steps inside one jit-compiled ``lax.scan`` (one compile per log length, sub-step count and hold). Row k of
+the result is the state at ``t_k`` (row 0 is the initial state), so result and log line up row by row.
 
 **The hold frame.** A zero-order hold is ambiguous for a rotating machine:
 
@@ -18,8 +18,9 @@ integrated over each interval with a fixed number of RK4 sub-steps inside one ji
   drive, where ``u_dq[k]`` is the controller's command computed with the angle at ``t_k``.
 
 The two agree at standstill and differ by about ``omega_e * dt / 2`` rad of voltage angle at speed.
-:func:`replay_log` (``pmsmjax replay``) defaults to ``hold="auto"`` like ``pmsmjax identify``
-(:data:`DEFAULT_HOLD`): the hold whose replay matches the log's own currents, ``"stator"`` when it has none.
+[`replay_log`][pmsmjax.recorded.replay.replay_log] (``pmsmjax replay``) defaults to ``hold="auto"`` like
+``pmsmjax identify`` ([`DEFAULT_HOLD`][pmsmjax.recorded.replay.DEFAULT_HOLD]): the hold whose replay matches
+the log's own currents, ``"stator"`` when it has none.
 
 **Speed.** With an ``omega_m`` column the speed is imposed (a dynamometer): row k's speed holds over
 interval k and the mechanical equation is not used. Without it the speed is dynamic,
@@ -65,7 +66,8 @@ REPLAY_COLUMNS = ("time", "i_d", "i_q", "omega_m", "theta_e")
 LOG_COLUMNS = (("time", "u_d", "u_q"), ("omega_m", "T_L", "theta_e", "i_d", "i_q"))
 _HOLDS = ("rotor", "stator")
 #: The hold ``pmsmjax replay`` and ``pmsmjax identify`` use unless told: ``"auto"``, found from the log
-#: (identify fits both; replay compares both with the logged currents, :func:`choose_hold`).
+#: (identify fits both; replay compares both with the logged currents,
+#: [`choose_hold`][pmsmjax.recorded.replay.choose_hold]).
 DEFAULT_HOLD = "auto"
 
 
@@ -80,11 +82,13 @@ def replay_scan(
     n_substeps: int,
     hold: str,
 ) -> MachineState:
-    """The jit-compiled core of :func:`replay`: a scan over the ``N - 1`` intervals. No input checks.
+    """The jit-compiled core of [`replay`][pmsmjax.recorded.replay.replay]: a scan over the ``N - 1``
+    intervals. No input checks.
 
     **Arguments:**
 
-    - `machine`: a :class:`PMSMdq`; ``mechanics="imposed"`` if and only if `omega_m` is given.
+    - `machine`: a [`PMSMdq`][pmsmjax.machines.pmsm3.PMSMdq]; ``mechanics="imposed"`` if and only if `omega_m`
+      is given.
     - `state0`: state at ``t_0``.
     - `dt`: ``(N-1,)`` interval lengths ``t_{k+1} - t_k``, s.
     - `u_dq`: ``(N-1, 2)`` dq voltage held over each interval, V.
@@ -133,7 +137,8 @@ def replay(
     omega_m0: float = 0.0,
     flux_map=None,
 ) -> dict[str, np.ndarray]:
-    """Run ``motor`` under a recorded voltage sequence; returns ``(N,)`` arrays by :data:`REPLAY_COLUMNS`.
+    """Run ``motor`` under a recorded voltage sequence; returns ``(N,)`` arrays by
+    [`REPLAY_COLUMNS`][pmsmjax.recorded.replay.REPLAY_COLUMNS].
 
     The voltage of row k is held until row k+1 (in the rotor frame by default, see the module docstring
     for ``hold="stator"``); row k of every output is the state at ``time[k]``, row 0 the initial state.
@@ -141,24 +146,25 @@ def replay(
 
     **Arguments:**
 
-    - `motor`: :class:`PMSMParameters` (one motor, scalar fields).
+    - `motor`: [`PMSMParameters`][pmsmjax.machines.motor.PMSMParameters] (one motor, scalar fields).
     - `time`: ``(N,)`` row times, s, strictly increasing, N >= 2; irregular spacing is fine.
     - `u_dq`: ``(N, 2)`` dq stator voltage ``[u_d, u_q]`` of each row, V.
     - `omega_m`: ``(N,)`` imposed mechanical speed, rad/s (``rpm * pi / 30``), or ``None`` for dynamic
       speed. Imposed speed is reported back unchanged in the ``omega_m`` output.
     - `load_torque`: ``(N,)`` or scalar load torque, N m, used with dynamic speed (default 0).
     - `hold`: ``"rotor"`` (dq-model simulator) or ``"stator"`` (real inverter).
-    - `flux_map`: a :class:`~pmsmjax.machines.pmsm_flux_map.FluxMap`: the saturated machine of the map
+    - `flux_map`: a [`FluxMap`][pmsmjax.machines.pmsm_flux_map.FluxMap]: the saturated machine of the map
       (with ``motor``'s R, J, B, pole pairs) instead of the linear one.
     - `n_substeps`: RK4 steps per row interval. Default: the smallest count keeping the longest interval's
-      sub-step within :func:`~pmsmjax.machines.integrate.max_stable_substep` at the largest speed (the
-      imposed speed, or for dynamic speed 1.5x the voltage-limited speed
+      sub-step within [`max_stable_substep`][pmsmjax.machines.integrate.max_stable_substep] at the largest
+      speed (the imposed speed, or for dynamic speed 1.5x the voltage-limited speed
       ``(max|u| + R |T_L| / k_t) / (p_n psi_f)`` and the initial speed). Too small a count is an error.
     - `theta_e0`: electrical angle at ``time[0]``, rad. `i_dq0`: ``(2,)`` dq current at ``time[0]``, A.
     - `omega_m0`: mechanical speed at ``time[0]``, rad/s (dynamic speed only).
 
-    Every input is checked before compiling; bad input raises :class:`ParameterError` naming the field
-    and the fix. Outputs are float64 NumPy arrays (values computed in the motor's precision).
+    Every input is checked before compiling; bad input raises
+    [`ParameterError`][pmsmjax.spec.validation.ParameterError] naming the field and the fix. Outputs are
+    float64 NumPy arrays (values computed in the motor's precision).
     """
     if hold not in _HOLDS:
         raise ParameterError(
@@ -338,7 +344,8 @@ def replay_file(
     check_units: bool = True,
     report: list | None = None,
 ) -> Path:
-    """Replay a log file (:func:`replay_log`) and write ``out_dir/replay.csv``; returns the path written.
+    """Replay a log file ([`replay_log`][pmsmjax.recorded.replay.replay_log]) and write
+    ``out_dir/replay.csv``; returns the path written.
 
     The output has columns ``time,i_d,i_q,omega_m,theta_e`` (time in s), one row per log row, written
     atomically only after the run succeeded: a failure leaves no (partial) ``replay.csv``.
@@ -361,7 +368,8 @@ def replay_log(
     check_units: bool = True,
     report: list | None = None,
 ) -> dict[str, np.ndarray]:
-    """Replay a log file; returns ``(N,)`` float64 arrays by :data:`REPLAY_COLUMNS`, in that order.
+    """Replay a log file; returns ``(N,)`` float64 arrays by
+    [`REPLAY_COLUMNS`][pmsmjax.recorded.replay.REPLAY_COLUMNS], in that order.
 
     **Arguments:**
 
@@ -370,11 +378,12 @@ def replay_log(
       and ``theta_e`` (rad), ``i_d``, ``i_q`` (A), whose first row sets the initial state.
     - `motor`: a preset name (``book``, ``book_salient``) or a TOML file with ``R, L_d, L_q, psi_f,
       pole_pairs, J, B`` in SI units (ohm, H, H, Wb, -, kg m^2, N m s).
-    - `hold`: ``"auto"`` (default, shared with ``pmsmjax identify``: :func:`choose_hold`), ``"rotor"`` or
-      ``"stator"``; `n_substeps`: as in :func:`replay`.
+    - `hold`: ``"auto"`` (default, shared with ``pmsmjax identify``:
+      [`choose_hold`][pmsmjax.recorded.replay.choose_hold]), ``"rotor"`` or ``"stator"``; `n_substeps`: as in
+      [`replay`][pmsmjax.recorded.replay.replay].
     - `time_unit`: unit of the time column, ``"s"``, ``"ms"`` or ``"us"``.
     - `check_units`: refuse a time step implausible for a drive log (a time in ms read as s) and motor
-      values implausible in SI units (:mod:`pmsmjax.spec.plausibility`).
+      values implausible in SI units ([`pmsmjax.spec.plausibility`][pmsmjax.spec.plausibility]).
     - `report`: a list that receives one line per note (the hold chosen, columns not used).
 
     Row k is the state at the log's row k (time in s). All input is read and checked before anything is

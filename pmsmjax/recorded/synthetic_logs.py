@@ -1,21 +1,25 @@
 """Drive logs made by this project's own drive, with measurement noise: what the chapter 5 observers are
 tested, benchmarked and tuned on (``pmsmjax observe`` reads the stator-frame layout from files) and what
-parameter identification (:mod:`tuning.identify`, ``pmsmjax identify``) is tested on (the dq layout).
+parameter identification ([`tuning.identify`][tuning.identify], ``pmsmjax identify``) is tested on (the dq
+layout).
 
 A log records what a drive's firmware would, per control period ``t_k``: the voltage applied over
 ``[t_k, t_{k+1})`` (the period average of the applied duties, which the averaged bridge applies exactly:
 the commanded voltage one period late, because of the computational delay) and the currents sampled at
 ``t_k``, plus the true electrical angle and mechanical speed (``theta_e``, ``omega_m``; in the dq layout
-also the load torque ``T_L``), see :data:`LOG_COLUMNS`. In the dq layout the stator voltage is turned
-into dq with the angle at ``t_k``, so ``inverse_park(u_dq[k], theta_e[k])`` is exactly the held stator
-voltage (``hold="stator"`` in :mod:`pmsmjax.recorded.replay`).
+also the load torque ``T_L``), see [`LOG_COLUMNS`][pmsmjax.recorded.synthetic_logs.LOG_COLUMNS]. In the dq
+layout the stator voltage is turned into dq with the angle at ``t_k``, so
+``inverse_park(u_dq[k], theta_e[k])`` is exactly the held stator voltage (``hold="stator"`` in
+[`pmsmjax.recorded.replay`][pmsmjax.recorded.replay]).
 
-Noise (:func:`add_measurement_noise`): white Gaussian, standard deviation ``level`` times the RMS of the
-vector's magnitude over the log, the same on both axes, drawn independently on the voltages and on the
-currents; speed, angle and load stay noise-free (an encoder with a good speed estimate).
+Noise ([`add_measurement_noise`][pmsmjax.recorded.synthetic_logs.add_measurement_noise]): white Gaussian,
+standard deviation ``level`` times the RMS of the vector's magnitude over the log, the same on both axes,
+drawn independently on the voltages and on the currents; speed, angle and load stay noise-free (an encoder
+with a good speed estimate).
 
-The identification log (:func:`identification_log`) is the book drive's closed loop on
-:data:`ID_TEST_MOTOR`; ``hold="rotor"`` imitates another simulator (:class:`RotorHoldBridge`).
+The identification log ([`identification_log`][pmsmjax.recorded.synthetic_logs.identification_log]) is the
+book drive's closed loop on [`ID_TEST_MOTOR`][pmsmjax.recorded.synthetic_logs.ID_TEST_MOTOR]; ``hold="rotor"``
+imitates another simulator ([`RotorHoldBridge`][pmsmjax.recorded.synthetic_logs.RotorHoldBridge]).
 """
 
 from collections.abc import Mapping
@@ -55,9 +59,9 @@ LOG_COLUMNS = {
     "dq": ("time", "u_d", "u_q", "i_d", "i_q", "omega_m", "theta_e", "T_L"),
 }
 
-#: The motor of the identification tests: different from every preset (:mod:`pmsmjax.presets.book_constants`)
-#: and salient (L_q/L_d = 1.54) so that L_d and L_q are separable. SI units: ohm, H, H, Wb, kg m^2,
-#: N m s/rad, pole pairs.
+#: The motor of the identification tests: different from every preset
+#: ([`pmsmjax.presets.book_constants`][pmsmjax.presets.book_constants]) and salient (L_q/L_d = 1.54) so that
+#: L_d and L_q are separable. SI units: ohm, H, H, Wb, kg m^2, N m s/rad, pole pairs.
 ID_TEST_MOTOR = dict(R=1.31, L_d=4.1e-3, L_q=6.3e-3, psi_f=0.153, J=0.0047, B=0.0052, pole_pairs=4)
 
 #: The noise of the identification logs, in the order drawn: 1 % on the dq currents, 0.5 % on the dq
@@ -90,8 +94,10 @@ def drive_log(
     **Arguments:**
 
     - `frame`: ``"alpha_beta"`` (stator frame) or ``"dq"`` (rotor frame, angle at the period start); the
-      columns are :data:`LOG_COLUMNS` ``[frame]``, each ``(N,)`` float64 (s, V, A, rad, rad/s, N m).
-    - `noise`, `seed`: measurement noise as :func:`add_measurement_noise` takes it (0: none).
+      columns are [`LOG_COLUMNS`][pmsmjax.recorded.synthetic_logs.LOG_COLUMNS] ``[frame]``, each ``(N,)``
+      float64 (s, V, A, rad, rad/s, N m).
+    - `noise`, `seed`: measurement noise as
+      [`add_measurement_noise`][pmsmjax.recorded.synthetic_logs.add_measurement_noise] takes it (0: none).
     """
     if frame not in LOG_COLUMNS:
         raise ValueError(f"frame must be one of {sorted(LOG_COLUMNS)}, got {frame!r}")
@@ -120,7 +126,7 @@ def add_measurement_noise(
 
     - `level`: one relative level for the voltage pair and then the current pair of the log's frame
       (drawn in that order), or ``{(column_a, column_b): level}`` drawn in the mapping's order (e.g.
-      :data:`ID_LOG_NOISE`).
+      [`ID_LOG_NOISE`][pmsmjax.recorded.synthetic_logs.ID_LOG_NOISE]).
     - `seed`: the generator's seed; the same seed, levels and order give the same draws.
     """
     if not isinstance(level, Mapping):
@@ -140,9 +146,10 @@ class RotorHoldBridge(AbstractBridge):
     """Ideal averaged bridge whose period voltage is held in the rotor frame (another simulator's
     convention: a dq-model block fed by a sampled controller).
 
-    The period-average stator voltage (:func:`pmsmjax.inverters.averaged.phase_voltages`, as the ideal
-    :class:`~pmsmjax.inverters.averaged.AveragedBridge`) is turned into dq with the angle at the period
-    start and held there, so the stator-frame voltage rotates with the rotor during the period.
+    The period-average stator voltage
+    ([`pmsmjax.inverters.averaged.phase_voltages`][pmsmjax.inverters.averaged.phase_voltages], as the ideal
+    [`AveragedBridge`][pmsmjax.inverters.averaged.AveragedBridge]) is turned into dq with the angle at the
+    period start and held there, so the stator-frame voltage rotates with the rotor during the period.
 
     **Arguments:** `u_dc`: DC-link voltage, V.
     """
@@ -167,11 +174,13 @@ def identification_log(
     n_substeps: int = 10,
     id_zero: bool = False,
 ) -> dict[str, np.ndarray]:
-    """Noise-free dq log (:data:`LOG_COLUMNS` ``["dq"]``) of the book drive, its design-rule gains for
-    ``motor`` (default :data:`ID_TEST_MOTOR`), running ``scenario``.
+    """Noise-free dq log ([`LOG_COLUMNS`][pmsmjax.recorded.synthetic_logs.LOG_COLUMNS] ``["dq"]``) of the book
+    drive, its design-rule gains for ``motor`` (default
+    [`ID_TEST_MOTOR`][pmsmjax.recorded.synthetic_logs.ID_TEST_MOTOR]), running ``scenario``.
 
-    ``hold``: ``"stator"`` (this project's averaged bridge) or ``"rotor"`` (:class:`RotorHoldBridge`).
-    ``id_zero``: no d-axis injection (the scenario's ``id_ref`` replaced by 0).
+    ``hold``: ``"stator"`` (this project's averaged bridge) or ``"rotor"``
+    ([`RotorHoldBridge`][pmsmjax.recorded.synthetic_logs.RotorHoldBridge]). ``id_zero``: no d-axis injection
+    (the scenario's ``id_ref`` replaced by 0).
     """
     motor = PMSMParameters(**ID_TEST_MOTOR) if motor is None else motor
     drive = book_drive(motor, n_substeps=n_substeps)

@@ -1,8 +1,8 @@
 """What a drive file leaves out, derived from what it gives, and the checks that need the derived values:
 the inverter's defaults, the ratings (rated current and torque from each other, the peak current, the DC
 link and the base speed), a rated point the inverter cannot reach, the loops' bandwidths and the I/f start
-(the rules: :mod:`pmsmjax.spec.design_rules`), the flux map's linear model. Each derived value is noted
-with how it was found (``DriveSpec.derived``). Plain Python."""
+(the rules: [`pmsmjax.spec.design_rules`][pmsmjax.spec.design_rules]), the flux map's linear model. Each
+derived value is noted with how it was found (``DriveSpec.derived``). Plain Python."""
 
 import math
 from collections.abc import Mapping

@@ -3,7 +3,7 @@ out, the design-rule bandwidths, and the scenarios every command runs. Pure Pyth
 command line derives and checks a drive before anything compiles.
 
 Motors are dicts of SI values (``R, L_d, L_q, psi_f, pole_pairs, J, B``; a multi-phase motor adds
-``n_phases``), steady states those of :mod:`pmsmjax.analysis.operating_point`.
+``n_phases``), steady states those of [`pmsmjax.analysis.operating_point`][pmsmjax.analysis.operating_point].
 
 **Torque per current** (the book, ch. 1, MTPA of chapter 2): ``T = (n/2) p i_q (psi_f + (L_d - L_q)
 i_d)``, with the MTPA d-axis current for a current magnitude ``I``::
@@ -11,40 +11,46 @@ i_d)``, with the MTPA d-axis current for a current magnitude ``I``::
     i_d = (psi_f - sqrt(psi_f^2 + 8 (L_q - L_d)^2 I^2)) / (4 (L_q - L_d))      (0 for L_d = L_q)
 
 **A flux map** (``motor["flux_map"]``, the map file's path, as a drive file with ``[motor] flux_map`` has
-it): the MTPA rules (:func:`mtpa_d_current`, :func:`torque_at_current`, :func:`current_for_torque`) and
-the rated point's voltage ``|R i + w_e J psi(i)|`` (:func:`rated_point_voltage_v`, hence the base speed)
-come from the map's MTPA table (:mod:`pmsmjax.controllers.flux_map_loci`, built once per map up to the
-grid's corner current; the torque is held beyond it) instead of the linear model; the other rules keep
-the linear model the map derives (``psi_f``, ``L_d``, ``L_q``). The map's interpolant, torque and voltage
-are the plant's own (:mod:`pmsmjax.machines.flux_map`, :mod:`pmsmjax.machines.dq_equations`), evaluated
-in NumPy: this path, too, loads no JAX.
+it): the MTPA rules ([`mtpa_d_current`][pmsmjax.spec.design_rules.mtpa_d_current],
+[`torque_at_current`][pmsmjax.spec.design_rules.torque_at_current],
+[`current_for_torque`][pmsmjax.spec.design_rules.current_for_torque]) and the rated point's voltage
+``|R i + w_e J psi(i)|`` ([`rated_point_voltage_v`][pmsmjax.spec.design_rules.rated_point_voltage_v], hence
+the base speed) come from the map's MTPA table
+([`pmsmjax.controllers.flux_map_loci`][pmsmjax.controllers.flux_map_loci], built once per map up to the grid's
+corner current; the torque is held beyond it) instead of the linear model; the other rules keep the linear
+model the map derives (``psi_f``, ``L_d``, ``L_q``). The map's interpolant, torque and voltage are the plant's
+own ([`pmsmjax.machines.flux_map`][pmsmjax.machines.flux_map],
+[`pmsmjax.machines.dq_equations`][pmsmjax.machines.dq_equations]), evaluated in NumPy: this path, too, loads
+no JAX.
 
-**Current-loop bandwidth** (:func:`current_bandwidth_rule`): the internal-model PI of the book, ch. 3
-makes the current loop ``a_c / s`` times the loop's delay, one period of computation plus half a period of
-the PWM's zero-order hold, ``1.5 Ts``; its phase margin is ``90 deg - 1.5 Ts a_c`` (rad). The rule keeps
-:data:`CURRENT_LOOP_PHASE_MARGIN_DEG` = 65 deg: ``a_c = (pi/2 - 65 deg) / (1.5 Ts) = 0.29 / Ts`` (2.9 krad/s
-at 10 kHz). Harnefors and Nee, "Model-based current control of AC machines using the internal model
-control method", IEEE TIA 34(1), 1998, DOI 10.1109/28.658735 (the IMC design); the delay margin is the
-usual discrete-time bound (Harnefors et al., "Speed control of electrical drives using classical control
-methods", IEEE TIA 49(2), 2013, DOI 10.1109/TIA.2012.2235185, which also asks the speed loop to stay well
-below the current loop).
+**Current-loop bandwidth** ([`current_bandwidth_rule`][pmsmjax.spec.design_rules.current_bandwidth_rule]):
+the internal-model PI of the book, ch. 3 makes the current loop ``a_c / s`` times the loop's delay, one period
+of computation plus half a period of the PWM's zero-order hold, ``1.5 Ts``; its phase margin is
+``90 deg - 1.5 Ts a_c`` (rad). The rule keeps
+[`CURRENT_LOOP_PHASE_MARGIN_DEG`][pmsmjax.spec.design_rules.CURRENT_LOOP_PHASE_MARGIN_DEG] = 65 deg:
+``a_c = (pi/2 - 65 deg) / (1.5 Ts) = 0.29 / Ts`` (2.9 krad/s at 10 kHz). Harnefors and Nee, "Model-based
+current control of AC machines using the internal model control method", IEEE TIA 34(1), 1998,
+DOI 10.1109/28.658735 (the IMC design); the delay margin is the usual discrete-time bound (Harnefors et al.,
+"Speed control of electrical drives using classical control methods", IEEE TIA 49(2), 2013,
+DOI 10.1109/TIA.2012.2235185, which also asks the speed loop to stay well below the current loop).
 
-**Speed-loop bandwidth** (:func:`speed_bandwidth_rule`): the active-damping PI (the book, ch. 3) asks
-``Kp omega = beta J omega / k_t`` of current on a speed step ``omega``; the rule takes the largest
-``beta`` that keeps a step of a fifth of the rated speed inside the current limit (linear, no wind-up),
-``beta = T_max / (J omega_rated / 5)``: five times the inverse of the time the drive needs to accelerate
-to rated speed at full torque (its mechanical time constant under the limit). Larger steps ride on the
-current limit, which the realisable-reference anti-windup of the speed PI handles. At most a tenth of the
-current loop's bandwidth. (The book's 50 rad/s keeps the whole 1000 r/min step linear:
+**Speed-loop bandwidth** ([`speed_bandwidth_rule`][pmsmjax.spec.design_rules.speed_bandwidth_rule]): the
+active-damping PI (the book, ch. 3) asks ``Kp omega = beta J omega / k_t`` of current on a speed step
+``omega``; the rule takes the largest ``beta`` that keeps a step of a fifth of the rated speed inside the
+current limit (linear, no wind-up), ``beta = T_max / (J omega_rated / 5)``: five times the inverse of the time
+the drive needs to accelerate to rated speed at full torque (its mechanical time constant under the limit).
+Larger steps ride on the current limit, which the realisable-reference anti-windup of the speed PI handles. At
+most a tenth of the current loop's bandwidth. (The book's 50 rad/s keeps the whole 1000 r/min step linear:
 16.4 N m / (0.003 kg m^2 x 104.7 rad/s) = 52 rad/s.)
 
-**Scenarios** (:func:`default_scenario`, :func:`tuning_ranges`): the speed step goes to the rated speed,
-the load to 0.8 of the rated torque; the load steps in after twice the time the speed loop needs to
-settle (acceleration at full torque plus ``4 / beta``), rounded up to 1, 2, 2.5 or 5 x 10^k s, and the run
-lasts twice that. Tuning batches draw speeds from 0.2 x rated to the rated speed or the top speed the
-inverter reaches at rated torque (i_d = 0), whichever is lower, loads up to the rated torque, and
-durations of 1.5 to 2.5 x the load time. (The book drive file states the book's own ranges: steps of
-200-1500 r/min, 0-10 N m, 0.3-0.5 s.)
+**Scenarios** ([`default_scenario`][pmsmjax.spec.design_rules.default_scenario],
+[`tuning_ranges`][pmsmjax.spec.design_rules.tuning_ranges]): the speed step goes to the rated speed, the
+load to 0.8 of the rated torque; the load steps in after twice the time the speed loop needs to settle
+(acceleration at full torque plus ``4 / beta``), rounded up to 1, 2, 2.5 or 5 x 10^k s, and the run lasts
+twice that. Tuning batches draw speeds from 0.2 x rated to the rated speed or the top speed the inverter
+reaches at rated torque (i_d = 0), whichever is lower, loads up to the rated torque, and durations of 1.5
+to 2.5 x the load time. (The book drive file states the book's own ranges: steps of 200-1500 r/min, 0-10 N
+m, 0.3-0.5 s.)
 """
 
 import functools
@@ -201,25 +207,27 @@ def current_bandwidth_rule(
     Ts: float, delay_periods: float = 1.5, phase_margin_deg: float = CURRENT_LOOP_PHASE_MARGIN_DEG
 ) -> float:
     """Current-loop bandwidth a_c (rad/s) for control period ``Ts`` (s): ``phase_margin_deg`` (default
-    :data:`CURRENT_LOOP_PHASE_MARGIN_DEG`) against a loop delay of ``delay_periods`` periods (module
-    docstring); ``phase_margin_deg=0`` gives the stability bound."""
+    [`CURRENT_LOOP_PHASE_MARGIN_DEG`][pmsmjax.spec.design_rules.CURRENT_LOOP_PHASE_MARGIN_DEG]) against a
+    loop delay of ``delay_periods`` periods (module docstring); ``phase_margin_deg=0`` gives the stability
+    bound."""
     return (math.pi / 2.0 - math.radians(phase_margin_deg)) / (delay_periods * Ts)
 
 
 def speed_bandwidth_rule(
     motor: Mapping, current_bandwidth_rad_s: float, max_current_a: float, rated_speed_rpm: float
 ) -> float:
-    """Speed-loop bandwidth beta (rad/s): a step of :data:`SPEED_RULE_STEP_SHARE` of the rated speed reaches
+    """Speed-loop bandwidth beta (rad/s): a step of `SPEED_RULE_STEP_SHARE` of the rated speed reaches
     the current limit with the P part alone; at most a tenth of the current loop's (module docstring)."""
     k_t = torque_factor(motor) * motor["psi_f"]  # the active-damping design's linear torque constant
     beta = k_t * max_current_a / (motor["J"] * SPEED_RULE_STEP_SHARE * rated_speed_rpm * RPM)
     return min(beta, SPEED_TO_CURRENT_BANDWIDTH * current_bandwidth_rad_s)
 
 
-#: I/f start-up of a sensorless drive (:class:`pmsmjax.estimators.startup.StartupEstimator`): the current
-#: as a share of the maximum, the ramp's acceleration as a share of what that current's torque gives the
-#: bare rotor, the hand-over and blend speeds as shares of the rated speed (the book drive states its own:
-#: 8 A, 1000 rad/s^2, 150 and 100 r/min).
+#: I/f start-up of a sensorless drive
+#: ([`pmsmjax.estimators.startup.StartupEstimator`][pmsmjax.estimators.startup.StartupEstimator]): the current
+#: as a share of the maximum, the ramp's acceleration as a share of what that current's torque gives the bare
+#: rotor, the hand-over and blend speeds as shares of the rated speed (the book drive states its own: 8 A,
+#: 1000 rad/s^2, 150 and 100 r/min).
 STARTUP_SHARES = {"current": 0.5, "acceleration": 0.3, "handover": 0.15, "blend": 0.1}
 STARTUP_HOW = {
     "startup_current_a": f"{STARTUP_SHARES['current']:g} x max_current_a",
@@ -231,7 +239,7 @@ STARTUP_HOW = {
 
 def startup_rule(motor: Mapping, ratings: Mapping) -> dict:
     """``{startup_current_a, startup_acceleration_rad_s2, handover_speed_rad_s, blend_speed_rad_s}`` of
-    the I/f start (:data:`STARTUP_SHARES`; speeds mechanical)."""
+    the I/f start (`STARTUP_SHARES`; speeds mechanical)."""
     current = STARTUP_SHARES["current"] * ratings["max_current_a"]
     rated = ratings["rated_speed_rpm"] * RPM
     return {

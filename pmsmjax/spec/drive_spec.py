@@ -1,12 +1,12 @@
 """The drive spec: a drive file's tables checked and completed, for every command, before JAX starts (the
-file itself is read by :mod:`pmsmjax.io.drive_files`).
+file itself is read by [`pmsmjax.io.drive_files`][pmsmjax.io.drive_files]).
 
 Layout (SI units; every table but ``[motor]`` optional)::
 
     [motor]        R, L_d, L_q, psi_f, pole_pairs, J, B (ohm, H, H, Wb, -, kg m^2, N m s/rad);
                    n_phases = 6 or 5 with L_ls (H) and, five-phase, psi_f3 (Wb); trust_units = true;
                    flux_map = "map.csv" (three-phase: a measured flux map, path relative to the drive
-                   file, read by :mod:`pmsmjax.io.flux_map_files`; L_d, L_q, psi_f then optional)
+                   file, read by pmsmjax.io.flux_map_files; L_d, L_q, psi_f then optional)
     [ratings]      rated_speed_rpm, rated_torque_nm or rated_current_a (A peak), max_current_a (A peak)
     [inverter]     u_dc_v, switching_frequency_hz, control_frequency_hz (default: the switching
                    frequency), dead_time_s, device_drop_v (a switch's or diode's on-state voltage, V),
@@ -20,25 +20,27 @@ Layout (SI units; every table but ``[motor]`` optional)::
     [scenario]     speed_rpm, load_nm, load_time_s, duration_s (the demo, compare and Monte Carlo run)
     [tuning]       speed_rpm = [low, high], load_nm = [low, high], duration_s = [low, high]
 
-With a flux map the simulated machine is the map's (:class:`pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq`)
-and ``L_d``, ``L_q``, ``psi_f`` are the linear model the design rules and the controller use; left out,
-they are derived from the map: ``psi_f = psi_d(0, 0)`` and ``L_d``, ``L_q`` the incremental inductances
-``dpsi_d/di_d``, ``dpsi_q/di_q`` at ``i_d = 0``, ``i_q = [ratings] rated_current_a`` when the file gives
-it, else at zero current. The rated point is the choice for a map whose q axis saturates: a current loop
-tuned on the unsaturated ``L_q`` would run several times faster than designed at rated current, one tuned
-on the rated ``L_q`` only slower near zero current.
+With a flux map the simulated machine is the map's
+([`pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq]) and ``L_d``,
+``L_q``, ``psi_f`` are the linear model the design rules and the controller use; left out, they are derived
+from the map: ``psi_f = psi_d(0, 0)`` and ``L_d``, ``L_q`` the incremental inductances ``dpsi_d/di_d``,
+``dpsi_q/di_q`` at ``i_d = 0``, ``i_q = [ratings] rated_current_a`` when the file gives it, else at zero
+current. The rated point is the choice for a map whose q axis saturates: a current loop tuned on the
+unsaturated ``L_q`` would run several times faster than designed at rated current, one tuned on the rated
+``L_q`` only slower near zero current.
 
 A seven-value motor file (the values at top level or under ``[motor]``) is a drive file with every
 other table left out. What a file leaves out is derived from what it gives
-(:mod:`pmsmjax.spec.design_rules` has the rules and their sources) and each derived value is listed,
-with how, in :attr:`DriveSpec.derived` (``summary.json``'s ``drive_file.derived``).
+([`pmsmjax.spec.design_rules`][pmsmjax.spec.design_rules] has the rules and their sources) and each derived
+value is listed, with how, in [`DriveSpec.derived`][pmsmjax.spec.drive_spec.DriveSpec] (``summary.json``'s
+``drive_file.derived``).
 
-Checked, each a one-line :class:`~pmsmjax.spec.validation.ParameterError` naming the file, the table and
-key, the value in its unit and the fix: TOML syntax, unknown tables and keys (with the likely meant one),
-types, units (an inductance in mH, :mod:`pmsmjax.spec.plausibility`; a DC link in kV, a switching
-frequency in kHz, a dead time in us), a dead time that eats the switching period, a maximum current
-below the rated current, a rated torque the maximum current cannot give, and a rated point the inverter
-cannot reach (even with field weakening).
+Checked, each a one-line [`ParameterError`][pmsmjax.spec.validation.ParameterError] naming the file, the table
+and key, the value in its unit and the fix: TOML syntax, unknown tables and keys (with the likely meant one),
+types, units (an inductance in mH, [`pmsmjax.spec.plausibility`][pmsmjax.spec.plausibility]; a DC link in kV,
+a switching frequency in kHz, a dead time in us), a dead time that eats the switching period, a maximum
+current below the rated current, a rated torque the maximum current cannot give, and a rated point the
+inverter cannot reach (even with field weakening).
 """
 
 import dataclasses
@@ -73,8 +75,8 @@ __all__ = ["DriveSpec", "complete", "split_tables", "check_keys", "flux_map_name
 
 @dataclasses.dataclass(frozen=True)
 class DriveSpec:
-    """A checked drive: the file's tables (:mod:`pmsmjax.spec.tables`, typed and frozen) with every absent
-    value derived.
+    """A checked drive: the file's tables ([`pmsmjax.spec.tables`][pmsmjax.spec.tables], typed and frozen)
+    with every absent value derived.
 
     - `source`: the preset name or file path;
     - `motor`: SI values (``n_phases`` present only for a multi-phase motor);
@@ -87,7 +89,7 @@ class DriveSpec:
     - `derived`: ``{"table.key": how}`` for every value the file left out;
     - `notes`: what a user should know about the drive (a rated point that needs field weakening);
     - `flux_map`: the ``[motor] flux_map`` grid as read once
-      (:class:`~pmsmjax.machines.flux_map.FluxMapGrid`), None without one.
+      ([`FluxMapGrid`][pmsmjax.machines.flux_map.FluxMapGrid]), None without one.
     """
 
     source: str
@@ -163,15 +165,17 @@ def complete(
     """Check and complete a drive file's tables (module docstring).
 
     Args:
-        tables: ``{table: {key: value}}`` as :func:`split_tables` gives them (every table, empty when the
-            file leaves it out), keys checked by :func:`check_keys`.
+        tables: ``{table: {key: value}}`` as [`split_tables`][pmsmjax.spec.schema.split_tables] gives them
+            (every table, empty when the file leaves it out), keys checked by
+            [`check_keys`][pmsmjax.spec.schema.check_keys].
         where: how messages name the file (``"drive file motor.toml"``).
         source: the preset name or file path the spec reports.
         n_phases: the machine the command runs (a file for another is refused); None: any.
         check_units: refuse values implausible in SI units (unless the file trusts its units).
         overrides: ``u_dc_v`` (V) and ``max_current_a`` (A) from flags, over the file's.
         flags: how messages name the overrides (``{"u_dc_v": "--u-dc"}``).
-        flux_map: the ``[motor] flux_map`` grid (:class:`~pmsmjax.machines.flux_map.FluxMapGrid`) as read.
+        flux_map: the ``[motor] flux_map`` grid ([`FluxMapGrid`][pmsmjax.machines.flux_map.FluxMapGrid]) as
+            read.
         flux_map_path: its absolute path (what ``motor["flux_map"]`` reports).
 
     Returns:

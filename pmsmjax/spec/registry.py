@@ -5,8 +5,9 @@ presets, the estimator catalogue, tuning and the documentation all read it, and 
 known to all of them.
 
 A factory is named as ``"module:attribute"`` and imported only when a drive is built
-(:func:`load_factory`), so reading the registry costs nothing. The options a method takes are declared
-here, not read from the factory's signature; ``tests/spec/test_registry.py`` checks that the two agree.
+([`load_factory`][pmsmjax.spec.registry.load_factory]), so reading the registry costs nothing. The options a
+method takes are declared here, not read from the factory's signature; ``tests/spec/test_registry.py`` checks
+that the two agree.
 """
 
 import dataclasses
@@ -58,7 +59,7 @@ class Method:
         kind: ``"control"``, ``"estimator"``, ``"modulator"`` or ``"frame"``.
         name: its name on the command line and in files (``"smc-dtc"``).
         description: one line for ``--help`` and the documentation.
-        machines: the machines it runs on (keys of :data:`MACHINES`).
+        machines: the machines it runs on (keys of [`MACHINES`][pmsmjax.spec.registry.MACHINES]).
         factory: ``"module:attribute"`` of what builds it (a preset for a control, a design rule for an
             estimator, a class or function for a modulator or frame).
         options: the keyword options the factory takes.

@@ -13,8 +13,9 @@ Steady state of the dq model (the book, ch. 1) at mechanical speed ``w`` (rad/s)
 ``|u_dq| <= U_lim`` (the modulator's linear limit, ``U_dc / sqrt 3`` for SVPWM) and ``|i_dq| <= I_max``
 (the controller's current limit). With i_d = 0 control the top speed at a load follows by bisection;
 with field weakening any ``-I_max <= i_d <= 0`` may be used. The equations are the machines' own,
-:mod:`pmsmjax.machines.dq_equations` (written once for floats, NumPy and JAX), here on the linear model.
-How a finished run met these limits is :func:`pmsmjax.analysis.operating_point.run_flags`.
+[`pmsmjax.machines.dq_equations`][pmsmjax.machines.dq_equations] (written once for floats, NumPy and JAX),
+here on the linear model. How a finished run met these limits is
+[`pmsmjax.analysis.operating_point.run_flags`][pmsmjax.analysis.operating_point.run_flags].
 """
 
 import math
@@ -127,7 +128,8 @@ def reachable(
 def field_weakening_top_speed_rpm(
     motor: Mapping, u_limit_v: float, current_limit_a: float, load_nm: float, direction: float = 1.0
 ) -> float:
-    """Largest speed (r/min, sign of ``direction``) :func:`reachable` with field weakening at ``load_nm``."""
+    """Largest speed (r/min, sign of ``direction``) [`reachable`][pmsmjax.spec.steady_state.reachable] with
+    field weakening at ``load_nm``."""
     sign = 1.0 if direction >= 0 else -1.0
     ok = lambda n: reachable(motor, sign * n, load_nm, u_limit_v, current_limit_a, True)["ok"]
     if not ok(0.0):
@@ -170,9 +172,10 @@ def refuse_unreachable(
     u_dc_flag: str | None = None,
     current_limit_flag: str | None = None,
 ) -> None:
-    """Raise :class:`ParameterError` when (``speed_rpm``, ``load_nm``) is not a steady point of an i_d = 0
-    drive within ``u_limit_v`` and ``current_limit_a`` (a comparison there would describe saturation);
-    ``u_dc_flag``, ``current_limit_flag``: the knobs that raise those limits, named in the fix."""
+    """Raise [`ParameterError`][pmsmjax.spec.validation.ParameterError] when (``speed_rpm``, ``load_nm``) is
+    not a steady point of an i_d = 0 drive within ``u_limit_v`` and ``current_limit_a`` (a comparison there
+    would describe saturation); ``u_dc_flag``, ``current_limit_flag``: the knobs that raise those limits,
+    named in the fix."""
     r = reachable(motor, speed_rpm, load_nm, u_limit_v, current_limit_a)
     if r["ok"]:
         return

@@ -3,9 +3,9 @@ the unit in the name where the file's key has it.
 
 A table is also a read-only mapping of the values it holds (``spec.motor["R"]``, ``"flux_map" in
 spec.motor``, ``dict(spec.ratings)``): a field left None is absent, as it is from the file. Fields are
-complete after :func:`pmsmjax.spec.drive_spec.complete`: every value the file leaves out is derived
-there, so only the genuinely optional ones (a multi-phase motor's, an encoder's, the tolerances the file
-gives) can be None.
+complete after [`pmsmjax.spec.drive_spec.complete`][pmsmjax.spec.drive_spec.complete]: every value the file
+leaves out is derived there, so only the genuinely optional ones (a multi-phase motor's, an encoder's, the
+tolerances the file gives) can be None.
 """
 
 import dataclasses
@@ -57,7 +57,7 @@ class MotorTable(Table):
 
     Attributes:
         flux_map: the measured flux map's absolute path (three-phase), None without one; the grid itself
-            is :attr:`pmsmjax.spec.drive_spec.DriveSpec.flux_map`.
+            is [`pmsmjax.spec.drive_spec.DriveSpec.flux_map`][pmsmjax.spec.drive_spec.DriveSpec].
         R: stator resistance per phase, ohm.
         L_d: d-axis inductance, H (with a flux map: the map's incremental one unless given).
         L_q: q-axis inductance, H.

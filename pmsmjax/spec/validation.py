@@ -1,11 +1,12 @@
 """Checks of user input made before anything is compiled.
 
-Every failure raises :class:`ParameterError` (a ``ValueError``) naming the offending field and the fix.
-Checks are skipped for traced values (inside ``jit``/``vmap``/``grad``): they are meant for the concrete
-values a user passes in, and tracing code must stay free of Python branching on array values.
+Every failure raises [`ParameterError`][pmsmjax.spec.validation.ParameterError] (a ``ValueError``) naming
+the offending field and the fix. Checks are skipped for traced values (inside ``jit``/``vmap``/``grad``): they
+are meant for the concrete values a user passes in, and tracing code must stay free of Python branching on
+array values.
 
 This module does not import JAX (a value can only be a tracer once JAX is loaded), so the command line
-can raise :class:`ParameterError` for bad flags before JAX starts.
+can raise [`ParameterError`][pmsmjax.spec.validation.ParameterError] for bad flags before JAX starts.
 """
 
 import sys
@@ -41,7 +42,8 @@ def plain(x) -> str:
 
 
 def check_finite(name: str, x, unit: str = "") -> None:
-    """Raise :class:`ParameterError` naming `name` unless every element of ``x`` is finite (no NaN or inf).
+    """Raise [`ParameterError`][pmsmjax.spec.validation.ParameterError] naming `name` unless every element
+    of ``x`` is finite (no NaN or inf).
 
     `unit` is shown after the values in the message; a traced ``x`` (inside ``jit``) is not checked.
     """

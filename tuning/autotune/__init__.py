@@ -1,15 +1,18 @@
 """Gradient auto-tuning of a drive's gains over a batch of scenarios (``pmsmjax tune``).
 
-- :mod:`~tuning.autotune.scenario_batches`: seeded train and held-out batches of speed and load steps.
-- :mod:`~tuning.autotune.objectives`: per-scenario metrics and the batch cost (ITAE plus penalties).
-- :mod:`~tuning.autotune.tuner`: :func:`tune`, Adam or BFGS on the log-gains, checkpointed, resumable.
-- :mod:`~tuning.autotune.quasi_newton`: the step-capped BFGS behind ``method="bfgs"``.
-- :mod:`~tuning.autotune.baselines`: derivative-free searches (Nelder-Mead, CMA-ES) on the same cost.
-- :mod:`~tuning.autotune.job`: the ``pmsmjax tune`` job (tune, check on the held-out batch, write files).
-- :mod:`~tuning.autotune.drive_batches`, :mod:`~tuning.autotune.drive_scaling`: the job's batches,
-  observer settings and penalty weights from the user's drive file.
+- [`scenario_batches`][tuning.autotune.scenario_batches]: seeded train and held-out batches of speed and load
+  steps.
+- [`objectives`][tuning.autotune.objectives]: per-scenario metrics and the batch cost (ITAE plus penalties).
+- [`tuner`][tuning.autotune.tuner]: [`tune`][tuning.autotune.tuner.tune], Adam or BFGS on the log-gains,
+  checkpointed, resumable.
+- [`quasi_newton`][tuning.autotune.quasi_newton]: the step-capped BFGS behind ``method="bfgs"``.
+- [`baselines`][tuning.autotune.baselines]: derivative-free searches (Nelder-Mead, CMA-ES) on the same cost.
+- [`job`][tuning.autotune.job]: the ``pmsmjax tune`` job (tune, check on the held-out batch, write files).
+- [`drive_batches`][tuning.autotune.drive_batches], [`drive_scaling`][tuning.autotune.drive_scaling]: the
+  job's batches, observer settings and penalty weights from the user's drive file.
 
-The gains themselves (names, ``log(p/p0)`` parameterisation, gains files) are :mod:`tuning.parameters`.
+The gains themselves (names, ``log(p/p0)`` parameterisation, gains files) are
+[`tuning.parameters`][tuning.parameters].
 """
 
 from tuning.autotune.baselines import BaselineResult, cma_available, cma_es, design_rule_cost, nelder_mead

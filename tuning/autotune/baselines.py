@@ -1,19 +1,22 @@
 """Derivative-free baselines for gain tuning, on exactly the objective and batch the gradient tuner uses.
 
-The gradient tuner (:func:`tuning.autotune.tuner.tune`) is only worth its reverse-mode AD if it beats what a
-plain search reaches with the same cost function. These baselines search the same log-space
-``theta = log(p / p0)`` (:class:`tuning.parameters.LogParameterisation`, the same bounds, theta = 0 at
-the design-rule gains) and call one jit-compiled batch cost ``theta -> float``:
+The gradient tuner ([`tuning.autotune.tuner.tune`][tuning.autotune.tuner.tune]) is only worth its reverse-mode
+AD if it beats what a plain search reaches with the same cost function. These baselines search the same
+log-space ``theta = log(p / p0)``
+([`tuning.parameters.LogParameterisation`][tuning.parameters.LogParameterisation], the same bounds, theta = 0
+at the design-rule gains) and call one jit-compiled batch cost ``theta -> float``:
 
-- :func:`design_rule_cost`: the cost of the untouched design-rule gains (the starting point of all);
-- :func:`nelder_mead`: :func:`scipy.optimize.minimize` with ``method="Nelder-Mead"``, its simplex
-  clipped to the bounds;
-- :func:`cma_es`: CMA-ES from the optional package ``cma`` (:func:`cma_available` says whether it is
-  installed; without it :func:`cma_es` raises :class:`ImportError` naming the fix).
+- [`design_rule_cost`][tuning.autotune.baselines.design_rule_cost]: the cost of the untouched design-rule
+  gains (the starting point of all);
+- [`nelder_mead`][tuning.autotune.baselines.nelder_mead]: `scipy.optimize.minimize` with
+  ``method="Nelder-Mead"``, its simplex clipped to the bounds;
+- [`cma_es`][tuning.autotune.baselines.cma_es]: CMA-ES from the optional package ``cma``
+  ([`cma_available`][tuning.autotune.baselines.cma_available] says whether it is installed; without it
+  [`cma_es`][tuning.autotune.baselines.cma_es] raises `ImportError` naming the fix).
 
-Each returns a :class:`BaselineResult` whose ``trace`` is the best cost so far against the number of
-evaluations and the wall time (compile excluded; ``compile_time_s`` reports it separately), so a
-benchmark can put both searches and the gradient tuner on one cost-vs-time plot.
+Each returns a [`BaselineResult`][tuning.autotune.baselines.BaselineResult] whose ``trace`` is the best cost
+so far against the number of evaluations and the wall time (compile excluded; ``compile_time_s`` reports it
+separately), so a benchmark can put both searches and the gradient tuner on one cost-vs-time plot.
 """
 
 import dataclasses
@@ -74,7 +77,8 @@ class BaselineResult:
 
 
 def cma_available() -> bool:
-    """Whether the optional package ``cma`` (for :func:`cma_es`) is importable."""
+    """Whether the optional package ``cma`` (for [`cma_es`][tuning.autotune.baselines.cma_es]) is
+    importable."""
     return importlib.util.find_spec("cma") is not None
 
 
@@ -210,7 +214,8 @@ def nelder_mead(
 
     **Arguments:**
 
-    - `drive`, `batch`, `weights`: the problem, exactly as for :func:`tuning.autotune.tuner.tune`.
+    - `drive`, `batch`, `weights`: the problem, exactly as for
+      [`tuning.autotune.tuner.tune`][tuning.autotune.tuner.tune].
     - `names`: gains to tune (dotted names or the aliases ``speed``, ``current``).
     - `max_evaluations`: cost evaluations allowed (the search stops exactly there).
     - `bounds`: factors on the starting gains, ``(lower <= 1, upper >= 1)``; the simplex is clipped to them.
@@ -220,7 +225,7 @@ def nelder_mead(
     - `adaptive`: scipy's dimension-adapted coefficients.
     - `xatol`, `fatol`: scipy's convergence tolerances; small by default so the budget ends the search.
     - `seed`: unused by the (deterministic) simplex method; accepted for the same signature as
-      :func:`cma_es`.
+      [`cma_es`][tuning.autotune.baselines.cma_es].
     - `callback(evaluations, cost, best_cost)`: called after every evaluation.
     """
     del seed
@@ -274,10 +279,11 @@ def cma_es(
 ) -> BaselineResult:
     """CMA-ES (package ``cma``, optional) on the batch cost in log-space, from ``x0`` (default 0).
 
-    Same problem and arguments as :func:`nelder_mead`; `sigma0` is the initial step size in log-space,
-    `population_size` the number of candidates per generation (``cma``'s default ``4 + 3 ln n`` when
-    None), `seed` the sampling seed (runs are reproducible). Candidates are evaluated one at a time on
-    the same compiled cost as the other searches. Raises :class:`ImportError` when ``cma`` is missing.
+    Same problem and arguments as [`nelder_mead`][tuning.autotune.baselines.nelder_mead]; `sigma0` is the
+    initial step size in log-space, `population_size` the number of candidates per generation (``cma``'s
+    default ``4 + 3 ln n`` when None), `seed` the sampling seed (runs are reproducible). Candidates are
+    evaluated one at a time on the same compiled cost as the other searches. Raises `ImportError` when ``cma``
+    is missing.
     """
     if not cma_available():
         raise ImportError(
@@ -330,7 +336,8 @@ def lbfgs_b(
 
     Box bounds are handled by L-BFGS-B's active set, which suits optima on the bounds (where a tanh
     reparameterisation would flatten the gradient). Each evaluation is one value-and-gradient of the
-    batch (about 4-5 forward batches). Same arguments as :func:`nelder_mead`.
+    batch (about 4-5 forward batches). Same arguments as
+    [`nelder_mead`][tuning.autotune.baselines.nelder_mead].
     """
     weights = ObjectiveWeights() if weights is None else weights
     if batch.size < 1:

@@ -1,8 +1,8 @@
 """What ``pmsmjax tune --control NAME`` tunes for each control method, and on which surrogate.
 
-Per control (:data:`pmsmjax.presets.control_methods.CONTROLS`):
+Per control ([`pmsmjax.presets.control_methods.CONTROLS`][pmsmjax.presets.control_methods.CONTROLS]):
 
-- the gains tuned by default (dotted names or the aliases of :data:`tuning.parameters.ALIASES`):
+- the gains tuned by default (dotted names or the aliases of `tuning.parameters.ALIASES`):
   PI: the speed and current PIs; SMC: the surface and reaching-law gains ``c, eps, q`` and the current
   PIs; PR: the resonant current controller's ``kp, kr, w_c``; SMC-DTC: the speed PI and the sliding-mode
   DTC's switching gains and boundary layers ``K_T, phi_T, K_psi, phi_psi``;
@@ -24,8 +24,8 @@ from pmsmjax.spec.validation import ParameterError
 @dataclasses.dataclass(frozen=True)
 class ControlTuning:
     """`names`: the gains tuned by default; `surrogate`: preset options of the differentiated drive;
-    `weights`: :class:`~tuning.autotune.objectives.ObjectiveWeights` fields that differ from its defaults
-    when the job is given no weights."""
+    `weights`: [`ObjectiveWeights`][tuning.autotune.objectives.ObjectiveWeights] fields that differ from its
+    defaults when the job is given no weights."""
 
     names: tuple[str, ...]
     surrogate: dict = dataclasses.field(default_factory=dict)
@@ -51,10 +51,11 @@ TUNABLE_CONTROLS = {
 _VSD_DQ = tuple(f"controller.current.dq.{k}" for k in ("kp_d", "kp_q", "ki_d", "ki_q"))
 _PR_DQ = tuple(f"controller.current.dq.{k}" for k in ("kp", "kr", "w_c"))
 
-#: The six-phase schemes (:data:`pmsmjax.presets.six_phase.SIX_PHASE_CONTROLS`): the speed PI and the
-#: fundamental-subspace current gains (double dq: its four PIs and the cross-coupling compensation). The
-#: z1-z2 gains are left out by default: on the balanced nominal plant with the averaged bridge no z1-z2
-#: current flows, so the speed objectives give them no gradient (name them, e.g.
+#: The six-phase schemes
+#: ([`pmsmjax.presets.six_phase.SIX_PHASE_CONTROLS`][pmsmjax.presets.six_phase.SIX_PHASE_CONTROLS]): the speed
+#: PI and the fundamental-subspace current gains (double dq: its four PIs and the cross-coupling
+#: compensation). The z1-z2 gains are left out by default: on the balanced nominal plant with the averaged
+#: bridge no z1-z2 current flows, so the speed objectives give them no gradient (name them, e.g.
 #: ``controller.current.z.kp``, to tune them on an unbalanced plant).
 SIX_PHASE_TUNABLE_CONTROLS = {
     "vsd": ControlTuning(("speed",) + _VSD_DQ),
@@ -64,8 +65,10 @@ SIX_PHASE_TUNABLE_CONTROLS = {
 }
 
 
-#: The five-phase schemes (:data:`pmsmjax.presets.five_phase.FIVE_PHASE_CONTROLS`): the speed PI and the dq
-#: current gains (the x-y gains left out as the six-phase z1-z2 ones, for the same reason).
+#: The five-phase schemes
+#: ([`pmsmjax.presets.five_phase.FIVE_PHASE_CONTROLS`][pmsmjax.presets.five_phase.FIVE_PHASE_CONTROLS]): the
+#: speed PI and the dq current gains (the x-y gains left out as the six-phase z1-z2 ones, for the same
+#: reason).
 FIVE_PHASE_TUNABLE_CONTROLS = {
     "vsd": ControlTuning(("speed",) + _VSD_DQ),
     "conventional": ControlTuning(("speed",) + _VSD_DQ),
@@ -75,8 +78,8 @@ FIVE_PHASE_TUNABLE_CONTROLS = {
 
 def control_tuning(name: str, machine: str = "three-phase") -> ControlTuning:
     """The default tuning job of control `name` on `machine` (``three-phase``, ``six-phase`` or
-    ``five-phase``); :class:`~pmsmjax.spec.validation.ParameterError` listing the tunable controls for
-    another name."""
+    ``five-phase``); [`ParameterError`][pmsmjax.spec.validation.ParameterError] listing the tunable controls
+    for another name."""
     table = {"six-phase": SIX_PHASE_TUNABLE_CONTROLS, "five-phase": FIVE_PHASE_TUNABLE_CONTROLS}.get(
         machine, TUNABLE_CONTROLS
     )

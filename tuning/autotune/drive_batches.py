@@ -1,13 +1,15 @@
 """The tune job's scenario batches on a drive file: which batch maker, with which ranges, for a control
-or an observer (:mod:`tuning.autotune.drive_scaling` has the scaling rules).
+or an observer ([`tuning.autotune.drive_scaling`][tuning.autotune.drive_scaling] has the scaling rules).
 
-- controls: :func:`tuning.autotune.scenario_batches.make_batch` over the drive file's ``[tuning]``
-  speed, load and duration ranges at its control period;
-- chapter 5 observers: :func:`tuning.autotune.observers.make_observer_batch`, speeds up to the scaled
-  top speed (down to 5 % of it, starts from 25 %), loads up to the rated torque, warm-up and hold scaled
-  with the tuning durations, durations half the drive's tuning durations;
-- chapter 6 estimators: :func:`tuning.autotune.hfi_tuning.make_injection_batch` on
-  :func:`~tuning.autotune.hfi_tuning.injection_spec` likewise.
+- controls: [`tuning.autotune.scenario_batches.make_batch`][tuning.autotune.scenario_batches.make_batch] over
+  the drive file's ``[tuning]`` speed, load and duration ranges at its control period;
+- chapter 5 observers:
+  [`tuning.autotune.observers.make_observer_batch`][tuning.autotune.observers.make_observer_batch], speeds up
+  to the scaled top speed (down to 5 % of it, starts from 25 %), loads up to the rated torque, warm-up and
+  hold scaled with the tuning durations, durations half the drive's tuning durations;
+- chapter 6 estimators:
+  [`tuning.autotune.hfi_tuning.make_injection_batch`][tuning.autotune.hfi_tuning.make_injection_batch] on
+  [`injection_spec`][tuning.autotune.hfi_tuning.injection_spec] likewise.
 
 On the book drive every batch is the book's to the bit (tests/tuning/test_drive_scaling.py).
 """

@@ -1,22 +1,24 @@
 """The tune job's scenario batches and observer settings scaled to the user's drive
-(:class:`pmsmjax.spec.drive_spec.DriveSpec`).
+([`pmsmjax.spec.drive_spec.DriveSpec`][pmsmjax.spec.drive_spec.DriveSpec]).
 
-The controls' batches (:func:`tuning.autotune.scenario_batches.make_batch`) take the drive file's
-``[tuning]`` ranges and control period as they are. The observer batches (:mod:`tuning.autotune.observers`,
-:mod:`tuning.autotune.hfi_tuning`) were designed on the book drive in r/min, N m, A, V and s; here each of
-their numbers becomes the same share of the user's drive: speeds of its rated speed (the book's
-1000 r/min), loads of its rated torque (10 N m), the measurement noise of its current limit (15 A) and DC
-link (311 V), times (warm-up, hold, durations) of its tuning durations (the book's 0.3-0.5 s). On the book
+The controls' batches
+([`tuning.autotune.scenario_batches.make_batch`][tuning.autotune.scenario_batches.make_batch]) take the drive
+file's ``[tuning]`` ranges and control period as they are. The observer batches
+([`tuning.autotune.observers`][tuning.autotune.observers],
+[`tuning.autotune.hfi_tuning`][tuning.autotune.hfi_tuning]) were designed on the book drive in r/min, N m, A,
+V and s; here each of their numbers becomes the same share of the user's drive: speeds of its rated speed (the
+book's 1000 r/min), loads of its rated torque (10 N m), the measurement noise of its current limit (15 A) and
+DC link (311 V), times (warm-up, hold, durations) of its tuning durations (the book's 0.3-0.5 s). On the book
 drive every factor is exactly 1, so the batches are the book's to the bit
 (tests/tuning/test_drive_scaling.py). The observer batches' top speed, twice the rated speed on the book
-drive, is capped at the speed the inverter reaches under the rated torque (i_d = 0; 2119 r/min on the
-book drive): beyond it the current loop saturates under a full load instead of testing the observer.
+drive, is capped at the speed the inverter reaches under the rated torque (i_d = 0; 2119 r/min on the book
+drive): beyond it the current loop saturates under a full load instead of testing the observer.
 
-Objective weights (:func:`scaled_weights`): the ITAE (rad s) of a step grows with the speed and the
-square of the time scale, ``w t^2``, while the penalties are priced per % of overshoot, per A over the
-limit, per unit of saturated time and per rad of angle error. Weights set on the book drive (ITAE
-0.03-0.3 rad s a scenario) price the penalties 40 times lower against the ITAE of a slow heavy drive
-(industrial-5k6w: 1.6 rad s a scenario) and 7 times higher on a fast light one (outer-rotor-24v:
+Objective weights ([`scaled_weights`][tuning.autotune.drive_scaling.scaled_weights]): the ITAE (rad s) of a
+step grows with the speed and the square of the time scale, ``w t^2``, while the penalties are priced per % of
+overshoot, per A over the limit, per unit of saturated time and per rad of angle error. Weights set on the
+book drive (ITAE 0.03-0.3 rad s a scenario) price the penalties 40 times lower against the ITAE of a slow
+heavy drive (industrial-5k6w: 1.6 rad s a scenario) and 7 times higher on a fast light one (outer-rotor-24v:
 0.005 rad s; there 0.15 % of overshoot cost three times the whole ITAE, and BFGS found no accepted step
 from the design rules, benchmarks/user_drive_tuning.py). The penalty weights are therefore scaled by the
 drive's ITAE scale, ``(rated speed / 1000 r/min) (shortest tuning duration / 0.3 s)^2`` (1 on the book
@@ -106,8 +108,8 @@ def itae_scale(spec: DriveSpec) -> float:
 
 
 def scaled_weights(weights, spec: DriveSpec):
-    """``weights`` (:class:`~tuning.autotune.objectives.ObjectiveWeights`) with :data:`PENALTY_WEIGHTS`
-    times :func:`itae_scale` (the same object on the book drive)."""
+    """``weights`` ([`ObjectiveWeights`][tuning.autotune.objectives.ObjectiveWeights]) with `PENALTY_WEIGHTS`
+    times [`itae_scale`][tuning.autotune.drive_scaling.itae_scale] (the same object on the book drive)."""
     scale = itae_scale(spec)
     if scale == 1.0:
         return weights

@@ -1,26 +1,29 @@
 """The chapter 6 estimators in ``pmsmjax tune --estimator``: their drive and their
 low-speed scenario batches. The tuner, objective, outputs and resume are those of the chapter 5 observers
-(:mod:`tuning.autotune.observers`, whose ``TUNABLE_OBSERVERS`` lists what is tuned).
+([`tuning.autotune.observers`][tuning.autotune.observers], whose ``TUNABLE_OBSERVERS`` lists what is tuned).
 
-Drive (:func:`injection_sensorless_drive`): the FOC drive of the drive file (for the book drive the
-salient book motor, ``L_d`` 5.25 mH, ``L_q`` 12 mH; any other drive file must be salient) with the
-estimator's design rule, on the plant with d-axis saturation
-(:func:`pmsmjax.machines.saturated_machine`, defaults on the book drive), as
-:func:`pmsmjax.jobs.estimator_comparison.chapter6_drive` builds it for ``compare --estimator``;
-:func:`tuning.autotune.observers.observer_drive` puts it behind the
-same sensored warm-up and measurement noise as the chapter 5 observers.
+Drive ([`injection_sensorless_drive`][tuning.autotune.hfi_tuning.injection_sensorless_drive]): the FOC drive
+of the drive file (for the book drive the salient book motor, ``L_d`` 5.25 mH, ``L_q`` 12 mH; any other drive
+file must be salient) with the estimator's design rule, on the plant with d-axis saturation
+([`pmsmjax.machines.saturated_machine`][pmsmjax.machines.saturation.saturated_machine], defaults on the book
+drive), as
+[`pmsmjax.jobs.estimator_comparison.chapter6_drive`][pmsmjax.jobs.estimator_comparison.chapter6_drive] builds
+it for ``compare --estimator``;
+[`tuning.autotune.observers.observer_drive`][tuning.autotune.observers.observer_drive] puts it behind the same
+sensored warm-up and measurement noise as the chapter 5 observers.
 
 Polarity. The injection estimators find the d axis modulo pi: the estimator starts at ``theta0 = 0`` and
 locks to the pole within +-90 degrees of it. The batches therefore start the rotor within
 ``INITIAL_ANGLE_DEG`` of 0 (polarity known, as after the start-up detection of
-:mod:`pmsmjax.estimators.polarity`), and the angle error is scored modulo pi
+[`pmsmjax.estimators.polarity`][pmsmjax.estimators.polarity]), and the angle error is scored modulo pi
 (``ScenarioBatch.angle_modulo``); a lock on the wrong pole would turn the torque around and show in the
 ITAE. The hybrid is tuned without its polarity detector (``polarity=False``): its current pulses at
 the start would run during the sensored warm-up, and the polarity is known here. Its tuned names are
 therefore ``estimator.observer.injection.*`` (with the detector the injection sits one level deeper,
 ``injection.observer.*``).
 
-Scenarios (:func:`make_injection_batch`), chosen for the methods' range, standstill and low speed:
+Scenarios ([`make_injection_batch`][tuning.autotune.hfi_tuning.make_injection_batch]), chosen for the methods'
+range, standstill and low speed:
 
 - ``"standstill"``: the reference is 0 throughout; a load step of 2-10 N m (either sign) at 55-70 % of
   the scenario;
@@ -31,7 +34,8 @@ Scenarios (:func:`make_injection_batch`), chosen for the methods' range, standst
   crossover band (50-150 r/min, carrier off at 250 r/min) whose edges are tuned.
 
 These are the book drive's numbers; on another drive file each is the same share of its rated speed,
-rated torque, current limit and tuning durations (:mod:`tuning.autotune.drive_scaling`).
+rated torque, current limit and tuning durations
+([`tuning.autotune.drive_scaling`][tuning.autotune.drive_scaling]).
 """
 
 import jax.numpy as jnp
@@ -59,7 +63,7 @@ MAX_RPM = {"hfi-rotating": 100.0, "hfi-pulsating": 100.0, "hybrid": 300.0}
 STANDSTILL_LOAD_NM = 2.0
 HOLD_S = 0.02
 #: Current scale of the plant's d-axis saturation on the book drive, A
-#: (:func:`pmsmjax.machines.saturated_machine`'s default).
+#: ([`pmsmjax.machines.saturated_machine`][pmsmjax.machines.saturation.saturated_machine]'s default).
 SATURATION_CURRENT_A = 8.0
 #: Least relative saturation L_q / L_d - 1 a drive needs for the injection estimators.
 MIN_SALIENCY = 0.05
@@ -84,10 +88,11 @@ def injection_spec(spec: DriveSpec | None) -> DriveSpec:
 def injection_sensorless_drive(
     name: str, observer_options: dict | None = None, spec: DriveSpec | None = None, **kw
 ):
-    """The FOC drive of :func:`injection_spec` (the salient book motor by default) with the chapter 6
-    estimator ``name`` (design rule, overridden by ``observer_options``; the hybrid without its polarity
-    detector), on the saturated plant (its current scale the book's 8 A times the drive's current limit
-    over the book's 15 A); ``kw`` are preset options of the FOC drive (``n_substeps``, ...)."""
+    """The FOC drive of [`injection_spec`][tuning.autotune.hfi_tuning.injection_spec] (the salient book motor
+    by default) with the chapter 6 estimator ``name`` (design rule, overridden by ``observer_options``; the
+    hybrid without its polarity detector), on the saturated plant (its current scale the book's 8 A times the
+    drive's current limit over the book's 15 A); ``kw`` are preset options of the FOC drive (``n_substeps``,
+    ...)."""
     spec = injection_spec(spec)
     motor = spec_motor(spec)
     options = dict(observer_options or {})
@@ -115,7 +120,8 @@ def make_injection_batch(
 ) -> ScenarioBatch:
     """``n`` low-speed scenarios drawn reproducibly from ``seed`` (module docstring), scored modulo pi;
     the standstill load steps are at least ``standstill_load_nm``, the speed steps ``hold_s`` after the
-    warm-up. ``plant_spread`` as in :func:`tuning.autotune.scenario_batches.make_batch`."""
+    warm-up. ``plant_spread`` as in
+    [`tuning.autotune.scenario_batches.make_batch`][tuning.autotune.scenario_batches.make_batch]."""
     if n < 1:
         raise ParameterError(f"a scenario batch needs n >= 1 scenarios, got {n}.")
     bad = [k for k in kinds if k not in INJECTION_KINDS]
@@ -176,10 +182,13 @@ def make_injection_batch(
 
 
 def injection_batch_maker(name: str, spec: DriveSpec | None = None):
-    """The batch maker of chapter 6 estimator ``name`` for the tune job: :func:`make_injection_batch` at its
-    :data:`MAX_RPM` and :data:`STANDSTILL_LOAD_NM` scaled to the drive (:func:`injection_spec`'s rated
-    speed and torque over the book's); the job's default kinds (the chapter 5 ``("step",)``) mean
-    :data:`INJECTION_KINDS`."""
+    """The batch maker of chapter 6 estimator ``name`` for the tune job:
+    [`make_injection_batch`][tuning.autotune.hfi_tuning.make_injection_batch] at its
+    [`MAX_RPM`][tuning.autotune.hfi_tuning.MAX_RPM] and
+    [`STANDSTILL_LOAD_NM`][tuning.autotune.hfi_tuning.STANDSTILL_LOAD_NM] scaled to the drive
+    ([`injection_spec`][tuning.autotune.hfi_tuning.injection_spec]'s rated speed and torque over the book's);
+    the job's default kinds (the chapter 5 ``("step",)``) mean
+    [`INJECTION_KINDS`][tuning.autotune.hfi_tuning.INJECTION_KINDS]."""
     spec = injection_spec(spec)
     max_rpm, standstill = MAX_RPM[name] * speed_scale(spec), STANDSTILL_LOAD_NM * torque_scale(spec)
 

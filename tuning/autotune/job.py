@@ -1,32 +1,37 @@
 """The ``pmsmjax tune`` job: tune on a train batch, check on a held-out batch, write the results.
 
-Outputs in the chosen folder: ``gains.toml`` (load with :func:`tuning.parameters.apply_gains`),
-``result.json``, ``cost.png`` (cost against iteration), ``responses.png`` (speed and current of a few
-scenarios before and after) and ``checkpoint.npz`` (resume point; running the same command again
-continues from it and ends at the same result).
+Outputs in the chosen folder: ``gains.toml`` (load with
+[`tuning.parameters.apply_gains`][tuning.parameters.apply_gains]), ``result.json``, ``cost.png`` (cost against
+iteration), ``responses.png`` (speed and current of a few scenarios before and after) and ``checkpoint.npz``
+(resume point; running the same command again continues from it and ends at the same result).
 
-The drive (``drive``): a drive file or preset name (:func:`pmsmjax.io.drive_files.drive_spec`, default
-``book``) or its :class:`~pmsmjax.spec.drive_spec.DriveSpec`; every drive is built from it by
-:func:`pmsmjax.assemble.spec_drive`, and every batch from its ``[tuning]`` ranges and control
-period (:mod:`tuning.autotune.drive_scaling`). ``--motor book`` gives the book drive and batches bit for
-bit.
+The drive (``drive``): a drive file or preset name
+([`pmsmjax.io.drive_files.drive_spec`][pmsmjax.io.drive_files.drive_spec], default ``book``) or its
+[`DriveSpec`][pmsmjax.spec.drive_spec.DriveSpec]; every drive is built from it by
+[`pmsmjax.assemble.spec_drive`][pmsmjax.assemble.spec_drive], and every batch from its ``[tuning]`` ranges and
+control period ([`tuning.autotune.drive_scaling`][tuning.autotune.drive_scaling]). ``--motor book`` gives the
+book drive and batches bit for bit.
 
-Control methods (``control``: ``pi``, ``smc``, ``pr``, ``smc-dtc``; :mod:`tuning.autotune.controls`): the
-drive of that control, its default gains and its default objective weights (used when ``weights`` is
-None). ``machine="six-phase"``: the six-phase drive (:func:`pmsmjax.presets.six_phase.six_phase_drive`)
-under ``vsd``, ``double-dq``, ``conventional`` or ``pr`` (default ``vsd``); ``machine="five-phase"``: the
-five-phase drive (:func:`pmsmjax.presets.five_phase.five_phase_drive`) under ``vsd`` or ``conventional``.
+Control methods (``control``: ``pi``, ``smc``, ``pr``, ``smc-dtc``;
+[`tuning.autotune.controls`][tuning.autotune.controls]): the drive of that control, its default gains and its
+default objective weights (used when ``weights`` is None). ``machine="six-phase"``: the six-phase drive
+(`pmsmjax.presets.six_phase.six_phase_drive`) under ``vsd``,
+``double-dq``, ``conventional`` or ``pr`` (default ``vsd``); ``machine="five-phase"``: the five-phase drive
+(`pmsmjax.presets.five_phase.five_phase_drive`) under ``vsd``
+or ``conventional``.
 
 Observers (``estimator``: ``smo``, ``smo-pll``, ``adaptive-smo``, ``dq-smo``, ``mras``, ``ekf``;
-:mod:`tuning.autotune.observers`): the drive's FOC drive on that observer behind a sensored warm-up, its
-default parameters, the observer batches (start at speed, steps down to 5 % of the batches' top speed,
-load steps; ``kinds=("step", "reversal")`` adds reversals) and the objective speed ITAE plus angle-error
-RMS; the tuned gains' stability is checked with the observer's own ``check_period``. ``hfi-rotating``,
-``hfi-pulsating``, ``hybrid`` (chapter 6, :mod:`tuning.autotune.hfi_tuning`): the salient, saturated drive
-and low-speed batches (standstill, +-10 % of the rated speed), the angle error scored modulo pi. The
-observer batches' speeds, loads, noise and times are the book drive's scaled to the drive
-(:mod:`tuning.autotune.drive_scaling`). Without ``weights`` the objective's penalty weights are the
-defaults scaled to the drive's ITAE (:func:`tuning.autotune.drive_scaling.scaled_weights`).
+[`tuning.autotune.observers`][tuning.autotune.observers]): the drive's FOC drive on that observer behind a
+sensored warm-up, its default parameters, the observer batches (start at speed, steps down to 5 % of the
+batches' top speed, load steps; ``kinds=("step", "reversal")`` adds reversals) and the objective speed ITAE
+plus angle-error RMS; the tuned gains' stability is checked with the observer's own ``check_period``.
+``hfi-rotating``, ``hfi-pulsating``, ``hybrid`` (chapter 6,
+[`tuning.autotune.hfi_tuning`][tuning.autotune.hfi_tuning]): the salient, saturated drive and low-speed
+batches (standstill, +-10 % of the rated speed), the angle error scored modulo pi. The observer batches'
+speeds, loads, noise and times are the book drive's scaled to the drive
+([`tuning.autotune.drive_scaling`][tuning.autotune.drive_scaling]). Without ``weights`` the objective's
+penalty weights are the defaults scaled to the drive's ITAE
+([`tuning.autotune.drive_scaling.scaled_weights`][tuning.autotune.drive_scaling.scaled_weights]).
 
 Robustness (``robust``): training over plant draws from the drive file's ``[tolerances]`` (uniform
 within +-half-width per parameter, the DC link included; the controller's model stays nominal). Every
@@ -75,10 +80,11 @@ from tuning.parameters import apply_gains, get_leaf, write_gains_toml
 #: The reference configuration (book drive): 64 + 64 scenarios, 0.3-0.5 s, steps of 200-1500 r/min both
 #: ways, 0-10 N m;
 #: BFGS (its rounded-penalty default), which gets a 3x lower cost than Adam in fewer iterations. ``names``
-#: None: the control's own gains (:data:`tuning.autotune.controls.TUNABLE_CONTROLS`).
+#: None: the control's own gains (`tuning.autotune.controls.TUNABLE_CONTROLS`).
 DEFAULT_CONFIG = TuneConfig(names=None, method="bfgs", max_iterations=100)
 
-#: Keys of a tuning TOML file, by table; ``[job]`` holds the keyword arguments of :func:`run_tune_job`.
+#: Keys of a tuning TOML file, by table; ``[job]`` holds the keyword arguments of
+#: [`run_tune_job`][tuning.autotune.job.run_tune_job].
 JOB_KEYS = (
     "n_train",
     "n_heldout",
@@ -102,8 +108,8 @@ MACHINE_PHASES = {"three-phase": 3, "six-phase": 6, "five-phase": 5}
 def read_tune_toml(path) -> dict:
     """Read a tuning config: ``[weights]`` (ObjectiveWeights), ``[tune]`` (TuneConfig), ``[job]``.
 
-    Returns keyword arguments for :func:`run_tune_job` (``weights``, ``config`` and the job keys).
-    Unknown tables or keys are errors that name them.
+    Returns keyword arguments for [`run_tune_job`][tuning.autotune.job.run_tune_job] (``weights``, ``config``
+    and the job keys). Unknown tables or keys are errors that name them.
     """
     path = Path(path)
     if not path.is_file():
@@ -178,11 +184,11 @@ def run_tune_job(
     progress: bool = True,
     callback=None,
 ) -> dict:
-    """Tune the gains of ``drive`` (a :class:`DriveSpec`, a preset name or a drive file; default the book
-    drive) under ``control`` and write the outputs into ``out_dir``; returns result.json's content.
-    `start_gains`: a gains TOML (an earlier run's gains.toml) to start from instead of the design-rule
-    gains. `machine`: ``three-phase``, ``six-phase`` or ``five-phase`` (the drive file's phase count).
-    `estimator`: tune that observer's parameters instead (module docstring; the three-phase FOC drive,
+    """Tune the gains of ``drive`` (a [`DriveSpec`][pmsmjax.io.drive_files.DriveSpec], a preset name or a
+    drive file; default the book drive) under ``control`` and write the outputs into ``out_dir``; returns
+    result.json's content. `start_gains`: a gains TOML (an earlier run's gains.toml) to start from instead of
+    the design-rule gains. `machine`: ``three-phase``, ``six-phase`` or ``five-phase`` (the drive file's phase
+    count). `estimator`: tune that observer's parameters instead (module docstring; the three-phase FOC drive,
     control ``pi``). `duration_s` defaults to the drive file's ``[tuning] duration_s`` for a control and
     half of it for an observer (book: 0.3-0.5 s, 0.15-0.25 s). `robust`: train over plant draws from the
     drive file's ``[tolerances]`` (refused without them); `plant_spread` (``{parameter: half-width}``)

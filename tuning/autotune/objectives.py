@@ -1,11 +1,11 @@
 """Tuning objectives: per-scenario figures of merit of a batch run, weighted into one cost.
 
 Every metric is a jnp function of one scenario's trace, evaluated only over that scenario's own duration
-(:meth:`ScenarioBatch.active`), and vmapped over the batch. The costs are differentiable almost
-everywhere; the hard constraints of a drive (current limit, voltage saturation, overshoot) enter as
-penalties beyond their thresholds (linear; optionally rounded at the threshold for quasi-Newton
-methods, :func:`smoothed_penalty`; the current limit's rounding lies inside the limit), so a gradient pushes
-back as soon as they are crossed.
+([`ScenarioBatch.active`][tuning.autotune.scenario_batches.ScenarioBatch.active]), and vmapped over the batch.
+The costs are differentiable almost everywhere; the hard constraints of a drive (current limit, voltage
+saturation, overshoot) enter as penalties beyond their thresholds (linear; optionally rounded at the threshold
+for quasi-Newton methods, [`smoothed_penalty`][tuning.autotune.objectives.smoothed_penalty]; the current
+limit's rounding lies inside the limit), so a gradient pushes back as soon as they are crossed.
 """
 
 import dataclasses
@@ -68,12 +68,13 @@ class ObjectiveWeights:
     aggregate: Literal["mean", "cvar"] = "mean"
     cvar_alpha: float = 0.8  # CVaR: mean of the worst (1 - alpha) share of scenarios
     # Widths of a quadratic zone that rounds the kink of the overshoot and current penalties, for
-    # quasi-Newton methods (:func:`smoothed_penalty`); 0 = the exact L1 penalties. The smoothed cost
-    # is what the optimiser follows; reports always use the exact one.
+    # quasi-Newton methods ([`smoothed_penalty`][tuning.autotune.objectives.smoothed_penalty]); 0 = the exact
+    # L1 penalties. The smoothed cost is what the optimiser follows; reports always use the exact one.
     overshoot_smoothing_pct: float = 0.0
     current_smoothing_a: float = 0.0
     # Per electrical rad of RMS angle-estimate error (sensorless drives; observer tuning), taken as the
-    # RMS chord 2 sin(e/2) of the errors e (:func:`scenario_metrics`): the wrapped RMS for small errors.
+    # RMS chord 2 sin(e/2) of the errors e
+    # ([`scenario_metrics`][tuning.autotune.objectives.scenario_metrics]): the wrapped RMS for small errors.
     angle_error: float = 0.0
 
     def __post_init__(self):
@@ -98,11 +99,11 @@ def scenario_metrics(
     observe_from_s=0.0,
     angle_modulo: float = 2.0 * np.pi,
 ) -> dict:
-    """Figures of merit of one scenario's trace (see :data:`METRIC_NAMES`), over its own duration; the
+    """Figures of merit of one scenario's trace (see `METRIC_NAMES`), over its own duration; the
     angle error from ``observe_from_s`` (s) on, modulo ``angle_modulo`` (electrical rad: ``2 pi``, or
     ``pi`` for the injection estimators, whose error is wrapped to +-pi/2 and whose chord is
-    ``sin(e)``, i.e. the chord of ``2e`` halved). The figures are those of :mod:`pmsmjax.analysis`; here
-    they get their windows."""
+    ``sin(e)``, i.e. the chord of ``2e`` halved). The figures are those of
+    [`pmsmjax.analysis`][pmsmjax.analysis]; here they get their windows."""
     t = trace.t
     active = (t < duration_s - 1e-12).astype(t.dtype)
     e = metrics.tracking_error(trace.speed_ref, trace.omega_m) * active
@@ -151,7 +152,7 @@ def smoothed_penalty(x, width: float):
 
 def scenario_cost(m: dict, w: ObjectiveWeights, smoothed: bool = False):
     """Weighted cost of one scenario's metrics ``m``; ``smoothed``: the penalties' kinks rounded with the
-    widths of ``w`` (:func:`smoothed_penalty`)."""
+    widths of ``w`` ([`smoothed_penalty`][tuning.autotune.objectives.smoothed_penalty])."""
     over_x = m["overshoot_signed_pct"] - w.overshoot_allowed_pct
     current_x = m["current_over_limit_a"]
     over = smoothed_penalty(over_x, w.overshoot_smoothing_pct if smoothed else 0.0)
@@ -221,7 +222,7 @@ def batch_metrics(drive: Drive, batch: ScenarioBatch) -> dict:
 def start_at_speed(drive: Drive, speed_m, theta_e):
     """The drive's state at mechanical speed ``speed_m`` (rad/s) and electrical angle ``theta_e`` (rad),
     zero currents, with the speed loop in its no-load steady state
-    (:meth:`~pmsmjax.controllers.base.AbstractSpeedController.steady_state`): the speed PI's integral
+    ([`steady_state`][pmsmjax.controllers.base.AbstractSpeedController.steady_state]): the speed PI's integral
     holds its active-damping term ``B_a w`` (from a zero integral the damping term alone would brake the
     machine, measured 260 r/min of dip from 694 r/min on the book drive); other loops start from their
     ``init``."""

@@ -1,10 +1,11 @@
 """What ``pmsmjax tune --estimator NAME`` tunes for each chapter 5 observer, on which drive and scenarios.
 
-Per observer (:data:`pmsmjax.estimators.OBSERVERS`), the parameters tuned by default, as dotted paths of
-the drive (the observer sits at ``estimator.observer``, both in the tuning drive's
-:class:`~pmsmjax.estimators.sensored_warmup.SensoredWarmup` and in the I/f start's
-:class:`~pmsmjax.estimators.StartupEstimator`, so a tuned gains.toml applies to either). Every parameter
-is positive and tuned as ``log(p / p0)`` from the design rule (:mod:`tuning.parameters`):
+Per observer ([`pmsmjax.estimators.OBSERVERS`][pmsmjax.estimators.catalogue.OBSERVERS]), the parameters tuned
+by default, as dotted paths of the drive (the observer sits at ``estimator.observer``, both in the tuning
+drive's [`SensoredWarmup`][pmsmjax.estimators.sensored_warmup.SensoredWarmup] and in the I/f start's
+[`StartupEstimator`][pmsmjax.estimators.startup.StartupEstimator], so a tuned gains.toml applies to either).
+Every parameter is positive and tuned as ``log(p / p0)`` from the design rule
+([`tuning.parameters`][tuning.parameters]):
 
 =============  ==================================================================================
 smo            ``k`` (V), ``width`` (A), ``omega_c`` (rad/s), ``speed_bandwidth`` (rad/s)
@@ -22,19 +23,20 @@ Smooth surrogate: the SMOs' switching function is the sigmoid, which is their de
 and the evaluated observer are the same and ``surrogate`` is empty (a ``{"switching": ...}`` there would
 tune on that law and re-evaluate on the default, as the controls' table does). The loss is made smooth
 by the scenarios instead: each starts at speed with the drive on its sensor for ``WARMUP_S`` while the
-observer converges, then on the observer (:mod:`pmsmjax.estimators.sensored_warmup`: the hand-over is at
-a fixed time, so no comparator depends on a gain). An I/f start from standstill was not used: whether a
-back-EMF observer locks after it depends on the scenario (smo-pll and adaptive-smo lose the angle after an
-I/f start followed by 100 r/min or by a reversal), and a lost lock is a jump in the loss, not a slope.
+observer converges, then on the observer
+([`pmsmjax.estimators.sensored_warmup`][pmsmjax.estimators.sensored_warmup]: the hand-over is at a fixed time,
+so no comparator depends on a gain). An I/f start from standstill was not used: whether a back-EMF observer
+locks after it depends on the scenario (smo-pll and adaptive-smo lose the angle after an I/f start followed by
+100 r/min or by a reversal), and a lost lock is a jump in the loss, not a slope.
 
-Objective: the tune machinery's batch cost (:mod:`tuning.autotune.objectives`) with ``itae`` (speed ITAE
-of the sensorless drive, rad s) plus ``angle_error`` times the RMS of the wrapped electrical angle error
-after the hand-over (rad, as the RMS chord ``2 sin(e/2)``: smooth through +-pi), averaged over the batch;
-the voltage-saturation penalty stays. The overshoot penalty is off (each scenario starts at a speed, the
-pre-load window holds steps both ways, and observer gains hardly move the speed loop's overshoot; the
-ITAE prices the speed response), and so is the current penalty: the peak phase current exceeds the limit
-only where the angle is lost (27 A against 15 in a reversal), which the angle term prices already, and as
-a maximum over time it put kinks into the loss that stalled BFGS (measured on smo: 80 % of the cost,
+Objective: the tune machinery's batch cost ([`tuning.autotune.objectives`][tuning.autotune.objectives]) with
+``itae`` (speed ITAE of the sensorless drive, rad s) plus ``angle_error`` times the RMS of the wrapped
+electrical angle error after the hand-over (rad, as the RMS chord ``2 sin(e/2)``: smooth through +-pi),
+averaged over the batch; the voltage-saturation penalty stays. The overshoot penalty is off (each scenario
+starts at a speed, the pre-load window holds steps both ways, and observer gains hardly move the speed loop's
+overshoot; the ITAE prices the speed response), and so is the current penalty: the peak phase current exceeds
+the limit only where the angle is lost (27 A against 15 in a reversal), which the angle term prices already,
+and as a maximum over time it put kinks into the loss that stalled BFGS (measured on smo: 80 % of the cost,
 no accepted step in 42 iterations).
 ``ANGLE_WEIGHT`` (rad s per rad) makes 1 electrical degree RMS cost as much as 0.17 rad s of ITAE, about
 a batch scenario's whole ITAE: most of the ITAE is the speed loop's own step response, which the
@@ -70,13 +72,15 @@ from tuning.parameters import get_leaf, set_leaves
 #: the book motor reaches it under the 10 N m load with the 560 V link); 5 % of it is 100 r/min.
 RATED_SPEED_RPM = 2000.0
 #: Time the reference holds the start speed after the warm-up, and the load step at least after the speed
-#: step, s (book drive; scaled with the drive's tuning durations, :mod:`tuning.autotune.drive_scaling`).
+#: step, s (book drive; scaled with the drive's tuning durations,
+#: [`tuning.autotune.drive_scaling`][tuning.autotune.drive_scaling]).
 HOLD_S = 0.02
 #: Measurement noise on the observer's samples while tuning, per axis: 0.05 A (0.5 % of the book drive's
 #: 10 A, the EKF design rule's current noise) and 0.25 V (0.5 % of the 50 V phase voltage at about
 #: 600 r/min; the 0.5 % logs of benchmarks/observer_accuracy.py have 0.17-0.85 V from 400 to 2000 r/min).
 #: With it the design-rule smo keeps 0.3-0.5 degrees RMS at 300 r/min and above, as on those logs.
-#: Noise-free tuning rewarded gains that fail with noise (:mod:`pmsmjax.estimators.sensored_warmup`).
+#: Noise-free tuning rewarded gains that fail with noise
+#: ([`pmsmjax.estimators.sensored_warmup`][pmsmjax.estimators.sensored_warmup]).
 NOISE_CURRENT_A = 0.05
 NOISE_VOLTAGE_V = 0.25
 #: Objective weight of the RMS angle error, (rad s) per electrical rad: 1 degree RMS ~ 0.17 rad s of ITAE.
@@ -145,7 +149,7 @@ TUNABLE_OBSERVERS = {
 
 
 def observer_tuning(name: str) -> ObserverTuning:
-    """The default tuning job of observer `name`; :class:`~pmsmjax.spec.validation.ParameterError`
+    """The default tuning job of observer `name`; [`ParameterError`][pmsmjax.spec.validation.ParameterError]
     listing the tunable observers for another name."""
     check_observer_name(name)
     if name not in TUNABLE_OBSERVERS:
@@ -166,11 +170,12 @@ def observer_drive(
     **kw,
 ):
     """The FOC drive of the drive file ``spec`` (default the book drive;
-    :func:`pmsmjax.assemble.spec_drive`) on observer ``name`` (design-rule gains for the
-    drive's motor, overridden by ``observer_options``) behind a sensored warm-up of ``warmup_s`` (s), with
+    [`pmsmjax.assemble.spec_drive`][pmsmjax.assemble.spec_drive]) on observer ``name`` (design-rule gains for
+    the drive's motor, overridden by ``observer_options``) behind a sensored warm-up of ``warmup_s`` (s), with
     the measurement noise ``NOISE_CURRENT_A``, ``NOISE_VOLTAGE_V`` (scaled to the drive's current limit
-    and DC link, :func:`tuning.autotune.drive_scaling.noise_scale`) on the observer's samples unless
-    ``noise=False``; ``kw`` are preset options of the FOC drive (``n_substeps``, ...)."""
+    and DC link, [`tuning.autotune.drive_scaling.noise_scale`][tuning.autotune.drive_scaling.noise_scale]) on
+    the observer's samples unless ``noise=False``; ``kw`` are preset options of the FOC drive (``n_substeps``,
+    ...)."""
     spec = drive_spec("book") if spec is None else spec
     if observer_tuning(name).chapter6:
         drive = injection_sensorless_drive(name, observer_options, spec, n_substeps=n_substeps, **kw)
@@ -210,8 +215,8 @@ def make_observer_batch(
     from ``speed_rpm``, down to 5 % of rated, so low speeds are as common as high ones; ``"reversal"``:
     ``-w0``); a load of
     ``U(load_nm)`` opposing the final motion steps in at 55-70 % of the duration. ``plant_spread`` as in
-    :func:`tuning.autotune.scenario_batches.make_batch` (the observer's motor model stays nominal: a
-    model mismatch).
+    [`tuning.autotune.scenario_batches.make_batch`][tuning.autotune.scenario_batches.make_batch] (the
+    observer's motor model stays nominal: a model mismatch).
     """
     if n < 1:
         raise ParameterError(f"a scenario batch needs n >= 1 scenarios, got {n}.")

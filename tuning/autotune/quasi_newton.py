@@ -10,12 +10,13 @@ retried at 0.3x the step, and after ``max_tries`` failures along one direction t
 is dropped and the cap shrinks to the last step tried (steepest descent again, from there: restarting
 at the full cap would repeat the same failed trials forever); a full-length accepted step doubles the
 cap again, up to ``max_step``. Used with the rounded penalties of
-:func:`tuning.autotune.objectives.smoothed_penalty`, whose kinks are what stalls a quasi-Newton method.
+[`tuning.autotune.objectives.smoothed_penalty`][tuning.autotune.objectives.smoothed_penalty], whose kinks are
+what stalls a quasi-Newton method.
 
-**Ask-tell.** :func:`bfgs_tell` takes the evaluation at the point it asked for last and returns the
-next point to evaluate, so the tuner's loop, progress bar and checkpoints stay the same as for Adam.
-The state is a tuple of float64 NumPy arrays (exact in a checkpoint); the inverse-Hessian estimate is
-updated from every evaluated pair with positive curvature, accepted or not.
+**Ask-tell.** [`bfgs_tell`][tuning.autotune.quasi_newton.bfgs_tell] takes the evaluation at the point it asked
+for last and returns the next point to evaluate, so the tuner's loop, progress bar and checkpoints stay the
+same as for Adam. The state is a tuple of float64 NumPy arrays (exact in a checkpoint); the inverse-Hessian
+estimate is updated from every evaluated pair with positive curvature, accepted or not.
 """
 
 from typing import NamedTuple

@@ -1,7 +1,8 @@
 """Reproducible batches of speed/load scenarios for tuning (a train batch and a held-out batch).
 
 Every scenario of a batch is simulated over the same horizon (the scan length is shared); each has its
-own duration inside it, and objectives ignore what comes after it (:attr:`ScenarioBatch.active`).
+own duration inside it, and objectives ignore what comes after it
+([`ScenarioBatch.active`][tuning.autotune.scenario_batches.ScenarioBatch.active]).
 """
 
 from collections.abc import Sequence
@@ -16,15 +17,17 @@ from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
 
 KINDS = ("step", "reversal", "ramp")
-#: Time the observer batches (:mod:`tuning.autotune.observers`, :mod:`tuning.autotune.hfi_tuning`) run on
-#: the sensor before the observer takes over, s (each observer converges within a few ms at speed).
+#: Time the observer batches ([`tuning.autotune.observers`][tuning.autotune.observers],
+#: [`tuning.autotune.hfi_tuning`][tuning.autotune.hfi_tuning]) run on the sensor before the observer takes
+#: over, s (each observer converges within a few ms at speed).
 WARMUP_S = 0.02
 
 
 class ScenarioBatch(eqx.Module):
     """A stacked batch of scenarios with per-scenario duration and load-step time.
 
-    - `scenarios`: a batched :class:`pmsmjax.Scenario` (leading axis = scenario), horizon ``horizon_s``.
+    - `scenarios`: a batched [`pmsmjax.Scenario`][pmsmjax.scenarios.Scenario] (leading axis = scenario),
+      horizon ``horizon_s``.
     - `duration_s`: ``(B,)`` each scenario's own duration, s (objectives ignore later samples).
     - `load_time_s`: ``(B,)`` time of the load change, s (the speed-step window ends there).
     - `kind`: the kind of each scenario (``step``, ``reversal``, ``ramp``), for reports.
@@ -34,12 +37,12 @@ class ScenarioBatch(eqx.Module):
       bridge's DC link, which the controller measures (its voltage limit follows).
     - `initial_speed_m`, `initial_theta_e`: ``(B,)`` mechanical speed (rad/s) and electrical angle (rad)
       each scenario starts at (``None``: at rest, angle 0); the observer batches of
-      :mod:`tuning.autotune.observers` start at speed.
+      [`tuning.autotune.observers`][tuning.autotune.observers] start at speed.
     - `observe_from_s`: ``(B,)`` start of the window of the angle-error metric, s (``None``: from 0); the
       observer batches start it when the observer takes over from the sensor.
     - `angle_modulo`: static, the period of the angle-error metric, electrical rad: ``2 pi``, or ``pi`` for
       the HF-injection estimators, which find the d axis modulo pi (their batches,
-      :func:`tuning.autotune.hfi_tuning.make_injection_batch`).
+      [`tuning.autotune.hfi_tuning.make_injection_batch`][tuning.autotune.hfi_tuning.make_injection_batch]).
     """
 
     scenarios: Scenario
@@ -60,7 +63,7 @@ class ScenarioBatch(eqx.Module):
     @property
     def horizon_s(self) -> float:
         """Simulated time shared by every scenario, s; each one's own `duration_s` ends earlier or there
-        (:meth:`active` masks the samples after it)."""
+        ([`active`][tuning.autotune.scenario_batches.ScenarioBatch.active] masks the samples after it)."""
         return self.scenarios.duration_s
 
     def active(self, t: jnp.ndarray) -> jnp.ndarray:
@@ -87,7 +90,8 @@ def make_batch(
     duration. Durations are drawn from ``duration_s`` and rounded to whole periods ``Ts``.
 
     ``plant_spread = {"J": 0.5, "R": 0.2, ...}`` draws each scenario's plant parameter uniformly within
-    +-50 %, +-20 %, ... of nominal (see :attr:`ScenarioBatch.plant_scale`; ``u_dc_v`` scales the DC
+    +-50 %, +-20 %, ... of nominal (see
+    [`ScenarioBatch.plant_scale`][tuning.autotune.scenario_batches.ScenarioBatch]; ``u_dc_v`` scales the DC
     link, ``L_ls`` a multi-phase motor's leakage inductance).
     """
     if n < 1:

@@ -1,12 +1,13 @@
 """Gradient auto-tuning of drive gains over a batch of scenarios.
 
-The cost (:mod:`tuning.autotune.objectives`) of the whole batch is differentiated through every
-closed-loop simulation with reverse-mode AD, and ``theta = log(p/p0)`` moves from the design-rule gains by
-``method="adam"`` (a cosine-decayed step) or ``method="bfgs"`` (:mod:`tuning.autotune.quasi_newton`:
-step-capped BFGS on the cost with its penalty kinks rounded, one gradient per iteration; far fewer
-iterations on a handful of gains). Costs reported and compared are always the exact ones. The best
-iterate is kept; tuning stops at ``max_iterations``, when the cost has not improved by
-``min_rel_improvement`` for ``patience`` iterations, or when the time budget is spent.
+The cost ([`tuning.autotune.objectives`][tuning.autotune.objectives]) of the whole batch is differentiated
+through every closed-loop simulation with reverse-mode AD, and ``theta = log(p/p0)`` moves from the
+design-rule gains by ``method="adam"`` (a cosine-decayed step) or ``method="bfgs"``
+([`tuning.autotune.quasi_newton`][tuning.autotune.quasi_newton]: step-capped BFGS on the cost with its penalty
+kinks rounded, one gradient per iteration; far fewer iterations on a handful of gains). Costs reported and
+compared are always the exact ones. The best iterate is kept; tuning stops at ``max_iterations``, when the
+cost has not improved by ``min_rel_improvement`` for ``patience`` iterations, or when the time budget is
+spent.
 
 Host work out of the device's way: the cost-and-gradient function is compiled ahead of time (a compiled
 call returns once dispatched, where ``eqx.filter_jit`` waits for its results), and each iteration
@@ -51,9 +52,10 @@ class TuneConfig:
     - `learning_rate`: Adam step in log-space (0.05 = about 5 % change per step at most).
     - `max_step`: BFGS's largest log-space change of any gain per trial (0.5: a factor 1.65).
     - `overshoot_smoothing_pct`, `current_smoothing_a`: BFGS only: the widths over which the kinks of
-      the overshoot and current penalties are rounded (:func:`tuning.autotune.objectives.smoothed_penalty`) in
-      the cost it follows; 0 = exact. The current's rounding lies inside the limit, so it is narrow (10 mA):
-      a tuned drive accelerates on its current limit, and a zone of 0.1 A kept the servo-400w and
+      the overshoot and current penalties are rounded
+      ([`tuning.autotune.objectives.smoothed_penalty`][tuning.autotune.objectives.smoothed_penalty]) in the
+      cost it follows; 0 = exact. The current's rounding lies inside the limit, so it is narrow (10 mA): a
+      tuned drive accelerates on its current limit, and a zone of 0.1 A kept the servo-400w and
       outer-rotor-24v drives 40 mA off it, cutting their held-out ITAE by 5-8 % instead of 47-49 %
       (benchmarks/user_drive_tuning.py).
     - `max_iterations`, `patience`, `min_rel_improvement`: stopping rules.
@@ -96,7 +98,7 @@ class TuneConfig:
 
 @dataclasses.dataclass
 class TuneResult:
-    """Outcome of :func:`tune`.
+    """Outcome of [`tune`][tuning.autotune.tuner.tune].
 
     `drive`: the drive with the best gains; `gains`: name -> value; `history`: cost per iteration;
     `best_cost`, `initial_cost`; `iterations` done in total; `stopped`: why it stopped;
@@ -120,8 +122,8 @@ class TuneResult:
 
 
 class TuneInterrupted(KeyboardInterrupt):
-    """Ctrl-C during :func:`tune`; the message says at which iteration and where the checkpoint is.
-    `iteration`: the iterations the saved checkpoint holds."""
+    """Ctrl-C during [`tune`][tuning.autotune.tuner.tune]; the message says at which iteration and where the
+    checkpoint is. `iteration`: the iterations the saved checkpoint holds."""
 
     def __init__(self, message: str, iteration: int):
         super().__init__(message)
@@ -161,7 +163,7 @@ _value_and_grad = eqx.filter_jit(_evaluate)
 
 
 def compile_value_and_grad(theta, drive, batch, follow: ObjectiveWeights, param: LogParameterisation):
-    """:func:`_evaluate` compiled ahead of time for ``theta``'s shape; returns ``evaluate(theta)``.
+    """`_evaluate` compiled ahead of time for ``theta``'s shape; returns ``evaluate(theta)``.
 
     The drive, batch and parameterisation are split into arrays and the rest once, here: a call then
     only hands the arrays to the compiled program and returns without waiting for it (measured on the
@@ -189,8 +191,9 @@ def tune(
 ) -> TuneResult:
     """Tune ``config.names`` of ``drive`` to minimise the batch cost; see the module docstring.
 
-    `weights` and `config` default to :class:`ObjectiveWeights` and :class:`TuneConfig` defaults.
-    `callback(iteration, cost)` is called after every iteration (e.g. to log or to interrupt).
+    `weights` and `config` default to [`ObjectiveWeights`][tuning.autotune.objectives.ObjectiveWeights] and
+    [`TuneConfig`][tuning.autotune.tuner.TuneConfig] defaults. `callback(iteration, cost)` is called after
+    every iteration (e.g. to log or to interrupt).
     """
     weights = ObjectiveWeights() if weights is None else weights
     config = TuneConfig() if config is None else config

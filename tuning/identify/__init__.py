@@ -1,21 +1,23 @@
 """Motor parameters (R, L_d, L_q, psi_f, J, B) with error bars from a logged drive run (``pmsmjax identify``).
 
-- :mod:`~tuning.identify.pipeline`: :func:`identify` and :func:`identify_file`, the steps below in order.
-- :mod:`~tuning.identify.log`: read a log, map its columns and units, turn it into dq, check it.
-  Its columns, units and checks are :mod:`~tuning.identify.log_columns`, shared with the
-  observers' stator-frame log :mod:`~tuning.identify.stator_log` (``pmsmjax observe``).
-- :mod:`~tuning.identify.electrical`, :mod:`~tuning.identify.mechanical`: the two residual groups
-  (over :mod:`~tuning.identify.windows`, in the unknowns of :mod:`~tuning.identify.parameters`).
-- :mod:`~tuning.identify.fit`: warm starts and the Levenberg-Marquardt solve.
-- :mod:`~tuning.identify.uncertainty`: standard errors, 95 % intervals, identifiability.
-- :mod:`~tuning.identify.plots`: measured against fitted signals.
-- :mod:`~tuning.identify.motor_file`: the identified motor as a drive file (``DIR/motor.toml``).
-- :mod:`~tuning.identify.flux_map_fit`, :mod:`~tuning.identify.flux_map_files`: a saturated machine's
-  flux map from a constant-speed log (``pmsmjax identify --flux-map``); its test logs are made by
-  :mod:`~tuning.identify.saturated_reference_log`.
-- :mod:`~tuning.identify.excitation`: an experiment that makes every parameter identifiable; simulated
+- [`pipeline`][tuning.identify.pipeline]: [`identify`][tuning.identify.pipeline.identify] and
+  [`identify_file`][tuning.identify.pipeline.identify_file], the steps below in order.
+- [`log`][tuning.identify.log]: read a log, map its columns and units, turn it into dq, check it.
+  Its columns, units and checks are [`log_columns`][tuning.identify.log_columns], shared with the
+  observers' stator-frame log [`stator_log`][tuning.identify.stator_log] (``pmsmjax observe``).
+- [`electrical`][tuning.identify.electrical], [`mechanical`][tuning.identify.mechanical]: the two residual
+  groups (over [`windows`][tuning.identify.windows], in the unknowns of
+  [`parameters`][tuning.identify.parameters]).
+- [`fit`][tuning.identify.fit]: warm starts and the Levenberg-Marquardt solve.
+- [`uncertainty`][tuning.identify.uncertainty]: standard errors, 95 % intervals, identifiability.
+- [`plots`][tuning.identify.plots]: measured against fitted signals.
+- [`motor_file`][tuning.identify.motor_file]: the identified motor as a drive file (``DIR/motor.toml``).
+- [`flux_map_fit`][tuning.identify.flux_map_fit], [`flux_map_files`][tuning.identify.flux_map_files]: a
+  saturated machine's flux map from a constant-speed log (``pmsmjax identify --flux-map``); its test logs are
+  made by [`saturated_reference_log`][tuning.identify.saturated_reference_log].
+- [`excitation`][tuning.identify.excitation]: an experiment that makes every parameter identifiable; simulated
   logs of it (for tests, notebooks and benchmarks) are
-  :func:`pmsmjax.recorded.synthetic_logs.identification_log`.
+  [`pmsmjax.recorded.synthetic_logs.identification_log`][pmsmjax.recorded.synthetic_logs.identification_log].
 """
 
 from tuning.identify.excitation import identification_scenario, prbs

@@ -1,27 +1,27 @@
 """Electrical sub-problem: R, L_d, L_q, psi_f (and a dead-time voltage) from voltages, currents and speed.
 
 Given the measured speed, the dq current equations do not involve the mechanics, so this residual group
-depends on the electrical parameters only (:mod:`tuning.identify.fit` solves it jointly with
-:mod:`tuning.identify.mechanical`):
+depends on the electrical parameters only ([`tuning.identify.fit`][tuning.identify.fit] solves it jointly with
+[`tuning.identify.mechanical`][tuning.identify.mechanical]):
 
 ``L_d di_d/dt = u_d - R i_d + w_e L_q i_q``,  ``L_q di_q/dt = u_q - R i_q - w_e (L_d i_d + psi_f)``,
 
 with ``w_e = p_n w_m`` interpolated linearly between the measured samples. The voltage of row k is held
-over interval k as :mod:`pmsmjax.recorded.replay` holds it: ``hold="stator"`` (a real inverter: the
-stator-frame voltage is constant, so its dq components turn by ``-(theta_e(t) - theta_e(t_k))``) or
-``"rotor"``.
+over interval k as [`pmsmjax.recorded.replay`][pmsmjax.recorded.replay] holds it: ``hold="stator"`` (a real
+inverter: the stator-frame voltage is constant, so its dq components turn by ``-(theta_e(t) - theta_e(t_k))``)
+or ``"rotor"``.
 An optional dead-time term subtracts ``V_dt * tanh(i_x / eps)`` from each phase voltage (the voltage an
 inverter loses while its legs are both off, smoothed at zero current so it stays differentiable).
 
-**Output error with multiple shooting.** The log is cut into windows (:mod:`tuning.identify.windows`); each
-window is simulated with RK4 (``n_substeps`` steps per log interval) from the measured current at its
-first sample. The residuals are the simulated minus the measured currents at every later sample of the
-window; the last of them, at the sample where the next window starts, is the continuity gap between
-the two. Windows keep long logs from drifting (errors are reset each window), and all of them run as
-one ``vmap``'d scan. (Free window initial states were tried: 2 more unknowns per window made each
-Jacobian about 15x dearer, 0.37 s against 0.024 s for 20 windows.) Residuals are divided by each axis's
-noise level so the sum of squares is a likelihood and the Gauss-Newton covariance is meaningful
-(:mod:`tuning.identify.uncertainty`).
+**Output error with multiple shooting.** The log is cut into windows
+([`tuning.identify.windows`][tuning.identify.windows]); each window is simulated with RK4 (``n_substeps``
+steps per log interval) from the measured current at its first sample. The residuals are the simulated minus
+the measured currents at every later sample of the window; the last of them, at the sample where the next
+window starts, is the continuity gap between the two. Windows keep long logs from drifting (errors are reset
+each window), and all of them run as one ``vmap``'d scan. (Free window initial states were tried: 2 more
+unknowns per window made each Jacobian about 15x dearer, 0.37 s against 0.024 s for 20 windows.) Residuals are
+divided by each axis's noise level so the sum of squares is a likelihood and the Gauss-Newton covariance is
+meaningful ([`tuning.identify.uncertainty`][tuning.identify.uncertainty]).
 
 **Warm start.** The current equations integrated over short blocks are linear in the parameters
 (equation error): ``int u_d = R int i_d + L_d (i_d(b) - i_d(a)) - L_q int w_e i_q`` and the like for q.
@@ -74,7 +74,8 @@ class ElectricalData(eqx.Module):
 
     @staticmethod
     def from_log(log, window: int, sigma, pole_pairs, hold, n_substeps, dead_time, dead_time_eps):
-        """From a :class:`tuning.identify.log.DriveLog`; `window` is the target window length in intervals."""
+        """From a [`tuning.identify.log.DriveLog`][tuning.identify.log.DriveLog]; `window` is the target
+        window length in intervals."""
         n_w, W = window_layout(log.time.size, window)
         dt = np.diff(log.time)
         w0, w1 = log.omega_m[:-1], log.omega_m[1:]

@@ -11,10 +11,10 @@ What each parameter needs from the data (the model is ``u_d = R i_d + L_d di_d/d
   i_q changes at a given speed (acceleration and deceleration) and at several speeds.
 - `J`: accelerations (speed steps). `B` against a constant load: several constant speeds.
 
-:func:`identification_scenario` is a speed-mode scenario (the drive's own speed PI, so it can be run on
-a real drive that has one): a staircase of speed steps, including a reversal, with a PRBS on
-``id_ref``. The PRBS clock (default 10 ms) is longer than the electrical time constant (a few ms) so
-each level settles, and its amplitude (default 3 A) is a fraction of the current limit.
+[`identification_scenario`][tuning.identify.excitation.identification_scenario] is a speed-mode scenario (the
+drive's own speed PI, so it can be run on a real drive that has one): a staircase of speed steps, including a
+reversal, with a PRBS on ``id_ref``. The PRBS clock (default 10 ms) is longer than the electrical time
+constant (a few ms) so each level settles, and its amplitude (default 3 A) is a fraction of the current limit.
 """
 
 import numpy as np

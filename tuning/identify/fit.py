@@ -2,10 +2,11 @@
 
 The residual vector has two groups, each divided by its own noise level:
 
-- electrical (:mod:`tuning.identify.electrical`): simulated minus measured dq currents over shooting
-  windows, which involve R, L_d, L_q, psi_f (and V_dt) only, because the speed is measured;
-- mechanical (:mod:`tuning.identify.mechanical`): simulated minus measured speed at the end of short
-  windows, which involve J, B, T_c and, through the torque, psi_f, L_d, L_q.
+- electrical ([`tuning.identify.electrical`][tuning.identify.electrical]): simulated minus measured dq
+  currents over shooting windows, which involve R, L_d, L_q, psi_f (and V_dt) only, because the speed is
+  measured;
+- mechanical ([`tuning.identify.mechanical`][tuning.identify.mechanical]): simulated minus measured speed at
+  the end of short windows, which involve J, B, T_c and, through the torque, psi_f, L_d, L_q.
 
 The equations decouple given the measured speed and currents, so the warm starts are computed per
 group (linear equation error: electrical first, the mechanical one with its torque). The output-error
@@ -37,7 +38,7 @@ __all__ = ["FitResult", "fit", "noise_level", "joint_residuals"]
 
 @dataclasses.dataclass
 class FitResult:
-    """Result of :func:`fit`.
+    """Result of [`fit`][tuning.identify.fit.fit].
 
     - `pmap`, `theta`: parameter map and solver coordinates at the optimum; `values`: ``{name: value}``.
     - `cov`: ``(n_free, n_free)`` covariance of ``theta`` (sandwich, robust to correlated residuals);
@@ -47,7 +48,7 @@ class FitResult:
     - `electrical`, `mechanical`: the windowed data; `residuals`: simulated minus measured,
       ``i_dq (n_w, W, 2)`` A and ``omega_end (n_m,)`` rad/s; `lags`: Newey-West lags of each group.
     - `dof`: ``(n_free,)`` effective degrees of freedom of each variance estimate (the intervals' t
-      quantile, :func:`tuning.identify.uncertainty.interval_dof`).
+      quantile, [`tuning.identify.uncertainty.interval_dof`][tuning.identify.uncertainty.interval_dof]).
     - `steps`: Levenberg-Marquardt steps (all solves); `ok`: the solver converged.
     """
 
@@ -106,13 +107,14 @@ def _solve_and_linearise(y0, args, max_steps: int, rtol: float):
 
 def fit(log, pole_pairs: int, *, hold, fixed, start, dead_time, dead_time_eps, windows, n_substeps,
         max_steps=100, rtol=1e-6, held=()) -> FitResult:  # fmt: skip
-    """Fit every free parameter to a :class:`~tuning.identify.log.DriveLog`.
+    """Fit every free parameter to a [`DriveLog`][tuning.identify.log.DriveLog].
 
     `fixed`: ``{name: value}`` held fixed; `held`: names held at their warm start (the log does not
-    determine them: :func:`tuning.identify.uncertainty.motion_excitation`); `start`: start values
-    replacing the warm start;
-    `windows`: ``(electrical, mechanical)`` shooting-window lengths in log intervals;
-    `hold`, `dead_time`, `dead_time_eps`, `n_substeps`: model options (:mod:`tuning.identify.electrical`).
+    determine them:
+    [`tuning.identify.uncertainty.motion_excitation`][tuning.identify.uncertainty.motion_excitation]);
+    `start`: start values replacing the warm start; `windows`: ``(electrical, mechanical)`` shooting-window
+    lengths in log intervals; `hold`, `dead_time`, `dead_time_eps`, `n_substeps`: model options
+    ([`tuning.identify.electrical`][tuning.identify.electrical]).
     """
     e_names = el.ELECTRICAL_NAMES if dead_time else el.ELECTRICAL_NAMES[:4]
     e_start, _ = el.warm_start(log, pole_pairs, hold, {n: fixed[n] for n in e_names if n in fixed}, dead_time)

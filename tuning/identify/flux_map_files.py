@@ -1,12 +1,13 @@
-"""The files of ``pmsmjax identify --flux-map``: read the log, fit (:mod:`tuning.identify.flux_map_fit`),
-write ``DIR/flux_map.csv`` (the map with its ``measured`` marks, :mod:`pmsmjax.io.flux_map_files`),
-``DIR/flux_map.json`` (R, the inverter voltage error and its sign width, the residual, the marks' count)
-and ``DIR/motor.toml``, a drive file whose ``[motor] flux_map`` is the identified map
-(:mod:`pmsmjax.io.drive_files`).
+"""The files of ``pmsmjax identify --flux-map``: read the log, fit
+([`tuning.identify.flux_map_fit`][tuning.identify.flux_map_fit]), write ``DIR/flux_map.csv`` (the map with its
+``measured`` marks, [`pmsmjax.io.flux_map_files`][pmsmjax.io.flux_map_files]), ``DIR/flux_map.json`` (R, the
+inverter voltage error and its sign width, the residual, the marks' count) and ``DIR/motor.toml``, a drive
+file whose ``[motor] flux_map`` is the identified map ([`pmsmjax.io.drive_files`][pmsmjax.io.drive_files]).
 
 A constant-speed walk does not determine J and B: ``motor.toml`` takes them from ``--fix J=... B=...`` or
 the prior drive (``--motor PRIOR``, which also gives ``[ratings]`` and ``[inverter]``); without either it
-is not written and :func:`flux_map_motor_missing` names what is missing.
+is not written and [`flux_map_motor_missing`][tuning.identify.flux_map_files.flux_map_motor_missing] names
+what is missing.
 """
 
 import json
@@ -36,8 +37,8 @@ def identify_flux_map_file(
     log_path, out_dir, pole_pairs: int, *, fixed: dict, inverter_error: bool, step_a=None, **log_options
 ) -> FluxMapFit:
     """Read ``log_path`` (``log_options``: columns, units, hold, u_dc, resample as
-    :func:`tuning.identify.log.load_drive_log`), fit, write ``flux_map.csv`` and ``flux_map.json`` to
-    ``out_dir``. `fixed`: ``{"R": ohm}`` or empty. Returns the fit."""
+    [`tuning.identify.log.load_drive_log`][tuning.identify.log.load_drive_log]), fit, write ``flux_map.csv``
+    and ``flux_map.json`` to ``out_dir``. `fixed`: ``{"R": ohm}`` or empty. Returns the fit."""
     log = load_drive_log(log_path, pole_pairs, **log_options)
     out = check_output_folder(out_dir)
     check_units(log, pole_pairs, fixed)
@@ -70,8 +71,8 @@ def identify_flux_map_file(
 
 def check_units(log, pole_pairs: int, fixed: dict) -> None:
     """Refuse, before fitting and before any file is written, a log whose currents are in mA (they reach
-    :data:`~pmsmjax.io.flux_map_files.MA_CURRENT_A` while the flux the voltages imply per ampere is below
-    :data:`APPARENT_INDUCTANCE_FLOOR_H`) and a ``--fix R`` in mohm."""
+    `MA_CURRENT_A` while the flux the voltages imply per ampere is below
+    `APPARENT_INDUCTANCE_FLOOR_H`) and a ``--fix R`` in mohm."""
     R = fixed.get("R")
     if R is not None and R > MAX_RESISTANCE_OHM:
         raise ParameterError(

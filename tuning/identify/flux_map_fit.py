@@ -9,22 +9,23 @@ derivative of the noisy current:
 ``psi(i_b) - psi(i_a) + int (R i + w_e J psi(i) + V_e e(i, theta)) dt = int u dt``,
 
 ``e`` the dq voltage an error of one volt per phase (dead time, device drop: ``tanh(i_x / eps)`` of each
-phase current, as :mod:`tuning.identify.electrical`) takes away. The voltage's integral is exact for the
-hold the log records (stator-frame hold: the dq voltage turns by ``-w_e (t - t_k)`` over the interval);
-the others are trapezoidal sums of the samples. Windows start at every ``stride``-th sample, so transients
-contribute both through ``psi(i_b) - psi(i_a)`` (the incremental inductances along the path) and through
-``w_e J psi(i)`` (the flux itself wherever the current passed), not only the steady points; windows do not
-span a reversal of the speed (an interval whose speed changes by more than :data:`SPEED_JUMP` of the
-log's top speed).
+phase current, as [`tuning.identify.electrical`][tuning.identify.electrical]) takes away. The voltage's
+integral is exact for the hold the log records (stator-frame hold: the dq voltage turns by ``-w_e (t - t_k)``
+over the interval); the others are trapezoidal sums of the samples. Windows start at every ``stride``-th
+sample, so transients contribute both through ``psi(i_b) - psi(i_a)`` (the incremental inductances along the
+path) and through ``w_e J psi(i)`` (the flux itself wherever the current passed), not only the steady points;
+windows do not span a reversal of the speed (an interval whose speed changes by more than
+[`SPEED_JUMP`][tuning.identify.flux_map_fit.SPEED_JUMP] of the log's top speed).
 
 **The unknowns.** ``psi`` is the bicubic Hermite interpolant of node fluxes on a uniform grid over the
-visited currents (:func:`pmsmjax.machines.flux_map.hermite_coefficients`, the interpolant every command
-uses), so the identified map is exactly what the plant will run. The interpolant is linear in the node
-fluxes, and the equations are linear in ``(node fluxes, R, V_e)``: the least-squares problem is linear.
-Its Jacobian is taken by JAX (forward mode through ``hermite_coefficients``, exact for a linear map), and
-one Gauss-Newton step (a dense least-squares solve) is its exact minimum. Only the width ``eps`` of the
-inverter error's sign enters nonlinearly: unless given it is found by a bounded scalar search of that
-linear solve's residual (:func:`_profiled_smoothing`).
+visited currents
+([`pmsmjax.machines.flux_map.hermite_coefficients`][pmsmjax.machines.flux_map.hermite_coefficients], the
+interpolant every command uses), so the identified map is exactly what the plant will run. The interpolant is
+linear in the node fluxes, and the equations are linear in ``(node fluxes, R, V_e)``: the least-squares
+problem is linear. Its Jacobian is taken by JAX (forward mode through ``hermite_coefficients``, exact for a
+linear map), and one Gauss-Newton step (a dense least-squares solve) is its exact minimum. Only the width
+``eps`` of the inverter error's sign enters nonlinearly: unless given it is found by a bounded scalar search
+of that linear solve's residual (`_profiled_smoothing`).
 
 **Separability.** Steady state at ``+w_e`` and ``-w_e`` gives ``u = R i +- w_e J psi``: R from the sum,
 the flux from the difference. A log at one direction of rotation only does not separate R from ``psi``
@@ -32,9 +33,10 @@ the flux from the difference. A log at one direction of rotation only does not s
 current (it is ``~ 4/pi V_e`` in the current's direction whatever the current's size).
 
 **Nodes the log does not reach** are determined by nothing but a weak smoothness prior (second
-differences along each axis, weight :data:`SMOOTHNESS`); a node is *measured* when at least
-:data:`MIN_NODE_SAMPLES` samples lie within half a grid step of it along both axes, and the written map
-marks the others (:func:`pmsmjax.io.flux_map_files.read_flux_map_measured`).
+differences along each axis, weight [`SMOOTHNESS`][tuning.identify.flux_map_fit.SMOOTHNESS]); a node
+is *measured* when at least [`MIN_NODE_SAMPLES`][tuning.identify.flux_map_fit.MIN_NODE_SAMPLES] samples lie
+within half a grid step of it along both axes, and the written map marks the others
+([`pmsmjax.io.flux_map_files.read_flux_map_measured`][pmsmjax.io.flux_map_files.read_flux_map_measured]).
 
 **Logs of ordinary operation.** A speed-controlled drive with a fixed d-current rule moves its currents
 along one path through the current plane. The data then fix the flux along the path, and the nodes on
@@ -66,14 +68,16 @@ SPEED_JUMP = 0.05
 #: Samples within half a step of a node (both axes) for it to count as measured.
 MIN_NODE_SAMPLES = 5
 #: Weight of the smoothness prior's second differences against the window equations (Wb per Wb): the
-#: first one tried (:data:`SMOOTHNESS_STEPS`).
+#: first one tried (`SMOOTHNESS_STEPS`).
 SMOOTHNESS = 0.02
-#: Times :data:`SMOOTHNESS` is doubled at most while the fitted map fails the flux-map checks.
+#: Times [`SMOOTHNESS`][tuning.identify.flux_map_fit.SMOOTHNESS] is doubled at most while the fitted map fails
+#: the flux-map checks.
 SMOOTHNESS_STEPS = 5
 #: Smallest share of the log's top speed accepted as "turning": below it the back-EMF hides the flux.
 MIN_SPEED_SHARE = 0.05
 #: Weight of the prior's second differences among nodes the log does not reach, against
-#: :data:`SMOOTHNESS` elsewhere: there the map continues its neighbours almost linearly, it is not fitted.
+#: [`SMOOTHNESS`][tuning.identify.flux_map_fit.SMOOTHNESS] elsewhere: there the map continues its neighbours
+#: almost linearly, it is not fitted.
 UNMEASURED_SMOOTHNESS = 50.0
 #: Range of the inverter error's fitted sign width as shares of the largest logged current.
 SMOOTHING_BOUNDS = (1e-3, 0.3)
@@ -85,7 +89,8 @@ DEFAULT_INTERVALS = 8
 class FluxMapFit:
     """The identified map.
 
-    - `grid`: :class:`FluxMapGrid` (every node: the fit's value; unmeasured ones from the prior only);
+    - `grid`: [`FluxMapGrid`][pmsmjax.machines.flux_map.FluxMapGrid] (every node: the fit's value; unmeasured
+      ones from the prior only);
     - `measured`: ``(n_d, n_q)`` bool, nodes the log reached (module docstring);
     - `R`: ohm (`R_fixed`: given, not fitted); `V_e`: inverter voltage error per phase, V (None: not fitted);
     - `error_smoothing_a`: the current, A, over which the inverter error's sign turns (``tanh(i / eps)``;
@@ -109,7 +114,7 @@ class FluxMapFit:
 
 def flux_map_axes(i_dq: np.ndarray, step_a: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(i_d (n_d,), i_q (n_q,))`` grid axes, A, covering the currents ``i_dq (N, 2)`` with ``step_a`` A
-    (default: a 1-2-2.5-5 step giving about :data:`DEFAULT_INTERVALS` intervals over the wider range)."""
+    (default: a 1-2-2.5-5 step giving about `DEFAULT_INTERVALS` intervals over the wider range)."""
     lo, hi = i_dq.min(axis=0), i_dq.max(axis=0)
     if step_a is None:
         step_a = round_up_nice(float(np.max(hi - lo)) / DEFAULT_INTERVALS)
@@ -196,7 +201,7 @@ def _inverter_error_per_volt(i_dq, theta_e, eps: float) -> np.ndarray:
 def _profiled_smoothing(cost, i_dq) -> float:
     """The sign's smoothing current, A, that minimises ``cost(eps)`` (the least-squares sum with every
     other unknown solved for: a variable-projection profile, Golub and Pereyra, Inverse Problems 19(2),
-    2003, doi:10.1088/0266-5611/19/2/201), searched on a log scale between :data:`SMOOTHING_BOUNDS` shares
+    2003, doi:10.1088/0266-5611/19/2/201), searched on a log scale between `SMOOTHING_BOUNDS` shares
     of the largest logged current.
 
     Why fitted: the width over which a real bridge's error turns is set by the PWM current ripple (and
@@ -222,12 +227,13 @@ def fit_flux_map(
     inverter_error: bool = False,
     error_smoothing_a: float | None = None,
 ) -> FluxMapFit:
-    """Identify the flux map of ``log`` (a :class:`tuning.identify.log.DriveLog`) with ``pole_pairs``;
-    module docstring. `step_a`: grid step, A (default :func:`flux_map_axes`); `window_s`: window length,
-    s; `stride`: samples between window starts; `R`: ohm, held fixed when given; `inverter_error`: fit the
-    inverter voltage error ``V_e`` (V per phase, its sign smoothed over `error_smoothing_a` A; default: that
-    width fitted too, :func:`_profiled_smoothing`). Raises
-    :class:`ParameterError` (one line) for a log it cannot use."""
+    """Identify the flux map of ``log`` (a [`tuning.identify.log.DriveLog`][tuning.identify.log.DriveLog])
+    with ``pole_pairs``; module docstring. `step_a`: grid step, A (default
+    [`flux_map_axes`][tuning.identify.flux_map_fit.flux_map_axes]); `window_s`: window length, s; `stride`:
+    samples between window starts; `R`: ohm, held fixed when given; `inverter_error`: fit the inverter voltage
+    error ``V_e`` (V per phase, its sign smoothed over `error_smoothing_a` A; default: that width fitted too,
+    `_profiled_smoothing`). Raises [`ParameterError`][pmsmjax.spec.validation.ParameterError] (one line) for
+    a log it cannot use."""
     where = log.source
     dt = np.diff(log.time)
     w_e = pole_pairs * np.asarray(log.omega_m, dtype=float)

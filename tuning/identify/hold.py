@@ -1,14 +1,14 @@
 """Which voltage hold a log follows (``pmsmjax identify --hold auto``, the default).
 
 A log's voltage of row k is held until row k+1 either in the stator frame (a real inverter) or in the
-rotor frame (a dq-model simulator); see :mod:`pmsmjax.recorded.replay`. Read with the wrong one, every voltage
-is turned by about ``omega_e dt / 2``: the fit then returns biased values (R 2 % off, psi_f 1 % off on the
-test logs) or fails. Both are cheap to try: the equation-error warm start of
-:func:`tuning.identify.electrical.warm_start` is a linear least-squares fit, and the share of the
-integrated voltage it leaves unexplained is about ten times larger for the wrong hold at speed
-(tests/tuning/test_identify_honesty.py). The hold leaving less unexplained is chosen; when the two differ by
-less than :data:`AMBIGUOUS_RATIO` (a log at low speed, where the holds coincide) either fits and the
-choice is noted as such.
+rotor frame (a dq-model simulator); see [`pmsmjax.recorded.replay`][pmsmjax.recorded.replay]. Read with the
+wrong one, every voltage is turned by about ``omega_e dt / 2``: the fit then returns biased values (R 2 % off,
+psi_f 1 % off on the test logs) or fails. Both are cheap to try: the equation-error warm start of
+[`tuning.identify.electrical.warm_start`][tuning.identify.electrical.warm_start] is a linear least-squares
+fit, and the share of the integrated voltage it leaves unexplained is about ten times larger for the wrong
+hold at speed (tests/tuning/test_identify_honesty.py). The hold leaving less unexplained is chosen; when the
+two differ by less than [`AMBIGUOUS_RATIO`][tuning.identify.hold.AMBIGUOUS_RATIO] (a log at low speed, where
+the holds coincide) either fits and the choice is noted as such.
 """
 
 import dataclasses
@@ -24,8 +24,8 @@ AMBIGUOUS_RATIO = 1.5
 def detect_hold(log, pole_pairs: int, fixed: dict | None = None, dead_time: bool = False):
     """``(log with the hold that fits better, {"stator": unexplained, "rotor": unexplained}, note)``.
 
-    `log`: a :class:`tuning.identify.log.DriveLog` (its own ``hold`` is ignored); `fixed`: electrical
-    parameters held fixed in the fit (SI).
+    `log`: a [`tuning.identify.log.DriveLog`][tuning.identify.log.DriveLog] (its own ``hold`` is ignored);
+    `fixed`: electrical parameters held fixed in the fit (SI).
     """
     fixed = {k: v for k, v in (fixed or {}).items() if k in el.ELECTRICAL_NAMES}
     unexplained = {}

@@ -1,19 +1,22 @@
 """A drive log for identification: read any supported layout, convert to dq and SI units, check it.
 
-The columns, their units and the column map are those of :mod:`tuning.identify.log_columns`;
-stationary-frame signals need ``theta_e`` (to turn them into dq).
+The columns, their units and the column map are those of
+[`tuning.identify.log_columns`][tuning.identify.log_columns]; stationary-frame signals need ``theta_e`` (to
+turn them into dq).
 
 The voltage of row k is the one applied from ``t_k`` to ``t_{k+1}``. Stationary-frame and duty voltages
 are turned into dq with ``theta_e[k]``; how the voltage is held between rows (``hold``) is a property of
-the recording, as in :mod:`pmsmjax.recorded.replay`: ``"stator"`` for a real inverter, ``"rotor"`` for a
-dq-model simulator, ``"auto"`` (the command's default) to find it from the log (:mod:`tuning.identify.hold`).
+the recording, as in [`pmsmjax.recorded.replay`][pmsmjax.recorded.replay]: ``"stator"`` for a real inverter,
+``"rotor"`` for a dq-model simulator, ``"auto"`` (the command's default) to find it from the log
+([`tuning.identify.hold`][tuning.identify.hold]).
 
-Checks, all before any fitting, each a :class:`~pmsmjax.spec.validation.ParameterError` naming the column
-and the fix: missing or unknown columns (with close-name hints; a file column that looks like a
+Checks, all before any fitting, each a [`ParameterError`][pmsmjax.spec.validation.ParameterError] naming the
+column and the fix: missing or unknown columns (with close-name hints; a file column that looks like a
 misspelt canonical one the log lacks, ``omgea_m``, is refused rather than left unused), NaN/inf,
-non-increasing time (:func:`pmsmjax.io.logs.check_columns`), irregular sampling or gaps (refused, or
-resampled with a warning when asked), a sampling step too long for the electrical dynamics, and a speed
-inconsistent with the angle (rpm in a rad/s column, electrical instead of mechanical speed, wrong pole pairs).
+non-increasing time ([`pmsmjax.io.logs.check_columns`][pmsmjax.io.logs.check_columns]), irregular sampling or
+gaps (refused, or resampled with a warning when asked), a sampling step too long for the electrical dynamics,
+and a speed inconsistent with the angle (rpm in a rad/s column, electrical instead of mechanical speed, wrong
+pole pairs).
 """
 
 import dataclasses
@@ -108,7 +111,7 @@ def load_drive_log(
     u_dc: float | None = None,
     resample: bool = False,
 ) -> DriveLog:
-    """Read a ``.csv``/``.npz``/``.mat`` log and return a checked :class:`DriveLog`.
+    """Read a ``.csv``/``.npz``/``.mat`` log and return a checked [`DriveLog`][tuning.identify.log.DriveLog].
 
     `columns`: ``{canonical: name in file}``; `units`: ``{canonical or "current"/"voltage": unit}``;
     `hold`: ``"stator"`` (real inverter) or ``"rotor"`` (dq-model simulator); `u_dc`: DC-link voltage,
@@ -143,7 +146,8 @@ def drive_log_from_columns(
     resample: bool = False,
     source: str = "log",
 ) -> DriveLog:
-    """Build a checked :class:`DriveLog` from canonical columns (NumPy arrays); see :func:`load_drive_log`."""
+    """Build a checked [`DriveLog`][tuning.identify.log.DriveLog] from canonical columns (NumPy arrays); see
+    [`load_drive_log`][tuning.identify.log.load_drive_log]."""
     if not isinstance(pole_pairs, (int, np.integer)) or isinstance(pole_pairs, bool) or pole_pairs < 1:
         raise ParameterError(f"pole_pairs must be a positive integer (poles / 2), got {pole_pairs!r}.")
     if hold not in ("stator", "rotor", "auto"):

@@ -1,6 +1,7 @@
-"""The canonical columns of a drive log, shared by the identification log (:mod:`tuning.identify.log`)
-and the observers' stator-frame log (:mod:`tuning.identify.stator_log`): their names, units and meanings,
-reading them through a column map, and the checks and conversions both logs make.
+"""The canonical columns of a drive log, shared by the identification log
+([`tuning.identify.log`][tuning.identify.log]) and the observers' stator-frame log
+([`tuning.identify.stator_log`][tuning.identify.stator_log]): their names, units and meanings, reading them
+through a column map, and the checks and conversions both logs make.
 
 Column names in the file are mapped to canonical names by a column map (``{canonical: name in file}``,
 from options or the ``[columns]`` table of a TOML file); units by ``{canonical: unit}`` (``[units]``).
@@ -14,7 +15,7 @@ Canonical columns (SI units after conversion):
   ``Hz`` = rev/s);
 - ``T_L`` known load torque, N m (optional).
 
-Each check raises a :class:`~pmsmjax.spec.validation.ParameterError` naming the column and the fix.
+Each check raises a [`ParameterError`][pmsmjax.spec.validation.ParameterError] naming the column and the fix.
 """
 
 import difflib

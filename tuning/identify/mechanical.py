@@ -1,8 +1,9 @@
 """Mechanical sub-problem: J, B and a constant load torque from speed and the identified torque.
 
 ``J dw_m/dt = T_e - B w_m - T_c - T_L``, with ``T_e = 1.5 p_n [psi_f i_q + (L_d - L_q) i_d i_q]`` from
-the measured currents and the electrical parameters (:mod:`tuning.identify.electrical`), ``T_L`` a logged
-load torque (0 if none) and ``T_c`` an unknown constant load (``load="constant"``) or 0.
+the measured currents and the electrical parameters
+([`tuning.identify.electrical`][tuning.identify.electrical]), ``T_L`` a logged load torque (0 if none) and
+``T_c`` an unknown constant load (``load="constant"``) or 0.
 
 **Output error with multiple shooting, end residuals only.** The log is cut into short windows
 (default 10 ms); each starts at the measured speed and is integrated with RK4 (torque interpolated

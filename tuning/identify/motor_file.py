@@ -1,10 +1,12 @@
 """The identified motor as a drive file (``DIR/motor.toml`` of ``pmsmjax identify``), readable by
-:func:`pmsmjax.io.drive_files.drive_spec` and so by every command (``--motor DIR/motor.toml``).
+[`pmsmjax.io.drive_files.drive_spec`][pmsmjax.io.drive_files.drive_spec] and so by every command
+(``--motor DIR/motor.toml``).
 
 - ``[motor]``: the identified values; a parameter held fixed (``--fix``) keeps its given value; a parameter
   the log does not determine (``identifiable`` false in ``params.json``) takes the prior's value
   (``--motor PRIOR``), with a comment saying so. Without a prior such a parameter has no value to write:
-  :func:`undetermined` names it and the file is not written (``params.json`` still is).
+  [`undetermined`][tuning.identify.motor_file.undetermined] names it and the file is not written
+  (``params.json`` still is).
 - ``[tolerances]``: for an identified parameter the relative half-width of its 95 % interval, the larger
   of its two sides (the interval is not symmetric: it is symmetric in ``log`` of the value); a prior's
   value keeps the prior file's tolerance, if it has one; a fixed value gets none.
@@ -38,7 +40,7 @@ def _half_width(entry: dict) -> float:
 def motor_file_tables(summary: dict, pole_pairs: int, prior: DriveSpec | None = None) -> tuple[dict, dict]:
     """``(tables, comments)`` of the drive file of an identification ``summary`` (``params.json``) and
     an optional ``prior`` drive (module docstring). Raises ValueError when a parameter is undetermined
-    and there is no prior (check :func:`undetermined` first)."""
+    and there is no prior (check [`undetermined`][tuning.identify.motor_file.undetermined] first)."""
     motor, tolerances, comments = {}, {}, {}
     for name in MOTOR_NAMES:
         entry = summary["parameters"][name]

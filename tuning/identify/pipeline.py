@@ -2,22 +2,24 @@
 
 Pipeline (each step in its own module):
 
-1. :mod:`tuning.identify.log`: read CSV/.mat/.npz, map columns and units, turn every frame into dq, check
-   everything (gaps, units, consistency) before any fitting.
-2. :mod:`tuning.identify.electrical`: current residuals over multiple-shooting windows (R, L_d, L_q, psi_f
-   and a dead-time voltage), the voltage held as the recording held it (``hold``, as in
-   :mod:`pmsmjax.recorded.replay`); given the measured speed they do not involve the mechanics.
-3. :mod:`tuning.identify.mechanical`: speed residuals at window ends (J, B, a constant load, and the
-   electrical parameters through the torque).
-   :mod:`tuning.identify.fit`: equation-error warm starts, then one output-error Levenberg-Marquardt solve
-   (optimistix, JAX forward-mode Jacobians) over both groups.
-4. :mod:`tuning.identify.uncertainty`: standard errors, 95 % intervals (in log space for positive
-   parameters, so they stay positive; Student t with each variance estimate's effective degrees of
-   freedom, reported as ``ci95_dof``), identifiability, the weak directions and what excitation would
+1. [`tuning.identify.log`][tuning.identify.log]: read CSV/.mat/.npz, map columns and units, turn every frame
+   into dq, check everything (gaps, units, consistency) before any fitting.
+2. [`tuning.identify.electrical`][tuning.identify.electrical]: current residuals over multiple-shooting
+   windows (R, L_d, L_q, psi_f and a dead-time voltage), the voltage held as the recording held it (``hold``,
+   as in [`pmsmjax.recorded.replay`][pmsmjax.recorded.replay]); given the measured speed they do not involve
+   the mechanics.
+3. [`tuning.identify.mechanical`][tuning.identify.mechanical]: speed residuals at window ends (J, B, a
+   constant load, and the electrical parameters through the torque).
+   [`tuning.identify.fit`][tuning.identify.fit]: equation-error warm starts, then one output-error
+   Levenberg-Marquardt solve (optimistix, JAX forward-mode Jacobians) over both groups.
+4. [`tuning.identify.uncertainty`][tuning.identify.uncertainty]: standard errors, 95 % intervals (in log space
+   for positive parameters, so they stay positive; Student t with each variance estimate's effective degrees
+   of freedom, reported as ``ci95_dof``), identifiability, the weak directions and what excitation would
    fix them.
 
-:func:`identify` works on a :class:`~tuning.identify.log.DriveLog`; :func:`identify_file` reads a file and
-writes ``DIR/params.json`` and ``DIR/fit.png``. Everything runs in float64.
+[`identify`][tuning.identify.pipeline.identify] works on a [`DriveLog`][tuning.identify.log.DriveLog];
+[`identify_file`][tuning.identify.pipeline.identify_file] reads a file and writes ``DIR/params.json`` and
+``DIR/fit.png``. Everything runs in float64.
 """
 
 import dataclasses
@@ -367,11 +369,13 @@ def identify_file(
 ) -> IdentifyResult:
     """Read ``log_path``, identify, write ``out_dir/params.json`` (and ``fit.png``); returns the result.
 
-    `hold`: ``"auto"`` (default, :data:`pmsmjax.recorded.replay.DEFAULT_HOLD`: the hold that fits better,
-    :mod:`tuning.identify.hold`), ``"stator"`` or ``"rotor"``.
-    `config`: TOML with ``[columns]``, ``[units]``, ``[log]`` (``hold``, ``u_dc``, ``resample``) and
-    ``[identify]`` (:class:`IdentifyOptions` fields; ``fixed``/``start`` as tables); explicit arguments
-    win over it. Everything is checked before anything is compiled; files are written atomically.
+    `hold`: ``"auto"`` (default,
+    [`pmsmjax.recorded.replay.DEFAULT_HOLD`][pmsmjax.recorded.replay.DEFAULT_HOLD]: the hold that fits better,
+    [`tuning.identify.hold`][tuning.identify.hold]), ``"stator"`` or ``"rotor"``. `config`: TOML with
+    ``[columns]``, ``[units]``, ``[log]`` (``hold``, ``u_dc``, ``resample``) and ``[identify]``
+    ([`IdentifyOptions`][tuning.identify.pipeline.IdentifyOptions] fields; ``fixed``/``start`` as tables);
+    explicit arguments win over it. Everything is checked before anything is compiled; files are written
+    atomically.
     """
     cfg = read_log_config(config) if config else {"columns": {}, "units": {}, "log": {}, "identify": {}}
     cols = {**cfg["columns"], **(columns or {})}

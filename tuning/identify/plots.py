@@ -77,5 +77,5 @@ def fit_figure(result, zoom_s: float = 0.05):
 
 
 def save_fit_figure(result, path: Path) -> Path:
-    """Write :func:`fit_figure` as PNG atomically."""
+    """Write [`fit_figure`][tuning.identify.plots.fit_figure] as PNG atomically."""
     return save_figure(fit_figure(result), Path(path))

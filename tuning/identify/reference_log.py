@@ -2,13 +2,13 @@
 NumPy, its motor integrated by SciPy's adaptive Dormand-Prince 8(5,3) (``solve_ivp``, DOP853), so that
 identification and the commissioning chain are tested on data the code under test did not make.
 
-The drive (the book, ch. 1 and 3, built independently of :mod:`pmsmjax.controllers`):
+The drive (the book, ch. 1 and 3, built independently of [`pmsmjax.controllers`][pmsmjax.controllers]):
 
 - speed PI with active damping at bandwidth ``beta`` (``Kp = beta J / k_t``, ``Ki = beta Kp``,
   ``B_a = (beta J - B) / k_t``), the integrator clamped while the current limit is active (conditional
   integration, where the project's speed PI uses a realisable-reference anti-windup);
-- i_d reference: a PRBS (:func:`tuning.identify.excitation.prbs`) so that L_d is excited; i_q limited
-  to ``sqrt(I_max^2 - i_d^2)``;
+- i_d reference: a PRBS ([`tuning.identify.excitation.prbs`][tuning.identify.excitation.prbs]) so that L_d is
+  excited; i_q limited to ``sqrt(I_max^2 - i_d^2)``;
 - dq current PIs with the internal-model gains at bandwidth ``a_c`` (``Kp = a_c L``, ``Ki = a_c R``) and
   back-EMF/cross-coupling feed-forward, the voltage clamped to the SVPWM circle ``U_dc / sqrt 3``;
 - one control period of computation delay with the angle advanced by 1.5 periods, the voltage held in the
@@ -16,9 +16,9 @@ The drive (the book, ch. 1 and 3, built independently of :mod:`pmsmjax.controlle
 - the motor: dq equations with the stator-frame voltage turned into dq at the rotor angle of each instant.
 
 Each row ``k`` of the log is what firmware records (the layout of
-:data:`pmsmjax.recorded.synthetic_logs.LOG_COLUMNS` ``["dq"]``): the time ``t_k``, the held stator voltage
-of ``[t_k, t_k+1)`` turned into dq with the angle at ``t_k``, the currents, speed and angle sampled at
-``t_k``, and the load torque.
+[`pmsmjax.recorded.synthetic_logs.LOG_COLUMNS`][pmsmjax.recorded.synthetic_logs.LOG_COLUMNS] ``["dq"]``): the
+time ``t_k``, the held stator voltage of ``[t_k, t_k+1)`` turned into dq with the angle at ``t_k``, the
+currents, speed and angle sampled at ``t_k``, and the load torque.
 """
 
 import math
@@ -31,7 +31,8 @@ from tuning.identify.excitation import prbs
 __all__ = ["reference_drive_log", "identification_speeds_rpm", "commissioning_log", "PRBS_SHARE"]
 
 #: The speed staircase of the identification run, as shares of the rated speed (several constant speeds,
-#: accelerations both ways and a reversal: J, B and a load separate; :mod:`tuning.identify.excitation`).
+#: accelerations both ways and a reversal: J, B and a load separate;
+#: [`tuning.identify.excitation`][tuning.identify.excitation]).
 SPEED_SHARES = (0.4, 0.9, 0.15, 0.7, -0.3, 0.5, 0.85, 0.25)
 
 
@@ -40,7 +41,7 @@ PRBS_SHARE = 0.2
 
 
 def identification_speeds_rpm(rated_speed_rpm: float) -> tuple[float, ...]:
-    """The staircase's speed levels, r/min (:data:`SPEED_SHARES` of ``rated_speed_rpm``)."""
+    """The staircase's speed levels, r/min (`SPEED_SHARES` of ``rated_speed_rpm``)."""
     return tuple(share * rated_speed_rpm for share in SPEED_SHARES)
 
 
@@ -133,11 +134,13 @@ def reference_drive_log(
 
 
 def commissioning_log(spec, duration_s: float, prbs_clock_s: float, noise=None, seed: int = 0) -> dict:
-    """The identification log of drive file ``spec`` (:class:`pmsmjax.spec.drive_spec.DriveSpec`): the
-    reference drive at the file's DC link, control rate, current limit and design-rule bandwidths, the
-    staircase of :func:`identification_speeds_rpm`, a PRBS of :data:`PRBS_SHARE` x the maximum current on
-    i_d; ``noise`` (default :data:`pmsmjax.recorded.synthetic_logs.ID_LOG_NOISE`: 1 % on the currents, 0.5 %
-    on the voltages) drawn with ``seed``."""
+    """The identification log of drive file ``spec``
+    ([`pmsmjax.spec.drive_spec.DriveSpec`][pmsmjax.spec.drive_spec.DriveSpec]): the reference drive at the
+    file's DC link, control rate, current limit and design-rule bandwidths, the staircase of
+    [`identification_speeds_rpm`][tuning.identify.reference_log.identification_speeds_rpm], a PRBS of
+    [`PRBS_SHARE`][tuning.identify.reference_log.PRBS_SHARE] x the maximum current on i_d; ``noise`` (default
+    [`pmsmjax.recorded.synthetic_logs.ID_LOG_NOISE`][pmsmjax.recorded.synthetic_logs.ID_LOG_NOISE]: 1 % on the
+    currents, 0.5 % on the voltages) drawn with ``seed``."""
     from pmsmjax.recorded.synthetic_logs import ID_LOG_NOISE, add_measurement_noise
 
     log = reference_drive_log(

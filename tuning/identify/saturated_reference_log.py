@@ -1,29 +1,32 @@
 """A flux-map identification log made without this project's engine: a saturated PMSM (an analytic
 co-energy model with cross-saturation) integrated by SciPy's ``solve_ivp`` (DOP853, current as state)
 under a current controller written in NumPy, at a constant speed held by a dynamometer, so that flux-map
-identification (:mod:`tuning.identify.flux_map_fit`) is tested on data the code under test did not make.
+identification ([`tuning.identify.flux_map_fit`][tuning.identify.flux_map_fit]) is tested on data the code
+under test did not make.
 
 **The machine** (the model written in the header of ``pmsmjax/presets/motors/saturated_ipm_map.csv``):
 co-energy ``W'(i) = psi_m i_d + L_d i_d^2/2 + L_ql i_q^2/2 + L_mq s^2 ln cosh(r/s)`` with
 ``r = sqrt(s0^2 + i_q^2 + (c i_d)^2)``; ``psi = grad W'`` and ``L_inc = hess W'`` in closed form
-(:func:`saturated_flux`). Voltage equations in the rotor frame (amplitude-invariant dq, peak values):
-``u = R i + L_inc(i) di/dt + w_e J psi(i)``, ``J = [[0, -1], [1, 0]]``, integrated for ``di/dt``.
+([`saturated_flux`][tuning.identify.saturated_reference_log.saturated_flux]). Voltage equations in the rotor
+frame (amplitude-invariant dq, peak values): ``u = R i + L_inc(i) di/dt + w_e J psi(i)``,
+``J = [[0, -1], [1, 0]]``, integrated for ``di/dt``.
 
 **The inverter.** The controller's stator-frame voltage is held over each control period (an averaged
 inverter) and applied one period after it is computed (the angle advanced by 1.5 periods). An optional
-voltage error of a two-level bridge is subtracted from each phase voltage (:func:`bridge_error`): the
-PWM-period average of a dead time ``t_d`` and a device drop ``V_f``, ``u_err = (t_d / Ts) U_dc + V_f``
-(Murai et al., IEEE Trans. Ind. Appl. 23(5), 1987, doi:10.1109/TIA.1987.4505004), whose sign moves
-linearly between its two values while the phase current's PWM ripple crosses zero inside the period
-(``|i_x|`` below the ripple's half amplitude; exactly sharp for no ripple). It is written here apart from the
-fit's own model (a ``tanh`` sign) so that the fit is not tested on the shape it assumes. The log records
-the controller's references, as firmware does.
+voltage error of a two-level bridge is subtracted from each phase voltage
+([`bridge_error`][tuning.identify.saturated_reference_log.bridge_error]): the PWM-period average of a dead
+time ``t_d`` and a device drop ``V_f``, ``u_err = (t_d / Ts) U_dc + V_f`` (Murai et al., IEEE Trans. Ind.
+Appl. 23(5), 1987, doi:10.1109/TIA.1987.4505004), whose sign moves linearly between its two values while the
+phase current's PWM ripple crosses zero inside the period (``|i_x|`` below the ripple's half amplitude;
+exactly sharp for no ripple). It is written here apart from the fit's own model (a ``tanh`` sign) so that the
+fit is not tested on the shape it assumes. The log records the controller's references, as firmware does.
 
 **The controller.** dq current PIs at bandwidth ``a_c`` on the unsaturated inductances (``Kp = a_c L``,
-``Ki =`` :data:`INTEGRAL_SHARE` ``a_c Kp``) and back-EMF feed-forward from the linear model at zero current,
+``Ki =`` `INTEGRAL_SHARE` ``a_c Kp``) and back-EMF feed-forward from the linear model at zero current,
 voltage clamped to the SVPWM
-circle; the current reference walks a grid of operating points (:func:`operating_walk`): along i_q at
-each i_d, then along i_d at each i_q, so every segment of the grid is crossed by a transient.
+circle; the current reference walks a grid of operating points
+([`operating_walk`][tuning.identify.saturated_reference_log.operating_walk]): along i_q at each i_d, then
+along i_d at each i_q, so every segment of the grid is crossed by a transient.
 
 Each log row ``k`` is ``time, u_d, u_q, i_d, i_q, omega_m, theta_e``: the held stator voltage of
 ``[t_k, t_k+1)`` in dq at ``theta_e(t_k)``, and the currents, speed and angle sampled at ``t_k``.
@@ -94,7 +97,8 @@ def operating_walk(i_d_points, i_q_points) -> np.ndarray:
 def ripple_half_amplitude(machine: dict, u_dc_v: float, Ts: float) -> float:
     """Half the peak-to-peak PWM current ripple, A, of a phase at mid modulation: ``U_dc Ts / (8 L)``
     (centre-aligned PWM, a leg at duty 1/2 against a neutral near mid supply), ``L`` the smaller unsaturated
-    incremental inductance of ``machine``; the current width over which :func:`bridge_error` turns."""
+    incremental inductance of ``machine``; the current width over which
+    [`bridge_error`][tuning.identify.saturated_reference_log.bridge_error] turns."""
     L0 = saturated_flux(machine, 0.0, 0.0)[1]
     return u_dc_v * Ts / (8.0 * float(np.min(np.diag(L0))))
 
@@ -130,12 +134,15 @@ def saturated_drive_log(
     ripple_a: float | None = None,
     rtol: float = 1e-8,
 ) -> dict[str, np.ndarray]:
-    """Noise-free log (module docstring) of ``machine`` (:data:`SATURATED_IPM`'s keys) at constant
+    """Noise-free log (module docstring) of ``machine``
+    ([`SATURATED_IPM`][tuning.identify.saturated_reference_log.SATURATED_IPM]'s keys) at constant
     ``speed_rpm`` (mechanical, r/min; negative turns backwards), the current reference stepping through
     ``references (P, 2)`` A, each held ``dwell_s`` s; control period ``Ts`` s (also the PWM period); the
     bridge's dead time ``dead_time_s`` s and device drop ``device_drop_v`` V, its sign turning over
-    ``ripple_a`` A (default :func:`ripple_half_amplitude`; 0: sharp). Columns ``time`` s, ``u_d, u_q`` V,
-    ``i_d, i_q`` A, ``omega_m`` rad/s, ``theta_e`` rad, each ``(N,)``, ``N = P dwell_s / Ts``."""
+    ``ripple_a`` A (default
+    [`ripple_half_amplitude`][tuning.identify.saturated_reference_log.ripple_half_amplitude]; 0: sharp).
+    Columns ``time`` s, ``u_d, u_q`` V, ``i_d, i_q`` A, ``omega_m`` rad/s, ``theta_e`` rad, each ``(N,)``,
+    ``N = P dwell_s / Ts``."""
     m = machine
     refs = np.asarray(references, dtype=float)
     per_point = int(round(dwell_s / Ts))
@@ -190,8 +197,9 @@ def speed_controlled_log(
     seed: int = 0,
     rtol: float = 1e-8,
 ) -> dict[str, np.ndarray]:
-    """A log of ordinary closed-loop operation: ``machine`` (:data:`SATURATED_IPM`'s keys) from rest under
-    a speed loop and load steps, the speed and angle integrated with the currents by the same DOP853.
+    """A log of ordinary closed-loop operation: ``machine``
+    ([`SATURATED_IPM`][tuning.identify.saturated_reference_log.SATURATED_IPM]'s keys) from rest under a speed
+    loop and load steps, the speed and angle integrated with the currents by the same DOP853.
 
     **Arguments:** `speed_steps`, `load_steps`: ``[(time_s, value), ...]`` step references of the speed
     (mechanical, r/min) and the load torque (N m), each value held from its time on (zero before the
@@ -200,7 +208,9 @@ def speed_controlled_log(
     ``1.5 p psi(0)`` (``Kp = J beta / k_t``, ``Ki = beta Kp / 2``, the integral held while the current is
     limited); `current_limit_a`: the q reference's limit, A; `i_d_share`: the d reference
     ``-i_d_share |i_q*|`` (a fixed MTPA-like rule, not the map's MTPA); the current loop, bridge and log
-    columns as :func:`saturated_drive_log` (no inverter error); `noise`, `seed` as :func:`flux_map_log`.
+    columns as [`saturated_drive_log`][tuning.identify.saturated_reference_log.saturated_drive_log] (no
+    inverter error); `noise`, `seed` as
+    [`flux_map_log`][tuning.identify.saturated_reference_log.flux_map_log].
 
     The currents then follow the operating points the speed and load ask for, along one path through
     the current plane with the transients around it: the fit determines the map there and marks the rest.
@@ -299,8 +309,9 @@ def _columns(rows: np.ndarray) -> dict[str, np.ndarray]:
 
 
 def _add_noise(log: dict, noise: dict | None, seed: int) -> dict:
-    """``log`` with white noise of ``noise`` (default :data:`FLUX_MAP_LOG_NOISE`; ``{}`` for none) on its
-    currents and voltages, drawn with ``seed``."""
+    """``log`` with white noise of ``noise`` (default
+    [`FLUX_MAP_LOG_NOISE`][tuning.identify.saturated_reference_log.FLUX_MAP_LOG_NOISE]; ``{}`` for none) on
+    its currents and voltages, drawn with ``seed``."""
     noise = FLUX_MAP_LOG_NOISE if noise is None else noise
     rng = np.random.default_rng(seed)
     for cols, key in ((("i_d", "i_q"), "current_a"), (("u_d", "u_q"), "voltage_v")):
@@ -320,11 +331,13 @@ def flux_map_log(
     seed: int = 0,
     **kwargs,
 ) -> dict[str, np.ndarray]:
-    """The identification log: the walk of :func:`operating_walk` over ``i_d_points x i_q_points`` (A)
-    at ``+speed_rpm`` and then retraced at ``-speed_rpm`` (both directions of rotation separate R from
-    the flux), joined in time (the speed reverses between two rows), with white noise
-    of ``noise`` (default :data:`FLUX_MAP_LOG_NOISE`; ``{}`` for none)
-    drawn with ``seed``. Other arguments as :func:`saturated_drive_log`."""
+    """The identification log: the walk of
+    [`operating_walk`][tuning.identify.saturated_reference_log.operating_walk] over
+    ``i_d_points x i_q_points`` (A) at ``+speed_rpm`` and then retraced at ``-speed_rpm`` (both directions of
+    rotation separate R from the flux), joined in time (the speed reverses between two rows), with white noise
+    of ``noise`` (default [`FLUX_MAP_LOG_NOISE`][tuning.identify.saturated_reference_log.FLUX_MAP_LOG_NOISE];
+    ``{}`` for none) drawn with ``seed``. Other arguments as
+    [`saturated_drive_log`][tuning.identify.saturated_reference_log.saturated_drive_log]."""
     walk = operating_walk(i_d_points, i_q_points)
     # Backwards the walk is retraced, so the current is continuous where the dynamometer reverses.
     parts = [

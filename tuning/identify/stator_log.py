@@ -1,11 +1,12 @@
 """A drive log for an observer (``pmsmjax observe``): read any stator-frame layout, convert to alpha-beta
 and SI units, check it.
 
-The columns, their units and the column map are those of :mod:`tuning.identify.log_columns`. An observer
-estimates the rotor angle, so its log gives the stationary-frame signals: voltages ``u_alpha, u_beta`` |
-``u_a, u_b, u_c`` | duties ``d_a, d_b, d_c`` with ``U_dc``, currents ``i_alpha, i_beta`` | ``i_a, i_b,
-i_c``; ``theta_e`` and ``omega_m`` are read only as the truth the estimate is scored against. The checks are
-the identification log's (:mod:`tuning.identify.log`), a dq log refused with the reason.
+The columns, their units and the column map are those of
+[`tuning.identify.log_columns`][tuning.identify.log_columns]. An observer estimates the rotor angle, so its
+log gives the stationary-frame signals: voltages ``u_alpha, u_beta`` | ``u_a, u_b, u_c`` | duties
+``d_a, d_b, d_c`` with ``U_dc``, currents ``i_alpha, i_beta`` | ``i_a, i_b, i_c``; ``theta_e`` and ``omega_m``
+are read only as the truth the estimate is scored against. The checks are the identification log's
+([`tuning.identify.log`][tuning.identify.log]), a dq log refused with the reason.
 """
 
 import dataclasses
@@ -72,13 +73,14 @@ def load_stator_log(
     truth: tuple[str, ...] = (),
     pole_pairs: int | None = None,
 ) -> StatorLog:
-    """Read a ``.csv``/``.npz``/``.mat`` log for an observer and return a checked :class:`StatorLog`.
+    """Read a ``.csv``/``.npz``/``.mat`` log for an observer and return a checked
+    [`StatorLog`][tuning.identify.stator_log.StatorLog].
 
     Voltages ``u_alpha, u_beta`` | ``u_a, u_b, u_c`` | duties ``d_a, d_b, d_c`` with ``U_dc`` (or `u_dc`,
     V); currents ``i_alpha, i_beta`` | ``i_a, i_b, i_c``; other columns are ignored unless named in
     `truth` (a subset of ``theta_e``, ``omega_m``). `columns`, `units`, `resample`: as
-    :func:`load_drive_log`; `pole_pairs` (when both truth columns are given) checks the speed against
-    the angle.
+    [`load_drive_log`][tuning.identify.log.load_drive_log]; `pole_pairs` (when both truth columns are given)
+    checks the speed against the angle.
     """
     bad = [c for c in truth if c not in TRUTH]
     if bad:
@@ -107,8 +109,9 @@ def stator_log_from_columns(
     source: str = "log",
     other_columns: list[str] = (),
 ) -> StatorLog:
-    """A checked :class:`StatorLog` from canonical columns (NumPy arrays); see :func:`load_stator_log`.
-    `other_columns`: the file's other column names, searched for close matches of missing ones."""
+    """A checked [`StatorLog`][tuning.identify.stator_log.StatorLog] from canonical columns (NumPy arrays);
+    see [`load_stator_log`][tuning.identify.stator_log.load_stator_log]. `other_columns`: the file's other
+    column names, searched for close matches of missing ones."""
     if not any(n in cols for n in sum(_STATOR_VOLTAGE_SETS.values(), ())) and all(
         n in cols for n in VOLTAGE_SETS["dq"]
     ):

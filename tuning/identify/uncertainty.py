@@ -4,7 +4,8 @@ For weighted residuals ``r(y)`` (each divided by its signal's noise level) at th
 ``Jr`` and ``n`` residuals for ``m`` unknowns, the noise variance factor is ``s^2 = |r|^2 / (n - m)``
 (1 when the weights are the true noise levels) and ``cov(y) = s^2 (Jr^T Jr)^-1`` in solver coordinates
 (``log`` of positive parameters, so variances are relative). When residuals are correlated in time
-the sandwich form of :func:`covariance` is used instead (same estimate, honest spread).
+the sandwich form of [`covariance`][tuning.identify.uncertainty.covariance] is used instead (same estimate,
+honest spread).
 
 **Identifiability.** The covariance is eigen-decomposed; a direction whose standard deviation exceeds
 the tolerance is one the data does not pin down, and the parameters with a large share of it are
@@ -17,9 +18,9 @@ standard error rather than the zero a pseudo-inverse would give: no confident va
 (shooting windows): for a parameter whose information comes from a few of them (psi_f from the
 high-speed windows, L_q from the q-current steps) that estimate is itself noisy, and a normal 1.96
 interval around it covers the truth less than 95 % of the time (measured: 88 % for psi_f over 50
-seeds). :func:`interval_dof` gives each parameter the effective degrees of freedom of its variance
-estimate (Bell-McCaffrey / Imbens-Kolesar, the standard small-sample correction for cluster-robust
-standard errors), and the interval uses the Student t quantile with those degrees of freedom.
+seeds). [`interval_dof`][tuning.identify.uncertainty.interval_dof] gives each parameter the effective degrees
+of freedom of its variance estimate (Bell-McCaffrey / Imbens-Kolesar, the standard small-sample correction for
+cluster-robust standard errors), and the interval uses the Student t quantile with those degrees of freedom.
 """
 
 import numpy as np
@@ -51,7 +52,7 @@ ADVICE = {
 
 
 #: A current axis excites its inductance when its variation, averaged over ``EXCITATION_AVERAGE_S``,
-#: is at least this many times its noise level (see :func:`excitation`).
+#: is at least this many times its noise level (see [`excitation`][tuning.identify.uncertainty.excitation]).
 MIN_EXCITATION = 3.0
 EXCITATION_AVERAGE_S = 0.5e-3
 #: Parameter -> the dq current axis (0: d, 1: q) whose variation determines it.

@@ -1,17 +1,21 @@
 """Monte Carlo robustness studies of a drive over parameter tolerances (``pmsmjax montecarlo``).
 
-- :mod:`~tuning.montecarlo.study`: what a study varies (:class:`Study`, its TOML file, applying a sample).
-- :mod:`~tuning.montecarlo.distributions`: tolerances as distributions, seeded (Latin hypercube) sampling.
-- :mod:`~tuning.montecarlo.kernel`: one closed-loop run reduced to its metrics while it runs.
-- :mod:`~tuning.montecarlo.runner`: :func:`run_study`, chunked, sharded over every device, resumable.
-- :mod:`~tuning.montecarlo.summary`, :mod:`~tuning.montecarlo.figures`: percentiles, failure rates,
+- [`study`][tuning.montecarlo.study]: what a study varies ([`Study`][tuning.montecarlo.study.Study], its TOML
+  file, applying a sample).
+- [`distributions`][tuning.montecarlo.distributions]: tolerances as distributions, seeded (Latin hypercube)
+  sampling.
+- [`kernel`][tuning.montecarlo.kernel]: one closed-loop run reduced to its metrics while it runs.
+- [`runner`][tuning.montecarlo.runner]: [`run_study`][tuning.montecarlo.runner.run_study], chunked, sharded
+  over every device, resumable.
+- [`summary`][tuning.montecarlo.summary], [`figures`][tuning.montecarlo.figures]: percentiles, failure rates,
   CVaR, sensitivities; histograms, fan charts, a tornado chart.
-- :mod:`~tuning.montecarlo.cpu_devices`: :func:`split_cpu`, one JAX device per CPU core, and
-  :func:`~tuning.montecarlo.cpu_devices.set_up_devices`, a study's devices (a core each, or a cluster's
-  hosts).
+- [`cpu_devices`][tuning.montecarlo.cpu_devices]: [`split_cpu`][tuning.montecarlo.cpu_devices.split_cpu], one
+  JAX device per CPU core, and [`set_up_devices`][tuning.montecarlo.cpu_devices.set_up_devices], a study's
+  devices (a core each, or a cluster's hosts).
 
-:func:`split_cpu` only works before JAX initialises its backends, and importing this package runs the
-imports below: none of them may touch a device at import time (no module-level arrays).
+[`split_cpu`][tuning.montecarlo.cpu_devices.split_cpu] only works before JAX initialises its backends, and
+importing this package runs the imports below: none of them may touch a device at import time (no module-level
+arrays).
 """
 
 from tuning.montecarlo.cpu_devices import split_cpu

@@ -1,21 +1,23 @@
 """How many runs go into one chunk (one compiled call, one file on disk) when the study says ``"auto"``.
 
-The rule (:func:`auto_chunk_size`), per device, then times the device count::
+The rule ([`auto_chunk_size`][tuning.montecarlo.chunking.auto_chunk_size]), per device, then times the device
+count::
 
     runs per device = min( floor(MEMORY_FRACTION * free bytes / bytes per run),   # what fits
                            target[platform] )                                      # what still pays
     target = THROUGHPUT_CAP, raised for short runs on a CPU to
              min(ceil(MIN_RUN_PERIODS / periods per run), MAX_RUNS)
 
-rounded down to at least two runs per device (:func:`tuning.montecarlo.runner.chunk_layout` then
-balances the chunks over the study's ``n`` runs).
+rounded down to at least two runs per device
+([`tuning.montecarlo.runner.chunk_layout`][tuning.montecarlo.runner.chunk_layout] then balances the chunks
+over the study's ``n`` runs).
 
 - **free bytes**: ``bytes_limit - bytes_in_use`` from ``device.memory_stats()`` (GPU, TPU), the smallest
   over this process's devices; on the CPU, which reports no memory statistics, the host's available RAM
   (``MemAvailable`` of /proc/meminfo, else ``sysconf``) shared by its CPU devices. With several processes
   (``jax.distributed``) every process takes the smallest of all processes' values, so they agree.
-- **bytes per run** (:func:`bytes_per_run`): an upper bound of what one run holds on the device, from
-  shapes alone (nothing is traced or run): the parameter row, the metrics and
+- **bytes per run** ([`bytes_per_run`][tuning.montecarlo.chunking.bytes_per_run]): an upper bound of what one
+  run holds on the device, from shapes alone (nothing is traced or run): the parameter row, the metrics and
   the decimated record it returns, ``TEMP_FACTOR`` times the drive's scan carry (RK4 stages, the
   controller's intermediates, double-buffered carries) and, when the study varies a scenario parameter,
   the scenario's per-period inputs (``N`` values each: XLA materialises them per run then). On the book
@@ -65,7 +67,7 @@ def tree_bytes(tree) -> int:
 
 def host_available_bytes() -> int:
     """RAM the host can give without swapping: ``MemAvailable`` (Linux), else free pages, else
-    :data:`FALLBACK_FREE_BYTES`."""
+    `FALLBACK_FREE_BYTES`."""
     try:
         with open("/proc/meminfo") as f:
             for line in f:
@@ -117,9 +119,9 @@ def auto_chunk_size(
     """Runs per chunk by the module's rule, and how it was reached (for summary.json).
 
     **Arguments:** `n_runs`: the study's runs; `n_devices`: devices in the mesh (all processes);
-    `per_run_bytes`: :func:`bytes_per_run`; `n_periods`: periods per run (None: no short-run rule);
-    `free_bytes` (per device) and `platform` (``"cpu"``, ``"gpu"``, ...) default to what this process's
-    devices report.
+    `per_run_bytes`: [`bytes_per_run`][tuning.montecarlo.chunking.bytes_per_run]; `n_periods`: periods per run
+    (None: no short-run rule); `free_bytes` (per device) and `platform` (``"cpu"``, ``"gpu"``, ...) default to
+    what this process's devices report.
 
     **Returns:** ``(runs per chunk, {"rule", "platform", "per_run_bytes", "free_bytes_per_device",
     "limited_by"})``; ``limited_by`` is ``"memory"``, ``"throughput"`` or ``"runs"`` (the study is smaller).

@@ -1,10 +1,11 @@
-"""The devices a study runs on: a CPU's cores exposed as separate JAX devices (:func:`split_cpu`), so work
-sharded over devices runs on every core, or the hosts of a multi-host run (:func:`set_up_devices`).
+"""The devices a study runs on: a CPU's cores exposed as separate JAX devices
+([`split_cpu`][tuning.montecarlo.cpu_devices.split_cpu]), so work sharded over devices runs on every core, or
+the hosts of a multi-host run ([`set_up_devices`][tuning.montecarlo.cpu_devices.set_up_devices]).
 
 XLA:CPU runs one compiled program (a vmapped scan, say) mostly on a single thread; split into N host
 devices, a batch sharded over them runs N programs at once. This must happen before JAX initialises its
-backends, so the command line and the benchmark call :func:`split_cpu` (or :func:`set_up_devices`) first
-thing.
+backends, so the command line and the benchmark call [`split_cpu`][tuning.montecarlo.cpu_devices.split_cpu]
+(or [`set_up_devices`][tuning.montecarlo.cpu_devices.set_up_devices]) first thing.
 """
 
 import os
@@ -42,10 +43,10 @@ def set_up_devices(
 ) -> None:
     """Prepare JAX for a study, before anything initialises its backends (``pmsmjax montecarlo``).
 
-    - `distributed`: a multi-host run: :func:`jax.distributed.initialize` with the cluster's `coordinator`
+    - `distributed`: a multi-host run: `jax.distributed.initialize` with the cluster's `coordinator`
       (``HOST:PORT``), `num_processes` and this `process_id`, each taken from the environment (SLURM,
       Open MPI, Cloud TPU, ...) when None. Otherwise the CPU is split into `devices` devices
-      (:func:`split_cpu`; default one per core).
+      ([`split_cpu`][tuning.montecarlo.cpu_devices.split_cpu]; default one per core).
     - `compilation_cache`: a folder that keeps every compiled function (whatever its compile time)
       instead of the persistent cache already set; None leaves the cache as it is.
     """

@@ -42,7 +42,8 @@ class Distribution:
     sigmas: float = 3.0
 
     def check(self, name: str) -> None:
-        """Raise :class:`ParameterError` naming ``name`` for a malformed distribution."""
+        """Raise [`ParameterError`][pmsmjax.spec.validation.ParameterError] naming ``name`` for a malformed
+        distribution."""
         if self.kind not in KINDS:
             raise ParameterError(
                 f"{name}: distribution {self.kind!r} is unknown; use one of {', '.join(KINDS)}."

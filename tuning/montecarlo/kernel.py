@@ -6,33 +6,37 @@ and only every ``decimate``-th period's speed and q-axis current are kept for th
 every per-period scan output is a separate write that costs about as much as a fair part of the drive
 step, so this is what makes 10,000 runs of 4000 periods affordable.
 
-The per-period terms are those of :mod:`pmsmjax.analysis.metrics` and
-:mod:`pmsmjax.analysis.observer_errors`; this module only sums them or keeps their maximum over the
-periods (tests/tuning/test_montecarlo.py and tests/studies/test_observer_study.py check the results
-against the full-record figures of a trace from :func:`pmsmjax.simulate`):
+The per-period terms are those of [`pmsmjax.analysis.metrics`][pmsmjax.analysis.metrics] and
+[`pmsmjax.analysis.observer_errors`][pmsmjax.analysis.observer_errors]; this module only sums them or keeps
+their maximum over the periods (tests/tuning/test_montecarlo.py and tests/studies/test_observer_study.py check
+the results against the full-record figures of a trace from [`pmsmjax.simulate`][pmsmjax.simulate.simulate]):
 
-- ``itae``: sum of :func:`~pmsmjax.analysis.metrics.itae_term` ``t_k |w*_k - w_k|`` times ``Ts``, rad s
+- ``itae``: sum of [`itae_term`][pmsmjax.analysis.metrics.itae_term] ``t_k |w*_k - w_k|`` times ``Ts``, rad s
   (speed error in rad/s, whole run).
-- ``overshoot_pct``: largest :func:`~pmsmjax.analysis.metrics.excess_over_reference` over the periods
-  before the load step, each in :func:`~pmsmjax.analysis.metrics.percent_of_reference`, floored at 0.
+- ``overshoot_pct``: largest [`excess_over_reference`][pmsmjax.analysis.metrics.excess_over_reference] over
+  the periods before the load step, each in
+  [`percent_of_reference`][pmsmjax.analysis.metrics.percent_of_reference], floored at 0.
 - ``settling_time_s``: start of the period after the last one before the load step that is
-  :func:`~pmsmjax.analysis.metrics.outside_reference_band` (``settle_band``, a fraction of the reference);
-  censored at the load step time when the speed has not settled by then
-  (:func:`~pmsmjax.analysis.metrics.settling_time_to_reference`).
-- ``dip_rpm``: largest :func:`~pmsmjax.analysis.metrics.tracking_error` ``w* - w`` after the load step,
-  r/min.
-- ``peak_current_a``: largest :func:`~pmsmjax.analysis.metrics.peak_phase_current` of the periods, A.
+  [`outside_reference_band`][pmsmjax.analysis.metrics.outside_reference_band] (``settle_band``, a fraction of
+  the reference); censored at the load step time when the speed has not settled by then
+  ([`settling_time_to_reference`][pmsmjax.analysis.metrics.settling_time_to_reference]).
+- ``dip_rpm``: largest [`tracking_error`][pmsmjax.analysis.metrics.tracking_error] ``w* - w`` after the load
+  step, r/min.
+- ``peak_current_a``: largest [`peak_phase_current`][pmsmjax.analysis.metrics.peak_phase_current] of the
+  periods, A.
 - ``final_error_rpm``: mean tracking error over the last ``tail_fraction`` of the run, r/min
-  (:func:`~pmsmjax.analysis.metrics.steady_state_error`).
+  ([`steady_state_error`][pmsmjax.analysis.metrics.steady_state_error]).
 - ``finite``: 1.0 if every sampled state stayed finite, else 0.0 (a run that diverged).
 
-With an observer in the drive (``drive.records_estimate``), also :data:`OBSERVER_METRICS`, defined as in
-:func:`pmsmjax.analysis.observer_errors.observer_errors` (periods from ``converged_after_s`` on):
+With an observer in the drive (``drive.records_estimate``), also
+[`OBSERVER_METRICS`][tuning.montecarlo.kernel.OBSERVER_METRICS], defined as in
+[`pmsmjax.analysis.observer_errors.observer_errors`][pmsmjax.analysis.observer_errors.observer_errors]
+(periods from ``converged_after_s`` on):
 
 - ``angle_error_rms_deg``, ``angle_error_max_deg``: RMS and largest ``|angle_error|``, electrical degrees;
 - ``speed_error_rms_rpm``: RMS of ``omega_est - omega``, r/min;
-- ``lock_lost``: 1.0 if a run of :func:`~pmsmjax.analysis.observer_errors.out_of_lock` periods lasted
-  longer than ``LOCK_WINDOW_S`` (:func:`~pmsmjax.analysis.observer_errors.lock_lost`), else 0.0.
+- ``lock_lost``: 1.0 if a run of [`out_of_lock`][pmsmjax.analysis.observer_errors.out_of_lock] periods lasted
+  longer than ``LOCK_WINDOW_S`` ([`lock_lost`][pmsmjax.analysis.observer_errors.lock_lost]), else 0.0.
 """
 
 import equinox as eqx
@@ -57,7 +61,8 @@ METRICS = (
 )
 #: The observer's figures, kept when the drive has an observer (see the module docstring).
 OBSERVER_METRICS = ("angle_error_rms_deg", "angle_error_max_deg", "speed_error_rms_rpm", "lock_lost")
-#: Units of :data:`METRICS` and :data:`OBSERVER_METRICS`, for tables and figure labels.
+#: Units of `METRICS` and [`OBSERVER_METRICS`][tuning.montecarlo.kernel.OBSERVER_METRICS], for tables and
+#: figure labels.
 UNITS = {
     "angle_error_rms_deg": "el. deg",
     "angle_error_max_deg": "el. deg",
@@ -138,14 +143,15 @@ def run_metrics(
 
     **Arguments:**
 
-    - `drive`, `scenario`: as for :func:`pmsmjax.simulate` (unbatched; ``jax.vmap`` for batches).
+    - `drive`, `scenario`: as for [`pmsmjax.simulate`][pmsmjax.simulate.simulate] (unbatched; ``jax.vmap`` for
+      batches).
     - `load_time_s`: time of the load step, s (scalar, may be traced): splits the step and load windows.
     - `decimate` (static): keep the speed and current of every this many periods (must divide the count).
     - `settle_band`, `tail_fraction` (static): see the module docstring.
     - `converged_after_s` (static): the observer figures count periods from this time on, s.
 
-    **Returns:** ``(metrics, record)``: a dict of scalars keyed by :data:`METRICS` plus ``finite`` (and
-    :data:`OBSERVER_METRICS` when the drive has an observer), and a
+    **Returns:** ``(metrics, record)``: a dict of scalars keyed by `METRICS` plus ``finite`` (and
+    [`OBSERVER_METRICS`][tuning.montecarlo.kernel.OBSERVER_METRICS] when the drive has an observer), and a
     dict with ``speed_rpm`` and ``i_q_a``, each ``(N / decimate,)`` (the first period of every block).
     """
     Ts = drive.Ts

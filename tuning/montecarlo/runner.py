@@ -3,17 +3,19 @@
 ``run_study(study, out_dir)``:
 
 1. checks the study and draws every run's parameters on the host (seeded, float64,
-   :mod:`tuning.montecarlo.distributions`), before anything compiles; non-physical samples are refused or
-   clipped;
+   [`tuning.montecarlo.distributions`][tuning.montecarlo.distributions]), before anything compiles;
+   non-physical samples are refused or clipped;
 2. splits the runs into equal chunks of at most ``chunk_size`` runs (``"auto"``: from the device's free
-   memory and the drive's bytes per run, :mod:`tuning.montecarlo.chunking`), each rounded up to two runs
-   per device; the last chunk is padded with copies of its last run, whose results are dropped;
-3. runs each chunk as one compiled call: ``vmap`` of :func:`tuning.montecarlo.kernel.run_metrics` over the
-   chunk, the chunk's runs split over a one-axis device mesh with ``jax.sharding`` (``NamedSharding``
-   over axis ``runs``). The same code serves one CPU, several forced CPU devices
+   memory and the drive's bytes per run, [`tuning.montecarlo.chunking`][tuning.montecarlo.chunking]), each
+   rounded up to two runs per device; the last chunk is padded with copies of its last run, whose results are
+   dropped;
+3. runs each chunk as one compiled call: ``vmap`` of
+   [`tuning.montecarlo.kernel.run_metrics`][tuning.montecarlo.kernel.run_metrics] over the chunk, the chunk's
+   runs split over a one-axis device mesh with ``jax.sharding`` (``NamedSharding`` over axis ``runs``). The
+   same code serves one CPU, several forced CPU devices
    (``XLA_FLAGS=--xla_force_host_platform_device_count=N`` or ``jax_num_cpu_devices``), several GPUs and
-   several hosts after ``jax.distributed.initialize()`` (every process draws the same samples, feeds
-   its own devices' shards, and process 0 writes the files);
+   several hosts after ``jax.distributed.initialize()`` (every process draws the same samples, feeds its own
+   devices' shards, and process 0 writes the files);
 4. dispatches each chunk before fetching the previous one, so that copying a chunk's results to the host
    and writing its file overlap the next chunk's computation; results go straight into arrays allocated
    once for all runs;
@@ -24,8 +26,8 @@
 6. takes the derivative of every metric with respect to every varied parameter by forward-mode AD
    (``jax.jacfwd``: one tangent per parameter, cheap with a handful of parameters) for the first
    ``sensitivity_runs`` runs (also stored, as ``DIR/chunks/sensitivities.npz``);
-7. summarises (:mod:`tuning.montecarlo.summary`), draws the figures (:mod:`tuning.montecarlo.figures`)
-   and writes ``DIR/summary.json``.
+7. summarises ([`tuning.montecarlo.summary`][tuning.montecarlo.summary]), draws the figures
+   ([`tuning.montecarlo.figures`][tuning.montecarlo.figures]) and writes ``DIR/summary.json``.
 
 Run time is the wall time from the first chunk dispatched in this invocation until the last one's
 results are on the host (compile excluded: each chunk function is compiled ahead of time and timed
@@ -61,7 +63,7 @@ from tuning.parameters import set_leaves
 #: Bump when the kernel's metric definitions change: chunks written by another version are recomputed.
 KERNEL_VERSION = 1
 #: The forward function's first output: these columns, stacked (one transfer per chunk, not eight);
-#: a study with an observer has :data:`OBSERVER_COLUMNS`.
+#: a study with an observer has `OBSERVER_COLUMNS`.
 COLUMNS = METRICS + ("finite",)
 OBSERVER_COLUMNS = METRICS + OBSERVER_METRICS + ("finite",)
 #: Keys of summary.json that describe how (fast) the study ran rather than its results.
@@ -187,11 +189,13 @@ class StudyRunner:
 
     def dispatch(self, values: np.ndarray):
         """Start the forward runs of the rows of ``values (B, P)`` (B a multiple of two per device) and
-        return at once (JAX dispatches asynchronously); :meth:`fetch` waits for the results."""
+        return at once (JAX dispatches asynchronously); [`fetch`][tuning.montecarlo.runner.StudyRunner.fetch]
+        waits for the results."""
         return self._call("forward", values)
 
     def fetch(self, outputs) -> tuple[dict, dict]:
-        """The host copies of :meth:`dispatch`'s outputs: ``(metrics, record)`` as in :meth:`forward`."""
+        """The host copies of [`dispatch`][tuning.montecarlo.runner.StudyRunner.dispatch]'s outputs:
+        ``(metrics, record)`` as in [`forward`][tuning.montecarlo.runner.StudyRunner.forward]."""
         packed, record = jax.block_until_ready(outputs)
         packed = _to_host(packed)
         metrics = {k: packed[:, i] for i, k in enumerate(self.columns)}
@@ -203,15 +207,17 @@ class StudyRunner:
         return self.fetch(self.dispatch(values))
 
     def output_shapes(self) -> tuple:
-        """One run's outputs of the forward function, as shape structs: the stacked :data:`COLUMNS` and
-        the decimated record (from the study's settings: tracing the kernel for them would cost as much as
-        lowering it; tests/tuning/test_scale.py checks them against ``jax.eval_shape``)."""
+        """One run's outputs of the forward function, as shape structs: the stacked
+        [`COLUMNS`][tuning.montecarlo.runner.COLUMNS] and the decimated record (from the study's settings:
+        tracing the kernel for them would cost as much as lowering it; tests/tuning/test_scale.py checks them
+        against ``jax.eval_shape``)."""
         n_record = self.study.n_periods // self.study.decimate
         record = {k: jax.ShapeDtypeStruct((n_record,), self.dtype) for k in ("speed_rpm", "i_q_a")}
         return jax.ShapeDtypeStruct((len(self.columns),), self.dtype), record
 
     def per_run_bytes(self) -> int:
-        """Upper bound of one run's device memory (:func:`tuning.montecarlo.chunking.bytes_per_run`)."""
+        """Upper bound of one run's device memory
+        ([`tuning.montecarlo.chunking.bytes_per_run`][tuning.montecarlo.chunking.bytes_per_run])."""
         d, s = mc_study.apply_sample(self.drive, self.study, (), ())
         carry = jax.eval_shape(d.init)
         varied = any(n.startswith("scenario.") for n in self.names)
@@ -219,8 +225,9 @@ class StudyRunner:
         return bytes_per_run(self.output_shapes(), len(self.names), self.dtype, carry, inputs)
 
     def chunk_size(self, n: int) -> tuple[int, dict]:
-        """The study's ``chunk_size``, or with ``"auto"`` the rule of :mod:`tuning.montecarlo.chunking`;
-        returns ``(runs per chunk before balancing, how it was chosen)``."""
+        """The study's ``chunk_size``, or with ``"auto"`` the rule of
+        [`tuning.montecarlo.chunking`][tuning.montecarlo.chunking]; returns
+        ``(runs per chunk before balancing, how it was chosen)``."""
         n_dev = len(self.mesh.devices.flat)
         if self.study.chunk_size != "auto":
             return self.study.chunk_size, {"rule": "given"}
@@ -247,8 +254,9 @@ _RUNNERS: dict = {}
 
 
 def _runner(study: Study, mesh: Mesh | None) -> StudyRunner:
-    """A :class:`StudyRunner` for ``study``, reused (with its compiled functions) across calls that differ
-    only in sampled values, so re-running or extending a study in one process does not recompile."""
+    """A [`StudyRunner`][tuning.montecarlo.runner.StudyRunner] for ``study``, reused (with its compiled
+    functions) across calls that differ only in sampled values, so re-running or extending a study in one
+    process does not recompile."""
     settings = {k: v for k, v in vars(study).items() if k not in _VALUE_SETTINGS}
     settings["parameters"] = tuple(study.parameters)
     key = (repr(sorted(settings.items())), mesh, jax.config.jax_enable_x64)
@@ -282,7 +290,7 @@ def fingerprint(study: Study, drive, values: np.ndarray, dtype) -> str:
 
 
 def _load_agreed(path: Path, key: str, rows: int):
-    """:func:`_load_chunk` on process 0, its decision shared with every process (they must all take part
+    """`_load_chunk` on process 0, its decision shared with every process (they must all take part
     in computing a missing chunk). Only process 0 reads, writes and summarises; the others get ``{}``
     for a chunk that process 0 has."""
     data = _load_chunk(path, key, rows) if jax.process_index() == 0 else None

@@ -2,13 +2,13 @@
 
 A study runs the scenario form of the book (speed step from rest to ``speed_rpm`` at t = 0, load step
 0 -> ``load_nm`` at ``load_time_s``, ``duration_s`` long) on the user's drive: a drive file or preset
-(``motor``, :func:`pmsmjax.io.drive_files.drive_spec`) built by
-:func:`pmsmjax.assemble.spec_drive` at the file's DC link, control rate, current limit and
-bandwidths (optionally with tuned gains from ``pmsmjax tune``). What the study leaves out comes from the
-drive file: the scenario (``[scenario]``), the current limit and with it the failure threshold
+(``motor``, [`pmsmjax.io.drive_files.drive_spec`][pmsmjax.io.drive_files.drive_spec]) built by
+[`pmsmjax.assemble.spec_drive`][pmsmjax.assemble.spec_drive] at the file's DC link, control rate, current
+limit and bandwidths (optionally with tuned gains from ``pmsmjax tune``). What the study leaves out comes from
+the drive file: the scenario (``[scenario]``), the current limit and with it the failure threshold
 (``[ratings] max_current_a``), the DC link, the bandwidths, and the default tolerances (``[tolerances]``,
-:func:`default_tolerances`); ``--motor book`` (the default) is the book drive, bit for bit. Each varied
-parameter is named by a dotted path:
+[`default_tolerances`][tuning.montecarlo.study.default_tolerances]); ``--motor book`` (the default) is the
+book drive, bit for bit. Each varied parameter is named by a dotted path:
 
 - ``motor.R``, ``motor.L_d``, ``motor.L_q``, ``motor.psi_f``, ``motor.J``, ``motor.B`` (six- and five-phase
   also ``motor.L_ls``): the *plant's* motor. The controller's own motor model (decoupling, delay
@@ -18,15 +18,16 @@ parameter is named by a dotted path:
 - ``scenario.speed_rpm``, ``scenario.load_nm``: the speed step (r/min) and the load step (N m).
 
 **Sensorless studies** (``estimator``): the drive runs on a chapter 5 observer
-(:data:`pmsmjax.estimators.OBSERVERS`) with the drive file's I/f start from standstill
-(:func:`pmsmjax.presets.with_observer`, :func:`pmsmjax.assemble.startup_options`). The
-observer's motor model, like the controller's, is the *nominal* motor; the ``motor.*`` parameters perturb
-the *plant*, so every draw is a plant/model mismatch as on a drive whose motor differs from its data
-sheet. The default set is then :data:`SENSORLESS_TOLERANCES` (R +-30 %, L_d and L_q +-20 % each, drawn
-independently, psi_f +-10 %, uniform), whatever the drive file's ``[tolerances]``: they describe the
-observer's model error, not the motor's spread. Independent L_d and L_q make the plant slightly salient
-(up to about +-50 % L_q/L_d) where the nominal motor is not: part of the inductance error a non-salient
-observer model sees.
+([`pmsmjax.estimators.OBSERVERS`][pmsmjax.estimators.catalogue.OBSERVERS]) with the drive file's I/f start
+from standstill ([`pmsmjax.presets.with_observer`][pmsmjax.assemble.with_observer],
+[`pmsmjax.assemble.startup_options`][pmsmjax.assemble.startup_options]). The observer's motor model, like the
+controller's, is the *nominal* motor; the ``motor.*`` parameters perturb the *plant*, so every draw is a
+plant/model mismatch as on a drive whose motor differs from its data sheet. The default set is then
+[`SENSORLESS_TOLERANCES`][tuning.montecarlo.study.SENSORLESS_TOLERANCES] (R +-30 %, L_d and L_q +-20 % each,
+drawn independently, psi_f +-10 %, uniform), whatever the drive file's ``[tolerances]``: they describe the
+observer's model error, not the motor's spread. Independent L_d and L_q make the plant slightly salient (up to
+about +-50 % L_q/L_d) where the nominal motor is not: part of the inductance error a non-salient observer
+model sees.
 
 The TOML file (every table and key optional; defaults below)::
 
@@ -40,9 +41,10 @@ The TOML file (every table and key optional; defaults below)::
     [thresholds]   current_a, tracking_rpm
     [parameters."motor.R"]  distribution = "uniform", tolerance = 0.2, sigmas = 3.0, nominal = ...
 
-A ``[parameters]`` table replaces the default set (:func:`default_tolerances`) as a whole; a parameter's
-nominal value defaults to the drive's (or the scenario's) own. Drive and scenario values left out
-(None) are the drive file's.
+A ``[parameters]`` table replaces the default set
+([`default_tolerances`][tuning.montecarlo.study.default_tolerances]) as a whole; a parameter's nominal value
+defaults to the drive's (or the scenario's) own. Drive and scenario values left out (None) are the drive
+file's.
 """
 
 import dataclasses
@@ -105,9 +107,9 @@ class Study:
     - `n`: number of runs; `seed`: sampling seed; `sampling`: ``random`` or ``latin_hypercube``.
     - `chunk_size`: most runs per chunk (one compiled call, one file on disk; chunks are balanced and
       rounded up to two runs per device), or ``"auto"`` (default): from the device's free memory and the
-      drive's bytes per run, capped where throughput stops improving (:mod:`tuning.montecarlo.chunking`:
-      2048 on 2 CPU devices for runs of 256 periods or more, the fastest of 256-8192 measured, more for
-      shorter runs; 262,144 per GPU).
+      drive's bytes per run, capped where throughput stops improving
+      ([`tuning.montecarlo.chunking`][tuning.montecarlo.chunking]: 2048 on 2 CPU devices for runs of 256
+      periods or more, the fastest of 256-8192 measured, more for shorter runs; 262,144 per GPU).
     - `nonphysical`: what to do with samples outside a parameter's physical range: ``refuse`` (error) or
       ``clip`` (moved to the bound, counted in the summary).
     - `decimate`: keep every this many periods of speed and current for the fan chart (None: the largest
@@ -117,16 +119,17 @@ class Study:
     - drive: `motor` (preset name or drive file), `gains` (TOML path or None), `current_bandwidth` rad/s,
       `speed_bandwidth` rad/s, `current_limit` A, `u_dc` V (None: the drive file's), `n_substeps`,
       `unroll_substeps` (the RK4 sub-steps written out, not looped:
-      :class:`pmsmjax.inverters.averaged.AveragedBridge`; for GPUs), `estimator` (a chapter 5
-      observer name, or None for the exact sensor; see the module docstring); scenario: `speed_rpm`,
-      `load_nm`, `load_time_s`, `duration_s` (None: the drive file's ``[scenario]``).
+      [`pmsmjax.inverters.averaged.AveragedBridge`][pmsmjax.inverters.averaged.AveragedBridge]; for GPUs),
+      `estimator` (a chapter 5 observer name, or None for the exact sensor; see the module docstring);
+      scenario: `speed_rpm`, `load_nm`, `load_time_s`, `duration_s` (None: the drive file's ``[scenario]``).
     - thresholds: `current_threshold_a` (None: 1.05 times the current limit), `tracking_threshold_rpm`
       (mean speed error over the last 10 % of the run).
-    - `machine`: ``three-phase``, ``six-phase`` (:func:`pmsmjax.presets.six_phase.six_phase_drive` on a
-      six-phase drive file, ``book`` its rewind of the book motor) or ``five-phase``
-      (:func:`pmsmjax.presets.five_phase.five_phase_drive`); `control` and `pwm`: the
-      scheme and modulator (None: ``vsd`` and ``four-vector`` / ``near-four-vector``; three phases take
-      only the PI drive).
+    - `machine`: ``three-phase``, ``six-phase``
+      (`pmsmjax.presets.six_phase.six_phase_drive` on a six-phase
+      drive file, ``book`` its rewind of the book motor) or ``five-phase``
+      (`pmsmjax.presets.five_phase.five_phase_drive`);
+      `control` and `pwm`: the scheme and modulator (None: ``vsd`` and ``four-vector`` / ``near-four-vector``;
+      three phases take only the PI drive).
     """
 
     n: int = 1000
@@ -293,16 +296,16 @@ def _check_number(name, v, positive=False):
 
 def default_tolerances(spec: DriveSpec) -> dict[str, float]:
     """``{study parameter: relative half-width}``: the drive file's ``[tolerances]`` (in the file layout's
-    order), or :data:`DEFAULT_TOLERANCES` for a file without one."""
+    order), or [`DEFAULT_TOLERANCES`][tuning.montecarlo.study.DEFAULT_TOLERANCES] for a file without one."""
     if not spec.tolerances:
         return dict(DEFAULT_TOLERANCES)
     return {TOLERANCE_PARAMETERS[k]: spec.tolerances[k] for k in TABLES["tolerances"] if k in spec.tolerances}
 
 
 def build_drive(study: Study) -> Drive:
-    """The nominal drive of ``study``: the drive file's drive (:func:`pmsmjax.assemble.spec_drive`)
-    with the study's bandwidths and sub-steps, tuned gains if given, and the observer with the file's
-    I/f start for a sensorless study."""
+    """The nominal drive of ``study``: the drive file's drive
+    ([`pmsmjax.assemble.spec_drive`][pmsmjax.assemble.spec_drive]) with the study's bandwidths and sub-steps,
+    tuned gains if given, and the observer with the file's I/f start for a sensorless study."""
     from pmsmjax.assemble import spec_drive, startup_options
 
     spec = study.spec
@@ -341,8 +344,9 @@ def nominal_value(study: Study, drive: Drive, name: str) -> float:
 
 
 def check_name(drive: Drive, name: str) -> None:
-    """Raise :class:`~pmsmjax.spec.validation.ParameterError` unless `name` is a parameter a study may
-    vary on `drive` (a motor field, ``bridge.u_dc``, a scenario field or a controller leaf), listing them."""
+    """Raise [`ParameterError`][pmsmjax.spec.validation.ParameterError] unless `name` is a parameter a study
+    may vary on `drive` (a motor field, ``bridge.u_dc``, a scenario field or a controller leaf), listing
+    them."""
     fields = MOTOR_FIELDS + drive.machine.motor.leakage_fields
     allowed = [f"motor.{f}" for f in fields] + ["bridge.u_dc"] + [f"scenario.{f}" for f in SCENARIO_FIELDS]
     controller = [n for n in array_leaf_names(drive) if n.startswith("controller.") and ".model." not in n]
@@ -387,7 +391,8 @@ def enforce_physical(samples: dict[str, np.ndarray], nominals: dict[str, float],
     """Count (and with ``mode="clip"`` clip) samples outside each parameter's physical range.
 
     **Returns:** ``{name: count}`` of non-physical samples; ``samples`` is clipped in place.
-    Raises :class:`ParameterError` with ``mode="refuse"`` when any sample is non-physical.
+    Raises [`ParameterError`][pmsmjax.spec.validation.ParameterError] with ``mode="refuse"`` when any sample
+    is non-physical.
     """
     counts = {}
     for name, x in samples.items():
@@ -459,7 +464,8 @@ _SECTIONS = {
 
 
 def read_study_toml(path) -> dict:
-    """Study settings from a TOML file as keyword arguments of :class:`Study` (checked by it)."""
+    """Study settings from a TOML file as keyword arguments of [`Study`][tuning.montecarlo.study.Study]
+    (checked by it)."""
     path = Path(path)
     if not path.is_file():
         raise ParameterError(f"study file {path} does not exist: check the path.")

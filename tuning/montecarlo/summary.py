@@ -7,8 +7,9 @@ values (not on the device count or the chunking that produced them).
   the runs whose state stayed finite.
 - Failure rates against thresholds: peak phase current above ``current_threshold_a``; loss of speed
   tracking (``|final_error_rpm|`` above ``tracking_threshold_rpm``); instability (the state became
-  NaN/inf); with an observer, loss of lock (``lock_lost``, :mod:`pmsmjax.analysis.observer_errors`). A run
-  fails when any of them holds; a diverged run counts in all of them.
+  NaN/inf); with an observer, loss of lock (``lock_lost``,
+  [`pmsmjax.analysis.observer_errors`][pmsmjax.analysis.observer_errors]). A run fails when any of them holds;
+  a diverged run counts in all of them.
 - CVaR at ``alpha``: the mean of the worst ``1 - alpha`` share of the runs (larger = worse for every
   metric; ``final_error_rpm`` by magnitude); diverged runs are excluded here and counted as failures.
 - Sensitivities: the population mean of each metric's derivative with respect to each parameter (from
