@@ -15,6 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from pmsmjax.assemble import with_parts
 from pmsmjax.drive import Drive
 from pmsmjax.io.logs import atomic_write
 from pmsmjax.spec.validation import ParameterError
@@ -73,8 +74,8 @@ def set_leaves(tree, names, values):
     ``tree`` is any equinox pytree: a drive, its state, a data module. A name is a leaf
     (``controller.speed.kp``), a vector leaf's element (``estimator.observer.q[2]``) or a whole block
     (``estimator``, ``machine``, ``bridge.voltage_error``, also where it is ``None``). The rest of ``tree``
-    is kept as it is, leaf for leaf: nothing is converted or checked again. The only place tuning writes
-    into a pytree."""
+    is kept as it is, leaf for leaf: nothing is converted (a whole bridge is checked at the drive's period).
+    The only place tuning writes into a pytree, through [`with_parts`][pmsmjax.assemble.with_parts]."""
     updates: dict[str, object] = {}
     for name, value in zip(names, values, strict=True):
         path, index = _split_index(name)
@@ -83,11 +84,7 @@ def set_leaves(tree, names, values):
         else:
             leaf = updates.get(path, get_leaf(tree, path))
             updates[path] = jnp.asarray(leaf).at[index].set(value)
-    paths = list(updates)
-    getters = [lambda d, n=n: get_leaf(d, n) for n in paths]
-    return eqx.tree_at(
-        lambda d: [g(d) for g in getters], tree, [updates[n] for n in paths], is_leaf=lambda x: x is None
-    )
+    return with_parts(tree, updates)
 
 
 def array_leaf_names(drive: Drive) -> list[str]:

@@ -31,9 +31,10 @@ _LAZY = by_module({
     "dtc": ("SwitchingTableDTC", "torque_current_limit"),
     "smc_dtc": ("SlidingModeDTC", "smc_dtc_design"),
     "multiphase": (
-        "DoubleDQCurrentPI", "MultiPhaseFOC", "VSDCurrentControl", "ZCurrentPI",
-        "ZProportionalResonant", "double_dq_design", "pr_current_design", "vsd_current_design",
-        "z_current_imc", "z_pr_design",
+        "DoubleDQCurrentPI", "MultiPhaseFOC", "VSDCurrentControl", "ZCurrentPI", "ZProportionalResonant",
+    ),
+    "multiphase_design": (
+        "double_dq_design", "pr_current_design", "vsd_current_design", "z_current_imc", "z_pr_design",
     ),
 })  # fmt: skip
 

@@ -18,8 +18,9 @@ _LAZY = by_module({
     "integrate": ("advance", "rk4_step"),
     "continuous": ("linearise", "solve_adaptive"),
     "pmsm_multiphase": (
-        "AbstractMultiPhaseMachine", "MultiPhasePMSMdq", "MultiPhasePMSMNatural", "MultiPhasePMSMVSD",
+        "AbstractMultiPhaseMachine", "MultiPhasePMSMdq", "MultiPhasePMSMVSD",
     ),
+    "pmsm_multiphase_natural": ("MultiPhasePMSMNatural",),
     "multiphase_motor": ("MultiPhaseParameters",),
     "pmsm6": ("PMSM6DoubleDQ",),
     "saturation": ("DAxisSaturation", "SaturatedPMSMdq", "saturated_machine"),

@@ -46,13 +46,15 @@ delay, design-rule gains at a_c = 1100 rad/s and beta = 50 rad/s, 15 A limit) wi
 from pathlib import Path
 
 from pmsmjax.controllers.design import current_loop_imc
-from pmsmjax.controllers.multiphase import VSDCurrentControl, vsd_current_design, z_pr_design
+from pmsmjax.controllers.multiphase import VSDCurrentControl
+from pmsmjax.controllers.multiphase_design import vsd_current_design, z_pr_design
 from pmsmjax.controllers.pr import pr_design
 from pmsmjax.frames.multiphase import FIVE_PHASE
 from pmsmjax.inverters.multiphase_carrier import ZeroSequencePWM
 from pmsmjax.inverters.multiphase_svpwm import LargeVectorSVPWM, NearFourVectorSVPWM
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
-from pmsmjax.machines.pmsm_multiphase import MultiPhasePMSMdq, MultiPhasePMSMNatural, MultiPhasePMSMVSD
+from pmsmjax.machines.pmsm_multiphase import MultiPhasePMSMdq, MultiPhasePMSMVSD
+from pmsmjax.machines.pmsm_multiphase_natural import MultiPhasePMSMNatural
 from pmsmjax.presets.multiphase import machine_controls, multiphase_drive_function, multiphase_machine
 from pmsmjax.presets.six_phase import THREE_PHASE_LEAKAGE_FRACTION, read_multiphase_motor_file
 from pmsmjax.presets.three_phase import PR_W_C, book_motor
@@ -158,7 +160,7 @@ def five_phase_current_block(control: str, motor, current_bandwidth: float, w_c:
     ([`FIVE_PHASE_CONTROLS`][pmsmjax.presets.five_phase.FIVE_PHASE_CONTROLS]) from the design rules.
 
     ``pr``: the alpha-beta PR ([`pr_design`][pmsmjax.controllers.pr.pr_design]) and the x-y PR
-    ([`z_pr_design`][pmsmjax.controllers.multiphase.z_pr_design]), both resonant at ``w_e``: a
+    ([`z_pr_design`][pmsmjax.controllers.multiphase_design.z_pr_design]), both resonant at ``w_e``: a
     phase-resistance unbalance puts x-y currents at ``+-w_e`` (not constant in the ``3 theta_e`` frame of the
     ``vsd`` x-y PI, which removes third-harmonic disturbances instead); a real-coefficient resonator at
     ``w_e`` removes both directions."""

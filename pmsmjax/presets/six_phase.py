@@ -37,12 +37,8 @@ of [`SIX_PHASE_PWMS`][pmsmjax.presets.six_phase.SIX_PHASE_PWMS].
 from pathlib import Path
 
 from pmsmjax.controllers.design import current_loop_imc
-from pmsmjax.controllers.multiphase import (
-    VSDCurrentControl,
-    double_dq_design,
-    pr_current_design,
-    vsd_current_design,
-)
+from pmsmjax.controllers.multiphase import VSDCurrentControl
+from pmsmjax.controllers.multiphase_design import double_dq_design, pr_current_design, vsd_current_design
 from pmsmjax.frames.multiphase import SIX_PHASE
 from pmsmjax.inverters.decoupled_svpwm import DecoupledSVPWM
 from pmsmjax.inverters.multiphase_carrier import ZeroSequencePWM
@@ -50,7 +46,8 @@ from pmsmjax.inverters.multiphase_svpwm import LargeVectorSVPWM, NearFourVectorS
 from pmsmjax.io.toml_parser import tomllib
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
 from pmsmjax.machines.pmsm6 import PMSM6DoubleDQ
-from pmsmjax.machines.pmsm_multiphase import MultiPhasePMSMdq, MultiPhasePMSMNatural, MultiPhasePMSMVSD
+from pmsmjax.machines.pmsm_multiphase import MultiPhasePMSMdq, MultiPhasePMSMVSD
+from pmsmjax.machines.pmsm_multiphase_natural import MultiPhasePMSMNatural
 from pmsmjax.presets.multiphase import machine_controls, multiphase_drive_function, multiphase_machine
 from pmsmjax.presets.three_phase import PR_W_C, book_motor
 from pmsmjax.spec.validation import ParameterError

@@ -7,7 +7,6 @@ Drives: [`book_drive`][pmsmjax.presets.three_phase.book_drive] (FOC, SVPWM) and
 [`hysteresis_drive`][pmsmjax.presets.three_phase.hysteresis_drive] (hysteresis current control).
 """
 
-import inspect
 from pathlib import Path
 
 from pmsmjax.controllers.base import AbstractDAxisReference
@@ -109,9 +108,11 @@ def _book_options(options) -> dict:
     variants of its cascade, [`smc_drive`][pmsmjax.presets.three_phase.smc_drive] and
     [`pr_drive`][pmsmjax.presets.three_phase.pr_drive], take them) and its defaults for the others; one it
     does not take is a TypeError."""
-    bound = inspect.signature(book_drive).bind(**options)
-    bound.apply_defaults()
-    return {name: value for name, value in bound.arguments.items() if name != "motor"}
+    defaults = book_drive.__kwdefaults__
+    unknown = sorted(set(options) - set(defaults))
+    if unknown:
+        raise TypeError(f"book_drive() got unexpected keyword arguments {', '.join(map(repr, unknown))}")
+    return {**defaults, **options}
 
 
 def _foc_drive(

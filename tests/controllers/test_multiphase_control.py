@@ -29,7 +29,8 @@ import pytest
 
 from pmsmjax import Drive, ParameterError, simulate
 from pmsmjax.analysis.speed_step_summary import speed_step_summary
-from pmsmjax.controllers.multiphase import MultiPhaseFOC, double_dq_design
+from pmsmjax.controllers.multiphase import MultiPhaseFOC
+from pmsmjax.controllers.multiphase_design import double_dq_design
 from pmsmjax.frames.multiphase import FIVE_PHASE, SIX_PHASE, PhaseLayout, vsd
 from pmsmjax.presets.five_phase import (
     FIVE_PHASE_CONTROLS,

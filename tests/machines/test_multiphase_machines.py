@@ -34,7 +34,8 @@ from pmsmjax.frames.multiphase import FIVE_PHASE, SIX_PHASE, PhaseLayout, invers
 from pmsmjax.machines import MachineInput, MachineState, advance, linearise
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
 from pmsmjax.machines.pmsm6 import PMSM6DoubleDQ
-from pmsmjax.machines.pmsm_multiphase import MultiPhasePMSMdq, MultiPhasePMSMNatural, MultiPhasePMSMVSD
+from pmsmjax.machines.pmsm_multiphase import MultiPhasePMSMdq, MultiPhasePMSMVSD
+from pmsmjax.machines.pmsm_multiphase_natural import MultiPhasePMSMNatural
 from pmsmjax.presets.five_phase import (
     FIVE_PHASE_MOTOR_FILE,
     five_phase_machine,

@@ -3,16 +3,14 @@
 ``run_study(study, out_dir)``:
 
 1. checks the study and draws every run's parameters on the host (seeded, float64,
-   [`tuning.montecarlo.distributions`][tuning.montecarlo.distributions]), before anything compiles;
-   non-physical samples are refused or clipped;
+   [`distributions`][tuning.montecarlo.distributions]), before anything compiles; non-physical samples are
+   refused or clipped;
 2. splits the runs into equal chunks of at most ``chunk_size`` runs (``"auto"``: from the device's free
-   memory and the drive's bytes per run, [`tuning.montecarlo.chunking`][tuning.montecarlo.chunking]), each
-   rounded up to two runs per device; the last chunk is padded with copies of its last run, whose results are
-   dropped;
-3. runs each chunk as one compiled call: ``vmap`` of
-   [`tuning.montecarlo.kernel.run_metrics`][tuning.montecarlo.kernel.run_metrics] over the chunk, the chunk's
-   runs split over a one-axis device mesh with ``jax.sharding`` (``NamedSharding`` over axis ``runs``). The
-   same code serves one CPU, several forced CPU devices
+   memory and the drive's bytes per run, [`chunking`][tuning.montecarlo.chunking]), each rounded up to two
+   runs per device; the last chunk is padded with copies of its last run, whose results are dropped;
+3. runs each chunk as one compiled call: ``vmap`` of [`run_metrics`][tuning.montecarlo.kernel.run_metrics]
+   over the chunk, the chunk's runs split over a one-axis device mesh with ``jax.sharding``
+   (``NamedSharding`` over axis ``runs``). The same code serves one CPU, several forced CPU devices
    (``XLA_FLAGS=--xla_force_host_platform_device_count=N`` or ``jax_num_cpu_devices``), several GPUs and
    several hosts after ``jax.distributed.initialize()`` (every process draws the same samples, feeds its own
    devices' shards, and process 0 writes the files);
@@ -23,11 +21,10 @@
    of the study, the samples, the precision and the code's version of the metrics; a rerun of the same
    study loads the chunks it finds and computes only the missing ones, so an interrupted study finishes
    where it stopped with the same results;
-6. takes the derivative of every metric with respect to every varied parameter by forward-mode AD
-   (``jax.jacfwd``: one tangent per parameter, cheap with a handful of parameters) for the first
-   ``sensitivity_runs`` runs (also stored, as ``DIR/chunks/sensitivities.npz``);
-7. summarises ([`tuning.montecarlo.summary`][tuning.montecarlo.summary]), draws the figures
-   ([`tuning.montecarlo.figures`][tuning.montecarlo.figures]) and writes ``DIR/summary.json``.
+6. differentiates every metric by every varied parameter in forward mode (``jax.jacfwd``: one tangent per
+   parameter) for the first ``sensitivity_runs`` runs (stored as ``DIR/chunks/sensitivities.npz``);
+7. summarises ([`summary`][tuning.montecarlo.summary]), draws ([`figures`][tuning.montecarlo.figures]), writes
+   ``DIR/summary.json``.
 
 Run time is the wall time from the first chunk dispatched in this invocation until the last one's
 results are on the host (compile excluded: each chunk function is compiled ahead of time and timed
