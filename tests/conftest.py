@@ -35,23 +35,24 @@ def _release_compiled_programs():
     jax.clear_caches()
 
 
-# --- Scheduling on pytest-xdist workers (``--dist loadgroup``, pyproject.toml) -------------------------
-#: Work units that take much longer than the rest (seconds on 2 quiet cores, cold compilation cache,
-#: roughly): scheduled first, heaviest first, so that the last units handed out are the short ones and
-#: the workers finish together. A prefix of a node id; anything not listed keeps its collection order.
+# --- Scheduling on pytest-xdist workers (``--dist loadfile --no-loadscope-reorder``, pyproject.toml) ----
+#: Test files that take much longer than the rest (seconds on 2 quiet cores, cold compilation cache,
+#: roughly): handed out first, heaviest first, so that the last files handed out are short ones and the
+#: workers finish together. Any other file keeps its collection order. (xdist's own reorder sorts files
+#: by their number of tests, which put the long files of a few tests last.)
 HEAVY_FIRST = {
-    "tests/notebooks/test_notebooks.py::test_notebook_runs[12_commissioning.ipynb]": 70,
+    "tests/notebooks/test_notebooks_commissioning.py": 60,
+    "tests/notebooks/test_notebooks_multiphase.py": 70,
+    "tests/notebooks/test_notebooks_controls.py": 75,
+    "tests/notebooks/test_notebooks.py": 65,
+    "tests/tuning/test_observer_tuning.py": 150,
     "tests/cli/test_bench_smoke.py": 50,
-    "tests/tuning/test_observer_tuning.py::test_gradient_matches_central_differences_and_is_finite": 45,
-    "tests/machines/test_flux_map.py": 55,
-    "tests/notebooks/test_notebooks.py::test_notebook_runs[08_six_phase.ipynb]": 40,
-    "tests/tuning/test_observer_tuning.py": 40,
+    "tests/cli/test_multiphase_commands.py": 50,
+    "tests/tuning/test_scale.py": 45,
     "tests/cli/test_drive_file_commands.py": 40,
-    "tests/cli/test_multiphase_commands.py": 40,
-    "tests/tuning/test_scale.py": 40,
     "tests/inverters/test_switching.py": 35,
-    "tests/notebooks/test_notebooks.py": 25,
-    "tests/tuning/test_baselines.py": 25,
+    "tests/machines/test_flux_map.py": 30,
+    "tests/tuning/test_baselines.py": 30,
     "tests/tuning/test_identify.py": 25,
     "tests/tuning/test_hfi_tuning.py": 25,
     "tests/jobs/test_controls.py": 20,
@@ -59,30 +60,12 @@ HEAVY_FIRST = {
     "tests/cli/test_flux_map_commands.py": 20,
     "tests/tuning/test_identify_starved.py": 20,
 }
-#: Node-id prefixes whose tests are each a work unit of their own (no module fixtures worth sharing):
-#: the notebooks (each runs in its own kernel) and the per-observer gradient checks (each compiles its own
-#: program).
-ONE_UNIT_EACH = (
-    "tests/notebooks/test_notebooks.py::test_notebook_runs[",
-    "tests/tuning/test_observer_tuning.py::test_gradient_matches_central_differences_and_is_finite",
-)
-
-
-def _weight(nodeid):
-    return max((w for prefix, w in HEAVY_FIRST.items() if nodeid.startswith(prefix)), default=0)
 
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
-    """Under ``--dist loadgroup``: a test file is one work unit (its module fixtures are built once, on one
-    worker), except the tests of ``ONE_UNIT_EACH``, which are spread over the workers one by one; heavy
-    units first (``HEAVY_FIRST``). Runs before xdist's own hook, which reads the ``xdist_group`` marks."""
-    if config.getoption("dist", "no") != "loadgroup":
+    """On an xdist worker (the order it collects in is the order the files are handed out): the files of
+    ``HEAVY_FIRST`` first, heaviest first; a file's tests stay together and in their order."""
+    if not hasattr(config, "workerinput"):
         return
-    for item in items:
-        if any(item.iter_markers("xdist_group")):
-            continue
-        nodeid = item.nodeid
-        one = any(nodeid.startswith(prefix) for prefix in ONE_UNIT_EACH)
-        item.add_marker(pytest.mark.xdist_group(nodeid if one else nodeid.split("::")[0]))
-    items.sort(key=lambda item: -_weight(item.nodeid))  # stable: the rest keep their order
+    items.sort(key=lambda item: -HEAVY_FIRST.get(item.nodeid.split("::")[0], 0))  # stable
