@@ -1,32 +1,25 @@
 """Every notebook in notebooks/ executes top to bottom without error.
 
 The book's FOC demo notebook is in the fast tier; the others each compile tens of programs (20-35 s on 2
-cores) and run in the whole suite."""
+cores) and run in the whole suite. This file runs notebooks 01-05; the other test files of this folder
+run the rest (notebook_run.GROUPS), so that the workers share them."""
 
 from pathlib import Path
 
-import nbformat
 import pytest
-from nbclient import NotebookClient
-
-NOTEBOOKS = sorted((Path(__file__).resolve().parents[2] / "notebooks").glob("*.ipynb"))
-FAST = {"01_book_foc_demo.ipynb"}
-CASES = [pytest.param(p, id=p.name, marks=() if p.name in FAST else pytest.mark.slow) for p in NOTEBOOKS]
+from notebook_run import FAST, GROUPS, NOTEBOOKS, cases, run_notebook
 
 
 def test_there_are_notebooks():
     assert NOTEBOOKS, "notebooks/ holds no notebook"
     assert FAST <= {p.name for p in NOTEBOOKS}, "a fast-tier notebook is missing"
+    # every notebook is run by exactly one test file, and each test file named runs one
+    prefixes = [p.name.split("_")[0] for p in NOTEBOOKS]
+    assigned = [n for names in GROUPS.values() for n in names]
+    assert sorted(assigned) == sorted(prefixes), (assigned, prefixes)
+    assert all((Path(__file__).parent / name).is_file() for name in GROUPS)
 
 
-@pytest.mark.parametrize("path", CASES)
+@pytest.mark.parametrize("path", cases("test_notebooks.py"))
 def test_notebook_runs(path, tmp_path):
-    nb = nbformat.read(path, as_version=4)
-    client = NotebookClient(
-        nb, timeout=600, kernel_name="python3", resources={"metadata": {"path": tmp_path}}
-    )
-    client.execute()
-    errors = [
-        o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []) if o.output_type == "error"
-    ]
-    assert not errors
+    run_notebook(path, tmp_path)
