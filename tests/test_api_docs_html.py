@@ -7,7 +7,6 @@ cross-reference became a link whose page and anchor exist; and no API page is ov
 """
 
 import html
-import importlib.util
 import os
 import re
 import subprocess
@@ -52,8 +51,6 @@ def _inventory(site: Path) -> dict[str, str]:
 
 @pytest.fixture(scope="module")
 def site(tmp_path_factory):
-    if importlib.util.find_spec("mkdocs") is None:
-        pytest.skip("mkdocs is not installed")
     site_dir = tmp_path_factory.mktemp("site")
     env = {**os.environ, "NO_MKDOCS_2_WARNING": "1"}
     start = time.perf_counter()
