@@ -20,9 +20,9 @@ integrate ([`linear_torque`][pmsmjax.machines.dq_equations.linear_torque]), or `
 active flux ``psi_a = psi_f + (L_d - L_q) i_d``
 ([`active_flux_torque`][pmsmjax.machines.dq_equations.active_flux_torque]), the arrangement the design rules
 evaluate and the steady-state checks solve for ``i_q``
-([`q_current`][pmsmjax.machines.dq_equations.q_current]). The two are the same torque; each keeps the order of
-its operations, so the simulation's bits and the checks' numbers stay what they were (the arrangements differ
-in the last bit: measured, at 41 % of the presets' MTPA points).
+([`q_current`][pmsmjax.machines.dq_equations.q_current]). The two are the same torque but round differently
+in the last bit, so each keeps its own order of operations: the plants' compiled programs and the checks'
+numbers do not depend on which caller shares the module.
 """
 
 import math

@@ -32,3 +32,16 @@ def test_rms_of_a_sine_about_its_moving_mean(as_array):
 def test_metrics_serves_the_same_functions():
     for name in ("current_ripple_rms_a", "current_error_rms_a", "reference_phase_currents"):
         assert getattr(metrics, name) is getattr(current_ripple, name)
+
+
+def test_the_figures_follow_their_inputs_array_library():
+    """[`pmsmjax.analysis.array_namespace.namespace`]: NumPy in, NumPy out (no program compiled); JAX in,
+    or traced, JAX out."""
+    import jax
+
+    from pmsmjax.analysis.array_namespace import namespace
+
+    assert namespace(np.ones(3), 2) is np
+    assert namespace(np.ones(3), jnp.ones(3)) is jnp
+    assert jax.jit(lambda x: jnp.asarray(namespace(x) is jnp))(jnp.ones(3))
+    assert isinstance(current_ripple.current_ripple_rms_a(np.sin(np.arange(300.0)), 101), np.floating)

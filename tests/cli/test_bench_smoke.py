@@ -143,3 +143,17 @@ def test_pmsmjax_bench_prints_and_writes_the_library_figures(results, tmp_path, 
     out = capsys.readouterr().out
     assert "single run (simulate)" in out and "minimal" not in out
     assert [p.name for p in tmp_path.iterdir()] == ["bench.json"]
+
+
+def test_the_report_lists_every_mode_row_and_its_crossover(results):
+    """[`pmsmjax.jobs.bench_report.format_table`]: one line per row of each forward/reverse table, each
+    ratio the quotient of its times, and the crossover the mode table's own."""
+    from pmsmjax.jobs.bench_report import format_table
+
+    table = format_table(results)
+    rows = results["forward_vs_reverse"]
+    for r in rows:
+        assert f"{r['n_params']:>10}{r['forward_s']:>10.4f}{r['reverse_s']:>10.4f}" in table
+        assert f"{r['forward_s'] / r['reverse_s']:>10.2f}" in table
+    n = results["mode_crossover_n_params"]
+    assert (f"up to n = {n} parameters" in table) or (f"every measured n (<= {n})" in table)

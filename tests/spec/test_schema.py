@@ -27,3 +27,18 @@ def test_refusals_name_table_key_and_unit():
         schema.read_sensor({"kind": "encoder"}, WHERE)
     with pytest.raises(ParameterError, match=r"unknown keys \['Rs'\] in \[motor\] \('Rs' looks like 'R'\)"):
         schema.check_keys("motor", {**MOTOR, "Rs": 1.0}, WHERE)
+
+
+def test_a_drive_file_that_is_not_toml_is_refused_in_one_line(tmp_path):
+    """The drive-file reader parses with [`pmsmjax.io.toml_parser`]'s ``tomllib`` and turns its error
+    into one line naming the file."""
+    from pmsmjax.io.drive_files import read_drive_file
+    from pmsmjax.io.toml_parser import tomllib
+
+    path = tmp_path / "motor.toml"
+    path.write_text("[motor]\nR = 0.958\nL_d = \n")
+    with pytest.raises(tomllib.TOMLDecodeError):
+        tomllib.loads(path.read_text())
+    with pytest.raises(ParameterError, match=r"drive file .*motor\.toml: not valid TOML") as err:
+        read_drive_file(path)
+    assert "\n" not in str(err.value)
