@@ -76,3 +76,28 @@ def check_nonnegative(name: str, x, unit: str = "", hint: str = "") -> None:
     if np.any(v < 0):
         fix = hint or f"give a value >= 0 in {unit or 'SI units'}"
         raise ParameterError(f"{name} must be >= 0, got {v.min():g}{' ' + unit if unit else ''}: {fix}.")
+
+
+def alternatives(choices) -> str:
+    """``choices`` as a sentence names them: ``'a' or 'b'``, ``'a', 'b' or 'c'``."""
+    quoted = [repr(c) for c in choices]
+    return quoted[0] if len(quoted) == 1 else f"{', '.join(quoted[:-1])} or {quoted[-1]}"
+
+
+def check_choice(name: str, value, choices, hint: str = "") -> None:
+    """Raise unless ``value`` is one of ``choices`` (a static option such as a mode or a switching function).
+
+    The message names `name`, the choices and what was given; `hint` (a sentence) follows it."""
+    if value not in tuple(choices):
+        raise ParameterError(
+            f"{name} must be {alternatives(choices)}, got {value!r}{': ' + hint if hint else ''}."
+        )
+
+
+def check_divider(name: str, value, what: str) -> None:
+    """Raise unless ``value`` is an ``int`` >= 1: how many `what` (e.g. "control periods") make one period of a
+    slower loop."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ParameterError(
+            f"{name} must be an int >= 1, got {value!r}: give how many {what} make one speed-loop period."
+        )
