@@ -38,7 +38,6 @@ frequency signal injection", IEEE TIA 35(1), 1999, doi:10.1109/28.740843; M. Lin
 IECON 2002, doi:10.1109/IECON.2002.1187512 (pulsating injection in the estimated d axis).
 """
 
-import dataclasses
 from typing import ClassVar
 
 import equinox as eqx
@@ -46,8 +45,7 @@ import jax.numpy as jnp
 
 from pmsmjax._types import Array
 from pmsmjax.estimators import hfi_signal as hs
-from pmsmjax.estimators.base import AbstractEstimator
-from pmsmjax.estimators.pll import PLL, PLLState, pll_design, pull_pll
+from pmsmjax.estimators.pll import PLL, AbstractPLLEstimator, PLLState
 from pmsmjax.frames.three_phase import inverse_park, park, wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Estimate, Sample
@@ -61,7 +59,7 @@ class HFIPulsatingState(eqx.Module):
     pll: PLLState
 
 
-class HFIPulsating(AbstractEstimator):
+class HFIPulsating(AbstractPLLEstimator):
     """Pulsating-injection estimator (see the module docstring).
 
     **Arguments:**
@@ -139,14 +137,6 @@ class HFIPulsating(AbstractEstimator):
             pll_state.theta, pll_state.omega / self.pole_pairs, u_injection_ab=u_inj, i_ab_fundamental=i_fund
         )
 
-    def pull(
-        self, state: HFIPulsatingState, estimate: Estimate, theta_e, omega_m, strength
-    ) -> HFIPulsatingState:
-        """The PLL moved by the estimate's distance to the target
-        ([`pll.pull_pll`][pmsmjax.estimators.pll.pull_pll])."""
-        pll = pull_pll(state.pll, self.pole_pairs, estimate, theta_e, omega_m, strength)
-        return dataclasses.replace(state, pll=pll)
-
 
 def hfi_pulsating_design(
     motor: PMSMParameters,
@@ -164,19 +154,18 @@ def hfi_pulsating_design(
     """The pulsating-injection estimator for ``motor`` at period ``Ts`` (s) by the design rule of the
     module docstring. ``hf_frequency`` in Hz (default ``0.1 / Ts``), ``hf_voltage`` in V (default: the
     voltage giving a 0.25 A error-signal amplitude), cut-offs and bandwidths in rad/s."""
-    w_h, hf_voltage, w_l = hs.carrier_design(
-        "hfi-pulsating", motor, Ts, hf_frequency, hf_voltage, bandpass_q, error_cutoff
-    )
     return HFIPulsating(
-        L_d=motor.L_d,
-        L_q=motor.L_q,
-        pole_pairs=motor.pole_pairs,
-        hf_voltage=hf_voltage,
-        hf_omega=w_h,
-        bandpass_bandwidth=w_h / bandpass_q,
-        error_cutoff=w_l,
-        pll=pll_design(as_float(w_l) / 7.0 if pll_bandwidth is None else pll_bandwidth),
-        theta0=theta0,
-        delay_periods=float(delay_periods),
-        filter_feedback=bool(filter_feedback),
+        **hs.injection_design(
+            "hfi-pulsating",
+            motor,
+            Ts,
+            hf_frequency=hf_frequency,
+            hf_voltage=hf_voltage,
+            bandpass_q=bandpass_q,
+            error_cutoff=error_cutoff,
+            pll_bandwidth=pll_bandwidth,
+            theta0=theta0,
+            delay_periods=delay_periods,
+            filter_feedback=filter_feedback,
+        )
     )

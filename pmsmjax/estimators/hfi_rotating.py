@@ -52,7 +52,6 @@ permanent magnet synchronous machine at standstill and high speeds", IEEE TIA 34
 doi:10.1109/28.703964 (heterodyne demodulation of the negative sequence).
 """
 
-import dataclasses
 from typing import ClassVar, Literal
 
 import equinox as eqx
@@ -60,8 +59,7 @@ import jax.numpy as jnp
 
 from pmsmjax._types import Array
 from pmsmjax.estimators import hfi_signal as hs
-from pmsmjax.estimators.base import AbstractEstimator
-from pmsmjax.estimators.pll import PLL, PLLState, pll_design, pull_pll
+from pmsmjax.estimators.pll import PLL, AbstractPLLEstimator, PLLState
 from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Estimate, Sample
@@ -79,7 +77,7 @@ class HFIRotatingState(eqx.Module):
     pll: PLLState
 
 
-class HFIRotating(AbstractEstimator):
+class HFIRotating(AbstractPLLEstimator):
     """Rotating-injection estimator (see the module docstring).
 
     **Arguments:**
@@ -195,49 +193,42 @@ class HFIRotating(AbstractEstimator):
             theta, omega_e / self.pole_pairs, u_injection_ab=u_inj, i_ab_fundamental=i_fund
         )
 
-    def pull(
-        self, state: HFIRotatingState, estimate: Estimate, theta_e, omega_m, strength
-    ) -> HFIRotatingState:
-        """The PLL moved by the estimate's distance to the target
-        ([`pll.pull_pll`][pmsmjax.estimators.pll.pull_pll])."""
-        pll = pull_pll(state.pll, self.pole_pairs, estimate, theta_e, omega_m, strength)
-        return dataclasses.replace(state, pll=pll)
-
 
 def hfi_rotating_design(
     motor: PMSMParameters,
     Ts: float,
     *,
+    sequence_cutoff: float | None = None,
+    carrier: str = "internal",
     hf_voltage: float | None = None,
     hf_frequency: float | None = None,
     bandpass_q: float = hs.BANDPASS_Q,
-    sequence_cutoff: float | None = None,
     error_cutoff: float | None = None,
     pll_bandwidth: float | None = None,
     theta0: float = 0.0,
     delay_periods: float = 1.5,
-    carrier: str = "internal",
     filter_feedback: bool = True,
 ) -> HFIRotating:
     """The rotating-injection estimator for ``motor`` at period ``Ts`` (s) by the design rule of the
     module docstring. ``hf_frequency`` in Hz (default ``0.1 / Ts``), ``hf_voltage`` in V (default: the
     voltage giving a 0.25 A negative sequence), cut-offs and bandwidths in rad/s."""
-    w_h, hf_voltage, w_l = hs.carrier_design(
-        "hfi-rotating", motor, Ts, hf_frequency, hf_voltage, bandpass_q, error_cutoff
-    )
-    return HFIRotating(
-        L_d=motor.L_d,
-        L_q=motor.L_q,
-        R=motor.R,
-        pole_pairs=motor.pole_pairs,
+    fields = hs.injection_design(
+        "hfi-rotating",
+        motor,
+        Ts,
+        hf_frequency=hf_frequency,
         hf_voltage=hf_voltage,
-        hf_omega=w_h,
-        bandpass_bandwidth=w_h / bandpass_q,
-        sequence_cutoff=w_h / 50.0 if sequence_cutoff is None else sequence_cutoff,
-        error_cutoff=w_l,
-        pll=pll_design(as_float(w_l) / 7.0 if pll_bandwidth is None else pll_bandwidth),
+        bandpass_q=bandpass_q,
+        error_cutoff=error_cutoff,
+        pll_bandwidth=pll_bandwidth,
         theta0=theta0,
-        delay_periods=float(delay_periods),
+        delay_periods=delay_periods,
+        filter_feedback=filter_feedback,
+    )
+    w_h = fields["hf_omega"]
+    return HFIRotating(
+        R=motor.R,
+        sequence_cutoff=w_h / 50.0 if sequence_cutoff is None else sequence_cutoff,
         carrier=carrier,
-        filter_feedback=bool(filter_feedback),
+        **fields,
     )

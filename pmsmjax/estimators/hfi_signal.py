@@ -42,7 +42,9 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
+from pmsmjax.estimators.pll import pll_design
 from pmsmjax.frames.three_phase import wrap_angle
+from pmsmjax.machines.motor import as_float
 from pmsmjax.spec.validation import ParameterError, check_positive, is_concrete
 
 #: Default carrier frequency as a fraction of the sampling frequency: 10 samples per carrier period, far
@@ -150,12 +152,18 @@ def check_salient(owner: str, L_d, L_q) -> None:
         )
 
 
-def carrier_design(owner: str, motor, Ts: float, hf_frequency, hf_voltage, bandpass_q, error_cutoff):
-    """The carrier both injection design rules share: ``(w_h rad/s, V_h V, error low-pass cut-off rad/s)``.
+def injection_design(
+    owner: str, motor, Ts: float, *, hf_frequency, hf_voltage, bandpass_q, error_cutoff, pll_bandwidth,
+    theta0, delay_periods, filter_feedback,
+) -> dict:  # fmt: skip
+    """The constructor fields both injection design rules share, as keywords of
+    [`HFIPulsating`][pmsmjax.estimators.hfi_pulsating.HFIPulsating] and
+    [`HFIRotating`][pmsmjax.estimators.hfi_rotating.HFIRotating].
 
     The carrier frequency defaults to ``f_s / 10`` (``hf_frequency`` Hz overrides), ``V_h`` to the voltage
     giving a [`TARGET_NEGATIVE_SEQUENCE_A`][pmsmjax.estimators.hfi_signal.TARGET_NEGATIVE_SEQUENCE_A]
-    error-signal amplitude at the held carrier's effective frequency, the error low-pass to ``w_h / 3``;
+    error-signal amplitude at the held carrier's effective frequency, the resonator bandwidth to
+    ``w_h / bandpass_q``, the error low-pass to ``w_h / 3`` and the PLL bandwidth to a seventh of it (rad/s);
     ``owner`` names the estimator in the errors.
     """
     f_h = 0.1 / Ts if hf_frequency is None else float(hf_frequency)
@@ -167,7 +175,19 @@ def carrier_design(owner: str, motor, Ts: float, hf_frequency, hf_voltage, bandp
         per_volt = negative_sequence_amplitude(motor.L_d, motor.L_q, 1.0, w_h, Ts)
         hf_voltage = TARGET_NEGATIVE_SEQUENCE_A / per_volt
     w_l = w_h / 3.0 if error_cutoff is None else error_cutoff
-    return w_h, hf_voltage, w_l
+    return dict(
+        L_d=motor.L_d,
+        L_q=motor.L_q,
+        pole_pairs=motor.pole_pairs,
+        hf_voltage=hf_voltage,
+        hf_omega=w_h,
+        bandpass_bandwidth=w_h / bandpass_q,
+        error_cutoff=w_l,
+        pll=pll_design(as_float(w_l) / 7.0 if pll_bandwidth is None else pll_bandwidth),
+        theta0=theta0,
+        delay_periods=float(delay_periods),
+        filter_feedback=bool(filter_feedback),
+    )
 
 
 def highpass_complement_phase(v, gain) -> Array:

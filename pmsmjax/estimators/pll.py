@@ -18,10 +18,13 @@ computed from the PLL's own speed belongs on its output, not on the angle it loc
 speed back into the phase error and shrink the stable gains several-fold.
 """
 
+import dataclasses
+
 import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
+from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.stability import check_loop, concrete_values, tracking_loop_matrix
 from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.motor import as_float
@@ -93,6 +96,19 @@ def pull_pll(pll: PLLState, pole_pairs, estimate: Estimate, theta_e, omega_m, st
     theta = wrap_angle(pll.theta + strength * wrap_angle(theta_e - estimate.theta_e))
     omega = pll.omega + strength * pole_pairs * (omega_m - estimate.omega_m)
     return PLLState(theta, omega)
+
+
+class AbstractPLLEstimator(AbstractEstimator):
+    """An estimator whose angle and speed are a PLL's: its state has a ``pll`` field
+    ([`PLLState`][pmsmjax.estimators.pll.PLLState]); the HF-injection estimators."""
+
+    pole_pairs: eqx.AbstractVar[int]
+
+    def pull(self, state, estimate: Estimate, theta_e, omega_m, strength):
+        """The PLL moved by the estimate's distance to the target
+        ([`pull_pll`][pmsmjax.estimators.pll.pull_pll])."""
+        pll = pull_pll(state.pll, self.pole_pairs, estimate, theta_e, omega_m, strength)
+        return dataclasses.replace(state, pll=pll)
 
 
 def pll_design(bandwidth_rad_s=300.0) -> PLL:
