@@ -82,13 +82,22 @@ class AbstractMultiPhaseMachine(AbstractMachine):
     frame <-> stationary VSD ``(2 n_planes,)`` [alpha, beta, z1, z2, ...], A),
     [`vsd_currents`][pmsmjax.machines.pmsm_multiphase.AbstractMultiPhaseMachine.vsd_currents] and
     [`initial_state_vsd`][pmsmjax.machines.pmsm_multiphase.AbstractMultiPhaseMachine.initial_state_vsd]; phase
-    currents are the inverse VSD with zero sequences 0.
+    currents are the inverse VSD with zero sequences 0. Every frame's model takes the same fields.
+
+    Args:
+        motor: The motor's parameters.
+        layout: The winding layout (static).
+        mechanics: ``"dynamic"`` or ``"imposed"`` speed.
+        resistance_scale: ``(n,)`` phase resistance factors, or ``None`` (balanced).
     """
 
-    motor: eqx.AbstractVar[MultiPhaseParameters]
-    mechanics: eqx.AbstractVar[Mechanics]
-    layout: eqx.AbstractVar[PhaseLayout]
-    resistance_scale: eqx.AbstractVar[Array | None]
+    motor: MultiPhaseParameters
+    layout: PhaseLayout = eqx.field(static=True, default=SIX_PHASE)
+    mechanics: Mechanics = eqx.field(static=True, default="dynamic")
+    resistance_scale: Array | None = eqx.field(default=None, converter=_as_scale)
+
+    def __check_init__(self):
+        self._check()
 
     @property
     def n_phases(self) -> int:  # type: ignore[override]
@@ -209,20 +218,9 @@ class AbstractMultiPhaseMachine(AbstractMachine):
 class MultiPhasePMSMVSD(AbstractMultiPhaseMachine):
     """n-phase PMSM in stationary VSD coordinates; state ``(2 n_planes,)`` [alpha, beta, z1, z2, ...], A.
 
-    Args:
-        motor: The motor's parameters.
-        layout: The winding layout (static).
-        mechanics: ``"dynamic"`` or ``"imposed"`` speed.
-        resistance_scale: ``(n,)`` phase resistance factors, or ``None`` (balanced).
+    Its fields are those of
+    [`AbstractMultiPhaseMachine`][pmsmjax.machines.pmsm_multiphase.AbstractMultiPhaseMachine].
     """
-
-    motor: MultiPhaseParameters
-    layout: PhaseLayout = eqx.field(static=True, default=SIX_PHASE)
-    mechanics: Mechanics = eqx.field(static=True, default="dynamic")
-    resistance_scale: Array | None = eqx.field(default=None, converter=_as_scale)
-
-    def __check_init__(self):
-        self._check()
 
     def inductance(self, theta_e) -> Array:
         """Alpha-beta inductance matrix at an electrical angle.
@@ -318,20 +316,9 @@ class MultiPhasePMSMdq(AbstractMultiPhaseMachine):
     at a per-period cost near the three-phase model's, where RK4 over the whole state costs about twice as
     much (docs/performance.md, "Six-phase and five-phase drives").
 
-    Args:
-        motor: The motor's parameters.
-        layout: The winding layout (static).
-        mechanics: ``"dynamic"`` or ``"imposed"`` speed.
-        resistance_scale: ``(n,)`` phase resistance factors, or ``None`` (balanced).
+    Its fields are those of
+    [`AbstractMultiPhaseMachine`][pmsmjax.machines.pmsm_multiphase.AbstractMultiPhaseMachine].
     """
-
-    motor: MultiPhaseParameters
-    layout: PhaseLayout = eqx.field(static=True, default=SIX_PHASE)
-    mechanics: Mechanics = eqx.field(static=True, default="dynamic")
-    resistance_scale: Array | None = eqx.field(default=None, converter=_as_scale)
-
-    def __check_init__(self):
-        self._check()
 
     @property
     def angle_only_in_voltage(self) -> bool:

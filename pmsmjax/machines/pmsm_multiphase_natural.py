@@ -1,34 +1,21 @@
 """The n-phase PMSM in phase quantities: ``n`` phase currents, the full ``n x n`` inductance matrix."""
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.frames.multiphase import SIX_PHASE, PhaseLayout, inverse_vsd_matrix, vsd_matrix
-from pmsmjax.machines.base import MachineInput, Mechanics
-from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
-from pmsmjax.machines.pmsm_multiphase import AbstractMultiPhaseMachine, _as_scale
+from pmsmjax.frames.multiphase import inverse_vsd_matrix, vsd_matrix
+from pmsmjax.machines.base import MachineInput
+from pmsmjax.machines.pmsm_multiphase import AbstractMultiPhaseMachine
 
 
 class MultiPhasePMSMNatural(AbstractMultiPhaseMachine):
     """n-phase PMSM in the natural frame; state currents ``(n,)`` phase currents, A (module docstring).
 
-    Args:
-        motor: The motor's parameters.
-        layout: The winding layout (static).
-        mechanics: ``"dynamic"`` or ``"imposed"`` speed.
-        resistance_scale: ``(n,)`` phase resistance factors, or ``None`` (balanced).
+    Its fields are those of
+    [`AbstractMultiPhaseMachine`][pmsmjax.machines.pmsm_multiphase.AbstractMultiPhaseMachine].
     """
-
-    motor: MultiPhaseParameters
-    layout: PhaseLayout = eqx.field(static=True, default=SIX_PHASE)
-    mechanics: Mechanics = eqx.field(static=True, default="dynamic")
-    resistance_scale: Array | None = eqx.field(default=None, converter=_as_scale)
-
-    def __check_init__(self):
-        self._check()
 
     def _axes(self, dtype):
         return jnp.asarray(np.asarray(self.layout.angles), dtype)
