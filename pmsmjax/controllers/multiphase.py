@@ -104,6 +104,7 @@ from pmsmjax.frames.multiphase import (
 from pmsmjax.frames.three_phase import inverse_park, park
 from pmsmjax.machines.motor import as_float
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
+from pmsmjax.machines.pmsm6 import double_dq_current_rate, double_dq_flux
 from pmsmjax.signals import ControlOutput, Estimate, References, Sample
 from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive
 
@@ -374,35 +375,12 @@ class ZProportionalResonant(AbstractZCurrentController):
 
 
 # --- double dq --------------------------------------------------------------------------------------
-def _double_dq_flux(m, i_dd):
-    """``(4,)`` set fluxes [psi_d1, psi_q1, psi_d2, psi_q2] (Wb) of the controller's model (pmsm6.py)."""
-    L_md, L_mq = 0.5 * (m.L_d - m.L_ls), 0.5 * (m.L_q - m.L_ls)
-    return jnp.stack(
-        [
-            (m.L_ls + L_md) * i_dd[0] + L_md * i_dd[2] + m.psi_f,
-            (m.L_ls + L_mq) * i_dd[1] + L_mq * i_dd[3],
-            (m.L_ls + L_md) * i_dd[2] + L_md * i_dd[0] + m.psi_f,
-            (m.L_ls + L_mq) * i_dd[3] + L_mq * i_dd[1],
-        ]
-    )
-
-
 def _double_dq_derivative(m, i_dd, u_dd, omega_e):
     """d i_dd/dt (A/s) of the double-dq model under ``u_dd (4,)`` V
     ([`pmsmjax.machines.pmsm6`][pmsmjax.machines.pmsm6])."""
-    L_md, L_mq = 0.5 * (m.L_d - m.L_ls), 0.5 * (m.L_q - m.L_ls)
-    psi = _double_dq_flux(m, i_dd)
+    psi = double_dq_flux(m, i_dd)
     dpsi = u_dd - m.R * i_dd - omega_e * jnp.stack([-psi[1], psi[0], -psi[3], psi[2]])
-    Ls_d, Ls_q = m.L_ls + L_md, m.L_ls + L_mq
-    det_d, det_q = m.L_ls * m.L_d, m.L_ls * m.L_q
-    return jnp.stack(
-        [
-            (Ls_d * dpsi[0] - L_md * dpsi[2]) / det_d,
-            (Ls_q * dpsi[1] - L_mq * dpsi[3]) / det_q,
-            (Ls_d * dpsi[2] - L_md * dpsi[0]) / det_d,
-            (Ls_q * dpsi[3] - L_mq * dpsi[1]) / det_q,
-        ]
-    )
+    return double_dq_current_rate(m, dpsi)
 
 
 class DoubleDQCurrentPI(AbstractMultiPhaseCurrentController):
@@ -440,7 +418,7 @@ class DoubleDQCurrentPI(AbstractMultiPhaseCurrentController):
         error = ref - i_ctrl
         cross = jnp.stack([self.kc_d, self.kc_q, self.kc_d, self.kc_q]) * jnp.roll(error, 2)
         if ctx.decoupling:
-            psi = _double_dq_flux(m, i_ctrl)
+            psi = double_dq_flux(m, i_ctrl)
             ff = omega_e * jnp.stack([-psi[1], psi[0], -psi[3], psi[2]])
         else:
             ff = jnp.zeros(4, i_dd.dtype)

@@ -30,6 +30,7 @@ import math
 __all__ = [
     "torque_factor",
     "linear_flux",
+    "linear_current_derivative",
     "active_flux",
     "torque",
     "linear_torque",
@@ -48,6 +49,14 @@ def torque_factor(pole_pairs, n_phases=3):
 def linear_flux(psi_f, L_d, L_q, i_d, i_q):
     """``(psi_d, psi_q)`` of the linear machine: ``(L_d i_d + psi_f, L_q i_q)``, Wb."""
     return L_d * i_d + psi_f, L_q * i_q
+
+
+def linear_current_derivative(R, L_d, L_q, psi_f, omega_e, i_d, i_q, u_d, u_q):
+    """``(di_d/dt, di_q/dt)`` of the linear machine, A/s: ``L_d di_d/dt = u_d - R i_d + w_e L_q i_q``,
+    ``L_q di_q/dt = u_q - R i_q - w_e (L_d i_d + psi_f)`` (the book, ch. 1; ``omega_e`` electrical rad/s)."""
+    did = (u_d - R * i_d + omega_e * L_q * i_q) / L_d
+    diq = (u_q - R * i_q - omega_e * (L_d * i_d + psi_f)) / L_q
+    return did, diq
 
 
 def active_flux(psi_f, L_d, L_q, i_d):

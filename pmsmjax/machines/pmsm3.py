@@ -41,6 +41,19 @@ def _solve2(L: Array, b: Array) -> Array:
     return jnp.stack([L[1, 1] * b[0] - L[0, 1] * b[1], L[0, 0] * b[1] - L[1, 0] * b[0]]) / det
 
 
+def alpha_beta_inductance(L_d, L_q, theta_e) -> Array:
+    """``(2, 2)`` stationary-frame inductance matrix ``L_ab(th)``, H, of a machine with ``L_d``, ``L_q`` (H)
+    at the electrical angle ``theta_e`` (rad): the module docstring's ``L_ab``."""
+    L0, L2 = 0.5 * (L_d + L_q), 0.5 * (L_d - L_q)
+    c2, s2 = jnp.cos(2.0 * theta_e), jnp.sin(2.0 * theta_e)
+    return jnp.stack([jnp.stack([L0 + L2 * c2, L2 * s2]), jnp.stack([L2 * s2, L0 - L2 * c2])])
+
+
+def alpha_beta_magnet_flux(psi_f, theta_e) -> Array:
+    """``(2,)`` PM flux in the stationary frame, ``psi_f [cos th, sin th]``, Wb."""
+    return psi_f * jnp.stack([jnp.cos(theta_e), jnp.sin(theta_e)])
+
+
 class AbstractPMSMdq(AbstractMachine):
     """A three-phase PMSM in the rotor frame, state currents ``(2,)`` = [i_d, i_q], A: the frame
     conversions and the linear (unsaturated) equations that [`PMSMdq`][pmsmjax.machines.pmsm3.PMSMdq] and
@@ -56,12 +69,11 @@ class AbstractPMSMdq(AbstractMachine):
 
     def linear_current_derivative(self, currents, theta_e, omega_e, u: MachineInput) -> Array:
         """``d[i_d, i_q]/dt`` of the linear machine, A/s (the module docstring's rotor-frame equations)."""
-        m = self.motor
-        i_d, i_q = currents[0], currents[1]
-        u_dq = u.dq(theta_e)
-        did = (u_dq[0] - m.R * i_d + omega_e * m.L_q * i_q) / m.L_d
-        diq = (u_dq[1] - m.R * i_q - omega_e * (m.L_d * i_d + m.psi_f)) / m.L_q
-        return jnp.stack([did, diq])
+        m, u_dq = self.motor, u.dq(theta_e)
+        derivative = dq.linear_current_derivative(
+            m.R, m.L_d, m.L_q, m.psi_f, omega_e, currents[0], currents[1], u_dq[0], u_dq[1]
+        )
+        return jnp.stack(derivative)
 
     def linear_torque(self, currents) -> Array:
         """Electromagnetic torque of the linear machine, N m (the module docstring's ``T_e``)."""
@@ -114,10 +126,7 @@ class PMSMAlphaBeta(AbstractMachine):
         Returns:
             ``(2, 2)`` inductances, H.
         """
-        m = self.motor
-        L0, L2 = 0.5 * (m.L_d + m.L_q), 0.5 * (m.L_d - m.L_q)
-        c2, s2 = jnp.cos(2.0 * theta_e), jnp.sin(2.0 * theta_e)
-        return jnp.stack([jnp.stack([L0 + L2 * c2, L2 * s2]), jnp.stack([L2 * s2, L0 - L2 * c2])])
+        return alpha_beta_inductance(self.motor.L_d, self.motor.L_q, theta_e)
 
     def flux(self, currents, theta_e) -> Array:
         """Stator flux linkage.
@@ -129,8 +138,7 @@ class PMSMAlphaBeta(AbstractMachine):
         Returns:
             ``(2,)`` flux linkage, Wb.
         """
-        pm = self.motor.psi_f * jnp.stack([jnp.cos(theta_e), jnp.sin(theta_e)])
-        return self.inductance(theta_e) @ currents + pm
+        return self.inductance(theta_e) @ currents + alpha_beta_magnet_flux(self.motor.psi_f, theta_e)
 
     def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
         _, dflux_dtheta = jax.jvp(lambda th: self.flux(currents, th), (theta_e,), (jnp.ones_like(theta_e),))

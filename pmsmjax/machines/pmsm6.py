@@ -17,40 +17,66 @@ couple the two sets' current loops: the cross-coupling that the double-dq contro
 compensates ([`pmsmjax.controllers.multiphase`][pmsmjax.controllers.multiphase]).
 """
 
-import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.frames.multiphase import SIX_PHASE, PhaseLayout, double_dq_to_vsd, vsd_to_double_dq
+from pmsmjax.frames.multiphase import SIX_PHASE, double_dq_to_vsd, vsd_to_double_dq
 from pmsmjax.frames.three_phase import inverse_park, park
-from pmsmjax.machines.base import MachineInput, Mechanics
+from pmsmjax.machines.base import MachineInput
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
-from pmsmjax.machines.pmsm_multiphase import AbstractMultiPhaseMachine, _as_scale
+from pmsmjax.machines.pmsm_multiphase import AbstractMultiPhaseMachine
 from pmsmjax.spec.validation import ParameterError
 
-__all__ = ["PMSM6DoubleDQ"]
+__all__ = ["PMSM6DoubleDQ", "double_dq_flux", "double_dq_current_rate", "magnetising_inductances"]
+
+
+def magnetising_inductances(m: MultiPhaseParameters):
+    """``(L_md, L_mq)``, H: the mutual dq inductances between the two sets of ``m`` (module docstring)."""
+    return 0.5 * (m.L_d - m.L_ls), 0.5 * (m.L_q - m.L_ls)
+
+
+def double_dq_flux(m: MultiPhaseParameters, currents: Array) -> Array:
+    """``(4,)`` [psi_d1, psi_q1, psi_d2, psi_q2], Wb, of the ``(4,)`` currents [i_d1, i_q1, i_d2, i_q2], A
+    (module docstring)."""
+    L_md, L_mq = magnetising_inductances(m)
+    i_d1, i_q1, i_d2, i_q2 = currents[0], currents[1], currents[2], currents[3]
+    return jnp.stack(
+        [
+            (m.L_ls + L_md) * i_d1 + L_md * i_d2 + m.psi_f,
+            (m.L_ls + L_mq) * i_q1 + L_mq * i_q2,
+            (m.L_ls + L_md) * i_d2 + L_md * i_d1 + m.psi_f,
+            (m.L_ls + L_mq) * i_q2 + L_mq * i_q1,
+        ]
+    )
+
+
+def double_dq_current_rate(m: MultiPhaseParameters, dpsi: Array) -> Array:
+    """``(4,)`` current derivatives, A/s, giving the ``(4,)`` flux derivatives ``dpsi`` (Wb/s): per axis
+    ``[[Ls, M], [M, Ls]] [di_1, di_2] = [dpsi_1, dpsi_2]`` with ``det = (Ls - M)(Ls + M) = L_ls L_{d,q}``."""
+    L_md, L_mq = magnetising_inductances(m)
+    Ls_d, Ls_q = m.L_ls + L_md, m.L_ls + L_mq
+    det_d, det_q = m.L_ls * m.L_d, m.L_ls * m.L_q
+    return jnp.stack(
+        [
+            (Ls_d * dpsi[0] - L_md * dpsi[2]) / det_d,
+            (Ls_q * dpsi[1] - L_mq * dpsi[3]) / det_q,
+            (Ls_d * dpsi[2] - L_md * dpsi[0]) / det_d,
+            (Ls_q * dpsi[3] - L_mq * dpsi[1]) / det_q,
+        ]
+    )
 
 
 class PMSM6DoubleDQ(AbstractMultiPhaseMachine):
     """Six-phase PMSM in double-dq coordinates; state ``(4,)`` [i_d1, i_q1, i_d2, i_q2], A.
 
-    Args:
-        motor: Six-phase motor parameters
-            ([`MultiPhaseParameters`][pmsmjax.machines.multiphase_motor.MultiPhaseParameters]).
-        mechanics: ``"dynamic"`` or ``"imposed"`` speed.
-        resistance_scale: ``(6,)`` phase resistance factors, or ``None`` (balanced).
-        layout: The winding layout; only the dual three-phase ``SIX_PHASE``.
+    Its fields are those of
+    [`AbstractMultiPhaseMachine`][pmsmjax.machines.pmsm_multiphase.AbstractMultiPhaseMachine]; the layout
+    can only be the dual three-phase ``SIX_PHASE``.
     """
-
-    motor: MultiPhaseParameters
-    mechanics: Mechanics = eqx.field(static=True, default="dynamic")
-    resistance_scale: Array | None = eqx.field(default=None, converter=_as_scale)
-    layout: PhaseLayout = eqx.field(static=True, default=SIX_PHASE)
 
     def __check_init__(self):
         if self.layout != SIX_PHASE:
             raise ParameterError("PMSM6DoubleDQ models the dual three-phase winding only (layout SIX_PHASE).")
-        self._check()
 
     def magnetising(self):
         """The mutual dq inductances between the sets.
@@ -58,8 +84,7 @@ class PMSM6DoubleDQ(AbstractMultiPhaseMachine):
         Returns:
             ``(L_md, L_mq)``, H.
         """
-        m = self.motor
-        return 0.5 * (m.L_d - m.L_ls), 0.5 * (m.L_q - m.L_ls)
+        return magnetising_inductances(self.motor)
 
     def flux(self, currents: Array) -> Array:
         """Flux linkages of both sets.
@@ -70,21 +95,10 @@ class PMSM6DoubleDQ(AbstractMultiPhaseMachine):
         Returns:
             ``(4,)`` [psi_d1, psi_q1, psi_d2, psi_q2], Wb.
         """
-        m = self.motor
-        L_md, L_mq = self.magnetising()
-        i_d1, i_q1, i_d2, i_q2 = currents[0], currents[1], currents[2], currents[3]
-        return jnp.stack(
-            [
-                (m.L_ls + L_md) * i_d1 + L_md * i_d2 + m.psi_f,
-                (m.L_ls + L_mq) * i_q1 + L_mq * i_q2,
-                (m.L_ls + L_md) * i_d2 + L_md * i_d1 + m.psi_f,
-                (m.L_ls + L_mq) * i_q2 + L_mq * i_q1,
-            ]
-        )
+        return double_dq_flux(self.motor, currents)
 
     def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
         m = self.motor
-        L_md, L_mq = self.magnetising()
         u_vsd = u.alpha_beta(theta_e)
         u_dd = vsd_to_double_dq(jnp.concatenate([park(u_vsd[:2], theta_e), u_vsd[2:]]), theta_e)
         if self.resistance_scale is None:
@@ -96,17 +110,7 @@ class PMSM6DoubleDQ(AbstractMultiPhaseMachine):
         # dpsi/dt = u - R i - w_e J psi, per set; J psi = [-psi_q, psi_d].
         rotational = jnp.stack([-psi[1], psi[0], -psi[3], psi[2]])
         dpsi = u_dd - r - omega_e * rotational
-        # Per axis, [[Ls, M], [M, Ls]] [di_1, di_2] = [dpsi_1, dpsi_2]; det = (Ls - M)(Ls + M) = L_ls L_{d,q}.
-        Ls_d, Ls_q = m.L_ls + L_md, m.L_ls + L_mq
-        det_d, det_q = m.L_ls * m.L_d, m.L_ls * m.L_q
-        return jnp.stack(
-            [
-                (Ls_d * dpsi[0] - L_md * dpsi[2]) / det_d,
-                (Ls_q * dpsi[1] - L_mq * dpsi[3]) / det_q,
-                (Ls_d * dpsi[2] - L_md * dpsi[0]) / det_d,
-                (Ls_q * dpsi[3] - L_mq * dpsi[1]) / det_q,
-            ]
-        )
+        return double_dq_current_rate(self.motor, dpsi)
 
     def torque(self, currents, theta_e):
         psi = self.flux(currents)

@@ -59,7 +59,7 @@ from pmsmjax.frames.three_phase import inverse_park, park
 from pmsmjax.machines import dq_equations as dq
 from pmsmjax.machines.base import AbstractMachine, MachineInput, MachineState, Mechanics
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
-from pmsmjax.machines.pmsm3 import _solve2
+from pmsmjax.machines.pmsm3 import _solve2, alpha_beta_inductance, alpha_beta_magnet_flux
 from pmsmjax.spec.validation import ParameterError, check_positive
 
 __all__ = [
@@ -223,18 +223,9 @@ class MultiPhasePMSMVSD(AbstractMultiPhaseMachine):
     """
 
     def inductance(self, theta_e) -> Array:
-        """Alpha-beta inductance matrix at an electrical angle.
-
-        Args:
-            theta_e: Electrical rotor angle, rad.
-
-        Returns:
-            ``(2, 2)`` inductances, H.
-        """
-        m = self.motor
-        L0, L2 = 0.5 * (m.L_d + m.L_q), 0.5 * (m.L_d - m.L_q)
-        c2, s2 = jnp.cos(2.0 * theta_e), jnp.sin(2.0 * theta_e)
-        return jnp.stack([jnp.stack([L0 + L2 * c2, L2 * s2]), jnp.stack([L2 * s2, L0 - L2 * c2])])
+        """``(2, 2)`` inductances of the fundamental (alpha-beta) plane at the electrical angle ``theta_e``
+        (rad), H: [`alpha_beta_inductance`][pmsmjax.machines.pmsm3.alpha_beta_inductance]."""
+        return alpha_beta_inductance(self.motor.L_d, self.motor.L_q, theta_e)
 
     def flux(self, currents, theta_e) -> Array:
         """Stator flux linkage in VSD coordinates.
@@ -246,8 +237,7 @@ class MultiPhasePMSMVSD(AbstractMultiPhaseMachine):
         Returns:
             ``(2 n_planes,)`` flux linkage, Wb.
         """
-        pm = self.motor.psi_f * jnp.stack([jnp.cos(theta_e), jnp.sin(theta_e)])
-        psi_ab = self.inductance(theta_e) @ currents[:2] + pm
+        psi_ab = self.inductance(theta_e) @ currents[:2] + alpha_beta_magnet_flux(self.motor.psi_f, theta_e)
         psi_rest = self.motor.L_ls * currents[2:]
         if self.motor.psi_f3 is not None:
             k = self.third_harmonic_plane - 2
@@ -286,12 +276,11 @@ class _Fundamental(AbstractMachine):
     angle_only_in_voltage: ClassVar[bool] = True
 
     def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
-        m = self.motor
-        i_d, i_q = currents[0], currents[1]
-        u_dq = u.dq(theta_e)
-        did = (u_dq[0] - m.R * i_d + omega_e * m.L_q * i_q) / m.L_d
-        diq = (u_dq[1] - m.R * i_q - omega_e * (m.L_d * i_d + m.psi_f)) / m.L_q
-        return jnp.stack([did, diq])
+        m, u_dq = self.motor, u.dq(theta_e)
+        derivative = dq.linear_current_derivative(
+            m.R, m.L_d, m.L_q, m.psi_f, omega_e, currents[0], currents[1], u_dq[0], u_dq[1]
+        )
+        return jnp.stack(derivative)
 
     def torque(self, currents, theta_e):
         m = self.motor
