@@ -31,13 +31,12 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.estimators.base import AbstractModelObserver
 from pmsmjax.estimators.smo import (
     SMO_K_MARGIN,
     SMO_POLE,
+    AbstractSlidingModeObserver,
     check_observer_pole,
     observer_pole,
-    sliding_current_update,
 )
 from pmsmjax.estimators.stability import check_loop, concrete_values, tracking_loop_matrix
 from pmsmjax.estimators.stator_model import (
@@ -48,11 +47,11 @@ from pmsmjax.estimators.stator_model import (
     rl_coefficients,
     rotate,
 )
-from pmsmjax.estimators.switching import SWITCHING, Switching
+from pmsmjax.estimators.switching import Switching
 from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Estimate, Sample
-from pmsmjax.spec.validation import ParameterError, check_positive
+from pmsmjax.spec.validation import check_positive
 from pmsmjax.units import rpm_to_rad_s
 
 
@@ -63,7 +62,7 @@ class AdaptiveSMOState(eqx.Module):
     omega: Array  # rad/s, adapted electrical speed
 
 
-class AdaptiveSMO(AbstractModelObserver):
+class AdaptiveSMO(AbstractSlidingModeObserver):
     """SMO with an adaptive back-EMF model (see the module docstring).
 
     **Arguments:**
@@ -84,12 +83,7 @@ class AdaptiveSMO(AbstractModelObserver):
     switching: Switching = eqx.field(static=True, default="sigmoid")
 
     def __check_init__(self):
-        if self.switching not in SWITCHING:
-            raise ParameterError(
-                f"AdaptiveSMO.switching must be one of {', '.join(SWITCHING)}, got {self.switching!r}."
-            )
-        check_positive("AdaptiveSMO.k (switching amplitude)", self.k, "V")
-        check_positive("AdaptiveSMO.width (switching-function width)", self.width, "A")
+        self.check_switching()
         check_positive("AdaptiveSMO.l (back-EMF model gain)", self.l, "rad/s")
         check_positive("AdaptiveSMO.gamma (speed-adaptation gain)", self.gamma, "1/s^2")
         check_positive("AdaptiveSMO.emf_floor", self.emf_floor, "V")
@@ -114,18 +108,7 @@ class AdaptiveSMO(AbstractModelObserver):
 
     def step(self, state: AdaptiveSMOState, sample: Sample, Ts: float):
         m = self.model
-        phi, gamma_rl = rl_coefficients(m.R, m.L_q, Ts)
-        i_hat, z = sliding_current_update(
-            state.i_hat,
-            state.z,
-            sample.i_ab,
-            sample.u_ab_last,
-            phi,
-            gamma_rl,
-            self.k,
-            self.width,
-            self.switching,
-        )
+        i_hat, z = self.sliding_update(state, sample.i_ab, sample.u_ab_last, m.L_q, Ts)
         w = state.omega
         e_pred = rotate(state.emf, w * Ts)
         error = cross(e_pred, z) / (jnp.dot(e_pred, e_pred) + self.emf_floor**2)
@@ -133,7 +116,7 @@ class AdaptiveSMO(AbstractModelObserver):
         omega = w + Ts * self.gamma * error
         # z, hence the model, sees the back-EMF through the observer's own filter (about half a period and
         # the linear-zone pole p): its phase is added to the output, outside the adaptation loop.
-        p = observer_pole(phi, gamma_rl, self.k, self.width, self.switching)
+        p = observer_pole(*rl_coefficients(m.R, m.L_q, Ts), self.k, self.width, self.switching)
         emf_now = rotate(emf, period_weight_phase(omega, m.R, m.L_q, Ts) + first_order_lag(omega, p, Ts))
         theta = wrap_angle(emf_angle(emf_now, omega))
         new_state = AdaptiveSMOState(i_hat, z, emf, omega)

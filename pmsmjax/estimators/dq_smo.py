@@ -43,16 +43,20 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.estimators.base import AbstractModelObserver
 from pmsmjax.estimators.pll import PLL, PLLState, pll_design
-from pmsmjax.estimators.smo import SMO_K_MARGIN, SMO_POLE, check_observer_pole, sliding_current_update
+from pmsmjax.estimators.smo import (
+    SMO_K_MARGIN,
+    SMO_POLE,
+    AbstractSlidingModeObserver,
+    check_observer_pole,
+)
 from pmsmjax.estimators.stability import check_loop, concrete_values
 from pmsmjax.estimators.stator_model import rl_coefficients, rotate, rotor_angle
-from pmsmjax.estimators.switching import SWITCHING, Switching
+from pmsmjax.estimators.switching import Switching
 from pmsmjax.frames.three_phase import inverse_park, park, wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Estimate, Sample
-from pmsmjax.spec.validation import ParameterError, check_positive
+from pmsmjax.spec.validation import check_positive
 from pmsmjax.units import rpm_to_rad_s
 
 
@@ -80,7 +84,7 @@ class DQSMOState(eqx.Module):
     omega: Array  # rad/s, PLL electrical speed
 
 
-class DQSlidingModeObserver(AbstractModelObserver):
+class DQSlidingModeObserver(AbstractSlidingModeObserver):
     """Rotating-frame SMO on the extended EMF with a PLL (see the module docstring).
 
     **Arguments:**
@@ -101,13 +105,7 @@ class DQSlidingModeObserver(AbstractModelObserver):
     switching: Switching = eqx.field(static=True, default="sigmoid")
 
     def __check_init__(self):
-        if self.switching not in SWITCHING:
-            raise ParameterError(
-                f"DQSlidingModeObserver.switching must be one of {', '.join(SWITCHING)}, "
-                f"got {self.switching!r}."
-            )
-        check_positive("DQSlidingModeObserver.k (switching amplitude)", self.k, "V")
-        check_positive("DQSlidingModeObserver.width (switching-function width)", self.width, "A")
+        self.check_switching()
         check_positive("DQSlidingModeObserver.omega_c (EEMF low-pass cut-off)", self.omega_c, "rad/s")
         check_positive("DQSlidingModeObserver.emf_floor", self.emf_floor, "V")
 
@@ -144,18 +142,7 @@ class DQSlidingModeObserver(AbstractModelObserver):
         u = park(sample.u_ab_last, theta_mid)
         i_mid = park(0.5 * (state.i_last + sample.i_ab), theta_mid)
         coupling = w * m.L_q * jnp.stack([-i_mid[1], i_mid[0]])
-        phi, gamma = rl_coefficients(m.R, m.L_d, Ts)
-        i_hat, z = sliding_current_update(
-            state.i_hat,
-            state.z,
-            park(sample.i_ab, theta_pred),
-            u - coupling,
-            phi,
-            gamma,
-            self.k,
-            self.width,
-            self.switching,
-        )
+        i_hat, z = self.sliding_update(state, park(sample.i_ab, theta_pred), u - coupling, m.L_d, Ts)
         emf = state.emf - jnp.expm1(-self.omega_c * Ts) * (z - state.emf)
         error = -emf[0] / jnp.sqrt(jnp.dot(emf, emf) + self.emf_floor**2)
         pll = self.pll.correct(PLLState(state.theta, w), theta_pred, error, Ts)

@@ -70,7 +70,7 @@ from pmsmjax.estimators.switching import SWITCHING, Switching, linear_gain, swit
 from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Estimate, Sample
-from pmsmjax.spec.validation import ParameterError, check_positive
+from pmsmjax.spec.validation import ParameterError, check_choice, check_positive
 from pmsmjax.units import rpm_to_rad_s
 
 AngleMethod = Literal["arctan", "pll"]
@@ -116,6 +116,33 @@ def check_observer_pole(owner: str, R, L, k, width, switching: Switching, Ts: fl
     )
 
 
+class AbstractSlidingModeObserver(AbstractModelObserver):
+    """A chapter 5 sliding-mode observer: the sliding current model of
+    [`sliding_current_update`][pmsmjax.estimators.smo.sliding_current_update] with the switching amplitude
+    ``k`` (V), the switching-function width ``width`` (A) and the static ``switching`` function, in the
+    stationary or the rotating frame."""
+
+    k: eqx.AbstractVar[Array]
+    width: eqx.AbstractVar[Array]
+    switching: eqx.AbstractVar[Switching]
+
+    def check_switching(self) -> None:
+        """Raise unless the switching function, ``k`` and ``width`` are valid (the subclasses' checks)."""
+        name = type(self).__name__
+        check_choice(f"{name}.switching", self.switching, SWITCHING)
+        check_positive(f"{name}.k (switching amplitude)", self.k, "V")
+        check_positive(f"{name}.width (switching-function width)", self.width, "A")
+
+    def sliding_update(self, state, i_meas, u_drive, L, Ts: float):
+        """``(i^_k, z_k)`` of [`sliding_current_update`][pmsmjax.estimators.smo.sliding_current_update] from
+        ``state.i_hat`` and ``state.z``, the measured current ``i_meas`` (A), the voltage ``u_drive`` (V) and
+        the model's ``R`` with the inductance ``L`` (H) over the period ``Ts`` (s)."""
+        phi, gamma = rl_coefficients(self.model.R, L, Ts)
+        return sliding_current_update(
+            state.i_hat, state.z, i_meas, u_drive, phi, gamma, self.k, self.width, self.switching
+        )
+
+
 class SMOState(eqx.Module):
     i_hat: Array  # (2,) A, observer current at the last sampling instant
     z: Array  # (2,) V, switching output of the last sampling instant
@@ -124,7 +151,7 @@ class SMOState(eqx.Module):
     omega: Array  # rad/s, electrical speed estimate (the PLL's speed for "pll")
 
 
-class SlidingModeObserver(AbstractModelObserver):
+class SlidingModeObserver(AbstractSlidingModeObserver):
     """Classic stationary-frame SMO (see the module docstring).
 
     **Arguments:**
@@ -158,15 +185,8 @@ class SlidingModeObserver(AbstractModelObserver):
     half_sample: bool = eqx.field(static=True, default=True)
 
     def __check_init__(self):
-        if self.switching not in SWITCHING:
-            raise ParameterError(
-                f"SlidingModeObserver.switching must be one of {', '.join(SWITCHING)}, "
-                f"got {self.switching!r}."
-            )
-        if self.angle not in ("arctan", "pll"):
-            raise ParameterError(f"SlidingModeObserver.angle must be 'arctan' or 'pll', got {self.angle!r}.")
-        check_positive("SlidingModeObserver.k (switching amplitude)", self.k, "V")
-        check_positive("SlidingModeObserver.width (switching-function width)", self.width, "A")
+        self.check_switching()
+        check_choice("SlidingModeObserver.angle", self.angle, ("arctan", "pll"))
         check_positive("SlidingModeObserver.omega_c (back-EMF low-pass cut-off)", self.omega_c, "rad/s")
         if self.angle == "arctan":
             if self.speed_bandwidth is None:
@@ -198,18 +218,7 @@ class SlidingModeObserver(AbstractModelObserver):
 
     def step(self, state: SMOState, sample: Sample, Ts: float):
         m = self.model
-        phi, gamma = rl_coefficients(m.R, m.L_q, Ts)
-        i_hat, z = sliding_current_update(
-            state.i_hat,
-            state.z,
-            sample.i_ab,
-            sample.u_ab_last,
-            phi,
-            gamma,
-            self.k,
-            self.width,
-            self.switching,
-        )
+        i_hat, z = self.sliding_update(state, sample.i_ab, sample.u_ab_last, m.L_q, Ts)
         emf = state.emf - jnp.expm1(-self.omega_c * Ts) * (z - state.emf)
         if self.angle == "arctan":
             rotation = safe_atan2(cross(state.emf, emf), jnp.dot(state.emf, emf)) / Ts
