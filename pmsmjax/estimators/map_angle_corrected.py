@@ -33,18 +33,19 @@ load of the demo above (``--estimator ekf``), against 20 degrees with its consta
 
 import dataclasses
 
-import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.estimators import hfi_signal as hs
-from pmsmjax.estimators.base import AbstractEstimator, AbstractModelObserver
-from pmsmjax.estimators.map_scheduled import DEFAULT_CURRENT_CUTOFF, check_fundamental_observer
-from pmsmjax.frames.three_phase import park, wrap_angle
-from pmsmjax.machines.motor import as_float
+from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.map_scheduled import (
+    DEFAULT_CURRENT_CUTOFF,
+    AbstractMapAwareObserver,
+    MapAwareState,
+    check_fundamental_observer,
+)
+from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.pmsm_flux_map import FluxMap
 from pmsmjax.signals import Estimate, Sample
-from pmsmjax.spec.validation import check_positive
 
 __all__ = ["MapAngleCorrected", "MapAngleCorrectedState", "map_angle_corrected", "model_flux_angle"]
 
@@ -57,40 +58,22 @@ def model_flux_angle(flux_map: FluxMap, L, i_dq: Array) -> Array:
     return jnp.arctan2(psi[1] - L * i_dq[1], psi[0] - L * i_dq[0])
 
 
-class MapAngleCorrectedState(eqx.Module):
-    observer: object  # the wrapped observer's state
-    i_dq: Array  # (2,) A, low-passed current in the corrected frame
-    theta: Array  # rad, the last corrected estimate (the frame of the next sample's current)
+#: The state of [`MapAngleCorrected`][pmsmjax.estimators.map_angle_corrected.MapAngleCorrected] (its
+#: ``i_dq`` and ``theta`` in the corrected frame).
+MapAngleCorrectedState = MapAwareState
 
 
-class MapAngleCorrected(AbstractEstimator):
-    """A constant-model observer whose angle is corrected by the flux map (module docstring).
-
-    **Arguments:** `observer`: an estimator with a ``model``
-    ([`PMSMParameters`][pmsmjax.machines.motor.PMSMParameters]; its ``L_q`` is the inductance corrected for);
-    `flux_map`: the machine's map; `current_cutoff`: operating-current low-pass, rad/s.
+class MapAngleCorrected(AbstractMapAwareObserver):
+    """A constant-model observer whose angle is corrected by the flux map (module docstring): its ``L_q`` is
+    the inductance corrected for. Its fields are those of
+    [`AbstractMapAwareObserver`][pmsmjax.estimators.map_scheduled.AbstractMapAwareObserver].
     """
-
-    observer: AbstractModelObserver
-    flux_map: FluxMap
-    current_cutoff: Array = eqx.field(converter=as_float, default=DEFAULT_CURRENT_CUTOFF)
-
-    def __check_init__(self):
-        check_positive("MapAngleCorrected.current_cutoff", self.current_cutoff, "rad/s")
-
-    def check_period(self, Ts: float) -> None:
-        self.observer.check_period(Ts)
-
-    def init(self, sample: Sample) -> MapAngleCorrectedState:
-        zero = jnp.zeros((), sample.i_ab.dtype)
-        return MapAngleCorrectedState(self.observer.init(sample), jnp.zeros(2, sample.i_ab.dtype), zero)
 
     def step(
         self, state: MapAngleCorrectedState, sample: Sample, Ts: float
     ) -> tuple[MapAngleCorrectedState, Estimate]:
         inner, estimate = self.observer.step(state.observer, sample, Ts)
-        i_now = park(sample.i_ab, state.theta)
-        i_dq = state.i_dq + hs.lowpass_gain(self.current_cutoff, Ts) * (i_now - state.i_dq)
+        i_dq = self.operating_current(state, sample, Ts)
         eps = model_flux_angle(self.flux_map, self.observer.model.L_q, i_dq)
         theta = wrap_angle(estimate.theta_e - eps)
         return MapAngleCorrectedState(inner, i_dq, theta), dataclasses.replace(estimate, theta_e=theta)

@@ -62,6 +62,8 @@ from pmsmjax.signals import Estimate, Sample
 from pmsmjax.spec.validation import ParameterError, check_positive
 
 __all__ = [
+    "AbstractMapAwareObserver",
+    "MapAwareState",
     "MapScheduled",
     "MapScheduledState",
     "map_model",
@@ -108,18 +110,27 @@ def constant_model_angle_error(
     return error, i
 
 
-class MapScheduledState(eqx.Module):
+class MapAwareState(eqx.Module):
     observer: object  # the wrapped observer's state
-    i_dq: Array  # (2,) A, low-passed current in the estimated frame
+    i_dq: Array  # (2,) A, low-passed current in the observer's (estimated or corrected) frame
     theta: Array  # rad, the last estimate (the frame of the next sample's current)
 
 
-class MapScheduled(AbstractEstimator):
-    """A fundamental-model observer whose motor model follows the flux map (module docstring).
+#: The state of [`MapScheduled`][pmsmjax.estimators.map_scheduled.MapScheduled].
+MapScheduledState = MapAwareState
 
-    **Arguments:** `observer`: a fundamental-model observer
-    ([`AbstractModelObserver`][pmsmjax.estimators.base.AbstractModelObserver]: the chapter 5 observers, the
-    EKF); `flux_map`: the machine's map; `current_cutoff`: operating-current low-pass, rad/s.
+
+class AbstractMapAwareObserver(AbstractEstimator):
+    """A fundamental-model observer made aware of the machine's flux map from the low-passed operating
+    current: [`MapScheduled`][pmsmjax.estimators.map_scheduled.MapScheduled] reschedules its model,
+    [`MapAngleCorrected`][pmsmjax.estimators.map_angle_corrected.MapAngleCorrected] corrects its angle.
+
+    Args:
+        observer: A fundamental-model observer
+            ([`AbstractModelObserver`][pmsmjax.estimators.base.AbstractModelObserver]: the chapter 5
+            observers, the EKF).
+        flux_map: The machine's map.
+        current_cutoff: Operating-current low-pass, rad/s.
     """
 
     observer: AbstractModelObserver
@@ -127,18 +138,27 @@ class MapScheduled(AbstractEstimator):
     current_cutoff: Array = eqx.field(converter=as_float, default=DEFAULT_CURRENT_CUTOFF)
 
     def __check_init__(self):
-        check_positive("MapScheduled.current_cutoff", self.current_cutoff, "rad/s")
+        check_positive(f"{type(self).__name__}.current_cutoff", self.current_cutoff, "rad/s")
 
     def check_period(self, Ts: float) -> None:
         self.observer.check_period(Ts)
 
-    def init(self, sample: Sample) -> MapScheduledState:
+    def init(self, sample: Sample) -> MapAwareState:
         zero = jnp.zeros((), sample.i_ab.dtype)
-        return MapScheduledState(self.observer.init(sample), jnp.zeros(2, sample.i_ab.dtype), zero)
+        return MapAwareState(self.observer.init(sample), jnp.zeros(2, sample.i_ab.dtype), zero)
+
+    def operating_current(self, state: MapAwareState, sample: Sample, Ts: float) -> Array:
+        """``(2,)`` A: the low-passed current in the frame of the last estimate."""
+        i_now = park(sample.i_ab, state.theta)
+        return state.i_dq + hs.lowpass_gain(self.current_cutoff, Ts) * (i_now - state.i_dq)
+
+
+class MapScheduled(AbstractMapAwareObserver):
+    """A fundamental-model observer whose motor model follows the flux map (module docstring). Its fields
+    are those of [`AbstractMapAwareObserver`][pmsmjax.estimators.map_scheduled.AbstractMapAwareObserver]."""
 
     def step(self, state: MapScheduledState, sample: Sample, Ts: float) -> tuple[MapScheduledState, Estimate]:
-        i_now = park(sample.i_ab, state.theta)
-        i_dq = state.i_dq + hs.lowpass_gain(self.current_cutoff, Ts) * (i_now - state.i_dq)
+        i_dq = self.operating_current(state, sample, Ts)
         # the same observer on this period's model (patched, as map_model: its gains keep their dtype)
         observer = eqx.tree_at(
             lambda o: o.model, self.observer, map_model(self.flux_map, self.observer.model, i_dq)
