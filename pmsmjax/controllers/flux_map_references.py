@@ -23,7 +23,6 @@ current limit) the end value is held: the FOC's current circle bounds ``i_q`` th
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
-from scipy.interpolate import PchipInterpolator
 
 from pmsmjax._types import Array
 from pmsmjax.controllers.base import AbstractDAxisReference, CurrentLoopContext
@@ -41,6 +40,51 @@ __all__ = [
 ]
 
 
+def _pchip_end_slope(h0, h1, m0, m1) -> float:
+    """The end node's slope: the one-sided three-point estimate, kept shape-preserving (zero where it has
+    the wrong sign, ``3 m0`` where it overshoots a change of slope sign); Moler, *Numerical Computing with
+    MATLAB*, sec. 3.6 (``pchiptx.m``)."""
+    d = ((2.0 * h0 + h1) * m0 - h0 * m1) / (h0 + h1)
+    if np.sign(d) != np.sign(m0):
+        return 0.0
+    if np.sign(m0) != np.sign(m1) and abs(d) > 3.0 * abs(m0):
+        return 3.0 * m0
+    return d
+
+
+def pchip_slopes(x, y) -> np.ndarray:
+    """Node slopes ``dy/dx`` of the shape-preserving piecewise cubic Hermite interpolant (PCHIP; Fritsch and
+    Carlson, "Monotone piecewise cubic interpolation", SIAM J. Numer. Anal. 17(2), 1980,
+    doi:10.1137/0717021): zero at a local extremum or a flat segment, else the weighted harmonic mean of the
+    neighbouring secants ``1/d_k = (w_1/m_{k-1} + w_2/m_k) / (w_1 + w_2)`` with ``w_1 = 2 h_k + h_{k-1}``,
+    ``w_2 = h_k + 2 h_{k-1}``; the ends by
+    [`_pchip_end_slope`][pmsmjax.controllers.flux_map_references._pchip_end_slope]. The slopes of SciPy's
+    ``PchipInterpolator``, in NumPy (this module is loaded by every flux-map drive; SciPy's interpolate
+    package takes longer to import than the drive takes to build).
+
+    Args:
+        x: ``(n,)`` increasing abscissae, n >= 2.
+        y: ``(n,)`` values.
+
+    Returns:
+        ``(n,)`` slopes, units of ``y`` per unit of ``x``.
+    """
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    h = np.diff(x)
+    m = np.diff(y) / h
+    if x.size == 2:
+        return np.array([m[0], m[0]])
+    d = np.zeros_like(y)
+    w1, w2 = 2.0 * h[1:] + h[:-1], h[1:] + 2.0 * h[:-1]
+    monotone = (np.sign(m[1:]) == np.sign(m[:-1])) & (m[1:] != 0) & (m[:-1] != 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        harmonic = (w1 / m[:-1] + w2 / m[1:]) / (w1 + w2)
+    d[1:-1][monotone] = 1.0 / harmonic[monotone]
+    d[0] = _pchip_end_slope(h[0], h[1], m[0], m[1])
+    d[-1] = _pchip_end_slope(h[-1], h[-2], m[-1], m[-2])
+    return d
+
+
 class TableCurve(eqx.Module):
     """A C1 curve ``y(x)`` through nodes, cubic Hermite between them (module docstring).
 
@@ -56,7 +100,7 @@ class TableCurve(eqx.Module):
     def pchip(cls, x, y) -> "TableCurve":
         """The curve through ``(x, y)`` with PCHIP node slopes (NumPy arrays, at load)."""
         x, y = np.asarray(x, float), np.asarray(y, float)
-        return cls(x, y, PchipInterpolator(x, y).derivative()(x))
+        return cls(x, y, pchip_slopes(x, y))
 
     def __call__(self, x_query) -> Array:
         """``y`` at the scalar ``x_query``, held at the end values outside ``[x[0], x[-1]]``."""

@@ -124,9 +124,9 @@ class FluxMapGrid:
         return hermite_coefficients(psi, self.step, xp)
 
     @functools.cached_property
-    def _numpy_coefficients(self) -> np.ndarray:
-        """[`coefficients`][pmsmjax.machines.flux_map.FluxMapGrid.coefficients] in NumPy, computed once per
-        map (the checks evaluate it many times)."""
+    def numpy_coefficients(self) -> np.ndarray:
+        """[`coefficients`][pmsmjax.machines.flux_map.FluxMapGrid.coefficients] in float64 NumPy, computed
+        once per map: the checks evaluate them many times and the plant's interpolant is made of them."""
         return self.coefficients()
 
     def flux(self, i_dq) -> tuple[np.ndarray, np.ndarray]:
@@ -134,7 +134,7 @@ class FluxMapGrid:
         in NumPy, all points in one call
         ([`flux_and_inductance`][pmsmjax.machines.flux_map.flux_and_inductance], the plant's own)."""
         i = np.asarray(i_dq, dtype=float)
-        return flux_and_inductance(self._numpy_coefficients, self.lower, self.step, self.upper, i, np)
+        return flux_and_inductance(self.numpy_coefficients, self.lower, self.step, self.upper, i, np)
 
     def at(self, i_d: float, i_q: float) -> tuple[np.ndarray, np.ndarray]:
         """``(psi (2,) Wb, L_inc (2, 2) H)`` of the interpolant at one point (NumPy, for design rules)."""

@@ -66,8 +66,9 @@ class FluxMap(eqx.Module):
 
     @classmethod
     def from_grid(cls, grid: FluxMapGrid) -> "FluxMap":
-        """The interpolant of a checked map (its coefficients as JAX arrays)."""
-        return cls(grid.coefficients(jnp), grid.lower, grid.upper, grid.step)
+        """The interpolant of a checked map: its coefficients computed once in float64 NumPy (the ones the
+        pre-run checks evaluate), then held as JAX arrays of the default float type."""
+        return cls(grid.numpy_coefficients, grid.lower, grid.upper, grid.step)
 
     def __call__(self, i_dq: Array) -> tuple[Array, Array]:
         """``(psi (2,) Wb, L_inc (2, 2) H)`` at ``i_dq (2,)`` A."""
