@@ -95,8 +95,8 @@ def check_choice(name: str, value, choices, hint: str = "") -> None:
 
 
 def check_divider(name: str, value, what: str) -> None:
-    """Raise unless ``value`` is an ``int`` >= 1: how many `what` (e.g. "control periods") make one period of a
-    slower loop."""
+    """Raise unless ``value`` is an ``int`` >= 1: how many `what` (e.g. "control periods") make one
+    period of a slower loop."""
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
         raise ParameterError(
             f"{name} must be an int >= 1, got {value!r}: give how many {what} make one speed-loop period."
