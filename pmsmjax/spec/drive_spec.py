@@ -247,6 +247,17 @@ def complete(
             f"{where}: [scenario] load_time_s = {plain(scenario['load_time_s'])} s is not inside the run "
             f"(duration_s = {plain(scenario['duration_s'])} s): give a load time below the duration."
         )
+    durations = {"[scenario] duration_s": scenario["duration_s"]}
+    if "duration_s" in tuning:
+        durations["[tuning] duration_s"] = tuning["duration_s"][1]
+    for name, duration in durations.items():
+        if duration / Ts > schema.MAX_RUN_PERIODS:
+            longest = plain(schema.MAX_RUN_PERIODS * Ts)
+            raise ParameterError(
+                f"{where}: {name} = {plain(duration)} s is {duration / Ts:.3g} control periods, more than the "
+                f"{schema.MAX_RUN_PERIODS:.0e} a run may have ({longest} s at {plain(1.0 / Ts)} Hz): give a "
+                f"duration in s, at most {longest}."
+            )
     if not tuning.keys() >= TABLES["tuning"].keys():
         rule = rules.tuning_ranges(
             motor, ratings["rated_speed_rpm"], ratings["rated_torque_nm"], ratings["max_current_a"],
