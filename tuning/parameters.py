@@ -7,7 +7,6 @@ units, and theta = 0 is the starting point (the design-rule gains). Bounds are f
 """
 
 import math
-import sys
 from pathlib import Path
 
 import equinox as eqx
@@ -18,12 +17,8 @@ import numpy as np
 from pmsmjax.assemble import with_parts
 from pmsmjax.drive import Drive
 from pmsmjax.io.logs import atomic_write
+from pmsmjax.io.toml_parser import read_toml
 from pmsmjax.spec.validation import ParameterError
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 SPEED_GAINS = ("controller.speed.kp", "controller.speed.ki", "controller.speed.active_damping")
 CURRENT_GAINS = (
@@ -175,7 +170,7 @@ def read_gains_toml(path) -> dict[str, float]:
     path = Path(path)
     if not path.is_file():
         raise ParameterError(f"gains file {path} does not exist.")
-    data = tomllib.loads(path.read_text())
+    data = read_toml(path, f"gains file {path}")
     if "gains" not in data or not isinstance(data["gains"], dict):
         raise ParameterError(f"gains file {path} has no [gains] table.")
     return {k: float(v) for k, v in data["gains"].items()}

@@ -9,7 +9,7 @@ have (gains tuned for another control) with the names it does have.
 import math
 from pathlib import Path
 
-from pmsmjax.io.toml_parser import tomllib
+from pmsmjax.io.toml_parser import read_toml
 from pmsmjax.spec.validation import ParameterError
 
 __all__ = ["add_gains_flag", "read_gains_flag", "apply_gains_flag"]
@@ -34,10 +34,7 @@ def read_gains_flag(path, flag: str = "--gains") -> dict[str, float] | None:
     if not path.is_file():
         state = "is a folder" if path.is_dir() else "does not exist"
         raise ParameterError(f"{flag} {path}: the file {state}; give the gains.toml pmsmjax tune wrote.")
-    try:
-        data = tomllib.loads(path.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
-        raise ParameterError(f"{flag} {path}: not valid TOML ({err}).") from err
+    data = read_toml(path, f"{flag} {path}")
     table = data.get("gains")
     if not isinstance(table, dict) or not table:
         raise ParameterError(

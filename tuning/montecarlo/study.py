@@ -49,7 +49,6 @@ file's.
 
 import dataclasses
 import math
-import sys
 from pathlib import Path
 
 import jax.numpy as jnp
@@ -59,17 +58,13 @@ from pmsmjax import presets
 from pmsmjax.drive import Drive
 from pmsmjax.inverters.averaged import AveragedBridge
 from pmsmjax.io.drive_files import drive_spec
+from pmsmjax.io.toml_parser import read_toml
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.spec.drive_spec import TABLES, DriveSpec
 from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
 from tuning.montecarlo.distributions import KINDS, SAMPLING, Distribution
 from tuning.parameters import apply_gains, array_leaf_names, get_leaf, set_leaves
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 #: The default tolerances of a drive file without ``[tolerances]`` (the book drive file states the same
 #: set): manufacturing spread and temperature (R), inductance tolerance, magnet ageing and temperature
@@ -469,10 +464,7 @@ def read_study_toml(path) -> dict:
     path = Path(path)
     if not path.is_file():
         raise ParameterError(f"study file {path} does not exist: check the path.")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as err:
-        raise ParameterError(f"study file {path}: not valid TOML ({err}).") from err
+    data = read_toml(path, f"study file {path}")
     unknown = sorted(set(data) - set(_SECTIONS) - {"parameters"})
     if unknown:
         raise ParameterError(
