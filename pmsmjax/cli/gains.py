@@ -44,7 +44,9 @@ def read_gains_flag(path, flag: str = "--gains") -> dict[str, float] | None:
     out = {}
     for name, value in table.items():
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise ParameterError(f"{flag} {path}: gain {name!r} = {value!r} is not a finite number.")
+            raise ParameterError(
+                f"{flag} {path}: gain {name!r} = {value!r} is not a finite number{_quoted(value)}."
+            )
         if value <= 0:
             raise ParameterError(
                 f"{flag} {path}: gain {name!r} = {value!r} must be > 0 (gains are positive)."
@@ -53,11 +55,15 @@ def read_gains_flag(path, flag: str = "--gains") -> dict[str, float] | None:
     return out
 
 
+def _quoted(value) -> str:
+    return " (a string: write the number without quotes)" if isinstance(value, str) else ""
+
+
 def apply_gains_flag(drive, gains: dict | None, control: str, flag: str = "--gains"):
     """``drive`` with ``gains`` set (unchanged for None); a name the drive lacks is refused."""
     if gains is None:
         return drive
-    from tuning.parameters import apply_gains, array_leaf_names
+    from tuning.parameters import apply_gains, array_leaf_names, check_gains
 
     have = set(array_leaf_names(drive))
     foreign = [n for n in gains if n not in have]
@@ -67,4 +73,5 @@ def apply_gains_flag(drive, gains: dict | None, control: str, flag: str = "--gai
             f"{flag}: {', '.join(foreign)} is not a gain of the {control} drive (the file was tuned for "
             f"another control method?): give the gains of --control {control} ({', '.join(own)})."
         )
+    check_gains(drive, gains, flag)
     return apply_gains(drive, gains)

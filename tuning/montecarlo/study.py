@@ -64,7 +64,14 @@ from pmsmjax.spec.drive_spec import TABLES, DriveSpec
 from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
 from tuning.montecarlo.distributions import KINDS, SAMPLING, Distribution
-from tuning.parameters import apply_gains, array_leaf_names, get_leaf, set_leaves
+from tuning.parameters import (
+    apply_gains,
+    array_leaf_names,
+    check_gains,
+    get_leaf,
+    read_gains_toml,
+    set_leaves,
+)
 
 #: The default tolerances of a drive file without ``[tolerances]`` (the book drive file states the same
 #: set): manufacturing spread and temperature (R), inductance tolerance, magnet ageing and temperature
@@ -297,6 +304,14 @@ def default_tolerances(spec: DriveSpec) -> dict[str, float]:
     return {TOLERANCE_PARAMETERS[k]: spec.tolerances[k] for k in TABLES["tolerances"] if k in spec.tolerances}
 
 
+def _with_gains(drive: Drive, path) -> Drive:
+    """``drive`` with the gains file ``path``, each gain checked against the drive's own
+    ([`check_gains`][tuning.parameters.check_gains])."""
+    gains = read_gains_toml(path)
+    check_gains(drive, gains, f"gains file {path}")
+    return apply_gains(drive, gains)
+
+
 def build_drive(study: Study) -> Drive:
     """The nominal drive of ``study``: the drive file's drive
     ([`pmsmjax.assemble.spec_drive`][pmsmjax.assemble.spec_drive]) with the study's bandwidths and sub-steps,
@@ -315,14 +330,14 @@ def build_drive(study: Study) -> Drive:
             spec, study.control or "vsd", pwm=study.pwm or ("near-four-vector" if five else "four-vector"),
             **options,
         )  # fmt: skip
-        return drive if study.gains is None else apply_gains(drive, study.gains)
+        return drive if study.gains is None else _with_gains(drive, study.gains)
     drive = spec_drive(spec, "pi", **options)
     if study.unroll_substeps:
         unrolled = AveragedBridge(drive.bridge.u_dc, unroll_substeps=True)
         # keep the drive file's dead time and device drop (None without them)
         unrolled = set_leaves(unrolled, ["voltage_error"], [drive.bridge.voltage_error])
         drive = set_leaves(drive, ["bridge"], [unrolled])
-    drive = drive if study.gains is None else apply_gains(drive, study.gains)
+    drive = drive if study.gains is None else _with_gains(drive, study.gains)
     if study.estimator is not None:  # the observer's model: the nominal motor (the plant is varied)
         drive = presets.with_observer(
             drive, study.estimator, drive.machine.motor, startup=True, startup_options=startup_options(spec)
