@@ -7,7 +7,6 @@ units, and theta = 0 is the starting point (the design-rule gains). Bounds are f
 """
 
 import math
-import sys
 from pathlib import Path
 
 import equinox as eqx
@@ -18,12 +17,8 @@ import numpy as np
 from pmsmjax.assemble import with_parts
 from pmsmjax.drive import Drive
 from pmsmjax.io.logs import atomic_write
+from pmsmjax.io.toml_parser import read_toml
 from pmsmjax.spec.validation import ParameterError
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 SPEED_GAINS = ("controller.speed.kp", "controller.speed.ki", "controller.speed.active_damping")
 CURRENT_GAINS = (
@@ -175,10 +170,31 @@ def read_gains_toml(path) -> dict[str, float]:
     path = Path(path)
     if not path.is_file():
         raise ParameterError(f"gains file {path} does not exist.")
-    data = tomllib.loads(path.read_text())
+    data = read_toml(path, f"gains file {path}")
     if "gains" not in data or not isinstance(data["gains"], dict):
         raise ParameterError(f"gains file {path} has no [gains] table.")
     return {k: float(v) for k, v in data["gains"].items()}
+
+
+#: A gain more than this factor away from the drive's design-rule gain is refused by `check_gains`: a file
+#: tuned for another motor, or a slip of units; tuning moves gains by a few times at most.
+MAX_GAIN_FACTOR = 1000.0
+
+
+def check_gains(drive: Drive, gains: dict, source: str) -> None:
+    """Refuse a gain of ``gains`` (name -> value) more than `MAX_GAIN_FACTOR` times above or below the
+    same gain of ``drive`` (its design-rule gains), with one line naming `source` (``--gains g.toml``)."""
+    for name, value in gains.items():
+        nominal = float(np.asarray(get_leaf(drive, name)))
+        if not (nominal > 0 and math.isfinite(nominal)) or value <= 0:
+            continue
+        ratio = value / nominal
+        if ratio > MAX_GAIN_FACTOR or ratio < 1.0 / MAX_GAIN_FACTOR:
+            raise ParameterError(
+                f"{source}: {name} = {value:g} is {ratio:.3g}x this drive's design-rule gain {nominal:.4g} "
+                f"(more than {MAX_GAIN_FACTOR:g}x away: gains tuned for another motor, or another unit?): "
+                "give gains tuned for this drive (pmsmjax tune with its --motor), or drop the gains file."
+            )
 
 
 def apply_gains(drive: Drive, gains) -> Drive:

@@ -21,7 +21,11 @@ What the user sees when something goes wrong, from `main`, always one line on st
 
 - bad input (a flag, a file, a column), or an output folder in use by another command:
   ``pmsmjax CMD: error: <what, where, the fix>``, exit 2;
-- Ctrl-C: ``pmsmjax CMD: interrupted ...`` (what was kept, how to resume), exit 130;
+- Ctrl-C: ``pmsmjax CMD: interrupted ...`` (what was kept, how to resume), exit 130; SIGTERM (what
+  ``timeout``, ``kill``, systemd and batch schedulers send) and SIGHUP (the terminal closed) take the same
+  path (`Terminated`, a ``KeyboardInterrupt``: every file in progress is removed, finished chunks and
+  checkpoints are kept, the folder's lock goes): ``pmsmjax CMD: terminated by SIGTERM ...``, exit
+  128 + the signal's number (143, 129), the shell's convention for a death by that signal;
 - a failure of the program itself: ``pmsmjax CMD: internal error: ...``, exit 1 (the traceback only
   with the environment variable ``PMSMJAX_TRACEBACK=1``);
 - warnings: ``pmsmjax CMD: warning: ...``.
@@ -30,7 +34,9 @@ What the user sees when something goes wrong, from `main`, always one line on st
 import contextlib
 import importlib
 import os
+import signal
 import sys
+import threading
 import warnings
 
 from pmsmjax.cli import compilation_cache
@@ -72,6 +78,45 @@ def _one_line(text) -> str:
     return " ".join(str(text).split())
 
 
+#: The signals handled like Ctrl-C (`main`), where the platform has them.
+TERMINATING_SIGNALS = tuple(getattr(signal, n) for n in ("SIGTERM", "SIGHUP") if hasattr(signal, n))
+
+
+class Terminated(KeyboardInterrupt):
+    """A terminating signal (`TERMINATING_SIGNALS`) received while a command runs, raised where the
+    command is, so that the clean-up of Ctrl-C runs. `signum`: the signal's number."""
+
+    def __init__(self, signum: int):
+        super().__init__()
+        self.signum = signum
+
+
+@contextlib.contextmanager
+def _signals_as_interrupts():
+    """While the block runs (in the main thread), SIGTERM and SIGHUP raise `Terminated`; yields a list that
+    holds the first signal's number once one came. A second signal during the clean-up is ignored (SIGKILL
+    remains for a command that must go at once); the previous handlers come back after the block."""
+    received: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield received
+        return
+
+    def handler(signum, frame):
+        if received:
+            return
+        received.append(signum)
+        raise Terminated(signum)
+
+    previous = {}
+    try:
+        for s in TERMINATING_SIGNALS:
+            previous[s] = signal.signal(s, handler)
+        yield received
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+
+
 def main(argv=None) -> int:
     """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit status. As with any
     argparse program, ``--help`` and a flag refused while parsing (a bad number, an unknown choice) end in
@@ -84,7 +129,7 @@ def main(argv=None) -> int:
     def show_warning(message, category, filename, lineno, file=None, line=None):
         print(f"{prog}: warning: {_one_line(message)}", file=sys.stderr)
 
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), _signals_as_interrupts() as received:
         warnings.showwarning = show_warning
         try:
             with _output_folder_held(args, ["pmsmjax", *argv]) as lock:
@@ -97,6 +142,10 @@ def main(argv=None) -> int:
             return 2
         except KeyboardInterrupt as err:
             detail = _one_line(err)
+            if received:
+                name = signal.Signals(received[0]).name
+                print(f"{prog}: terminated by {name}{': ' + detail if detail else ''}", file=sys.stderr)
+                return 128 + received[0]
             print(f"{prog}: interrupted{': ' + detail if detail else ''}", file=sys.stderr)
             return 130
         except Exception as err:
@@ -120,7 +169,7 @@ def _output_folder_held(args, command_line):
     [`FolderLock`][pmsmjax.io.folder_lock.FolderLock], or None for a command without one. The folder is
     checked first (an existing file there is refused as by the command itself)."""
     out = getattr(args, "out", None)
-    if not out:
+    if out is None:
         yield None
         return
     from pmsmjax.cli.checks import output_folder

@@ -52,6 +52,7 @@ class Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line (no usage block) pointing at ``--help``; exit 2."""
 
     def error(self, message):
+        message = " ".join(str(message).split())  # a typed line break or carriage return stays one line
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 

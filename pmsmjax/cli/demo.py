@@ -323,16 +323,20 @@ def precheck(args):
             "([motor] flux_map); drop it."
         )
     drive_flags.fill_scenario(args, spec)
+    name = lambda key: drive_flags.scenario_name(args, key)  # noqa: E731
     if not args.load_time_s < args.duration_s:
         raise ParameterError(
-            f"--load-time-s {plain(args.load_time_s)} s is not inside the run (--duration-s "
+            f"{name('load_time_s')} {plain(args.load_time_s)} s is not inside the run ({name('duration_s')} "
             f"{plain(args.duration_s)} s): the summary's load-step window would lie outside the run; give "
             f"a time below {plain(args.duration_s)} s (also with --load-nm 0)."
         )
     read_gains_flag(args.gains)
     if args.machine in MULTIPHASE_NAMES:
         return spec
-    demo_job.check_reference_speed(spec, args.speed_rpm, args.field_weakening, drive_flags.U_DC_KNOB)
+    demo_job.check_reference_speed(
+        spec, args.speed_rpm, args.field_weakening, drive_flags.U_DC_KNOB, name("speed_rpm")
+    )
+    demo_job.check_load(spec, args.load_nm, name("load_nm"))
     return spec
 
 

@@ -26,6 +26,7 @@ __all__ = [
     "scenario_help",
     "resolve_drive",
     "fill_scenario",
+    "scenario_name",
     "drive_name",
 ]
 
@@ -145,10 +146,20 @@ def resolve_drive(args, n_phases: int = 3) -> DriveSpec:
 
 
 def fill_scenario(args, spec: DriveSpec, keys=SCENARIO_KEYS) -> None:
-    """Set each scenario flag of ``keys`` the user left unset (None) to the drive file's ``[scenario]``."""
+    """Set each scenario flag of ``keys`` the user left unset (None) to the drive file's ``[scenario]``;
+    `scenario_name` then names such a value by its field in the file, not by a flag never given."""
+    filled = dict(getattr(args, "scenario_from_file", {}))
     for key in keys:
         if getattr(args, key, None) is None:
             setattr(args, key, spec.scenario[key])
+            filled[key] = f"drive file {spec.source}: [scenario] {key} ="
+    args.scenario_from_file = filled
+
+
+def scenario_name(args, key: str) -> str:
+    """How a message names the scenario value ``key``: its flag, or the drive file's field it came from
+    (`fill_scenario`)."""
+    return getattr(args, "scenario_from_file", {}).get(key) or checks.flag(key)
 
 
 def drive_name(spec: DriveSpec) -> str:

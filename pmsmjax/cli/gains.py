@@ -9,7 +9,7 @@ have (gains tuned for another control) with the names it does have.
 import math
 from pathlib import Path
 
-from pmsmjax.io.toml_parser import tomllib
+from pmsmjax.io.toml_parser import read_toml
 from pmsmjax.spec.validation import ParameterError
 
 __all__ = ["add_gains_flag", "read_gains_flag", "apply_gains_flag"]
@@ -34,10 +34,7 @@ def read_gains_flag(path, flag: str = "--gains") -> dict[str, float] | None:
     if not path.is_file():
         state = "is a folder" if path.is_dir() else "does not exist"
         raise ParameterError(f"{flag} {path}: the file {state}; give the gains.toml pmsmjax tune wrote.")
-    try:
-        data = tomllib.loads(path.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
-        raise ParameterError(f"{flag} {path}: not valid TOML ({err}).") from err
+    data = read_toml(path, f"{flag} {path}")
     table = data.get("gains")
     if not isinstance(table, dict) or not table:
         raise ParameterError(
@@ -47,7 +44,9 @@ def read_gains_flag(path, flag: str = "--gains") -> dict[str, float] | None:
     out = {}
     for name, value in table.items():
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise ParameterError(f"{flag} {path}: gain {name!r} = {value!r} is not a finite number.")
+            raise ParameterError(
+                f"{flag} {path}: gain {name!r} = {value!r} is not a finite number{_quoted(value)}."
+            )
         if value <= 0:
             raise ParameterError(
                 f"{flag} {path}: gain {name!r} = {value!r} must be > 0 (gains are positive)."
@@ -56,11 +55,15 @@ def read_gains_flag(path, flag: str = "--gains") -> dict[str, float] | None:
     return out
 
 
+def _quoted(value) -> str:
+    return " (a string: write the number without quotes)" if isinstance(value, str) else ""
+
+
 def apply_gains_flag(drive, gains: dict | None, control: str, flag: str = "--gains"):
     """``drive`` with ``gains`` set (unchanged for None); a name the drive lacks is refused."""
     if gains is None:
         return drive
-    from tuning.parameters import apply_gains, array_leaf_names
+    from tuning.parameters import apply_gains, array_leaf_names, check_gains
 
     have = set(array_leaf_names(drive))
     foreign = [n for n in gains if n not in have]
@@ -70,4 +73,5 @@ def apply_gains_flag(drive, gains: dict | None, control: str, flag: str = "--gai
             f"{flag}: {', '.join(foreign)} is not a gain of the {control} drive (the file was tuned for "
             f"another control method?): give the gains of --control {control} ({', '.join(own)})."
         )
+    check_gains(drive, gains, flag)
     return apply_gains(drive, gains)

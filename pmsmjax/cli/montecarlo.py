@@ -206,11 +206,11 @@ def _study_drive_table(config) -> dict:
     """The study TOML's ``[drive]`` table (empty without one; its errors are the study reader's)."""
     if config is None:
         return {}
-    from pmsmjax.io.toml_parser import tomllib
+    from pmsmjax.io.toml_parser import read_toml
 
     try:
-        table = tomllib.loads(open(config).read()).get("drive", {})
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError, OSError):
+        table = read_toml(config, "").get("drive", {})
+    except (ParameterError, OSError):
         return {}
     return table if isinstance(table, dict) else {}
 

@@ -139,6 +139,7 @@ def run(args) -> int:
         truth=truth,
         pole_pairs=drive.motor["pole_pairs"],
     )
+    _check_excitation(log, drive, args.log)
     spec = ObserveSpec(
         observer=args.observer,
         drive=drive,
@@ -160,6 +161,27 @@ def run(args) -> int:
         f"{', '.join(f'{out}/{w}' for w in written)}"
     )
     return 0
+
+
+#: A log whose currents and voltages all stay below this share of the drive's current limit and DC link
+#: carries no excitation: every observer would report its initial guess, and an error of 0 against it.
+EXCITATION_SHARE = 1e-3
+
+
+def _check_excitation(log, drive, path) -> None:
+    """Refuse a log in which the drive did nothing (all-zero currents and voltages), before any compile."""
+    import numpy as np
+
+    i_peak = float(np.max(np.abs(log.i_ab))) if log.n else 0.0
+    u_peak = float(np.max(np.abs(log.u_ab))) if log.n else 0.0
+    i_floor = EXCITATION_SHARE * drive.current_limit_a
+    u_floor = EXCITATION_SHARE * drive.u_dc_v
+    if i_peak <= i_floor and u_peak <= u_floor:
+        raise ParameterError(
+            f"log {path}: no excitation (currents at most {i_peak:.3g} A, voltages at most {u_peak:.3g} V, "
+            f"below {i_floor:.3g} A and {u_floor:.3g} V): an observer has nothing to estimate from and would "
+            "report its starting guess; give a log of the drive running (check --columns and --units)."
+        )
 
 
 def _write(result, out, figure_title: str | None) -> list[str]:

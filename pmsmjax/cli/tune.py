@@ -175,11 +175,11 @@ def _config_robust(path) -> bool:
     not parse is left to the config reader's message."""
     if path is None:
         return False
-    from pmsmjax.io.toml_parser import tomllib
+    from pmsmjax.io.toml_parser import read_toml
 
     try:
-        return tomllib.loads(Path(path).read_text()).get("job", {}).get("robust", False) is True
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError, AttributeError):
+        return read_toml(path, "").get("job", {}).get("robust", False) is True
+    except (ParameterError, OSError, AttributeError):
         return False
 
 

@@ -11,7 +11,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from pmsmjax.io.flux_map_files import read_flux_map
-from pmsmjax.io.toml_parser import tomllib
+from pmsmjax.io.toml_parser import read_toml, tomllib
 from pmsmjax.spec.drive_spec import (
     MOTOR_FIELDS,
     TABLES,
@@ -109,10 +109,7 @@ def read_drive_file(
     where = f"drive file {path}"
     if not path.is_file():
         raise ParameterError(f"{where} does not exist: check the path.")
-    try:
-        data = tomllib.loads(path.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
-        raise ParameterError(f"{where}: not valid TOML ({_one_line(err)}).") from err
+    data = read_toml(path, where)
     tables = split_tables(data, where)
     for table, values in tables.items():
         check_keys(table, values, where)
@@ -121,8 +118,9 @@ def read_drive_file(
         name = flux_map_name(tables["motor"], where)
         map_path = Path(name) if Path(name).is_absolute() else path.resolve().parent / name
         if not map_path.is_file():
+            state = "is a folder, not a map file" if map_path.is_dir() else "does not exist"
             raise ParameterError(
-                f"{where}: [motor] flux_map = {name!r}: {map_path} does not exist (the path is relative to "
+                f"{where}: [motor] flux_map = {name!r}: {map_path} {state} (the path is relative to "
                 "the drive file's folder)."
             )
         grid = read_flux_map(map_path)

@@ -41,7 +41,8 @@ def read_flux_map(path) -> FluxMapGrid:
     path = Path(path)
     where = f"flux map {path}"
     if not path.is_file():
-        raise ParameterError(f"{where} does not exist: check the path (relative to the drive file).")
+        state = "is a folder: give the map file in it" if path.is_dir() else "does not exist: check the path"
+        raise ParameterError(f"{where} {state} (relative to the drive file).")
     suffix = path.suffix.lower()
     if suffix == ".csv":
         axes = _read_csv(path, where)[:4]
@@ -54,7 +55,14 @@ def read_flux_map(path) -> FluxMapGrid:
 
 
 def _read_csv(path: Path, where: str):
-    lines = [ln for ln in path.read_text().splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    try:
+        text = path.read_bytes().decode("utf-8-sig")  # an editor's byte-order mark is not the header's
+    except UnicodeDecodeError as err:
+        raise ParameterError(
+            f"{where}: not a text file (byte {err.start} is not UTF-8): a CSV flux map is text with the "
+            f"header {','.join(CSV_COLUMNS)}; a binary map is a .npz or .mat file."
+        ) from None
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise ParameterError(
             f"{where} is empty: it needs the header {','.join(CSV_COLUMNS)} and one row per point."

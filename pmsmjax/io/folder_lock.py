@@ -6,12 +6,15 @@ lock file atomically (``os.open`` with ``O_CREAT | O_EXCL``: of two commands exa
 JSON ``{"pid", "host", "argv", "time"}``, and removes it when it ends, however it ends. A second command
 finding the lock is refused with one line naming the first (its command line, pid, host, start time).
 
-A lock left by a command that died without removing it (killed, power cut) is *stale*: its pid no longer
-runs on this host. A stale lock is taken over with a warning. Who takes it over is decided by a second
-atomic file, ``FOLDER/.pmsmjax.lock.break``, so two commands finding the same stale lock cannot both
-proceed. A lock written on another host cannot be checked from here and is always refused (the message
-says which file to delete if that command is known to be gone); so is a lock whose content cannot be read
-(it is being written, or is not ours) unless it is older than `UNREADABLE_STALE_S`.
+A lock left by a command that died without removing it (killed, power cut) is *stale*: its pid no longer runs
+on this host. A stale lock is taken over with a warning, and the dead command's temporary files
+(`orphan_temporaries`: the ``.NAME.XXXXXXXX.tmp`` files of [`atomic_write`][pmsmjax.io.logs.atomic_write], in
+the folder and its sub-folders, matched by that pattern only) are removed: files being written when it died,
+never finished, and as large as the trace they were to become. Who takes it over is decided by a second atomic
+file, ``FOLDER/.pmsmjax.lock.break``, so two commands finding the same stale lock cannot both proceed. A lock
+written on another host cannot be checked from here and is always refused (the message says which file to
+delete if that command is known to be gone); so is a lock whose content cannot be read (it is being written,
+or is not ours) unless it is older than `UNREADABLE_STALE_S`.
 
 Pure Python (no JAX): `pmsmjax.cli.main` takes the lock right after parsing the flags, before the
 command checks or writes anything.
@@ -20,6 +23,7 @@ command checks or writes anything.
 import contextlib
 import json
 import os
+import re
 import socket
 import time
 import warnings
@@ -28,10 +32,26 @@ from pathlib import Path
 
 from pmsmjax.spec.validation import ParameterError
 
-__all__ = ["LOCK_NAME", "FolderLock", "acquire", "held_folder", "read_lock"]
+__all__ = [
+    "LOCK_NAME",
+    "TEMP_PREFIX",
+    "TEMP_SUFFIX",
+    "FolderLock",
+    "acquire",
+    "held_folder",
+    "orphan_temporaries",
+    "read_lock",
+]
 
 LOCK_NAME = ".pmsmjax.lock"
 BREAK_NAME = ".pmsmjax.lock.break"
+#: The temporary file of ``FOLDER/NAME`` being written is ``FOLDER/.NAME.XXXXXXXX.tmp`` (``mkstemp``'s eight
+#: random characters between `TEMP_PREFIX` + NAME + ``.`` and `TEMP_SUFFIX`).
+TEMP_PREFIX = "."
+TEMP_SUFFIX = ".tmp"
+_TEMP_NAME = re.compile(r"\..+\.[A-Za-z0-9_]{8}\.tmp")
+#: How deep below the folder `orphan_temporaries` looks (a study's ``chunks/`` is one level down).
+_TEMP_DEPTH = 2
 #: A lock (or break file) whose JSON cannot be read is taken for one being written until it is this old, s.
 UNREADABLE_STALE_S = 10.0
 
@@ -89,6 +109,33 @@ def _is_stale(path: Path, content: dict | None) -> bool:
     return content.get("host") == _host() and not _pid_runs(content.get("pid"))
 
 
+def orphan_temporaries(folder) -> list[Path]:
+    """The temporary files our writers leave in `folder` (and its sub-folders down to two levels, except a
+    sub-folder with its own lock: another command's) when killed: names matching
+    ``.NAME.XXXXXXXX.tmp`` only, so no file of the user's is ever taken for one."""
+    folder = Path(folder)
+    found = []
+    for root, dirs, files in os.walk(folder):
+        here = Path(root)
+        depth = len(here.relative_to(folder).parts)
+        if depth and LOCK_NAME in files:
+            dirs.clear()
+            continue
+        if depth >= _TEMP_DEPTH:
+            dirs.clear()
+        found += [here / f for f in files if _TEMP_NAME.fullmatch(f) and (here / f).is_file()]
+    return sorted(found)
+
+
+def _remove_orphans(folder: Path) -> list[Path]:
+    removed = []
+    for p in orphan_temporaries(folder):
+        with contextlib.suppress(OSError):
+            p.unlink()
+            removed.append(p)
+    return removed
+
+
 def _create(path: Path, content: dict) -> bool:
     """Create `path` holding `content`, atomically; False if it exists."""
     try:
@@ -125,9 +172,16 @@ def acquire(folder, argv: Sequence[str], attempts: int = 50) -> FolderLock:
     for attempt in range(attempts):
         if _create(path, mine):
             if took_over is not None:
+                removed = _remove_orphans(Path(folder))
+                gone = (
+                    f"; removed the {len(removed)} unfinished temporary file(s) it left"
+                    f" ({', '.join(p.name for p in removed[:3])}{', ...' if len(removed) > 3 else ''})"
+                    if removed
+                    else ""
+                )
                 warnings.warn(
                     f"output folder {folder}: took over the lock of {_describe(took_over, path)}, which no "
-                    "longer runs (it ended without releasing the folder; its finished files are kept)",
+                    f"longer runs (it ended without releasing the folder; its finished files are kept{gone})",
                     stacklevel=2,
                 )
             return FolderLock(path, took_over)

@@ -324,7 +324,10 @@ def atomic_write(path: str | os.PathLike, writer: Callable[[io.IOBase], None], m
     folder = path.parent
     if not folder.is_dir():
         raise ParameterError(f"cannot write {path}: folder {folder} does not exist; create it first.")
-    fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.", suffix=".tmp")
+    from pmsmjax.io.folder_lock import TEMP_PREFIX, TEMP_SUFFIX
+
+    # The name pattern folder_lock.orphan_temporaries removes after a killed run.
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix=f"{TEMP_PREFIX}{path.name}.", suffix=TEMP_SUFFIX)
     try:
         kwargs = {"encoding": "utf-8", "newline": ""} if mode == "w" else {}
         with os.fdopen(fd, mode, **kwargs) as f:
@@ -346,8 +349,25 @@ def atomic_write(path: str | os.PathLike, writer: Callable[[io.IOBase], None], m
 def check_output_folder(path: str | os.PathLike, flag: str = "--out") -> Path:
     """Refuse an output folder that cannot be one, before any work: an existing file (not a folder) at
     ``path``, or on its way. Returns ``Path(path)``; the folder is created by the caller when it writes."""
+    if not str(path).strip():
+        raise ParameterError(f"{flag} is empty: give a folder name, e.g. {flag} runs (it is created).")
     path = Path(path)
+    try:
+        name_max = os.pathconf(path.anchor or ".", "PC_NAME_MAX")
+    except (OSError, ValueError, AttributeError):
+        name_max = 255
+    long = next((part for part in path.parts if len(os.fsencode(part)) > name_max), None)
+    if long is not None:
+        raise ParameterError(
+            f"{flag}: the folder name {long[:20]}... is {len(os.fsencode(long))} bytes long, more than the "
+            f"{name_max} this file system allows: give a shorter name."
+        )
     for p in (path, *path.parents):
+        if p.is_symlink() and not p.exists():
+            raise ParameterError(
+                f"{flag} {path}: {p} is a symbolic link to {os.readlink(p)}, which does not exist; create "
+                "that folder or give another folder name."
+            )
         if p.exists() and not p.is_dir():
             raise ParameterError(
                 f"{flag} {path}: {p} is an existing file, not a folder; give a folder name (it is created)."

@@ -14,6 +14,7 @@ import time
 from collections.abc import Callable, Mapping
 
 from pmsmjax.spec import registry
+from pmsmjax.spec.schema import MAX_RUN_PERIODS
 from pmsmjax.spec.validation import ParameterError, plain
 
 __all__ = [
@@ -23,6 +24,7 @@ __all__ = [
     "DemoSpec",
     "build",
     "check_reference_speed",
+    "check_load",
     "dead_time_entry",
     "flux_map_entry",
     "run",
@@ -32,6 +34,9 @@ __all__ = [
 #: A reference beyond this many times the top speed the drive could reach at no load is refused: the run
 #: would only show saturation (up to it, the run is made and its saturation reported).
 MAX_SPEED_FACTOR = 3.0
+#: A load beyond this many times the torque the current limit gives is refused: the speed would only run
+#: away (up to it, the run is made and the shortfall reported).
+MAX_LOAD_FACTOR = 10.0
 
 #: What summary.json's less obvious figures mean.
 DEFINITIONS = {
@@ -121,12 +126,30 @@ class DemoResult:
     layout: object | None = None
 
 
-def check_reference_speed(drive, speed_rpm: float, field_weakening: bool, u_dc_flag: str) -> None:
+def check_load(drive, load_nm: float, load_name: str = "--load-nm") -> None:
+    """Refuse a load beyond [`MAX_LOAD_FACTOR`][pmsmjax.jobs.demo.MAX_LOAD_FACTOR] times the torque
+    ``1.5 p psi_f I_max`` of the three-phase drive file ``drive`` at its current limit (pure Python);
+    `load_name`: the flag or file field the value came from."""
+    motor = drive.motor
+    torque = 1.5 * motor["pole_pairs"] * motor["psi_f"] * drive.current_limit_a
+    if abs(load_nm) > MAX_LOAD_FACTOR * torque:
+        raise ParameterError(
+            f"{load_name} {plain(load_nm)}: this drive gives about {torque:.3g} N m at its "
+            f"{plain(drive.current_limit_a)} A current limit; a load beyond {MAX_LOAD_FACTOR:g}x that would "
+            f"only make the speed run away: give a load in N m, at most {MAX_LOAD_FACTOR * torque:.3g} in "
+            "magnitude, or raise the current limit (--current-limit)."
+        )
+
+
+def check_reference_speed(
+    drive, speed_rpm: float, field_weakening: bool, u_dc_flag: str, speed_name: str = "--speed-rpm"
+) -> None:
     """Refuse a speed reference beyond [`MAX_SPEED_FACTOR`][pmsmjax.jobs.demo.MAX_SPEED_FACTOR] times the
     no-load top speed of the three-phase drive file ``drive`` (with i_d = 0, or with field weakening: the
     closed form of
     [`pmsmjax.spec.steady_state.no_load_field_weakening_top_speed_rpm`][pmsmjax.spec.steady_state.no_load_field_weakening_top_speed_rpm]);
-    pure Python. ``u_dc_flag``: the DC-link knob the fix names."""
+    pure Python. ``u_dc_flag``: the DC-link knob the fix names; `speed_name`: the flag or file field the
+    value came from."""
     from pmsmjax.spec.steady_state import no_load_field_weakening_top_speed_rpm, top_speed_rpm
 
     motor, u_dc, u_limit, limit = drive.motor, drive.u_dc_v, drive.voltage_limit_v, drive.current_limit_a
@@ -136,7 +159,7 @@ def check_reference_speed(drive, speed_rpm: float, field_weakening: bool, u_dc_f
         top = abs(top_speed_rpm(motor, u_limit, 0.0))
     if abs(speed_rpm) > MAX_SPEED_FACTOR * top:
         raise ParameterError(
-            f"--speed-rpm {plain(speed_rpm)}: this drive cannot turn faster than about {top:.0f} r/min "
+            f"{speed_name} {plain(speed_rpm)}: this drive cannot turn faster than about {top:.0f} r/min "
             f"(no load, U_dc = {plain(u_dc)} V"
             + (", field weakening" if field_weakening else ", i_d = 0")
             + f"); a reference beyond {MAX_SPEED_FACTOR:g}x that would only show saturation: give at most "
@@ -174,6 +197,11 @@ def build(spec: DemoSpec, adjust: Callable | None = None):
         drive = adjust(drive, spec.control)
     scenario = spec_scenario(spec.drive, spec.speed_rpm, spec.load_nm, spec.load_time_s, spec.duration_s)
     n = spec.duration_s / drive.Ts
+    if n > MAX_RUN_PERIODS:
+        raise ParameterError(
+            f"--duration-s {plain(spec.duration_s)} is {n:.3g} control periods, more than the "
+            f"{MAX_RUN_PERIODS:.0e} a run may have: give at most {plain(MAX_RUN_PERIODS * drive.Ts)} s."
+        )
     if abs(n - round(n)) > 1e-6 * max(n, 1.0):
         raise ParameterError(
             f"--duration-s {plain(spec.duration_s)} is not a whole number of {plain(drive.Ts * 1e3)} ms "
@@ -215,6 +243,8 @@ def run(spec: DemoSpec, drive, scenario) -> DemoResult:
     operating = run_flags(
         trace, drive, load_time_s=load_time, field_weakening=spec.field_weakening, flags=spec.operating_flags
     )
+    with np.errstate(divide="ignore", invalid="ignore"):  # a step to 0 r/min has no overshoot: null
+        step_metrics = speed_step_summary(trace, load_time_s=load_time, current_limit_a=current_limit)
     summary = {
         "scenario": {
             "speed_rpm": spec.speed_rpm,
@@ -241,7 +271,7 @@ def run(spec: DemoSpec, drive, scenario) -> DemoResult:
             "bridge_dead_time": dead_time_entry(spec.drive, drive),
         },
         "drive_file": spec.drive.summary(),
-        "metrics": speed_step_summary(trace, load_time_s=load_time, current_limit_a=current_limit),
+        "metrics": step_metrics,
         "operating_point": operating,
         **flux_map_entry(drive, trace),
         "definitions": DEFINITIONS,
@@ -271,8 +301,10 @@ def run(spec: DemoSpec, drive, scenario) -> DemoResult:
 
 
 def _console(spec: DemoSpec, summary: dict, Ts: float) -> tuple[str, ...]:
-    """The console's report of a finished run ([`DemoResult.console`][pmsmjax.jobs.demo.DemoResult])."""
+    """The console's report of a finished run ([`DemoResult.console`][pmsmjax.jobs.demo.DemoResult]); a
+    figure the run does not define (an overshoot of a step to 0 r/min, summary.json's null) reads n/a."""
     m, limit = summary["metrics"], summary["drive"]["current_limit_a"]
+    m = {k: _Undefined() if v is None else v for k, v in m.items()}
     lines = [
         f"{spec.name} drive ({spec.machine}, U_dc {plain(summary['drive']['u_dc_v'])} V, current limit "
         f"{plain(limit)} A, {plain(1e-3 / Ts)} kHz), {spec.control} control",
@@ -351,4 +383,11 @@ def z_current_peak(trace, layout=None) -> float:
 
 
 def _fmt(x, scale):
-    return "n/a" if x is None else f"{x * scale:.1f}"
+    return "n/a" if x is None or isinstance(x, _Undefined) else f"{x * scale:.1f}"
+
+
+class _Undefined:
+    """A figure the run does not define, formatted as ``n/a`` whatever the format asks."""
+
+    def __format__(self, spec: str) -> str:
+        return "n/a"

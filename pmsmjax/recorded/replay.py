@@ -358,6 +358,28 @@ def replay_file(
     return write_csv_atomic(out / "replay.csv", result)
 
 
+#: A step longer than this many median steps is a gap in the log (samples lost, a paused recorder).
+GAP_STEPS = 1.5
+
+
+def check_no_gap(time: np.ndarray, source: str) -> None:
+    """Refuse a log whose time column (s) has a gap: a step longer than `GAP_STEPS` median steps. Over a
+    gap the recorded voltage would be held for the whole gap and the hold judged on data that is not
+    there; ``pmsmjax identify`` and ``observe`` refuse gaps alike."""
+    dt = np.diff(np.asarray(time, dtype=float))
+    if dt.size == 0:
+        return
+    med = float(np.median(dt))
+    gaps = np.flatnonzero(dt > GAP_STEPS * med)
+    if gaps.size:
+        row = int(gaps[0]) + 1
+        raise ParameterError(
+            f"{source}: a gap of {dt[row - 1] * 1e3:.3g} ms before row {row} (t = {time[row]:.6g} s) against "
+            f"a median step of {med * 1e3:.3g} ms ({gaps.size} gap(s) in all): cut the log at the gap and "
+            "replay each part, or record without gaps."
+        )
+
+
 def replay_log(
     log_path: str | os.PathLike,
     motor: str | os.PathLike,
@@ -422,6 +444,7 @@ def replay_log(
             tau,
             how="give --time-unit {unit} (or convert the column to seconds)",
         )
+    check_no_gap(log["time"], f"log {log_path}")
     if ("i_d" in log) != ("i_q" in log):
         have, lack = ("i_d", "i_q") if "i_d" in log else ("i_q", "i_d")
         raise ParameterError(

@@ -46,10 +46,12 @@ inverter cannot reach (even with field weakening).
 import dataclasses
 from collections.abc import Mapping
 
+import numpy as np
+
 from pmsmjax.spec import derivations as derive
 from pmsmjax.spec import design_rules as rules
 from pmsmjax.spec import schema
-from pmsmjax.spec.plausibility import check_motor_units
+from pmsmjax.spec.plausibility import check_flux_map_units, check_motor_units
 from pmsmjax.spec.schema import (
     MAX_SENSOR_DELAY_PERIODS,
     MOTOR_FIELDS,
@@ -184,6 +186,11 @@ def complete(
     tables = {table: dict(values) for table, values in tables.items()}  # completed in place below
     flux_map_derived = {}
     if flux_map is not None:
+        if check_units and tables["motor"].get("trust_units", False) is not True:
+            peak = max(
+                float(abs(np.asarray(flux_map.psi_d)).max()), float(abs(np.asarray(flux_map.psi_q)).max())
+            )
+            check_flux_map_units(peak, f"{where} [motor] flux_map {flux_map_path}")
         flux_map_derived = derive.flux_map_motor(tables["motor"], tables["ratings"], flux_map, flux_map_path)
     motor = schema.read_motor(tables["motor"], where, n_phases)
     trust = tables["motor"].get("trust_units", False)
@@ -247,6 +254,17 @@ def complete(
             f"{where}: [scenario] load_time_s = {plain(scenario['load_time_s'])} s is not inside the run "
             f"(duration_s = {plain(scenario['duration_s'])} s): give a load time below the duration."
         )
+    durations = {"[scenario] duration_s": scenario["duration_s"]}
+    if "duration_s" in tuning:
+        durations["[tuning] duration_s"] = tuning["duration_s"][1]
+    for name, duration in durations.items():
+        if duration / Ts > schema.MAX_RUN_PERIODS:
+            longest = plain(schema.MAX_RUN_PERIODS * Ts)
+            raise ParameterError(
+                f"{where}: {name} = {plain(duration)} s is {duration / Ts:.3g} control periods, more than "
+                f"the {schema.MAX_RUN_PERIODS:.0e} a run may have ({longest} s at {plain(1.0 / Ts)} Hz): "
+                f"give a duration in s, at most {longest}."
+            )
     if not tuning.keys() >= TABLES["tuning"].keys():
         rule = rules.tuning_ranges(
             motor, ratings["rated_speed_rpm"], ratings["rated_torque_nm"], ratings["max_current_a"],

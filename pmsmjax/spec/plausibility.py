@@ -22,7 +22,7 @@ from collections.abc import Mapping
 
 from pmsmjax.spec.validation import ParameterError, plain
 
-__all__ = ["check_motor_units", "check_time_step", "OVERRIDE", "OVERRIDE_LOG"]
+__all__ = ["check_motor_units", "check_flux_map_units", "check_time_step", "OVERRIDE", "OVERRIDE_LOG"]
 
 #: How a refusal says to override it (motor files; logs).
 OVERRIDE = "if the value is right, add trust_units = true to the motor file or pass --trust-units"
@@ -85,6 +85,18 @@ def check_motor_units(values: Mapping[str, float], source: str, Ts: float | None
             f"{source}: the electrical time constant min(L_d, L_q)/R = {tau:.3g} s is longer than "
             f"{plain(hi)} s (L = {plain(L)} H, R = {plain(R)} ohm): check that L is in H and R in ohm; "
             f"{OVERRIDE}."
+        )
+
+
+def check_flux_map_units(psi_peak_wb: float, source: str) -> None:
+    """Refuse a flux map whose largest flux linkage ``psi_peak_wb`` (the largest magnitude of its psi_d and
+    psi_q columns, read as Wb) is beyond `MAX_FLUX_WB`: written in mWb. Checked before the map's L_d, L_q
+    and psi_f are derived, so that the message names the map's columns, not values the file never wrote."""
+    if psi_peak_wb > MAX_FLUX_WB:
+        raise ParameterError(
+            f"{source}: its psi_d, psi_q columns reach {plain(psi_peak_wb)} Wb, beyond any drive's flux "
+            f"linkage (at most {plain(MAX_FLUX_WB)} Wb, peak per phase): they look like mWb: divide them by "
+            f"1000 (Wb); {OVERRIDE}."
         )
 
 

@@ -55,12 +55,42 @@ MAX_DEAD_TIME_SHARE = 0.1
 MAX_DEVICE_DROP_V = 10.0
 MAX_DEVICE_DROP_SHARE = 0.1
 MAX_SPEED_RPM = 200_000.0
+#: A run longer than this many control periods is refused (1000 s at 10 kHz: its trace alone would fill
+#: gigabytes; the scan's period counter is a 32-bit integer).
+MAX_RUN_PERIODS = 10**7
 #: An encoder latency beyond this many control periods is refused (a unit slip: us for s).
 MAX_SENSOR_DELAY_PERIODS = 10
 
 
+#: No value of a drive file is this large in SI units (the largest motors' inertia is some 1e3 kg m^2): a
+#: larger one is a typing slip, and beyond float32's range it would become inf inside the simulation.
+MAX_MAGNITUDE = 1e12
+
+
 def _one_line(text) -> str:
     return " ".join(str(text).split())
+
+
+def got(value) -> str:
+    """How a refusal shows a value that is not a number: a quoted number is named as a string."""
+    if isinstance(value, str):
+        try:
+            float(value)
+        except ValueError:
+            return f"got the text {value!r}"
+        return f"got {value!r}, a string: write the number without quotes ({value.strip()})"
+    if isinstance(value, list) and any(isinstance(x, str) for x in value):
+        return f"got {value!r}, which holds strings: write the numbers without quotes"
+    return f"got {value!r}"
+
+
+def too_large(name: str, value: float, unit: str = "") -> None:
+    """Refuse a value beyond `MAX_MAGNITUDE` naming `name`."""
+    if abs(value) > MAX_MAGNITUDE:
+        raise ParameterError(
+            f"{name} = {plain(value)}{' ' + unit if unit else ''} is beyond any physical value (at most "
+            f"{plain(MAX_MAGNITUDE)} in SI units): check the number and its unit."
+        )
 
 
 def split_tables(data: dict, where: str) -> dict:
@@ -120,7 +150,7 @@ def positive_number(value, key: str, name: str, unit: str = "") -> float:
     """``value`` as a float when it is finite and above 0, else a one-line refusal naming ``name``."""
     unit = f" {unit}" if unit else ""
     if not is_number(value):
-        raise ParameterError(f"{name} must be a number{(' of' + unit) if unit else ''}, got {value!r}.")
+        raise ParameterError(f"{name} must be a number{(' of' + unit) if unit else ''}, {got(value)}.")
     if not math.isfinite(value) or value <= 0:
         raise ParameterError(f"{name} = {plain(value)}{unit} must be a finite number above 0.")
     return float(value)
@@ -134,12 +164,13 @@ def numbers(values: dict, table: str, where: str, positive=(), signed=False, zer
         unit = TABLES[table][key]
         name = f"{where}: [{table}] {key}"
         if not is_number(v):
-            raise ParameterError(f"{name} must be a number ({unit or 'relative'}), got {v!r}.")
+            raise ParameterError(f"{name} must be a number ({unit or 'relative'}), {got(v)}.")
         v = float(v)
         low_ok = (zero_ok or key in ("dead_time_s", "device_drop_v")) and v == 0.0
         if not math.isfinite(v) or ((not signed or key in positive) and v <= 0 and not low_ok):
             need = "a finite number" if signed and key not in positive else "a finite number above 0"
             raise ParameterError(f"{name} = {plain(v)} {unit}: give {need}.")
+        too_large(name, v, unit)
         out[key] = v
     return out
 
@@ -150,7 +181,7 @@ def ranges(values: dict, where: str) -> dict:
     for key, v in values.items():
         name = f"{where}: [tuning] {key}"
         if not (isinstance(v, list) and len(v) == 2 and all(is_number(x) and math.isfinite(x) for x in v)):
-            raise ParameterError(f"{name} must be [low, high], two finite numbers, got {v!r}.")
+            raise ParameterError(f"{name} must be [low, high], two finite numbers, {got(v)}.")
         low, high = (float(x) for x in v)
         if not 0 <= low <= high or (key == "duration_s" and low <= 0):
             raise ParameterError(
@@ -210,13 +241,14 @@ def read_motor(values: dict, where: str, n_phases: int | None) -> dict:
         v = values[key]
         if key == "pole_pairs":
             if not isinstance(v, int) or isinstance(v, bool) or v < 1:
-                raise ParameterError(f"{where}: [motor] pole_pairs must be a whole number >= 1, got {v!r}.")
+                raise ParameterError(f"{where}: [motor] pole_pairs must be a whole number >= 1, {got(v)}.")
             motor[key] = v
             continue
         if not is_number(v) or not math.isfinite(v):
             raise ParameterError(
-                f"{where}: [motor] {key} must be a finite number ({MOTOR_UNITS[key]}), got {v!r}."
+                f"{where}: [motor] {key} must be a finite number ({MOTOR_UNITS[key]}), {got(v)}."
             )
+        too_large(f"{where}: [motor] {key}", v, MOTOR_UNITS[key])
         lowest_ok = key in ("B", "psi_f3")
         if v < 0 or (v == 0 and not lowest_ok):
             need = ">= 0" if lowest_ok else "> 0"
@@ -249,6 +281,6 @@ def read_sensor(values: dict, where: str) -> dict:
     sensor["lines"] = lines
     delay = values.get("delay_s", 0.0)
     if not is_number(delay) or not math.isfinite(delay) or delay < 0:
-        raise ParameterError(f"{where}: [sensor] delay_s must be a number >= 0 (s), got {delay!r}.")
+        raise ParameterError(f"{where}: [sensor] delay_s must be a number >= 0 (s), {got(delay)}.")
     sensor["delay_s"] = float(delay)
     return sensor

@@ -86,7 +86,10 @@ def refused(capsys, argv, *needles, outputs=()):
         (["demo", "--load-nm", "nan"], ["--load-nm", "finite", "N m"]),
         (["demo", "--speed-rpm", "fast"], ["--speed-rpm", "not a number"]),
         (["demo", "--speed-rpm", "-99999"], ["--speed-rpm", "give at most", "r/min", "--field-weakening"]),
-        (["demo", "--load-time-s", "5"], ["--load-time-s", "--duration-s", "give a time below 0.4 s"]),
+        (
+            ["demo", "--load-time-s", "5"],
+            ["--load-time-s", "[scenario] duration_s", "give a time below 0.4 s"],
+        ),
         (["demo", "--duration-s", "-1"], ["--duration-s", "> 0 s"]),
         (["demo", "--substeps", "0"], ["--substeps", ">= 1"]),
         (["demo", "--duration-s", "0.30005"], ["--duration-s", "whole number", "give e.g. 0.3"]),

@@ -49,7 +49,6 @@ result.json gives the cost on both, plus the held-out figures of the tuned gains
 
 import dataclasses
 import json
-import sys
 import time
 from pathlib import Path
 
@@ -59,15 +58,10 @@ import numpy as np
 from pmsmjax.assemble import spec_drive
 from pmsmjax.io.drive_files import drive_spec
 from pmsmjax.io.logs import atomic_write
+from pmsmjax.io.toml_parser import read_toml
 from pmsmjax.spec.drive_spec import DriveSpec
 from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rad_s_to_rpm
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
-
 from tuning.autotune import drive_scaling
 from tuning.autotune.controls import control_tuning
 from tuning.autotune.drive_batches import drive_batches
@@ -114,10 +108,7 @@ def read_tune_toml(path) -> dict:
     path = Path(path)
     if not path.is_file():
         raise ParameterError(f"tuning config {path} does not exist.")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as err:
-        raise ParameterError(f"tuning config {path}: not valid TOML ({err}).") from err
+    data = read_toml(path, f"tuning config {path}")
     unknown = sorted(set(data) - {"weights", "tune", "job"})
     if unknown:
         raise ParameterError(f"tuning config {path}: unknown tables {unknown}; use [weights], [tune], [job].")

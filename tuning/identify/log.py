@@ -21,13 +21,13 @@ pole pairs).
 
 import dataclasses
 import os
-import sys
 from pathlib import Path
 
 import jax
 import numpy as np
 
 from pmsmjax.io.logs import check_columns, misspelt_columns
+from pmsmjax.io.toml_parser import read_toml
 from pmsmjax.spec.validation import ParameterError
 from tuning.identify.log_columns import (
     CANONICAL,
@@ -42,11 +42,6 @@ from tuning.identify.log_columns import (
     read_canonical,
     to_dq64,
 )
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 __all__ = [
     "DriveLog",
@@ -89,10 +84,7 @@ def read_log_config(path: str | os.PathLike) -> dict:
     path = Path(path)
     if not path.is_file():
         raise ParameterError(f"log config {str(path)!r} does not exist: check the path.")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as err:
-        raise ParameterError(f"log config {path}: not valid TOML ({err}).") from err
+    data = read_toml(path, f"log config {path}")
     unknown = sorted(set(data) - {"columns", "units", "log", "identify"})
     if unknown:
         raise ParameterError(

@@ -97,7 +97,16 @@ def read_canonical(path, columns: dict | None, unused: list | None = None) -> di
             f"are canonical names ({', '.join(CANONICAL)}), the values the names in the file."
         )
     wanted = [columns.get(c, c) for c in CANONICAL]
+    unused = [] if unused is None else unused
     raw = read_log(path, (), wanted, time=None, unused=unused)
+    absent = [(c, name) for c, name in columns.items() if name not in raw]
+    if absent:
+        c, name = absent[0]
+        listed = ", ".join(sorted({*raw, *unused})) or "none"
+        raise ParameterError(
+            f"column map {c}={name}: log {path} has no column {name!r} (its columns: {listed}): map {c} to "
+            f'a column the log has (--columns {c}=NAME, or [columns] {c} = "NAME"), or drop the mapping.'
+        )
     back = {columns.get(c, c): c for c in CANONICAL}
     present = {back[k]: v for k, v in raw.items()}
     if not present:

@@ -35,6 +35,7 @@ import hashlib
 import json
 import math
 import time
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
@@ -309,8 +310,15 @@ def _load_chunk(path: Path, key: str, rows: int):
             if str(f["fingerprint"]) != key or f["finite"].shape[0] != rows:
                 return None
             return {k: f[k] for k in f.files if k != "fingerprint"}
-    except (OSError, ValueError, KeyError):
-        return None  # unreadable: recompute it (atomic writes make this an outside change)
+    except Exception as err:  # noqa: BLE001 (a truncated zip raises BadZipFile, EOFError, zlib.error, ...)
+        # Atomic writes never leave a half chunk, so this is an outside change (a full disk when copied,
+        # a truncated transfer): the runs are recomputed and the file rewritten.
+        warnings.warn(
+            f"{path} is damaged ({type(err).__name__}: {' '.join(str(err).split())[:80]}): computing its "
+            "runs again and rewriting it",
+            stacklevel=2,
+        )
+        return None
 
 
 def run_study(
@@ -480,8 +488,14 @@ def load_results(out_dir) -> dict:
         raise ParameterError(f"no chunk files in {Path(out_dir) / 'chunks'}: run the study first.")
     parts = []
     for path in paths:
-        with np.load(path, allow_pickle=False) as f:
-            parts.append({k: f[k] for k in f.files})
+        try:
+            with np.load(path, allow_pickle=False) as f:
+                parts.append({k: f[k] for k in f.files})
+        except Exception as err:  # noqa: BLE001 (BadZipFile, EOFError, zlib.error, ...)
+            raise ParameterError(
+                f"{path} is damaged ({type(err).__name__}): rerun the study on {out_dir} to compute its "
+                "runs again."
+            ) from err
     if len({str(p.pop("fingerprint")).split(":")[0] for p in parts}) != 1:
         raise ParameterError(f"{out_dir} holds chunks of different studies: use one folder per study.")
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}

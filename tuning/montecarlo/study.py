@@ -49,7 +49,6 @@ file's.
 
 import dataclasses
 import math
-import sys
 from pathlib import Path
 
 import jax.numpy as jnp
@@ -59,17 +58,20 @@ from pmsmjax import presets
 from pmsmjax.drive import Drive
 from pmsmjax.inverters.averaged import AveragedBridge
 from pmsmjax.io.drive_files import drive_spec
+from pmsmjax.io.toml_parser import read_toml
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.spec.drive_spec import TABLES, DriveSpec
 from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
 from tuning.montecarlo.distributions import KINDS, SAMPLING, Distribution
-from tuning.parameters import apply_gains, array_leaf_names, get_leaf, set_leaves
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+from tuning.parameters import (
+    apply_gains,
+    array_leaf_names,
+    check_gains,
+    get_leaf,
+    read_gains_toml,
+    set_leaves,
+)
 
 #: The default tolerances of a drive file without ``[tolerances]`` (the book drive file states the same
 #: set): manufacturing spread and temperature (R), inductance tolerance, magnet ageing and temperature
@@ -302,6 +304,14 @@ def default_tolerances(spec: DriveSpec) -> dict[str, float]:
     return {TOLERANCE_PARAMETERS[k]: spec.tolerances[k] for k in TABLES["tolerances"] if k in spec.tolerances}
 
 
+def _with_gains(drive: Drive, path) -> Drive:
+    """``drive`` with the gains file ``path``, each gain checked against the drive's own
+    ([`check_gains`][tuning.parameters.check_gains])."""
+    gains = read_gains_toml(path)
+    check_gains(drive, gains, f"gains file {path}")
+    return apply_gains(drive, gains)
+
+
 def build_drive(study: Study) -> Drive:
     """The nominal drive of ``study``: the drive file's drive
     ([`pmsmjax.assemble.spec_drive`][pmsmjax.assemble.spec_drive]) with the study's bandwidths and sub-steps,
@@ -320,14 +330,14 @@ def build_drive(study: Study) -> Drive:
             spec, study.control or "vsd", pwm=study.pwm or ("near-four-vector" if five else "four-vector"),
             **options,
         )  # fmt: skip
-        return drive if study.gains is None else apply_gains(drive, study.gains)
+        return drive if study.gains is None else _with_gains(drive, study.gains)
     drive = spec_drive(spec, "pi", **options)
     if study.unroll_substeps:
         unrolled = AveragedBridge(drive.bridge.u_dc, unroll_substeps=True)
         # keep the drive file's dead time and device drop (None without them)
         unrolled = set_leaves(unrolled, ["voltage_error"], [drive.bridge.voltage_error])
         drive = set_leaves(drive, ["bridge"], [unrolled])
-    drive = drive if study.gains is None else apply_gains(drive, study.gains)
+    drive = drive if study.gains is None else _with_gains(drive, study.gains)
     if study.estimator is not None:  # the observer's model: the nominal motor (the plant is varied)
         drive = presets.with_observer(
             drive, study.estimator, drive.machine.motor, startup=True, startup_options=startup_options(spec)
@@ -469,10 +479,7 @@ def read_study_toml(path) -> dict:
     path = Path(path)
     if not path.is_file():
         raise ParameterError(f"study file {path} does not exist: check the path.")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as err:
-        raise ParameterError(f"study file {path}: not valid TOML ({err}).") from err
+    data = read_toml(path, f"study file {path}")
     unknown = sorted(set(data) - set(_SECTIONS) - {"parameters"})
     if unknown:
         raise ParameterError(
