@@ -32,6 +32,7 @@ from pmsmjax.spec.validation import ParameterError
 
 __all__ = [
     "read_log",
+    "log_rows",
     "check_columns",
     "column_names",
     "misspelt_columns",
@@ -107,6 +108,50 @@ def column_names(path: str | os.PathLike) -> list[str]:
     except ParameterError:
         return []
     return list(raw[0] if isinstance(raw, tuple) else raw)
+
+
+def log_rows(path: str | os.PathLike) -> int | None:
+    """The number of rows of the log at ``path`` without parsing it, or None if it cannot be told (a
+    missing file, an unknown format: [`read_log`][pmsmjax.io.logs.read_log] reports why).
+
+    A CSV file's is an upper bound: its lines after the first, blank and comment lines included (counted
+    in 1 MiB blocks). An ``.npz`` file's is its longest array's element count, from the arrays' headers;
+    a ``.mat`` file's its longest variable's, from ``scipy.io.whosmat``.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if not path.is_file():
+        return None
+    try:
+        if suffix in (".csv", ".txt"):
+            lines, last = 0, b"\n"
+            with open(path, "rb") as f:
+                while block := f.read(1 << 20):
+                    lines += block.count(b"\n")
+                    last = block[-1:]
+            return max(lines + (last != b"\n") - 1, 0)
+        if suffix == ".npz":
+            import zipfile
+
+            longest = 0
+            with zipfile.ZipFile(path) as z:
+                for name in z.namelist():
+                    with z.open(name) as f:
+                        major, _ = np.lib.format.read_magic(f)
+                        header = {1: np.lib.format.read_array_header_1_0}.get(
+                            major, np.lib.format.read_array_header_2_0
+                        )
+                        shape, _, _ = header(f)
+                    longest = max(longest, int(np.prod(shape, dtype=np.int64)))
+            return longest
+        if suffix == ".mat":
+            import scipy.io
+
+            shapes = [shape for _, shape, _ in scipy.io.whosmat(path)]
+            return max((int(np.prod(s, dtype=np.int64)) for s in shapes), default=0)
+    except Exception:
+        return None
+    return None
 
 
 def misspelt_columns(unused, absent, cutoff: float = 0.75) -> list[tuple[str, str]]:
