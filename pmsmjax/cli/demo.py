@@ -403,10 +403,7 @@ def check_memory(args, Ts: float) -> None:
         args: the checked flags (``--duration-s``, ``--decimate``, ``--machine``, ``--max-memory-gb``).
         Ts: the drive's control period, s.
     """
-    from pmsmjax.trace import COLUMN_UNITS, FIVE_PHASE_COLUMN_UNITS, SIX_PHASE_COLUMN_UNITS
-
-    extra = {"six-phase": SIX_PHASE_COLUMN_UNITS, "five-phase": FIVE_PHASE_COLUMN_UNITS}.get(args.machine, {})
-    n_columns = len(COLUMN_UNITS) + len(extra)
+    n_columns = demo_job.trace_column_count(args.machine)
     n_periods = int(round(args.duration_s / Ts))
     need = memory.demo_bytes(n_periods, args.decimate, n_columns)
     budget, _ = memory.budget_bytes(args.max_memory_gb)

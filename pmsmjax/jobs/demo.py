@@ -121,6 +121,15 @@ class DemoResult:
     layout: object | None = None
 
 
+def trace_column_count(machine: str) -> int:
+    """Columns of the trace a run of ``machine`` (``"three-phase"``, ``"six-phase"``, ``"five-phase"``)
+    writes, for its memory plan."""
+    from pmsmjax.trace import COLUMN_UNITS, FIVE_PHASE_COLUMN_UNITS, SIX_PHASE_COLUMN_UNITS
+
+    extra = {"six-phase": SIX_PHASE_COLUMN_UNITS, "five-phase": FIVE_PHASE_COLUMN_UNITS}.get(machine, {})
+    return len(COLUMN_UNITS) + len(extra)
+
+
 def check_reference_speed(drive, speed_rpm: float, field_weakening: bool, u_dc_flag: str) -> None:
     """Refuse a speed reference beyond [`MAX_SPEED_FACTOR`][pmsmjax.jobs.demo.MAX_SPEED_FACTOR] times the
     no-load top speed of the three-phase drive file ``drive`` (with i_d = 0, or with field weakening: the
