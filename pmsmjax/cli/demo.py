@@ -16,7 +16,7 @@ The run itself is [`pmsmjax.jobs.demo`][pmsmjax.jobs.demo]: this module parses t
 
 import json
 
-from pmsmjax.cli import checks, drive_flags
+from pmsmjax.cli import checks, drive_flags, memory
 from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
 from pmsmjax.jobs import demo as demo_job
 from pmsmjax.spec import registry
@@ -299,7 +299,14 @@ def add_parser(sub):
         "1 H, say) instead of refusing them as a likely unit mistake (a drive file: trust_units = true in "
         "[motor])",
     )
-    p.add_argument("--decimate", type=checks.count(), default=1, help="record every N-th period (default 1)")
+    p.add_argument(
+        "--decimate",
+        type=checks.count(),
+        default=1,
+        help="record every N-th period (default 1); a run whose estimated memory exceeds the budget is "
+        "refused with the decimation that fits",
+    )
+    memory.add_memory_flag(p)
     p.add_argument("--format", choices=["csv", "npz"], default="csv", help="trace file format (default csv)")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.set_defaults(func=run)
@@ -386,9 +393,44 @@ def run(args) -> int:
         drive, scenario = demo_job.build(request, adjust)
     except ParameterError as err:
         raise checks.user_terms(err, USER_TERMS) from None
+    check_memory(args, drive.Ts)
     result = demo_job.run(request, drive, scenario)
     write(args, request, result, out)
     return 0
+
+
+def check_memory(args, Ts: float) -> None:
+    """Refuse a run whose estimated peak memory ([`pmsmjax.cli.memory.demo_bytes`][pmsmjax.cli.memory])
+    exceeds the budget, before it compiles, naming the ``--decimate`` that fits or a shorter run.
+
+    Args:
+        args: the checked flags (``--duration-s``, ``--decimate``, ``--machine``, ``--max-memory-gb``).
+        Ts: the drive's control period, s.
+    """
+    n_columns = demo_job.trace_column_count(args.machine)
+    n_periods = int(round(args.duration_s / Ts))
+    need = memory.demo_bytes(n_periods, args.decimate, n_columns)
+    budget, _ = memory.budget_bytes(args.max_memory_gb)
+    if need <= budget:
+        return
+    d = memory.demo_decimate_to_fit(n_periods, n_columns, budget)
+    per_period = memory.DEMO_PERIOD_BYTES + memory.DEMO_ROW_BYTES * n_columns / args.decimate
+    longest = max((budget - memory.BASE_BYTES) / per_period, 0) * Ts
+    shorter = f"a --duration-s of at most {plain(float(f'{longest:.2g}'))} s"
+    fix = (
+        f"pass --decimate {d} (about {memory.gb(memory.demo_bytes(n_periods, d, n_columns))}) or give "
+        f"{shorter}"
+        if d is not None
+        else f"give {shorter}"
+    )
+    memory.check_fits(
+        need,
+        f"--duration-s {plain(args.duration_s)} s at {plain(1e-3 / Ts)} kHz is {n_periods:,} control "
+        f"periods, {n_periods // args.decimate:,} trace rows of {n_columns} columns (--decimate "
+        f"{args.decimate}); the run",
+        fix,
+        args.max_memory_gb,
+    )
 
 
 def write(args, request: demo_job.DemoSpec, result: demo_job.DemoResult, out) -> None:

@@ -4,7 +4,7 @@
 
 import sys
 
-from pmsmjax.cli import checks
+from pmsmjax.cli import checks, memory
 from pmsmjax.spec.validation import ParameterError
 
 
@@ -100,6 +100,7 @@ def add_parser(sub):
         action="store_true",
         help="with --flux-map: fit the inverter voltage error (dead time and device drop, V per phase)",
     )
+    memory.add_memory_flag(p)
     p.set_defaults(func=run)
 
 
@@ -159,6 +160,7 @@ def run(args) -> int:
     prior, pole_pairs = prior_and_pole_pairs(args)
     fixed = _pairs(args.fix, "--fix", _finite)
     columns, units = _pairs(args.columns, "--columns"), _pairs(args.units, "--units")
+    memory.check_log("identify", args.log, args.max_memory_gb)
     if args.flux_map:
         return _run_flux_map(args, prior, pole_pairs, fixed, columns, units)
     if args.inverter_error or args.flux_map_step is not None:

@@ -5,7 +5,7 @@ import argparse
 import os
 import textwrap
 
-from pmsmjax.cli import checks, drive_flags
+from pmsmjax.cli import checks, drive_flags, memory
 from pmsmjax.cli.gains import add_gains_flag, read_gains_flag
 from pmsmjax.spec import registry
 from pmsmjax.spec.validation import ParameterError
@@ -154,6 +154,7 @@ def add_parser(sub):
     )
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    memory.add_memory_flag(p)
     p.set_defaults(func=run)
 
 
@@ -215,6 +216,38 @@ def _study_drive_table(config) -> dict:
     return table if isinstance(table, dict) else {}
 
 
+def check_memory(study, max_memory_gb: float | None) -> None:
+    """Refuse a study whose estimated peak memory
+    ([`montecarlo_bytes`][pmsmjax.cli.memory.montecarlo_bytes]) exceeds the budget, before it compiles:
+    every run's samples, metrics and decimated record are held until the summary.
+
+    Args:
+        study: the [`Study`][tuning.montecarlo.study.Study].
+        max_memory_gb: ``--max-memory-gb``, GB, or None.
+    """
+    import jax
+
+    from tuning.montecarlo.chunking import MAX_RUNS
+    from tuning.montecarlo.runner import COLUMNS, OBSERVER_COLUMNS
+
+    n_metrics = len(OBSERVER_COLUMNS if study.estimator else COLUMNS)
+    n_record = 2 * (study.n_periods // study.decimate)
+    per_device = MAX_RUNS["cpu"] if study.chunk_size == "auto" else study.chunk_size
+    chunk = min(study.n, per_device * (jax.local_device_count() if study.chunk_size == "auto" else 1))
+    shape = (len(study.parameters), n_metrics, n_record, chunk)
+    need = memory.montecarlo_bytes(study.n, *shape)
+    budget, _ = memory.budget_bytes(max_memory_gb)
+    fit = memory.montecarlo_runs_to_fit(*shape, budget)
+    memory.check_fits(
+        need,
+        f"--n {study.n:,} runs ({len(study.parameters)} parameters, {n_record:,} recorded values per run, "
+        f"chunks of {chunk:,})",
+        f"give --n {fit:,} or fewer (several studies with different --seed), or a larger --decimate in the "
+        "study TOML",
+        max_memory_gb,
+    )
+
+
 def run(args) -> int:
     """Run the Monte Carlo robustness study of the drive (resuming finished chunks); writes
     summary.json and figures to ``--out``. Returns the exit status."""
@@ -253,8 +286,10 @@ def run(args) -> int:
     ):
         if value is not None:
             kwargs[key] = value
+    study = Study(**kwargs)
+    check_memory(study, args.max_memory_gb)
     try:
-        s = run_study(Study(**kwargs), args.out, progress=not args.no_progress, figures=not args.no_figures)
+        s = run_study(study, args.out, progress=not args.no_progress, figures=not args.no_figures)
     except KeyboardInterrupt:
         raise KeyboardInterrupt(
             f"the finished chunks are kept in {args.out}/chunks: rerun the same command to resume"

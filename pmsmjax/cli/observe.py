@@ -10,7 +10,7 @@ record.
 
 import json
 
-from pmsmjax.cli import checks, drive_flags
+from pmsmjax.cli import checks, drive_flags, memory
 from pmsmjax.spec.validation import ParameterError
 
 
@@ -83,6 +83,7 @@ def add_parser(sub):
         help="hfi-rotating: report the angle in [-pi, pi) and score it modulo 2 pi (default: modulo pi)",
     )
     p.add_argument("--no-figures", action="store_true", help="do not write observe.png")
+    memory.add_memory_flag(p)
     p.set_defaults(func=run)
 
 
@@ -109,6 +110,7 @@ def run(args) -> int:
     from pmsmjax.io.drive_files import drive_spec
 
     drive = drive_spec(args.motor)  # checked before JAX starts
+    memory.check_log("observe", args.log, args.max_memory_gb)
     from pmsmjax.io.logs import check_output_folder
     from pmsmjax.jobs.observe import ObserveSpec, check_observer, run_observer
 

@@ -3,7 +3,7 @@
 
 from pathlib import Path
 
-from pmsmjax.cli import checks, drive_flags
+from pmsmjax.cli import checks, drive_flags, memory
 
 
 def add_parser(sub):
@@ -41,6 +41,7 @@ def add_parser(sub):
         help="accept a time step or motor values outside the plausible ranges (a 0.1 s step, an inductance "
         "above 1 H) instead of refusing them as a likely unit mistake",
     )
+    memory.add_memory_flag(p)
     p.set_defaults(func=run)
 
 
@@ -52,6 +53,7 @@ def run(args) -> int:
     from pmsmjax.io.drive_files import drive_spec
 
     drive_spec(args.motor, check_units=not args.trust_units)  # refused here, before JAX starts
+    memory.check_log("replay", args.log, args.max_memory_gb)
     from pmsmjax.jobs.replay import ReplaySpec, run_replay
 
     spec = ReplaySpec(

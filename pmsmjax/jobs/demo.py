@@ -126,6 +126,15 @@ class DemoResult:
     layout: object | None = None
 
 
+def trace_column_count(machine: str) -> int:
+    """Columns of the trace a run of ``machine`` (``"three-phase"``, ``"six-phase"``, ``"five-phase"``)
+    writes, for its memory plan."""
+    from pmsmjax.trace import COLUMN_UNITS, FIVE_PHASE_COLUMN_UNITS, SIX_PHASE_COLUMN_UNITS
+
+    extra = {"six-phase": SIX_PHASE_COLUMN_UNITS, "five-phase": FIVE_PHASE_COLUMN_UNITS}.get(machine, {})
+    return len(COLUMN_UNITS) + len(extra)
+
+
 def check_load(drive, load_nm: float, load_name: str = "--load-nm") -> None:
     """Refuse a load beyond [`MAX_LOAD_FACTOR`][pmsmjax.jobs.demo.MAX_LOAD_FACTOR] times the torque
     ``1.5 p psi_f I_max`` of the three-phase drive file ``drive`` at its current limit (pure Python);
