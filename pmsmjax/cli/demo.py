@@ -17,6 +17,7 @@ The run itself is [`pmsmjax.jobs.demo`][pmsmjax.jobs.demo]: this module parses t
 import json
 
 from pmsmjax.cli import checks, drive_flags, memory
+from pmsmjax.cli.figure_worker import FigureWorker
 from pmsmjax.cli.gains import add_gains_flag, apply_gains_flag, read_gains_flag
 from pmsmjax.jobs import demo as demo_job
 from pmsmjax.spec import registry
@@ -384,19 +385,30 @@ def demo_spec(args, spec) -> demo_job.DemoSpec:
 def run(args) -> int:
     """Simulate the drive's scenario under the chosen control method; writes the trace, summary.json
     and figures to ``--out``. Returns the exit status."""
-    spec = precheck(args)
-    out = checks.output_folder(args.out)
-    gains = read_gains_flag(args.gains)
-    adjust = None if gains is None else (lambda drive, control: apply_gains_flag(drive, gains, control))
+    # Drawing starts loading matplotlib on the second core now, while this process loads JAX and simulates.
+    worker = None if args.no_figures else FigureWorker.start(preload=_load_plotting)
     try:
-        request = demo_spec(args, spec)
-        drive, scenario = demo_job.build(request, adjust)
-    except ParameterError as err:
-        raise checks.user_terms(err, USER_TERMS) from None
-    check_memory(args, drive.Ts)
-    result = demo_job.run(request, drive, scenario)
-    write(args, request, result, out)
+        spec = precheck(args)
+        out = checks.output_folder(args.out)
+        gains = read_gains_flag(args.gains)
+        adjust = None if gains is None else (lambda drive, control: apply_gains_flag(drive, gains, control))
+        try:
+            request = demo_spec(args, spec)
+            drive, scenario = demo_job.build(request, adjust)
+        except ParameterError as err:
+            raise checks.user_terms(err, USER_TERMS) from None
+        check_memory(args, drive.Ts)
+        result = demo_job.run(request, drive, scenario)
+        write(args, request, result, out, worker)
+    finally:
+        if worker is not None:
+            worker.close()
     return 0
+
+
+def _load_plotting() -> None:
+    """What the figure worker imports before its first figure."""
+    import pmsmjax.plotting.traces  # noqa: F401
 
 
 def check_memory(args, Ts: float) -> None:
@@ -433,7 +445,7 @@ def check_memory(args, Ts: float) -> None:
     )
 
 
-def write(args, request: demo_job.DemoSpec, result: demo_job.DemoResult, out) -> None:
+def write(args, request: demo_job.DemoSpec, result: demo_job.DemoResult, out, worker=None) -> None:
     """Write the trace (``--format``), summary.json and, unless ``--no-figures``, the figures into the
     folder ``out``, then print the result's report and what was written."""
     import numpy as np
@@ -459,6 +471,7 @@ def write(args, request: demo_job.DemoSpec, result: demo_job.DemoResult, out) ->
             + (f", sensorless ({args.estimator}, I/f start)" if args.estimator else ""),
             current_limit_a=result.current_limit_a,
             voltage_limit_v=result.voltage_limit_v,
+            worker=worker,
         )
     )
     if result.layout is not None and not args.no_figures:

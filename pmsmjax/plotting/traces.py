@@ -111,21 +111,35 @@ def overview_figure(
     return fig
 
 
+def save_overview_figure(
+    trace: Trace, path: Path, title: str = "", current_limit_a: float | None = None,
+    voltage_limit_v: float | None = None,
+) -> Path:  # fmt: skip
+    """Write [`overview_figure`][pmsmjax.plotting.traces.overview_figure] to ``path``; returns it."""
+    return save_figure(overview_figure(trace, title, current_limit_a, voltage_limit_v), path)
+
+
 def save_demo_figures(
     trace: Trace,
     out_dir: Path,
     title: str = "",
     current_limit_a: float | None = None,
     voltage_limit_v: float | None = None,
+    worker=None,
 ) -> list[Path]:
-    """Write ``overview.png`` and one PNG per panel into ``out_dir``; returns the paths."""
+    """Write ``overview.png`` and one PNG per panel into ``out_dir``; returns the paths.
+
+    With a ``worker`` (a [`FigureWorker`][pmsmjax.cli.figure_worker.FigureWorker]: ``submit`` a call,
+    collect its ``result``) the overview is drawn there, at the same time as the panels here (the same
+    files)."""
     out_dir = Path(out_dir)
-    paths = [
-        save_figure(overview_figure(trace, title, current_limit_a, voltage_limit_v), out_dir / "overview.png")
-    ]
+    overview = (trace, out_dir / "overview.png", title, current_limit_a, voltage_limit_v)
+    if worker is not None:
+        worker.submit(save_overview_figure, *overview)
+    paths = [] if worker is not None else [save_overview_figure(*overview)]
     for name, plot in _panels(current_limit_a, voltage_limit_v):
         fig, ax = plt.subplots(figsize=(8, 3))
         plot(trace, ax)
         fig.tight_layout()
         paths.append(save_figure(fig, out_dir / f"{name}.png"))
-    return paths
+    return paths if worker is None else [worker.result(), *paths]
