@@ -131,14 +131,15 @@ def _simulate(drive: Drive, scenario: Scenario, decimate: int, initial_state) ->
     xs = period_inputs(scenario, drive.Ts)
     state = drive.init() if initial_state is None else initial_state
     step = jax.checkpoint(lambda d, s, x: d.step(s, x))
-    # The record's layout (to unpack the packed rows) from shapes alone: no extra traced step.
-    record_shape = jax.eval_shape(drive.step, state, jax.tree.map(lambda a: a[0], xs))[1]
-    _, unravel = ravel_pytree(jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), record_shape))
+    # How to unpack a packed row, kept when the scan traces its step: shapes and dtypes only, no values.
+    unravel_of_record = []
 
     def recorded_step(s, x):
         s, record = step(drive, s, x)
         # One packed vector per period: a single output buffer instead of one per field.
-        return s, ravel_pytree(record)[0]
+        packed, unravel = ravel_pytree(record)
+        unravel_of_record.append(unravel)
+        return s, packed
 
     def unrecorded_step(s, x):
         return step(drive, s, x)[0], None
@@ -157,7 +158,7 @@ def _simulate(drive: Drive, scenario: Scenario, decimate: int, initial_state) ->
         _, packed = jax.lax.scan(block, state, blocks)
         xs = jax.tree.map(lambda a: a[::decimate], xs)
 
-    rec: PeriodRecord = jax.vmap(unravel)(packed)
+    rec: PeriodRecord = jax.vmap(unravel_of_record[-1])(packed)
     return trace_from_records(drive, rec, xs, drive.Ts * decimate)
 
 
