@@ -451,7 +451,6 @@ def write(args, request: demo_job.DemoSpec, result: demo_job.DemoResult, out, wo
     import numpy as np
 
     from pmsmjax.io.logs import atomic_write, write_csv_atomic
-    from pmsmjax.plotting.traces import save_demo_figures
 
     out.mkdir(parents=True, exist_ok=True)
     columns = result.trace.columns()
@@ -461,6 +460,8 @@ def write(args, request: demo_job.DemoSpec, result: demo_job.DemoResult, out, wo
         atomic_write(out / "trace.npz", lambda f: np.savez(f, **columns))
     atomic_write(out / "summary.json", lambda f: f.write(json.dumps(result.summary, indent=2).encode()))
     console = list(result.console)
+    if not args.no_figures:
+        from pmsmjax.plotting.traces import save_demo_figures
     figures = (
         []
         if args.no_figures
