@@ -164,3 +164,21 @@ def test_random_flags_parse_or_are_refused_in_one_line(command, words):
                 assert len(lines) == 1 and ": error: " in lines[0], err.getvalue()
             return
     assert isinstance(args, argparse.Namespace) and callable(args.func)
+
+
+def test_demo_at_zero_speed_reference_runs_and_says_what_it_cannot_define(capsys, tmp_path):
+    """A zero speed step has no rise time or overshoot: the summary holds null for them and the console
+    says n/a (it once formatted a None after writing complete-looking files)."""
+    import json
+
+    out = tmp_path / "out"
+    code = main(["demo", "--speed-rpm", "0", "--duration-s", "0.05", "--load-time-s", "0.02", "--no-figures",
+                 "--out", str(out)])  # fmt: skip
+    console = capsys.readouterr()
+    assert code == 0, console.err
+    assert "n/a" in console.out and "Traceback" not in console.err
+    metrics = json.loads((out / "summary.json").read_text())["metrics"]
+    assert any(value is None for value in metrics.values())
+    assert all(
+        value is None or np.isfinite(value) for value in metrics.values() if not isinstance(value, str)
+    )
