@@ -3,7 +3,8 @@ files, timed from outside with JAX's persistent compilation cache empty (a first
 earlier run of the same command (a repeated run).
 
 Each command runs on small inputs that still exercise its whole path (the book demo as the README gives
-it; a two-controller compare; a two-iteration tune; a 64-run Monte Carlo study; identify, observe and
+it, without its figures, and on the measured flux map of the ``saturated-ipm`` drive file; a two-controller
+compare; a two-iteration tune; a 64-run Monte Carlo study; identify, observe and
 replay on a synthetic log written here). "first" is the best of `repeats` runs, each with a new empty
 cache folder (``PMSMJAX_CACHE_DIR``); "cached" the best of `repeats` runs after one that filled the cache.
 Their difference is what the cache saves; what remains of "cached" is imports, the run itself, figures
@@ -28,6 +29,8 @@ from pmsmjax.io.logs import write_csv_atomic
 COMMANDS = {
     "help": ["--help"],
     "demo": ["demo", "--out", "{out}"],
+    "demo-no-figures": ["demo", "--no-figures", "--out", "{out}"],
+    "demo-flux-map": ["demo", "--motor", "saturated-ipm", "--out", "{out}"],
     "compare": ["compare", "--control", "pi,smc", "--out", "{out}"],
     "pwm-compare": ["pwm-compare", "--out", "{out}"],
     "tune": [
