@@ -93,7 +93,7 @@ from pmsmjax.controllers.hysteresis import hysteresis_comparator
 from pmsmjax.frames.three_phase import abc_to_alpha_beta, park
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import CommandKind, ControlOutput, Estimate, References, Sample
-from pmsmjax.spec.validation import ParameterError, check_positive
+from pmsmjax.spec.validation import ParameterError, check_choice, check_divider, check_positive
 
 DTCMode = Literal["speed", "torque"]
 
@@ -235,15 +235,9 @@ class SwitchingTableDTC(AbstractController):
         check_positive("SwitchingTableDTC.flux_band_wb (full flux band)", self.flux_band_wb, "Wb")
         check_positive("SwitchingTableDTC.current_limit", self.current_limit, "A")
         check_positive("SwitchingTableDTC.flux_ref_wb (stator flux reference)", self.flux_ref_wb, "Wb")
-        if self.torque_levels not in (2, 3):
-            raise ParameterError(f"torque_levels must be 2 or 3, got {self.torque_levels!r}.")
-        if self.mode not in ("speed", "torque"):
-            raise ParameterError(f"mode must be 'speed' or 'torque', got {self.mode!r}.")
-        if not isinstance(self.speed_divider, int) or self.speed_divider < 1:
-            raise ParameterError(
-                f"speed_divider must be an int >= 1, got {self.speed_divider!r}: "
-                "give how many comparator samples make one speed-loop period."
-            )
+        check_choice("torque_levels", self.torque_levels, (2, 3))
+        check_choice("mode", self.mode, ("speed", "torque"))
+        check_divider("speed_divider", self.speed_divider, "comparator samples")
 
     def init(self, dtype=None) -> DTCState:
         dtype = self.current_limit.dtype if dtype is None else dtype

@@ -34,7 +34,7 @@ from pmsmjax.controllers.dead_time_compensation import DeadTimeCompensation
 from pmsmjax.frames.three_phase import park
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import ControlOutput, Estimate, References, Sample
-from pmsmjax.spec.validation import ParameterError, check_positive
+from pmsmjax.spec.validation import check_choice, check_divider, check_positive
 
 ControlMode = Literal["speed", "current"]
 
@@ -85,13 +85,8 @@ class FOC(AbstractController):
 
     def __check_init__(self):
         check_positive("current_limit", self.current_limit, "A")
-        if self.mode not in ("speed", "current"):
-            raise ParameterError(f"mode must be 'speed' or 'current', got {self.mode!r}.")
-        if not isinstance(self.speed_divider, int) or self.speed_divider < 1:
-            raise ParameterError(
-                f"speed_divider must be an int >= 1, got {self.speed_divider!r}: "
-                "give how many control periods make one speed-loop period."
-            )
+        check_choice("mode", self.mode, ("speed", "current"))
+        check_divider("speed_divider", self.speed_divider, "control periods")
 
     def init(self, dtype=None) -> FOCState:
         dtype = self.current_limit.dtype if dtype is None else dtype

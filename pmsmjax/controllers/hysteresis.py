@@ -61,7 +61,7 @@ from pmsmjax.controllers.foc import ControlMode, cascade_references
 from pmsmjax.frames.three_phase import abc_to_alpha_beta, dq_to_abc, park
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import CommandKind, ControlOutput, Estimate, References, Sample
-from pmsmjax.spec.validation import ParameterError, check_positive
+from pmsmjax.spec.validation import ParameterError, check_choice, check_divider, check_positive
 
 ComparatorKind = Literal["exact", "smooth"]
 
@@ -157,15 +157,9 @@ class HysteresisCurrentControl(AbstractController):
         check_positive("band_a (hysteresis band, full width)", self.band_a, "A")
         check_positive("current_limit", self.current_limit, "A")
         check_positive("smooth_width_a (sigmoid comparator width)", self.smooth_width_a, "A")
-        if self.mode not in ("speed", "current"):
-            raise ParameterError(f"mode must be 'speed' or 'current', got {self.mode!r}.")
-        if self.comparator not in ("exact", "smooth"):
-            raise ParameterError(f"comparator must be 'exact' or 'smooth', got {self.comparator!r}.")
-        if not isinstance(self.speed_divider, int) or self.speed_divider < 1:
-            raise ParameterError(
-                f"speed_divider must be an int >= 1, got {self.speed_divider!r}: "
-                "give how many comparator samples make one speed-loop period."
-            )
+        check_choice("mode", self.mode, ("speed", "current"))
+        check_choice("comparator", self.comparator, ("exact", "smooth"))
+        check_divider("speed_divider", self.speed_divider, "comparator samples")
 
     def init(self, dtype=None) -> HysteresisState:
         dtype = self.current_limit.dtype if dtype is None else dtype

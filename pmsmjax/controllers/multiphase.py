@@ -105,7 +105,13 @@ from pmsmjax.frames.three_phase import inverse_park, park
 from pmsmjax.machines.motor import as_float
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
 from pmsmjax.signals import ControlOutput, Estimate, References, Sample
-from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive
+from pmsmjax.spec.validation import (
+    ParameterError,
+    check_choice,
+    check_divider,
+    check_nonnegative,
+    check_positive,
+)
 
 __all__ = [
     "AbstractMultiPhaseCurrentController",
@@ -200,10 +206,8 @@ class MultiPhaseFOC(AbstractController):
                 f"(MultiPhaseParameters with n_phases = {layout.n}), got {type(self.model).__name__}: use "
                 f"pmsmjax.presets.{word}_phase.{word}_phase_motor()."
             )
-        if self.mode not in ("speed", "current"):
-            raise ParameterError(f"mode must be 'speed' or 'current', got {self.mode!r}.")
-        if not isinstance(self.speed_divider, int) or self.speed_divider < 1:
-            raise ParameterError(f"speed_divider must be an int >= 1, got {self.speed_divider!r}.")
+        check_choice("mode", self.mode, ("speed", "current"))
+        check_divider("speed_divider", self.speed_divider, "control periods")
 
     def init(self, dtype=None) -> FOCState:
         dtype = self.current_limit.dtype if dtype is None else dtype
@@ -353,11 +357,7 @@ class ZProportionalResonant(AbstractZCurrentController):
         check_positive("ZProportionalResonant.kp", self.kp, "V/A")
         check_nonnegative("ZProportionalResonant.kr", self.kr, "V/A")
         check_positive("ZProportionalResonant.w_c", self.w_c, "rad/s")
-        if self.discretisation not in DISCRETISATIONS:
-            raise ParameterError(
-                f"ZProportionalResonant.discretisation must be one of {DISCRETISATIONS}, "
-                f"got {self.discretisation!r}."
-            )
+        check_choice("ZProportionalResonant.discretisation", self.discretisation, DISCRETISATIONS)
 
     def init(self, dtype):
         return jnp.zeros((2, 2), dtype)

@@ -72,7 +72,7 @@ from pmsmjax.controllers.smc import SWITCHING, Switching, switching_function
 from pmsmjax.frames.three_phase import park, rotation
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import CommandKind, ControlOutput, Estimate, References, Sample
-from pmsmjax.spec.validation import ParameterError, check_positive, is_concrete
+from pmsmjax.spec.validation import ParameterError, check_choice, check_divider, check_positive, is_concrete
 
 __all__ = ["SlidingModeDTC", "SlidingModeDTCState", "smc_dtc_design"]
 
@@ -149,10 +149,7 @@ class SlidingModeDTC(AbstractController):
         self.speed_divider = speed_divider
 
     def __check_init__(self):
-        if self.switching not in SWITCHING:
-            raise ParameterError(
-                f"SlidingModeDTC.switching must be one of {SWITCHING}, got {self.switching!r}."
-            )
+        check_choice("SlidingModeDTC.switching", self.switching, SWITCHING)
         for name, value, unit in (
             ("torque_gain_v (torque switching gain K_T)", self.torque_gain_v, "V"),
             ("torque_boundary_nm (torque boundary layer)", self.torque_boundary_nm, "N m"),
@@ -162,10 +159,8 @@ class SlidingModeDTC(AbstractController):
             ("flux_ref_wb (stator flux reference)", self.flux_ref_wb, "Wb"),
         ):
             check_positive(f"SlidingModeDTC.{name}", value, unit)
-        if self.mode not in ("speed", "torque"):
-            raise ParameterError(f"mode must be 'speed' or 'torque', got {self.mode!r}.")
-        if not isinstance(self.speed_divider, int) or self.speed_divider < 1:
-            raise ParameterError(f"speed_divider must be an int >= 1, got {self.speed_divider!r}.")
+        check_choice("mode", self.mode, ("speed", "torque"))
+        check_divider("speed_divider", self.speed_divider, "control periods")
 
     def init(self, dtype=None) -> SlidingModeDTCState:
         dtype = self.current_limit.dtype if dtype is None else dtype
