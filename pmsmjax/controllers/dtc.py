@@ -186,24 +186,9 @@ class AbstractTorqueCascade(AbstractDesignedSpeedCascade):
     flux_ref_wb: Array
 
     def __init__(
-        self,
-        model: PMSMParameters,
-        current_limit,
-        speed: AbstractSpeedController | None = None,
-        *,
-        flux_ref_wb=None,
-        mode: DTCMode = "speed",
-        speed_divider: int = 1,
-        speed_bandwidth=50.0,
+        self, model: PMSMParameters, current_limit, speed, flux_ref_wb, mode, speed_divider, speed_bandwidth
     ):
-        super().__init__(
-            model,
-            current_limit,
-            speed,
-            mode=mode,
-            speed_divider=speed_divider,
-            speed_bandwidth=speed_bandwidth,
-        )
+        super().__init__(model, current_limit, speed, mode, speed_divider, speed_bandwidth)
         self.flux_ref_wb = model.psi_f if flux_ref_wb is None else as_float(flux_ref_wb)
 
     def __check_init__(self):
@@ -261,15 +246,7 @@ class SwitchingTableDTC(AbstractTorqueCascade):
         speed_divider: int = 1,
         speed_bandwidth=50.0,
     ):
-        super().__init__(
-            model,
-            current_limit,
-            speed,
-            flux_ref_wb=flux_ref_wb,
-            mode=mode,
-            speed_divider=speed_divider,
-            speed_bandwidth=speed_bandwidth,
-        )
+        super().__init__(model, current_limit, speed, flux_ref_wb, mode, speed_divider, speed_bandwidth)
         self.torque_band_nm = as_float(torque_band_nm)
         self.flux_band_wb = as_float(flux_band_wb)
         self.torque_levels = torque_levels

@@ -51,7 +51,8 @@ class AbstractFOC(AbstractSpeedCascade):
     ([`FOC`][pmsmjax.controllers.foc.FOC]) or multi-phase
     ([`MultiPhaseFOC`][pmsmjax.controllers.multiphase.MultiPhaseFOC]); the arguments are
     [`FOC`][pmsmjax.controllers.foc.FOC]'s but ``dead_time_compensation``. A subclass gives the ``current``
-    block's type and the ``step``.
+    block's type; ``step`` runs the cascade (d-axis reference, speed loop, current loop) on the currents
+    of ``measured_currents``, and ``corrected_command`` may add to the current loop's command.
     """
 
     model: PMSMParameters
@@ -83,6 +84,33 @@ class AbstractFOC(AbstractSpeedCascade):
             self.model, Ts, u_max, delayed, state.u_dq_prev, self.decoupling, self.delay_compensation
         )
 
+    def measured_currents(self, sample: Sample) -> Array:
+        """The measured currents the ``current`` block takes: the stator-frame ``sample.i_ab`` (2,) A here;
+        the multi-phase cascade's block takes the ``(n,)`` phase currents."""
+        return sample.i_ab
+
+    def corrected_command(
+        self, u, i_dq_ref, sample: Sample, estimate: Estimate, omega_e, Ts, delayed
+    ) -> Array:
+        """The current block's command ``u`` (V) as applied: here unchanged (FOC adds its dead-time
+        compensation)."""
+        return u
+
+    def step(
+        self, state: FOCState, sample: Sample, estimate: Estimate, refs: References, Ts, u_max, delayed
+    ) -> tuple[FOCState, ControlOutput]:
+        omega_e = self.model.pole_pairs * estimate.omega_m
+        ctx = self.context(state, Ts, u_max, delayed)
+        speed_state, d_axis_state, iq_ref, counter, i_dq_ref = cascade_references(
+            self, state, estimate, refs, ctx
+        )
+        current_state, u, u_dq = self.current.step(
+            state.current, i_dq_ref, self.measured_currents(sample), estimate.theta_e, omega_e, ctx
+        )
+        u = self.corrected_command(u, i_dq_ref, sample, estimate, omega_e, Ts, delayed)
+        new_state = FOCState(speed_state, current_state, d_axis_state, u_dq, iq_ref, counter)
+        return new_state, ControlOutput(u, u_dq, i_dq_ref)
+
 
 class FOC(AbstractFOC):
     """Cascaded field-oriented controller (i_d = 0 by default).
@@ -111,24 +139,16 @@ class FOC(AbstractFOC):
     current: AbstractCurrentController
     dead_time_compensation: DeadTimeCompensation | None = None
 
-    def step(
-        self, state: FOCState, sample: Sample, estimate: Estimate, refs: References, Ts, u_max, delayed
-    ) -> tuple[FOCState, ControlOutput]:
-        omega_e = self.model.pole_pairs * estimate.omega_m
-        ctx = self.context(state, Ts, u_max, delayed)
-        speed_state, d_axis_state, iq_ref, counter, i_dq_ref = cascade_references(
-            self, state, estimate, refs, ctx
+    def corrected_command(
+        self, u, i_dq_ref, sample: Sample, estimate: Estimate, omega_e, Ts, delayed
+    ) -> Array:
+        """The current loop's stator-frame command ``u`` (V) plus the dead-time compensation's voltage, if
+        any."""
+        if self.dead_time_compensation is None:
+            return u
+        return u + self.dead_time_compensation.voltage_ab(
+            i_dq_ref, park(sample.i_ab, estimate.theta_e), estimate.theta_e, omega_e, sample.u_dc, Ts, delayed
         )
-        current_state, u_ab, u_dq = self.current.step(
-            state.current, i_dq_ref, sample.i_ab, estimate.theta_e, omega_e, ctx
-        )
-        if self.dead_time_compensation is not None:
-            u_ab = u_ab + self.dead_time_compensation.voltage_ab(
-                i_dq_ref, park(sample.i_ab, estimate.theta_e), estimate.theta_e, omega_e, sample.u_dc, Ts,
-                delayed,
-            )  # fmt: skip
-        new_state = FOCState(speed_state, current_state, d_axis_state, u_dq, iq_ref, counter)
-        return new_state, ControlOutput(u_ab, u_dq, i_dq_ref)
 
 
 def cascade_references(controller, state: FOCState, estimate: Estimate, refs: References, ctx):

@@ -138,14 +138,7 @@ class HysteresisCurrentControl(AbstractDesignedSpeedCascade):
         smooth_width_a=0.05,
         speed_bandwidth=50.0,
     ):
-        super().__init__(
-            model,
-            current_limit,
-            speed,
-            mode=mode,
-            speed_divider=speed_divider,
-            speed_bandwidth=speed_bandwidth,
-        )
+        super().__init__(model, current_limit, speed, mode, speed_divider, speed_bandwidth)
         self.band_a = as_float(band_a)
         self.smooth_width_a = as_float(smooth_width_a)
         self.d_axis = d_axis

@@ -81,7 +81,7 @@ from pmsmjax.controllers.base import (
     AbstractCurrentController,
 )
 from pmsmjax.controllers.current_pi import angle_lead
-from pmsmjax.controllers.foc import AbstractFOC, FOCState, cascade_references
+from pmsmjax.controllers.foc import AbstractFOC
 from pmsmjax.controllers.pi import clip_magnitude
 from pmsmjax.controllers.pr import (
     DISCRETISATIONS,
@@ -100,7 +100,7 @@ from pmsmjax.frames.multiphase import (
 from pmsmjax.frames.three_phase import inverse_park, park
 from pmsmjax.machines.motor import as_float
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
-from pmsmjax.signals import ControlOutput, Estimate, References, Sample
+from pmsmjax.signals import Sample
 from pmsmjax.spec.validation import (
     ParameterError,
     check_choice,
@@ -194,19 +194,9 @@ class MultiPhaseFOC(AbstractFOC):
                 f"pmsmjax.presets.{word}_phase.{word}_phase_motor()."
             )
 
-    def step(
-        self, state: FOCState, sample: Sample, estimate: Estimate, refs: References, Ts, u_max, delayed
-    ) -> tuple[FOCState, ControlOutput]:
-        omega_e = self.model.pole_pairs * estimate.omega_m
-        ctx = self.context(state, Ts, u_max, delayed)
-        speed_state, d_axis_state, iq_ref, counter, i_dq_ref = cascade_references(
-            self, state, estimate, refs, ctx
-        )
-        current_state, u_vsd, u_dq = self.current.step(
-            state.current, i_dq_ref, sample.i_phase, estimate.theta_e, omega_e, ctx
-        )
-        new_state = FOCState(speed_state, current_state, d_axis_state, u_dq, iq_ref, counter)
-        return new_state, ControlOutput(u_vsd, u_dq, i_dq_ref)
+    def measured_currents(self, sample: Sample) -> Array:
+        """The ``(n,)`` sampled phase currents, A: the multi-phase current block splits them itself."""
+        return sample.i_phase
 
 
 # --- VSD: fundamental block + z1-z2 block -----------------------------------------------------------

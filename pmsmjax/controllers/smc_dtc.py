@@ -130,15 +130,7 @@ class SlidingModeDTC(AbstractTorqueCascade):
         speed_divider: int = 1,
         speed_bandwidth=50.0,
     ):
-        super().__init__(
-            model,
-            current_limit,
-            speed,
-            flux_ref_wb=flux_ref_wb,
-            mode=mode,
-            speed_divider=speed_divider,
-            speed_bandwidth=speed_bandwidth,
-        )
+        super().__init__(model, current_limit, speed, flux_ref_wb, mode, speed_divider, speed_bandwidth)
         self.torque_gain_v = as_float(torque_gain_v)
         self.torque_boundary_nm = as_float(torque_boundary_nm)
         self.flux_gain_v = as_float(flux_gain_v)

@@ -103,14 +103,7 @@ class AbstractDesignedSpeedCascade(AbstractSpeedCascade):
     speed_divider: int = eqx.field(static=True)
 
     def __init__(
-        self,
-        model: PMSMParameters,
-        current_limit,
-        speed: AbstractSpeedController | None = None,
-        *,
-        mode: str = "speed",
-        speed_divider: int = 1,
-        speed_bandwidth=50.0,
+        self, model: PMSMParameters, current_limit, speed, mode: str, speed_divider: int, speed_bandwidth
     ):
         self.model = model
         self.speed = speed_loop_active_damping(model, speed_bandwidth) if speed is None else speed
