@@ -167,8 +167,7 @@ def two_level_torque_comparator(error: Array, band: Array, previous: Array) -> A
 class AbstractTorqueCascade(AbstractDesignedSpeedCascade):
     """What the two DTCs share: the speed-loop fields, a stator flux reference ``flux_ref_wb`` (Wb; ``None``
     takes ``model.psi_f``) and ``mode`` ``"speed"`` or ``"torque"`` (module docstring; the speed block's
-    current becomes the torque reference through
-    [`speed_torque_reference`][pmsmjax.controllers.dtc.speed_torque_reference]).
+    current becomes the torque reference through ``speed_torque_reference``).
 
     Args:
         model: The controller's motor model (torque constant, default speed design and flux reference).
