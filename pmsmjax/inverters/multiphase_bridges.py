@@ -79,11 +79,8 @@ def vsd_voltage(phase_voltages: Array, layout: PhaseLayout = SIX_PHASE) -> Array
 
 class AbstractMultiPhaseBridge(AbstractBridge):
     """An n-leg bridge feeding the isolated stars of ``layout``: its ideal period-average voltages (what both
-    multi-phase bridges command) and the layout check.
-
-    Args:
-        u_dc: DC-link voltage, V.
-        layout: The winding (static).
+    multi-phase bridges command) and the layout check. A subclass holds the DC-link voltage ``u_dc`` (V)
+    and the winding ``layout`` (static).
     """
 
     layout: eqx.AbstractVar[PhaseLayout]

@@ -161,10 +161,8 @@ def _duties(t: Array, states: Array) -> Array:
 class AbstractSectorSVPWM(AbstractModulator):
     """SVPWM of an n-phase winding from per-sector tables: the sector is the alpha-beta bisector the reference
     projects most on, the dwell fractions the sector's inverse table times the reference, and the duties those
-    fractions spread over the sector's switching states (centre-aligned). A subclass gives the ``tables``.
-
-    Args:
-        layout: The winding (static).
+    fractions spread over the sector's switching states (centre-aligned). A subclass holds the winding
+    ``layout`` (static) and gives the ``tables``.
     """
 
     layout: eqx.AbstractVar[PhaseLayout]
