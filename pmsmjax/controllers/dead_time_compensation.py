@@ -23,7 +23,7 @@ import equinox as eqx
 from pmsmjax._types import Array
 from pmsmjax.frames.three_phase import abc_to_alpha_beta, dq_to_abc
 from pmsmjax.inverters.voltage_error import VoltageError
-from pmsmjax.spec.validation import ParameterError
+from pmsmjax.spec.validation import check_choice
 
 __all__ = ["DeadTimeCompensation"]
 
@@ -45,10 +45,7 @@ class DeadTimeCompensation(eqx.Module):
     current_source: CurrentSource = eqx.field(static=True, default="reference")
 
     def __check_init__(self):
-        if self.current_source not in ("reference", "measured"):
-            raise ParameterError(
-                f"current_source must be 'reference' or 'measured', got {self.current_source!r}."
-            )
+        check_choice("current_source", self.current_source, ("reference", "measured"))
 
     def voltage_ab(self, i_dq_ref, i_dq_measured, theta_e, omega_e, u_dc, Ts, delayed: bool) -> Array:
         """``(2,)`` stator-frame voltage, V, to add to the command: minus the predicted error.

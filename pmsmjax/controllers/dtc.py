@@ -82,22 +82,22 @@ bands of this one by search
 from typing import ClassVar, Literal
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.controllers.base import AbstractController, AbstractSpeedController
-from pmsmjax.controllers.design import speed_loop_active_damping
+from pmsmjax.controllers.base import AbstractSpeedController
 from pmsmjax.controllers.hysteresis import hysteresis_comparator
+from pmsmjax.controllers.speed_cascade import AbstractDesignedSpeedCascade
 from pmsmjax.frames.three_phase import abc_to_alpha_beta, park
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import CommandKind, ControlOutput, Estimate, References, Sample
-from pmsmjax.spec.validation import ParameterError, check_positive
+from pmsmjax.spec.validation import ParameterError, check_choice, check_positive
 
 DTCMode = Literal["speed", "torque"]
 
 __all__ = [
+    "AbstractTorqueCascade",
     "DTCMode",
     "DTCState",
     "SWITCHING_TABLE",
@@ -164,6 +164,36 @@ def two_level_torque_comparator(error: Array, band: Array, previous: Array) -> A
     return jnp.where(error > half, 1.0, jnp.where(error < -half, -1.0, previous))
 
 
+class AbstractTorqueCascade(AbstractDesignedSpeedCascade):
+    """What the two DTCs share: the speed-loop fields, a stator flux reference ``flux_ref_wb`` (Wb; ``None``
+    takes ``model.psi_f``) and ``mode`` ``"speed"`` or ``"torque"`` (module docstring; the speed block's
+    current becomes the torque reference through ``speed_torque_reference``).
+
+    Args:
+        model: The controller's motor model (torque constant, default speed design and flux reference).
+        current_limit: Peak phase-current limit, A.
+        speed: The speed block (its output a current, A), or ``None`` (the PI with active damping at
+            ``speed_bandwidth`` rad/s).
+        flux_ref_wb: Stator flux reference, Wb, or ``None``.
+        mode: ``"speed"`` or ``"torque"`` (static).
+        speed_divider: The speed loop runs every this many periods (static).
+        speed_bandwidth: rad/s, only to design the default speed block.
+    """
+
+    modes: ClassVar[tuple[str, ...]] = ("speed", "torque")
+
+    flux_ref_wb: Array
+
+    def __init__(
+        self, model: PMSMParameters, current_limit, speed, flux_ref_wb, mode, speed_divider, speed_bandwidth
+    ):
+        super().__init__(model, current_limit, speed, mode, speed_divider, speed_bandwidth)
+        self.flux_ref_wb = model.psi_f if flux_ref_wb is None else as_float(flux_ref_wb)
+
+    def __check_init__(self):
+        check_positive(f"{type(self).__name__}.flux_ref_wb (stator flux reference)", self.flux_ref_wb, "Wb")
+
+
 class DTCState(eqx.Module):
     speed: object  # the speed block's state
     torque_ref: Array  # N m, held between speed-loop updates
@@ -172,7 +202,7 @@ class DTCState(eqx.Module):
     tau: Array  # torque comparator state, -1, 0 or +1
 
 
-class SwitchingTableDTC(AbstractController):
+class SwitchingTableDTC(AbstractTorqueCascade):
     """Switching-table direct torque control under a speed loop (command: switch states; module docstring).
 
     **Arguments:**
@@ -195,16 +225,11 @@ class SwitchingTableDTC(AbstractController):
     """
 
     command_kind: ClassVar[CommandKind] = "switches"
+    divider_unit: ClassVar[str] = "comparator samples"
 
-    model: PMSMParameters
-    speed: AbstractSpeedController
     torque_band_nm: Array
     flux_band_wb: Array
-    current_limit: Array
-    flux_ref_wb: Array
     torque_levels: int = eqx.field(static=True)
-    mode: DTCMode = eqx.field(static=True)
-    speed_divider: int = eqx.field(static=True)
 
     def __init__(
         self,
@@ -220,33 +245,18 @@ class SwitchingTableDTC(AbstractController):
         speed_divider: int = 1,
         speed_bandwidth=50.0,
     ):
-        self.model = model
-        self.speed = speed_loop_active_damping(model, speed_bandwidth) if speed is None else speed
+        super().__init__(model, current_limit, speed, flux_ref_wb, mode, speed_divider, speed_bandwidth)
         self.torque_band_nm = as_float(torque_band_nm)
         self.flux_band_wb = as_float(flux_band_wb)
-        self.current_limit = as_float(current_limit)
-        self.flux_ref_wb = model.psi_f if flux_ref_wb is None else as_float(flux_ref_wb)
         self.torque_levels = torque_levels
-        self.mode = mode
-        self.speed_divider = speed_divider
 
     def __check_init__(self):
         check_positive("SwitchingTableDTC.torque_band_nm (full torque band)", self.torque_band_nm, "N m")
         check_positive("SwitchingTableDTC.flux_band_wb (full flux band)", self.flux_band_wb, "Wb")
-        check_positive("SwitchingTableDTC.current_limit", self.current_limit, "A")
-        check_positive("SwitchingTableDTC.flux_ref_wb (stator flux reference)", self.flux_ref_wb, "Wb")
-        if self.torque_levels not in (2, 3):
-            raise ParameterError(f"torque_levels must be 2 or 3, got {self.torque_levels!r}.")
-        if self.mode not in ("speed", "torque"):
-            raise ParameterError(f"mode must be 'speed' or 'torque', got {self.mode!r}.")
-        if not isinstance(self.speed_divider, int) or self.speed_divider < 1:
-            raise ParameterError(
-                f"speed_divider must be an int >= 1, got {self.speed_divider!r}: "
-                "give how many comparator samples make one speed-loop period."
-            )
+        check_choice("torque_levels", self.torque_levels, (2, 3))
 
     def init(self, dtype=None) -> DTCState:
-        dtype = self.current_limit.dtype if dtype is None else dtype
+        dtype = self.state_dtype(dtype)
         zero = jnp.zeros((), dtype)
         # phi = 1, tau = 0 at rest: the zero vector until an error leaves a band.
         return DTCState(self.speed.init(dtype), zero, jnp.zeros((), jnp.int32), zero + 1.0, zero)
@@ -319,26 +329,21 @@ def torque_current_limit(model: PMSMParameters, flux_ref_wb: Array, current_limi
     return jnp.where(ok, torque_max / m.torque_constant, 0.0)
 
 
-def speed_torque_reference(controller, state, estimate: Estimate, refs: References, Ts):
+def speed_torque_reference(
+    controller: AbstractTorqueCascade, state, estimate: Estimate, refs: References, Ts
+):
     """``(T* N m, speed state, counter)``: the speed block's current scaled by ``K_t``, every
     ``speed_divider`` samples (held in between), or ``K_t i_q*`` of the scenario in torque mode; limited
     to ``K_t`` times [`torque_current_limit`][pmsmjax.controllers.dtc.torque_current_limit], the current
     circle at the flux reference."""
     k_t = controller.model.torque_constant
     i_max = torque_current_limit(controller.model, controller.flux_ref_wb, controller.current_limit)
-    speed_state, counter = state.speed, state.counter
     if controller.mode == "speed":
-        new_speed_state, iq = controller.speed.step(
-            state.speed, refs.speed_ref, estimate.omega_m, i_max, Ts * controller.speed_divider
+        speed_state, torque_ref, counter = controller.held_speed_step(
+            state, state.torque_ref, refs.speed_ref, estimate.omega_m, i_max, Ts, gain=k_t
         )
-        new_torque = k_t * iq
-        if controller.speed_divider == 1:
-            return new_torque, new_speed_state, counter
-        update = state.counter == 0
-        speed_state = jax.tree.map(lambda a, b: jnp.where(update, a, b), new_speed_state, state.speed)
-        torque_ref = jnp.where(update, new_torque, state.torque_ref)
-        return torque_ref, speed_state, (state.counter + 1) % controller.speed_divider
-    return k_t * jnp.clip(refs.iq_ref, -i_max, i_max), speed_state, counter
+        return torque_ref, speed_state, counter
+    return k_t * jnp.clip(refs.iq_ref, -i_max, i_max), state.speed, state.counter
 
 
 def implied_current_reference(controller, torque_ref: Array) -> Array:

@@ -19,22 +19,20 @@ Sampled-data, once per control period ``Ts``, on the estimator's angle and speed
 from typing import Literal
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
 from pmsmjax.controllers.base import (
-    AbstractController,
     AbstractCurrentController,
     AbstractDAxisReference,
     AbstractSpeedController,
     CurrentLoopContext,
 )
 from pmsmjax.controllers.dead_time_compensation import DeadTimeCompensation
+from pmsmjax.controllers.speed_cascade import AbstractSpeedCascade
 from pmsmjax.frames.three_phase import park
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import ControlOutput, Estimate, References, Sample
-from pmsmjax.spec.validation import ParameterError, check_positive
 
 ControlMode = Literal["speed", "current"]
 
@@ -48,7 +46,73 @@ class FOCState(eqx.Module):
     counter: Array  # int32, periods since the last speed-loop update
 
 
-class FOC(AbstractController):
+class AbstractFOC(AbstractSpeedCascade):
+    """The fields, state and current-loop context of a cascaded FOC, three-phase
+    ([`FOC`][pmsmjax.controllers.foc.FOC]) or multi-phase
+    ([`MultiPhaseFOC`][pmsmjax.controllers.multiphase.MultiPhaseFOC]); the arguments are
+    [`FOC`][pmsmjax.controllers.foc.FOC]'s but ``dead_time_compensation``. A subclass gives the ``current``
+    block's type; ``step`` runs the cascade (d-axis reference, speed loop, current loop) on the currents
+    of ``measured_currents``, and ``corrected_command`` may add to the current loop's command.
+    """
+
+    model: PMSMParameters
+    speed: AbstractSpeedController
+    current: eqx.Module  # the current block; a subclass names its type
+    current_limit: Array = eqx.field(converter=as_float)
+    d_axis: AbstractDAxisReference | None = None
+    mode: ControlMode = eqx.field(static=True, default="speed")
+    speed_divider: int = eqx.field(static=True, default=1)
+    decoupling: bool = eqx.field(static=True, default=True)
+    delay_compensation: bool = eqx.field(static=True, default=True)
+
+    def init(self, dtype=None) -> FOCState:
+        dtype = self.state_dtype(dtype)
+        d_axis = None if self.d_axis is None else self.d_axis.init(dtype)
+        return FOCState(
+            self.speed.init(dtype),
+            self.current.init(dtype),
+            d_axis,
+            jnp.zeros(2, dtype),
+            jnp.zeros((), dtype),
+            jnp.zeros((), jnp.int32),
+        )
+
+    def context(self, state: FOCState, Ts, u_max, delayed) -> CurrentLoopContext:
+        """The current loop's [`CurrentLoopContext`][pmsmjax.controllers.base.CurrentLoopContext] for this
+        period."""
+        return CurrentLoopContext(
+            self.model, Ts, u_max, delayed, state.u_dq_prev, self.decoupling, self.delay_compensation
+        )
+
+    def measured_currents(self, sample: Sample) -> Array:
+        """The measured currents the ``current`` block takes: the stator-frame ``sample.i_ab`` (2,) A here;
+        the multi-phase cascade's block takes the ``(n,)`` phase currents."""
+        return sample.i_ab
+
+    def corrected_command(
+        self, u, i_dq_ref, sample: Sample, estimate: Estimate, omega_e, Ts, delayed
+    ) -> Array:
+        """The current block's command ``u`` (V) as applied: here unchanged (FOC adds its dead-time
+        compensation)."""
+        return u
+
+    def step(
+        self, state: FOCState, sample: Sample, estimate: Estimate, refs: References, Ts, u_max, delayed
+    ) -> tuple[FOCState, ControlOutput]:
+        omega_e = self.model.pole_pairs * estimate.omega_m
+        ctx = self.context(state, Ts, u_max, delayed)
+        speed_state, d_axis_state, iq_ref, counter, i_dq_ref = cascade_references(
+            self, state, estimate, refs, ctx
+        )
+        current_state, u, u_dq = self.current.step(
+            state.current, i_dq_ref, self.measured_currents(sample), estimate.theta_e, omega_e, ctx
+        )
+        u = self.corrected_command(u, i_dq_ref, sample, estimate, omega_e, Ts, delayed)
+        new_state = FOCState(speed_state, current_state, d_axis_state, u_dq, iq_ref, counter)
+        return new_state, ControlOutput(u, u_dq, i_dq_ref)
+
+
+class FOC(AbstractFOC):
     """Cascaded field-oriented controller (i_d = 0 by default).
 
     **Arguments:**
@@ -72,72 +136,27 @@ class FOC(AbstractController):
       machine should see); ``None`` (default, as in the book): none.
     """
 
-    model: PMSMParameters
-    speed: AbstractSpeedController
     current: AbstractCurrentController
-    current_limit: Array = eqx.field(converter=as_float)
-    d_axis: AbstractDAxisReference | None = None
-    mode: ControlMode = eqx.field(static=True, default="speed")
-    speed_divider: int = eqx.field(static=True, default=1)
-    decoupling: bool = eqx.field(static=True, default=True)
-    delay_compensation: bool = eqx.field(static=True, default=True)
     dead_time_compensation: DeadTimeCompensation | None = None
 
-    def __check_init__(self):
-        check_positive("current_limit", self.current_limit, "A")
-        if self.mode not in ("speed", "current"):
-            raise ParameterError(f"mode must be 'speed' or 'current', got {self.mode!r}.")
-        if not isinstance(self.speed_divider, int) or self.speed_divider < 1:
-            raise ParameterError(
-                f"speed_divider must be an int >= 1, got {self.speed_divider!r}: "
-                "give how many control periods make one speed-loop period."
-            )
-
-    def init(self, dtype=None) -> FOCState:
-        dtype = self.current_limit.dtype if dtype is None else dtype
-        zero = jnp.zeros((), dtype)
-        d_axis = None if self.d_axis is None else self.d_axis.init(dtype)
-        return FOCState(
-            self.speed.init(dtype),
-            self.current.init(dtype),
-            d_axis,
-            jnp.zeros(2, dtype),
-            zero,
-            jnp.zeros((), jnp.int32),
-        )
-
-    def step(
-        self, state: FOCState, sample: Sample, estimate: Estimate, refs: References, Ts, u_max, delayed
-    ) -> tuple[FOCState, ControlOutput]:
-        omega_e = self.model.pole_pairs * estimate.omega_m
-        ctx = self.context(state, Ts, u_max, delayed)
-        speed_state, d_axis_state, iq_ref, counter, i_dq_ref = cascade_references(
-            self, state, estimate, refs, ctx
-        )
-        current_state, u_ab, u_dq = self.current.step(
-            state.current, i_dq_ref, sample.i_ab, estimate.theta_e, omega_e, ctx
-        )
-        if self.dead_time_compensation is not None:
-            u_ab = u_ab + self.dead_time_compensation.voltage_ab(
-                i_dq_ref, park(sample.i_ab, estimate.theta_e), estimate.theta_e, omega_e, sample.u_dc, Ts,
-                delayed,
-            )  # fmt: skip
-        new_state = FOCState(speed_state, current_state, d_axis_state, u_dq, iq_ref, counter)
-        return new_state, ControlOutput(u_ab, u_dq, i_dq_ref)
-
-    def context(self, state: FOCState, Ts, u_max, delayed) -> CurrentLoopContext:
-        """The current loop's [`CurrentLoopContext`][pmsmjax.controllers.base.CurrentLoopContext] for this
-        period."""
-        return CurrentLoopContext(
-            self.model, Ts, u_max, delayed, state.u_dq_prev, self.decoupling, self.delay_compensation
+    def corrected_command(
+        self, u, i_dq_ref, sample: Sample, estimate: Estimate, omega_e, Ts, delayed
+    ) -> Array:
+        """The current loop's stator-frame command ``u`` (V) plus the dead-time compensation's voltage, if
+        any."""
+        if self.dead_time_compensation is None:
+            return u
+        return u + self.dead_time_compensation.voltage_ab(
+            i_dq_ref, park(sample.i_ab, estimate.theta_e), estimate.theta_e, omega_e, sample.u_dc, Ts, delayed
         )
 
 
 def cascade_references(controller, state: FOCState, estimate: Estimate, refs: References, ctx):
     """Steps 1-2 of the cascade (d-axis reference, speed loop) of ``controller`` (a
-    [`FOC`][pmsmjax.controllers.foc.FOC], or a controller with the same ``model``, ``speed``, ``d_axis``,
-    ``current_limit``, ``mode`` and ``speed_divider`` fields and a state with `FOCState`'s ``speed``,
-    ``d_axis``, ``iq_ref`` and ``counter``, such as the multi-phase
+    [`FOC`][pmsmjax.controllers.foc.FOC], or an
+    [`AbstractSpeedCascade`][pmsmjax.controllers.speed_cascade.AbstractSpeedCascade] with a ``model`` and a
+    ``d_axis`` and a state with `FOCState`'s ``speed``, ``d_axis``, ``iq_ref`` and ``counter``, such as the
+    multi-phase
     [`pmsmjax.controllers.multiphase.MultiPhaseFOC`][pmsmjax.controllers.multiphase.MultiPhaseFOC] and
     [`pmsmjax.controllers.hysteresis.HysteresisCurrentControl`][pmsmjax.controllers.hysteresis.HysteresisCurrentControl]).
 
@@ -157,19 +176,12 @@ def cascade_references(controller, state: FOCState, estimate: Estimate, refs: Re
     iq_max_sq = c.current_limit**2 - id_ref**2
     iq_max = jnp.sqrt(jnp.where(iq_max_sq > 0, iq_max_sq, 1.0)) * (iq_max_sq > 0)
 
-    speed_state, counter = state.speed, state.counter
     if c.mode == "speed":
-        new_speed_state, new_iq = c.speed.step(
-            state.speed, refs.speed_ref, estimate.omega_m, iq_max, Ts * c.speed_divider
+        speed_state, iq_ref, counter = c.held_speed_step(
+            state, state.iq_ref, refs.speed_ref, estimate.omega_m, iq_max, Ts
         )
-        if c.speed_divider == 1:
-            speed_state, iq_ref = new_speed_state, new_iq
-        else:
-            update = state.counter == 0
-            speed_state = jax.tree.map(lambda a, b: jnp.where(update, a, b), new_speed_state, state.speed)
-            iq_ref = jnp.where(update, new_iq, state.iq_ref)
-            counter = (state.counter + 1) % c.speed_divider
     else:
+        speed_state, counter = state.speed, state.counter
         iq_ref = jnp.clip(refs.iq_ref, -iq_max, iq_max)
     i_dq_ref = jnp.stack([id_ref, iq_ref])
     if estimate.startup_weight is not None:

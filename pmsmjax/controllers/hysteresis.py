@@ -51,17 +51,16 @@ import jax.numpy as jnp
 
 from pmsmjax._types import Array
 from pmsmjax.controllers.base import (
-    AbstractController,
     AbstractDAxisReference,
     AbstractSpeedController,
     CurrentLoopContext,
 )
-from pmsmjax.controllers.design import speed_loop_active_damping
 from pmsmjax.controllers.foc import ControlMode, cascade_references
+from pmsmjax.controllers.speed_cascade import AbstractDesignedSpeedCascade
 from pmsmjax.frames.three_phase import abc_to_alpha_beta, dq_to_abc, park
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import CommandKind, ControlOutput, Estimate, References, Sample
-from pmsmjax.spec.validation import ParameterError, check_positive
+from pmsmjax.spec.validation import ParameterError, check_choice, check_positive
 
 ComparatorKind = Literal["exact", "smooth"]
 
@@ -97,7 +96,7 @@ class HysteresisState(eqx.Module):
     counter: Array  # int32, samples since the last speed-loop update
 
 
-class HysteresisCurrentControl(AbstractController):
+class HysteresisCurrentControl(AbstractDesignedSpeedCascade):
     """Hysteresis current control of the phase currents under a speed loop (command: switch states).
 
     **Arguments:**
@@ -118,15 +117,11 @@ class HysteresisCurrentControl(AbstractController):
     """
 
     command_kind: ClassVar[CommandKind] = "switches"
+    divider_unit: ClassVar[str] = "comparator samples"
 
-    model: PMSMParameters
-    speed: AbstractSpeedController
     band_a: Array
-    current_limit: Array
     smooth_width_a: Array
     d_axis: AbstractDAxisReference | None
-    mode: ControlMode = eqx.field(static=True)
-    speed_divider: int = eqx.field(static=True)
     comparator: ComparatorKind = eqx.field(static=True)
 
     def __init__(
@@ -143,32 +138,19 @@ class HysteresisCurrentControl(AbstractController):
         smooth_width_a=0.05,
         speed_bandwidth=50.0,
     ):
-        self.model = model
-        self.speed = speed_loop_active_damping(model, speed_bandwidth) if speed is None else speed
+        super().__init__(model, current_limit, speed, mode, speed_divider, speed_bandwidth)
         self.band_a = as_float(band_a)
-        self.current_limit = as_float(current_limit)
         self.smooth_width_a = as_float(smooth_width_a)
         self.d_axis = d_axis
-        self.mode = mode
-        self.speed_divider = speed_divider
         self.comparator = comparator
 
     def __check_init__(self):
         check_positive("band_a (hysteresis band, full width)", self.band_a, "A")
-        check_positive("current_limit", self.current_limit, "A")
         check_positive("smooth_width_a (sigmoid comparator width)", self.smooth_width_a, "A")
-        if self.mode not in ("speed", "current"):
-            raise ParameterError(f"mode must be 'speed' or 'current', got {self.mode!r}.")
-        if self.comparator not in ("exact", "smooth"):
-            raise ParameterError(f"comparator must be 'exact' or 'smooth', got {self.comparator!r}.")
-        if not isinstance(self.speed_divider, int) or self.speed_divider < 1:
-            raise ParameterError(
-                f"speed_divider must be an int >= 1, got {self.speed_divider!r}: "
-                "give how many comparator samples make one speed-loop period."
-            )
+        check_choice("comparator", self.comparator, ("exact", "smooth"))
 
     def init(self, dtype=None) -> HysteresisState:
-        dtype = self.current_limit.dtype if dtype is None else dtype
+        dtype = self.state_dtype(dtype)
         d_axis = None if self.d_axis is None else self.d_axis.init(dtype)
         # All legs low: the zero vector, so a drive at rest with zero references applies no voltage.
         return HysteresisState(

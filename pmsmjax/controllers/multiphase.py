@@ -71,21 +71,17 @@ voltages suffice, the subspace's impedance being only ``R + j w L_ls``).
 """
 
 import abc
-from typing import ClassVar, Literal
+from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
 from pmsmjax.controllers.base import (
-    AbstractController,
     AbstractCurrentController,
-    AbstractDAxisReference,
-    AbstractSpeedController,
-    CurrentLoopContext,
 )
 from pmsmjax.controllers.current_pi import angle_lead
-from pmsmjax.controllers.foc import FOCState, cascade_references
+from pmsmjax.controllers.foc import AbstractFOC
 from pmsmjax.controllers.pi import clip_magnitude
 from pmsmjax.controllers.pr import (
     DISCRETISATIONS,
@@ -105,8 +101,13 @@ from pmsmjax.frames.three_phase import inverse_park, park
 from pmsmjax.machines.motor import as_float
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
 from pmsmjax.machines.pmsm6 import double_dq_current_rate, double_dq_flux
-from pmsmjax.signals import ControlOutput, Estimate, References, Sample
-from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive
+from pmsmjax.signals import Sample
+from pmsmjax.spec.validation import (
+    ParameterError,
+    check_choice,
+    check_nonnegative,
+    check_positive,
+)
 
 __all__ = [
     "AbstractMultiPhaseCurrentController",
@@ -175,24 +176,16 @@ class AbstractMultiPhaseCurrentController(eqx.Module):
 
 
 # --- the controller ---------------------------------------------------------------------------------
-class MultiPhaseFOC(AbstractController):
+class MultiPhaseFOC(AbstractFOC):
     """Cascaded FOC of the six- and five-phase machines (module docstring). The arguments are those of
     [`FOC`][pmsmjax.controllers.foc.FOC], with `current` a multi-phase current block and `model` the
     [`MultiPhaseParameters`][pmsmjax.machines.multiphase_motor.MultiPhaseParameters] of the block's phase
     count. Command: ``(4,)`` [u_alpha, u_beta, u_z1, u_z2] (five phases: [u_alpha, u_beta, u_x, u_y]), V."""
 
     model: MultiPhaseParameters
-    speed: AbstractSpeedController
     current: AbstractMultiPhaseCurrentController
-    current_limit: Array = eqx.field(converter=as_float)
-    d_axis: AbstractDAxisReference | None = None
-    mode: Literal["speed", "current"] = eqx.field(static=True, default="speed")
-    speed_divider: int = eqx.field(static=True, default=1)
-    decoupling: bool = eqx.field(static=True, default=True)
-    delay_compensation: bool = eqx.field(static=True, default=True)
 
     def __check_init__(self):
-        check_positive("current_limit", self.current_limit, "A")
         layout = self.current.layout
         if self.model.n_phases != layout.n:
             word = {5: "five", 6: "six"}.get(layout.n, f"{layout.n}")
@@ -201,38 +194,10 @@ class MultiPhaseFOC(AbstractController):
                 f"(MultiPhaseParameters with n_phases = {layout.n}), got {type(self.model).__name__}: use "
                 f"pmsmjax.presets.{word}_phase.{word}_phase_motor()."
             )
-        if self.mode not in ("speed", "current"):
-            raise ParameterError(f"mode must be 'speed' or 'current', got {self.mode!r}.")
-        if not isinstance(self.speed_divider, int) or self.speed_divider < 1:
-            raise ParameterError(f"speed_divider must be an int >= 1, got {self.speed_divider!r}.")
 
-    def init(self, dtype=None) -> FOCState:
-        dtype = self.current_limit.dtype if dtype is None else dtype
-        d_axis = None if self.d_axis is None else self.d_axis.init(dtype)
-        return FOCState(
-            self.speed.init(dtype),
-            self.current.init(dtype),
-            d_axis,
-            jnp.zeros(2, dtype),
-            jnp.zeros((), dtype),
-            jnp.zeros((), jnp.int32),
-        )
-
-    def step(
-        self, state: FOCState, sample: Sample, estimate: Estimate, refs: References, Ts, u_max, delayed
-    ) -> tuple[FOCState, ControlOutput]:
-        omega_e = self.model.pole_pairs * estimate.omega_m
-        ctx = CurrentLoopContext(
-            self.model, Ts, u_max, delayed, state.u_dq_prev, self.decoupling, self.delay_compensation
-        )
-        speed_state, d_axis_state, iq_ref, counter, i_dq_ref = cascade_references(
-            self, state, estimate, refs, ctx
-        )
-        current_state, u_vsd, u_dq = self.current.step(
-            state.current, i_dq_ref, sample.i_phase, estimate.theta_e, omega_e, ctx
-        )
-        new_state = FOCState(speed_state, current_state, d_axis_state, u_dq, iq_ref, counter)
-        return new_state, ControlOutput(u_vsd, u_dq, i_dq_ref)
+    def measured_currents(self, sample: Sample) -> Array:
+        """The ``(n,)`` sampled phase currents, A: the multi-phase current block splits them itself."""
+        return sample.i_phase
 
 
 # --- VSD: fundamental block + z1-z2 block -----------------------------------------------------------
@@ -354,11 +319,7 @@ class ZProportionalResonant(AbstractZCurrentController):
         check_positive("ZProportionalResonant.kp", self.kp, "V/A")
         check_nonnegative("ZProportionalResonant.kr", self.kr, "V/A")
         check_positive("ZProportionalResonant.w_c", self.w_c, "rad/s")
-        if self.discretisation not in DISCRETISATIONS:
-            raise ParameterError(
-                f"ZProportionalResonant.discretisation must be one of {DISCRETISATIONS}, "
-                f"got {self.discretisation!r}."
-            )
+        check_choice("ZProportionalResonant.discretisation", self.discretisation, DISCRETISATIONS)
 
     def init(self, dtype):
         return jnp.zeros((2, 2), dtype)

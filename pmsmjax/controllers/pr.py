@@ -97,7 +97,7 @@ from pmsmjax.controllers.current_pi import angle_lead
 from pmsmjax.controllers.pi import clip_magnitude
 from pmsmjax.frames.three_phase import inverse_park, park
 from pmsmjax.machines.motor import PMSMParameters, as_float
-from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive
+from pmsmjax.spec.validation import ParameterError, check_choice, check_nonnegative, check_positive
 
 Discretisation = Literal["tustin-prewarp", "sogi"]
 DISCRETISATIONS = ("tustin-prewarp", "sogi")
@@ -212,11 +212,7 @@ class ProportionalResonant(AbstractCurrentController):
             "give the resonator damping in rad/s (a few rad/s; 0 is the ideal resonator, which this form "
             "cannot express because its resonant gain is 2 Kr w_c)",
         )
-        if self.discretisation not in DISCRETISATIONS:
-            raise ParameterError(
-                f"ProportionalResonant.discretisation must be one of {DISCRETISATIONS}, "
-                f"got {self.discretisation!r}."
-            )
+        check_choice("ProportionalResonant.discretisation", self.discretisation, DISCRETISATIONS)
 
     def lead_time(self, Ts: float, delayed: bool) -> float:
         """Time (s) from the sample to the middle of the period the command acts in."""

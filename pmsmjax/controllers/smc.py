@@ -63,7 +63,13 @@ import jax.numpy as jnp
 from pmsmjax._types import Array
 from pmsmjax.controllers.base import AbstractSpeedController
 from pmsmjax.machines.motor import PMSMParameters, as_float
-from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive, is_concrete
+from pmsmjax.spec.validation import (
+    ParameterError,
+    check_choice,
+    check_nonnegative,
+    check_positive,
+    is_concrete,
+)
 
 Switching = Literal["sign", "saturation", "tanh"]
 SWITCHING = ("sign", "saturation", "tanh")
@@ -73,13 +79,12 @@ __all__ = ["SlidingModeSpeed", "SlidingModeState", "Switching", "smc_design", "s
 
 def switching_function(s: Array, boundary: Array, kind: Switching) -> Array:
     """``sgn(s)``, ``clip(s/boundary, -1, 1)`` or ``tanh(s/boundary)`` (``boundary > 0``, units of s)."""
+    check_choice("switching", kind, SWITCHING)
     if kind == "sign":
         return jnp.sign(s)
     if kind == "saturation":
         return jnp.clip(s / boundary, -1.0, 1.0)
-    if kind == "tanh":
-        return jnp.tanh(s / boundary)
-    raise ParameterError(f"switching must be one of {SWITCHING}, got {kind!r}.")
+    return jnp.tanh(s / boundary)
 
 
 class SlidingModeState(eqx.Module):
@@ -111,10 +116,7 @@ class SlidingModeSpeed(AbstractSpeedController):
     switching: Switching = eqx.field(static=True, default="sign")
 
     def __check_init__(self):
-        if self.switching not in SWITCHING:
-            raise ParameterError(
-                f"SlidingModeSpeed.switching must be one of {SWITCHING}, got {self.switching!r}."
-            )
+        check_choice("SlidingModeSpeed.switching", self.switching, SWITCHING)
         check_positive("SlidingModeSpeed.c (surface slope)", self.c, "1/s")
         check_nonnegative("SlidingModeSpeed.eps (constant reaching rate)", self.eps, "rad/s^3")
         check_nonnegative("SlidingModeSpeed.q (exponential reaching rate)", self.q, "1/s")

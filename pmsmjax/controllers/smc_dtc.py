@@ -57,10 +57,10 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
-from pmsmjax.controllers.base import AbstractController, AbstractSpeedController
+from pmsmjax.controllers.base import AbstractSpeedController
 from pmsmjax.controllers.current_pi import angle_lead
-from pmsmjax.controllers.design import speed_loop_active_damping
 from pmsmjax.controllers.dtc import (
+    AbstractTorqueCascade,
     DTCMode,
     check_flux_estimate,
     flux_magnitude,
@@ -72,7 +72,7 @@ from pmsmjax.controllers.smc import SWITCHING, Switching, switching_function
 from pmsmjax.frames.three_phase import park, rotation
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import CommandKind, ControlOutput, Estimate, References, Sample
-from pmsmjax.spec.validation import ParameterError, check_positive, is_concrete
+from pmsmjax.spec.validation import ParameterError, check_choice, check_positive, is_concrete
 
 __all__ = ["SlidingModeDTC", "SlidingModeDTCState", "smc_dtc_design"]
 
@@ -83,7 +83,7 @@ class SlidingModeDTCState(eqx.Module):
     counter: Array  # int32, periods since the last speed-loop update
 
 
-class SlidingModeDTC(AbstractController):
+class SlidingModeDTC(AbstractTorqueCascade):
     """Sliding-mode DTC: flux-frame voltage from sliding-mode laws on the flux and torque errors, for SVPWM.
 
     **Arguments:**
@@ -108,17 +108,11 @@ class SlidingModeDTC(AbstractController):
 
     command_kind: ClassVar[CommandKind] = "voltage"
 
-    model: PMSMParameters
-    speed: AbstractSpeedController
     torque_gain_v: Array
     torque_boundary_nm: Array
     flux_gain_v: Array
     flux_boundary_wb: Array
-    current_limit: Array
-    flux_ref_wb: Array
     switching: Switching = eqx.field(static=True)
-    mode: DTCMode = eqx.field(static=True)
-    speed_divider: int = eqx.field(static=True)
 
     def __init__(
         self,
@@ -136,39 +130,25 @@ class SlidingModeDTC(AbstractController):
         speed_divider: int = 1,
         speed_bandwidth=50.0,
     ):
-        self.model = model
-        self.speed = speed_loop_active_damping(model, speed_bandwidth) if speed is None else speed
+        super().__init__(model, current_limit, speed, flux_ref_wb, mode, speed_divider, speed_bandwidth)
         self.torque_gain_v = as_float(torque_gain_v)
         self.torque_boundary_nm = as_float(torque_boundary_nm)
         self.flux_gain_v = as_float(flux_gain_v)
         self.flux_boundary_wb = as_float(flux_boundary_wb)
-        self.current_limit = as_float(current_limit)
-        self.flux_ref_wb = model.psi_f if flux_ref_wb is None else as_float(flux_ref_wb)
         self.switching = switching
-        self.mode = mode
-        self.speed_divider = speed_divider
 
     def __check_init__(self):
-        if self.switching not in SWITCHING:
-            raise ParameterError(
-                f"SlidingModeDTC.switching must be one of {SWITCHING}, got {self.switching!r}."
-            )
+        check_choice("SlidingModeDTC.switching", self.switching, SWITCHING)
         for name, value, unit in (
             ("torque_gain_v (torque switching gain K_T)", self.torque_gain_v, "V"),
             ("torque_boundary_nm (torque boundary layer)", self.torque_boundary_nm, "N m"),
             ("flux_gain_v (flux switching gain K_psi)", self.flux_gain_v, "V"),
             ("flux_boundary_wb (flux boundary layer)", self.flux_boundary_wb, "Wb"),
-            ("current_limit", self.current_limit, "A"),
-            ("flux_ref_wb (stator flux reference)", self.flux_ref_wb, "Wb"),
         ):
             check_positive(f"SlidingModeDTC.{name}", value, unit)
-        if self.mode not in ("speed", "torque"):
-            raise ParameterError(f"mode must be 'speed' or 'torque', got {self.mode!r}.")
-        if not isinstance(self.speed_divider, int) or self.speed_divider < 1:
-            raise ParameterError(f"speed_divider must be an int >= 1, got {self.speed_divider!r}.")
 
     def init(self, dtype=None) -> SlidingModeDTCState:
-        dtype = self.current_limit.dtype if dtype is None else dtype
+        dtype = self.state_dtype(dtype)
         return SlidingModeDTCState(self.speed.init(dtype), jnp.zeros((), dtype), jnp.zeros((), jnp.int32))
 
     def step(

@@ -28,7 +28,7 @@ import jax.numpy as jnp
 from pmsmjax._types import Array
 from pmsmjax.controllers.base import AbstractSpeedController
 from pmsmjax.controllers.pi import clip_symmetric, pi_update, realisable_reference_tracking
-from pmsmjax.spec.validation import ParameterError
+from pmsmjax.spec.validation import check_choice
 
 AntiWindup = Literal["realisable_reference", "reset"]
 
@@ -47,10 +47,7 @@ class SpeedLoopGains(AbstractSpeedController):
     anti_windup: AntiWindup = eqx.field(static=True, default="realisable_reference")
 
     def __check_init__(self):
-        if self.anti_windup not in ("realisable_reference", "reset"):
-            raise ParameterError(
-                f"anti_windup must be 'realisable_reference' or 'reset', got {self.anti_windup!r}."
-            )
+        check_choice("anti_windup", self.anti_windup, ("realisable_reference", "reset"))
 
     def init(self, dtype):
         return jnp.zeros((), dtype)

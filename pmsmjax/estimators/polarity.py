@@ -46,7 +46,7 @@ from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.frames.three_phase import park, wrap_angle
 from pmsmjax.machines.motor import as_float
 from pmsmjax.signals import Estimate, Sample
-from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive
+from pmsmjax.spec.validation import check_choice, check_nonnegative, check_positive
 
 Decision = Literal["exact", "sigmoid"]
 
@@ -94,8 +94,7 @@ class PolarityDetector(AbstractEstimator):
         check_nonnegative("PolarityDetector.rest_time", self.rest_time, "s")
         check_positive("PolarityDetector.release_time", self.release_time, "s")
         check_positive("PolarityDetector.decision_scale", self.decision_scale, "H")
-        if self.decision not in ("exact", "sigmoid"):
-            raise ParameterError(f"decision must be 'exact' or 'sigmoid', got {self.decision!r}.")
+        check_choice("decision", self.decision, ("exact", "sigmoid"))
 
     @property
     def injects_voltage(self) -> bool:  # the wrapped estimator's carrier passes through

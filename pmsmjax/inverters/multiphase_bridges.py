@@ -20,8 +20,6 @@ stationary VSD voltage of those phase voltages, ``(2 n_planes,)`` = [alpha, beta
 ideal period average, the interface every controller reads.
 """
 
-from typing import ClassVar
-
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -30,13 +28,14 @@ import numpy as np
 from pmsmjax._types import Array
 from pmsmjax.frames.multiphase import SIX_PHASE, PhaseLayout, vsd_matrix
 from pmsmjax.inverters.base import AbstractBridge
-from pmsmjax.inverters.switching import CurrentSign, pwm_segments
+from pmsmjax.inverters.switching import AbstractSegmentBridge, CurrentSign
 from pmsmjax.machines.base import MachineInput
 from pmsmjax.machines.integrate import advance
 from pmsmjax.machines.motor import as_float
-from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive, is_concrete
+from pmsmjax.spec.validation import check_positive
 
 __all__ = [
+    "AbstractMultiPhaseBridge",
     "MultiPhaseAveragedBridge",
     "MultiPhaseSwitchingBridge",
     "star_phase_voltages",
@@ -78,7 +77,49 @@ def vsd_voltage(phase_voltages: Array, layout: PhaseLayout = SIX_PHASE) -> Array
     return phase_voltages @ jnp.asarray(T.T, phase_voltages.dtype)
 
 
-class MultiPhaseAveragedBridge(AbstractBridge):
+class AbstractMultiPhaseBridge(AbstractBridge):
+    """An n-leg bridge feeding the isolated stars of ``layout``: its ideal period-average voltages (what both
+    multi-phase bridges command) and the layout check. A subclass holds the DC-link voltage ``u_dc`` (V)
+    and the winding ``layout`` (static).
+    """
+
+    layout: eqx.AbstractVar[PhaseLayout]
+
+    def __check_init__(self):
+        self.layout.check()
+
+    @property
+    def n_phases(self) -> int:  # type: ignore[override]
+        """Number of legs, one per phase of ``layout``."""
+        return self.layout.n
+
+    def phase_voltages(self, duties: Array) -> Array:
+        """Ideal period-average phase-to-neutral voltages.
+
+        Args:
+            duties: ``(..., n)`` leg duties.
+
+        Returns:
+            ``(..., n)`` voltages, V.
+        """
+        return star_phase_voltages(self.u_dc * duties, self.layout)
+
+    def vsd_voltage(self, duties: Array) -> Array:
+        """Ideal period-average stationary VSD voltage.
+
+        Args:
+            duties: ``(..., n)`` leg duties.
+
+        Returns:
+            ``(..., 2 n_planes)`` voltage, V.
+        """
+        return vsd_voltage(self.phase_voltages(duties), self.layout)
+
+    def commanded_voltage(self, duties):
+        return self.vsd_voltage(duties)[..., :2]
+
+
+class MultiPhaseAveragedBridge(AbstractMultiPhaseBridge):
     """Ideal averaged n-leg inverter.
 
     Args:
@@ -95,43 +136,13 @@ class MultiPhaseAveragedBridge(AbstractBridge):
 
     def __check_init__(self):
         check_positive("u_dc (DC-link voltage)", self.u_dc, "V")
-        self.layout.check()
-
-    @property
-    def n_phases(self) -> int:
-        return self.layout.n
-
-    def phase_voltages(self, duties: Array) -> Array:
-        """Period-average phase-to-neutral voltages.
-
-        Args:
-            duties: ``(..., n)`` leg duties.
-
-        Returns:
-            ``(..., n)`` voltages, V.
-        """
-        return star_phase_voltages(self.u_dc * duties, self.layout)
-
-    def vsd_voltage(self, duties: Array) -> Array:
-        """Period-average stationary VSD voltage.
-
-        Args:
-            duties: ``(..., n)`` leg duties.
-
-        Returns:
-            ``(..., 2 n_planes)`` voltage, V.
-        """
-        return vsd_voltage(self.phase_voltages(duties), self.layout)
-
-    def commanded_voltage(self, duties):
-        return self.vsd_voltage(duties)[..., :2]
 
     def advance(self, machine, state, duties, load_torque, Ts, n_substeps):
         u = self.vsd_voltage(duties)
         return advance(machine, state, MachineInput(u, load_torque, "stator"), Ts, n_substeps), u
 
 
-class MultiPhaseSwitchingBridge(AbstractBridge):
+class MultiPhaseSwitchingBridge(AbstractSegmentBridge, AbstractMultiPhaseBridge):
     """n-leg inverter resolved into its switching segments (module docstring).
 
     The arguments are those of
@@ -151,16 +162,8 @@ class MultiPhaseSwitchingBridge(AbstractBridge):
         layout: The winding (static).
     """
 
-    u_dc: Array
-    dead_time: Array
-    device_drop: Array
-    sign_smoothing: Array
     layout: PhaseLayout = eqx.field(static=True)
-    current_sign: CurrentSign = eqx.field(static=True)
-    segment_substeps: int = eqx.field(static=True)
-    resolve_dead_time: bool = eqx.field(static=True)
     resolve_device_drop: bool = eqx.field(static=True)
-    switching_resolved: ClassVar[bool] = True
 
     def __init__(
         self,
@@ -172,144 +175,27 @@ class MultiPhaseSwitchingBridge(AbstractBridge):
         segment_substeps: int = 1,
         layout: PhaseLayout = SIX_PHASE,
     ):
-        self.u_dc = as_float(u_dc)
-        self.resolve_dead_time = dead_time is not None
-        self.dead_time = as_float(0.0 if dead_time is None else dead_time)
+        drop = 0.0 if device_drop is None else device_drop
+        super().__init__(u_dc, dead_time, drop, sign_smoothing, current_sign, segment_substeps)
         self.resolve_device_drop = device_drop is not None
-        self.device_drop = as_float(0.0 if device_drop is None else device_drop)
-        self.sign_smoothing = as_float(sign_smoothing)
-        self.current_sign = current_sign
-        self.segment_substeps = segment_substeps
         self.layout = layout
 
-    def __check_init__(self):
-        self.layout.check()
-        check_positive("MultiPhaseSwitchingBridge.u_dc (DC-link voltage)", self.u_dc, "V")
-        check_nonnegative("MultiPhaseSwitchingBridge.dead_time", self.dead_time, "s")
-        check_nonnegative("MultiPhaseSwitchingBridge.device_drop", self.device_drop, "V")
-        check_positive("MultiPhaseSwitchingBridge.sign_smoothing", self.sign_smoothing, "A")
-        if self.current_sign not in ("exact", "smooth"):
-            raise ParameterError(f"current_sign must be 'exact' or 'smooth', got {self.current_sign!r}.")
-        if not isinstance(self.segment_substeps, int) or self.segment_substeps < 1:
-            raise ParameterError(f"segment_substeps must be an int >= 1, got {self.segment_substeps!r}.")
+    def _phase_currents(self, machine, state) -> Array:
+        return machine.phase_currents(state)
 
-    @property
-    def n_phases(self) -> int:
-        return self.layout.n
-
-    def check_period(self, Ts: float) -> None:
-        """Refuse a dead time that does not fit the PWM period: ``t_d < Ts/2``.
-
-        Args:
-            Ts: PWM period, s.
-
-        Raises:
-            ParameterError: For a dead time of half the period or more.
-        """
-        if not is_concrete(self.dead_time):
-            return
-        t_d = float(np.max(np.asarray(jax.device_get(self.dead_time))))
-        if t_d >= 0.5 * Ts:
-            raise ParameterError(
-                f"MultiPhaseSwitchingBridge.dead_time = {t_d:g} s is not below half the PWM period Ts/2 = "
-                f"{0.5 * Ts:g} s: a typical dead time is 0.5-3 us."
-            )
-
-    def phase_voltages(self, duties: Array) -> Array:
-        """Ideal period-average phase-to-neutral voltages.
-
-        Args:
-            duties: ``(..., n)`` leg duties.
-
-        Returns:
-            ``(..., n)`` voltages, V.
-        """
-        return star_phase_voltages(self.u_dc * duties, self.layout)
-
-    def commanded_voltage(self, duties):
-        return vsd_voltage(self.phase_voltages(duties), self.layout)[..., :2]
-
-    def phase_current_sign(self, i_phase: Array) -> Array:
-        """Sign of each phase current, which sets the dead-time and device-drop voltage error: exact
-        (``sign``) or smooth (``tanh(i / sign_smoothing)``, for gradients).
-
-        Args:
-            i_phase: ``(n,)`` phase currents, A.
-        """
-        if self.current_sign == "exact":
-            return jnp.sign(i_phase)
-        return jnp.tanh(i_phase / self.sign_smoothing)
-
-    def segments(self, duties: Array, Ts, extra_times: Array | None = None):
-        """[`pmsmjax.inverters.switching.pwm_segments`][pmsmjax.inverters.switching.pwm_segments] with this
-        bridge's dead time.
-
-        Args:
-            duties: ``(n,)`` upper-switch duties.
-            Ts: PWM period, s.
-            extra_times: Optional ``(M,)`` further cut points in [0, Ts], s.
-        """
-        return pwm_segments(duties, Ts, self.dead_time, self.resolve_dead_time, extra_times)
+    def _output_voltage(self, pole: Array) -> Array:
+        return vsd_voltage(star_phase_voltages(pole, self.layout), self.layout)
 
     def _integrate(self, machine, state, times, high, dead, load_torque):
-        if not (self.resolve_dead_time or self.resolve_device_drop):
-            # Ideal switches: every segment's voltage follows from the gate states alone.
-            u_all = vsd_voltage(star_phase_voltages(self.u_dc * high, self.layout), self.layout)
+        if self.resolve_dead_time or self.resolve_device_drop:
+            return super()._integrate(machine, state, times, high, dead, load_torque)
+        # Ideal switches: every segment's voltage follows from the gate states alone.
+        u_all = vsd_voltage(star_phase_voltages(self.u_dc * high, self.layout), self.layout)
 
-            def ideal(s, seg):
-                duration, u = seg
-                s = advance(
-                    machine, s, MachineInput(u, load_torque, "stator"), duration, self.segment_substeps
-                )
-                return s, (s, u)
-
-            final, (states, u) = jax.lax.scan(ideal, state, (jnp.diff(times), u_all))
-            return final, states, u
-
-        def body(s, seg):
-            duration, high_k, dead_k = seg
-            sign = self.phase_current_sign(machine.phase_currents(s))
-            freewheel = 0.5 * (1.0 - sign)  # both off: upper diode (high) for i < 0, lower for i > 0
-            pole = self.u_dc * ((1.0 - dead_k) * high_k + dead_k * freewheel) - self.device_drop * sign
-            u = vsd_voltage(star_phase_voltages(pole, self.layout), self.layout)
+        def ideal(s, seg):
+            duration, u = seg
             s = advance(machine, s, MachineInput(u, load_torque, "stator"), duration, self.segment_substeps)
             return s, (s, u)
 
-        final, (states, u) = jax.lax.scan(body, state, (jnp.diff(times), high, dead))
+        final, (states, u) = jax.lax.scan(ideal, state, (jnp.diff(times), u_all))
         return final, states, u
-
-    def _checked(self, duties, Ts):
-        if jnp.shape(duties) != (self.layout.n,):
-            raise ParameterError(
-                f"duties must have shape ({self.layout.n},) (one per leg), got {jnp.shape(duties)}."
-            )
-        self.check_period(Ts)
-
-    def advance(self, machine, state, duties, load_torque, Ts, n_substeps):
-        self._checked(duties, Ts)
-        times, high, dead, _ = self.segments(duties, Ts)
-        new_state, _, u = self._integrate(machine, state, times, high, dead, load_torque)
-        return new_state, jnp.diff(times) @ u / Ts
-
-    def sample_period(self, machine, state, duties, load_torque, Ts, n_samples: int):
-        """States at ``t_j = j Ts / n_samples``, j = 1..n_samples, within one period (as
-        [`pmsmjax.inverters.switching.SwitchingBridge.sample_period`][pmsmjax.inverters.switching.SwitchingBridge.sample_period]).
-
-        Args:
-            machine: The machine model.
-            state: The machine state at the period start.
-            duties: ``(n,)`` leg duty cycles.
-            load_torque: Load torque, N m.
-            Ts: PWM period, s.
-            n_samples: Number of sample instants.
-
-        Returns:
-            ``(MachineState of (n_samples,) leaves, (K+1,) interval bounds s, (K, 2 n_planes) VSD voltage of
-            each interval V)``.
-        """
-        self._checked(duties, Ts)
-        samples = Ts * jnp.arange(1, n_samples + 1, dtype=state.omega_m.dtype) / n_samples
-        times, high, dead, order = self.segments(duties, Ts, samples)
-        _, states, u = self._integrate(machine, state, times, high, dead, load_torque)
-        pick = jnp.argsort(order)[-n_samples:]
-        return jax.tree.map(lambda x: x[pick], states), times, u

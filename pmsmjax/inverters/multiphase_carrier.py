@@ -34,7 +34,7 @@ from pmsmjax._types import Array
 from pmsmjax.frames.multiphase import FIVE_PHASE, PhaseLayout, inverse_vsd
 from pmsmjax.inverters.base import AbstractModulator
 from pmsmjax.inverters.multiphase_svpwm import padded_reference
-from pmsmjax.spec.validation import ParameterError
+from pmsmjax.spec.validation import ParameterError, check_choice
 
 __all__ = ["ZeroSequencePWM"]
 
@@ -56,8 +56,7 @@ class ZeroSequencePWM(AbstractModulator):
 
     def __check_init__(self):
         self.layout.check()
-        if self.injection not in ("min-max", "none"):
-            raise ParameterError(f"injection must be 'min-max' or 'none', got {self.injection!r}.")
+        check_choice("injection", self.injection, ("min-max", "none"))
         if self.injection == "min-max":
             for group in self.layout.neutrals:
                 m = len(group)

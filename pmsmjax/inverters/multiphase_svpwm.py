@@ -46,6 +46,7 @@ still as commanded up to that scale); negative dwell times (an unreachable secon
 to zero. Reference: ``(2,)`` [alpha, beta] or ``(4,)`` [alpha, beta, x, y] (six phases: z1, z2), V.
 """
 
+import abc
 import functools
 
 import equinox as eqx
@@ -59,7 +60,13 @@ from pmsmjax.inverters.base import AbstractModulator
 from pmsmjax.inverters.multiphase_vectors import space_vectors
 from pmsmjax.spec.validation import ParameterError
 
-__all__ = ["LargeVectorSVPWM", "NearFourVectorSVPWM", "four_vector_tables", "padded_reference"]
+__all__ = [
+    "AbstractSectorSVPWM",
+    "LargeVectorSVPWM",
+    "NearFourVectorSVPWM",
+    "four_vector_tables",
+    "padded_reference",
+]
 
 
 def padded_reference(u_ref: Array, n_active: int = 4) -> Array:
@@ -151,7 +158,57 @@ def _duties(t: Array, states: Array) -> Array:
     return t @ states + 0.5 * (1.0 - jnp.sum(t))
 
 
-class NearFourVectorSVPWM(AbstractModulator):
+class AbstractSectorSVPWM(AbstractModulator):
+    """SVPWM of an n-phase winding from per-sector tables: the sector is the alpha-beta bisector the reference
+    projects most on, the dwell fractions the sector's inverse table times the reference, and the duties those
+    fractions spread over the sector's switching states (centre-aligned). A subclass holds the winding
+    ``layout`` (static) and gives the ``tables``.
+    """
+
+    layout: eqx.AbstractVar[PhaseLayout]
+
+    @property
+    def n_phases(self) -> int:  # type: ignore[override]
+        """Number of legs, one per phase of ``layout``."""
+        return self.layout.n
+
+    @abc.abstractmethod
+    def tables(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(inv, states)``: per sector, the matrix from the reference (V over ``U_dc``) to the dwell
+        fractions, and the switching states of the vectors those fractions weight."""
+
+    def sector(self, u_ab: Array) -> Array:
+        """Sector index (int) of an alpha-beta vector: the bisector it projects most on.
+
+        Args:
+            u_ab: ``(2,)`` vector.
+        """
+        _, _, bisectors = four_vector_tables(self.layout)
+        return jnp.argmax(jnp.asarray(bisectors, u_ab.dtype) @ u_ab)
+
+    def dwell_times(self, u_ref: Array, u_dc: Array) -> tuple[Array, Array]:
+        """Sector and dwell fractions of the sector's vectors before any scaling (near-four-vector: L_k,
+        L_k+1, S_k, S_k+1 from the full reference; large-vector: L_k, L_k+1 from its alpha-beta part).
+
+        Args:
+            u_ref: ``(2,)`` or full VSD reference, V.
+            u_dc: DC-link voltage, V.
+
+        Returns:
+            ``(k, t (m,))``, ``m`` the number of vectors (4 or 2).
+        """
+        u = padded_reference(u_ref, self.layout.n_active)
+        inv, _ = self.tables()
+        k = self.sector(u[:2])
+        return k, _select(inv, k, u.dtype) @ (u[: inv.shape[-1]] / u_dc)
+
+    def duties(self, u_ref, u_dc):
+        k, t = self.dwell_times(u_ref, u_dc)
+        _, states = self.tables()
+        return _duties(t, _select(states, k, t.dtype))
+
+
+class NearFourVectorSVPWM(AbstractSectorSVPWM):
     """Near-four-vector SVPWM (module docstring): two large and two next vectors per sector, the second
     plane's average nulled (or as commanded).
 
@@ -166,38 +223,9 @@ class NearFourVectorSVPWM(AbstractModulator):
     def __check_init__(self):
         four_vector_tables(self.layout)  # raises for a layout without two planes
 
-    @property
-    def n_phases(self) -> int:  # type: ignore[override]
-        return self.layout.n
-
-    def sector(self, u_ab: Array) -> Array:
-        """Sector index (int) of an alpha-beta vector: the bisector it projects most on.
-
-        Args:
-            u_ab: ``(2,)`` vector.
-        """
-        _, _, bisectors = four_vector_tables(self.layout)
-        return jnp.argmax(jnp.asarray(bisectors, u_ab.dtype) @ u_ab)
-
-    def dwell_times(self, u_ref: Array, u_dc: Array) -> tuple[Array, Array]:
-        """Sector and dwell fractions of L_k, L_k+1, S_k, S_k+1 before any scaling.
-
-        Args:
-            u_ref: ``(2,)`` or full VSD reference, V.
-            u_dc: DC-link voltage, V.
-
-        Returns:
-            ``(k, t (4,))``.
-        """
-        u = padded_reference(u_ref, self.layout.n_active)
-        inv, _, _ = four_vector_tables(self.layout)
-        k = self.sector(u[:2])
-        return k, _select(inv, k, u.dtype) @ (u / u_dc)
-
-    def duties(self, u_ref, u_dc):
-        k, t = self.dwell_times(u_ref, u_dc)
-        _, states, _ = four_vector_tables(self.layout)
-        return _duties(t, _select(states, k, t.dtype))
+    def tables(self) -> tuple[np.ndarray, np.ndarray]:
+        inv, states, _ = four_vector_tables(self.layout)
+        return inv, states
 
     def linear_limit(self, u_dc):
         """``U_dc / sum(t)`` for a unit reference along a bisector (second plane 0), V peak (five phases:
@@ -214,7 +242,7 @@ class NearFourVectorSVPWM(AbstractModulator):
         return u_dc / total
 
 
-class LargeVectorSVPWM(AbstractModulator):
+class LargeVectorSVPWM(AbstractSectorSVPWM):
     """SVPWM with the two adjacent large vectors only (module docstring): the second plane's average is
     not controlled. Linear to ``|L| cos(pi/K) U_dc`` (peak, V).
 
@@ -226,30 +254,8 @@ class LargeVectorSVPWM(AbstractModulator):
     layout: PhaseLayout = eqx.field(static=True, default=FIVE_PHASE)
     name: str = eqx.field(static=True, default="large-vector")
 
-    @property
-    def n_phases(self) -> int:  # type: ignore[override]
-        return self.layout.n
-
-    def dwell_times(self, u_ref: Array, u_dc: Array) -> tuple[Array, Array]:
-        """Sector and dwell fractions of L_k, L_k+1 before any scaling.
-
-        Args:
-            u_ref: ``(2,)`` or full VSD reference, V.
-            u_dc: DC-link voltage, V.
-
-        Returns:
-            ``(k, t (2,))``.
-        """
-        u = padded_reference(u_ref, self.layout.n_active)
-        inv, _ = large_vector_tables(self.layout)
-        _, _, bisectors = four_vector_tables(self.layout)
-        k = jnp.argmax(jnp.asarray(bisectors, u.dtype) @ u[:2])
-        return k, _select(inv, k, u.dtype) @ (u[:2] / u_dc)
-
-    def duties(self, u_ref, u_dc):
-        k, t = self.dwell_times(u_ref, u_dc)
-        _, states = large_vector_tables(self.layout)
-        return _duties(t, _select(states, k, t.dtype))
+    def tables(self) -> tuple[np.ndarray, np.ndarray]:
+        return large_vector_tables(self.layout)
 
     def linear_limit(self, u_dc):
         sv = space_vectors(self.layout)

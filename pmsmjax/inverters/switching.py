@@ -33,6 +33,7 @@ pole voltages ``v``; [`SwitchingBridge.advance`][pmsmjax.inverters.switching.Swi
 exact period average in the stator frame.
 """
 
+import abc
 from typing import ClassVar, Literal
 
 import equinox as eqx
@@ -46,26 +47,36 @@ from pmsmjax.inverters.base import AbstractBridge
 from pmsmjax.machines.base import MachineInput
 from pmsmjax.machines.integrate import advance
 from pmsmjax.machines.motor import as_float
-from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive, is_concrete
+from pmsmjax.spec.validation import (
+    ParameterError,
+    check_choice,
+    check_nonnegative,
+    check_positive,
+    is_concrete,
+)
 
 CurrentSign = Literal["exact", "smooth"]
 
 
-class SwitchingBridge(AbstractBridge):
-    """Two-level inverter resolved into its switching segments (see the module docstring).
+class AbstractSegmentBridge(AbstractBridge):
+    """A two-level bridge of n legs resolved into its switching segments: what the three-phase
+    [`SwitchingBridge`][pmsmjax.inverters.switching.SwitchingBridge] and the n-leg
+    [`MultiPhaseSwitchingBridge`][pmsmjax.inverters.multiphase_bridges.MultiPhaseSwitchingBridge] share (the
+    segments, the dead-time and device-drop model, the checks, ``advance`` and ``sample_period``).
+
+    A subclass gives the phase currents the diodes see and the machine's voltage from the pole voltages
+    (``_phase_currents``, ``_output_voltage``).
 
     Args:
         u_dc: DC-link voltage, V.
         dead_time: Blanking time per switching edge, s (0 <= t_d < Ts/2, checked against the drive's Ts).
-            ``None``: no dead time, and the 6 dead-window cuts are left out of the program (7 segments
-            instead of 13); ``0.0`` keeps them (to vary or differentiate ``t_d`` from 0).
+            ``None``: no dead time, and the dead-window cuts are left out of the program (2n + 1 segments
+            instead of 4n + 1); ``0.0`` keeps them (to vary or differentiate ``t_d`` from 0).
         device_drop: Constant on-state voltage of a switch or diode, V (>= 0).
         sign_smoothing: Current scale ``eps`` of the ``tanh(i/eps)`` sign surrogate, A (used when
             ``current_sign="smooth"``).
         current_sign: ``"exact"`` or ``"smooth"`` (static).
-        segment_substeps: RK4 steps per segment (static). Segments are at most one period long, so one step
-            is as accurate as the averaged bridge with one sub-step per period (4e-7 of the peak current on
-            the book drive); the drive's ``n_substeps`` is not used by this bridge.
+        segment_substeps: RK4 steps per segment (static).
     """
 
     u_dc: Array
@@ -95,12 +106,12 @@ class SwitchingBridge(AbstractBridge):
         self.segment_substeps = segment_substeps
 
     def __check_init__(self):
-        check_positive("SwitchingBridge.u_dc (DC-link voltage)", self.u_dc, "V")
-        check_nonnegative("SwitchingBridge.dead_time", self.dead_time, "s")
-        check_nonnegative("SwitchingBridge.device_drop", self.device_drop, "V")
-        check_positive("SwitchingBridge.sign_smoothing", self.sign_smoothing, "A")
-        if self.current_sign not in ("exact", "smooth"):
-            raise ParameterError(f"current_sign must be 'exact' or 'smooth', got {self.current_sign!r}.")
+        name = type(self).__name__
+        check_positive(f"{name}.u_dc (DC-link voltage)", self.u_dc, "V")
+        check_nonnegative(f"{name}.dead_time", self.dead_time, "s")
+        check_nonnegative(f"{name}.device_drop", self.device_drop, "V")
+        check_positive(f"{name}.sign_smoothing", self.sign_smoothing, "A")
+        check_choice("current_sign", self.current_sign, ("exact", "smooth"))
         if not isinstance(self.segment_substeps, int) or self.segment_substeps < 1:
             raise ParameterError(f"segment_substeps must be an int >= 1, got {self.segment_substeps!r}.")
 
@@ -118,89 +129,122 @@ class SwitchingBridge(AbstractBridge):
         t_d = float(np.max(np.asarray(jax.device_get(self.dead_time))))  # NumPy: no tracer inside a jit
         if t_d >= 0.5 * Ts:
             raise ParameterError(
-                f"SwitchingBridge.dead_time = {t_d:g} s is not below half the PWM period Ts/2 = "
+                f"{type(self).__name__}.dead_time = {t_d:g} s is not below half the PWM period Ts/2 = "
                 f"{0.5 * Ts:g} s: a typical dead time is 0.5-3 us."
             )
 
-    def phase_current_sign(self, i_abc: Array) -> Array:
-        """Sign of the phase currents, exact or the ``tanh`` surrogate.
+    def phase_current_sign(self, i_phase: Array) -> Array:
+        """Sign of each phase current, which sets the dead-time and device-drop voltage error: exact
+        (``sign``) or smooth (``tanh(i / sign_smoothing)``, for gradients).
 
         Args:
-            i_abc: ``(3,)`` phase currents, A.
+            i_phase: ``(n,)`` phase currents, A.
         """
         if self.current_sign == "exact":
-            return jnp.sign(i_abc)
-        return jnp.tanh(i_abc / self.sign_smoothing)
+            return jnp.sign(i_phase)
+        return jnp.tanh(i_phase / self.sign_smoothing)
 
     def segments(self, duties: Array, Ts, extra_times: Array | None = None):
         """The period cut at every gate edge, the end of every dead window, and ``extra_times``
         ([`pwm_segments`][pmsmjax.inverters.switching.pwm_segments] with this bridge's dead time).
 
         Args:
-            duties: ``(3,)`` upper-switch duties.
+            duties: ``(n,)`` upper-switch duties.
             Ts: PWM period, s.
             extra_times: Optional ``(M,)`` further cut points in [0, Ts], s.
         """
         return pwm_segments(duties, Ts, self.dead_time, self.resolve_dead_time, extra_times)
 
+    @abc.abstractmethod
+    def _phase_currents(self, machine, state) -> Array:
+        """``(n,)`` phase currents of the machine in ``state``, A: the ones whose signs pick the diodes."""
+
+    @abc.abstractmethod
+    def _output_voltage(self, pole: Array) -> Array:
+        """The stationary-frame voltage the machine gets from the ``(n,)`` pole voltages ``pole``, V."""
+
     def _integrate(self, machine, state, times, high, dead, load_torque):
         """Integrate interval by interval; the pole voltages use the current at each interval start.
 
-        Returns the final state, the ``(K,)``-stacked states at interval ends, and ``(K, 2)`` voltages, V.
-        A rolled loop: unrolled, the 7-13 segments compile and run slower on CPU.
+        Returns the final state, the ``(K,)``-stacked states at interval ends, and the ``(K, m)`` voltages
+        of ``_output_voltage``, V. A rolled loop: unrolled, the 7-13 segments of three legs compile and run
+        slower on CPU.
         """
 
         def body(s, seg):
             duration, high_k, dead_k = seg
-            sign = self.phase_current_sign(dq_to_abc(machine.currents_dq(s), s.theta_e))
+            sign = self.phase_current_sign(self._phase_currents(machine, s))
             freewheel = 0.5 * (1.0 - sign)  # both off: upper diode (high) for i < 0, lower for i > 0
             pole = self.u_dc * ((1.0 - dead_k) * high_k + dead_k * freewheel) - self.device_drop * sign
-            u_ab = abc_to_alpha_beta(pole - jnp.mean(pole))
-            s = advance(
-                machine, s, MachineInput(u_ab, load_torque, "stator"), duration, self.segment_substeps
-            )
-            return s, (s, u_ab)
+            u = self._output_voltage(pole)
+            s = advance(machine, s, MachineInput(u, load_torque, "stator"), duration, self.segment_substeps)
+            return s, (s, u)
 
-        final, (states, u_ab) = jax.lax.scan(body, state, (jnp.diff(times), high, dead))
-        return final, states, u_ab
+        final, (states, u) = jax.lax.scan(body, state, (jnp.diff(times), high, dead))
+        return final, states, u
 
     def _checked(self, duties, Ts):
-        if jnp.shape(duties) != (3,):
-            raise ParameterError(f"duties must have shape (3,) (legs a, b, c), got {jnp.shape(duties)}.")
+        if jnp.shape(duties) != (self.n_phases,):
+            raise ParameterError(
+                f"duties must have shape ({self.n_phases},) (one per leg), got {jnp.shape(duties)}."
+            )
         self.check_period(Ts)
 
     def advance(self, machine, state, duties, load_torque, Ts, n_substeps):
         self._checked(duties, Ts)
         times, high, dead, _ = self.segments(duties, Ts)
-        new_state, _, u_ab = self._integrate(machine, state, times, high, dead, load_torque)
-        return new_state, jnp.diff(times) @ u_ab / Ts
+        new_state, _, u = self._integrate(machine, state, times, high, dead, load_torque)
+        return new_state, jnp.diff(times) @ u / Ts
 
     def sample_period(self, machine, state, duties, load_torque, Ts, n_samples: int):
         """The states at ``t_j = j Ts / n_samples``, j = 1..n_samples, within one period (ripple plots and
         spectra).
 
-        The period is also cut at the sample instants, so the trajectory is the one
-        [`advance`][pmsmjax.inverters.switching.SwitchingBridge] follows.
+        The period is also cut at the sample instants, so the trajectory is the one ``advance`` follows.
 
         Args:
             machine: The machine model.
             state: The machine state at the period start.
-            duties: ``(3,)`` leg duty cycles.
+            duties: ``(n,)`` leg duty cycles.
             load_torque: Load torque, N m.
             Ts: PWM period, s.
             n_samples: Number of sample instants.
 
         Returns:
-            ``(MachineState of (n_samples,) leaves, (K,) interval bounds s, (K-1, 2) stator-frame voltage of
-            each interval V)``.
+            ``(MachineState of (n_samples,) leaves, (K+1,) interval bounds s, (K, m) voltage of each interval
+            V)``: ``m = 2`` (stator frame) for three legs, ``2 n_planes`` (VSD) for more.
         """
         self._checked(duties, Ts)
         samples = Ts * jnp.arange(1, n_samples + 1, dtype=state.omega_m.dtype) / n_samples
         times, high, dead, order = self.segments(duties, Ts, samples)
-        _, states, u_ab = self._integrate(machine, state, times, high, dead, load_torque)
+        _, states, u = self._integrate(machine, state, times, high, dead, load_torque)
         # Cut point c (sorted position rank(c)) ends interval rank(c); the samples are the last M cuts.
         pick = jnp.argsort(order)[-n_samples:]
-        return jax.tree.map(lambda x: x[pick], states), times, u_ab
+        return jax.tree.map(lambda x: x[pick], states), times, u
+
+
+class SwitchingBridge(AbstractSegmentBridge):
+    """Two-level inverter resolved into its switching segments (see the module docstring).
+
+    Args:
+        u_dc: DC-link voltage, V.
+        dead_time: Blanking time per switching edge, s (0 <= t_d < Ts/2, checked against the drive's Ts).
+            ``None``: no dead time, and the 6 dead-window cuts are left out of the program (7 segments
+            instead of 13); ``0.0`` keeps them (to vary or differentiate ``t_d`` from 0).
+        device_drop: Constant on-state voltage of a switch or diode, V (>= 0).
+        sign_smoothing: Current scale ``eps`` of the ``tanh(i/eps)`` sign surrogate, A (used when
+            ``current_sign="smooth"``).
+        current_sign: ``"exact"`` or ``"smooth"`` (static).
+        segment_substeps: RK4 steps per segment (static). Segments are at most one period long, so one step
+            is as accurate as the averaged bridge with one sub-step per period (4e-7 of the peak current on
+            the book drive); the drive's ``n_substeps`` is not used by this bridge.
+    """
+
+    def _phase_currents(self, machine, state) -> Array:
+        return dq_to_abc(machine.currents_dq(state), state.theta_e)
+
+    def _output_voltage(self, pole: Array) -> Array:
+        return abc_to_alpha_beta(pole - jnp.mean(pole))
 
 
 def pwm_segments(duties: Array, Ts, dead_time, resolve_dead_time: bool, extra_times: Array | None = None):
