@@ -425,17 +425,11 @@ def with_map_aware_estimator(spec, drive: Drive) -> Drive:
     return with_parts(drive, {"estimator": map_aware(drive.estimator, spec)})
 
 
-def with_observer(
-    drive: Drive,
-    observer_name: str,
-    model: PMSMParameters,
-    observer_options: Mapping[str, object] | None = None,
-    startup: bool = True,
-    startup_options: Mapping[str, float] | None = None,
-) -> Drive:
-    """``drive`` with the estimator ``observer_name`` ([`observer`][pmsmjax.assemble.observer])."""
-    found = observer(drive, observer_name, model, observer_options, startup, startup_options)
-    return with_parts(drive, {"estimator": found})
+def with_observer(drive: Drive, observer_name: str, model: PMSMParameters, *args, **kwargs) -> Drive:
+    """``drive`` with the estimator ``observer_name`` for the motor model ``model`` in place of its own;
+    ``args``, ``kwargs``: the options, start-up and start-up options of
+    [`observer`][pmsmjax.assemble.observer]."""
+    return with_parts(drive, {"estimator": observer(drive, observer_name, model, *args, **kwargs)})
 
 
 def sensorless_drive(

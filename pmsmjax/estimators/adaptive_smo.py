@@ -37,6 +37,7 @@ from pmsmjax.estimators.smo import (
     AbstractSlidingModeObserver,
     check_observer_pole,
     observer_pole,
+    sliding_gains,
 )
 from pmsmjax.estimators.stability import check_loop, concrete_values, tracking_loop_matrix
 from pmsmjax.estimators.stator_model import (
@@ -52,7 +53,6 @@ from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Estimate, Sample
 from pmsmjax.spec.validation import check_positive
-from pmsmjax.units import rpm_to_rad_s
 
 
 class AdaptiveSMOState(eqx.Module):
@@ -146,13 +146,9 @@ def adaptive_smo_design(
     pole at ``-bandwidth`` (rad/s): ``l = 2 bandwidth``, ``gamma = bandwidth^2``;
     ``emf_floor = emf_floor_fraction psi_f w_max``.
     """
-    check_positive("Ts (control period)", Ts, "s")
     check_positive("bandwidth (back-EMF model and speed adaptation)", bandwidth, "rad/s")
     model = motor if model is None else model
-    w_max = model.pole_pairs * rpm_to_rad_s(max_speed_rpm)
-    k = k_margin * model.psi_f * w_max
-    phi, gamma_rl = rl_coefficients(model.R, model.L_q, Ts)
-    width = k * gamma_rl / (phi - pole)
+    k, width, w_max = sliding_gains(model, model.L_q, Ts, max_speed_rpm, k_margin, pole)
     bw = as_float(bandwidth)
     return AdaptiveSMO(
         model, k, width, 2.0 * bw, bw * bw, emf_floor_fraction * model.psi_f * w_max, switching

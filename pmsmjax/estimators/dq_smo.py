@@ -49,6 +49,7 @@ from pmsmjax.estimators.smo import (
     SMO_POLE,
     AbstractSlidingModeObserver,
     check_observer_pole,
+    sliding_gains,
 )
 from pmsmjax.estimators.stability import check_loop, concrete_values
 from pmsmjax.estimators.stator_model import rl_coefficients, rotate, rotor_angle
@@ -57,7 +58,6 @@ from pmsmjax.frames.three_phase import inverse_park, park, wrap_angle
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.signals import Estimate, Sample
 from pmsmjax.spec.validation import check_positive
-from pmsmjax.units import rpm_to_rad_s
 
 
 def dq_loop_matrix(a: float, b: float, p: float, f: float) -> np.ndarray:
@@ -183,12 +183,8 @@ def dq_smo_design(
     ``pll_bandwidth`` (rad/s); low-pass cut-off ``omega_c`` (rad/s), above the PLL's bandwidth since it sits
     inside the loop; ``emf_floor = emf_floor_fraction psi_f w_max``.
     """
-    check_positive("Ts (control period)", Ts, "s")
     model = motor if model is None else model
-    w_max = model.pole_pairs * rpm_to_rad_s(max_speed_rpm)
-    k = k_margin * model.psi_f * w_max
-    phi, gamma = rl_coefficients(model.R, model.L_d, Ts)
-    width = k * gamma / (phi - pole)
+    k, width, w_max = sliding_gains(model, model.L_d, Ts, max_speed_rpm, k_margin, pole)
     return DQSlidingModeObserver(
         model,
         k,

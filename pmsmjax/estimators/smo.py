@@ -262,6 +262,26 @@ SMO_PLL_BANDWIDTH = 1000.0
 SMO_EMF_FLOOR_FRACTION = 0.02
 
 
+def sliding_gains(model: PMSMParameters, L, Ts: float, max_speed_rpm, k_margin, pole):
+    """The sliding current observer's design rule (the book, ch. 5), shared by the three sliding-mode
+    observers: ``k = k_margin psi_f p_n w_max`` (V) above the largest back-EMF at ``max_speed_rpm``, and
+    ``width = k Gamma / (Phi - pole)`` (A), the switching function's linear zone putting the sampled
+    observer's pole at ``pole``, with the winding coefficients of ``model.R`` and ``L`` (H) over ``Ts`` (s).
+
+    Returns:
+        ``(k V, width A, w_max electrical rad/s)``.
+    """
+    check_positive("Ts (control period)", Ts, "s")
+    check_positive("max_speed_rpm", max_speed_rpm, "r/min")
+    check_positive("k_margin", k_margin)
+    if not -1.0 < float(pole) < 1.0:
+        raise ParameterError(f"pole must lie in (-1, 1) (the observer's sampled pole), got {pole!r}.")
+    w_max = model.pole_pairs * rpm_to_rad_s(max_speed_rpm)
+    k = k_margin * model.psi_f * w_max
+    phi, gamma = rl_coefficients(model.R, L, Ts)
+    return k, k * gamma / (phi - pole), w_max
+
+
 def smo_design(
     motor: PMSMParameters,
     Ts: float,
@@ -293,16 +313,8 @@ def smo_design(
 
     `model`: the observer's motor model (default ``motor``: no mismatch).
     """
-    check_positive("Ts (control period)", Ts, "s")
-    check_positive("max_speed_rpm", max_speed_rpm, "r/min")
-    check_positive("k_margin", k_margin)
-    if not -1.0 < float(pole) < 1.0:
-        raise ParameterError(f"pole must lie in (-1, 1) (the observer's sampled pole), got {pole!r}.")
     model = motor if model is None else model
-    w_max = model.pole_pairs * rpm_to_rad_s(max_speed_rpm)
-    k = k_margin * model.psi_f * w_max
-    phi, gamma = rl_coefficients(model.R, model.L_q, Ts)
-    width = k * gamma / (phi - pole)
+    k, width, w_max = sliding_gains(model, model.L_q, Ts, max_speed_rpm, k_margin, pole)
     tracker = (
         dict(speed_bandwidth=speed_bandwidth)
         if angle == "arctan"

@@ -334,25 +334,16 @@ def choose_hold(motor: PMSMParameters, log: dict, **replay_kwargs) -> tuple[str,
 
 
 def replay_file(
-    log_path: str | os.PathLike,
-    motor: str | os.PathLike,
-    out_dir: str | os.PathLike,
-    hold: str = DEFAULT_HOLD,
-    n_substeps: int | None = None,
-    *,
-    time_unit: str = "s",
-    check_units: bool = True,
-    report: list | None = None,
+    log_path: str | os.PathLike, motor: str | os.PathLike, out_dir: str | os.PathLike, *args, **kwargs
 ) -> Path:
-    """Replay a log file ([`replay_log`][pmsmjax.recorded.replay.replay_log]) and write
-    ``out_dir/replay.csv``; returns the path written.
+    """Replay a log file ([`replay_log`][pmsmjax.recorded.replay.replay_log], which takes ``args`` and
+    ``kwargs``: the hold, sub-steps, time unit, unit checks and report) and write ``out_dir/replay.csv``;
+    returns the path written.
 
     The output has columns ``time,i_d,i_q,omega_m,theta_e`` (time in s), one row per log row, written
     atomically only after the run succeeded: a failure leaves no (partial) ``replay.csv``.
     """
-    result = replay_log(
-        log_path, motor, hold, n_substeps, time_unit=time_unit, check_units=check_units, report=report
-    )
+    result = replay_log(log_path, motor, *args, **kwargs)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     return write_csv_atomic(out / "replay.csv", result)
