@@ -82,3 +82,25 @@ def test_a_multiphase_drive_refuses_current_sensor_errors(tmp_path):
     spec = _spec(tmp_path, "current_offset_a = [0.1, 0.0]")
     with pytest.raises(ParameterError, match="modelled for three-phase drives; this is a six-phase drive"):
         current_sensor_parts(spec, "six-phase")
+
+
+def test_the_demo_summary_names_the_sensors(tmp_path):
+    from pmsmjax.assemble import spec_drive
+    from pmsmjax.jobs.demo import sensors_entry
+
+    spec = _spec(
+        tmp_path,
+        'kind = "encoder"\nlines = 2500\nencoder_offset_rad = 0.09\ncurrent_offset_a = [0.11, -0.07]\n'
+        "current_gain = [1.0, 1.018]",
+    )
+    assert sensors_entry(spec_drive(spec)) == {
+        "current": {
+            "sensed_phases": "ab",
+            "reconstructed": "c = -a - b",
+            "offset_a": [0.11, -0.07],
+            "gain": [1.0, 1.018],
+            "lsb_a": None,
+        },
+        "encoder": {"lines": 2500, "delay_s": 0.0, "offset_rad": 0.09},
+    }
+    assert sensors_entry(spec_drive(_spec(tmp_path, ""))) == {"current": "ideal"}
