@@ -12,11 +12,14 @@ The steps of [`assemble`][pmsmjax.assemble.assemble], in order (each a function 
    compensation in a FOC controller ([`inverter_error_parts`][pmsmjax.assemble.inverter_error_parts]);
 3. a ``[motor] flux_map``: the map's plant, current loop and d-axis references
    ([`flux_map_parts`][pmsmjax.assemble.flux_map_parts]);
-4. the position estimator: the file's encoder (``[sensor]``), or a sensorless observer with its I/f start
-   ([`observer`][pmsmjax.assemble.observer]), reading the flux map where the file has one
-   ([`map_aware`][pmsmjax.assemble.map_aware]).
+4. the position estimator: the file's encoder (``[sensor]``, with its mounting offset), or a sensorless
+   observer with its I/f start ([`observer`][pmsmjax.assemble.observer]), reading the flux map where the
+   file has one ([`map_aware`][pmsmjax.assemble.map_aware]);
+5. the ``[sensor]`` phase-current sensors' offsets, gains and ADC step
+   ([`current_sensor_parts`][pmsmjax.assemble.current_sensor_parts]), which the controller and the
+   estimator then read.
 
-The parts of steps 2-4 are collected and put into the preset's drive by one
+The parts of steps 2-5 are collected and put into the preset's drive by one
 [`with_parts`][pmsmjax.assemble.with_parts] call. The presets' own builders
 ([`pmsmjax.presets.book_drive`][pmsmjax.presets.three_phase.book_drive], ...) remain the per-method factories;
 on the book drive file (``--motor book``) [`assemble`][pmsmjax.assemble.assemble] gives their drives bit for
@@ -39,6 +42,7 @@ __all__ = [
     "drive_options",
     "inverter_error_parts",
     "flux_map_parts",
+    "current_sensor_parts",
     "observer",
     "map_aware",
     "spec_motor",
@@ -193,8 +197,31 @@ def assemble(
     elif spec.sensor["kind"] == "encoder":
         from pmsmjax.estimators.position_sensors import Encoder
 
-        parts["estimator"] = Encoder(spec.sensor["lines"], spec.motor["pole_pairs"], spec.sensor["delay_s"])
+        offset = spec.sensor.get("encoder_offset_rad")
+        parts["estimator"] = Encoder(
+            spec.sensor["lines"], spec.motor["pole_pairs"], spec.sensor["delay_s"], offset_rad=offset
+        )
+    parts.update(current_sensor_parts(spec, machine))
     return with_parts(drive, parts)
+
+
+def current_sensor_parts(spec, machine: str = "three-phase") -> dict:
+    """The part that puts the file's ``[sensor]`` current-sensor errors into the drive
+    ([`CurrentSensors`][pmsmjax.estimators.current_sensors.CurrentSensors]: offsets A, gains, ADC step A);
+    none when the file gives none. Refused in one line on a five- or six-phase machine."""
+    s = spec.sensor
+    if "current_offset_a" not in s:
+        return {}
+    if machine != "three-phase":
+        raise ParameterError(
+            f"{spec.source}: [sensor] current_offset_a, current_gain, current_lsb_a are modelled for "
+            f"three-phase drives; this is a {machine} drive: drop them from the drive file."
+        )
+    from pmsmjax.estimators.current_sensors import CurrentSensors
+
+    return {
+        "current_sensor": CurrentSensors(s["current_offset_a"], s["current_gain"], s.get("current_lsb_a"))
+    }
 
 
 def inverter_error_parts(spec, drive: Drive) -> dict:

@@ -3,8 +3,9 @@
 One step is one control period ``Ts``:
 
 1. With imposed speed, the shaft speed is set from the scenario (a dynamometer).
-2. **Sample** at the period start: phase currents ``(n,)`` and their alpha-beta components, the DC
-   voltage, the voltage commanded over the last period, and the ideal shaft sensor
+2. **Sample** at the period start: phase currents ``(n,)`` and their alpha-beta components as the
+   current sensors read them (``current_sensor``; exact by default), the DC voltage, the voltage
+   commanded over the last period, and the ideal shaft sensor
    ([`pmsmjax.signals.Sample`][pmsmjax.signals.Sample]).
 3. **Estimator** -> angle and speed (and, for HF-injection estimators, an injection voltage added to the
    controller's voltage command and the carrier-free current the controller gets instead of ``i_ab``).
@@ -27,6 +28,7 @@ import jax.numpy as jnp
 from pmsmjax._types import Array
 from pmsmjax.controllers.base import AbstractController
 from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.current_sensors import AbstractCurrentSensor, IdealCurrentSensor
 from pmsmjax.estimators.position_sensors import ExactSensor
 from pmsmjax.inverters.base import AbstractBridge, AbstractModulator
 from pmsmjax.machines.base import AbstractMachine, MachineState
@@ -102,10 +104,15 @@ class Drive(eqx.Module):
         n_substeps: RK4 steps per period for the machine (static).
         computation_delay: Apply each period's command one period later (static).
         estimator: Angle and speed for the controller; default the exact sensor.
+        current_sensor: What the controller and the estimator sample of the phase currents; default the
+            true currents ([`IdealCurrentSensor`][pmsmjax.estimators.current_sensors.IdealCurrentSensor]),
+            [`CurrentSensors`][pmsmjax.estimators.current_sensors.CurrentSensors] for offsets, gains and
+            quantisation. The trace keeps the true currents.
 
     Raises:
         ParameterError: For a non-positive period, a sub-step count below 1, a voltage-commanding
-            controller without modulator, or blocks of different phase counts.
+            controller without modulator, blocks of different phase counts, or current sensors the
+            machine's phase count has no model for.
     """
 
     machine: AbstractMachine
@@ -116,6 +123,7 @@ class Drive(eqx.Module):
     n_substeps: int = eqx.field(static=True, default=10)
     computation_delay: bool = eqx.field(static=True, default=True)
     estimator: AbstractEstimator = eqx.field(default_factory=ExactSensor)
+    current_sensor: AbstractCurrentSensor = eqx.field(default_factory=IdealCurrentSensor)
 
     def __check_init__(self):
         check_positive("Drive.Ts (control period)", self.Ts, "s")
@@ -141,6 +149,7 @@ class Drive(eqx.Module):
             )
         self.bridge.check_period(self.Ts)
         self.estimator.check_period(self.Ts)
+        self.current_sensor.check_phases(n_machine)
 
     @property
     def records_estimate(self) -> bool:
@@ -155,12 +164,13 @@ class Drive(eqx.Module):
             last_duties: ``(n,)`` duties applied over the last period (for the commanded voltage).
 
         Returns:
-            The [`Sample`][pmsmjax.signals.Sample]: phase and alpha-beta currents, DC voltage, last
-            commanded voltage, and the ideal shaft sensor.
+            The [`Sample`][pmsmjax.signals.Sample]: phase and alpha-beta currents as the current sensors
+            read them, DC voltage, last commanded voltage, and the ideal shaft sensor.
         """
         i_ab = self.machine.stationary_currents(ms)
         u_ab_last = self.bridge.commanded_voltage(last_duties)
         i_phase = self.machine.phase_currents(ms)
+        i_phase, i_ab = self.current_sensor.measure(i_phase, i_ab)
         return Sample(i_phase, i_ab, self.bridge.u_dc, u_ab_last, ms.theta_e, ms.omega_m)
 
     def voltage_limit(self) -> Array:

@@ -1,7 +1,9 @@
 """Estimators: the block between sampling and control that gives the rotor angle and speed.
 
 Position sensors ([`ExactSensor`][pmsmjax.estimators.position_sensors.ExactSensor],
-[`Encoder`][pmsmjax.estimators.position_sensors.Encoder]), the stator flux observer of direct torque control
+[`Encoder`][pmsmjax.estimators.position_sensors.Encoder]) and the phase-current sensors the drive samples
+through ([`CurrentSensors`][pmsmjax.estimators.current_sensors.CurrentSensors]: offset, gain, ADC step), the
+stator flux observer of direct torque control
 ([`StatorFluxObserver`][pmsmjax.estimators.flux_observer.StatorFluxObserver], chapter 4) and the
 fundamental-model observers of chapter 5 ([`OBSERVERS`][pmsmjax.estimators.catalogue.OBSERVERS]: ``smo``,
 ``smo-pll``, ``adaptive-smo``, ``dq-smo``, ``mras``, ``ekf``), all implementing
@@ -22,6 +24,7 @@ and takes the map's steady angle error out (the one that runs the closed loop cl
 
 from pmsmjax.estimators.adaptive_smo import AdaptiveSMO, adaptive_smo_design
 from pmsmjax.estimators.base import AbstractEstimator
+from pmsmjax.estimators.current_sensors import AbstractCurrentSensor, CurrentSensors, IdealCurrentSensor
 from pmsmjax.estimators.dq_smo import DQSlidingModeObserver, dq_smo_design
 from pmsmjax.estimators.ekf import EKF, ekf_design
 from pmsmjax.estimators.flux_observer import StatorFluxObserver, StatorFluxObserverState
@@ -54,7 +57,10 @@ __all__ = [
     "MRAS",
     "OBSERVERS",
     "PLL",
+    "AbstractCurrentSensor",
     "AbstractEstimator",
+    "CurrentSensors",
+    "IdealCurrentSensor",
     "AdaptiveSMO",
     "DQSlidingModeObserver",
     "Encoder",

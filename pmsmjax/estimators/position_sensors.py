@@ -6,8 +6,12 @@ through (what chapters 1-3 assume).
 [`Encoder`][pmsmjax.estimators.position_sensors.Encoder] models an incremental quadrature encoder with
 ``lines`` lines per revolution (``4 lines`` counts per mechanical revolution, so an electrical-angle quantum
 of ``2 pi p_n / (4 lines)``), read ``delay_s`` late (a transport delay: the count latched ``delay_s`` before
-the sampling instant, taken as ``theta_e - omega_e delay_s``), and a speed from a type-2 tracking loop on the
-counted angle (ODrive's encoder estimator, ``Firmware/MotorControl/encoder.cpp``):
+the sampling instant, taken as ``theta_e - omega_e delay_s``), mounted ``offset_rad`` off the rotor's d
+axis (the count reads ``theta_e + offset_rad``: firmware calibrates the zero by locking the rotor with
+a d-axis current and resetting the count there, TI application report SPRABZ0 on sensored FOC of
+PMSMs and ST's UM1052 FOC SDK manual on encoder alignment; what that leaves is this offset), and a speed
+from a type-2 tracking loop on the counted angle (ODrive's encoder estimator,
+``Firmware/MotorControl/encoder.cpp``):
 ``e = wrap(theta_count - theta^)``, ``theta^ += Ts (omega^ + kp e)``, ``omega^ += Ts ki e`` with
 ``kp = 2 bw``, ``ki = bw^2`` (both poles at ``-bw``). Differencing the count over one period instead would
 give a speed quantum of ``2 pi / (4 lines Ts)``: 6.3 rad/s (60 r/min) for 2500 lines at 10 kHz. The controller
@@ -25,6 +29,10 @@ from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines.motor import as_float
 from pmsmjax.signals import Estimate, Sample
 from pmsmjax.spec.validation import ParameterError, check_nonnegative, check_positive, is_concrete
+
+
+def _optional_float(x):
+    return None if x is None else as_float(x)
 
 
 class ExactSensor(AbstractEstimator):
@@ -51,12 +59,15 @@ class Encoder(AbstractEstimator):
     - `pole_pairs`: the machine's pole pairs (static int), to turn counts into electrical angle.
     - `delay_s`: latency of the count at the sampling instant, s (>= 0).
     - `speed_bandwidth`: bandwidth of the speed tracking loop, rad/s (both poles there).
+    - `offset_rad`: mounting offset of the count's zero, electrical rad (the count reads the true angle
+      plus it); None: none (nothing added to the program).
     """
 
     lines: int = eqx.field(static=True)
     pole_pairs: int = eqx.field(static=True)
     delay_s: object = eqx.field(converter=as_float, default=0.0)
     speed_bandwidth: object = eqx.field(converter=as_float, default=1000.0)
+    offset_rad: object = eqx.field(converter=_optional_float, default=None)
 
     def __check_init__(self):
         for name, value in (("Encoder.lines", self.lines), ("Encoder.pole_pairs", self.pole_pairs)):
@@ -84,6 +95,8 @@ class Encoder(AbstractEstimator):
         """The electrical angle the counter holds at the sampling instant, rad."""
         omega_e = self.pole_pairs * sample.sensor_omega_m
         latched = sample.sensor_theta_e - omega_e * self.delay_s
+        if self.offset_rad is not None:
+            latched = latched + self.offset_rad
         q = self.quantum_rad
         return wrap_angle(jnp.floor(latched / q) * q)
 

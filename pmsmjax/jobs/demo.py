@@ -265,7 +265,8 @@ def run(spec: DemoSpec, drive, scenario) -> DemoResult:
             "machine": spec.machine,
             "motor": spec.motor,
             "control": spec.control,
-            "estimator": spec.estimator or "exact sensor",
+            "estimator": spec.estimator
+            or ("encoder" if spec.drive.sensor["kind"] == "encoder" else "exact sensor"),
             "observer_model": (spec.observer_model or "map")
             if spec.estimator and "flux_map" in spec.drive.motor
             else None,
@@ -278,6 +279,7 @@ def run(spec: DemoSpec, drive, scenario) -> DemoResult:
             "current_limit_a": current_limit,
             "u_dc_v": float(np.asarray(drive.bridge.u_dc)),
             "bridge_dead_time": dead_time_entry(spec.drive, drive),
+            "sensors": sensors_entry(drive),
         },
         "drive_file": spec.drive.summary(),
         "metrics": step_metrics,
@@ -333,6 +335,37 @@ def _console(spec: DemoSpec, summary: dict, Ts: float) -> tuple[str, ...]:
     timing = summary["timing"]
     lines.append(f"compile {timing['compile_s']:.2f} s, run {timing['run_s'] * 1e3:.1f} ms")
     return tuple(lines)
+
+
+def sensors_entry(drive) -> dict:
+    """What the controller's sensors are, for summary.json: the phase-current sensors (``"ideal"``, or the
+    sensed phases with their offsets A, gains and ADC step A) and, for an encoder, its lines, latency (s)
+    and mounting offset (electrical rad)."""
+    import numpy as np
+
+    from pmsmjax.estimators.position_sensors import Encoder
+
+    def values(x):  # float32 leaves as the numbers the file gave (7 significant digits)
+        return [float(f"{v:.7g}") for v in np.atleast_1d(np.asarray(x, float))]
+
+    cs = drive.current_sensor
+    entry = {"current": "ideal"}
+    if not cs.is_ideal:
+        entry["current"] = {
+            "sensed_phases": "abc"[: cs.n_sensors],
+            "reconstructed": "c = -a - b" if cs.n_sensors == 2 else None,
+            "offset_a": values(cs.offset_a),
+            "gain": values(cs.gain),
+            "lsb_a": None if cs.lsb_a is None else values(cs.lsb_a)[0],
+        }
+    if isinstance(drive.estimator, Encoder):
+        e = drive.estimator
+        entry["encoder"] = {
+            "lines": e.lines,
+            "delay_s": float(np.asarray(e.delay_s)),
+            "offset_rad": 0.0 if e.offset_rad is None else values(e.offset_rad)[0],
+        }
+    return entry
 
 
 def dead_time_entry(spec, drive) -> dict:

@@ -12,9 +12,13 @@ Layout (SI units; every table but ``[motor]`` optional)::
                    frequency), dead_time_s, device_drop_v (a switch's or diode's on-state voltage, V),
                    dead_time_compensation = true | false (default true: the controller adds the dead
                    time's and drop's predicted error back, as drive firmware does)
-    [sensor]       kind = "exact" | "encoder", lines (per mechanical revolution), delay_s
+    [sensor]       kind = "exact" | "encoder", lines (per mechanical revolution), delay_s,
+                   encoder_offset_rad (electrical rad); the phase-current sensors (any kind):
+                   current_offset_a = [0.11, -0.07] (A, one per sensed phase a, b (, c): the length is the
+                   number of sensors), current_gain = [1.0, 1.018], current_lsb_a (A, one ADC step)
     [tolerances]   relative half-widths of the parameters' spread: R = 0.05 (+-5 %), L_d, L_q, psi_f, J, B,
-                   u_dc_v (Monte Carlo draws, robust tuning)
+                   u_dc_v, current_gain; current_offset_a in A (0.05: +-50 mA on each sensor) (Monte Carlo
+                   draws, robust tuning)
     [control]      current_bandwidth_rad_s, speed_bandwidth_rad_s, startup_current_a,
                    startup_acceleration_rad_s2, handover_speed_rad_s, blend_speed_rad_s
     [scenario]     speed_rpm, load_nm, load_time_s, duration_s (the demo, compare and Monte Carlo run)
@@ -85,8 +89,10 @@ class DriveSpec:
     - `ratings`: ``rated_speed_rpm, rated_torque_nm, rated_current_a, max_current_a``;
     - `inverter`: ``u_dc_v, switching_frequency_hz, control_frequency_hz, dead_time_s, device_drop_v``
       and ``dead_time_compensation`` (bool);
-    - `sensor`: ``kind`` and, for an encoder, ``lines``, ``delay_s``;
-    - `tolerances`: relative half-widths (only those the file gives);
+    - `sensor`: ``kind`` and, for an encoder, ``lines``, ``delay_s``, ``encoder_offset_rad``; the current
+      sensors' ``current_offset_a``, ``current_gain`` (tuples) and ``current_lsb_a`` where the file gives
+      them;
+    - `tolerances`: relative half-widths (``current_offset_a`` in A; only those the file gives);
     - `control`, `scenario`, `tuning`: as the file's tables, complete;
     - `derived`: ``{"table.key": how}`` for every value the file left out;
     - `notes`: what a user should know about the drive (a rated point that needs field weakening);
@@ -232,6 +238,7 @@ def complete(
     derive.complete_ratings(motor, ratings, inverter, derived, name_of)
     notes = derive.check_rated_point(motor, ratings, inverter, name_of)
     derive.complete_control(motor, ratings, control, Ts, derived, where)
+    schema.check_current_sensors(sensor, tolerances, ratings["max_current_a"], where)
     if sensor.get("delay_s", 0.0) > MAX_SENSOR_DELAY_PERIODS * Ts:
         raise ParameterError(
             f"{where}: [sensor] delay_s = {plain(sensor['delay_s'])} s is more than "
@@ -275,7 +282,7 @@ def complete(
                 tuning[key] = value
                 derived[f"tuning.{key}"] = derive.TUNING_HOW[key]
     for key, value in tolerances.items():
-        if not value < 1.0:
+        if key != "current_offset_a" and not value < 1.0:
             raise ParameterError(
                 f"{where}: [tolerances] {key} = {plain(value)} is a relative half-width and must be below 1 "
                 f"(0.05 for +-5 %); a spread of {plain(100 * value)} % would reach zero or below."

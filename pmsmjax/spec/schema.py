@@ -30,8 +30,20 @@ TABLES = {
         "device_drop_v": "V",
         "dead_time_compensation": "bool",
     },  # fmt: skip
-    "sensor": {"kind": "str", "lines": "int", "delay_s": "s"},
-    "tolerances": {k: "" for k in ("R", "L_d", "L_q", "psi_f", "J", "B", "L_ls", "u_dc_v")},
+    "sensor": {
+        "kind": "str",
+        "lines": "int",
+        "delay_s": "s",
+        "encoder_offset_rad": "rad",
+        "current_offset_a": "A list",
+        "current_gain": "list",
+        "current_lsb_a": "A",
+    },  # fmt: skip
+    "tolerances": {
+        **{k: "" for k in ("R", "L_d", "L_q", "psi_f", "J", "B", "L_ls", "u_dc_v")},
+        "current_offset_a": "A",
+        "current_gain": "",
+    },  # fmt: skip
     "control": {
         "current_bandwidth_rad_s": "rad/s",
         "speed_bandwidth_rad_s": "rad/s",
@@ -44,6 +56,17 @@ TABLES = {
     "tuning": {"speed_rpm": "range", "load_nm": "range", "duration_s": "range"},
 }
 SENSOR_KINDS = ("exact", "encoder")
+#: The ``[sensor]`` keys of an encoder, and of the phase-current sensors (any kind).
+ENCODER_KEYS = ("lines", "delay_s", "encoder_offset_rad")
+CURRENT_SENSOR_KEYS = ("current_offset_a", "current_gain", "current_lsb_a")
+#: A current-sensor gain outside this range is refused (a gain is a factor near 1: 1.018 reads 1.8 % high;
+#: 18 or 1.8 is a percentage typed as a factor).
+CURRENT_GAIN_RANGE = (0.5, 1.5)
+#: A current-sensor offset or its tolerance beyond this share of the maximum current is refused (offsets are
+#: tens of mA, a few per mille of full scale: more is a unit slip, mA for A).
+MAX_CURRENT_OFFSET_SHARE = 0.1
+#: An ADC LSB beyond this share of the maximum current is refused (coarser than a 5-bit converter).
+MAX_CURRENT_LSB_SHARE = 0.05
 #: Plausible ranges of the inverter's numbers (wide: they catch a unit slip, not an unusual drive).
 DC_LINK_RANGE_V = (5.0, 5000.0)
 SWITCHING_RANGE_HZ = (500.0, 1e6)
@@ -262,25 +285,122 @@ def read_motor(values: dict, where: str, n_phases: int | None) -> dict:
 
 
 def read_sensor(values: dict, where: str) -> dict:
-    """The ``[sensor]`` table checked: ``kind``, and an encoder's ``lines`` and ``delay_s``."""
+    """The ``[sensor]`` table checked: ``kind``, an encoder's ``lines``, ``delay_s`` and
+    ``encoder_offset_rad``, and the phase-current sensors' ``current_offset_a``, ``current_gain`` (lists, one
+    value per sensed phase a, b (, c), as tuples) and ``current_lsb_a``. Limits that need the drive's
+    current rating are checked by [`check_current_sensors`][pmsmjax.spec.schema.check_current_sensors]."""
     kind = values.get("kind", "exact")
     if kind not in SENSOR_KINDS:
         raise ParameterError(f"{where}: [sensor] kind = {kind!r}: give one of {', '.join(SENSOR_KINDS)}.")
     sensor = {"kind": kind}
-    if kind == "exact":
-        extra = sorted(set(values) - {"kind"})
+    if kind == "encoder":
+        lines = values.get("lines")
+        if not isinstance(lines, int) or isinstance(lines, bool) or lines < 1:
+            raise ParameterError(
+                f"{where}: [sensor] lines must be the encoder's lines per revolution, a whole number >= 1 "
+                f"(e.g. 2500), got {lines!r}."
+            )
+        sensor["lines"] = lines
+        delay = values.get("delay_s", 0.0)
+        if not is_number(delay) or not math.isfinite(delay) or delay < 0:
+            raise ParameterError(f"{where}: [sensor] delay_s must be a number >= 0 (s), {got(delay)}.")
+        sensor["delay_s"] = float(delay)
+        if "encoder_offset_rad" in values:
+            sensor["encoder_offset_rad"] = _encoder_offset(values["encoder_offset_rad"], where)
+    else:
+        extra = sorted(k for k in ENCODER_KEYS if k in values)
         if extra:
             raise ParameterError(f'{where}: [sensor] {", ".join(extra)} apply to kind = "encoder" only.')
-        return sensor
-    lines = values.get("lines")
-    if not isinstance(lines, int) or isinstance(lines, bool) or lines < 1:
-        raise ParameterError(
-            f"{where}: [sensor] lines must be the encoder's lines per revolution, a whole number >= 1 "
-            f"(e.g. 2500), got {lines!r}."
-        )
-    sensor["lines"] = lines
-    delay = values.get("delay_s", 0.0)
-    if not is_number(delay) or not math.isfinite(delay) or delay < 0:
-        raise ParameterError(f"{where}: [sensor] delay_s must be a number >= 0 (s), {got(delay)}.")
-    sensor["delay_s"] = float(delay)
+    sensor.update(_current_sensors(values, where))
     return sensor
+
+
+def _encoder_offset(value, where: str) -> float:
+    name = f"{where}: [sensor] encoder_offset_rad"
+    if not is_number(value) or not math.isfinite(value):
+        raise ParameterError(f"{name} must be a number (electrical rad), {got(value)}.")
+    if abs(value) > 2.0 * math.pi:
+        raise ParameterError(
+            f"{name} = {plain(value)} is beyond 2 pi: it looks like degrees: write "
+            f"{plain(round(math.radians(value), 6))} (electrical rad)."
+        )
+    return float(value)
+
+
+def _current_sensors(values: dict, where: str) -> dict:
+    """``current_offset_a``, ``current_gain`` (tuples of one length, 2 or 3) and ``current_lsb_a``; an LSB
+    alone quantises three exact sensors."""
+    given = {k: values[k] for k in CURRENT_SENSOR_KEYS if k in values}
+    if not given:
+        return {}
+    lists = {}
+    for key in ("current_offset_a", "current_gain"):
+        if key not in given:
+            continue
+        v = given[key]
+        unit = " (A)" if key == "current_offset_a" else ""
+        if not isinstance(v, list) or not all(is_number(x) and math.isfinite(x) for x in v):
+            raise ParameterError(
+                f"{where}: [sensor] {key} must be a list of finite numbers{unit}, one per sensed phase "
+                f"a, b (, c), e.g. {'[0.11, -0.07]' if unit else '[1.0, 1.018]'}; {got(v)}."
+            )
+        if len(v) not in (2, 3):
+            raise ParameterError(
+                f"{where}: [sensor] {key} has {len(v)} values: give 2 (sensors on phases a and b, c "
+                "reconstructed as -a - b) or 3 (one per phase)."
+            )
+        lists[key] = tuple(float(x) for x in v)
+    if len({len(v) for v in lists.values()}) > 1:
+        o, g = lists["current_offset_a"], lists["current_gain"]
+        raise ParameterError(
+            f"{where}: [sensor] current_offset_a has {len(o)} values and current_gain {len(g)}: give one "
+            "value per sensed phase in both lists (the length is the number of sensors)."
+        )
+    n = len(next(iter(lists.values()))) if lists else 3
+    lists.setdefault("current_offset_a", (0.0,) * n)
+    lists.setdefault("current_gain", (1.0,) * n)
+    low, high = CURRENT_GAIN_RANGE
+    for k, g in enumerate(lists["current_gain"]):
+        if not low <= g <= high:
+            raise ParameterError(
+                f"{where}: [sensor] current_gain[{k}] = {plain(g)} is not a sensor gain (a factor near 1, "
+                f"{plain(low)}-{plain(high)}): write 1 + the error, e.g. {plain(1 + g / 100)} for "
+                f"{plain(g)} % or {plain(1 + g / 1000)} for {plain(g / 10)} %."
+            )
+    if "current_lsb_a" in given:
+        lists["current_lsb_a"] = positive_number(
+            given["current_lsb_a"], "current_lsb_a", f"{where}: [sensor] current_lsb_a", "A"
+        )
+    return lists
+
+
+def check_current_sensors(sensor: dict, tolerances: dict, max_current_a: float, where: str) -> None:
+    """Refuse current-sensor offsets, offset tolerances and LSBs implausible for a drive whose maximum
+    current is ``max_current_a`` (A), and current-sensor tolerances without the sensors they spread."""
+    limit = MAX_CURRENT_OFFSET_SHARE * max_current_a
+    offsets = [
+        (f"[sensor] current_offset_a[{k}]", o) for k, o in enumerate(sensor.get("current_offset_a", ()))
+    ]
+    if "current_offset_a" in tolerances:
+        offsets.append(("[tolerances] current_offset_a", tolerances["current_offset_a"]))
+    for name, o in offsets:
+        if abs(o) > limit:
+            raise ParameterError(
+                f"{where}: {name} = {plain(o)} A is {100 * abs(o) / max_current_a:.3g} % of the "
+                f"{plain(max_current_a)} A maximum current: sensor offsets are tens of mA (at most "
+                f"{plain(100 * MAX_CURRENT_OFFSET_SHARE)} %, {plain(limit)} A); in mA? write "
+                f"{plain(o / 1000)} (A)."
+            )
+    lsb = sensor.get("current_lsb_a")
+    if lsb is not None and lsb > MAX_CURRENT_LSB_SHARE * max_current_a:
+        raise ParameterError(
+            f"{where}: [sensor] current_lsb_a = {plain(lsb)} A is {100 * lsb / max_current_a:.3g} % of the "
+            f"{plain(max_current_a)} A maximum current, coarser than a 5-bit converter: give one ADC step in "
+            f"A (a 12-bit ADC over +-{plain(max_current_a)} A: {plain(2 * max_current_a / 4096)})."
+        )
+    spread = sorted(k for k in ("current_offset_a", "current_gain") if k in tolerances)
+    if spread and "current_offset_a" not in sensor:
+        raise ParameterError(
+            f"{where}: [tolerances] {', '.join(spread)} spread the current sensors, which [sensor] does not "
+            "give: add them, e.g. current_offset_a = [0.0, 0.0] for two sensors on phases a and b."
+        )

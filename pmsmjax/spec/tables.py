@@ -108,18 +108,24 @@ class InverterTable(Table):
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class SensorTable(Table):
-    """``[sensor]``: ``kind`` (``"exact"`` or ``"encoder"``); an encoder's lines per mechanical revolution
-    and latency (s)."""
+    """``[sensor]``: ``kind`` (``"exact"`` or ``"encoder"``); an encoder's lines per mechanical revolution,
+    latency (s) and mounting offset (electrical rad); the phase-current sensors' offsets (A) and gains, one
+    per sensed phase a, b (, c), and ADC step (A), where the file gives them."""
 
     kind: str = "exact"
     lines: int | None = None
     delay_s: float | None = None
+    encoder_offset_rad: float | None = None
+    current_offset_a: tuple | None = None
+    current_gain: tuple | None = None
+    current_lsb_a: float | None = None
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class ToleranceTable(Table):
     """``[tolerances]``: relative half-widths of the parameters' spread (0.05: +-5 %), only those the
-    file gives."""
+    file gives; ``current_offset_a`` is absolute (A: 0.05 is +-50 mA on each current sensor) and
+    ``current_gain`` relative on each sensor's gain."""
 
     R: float | None = None
     L_d: float | None = None
@@ -129,6 +135,8 @@ class ToleranceTable(Table):
     B: float | None = None
     L_ls: float | None = None
     u_dc_v: float | None = None
+    current_offset_a: float | None = None
+    current_gain: float | None = None
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

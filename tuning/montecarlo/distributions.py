@@ -10,6 +10,10 @@ Latin hypercube sampling share one code path:
 - ``lognormal``: ``nominal exp(log(1 + tolerance) / sigmas z)``: median ``nominal``, always positive,
   ``nominal (1 + tolerance)`` at ``sigmas`` standard deviations.
 
+A parameter whose nominal value may be zero (a current sensor's offset) spreads by an *absolute* half-width
+in its own unit instead (``absolute=True``): ``nominal + tolerance (2u - 1)`` (uniform) or
+``nominal + tolerance / sigmas z`` (normal); lognormal is for positive parameters only.
+
 A tolerance of 0 fixes the parameter. Samples are float64 NumPy arrays drawn on the host from
 ``numpy.random.default_rng(seed)``, so they do not depend on the device count or the chunking.
 """
@@ -34,12 +38,15 @@ class Distribution:
     - `nominal`: the nominal value, in the parameter's SI unit.
     - `tolerance`: relative half-width of the tolerance band (0.2 for +-20 %), >= 0.
     - `sigmas`: standard deviations the band spans (normal and lognormal), > 0.
+    - `absolute`: `tolerance` is a half-width in the parameter's unit, not relative (a signed parameter
+      whose nominal value may be 0: a current sensor's offset, A).
     """
 
     kind: str
     nominal: float
     tolerance: float
     sigmas: float = 3.0
+    absolute: bool = False
 
     def check(self, name: str) -> None:
         """Raise [`ParameterError`][pmsmjax.spec.validation.ParameterError] naming ``name`` for a malformed
@@ -60,9 +67,18 @@ class Distribution:
             )
         if self.sigmas <= 0:
             raise ParameterError(f"{name}: sigmas must be > 0, got {self.sigmas}.")
+        if self.absolute and self.kind == "lognormal":
+            raise ParameterError(
+                f"{name}: a lognormal spread is for positive parameters; this one is signed (its tolerance "
+                "is an absolute half-width): use uniform or normal."
+            )
 
     def from_uniform(self, u: np.ndarray) -> np.ndarray:
         """Samples from uniforms ``u`` in (0, 1) by the inverse CDF (same shape as ``u``)."""
+        if self.absolute:
+            if self.kind == "uniform":
+                return self.nominal + self.tolerance * (2.0 * u - 1.0)
+            return self.nominal + self.tolerance / self.sigmas * ndtri(u)
         if self.kind == "uniform":
             return self.nominal * (1.0 + self.tolerance * (2.0 * u - 1.0))
         z = ndtri(u)

@@ -14,6 +14,10 @@ book drive, bit for bit. Each varied parameter is named by a dotted path:
   also ``motor.L_ls``): the *plant's* motor. The controller's own motor model (decoupling, delay
   compensation) stays nominal, as on a real drive whose firmware holds the data-sheet values.
 - ``bridge.u_dc``: the DC-link voltage, V.
+- ``current_sensor.offset_a[k]``, ``current_sensor.gain[k]``: sensor ``k``'s offset (A; its tolerance is
+  an absolute half-width in A, since the nominal offset may be 0) and gain (relative), on a drive file
+  whose ``[sensor]`` gives current sensors; the file's ``[tolerances] current_offset_a`` and
+  ``current_gain`` spread every sensor independently.
 - ``controller.<path>``: any scalar array leaf of the controller, e.g. ``controller.speed.kp``.
 - ``scenario.speed_rpm``, ``scenario.load_nm``: the speed step (r/min) and the load step (N m).
 
@@ -89,8 +93,20 @@ DEFAULT_TOLERANCES = {
 SENSORLESS_TOLERANCES = {"motor.R": 0.30, "motor.L_d": 0.20, "motor.L_q": 0.20, "motor.psi_f": 0.10}
 MOTOR_FIELDS = ("R", "L_d", "L_q", "psi_f", "J", "B")
 SCENARIO_FIELDS = ("speed_rpm", "load_nm")
-#: A drive file's ``[tolerances]`` key -> the study parameter it spreads.
-TOLERANCE_PARAMETERS = {k: ("bridge.u_dc" if k == "u_dc_v" else f"motor.{k}") for k in TABLES["tolerances"]}
+#: A drive file's ``[tolerances]`` key for a current sensor -> the drive leaf it spreads, one study parameter
+#: per sensor (``current_sensor.offset_a[0]``, ...).
+SENSOR_TOLERANCE_PARAMETERS = {
+    "current_offset_a": "current_sensor.offset_a",
+    "current_gain": "current_sensor.gain",
+}
+#: A drive file's ``[tolerances]`` key -> the study parameter it spreads (the current sensors': above).
+TOLERANCE_PARAMETERS = {
+    k: ("bridge.u_dc" if k == "u_dc_v" else f"motor.{k}")
+    for k in TABLES["tolerances"]
+    if k not in SENSOR_TOLERANCE_PARAMETERS
+}
+#: Study parameters whose tolerance is an absolute half-width in their unit (signed, nominal possibly 0).
+ABSOLUTE_PARAMETERS = ("current_sensor.offset_a",)
 #: The machine setting -> the drive file's phase count.
 PHASES = {"three-phase": 3, "six-phase": 6, "five-phase": 5}
 #: Periods between the fan chart's samples, at most (the largest divisor of the run's periods up to this).
@@ -301,7 +317,16 @@ def default_tolerances(spec: DriveSpec) -> dict[str, float]:
     order), or [`DEFAULT_TOLERANCES`][tuning.montecarlo.study.DEFAULT_TOLERANCES] for a file without one."""
     if not spec.tolerances:
         return dict(DEFAULT_TOLERANCES)
-    return {TOLERANCE_PARAMETERS[k]: spec.tolerances[k] for k in TABLES["tolerances"] if k in spec.tolerances}
+    out = {}
+    for k in TABLES["tolerances"]:
+        if k not in spec.tolerances:
+            continue
+        if k in SENSOR_TOLERANCE_PARAMETERS:  # one parameter per sensor, drawn independently
+            for i in range(len(spec.sensor["current_offset_a"])):
+                out[f"{SENSOR_TOLERANCE_PARAMETERS[k]}[{i}]"] = spec.tolerances[k]
+        else:
+            out[TOLERANCE_PARAMETERS[k]] = spec.tolerances[k]
+    return out
 
 
 def _with_gains(drive: Drive, path) -> Drive:
@@ -355,10 +380,12 @@ def nominal_value(study: Study, drive: Drive, name: str) -> float:
 
 def check_name(drive: Drive, name: str) -> None:
     """Raise [`ParameterError`][pmsmjax.spec.validation.ParameterError] unless `name` is a parameter a study
-    may vary on `drive` (a motor field, ``bridge.u_dc``, a scenario field or a controller leaf), listing
-    them."""
+    may vary on `drive` (a motor field, ``bridge.u_dc``, a scenario field, a current sensor's offset or gain,
+    or a controller leaf), listing them."""
     fields = MOTOR_FIELDS + drive.machine.motor.leakage_fields
     allowed = [f"motor.{f}" for f in fields] + ["bridge.u_dc"] + [f"scenario.{f}" for f in SCENARIO_FIELDS]
+    sensors = tuple(SENSOR_TOLERANCE_PARAMETERS.values())
+    allowed += [n for n in array_leaf_names(drive) if n.startswith(sensors)]
     controller = [n for n in array_leaf_names(drive) if n.startswith("controller.") and ".model." not in n]
     if name not in allowed and name not in controller:
         raise ParameterError(
@@ -385,6 +412,7 @@ def distributions(study: Study, drive: Drive) -> dict[str, Distribution]:
             nominal=nominal_value(study, drive, name) if nominal is None else nominal,
             tolerance=spec["tolerance"],
             sigmas=spec.get("sigmas", 3.0),
+            absolute=name.startswith(ABSOLUTE_PARAMETERS),
         )
         out[name].check(f"parameter {name}")
     return out
@@ -392,7 +420,7 @@ def distributions(study: Study, drive: Drive) -> dict[str, Distribution]:
 
 def lower_bound(name: str) -> tuple[float, bool]:
     """``(bound, strict)``: the physical range of ``name`` is ``> bound`` (strict) or ``>= bound``."""
-    if name.startswith("scenario."):
+    if name.startswith(("scenario.", *ABSOLUTE_PARAMETERS)):
         return -math.inf, False
     return 0.0, name not in NONNEGATIVE
 
