@@ -117,7 +117,8 @@ class PMSMFluxMapdq(AbstractMachine):
     def at_temperature(self, resistance_factor, flux_factor) -> "PMSMFluxMapdq":
         """The map's machine warm: ``R`` scaled, and the magnet's share of the flux, ``psi_d(0, 0)`` of the
         map, scaled by ``flux_factor`` (``psi_d(i) + (flux_factor - 1) psi_d(0, 0)``; the change of
-        saturation with the magnet's flux is not modelled: [`pmsmjax.machines.thermal`][pmsmjax.machines.thermal]).
+        saturation with the magnet's flux is not modelled:
+        [`pmsmjax.machines.thermal`][pmsmjax.machines.thermal]).
 
         Args:
             resistance_factor: ``R(T) / R``, dimensionless.
