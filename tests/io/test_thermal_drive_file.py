@@ -98,3 +98,24 @@ def test_operating_temperatures_need_thermal(tmp_path):
     text = THERMAL.split("[operating]")[1]
     message = refusal(warm_file(tmp_path, thermal="\n[operating]" + text))
     assert "add [thermal]" in message
+
+
+def test_demo_runs_the_warm_motor(tmp_path, capsys):
+    import json
+
+    from pmsmjax.cli import main
+
+    path = warm_file(tmp_path)
+    out = tmp_path / "o"
+    assert main(["demo", "--motor", str(path), "--duration-s", "0.02", "--load-time-s", "0.01",
+                 "--no-figures", "--out", str(out)]) == 0  # fmt: skip
+    summary = json.loads((out / "summary.json").read_text())
+    thermal = summary["drive"]["thermal"]
+    assert thermal["winding_start_c"] == pytest.approx(90.0, abs=1e-3)
+    # R and psi_f at 90 degC against their 20 degC data: +27.5 % and -7.7 %
+    assert thermal["r_change_pct"] == pytest.approx(100 * 0.00393 * 70, rel=1e-3)
+    assert thermal["psi_f_change_pct"] == pytest.approx(-100 * 0.0011 * 70, rel=1e-3)
+    assert "winding_temperature_c" in summary["trace_columns"]
+    assert "warm motor: winding 90.0" in capsys.readouterr().out
+    header = (out / "trace.csv").read_text().splitlines()[0].split(",")
+    assert "winding_temperature_c" in header
