@@ -17,9 +17,11 @@ The steps of [`assemble`][pmsmjax.assemble.assemble], in order (each a function 
    file has one ([`map_aware`][pmsmjax.assemble.map_aware]);
 5. the ``[sensor]`` phase-current sensors' offsets, gains and ADC step
    ([`current_sensor_parts`][pmsmjax.assemble.current_sensor_parts]), which the controller and the
-   estimator then read.
+   estimator then read;
+6. a ``[thermal]`` table: the winding's thermal network and the motor's temperature coefficients
+   ([`thermal_part`][pmsmjax.assemble.thermal_part]), a warm motor.
 
-The parts of steps 2-5 are collected and put into the preset's drive by one
+The parts of steps 2-6 are collected and put into the preset's drive by one
 [`with_parts`][pmsmjax.assemble.with_parts] call. The presets' own builders
 ([`pmsmjax.presets.book_drive`][pmsmjax.presets.three_phase.book_drive], ...) remain the per-method factories;
 on the book drive file (``--motor book``) [`assemble`][pmsmjax.assemble.assemble] gives their drives bit for
@@ -45,6 +47,7 @@ __all__ = [
     "current_sensor_parts",
     "observer",
     "map_aware",
+    "thermal_part",
     "spec_motor",
     "spec_flux_map",
     "spec_scenario",
@@ -202,6 +205,8 @@ def assemble(
             spec.sensor["lines"], spec.motor["pole_pairs"], spec.sensor["delay_s"], offset_rad=offset
         )
     parts.update(current_sensor_parts(spec, machine))
+    if spec.thermal:
+        parts["thermal"] = thermal_part(spec)
     return with_parts(drive, parts)
 
 
@@ -222,6 +227,28 @@ def current_sensor_parts(spec, machine: str = "three-phase") -> dict:
     return {
         "current_sensor": CurrentSensors(s["current_offset_a"], s["current_gain"], s.get("current_lsb_a"))
     }
+
+
+def thermal_part(spec):
+    """The drive file's winding thermal network and temperature coefficients
+    ([`WindingThermal`][pmsmjax.machines.thermal.WindingThermal]: ``[thermal]`` and ``[motor]``'s
+    ``reference_temperature_c``, ``r_temp_coeff_per_k``, ``psi_f_temp_coeff_per_k``, temperatures in
+    kelvin), or None for a file without ``[thermal]``."""
+    if not spec.thermal:
+        return None
+    from pmsmjax.machines.thermal import WindingThermal
+    from pmsmjax.units import celsius_to_kelvin
+
+    t, m = spec.thermal, spec.motor
+    return WindingThermal(
+        r_th=t["r_th_k_per_w"],
+        c_th=t["c_th_j_per_k"],
+        ambient_k=celsius_to_kelvin(t["ambient_c"]),
+        initial_k=celsius_to_kelvin(t["initial_c"]),
+        reference_k=celsius_to_kelvin(m["reference_temperature_c"]),
+        r_temp_coeff=m["r_temp_coeff_per_k"],
+        psi_f_temp_coeff=m["psi_f_temp_coeff_per_k"],
+    )
 
 
 def inverter_error_parts(spec, drive: Drive) -> dict:

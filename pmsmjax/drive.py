@@ -15,6 +15,11 @@ One step is one control period ``Ts``:
 5. With ``computation_delay`` the duties computed now are applied in the *next* period (as on a DSP that
    updates its compare registers at the period boundary).
 6. The **bridge** integrates the **machine** over the period (``n_substeps`` RK4 steps).
+7. With a **thermal** network ([`WindingThermal`][pmsmjax.machines.thermal.WindingThermal]), the machine is
+   integrated at the winding temperature of the period start (its ``R(T)``, ``psi_f(T)``), and the
+   temperature is then advanced once over the period by the period's copper loss (not in the RK4 sub-steps:
+   the module [`pmsmjax.machines.thermal`][pmsmjax.machines.thermal] says why). Absent (the default), the
+   step is the same program as without the field.
 
 Every block is a field of the drive, so ``simulate``, ``jax.vmap``, ``jax.grad``, tuning and Monte Carlo
 work on any combination without a second engine.
@@ -32,6 +37,7 @@ from pmsmjax.estimators.current_sensors import AbstractCurrentSensor, IdealCurre
 from pmsmjax.estimators.position_sensors import ExactSensor
 from pmsmjax.inverters.base import AbstractBridge, AbstractModulator
 from pmsmjax.machines.base import AbstractMachine, MachineState
+from pmsmjax.machines.thermal import WindingThermal
 from pmsmjax.signals import References, Sample
 from pmsmjax.spec.validation import ParameterError, check_positive
 
@@ -61,6 +67,8 @@ class DriveState(eqx.Module):
         controller: The controller's state.
         pending_duties: ``(n,)`` duties to apply this period when there is a computational delay.
         last_duties: ``(n,)`` duties applied during the last period (the controller knows them).
+        thermal: ``(2,)`` the thermal network's state (winding rise above ambient, K, and its summation
+            compensation, K), or ``None`` without a thermal network.
     """
 
     machine: MachineState
@@ -68,6 +76,7 @@ class DriveState(eqx.Module):
     controller: object  # the controller's state
     pending_duties: Array  # (n,) duties to apply this period when there is a computational delay
     last_duties: Array  # (n,) duties applied during the last period (the controller knows them)
+    thermal: Array | None = None  # (2,) K, winding rise above ambient and its compensation, or None
 
 
 class PeriodRecord(eqx.Module):
@@ -83,6 +92,7 @@ class PeriodRecord(eqx.Module):
         u_dq_ref: ``(2,)`` controller voltage command, V.
         i_dq_ref: ``(2,)`` current reference, A.
         estimate: ``(2,)`` estimated electrical angle (rad) and mechanical speed (rad/s), or ``None``.
+        temperature: Winding temperature at the period start, K, or ``None`` without a thermal network.
     """
 
     machine: MachineState  # state at the period start (sampling instant)
@@ -90,6 +100,7 @@ class PeriodRecord(eqx.Module):
     u_dq_ref: Array  # (2,) V, controller voltage command
     i_dq_ref: Array  # (2,) A, current reference
     estimate: Array | None  # (2,) estimated electrical angle rad and mechanical speed rad/s, or None
+    temperature: Array | None = None  # K, winding temperature at the period start, or None
 
 
 class Drive(eqx.Module):
@@ -108,11 +119,13 @@ class Drive(eqx.Module):
             true currents ([`IdealCurrentSensor`][pmsmjax.estimators.current_sensors.IdealCurrentSensor]),
             [`CurrentSensors`][pmsmjax.estimators.current_sensors.CurrentSensors] for offsets, gains and
             quantisation. The trace keeps the true currents.
+        thermal: The winding's thermal network and temperature coefficients (a warm motor, three-phase
+            machines); ``None`` (default): ``R`` and ``psi_f`` constant.
 
     Raises:
         ParameterError: For a non-positive period, a sub-step count below 1, a voltage-commanding
-            controller without modulator, blocks of different phase counts, or current sensors the
-            machine's phase count has no model for.
+            controller without modulator, blocks of different phase counts, current sensors the machine's
+            phase count has no model for, or a thermal network on a machine that is not three-phase.
     """
 
     machine: AbstractMachine
@@ -124,6 +137,7 @@ class Drive(eqx.Module):
     computation_delay: bool = eqx.field(static=True, default=True)
     estimator: AbstractEstimator = eqx.field(default_factory=ExactSensor)
     current_sensor: AbstractCurrentSensor = eqx.field(default_factory=IdealCurrentSensor)
+    thermal: WindingThermal | None = None
 
     def __check_init__(self):
         check_positive("Drive.Ts (control period)", self.Ts, "s")
@@ -150,6 +164,11 @@ class Drive(eqx.Module):
         self.bridge.check_period(self.Ts)
         self.estimator.check_period(self.Ts)
         self.current_sensor.check_phases(n_machine)
+        if self.thermal is not None and n_machine != 3:
+            raise ParameterError(
+                f"a thermal network heats a three-phase machine (its copper loss 1.5 R |i_dq|^2); this "
+                f"machine has {n_machine} phases: drop the thermal network."
+            )
 
     @property
     def records_estimate(self) -> bool:
@@ -198,6 +217,7 @@ class Drive(eqx.Module):
             self.controller.init(dtype),
             duties,
             duties,
+            None if self.thermal is None else self.thermal.init(dtype),
         )
 
     def step(self, state: DriveState, x: PeriodInputs) -> tuple[DriveState, PeriodRecord]:
@@ -239,7 +259,18 @@ class Drive(eqx.Module):
         else:
             new_duties = out.command.astype(ms.omega_m.dtype)
         duties = state.pending_duties if self.computation_delay else new_duties
-        ms_next, _ = self.bridge.advance(self.machine, ms, duties, x.load_torque, self.Ts, self.n_substeps)
+        if self.thermal is None:
+            ms_next, _ = self.bridge.advance(
+                self.machine, ms, duties, x.load_torque, self.Ts, self.n_substeps
+            )
+            thermal, temperature = None, None
+        else:
+            # the plant at the period start's winding temperature for the whole period
+            warm = self.thermal.machine_at(self.machine, state.thermal)
+            ms_next, _ = self.bridge.advance(warm, ms, duties, x.load_torque, self.Ts, self.n_substeps)
+            loss = self.thermal.copper_loss(warm.motor.R, warm.currents_dq(ms), warm.currents_dq(ms_next))
+            thermal = self.thermal.step(state.thermal, loss, self.Ts)
+            temperature = self.thermal.temperature(state.thermal)
         recorded = jnp.stack([estimate.theta_e, estimate.omega_m]) if self.records_estimate else None
-        record = PeriodRecord(ms, duties, out.u_dq_ref, out.i_dq_ref, recorded)
-        return DriveState(ms_next, estimator_state, ctrl_state, new_duties, duties), record
+        record = PeriodRecord(ms, duties, out.u_dq_ref, out.i_dq_ref, recorded, temperature)
+        return DriveState(ms_next, estimator_state, ctrl_state, new_duties, duties, thermal), record

@@ -162,6 +162,21 @@ def _simulate(drive: Drive, scenario: Scenario, decimate: int, initial_state) ->
     return trace_from_records(drive, rec, xs, drive.Ts * decimate)
 
 
+def _torque(drive: Drive, ms, temperature):
+    """``(N,)`` electromagnetic torque of the recorded states, N m; with a thermal network, each period's
+    from the machine at that period's winding temperature ``temperature (N,)`` (K)."""
+    machine = drive.machine
+    if temperature is None:
+        return jax.vmap(machine.electromagnetic_torque)(ms)
+    thermal = drive.thermal
+
+    def warm_torque(state, temperature_k):
+        k_r, k_psi = thermal.factors(temperature_k)
+        return machine.at_temperature(k_r, k_psi).electromagnetic_torque(state)
+
+    return jax.vmap(warm_torque)(ms, temperature)
+
+
 def trace_from_records(drive: Drive, rec: PeriodRecord, xs: PeriodInputs, dt: float) -> Trace:
     """Derive every Trace signal from the per-period records in one vectorised pass.
 
@@ -197,8 +212,9 @@ def trace_from_records(drive: Drive, rec: PeriodRecord, xs: PeriodInputs, dt: fl
             else drive.bridge.phase_voltages(rec.duties)
         ),
         duties=rec.duties,
-        torque=jax.vmap(machine.electromagnetic_torque)(ms),
+        torque=_torque(drive, ms, rec.temperature),
         load_torque=xs.load_torque,
         theta_e_est=theta_e_est,
         omega_m_est=omega_m_est,
+        winding_temperature=rec.temperature,
     )

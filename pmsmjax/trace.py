@@ -4,7 +4,7 @@ import equinox as eqx
 import numpy as np
 
 from pmsmjax._types import Array
-from pmsmjax.units import rad_s_to_rpm
+from pmsmjax.units import CELSIUS_K, rad_s_to_rpm
 
 # Column name -> (Trace attribute, index into the last axis or None), for CSV/NPZ export.
 _COLUMNS = {
@@ -65,6 +65,10 @@ COLUMN_UNITS = {
     "omega_m_est": "rad/s (estimator's mechanical speed)",
 }
 
+#: The further column of a warm motor's trace (a drive with a thermal network,
+#: [`pmsmjax.machines.thermal`][pmsmjax.machines.thermal]).
+THERMAL_COLUMN_UNITS = {"winding_temperature_c": "degC (winding temperature at the period start)"}
+
 #: The further columns of a six-phase trace (the second set U, V, W;
 #: [`Trace.columns`][pmsmjax.trace.Trace.columns]).
 SIX_PHASE_COLUMN_UNITS = {
@@ -103,6 +107,8 @@ class Trace(eqx.Module):
             with the exact sensor).
         omega_m_est: The estimator's mechanical speed that the controller used, rad/s (equal to
             ``omega_m`` with the exact sensor).
+        winding_temperature: Winding temperature at the period start, K; ``None`` without a thermal
+            network (exported as ``winding_temperature_c``, degC).
     """
 
     t: Array
@@ -119,6 +125,7 @@ class Trace(eqx.Module):
     load_torque: Array
     theta_e_est: Array
     omega_m_est: Array
+    winding_temperature: Array | None = None
 
     @property
     def speed_rpm(self) -> Array:
@@ -155,6 +162,8 @@ class Trace(eqx.Module):
                 out[f"i_{phase}"] = np.asarray(self.i_abc)[..., k]
                 out[f"u_{phase}"] = np.asarray(self.u_abc)[..., k]
                 out[f"duty_{phase}"] = np.asarray(self.duties)[..., k]
+        if self.winding_temperature is not None:
+            out["winding_temperature_c"] = np.asarray(self.winding_temperature) - CELSIUS_K
         return out
 
     def to_numpy(self) -> "Trace":

@@ -301,6 +301,11 @@ def run(spec: DemoSpec, drive, scenario) -> DemoResult:
         summary["drive"]["bridge"] = spec.bridge or "averaged"
         peak = "xy_current_peak_a" if five else "z_current_peak_a"
         summary["metrics"][peak] = z_current_peak(trace, layout)
+    if drive.thermal is not None:
+        from pmsmjax.trace import THERMAL_COLUMN_UNITS
+
+        summary["drive"]["thermal"] = thermal_entry(drive, trace)
+        summary["trace_columns"] = {**summary["trace_columns"], **THERMAL_COLUMN_UNITS}
     return DemoResult(
         trace=trace,
         summary=summary,
@@ -332,6 +337,13 @@ def _console(spec: DemoSpec, summary: dict, Ts: float) -> tuple[str, ...]:
         lines.append(f"WARNING {f['flag']}: {f['cause']}; remedy: {f['remedy']}.")
     if summary.get("flux_map", {}).get("warning"):
         lines.append(f"WARNING flux_map: {summary['flux_map']['warning']}")
+    if "thermal" in summary["drive"]:
+        t = summary["drive"]["thermal"]
+        lines.append(
+            f"warm motor: winding {t['winding_start_c']:.1f} -> {t['winding_end_c']:.1f} degC "
+            f"(ambient {plain(t['ambient_c'])} degC): R {t['r_change_pct']:+.1f} %, psi_f "
+            f"{t['psi_f_change_pct']:+.1f} % at the end, against the data at {plain(t['reference_c'])} degC"
+        )
     timing = summary["timing"]
     lines.append(f"compile {timing['compile_s']:.2f} s, run {timing['run_s'] * 1e3:.1f} ms")
     return tuple(lines)
@@ -366,6 +378,35 @@ def sensors_entry(drive) -> dict:
             "offset_rad": 0.0 if e.offset_rad is None else values(e.offset_rad)[0],
         }
     return entry
+
+
+def thermal_entry(drive, trace) -> dict:
+    """summary.json's account of a warm motor (a drive with a thermal network): the model, its values, the
+    winding temperature at the start and end of the run (degC), and ``R``, ``psi_f`` at the end against
+    their reference values (%)."""
+    import numpy as np
+
+    from pmsmjax.units import kelvin_to_celsius
+
+    t = drive.thermal
+    start, end = (float(kelvin_to_celsius(np.asarray(trace.winding_temperature)[i])) for i in (0, -1))
+    k_r, k_psi = (float(np.asarray(k)) for k in t.factors(np.asarray(trace.winding_temperature)[-1]))
+    value = lambda x: float(np.asarray(x))
+    return {
+        "model": "one-node winding network C_th dT/dt = 1.5 R(T) |i_dq|^2 - (T - T_amb) / R_th; "
+        "R(T) = R (1 + alpha (T - T_ref)), psi_f(T) = psi_f (1 + beta (T - T_ref))",
+        "r_th_k_per_w": value(t.r_th),
+        "c_th_j_per_k": value(t.c_th),
+        "time_constant_s": value(t.time_constant_s),
+        "ambient_c": value(kelvin_to_celsius(t.ambient_k)),
+        "reference_c": value(kelvin_to_celsius(t.reference_k)),
+        "r_temp_coeff_per_k": value(t.r_temp_coeff),
+        "psi_f_temp_coeff_per_k": value(t.psi_f_temp_coeff),
+        "winding_start_c": start,
+        "winding_end_c": end,
+        "r_change_pct": 100.0 * (k_r - 1.0),
+        "psi_f_change_pct": 100.0 * (k_psi - 1.0),
+    }
 
 
 def dead_time_entry(spec, drive) -> dict:

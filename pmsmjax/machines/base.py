@@ -9,6 +9,7 @@ linearisation (``jax.jacfwd`` of
 """
 
 import abc
+import dataclasses
 from collections.abc import Callable
 from typing import ClassVar, Literal
 
@@ -126,6 +127,22 @@ class AbstractMachine(eqx.Module):
         """``(2,)`` dq currents -> model-frame currents (zero sequence 0), A."""
 
     # --- shared ----------------------------------------------------------------------------------
+    def at_temperature(self, resistance_factor: Array, flux_factor: Array) -> "AbstractMachine":
+        """This machine with its stator resistance and magnet flux scaled (a warm motor,
+        [`pmsmjax.machines.thermal`][pmsmjax.machines.thermal]): ``R resistance_factor`` and
+        ``psi_f flux_factor``; every other parameter unchanged.
+
+        Here the motor's ``R`` and ``psi_f`` (every model whose equations read them: dq, alpha-beta, abc,
+        d-axis saturation); the flux-map model overrides it.
+
+        Args:
+            resistance_factor: ``R(T) / R``, dimensionless.
+            flux_factor: ``psi_f(T) / psi_f``, dimensionless.
+        """
+        m = self.motor
+        warm = dataclasses.replace(m, R=m.R * resistance_factor, psi_f=m.psi_f * flux_factor)
+        return dataclasses.replace(self, motor=warm)
+
     def initial_state(self, i_dq=(0.0, 0.0), omega_m=0.0, theta_e=0.0) -> MachineState:
         """State with the given dq currents, speed and angle.
 

@@ -31,6 +31,7 @@ derivative and the torque.
 the sub-step rule and a controller's design read; the electrical equations read only the map.
 """
 
+import dataclasses
 from typing import ClassVar
 
 import equinox as eqx
@@ -93,13 +94,43 @@ class PMSMFluxMapdq(AbstractMachine):
             checks and controller design only.
         flux_map: The map's interpolant.
         mechanics: ``"dynamic"`` or ``"imposed"`` speed.
+        magnet_flux_offset: Added to the map's ``psi_d``, Wb: a warm magnet's change of flux
+            ([`at_temperature`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq.at_temperature]); ``None``
+            (default): the map as measured.
     """
 
     motor: PMSMParameters
     flux_map: FluxMap
     mechanics: Mechanics = eqx.field(static=True, default="dynamic")
+    magnet_flux_offset: Array | None = None
     # The equations see the angle only through the stator-frame voltage: integrate.advance's fast path.
     angle_only_in_voltage: ClassVar[bool] = True
+
+    def flux_and_inductance(self, currents) -> tuple[Array, Array]:
+        """``(psi (2,) Wb, L_inc (2, 2) H)`` at the dq currents ``currents`` (A): the map's, with the
+        warm magnet's ``magnet_flux_offset`` (Wb) added to ``psi_d`` when there is one."""
+        psi, L = self.flux_map(currents)
+        if self.magnet_flux_offset is not None:
+            psi = psi.at[0].add(self.magnet_flux_offset)
+        return psi, L
+
+    def at_temperature(self, resistance_factor, flux_factor) -> "PMSMFluxMapdq":
+        """The map's machine warm: ``R`` scaled, and the magnet's share of the flux, ``psi_d(0, 0)`` of the
+        map, scaled by ``flux_factor`` (``psi_d(i) + (flux_factor - 1) psi_d(0, 0)``; the change of
+        saturation with the magnet's flux is not modelled:
+        [`pmsmjax.machines.thermal`][pmsmjax.machines.thermal]).
+
+        Args:
+            resistance_factor: ``R(T) / R``, dimensionless.
+            flux_factor: ``psi_f(T) / psi_f``, dimensionless.
+        """
+        m = self.motor
+        magnet = self.flux_map(jnp.zeros(2, m.R.dtype))[0][0]
+        offset = (flux_factor - 1.0) * magnet
+        if self.magnet_flux_offset is not None:
+            offset = offset + self.magnet_flux_offset
+        warm = dataclasses.replace(m, R=m.R * resistance_factor, psi_f=m.psi_f * flux_factor)
+        return PMSMFluxMapdq(warm, self.flux_map, self.mechanics, offset)
 
     def flux_dq(self, currents) -> Array:
         """Rotor-frame flux linkage ``[psi_d, psi_q]``.
@@ -110,10 +141,10 @@ class PMSMFluxMapdq(AbstractMachine):
         Returns:
             ``(2,)`` flux linkage, Wb.
         """
-        return self.flux_map(currents)[0]
+        return self.flux_and_inductance(currents)[0]
 
     def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
-        psi, L = self.flux_map(currents)
+        psi, L = self.flux_and_inductance(currents)
         u_dq = u.dq(theta_e)
         rotation = omega_e * jnp.stack([-psi[1], psi[0]])
         return _solve2(L, u_dq - self.motor.R * currents - rotation)
@@ -142,7 +173,7 @@ class PMSMFluxMapdq(AbstractMachine):
         """
         m = self.motor
         i = x[:2]
-        psi, L = self.flux_map(i)
+        psi, L = self.flux_and_inductance(i)
         omega_e = m.pole_pairs * x[2]
         # the 2x2 solve written out on scalars: one fused expression
         b_d = u_dq[0] - m.R * i[0] + omega_e * psi[1]

@@ -23,6 +23,14 @@ Layout (SI units; every table but ``[motor]`` optional)::
                    startup_acceleration_rad_s2, handover_speed_rad_s, blend_speed_rad_s
     [scenario]     speed_rpm, load_nm, load_time_s, duration_s (the demo, compare and Monte Carlo run)
     [tuning]       speed_rpm = [low, high], load_nm = [low, high], duration_s = [low, high]
+    [thermal]      r_th_k_per_w, c_th_j_per_k (the winding's thermal resistance to ambient and heat
+                   capacity), ambient_c (default 40 degC), initial_c (default the ambient): a warm motor,
+                   R(T) and psi_f(T) from [motor] reference_temperature_c (default 20),
+                   r_temp_coeff_per_k (default copper's 0.00393) and psi_f_temp_coeff_per_k (default
+                   sintered NdFeB's -0.0011), three-phase motors
+    [operating]    what varies in use, [low, high]: winding_temperature_c (a run's initial winding
+                   temperature; needs [thermal]), u_dc_v, ambient_c (needs [thermal]) (Monte Carlo draws,
+                   robust tuning)
 
 With a flux map the simulated machine is the map's
 ([`pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq]) and ``L_d``,
@@ -55,8 +63,9 @@ import numpy as np
 from pmsmjax.spec import derivations as derive
 from pmsmjax.spec import design_rules as rules
 from pmsmjax.spec import schema
-from pmsmjax.spec.plausibility import check_flux_map_units, check_motor_units
+from pmsmjax.spec.plausibility import check_flux_map_units, check_motor_units, check_thermal_units
 from pmsmjax.spec.schema import (
+    DC_LINK_RANGE_V,
     MAX_SENSOR_DELAY_PERIODS,
     MOTOR_FIELDS,
     TABLES,
@@ -68,9 +77,11 @@ from pmsmjax.spec.tables import (
     ControlTable,
     InverterTable,
     MotorTable,
+    OperatingTable,
     RatingsTable,
     ScenarioTable,
     SensorTable,
+    ThermalTable,
     ToleranceTable,
     TuningTable,
 )
@@ -98,6 +109,8 @@ class DriveSpec:
     - `notes`: what a user should know about the drive (a rated point that needs field weakening);
     - `flux_map`: the ``[motor] flux_map`` grid as read once
       ([`FluxMapGrid`][pmsmjax.machines.flux_map.FluxMapGrid]), None without one.
+    - `thermal`: the winding's thermal network (``[thermal]``, complete), empty without one;
+    - `operating`: the ranges of ``[operating]`` the file gives.
     """
 
     source: str
@@ -115,6 +128,8 @@ class DriveSpec:
     #: ``{table: keys}`` in the order the file gave them and the derivations added them: the order
     #: summary.json lists them in (a table's own iteration is its field order).
     key_order: dict | None = dataclasses.field(default=None, compare=False, repr=False)
+    thermal: ThermalTable = dataclasses.field(default_factory=ThermalTable)
+    operating: OperatingTable = dataclasses.field(default_factory=OperatingTable)
 
     @property
     def n_phases(self) -> int:
@@ -153,6 +168,7 @@ class DriveSpec:
             "source": self.source,
             **{t: table(t) for t in ("motor", "ratings", "inverter", "sensor", "tolerances")},
             **{t: table(t) for t in ("control", "scenario", "tuning")},
+            **{t: table(t) for t in ("thermal", "operating") if getattr(self, t)},
             "derived": dict(self.derived),
             "notes": list(self.notes),
         }
@@ -216,6 +232,9 @@ def complete(
             "after the start of the run)."
         )
     tuning = schema.ranges(tables["tuning"], where)
+    temperature, thermal = schema.read_thermal(tables["motor"], tables["thermal"], where)
+    operating = schema.read_operating(tables["operating"], where)
+    check_thermal_units(temperature, thermal, operating, where, trust is True or not check_units)
     sensor = schema.read_sensor(tables["sensor"], where)
     for key, value in (overrides or {}).items():
         table = "inverter" if key == "u_dc_v" else "ratings"
@@ -281,6 +300,7 @@ def complete(
             if key not in tuning:
                 tuning[key] = value
                 derived[f"tuning.{key}"] = derive.TUNING_HOW[key]
+    complete_thermal(motor, temperature, thermal, operating, derived, where)
     for key, value in tolerances.items():
         if key != "current_offset_a" and not value < 1.0:
             raise ParameterError(
@@ -289,11 +309,66 @@ def complete(
             )
     tables = dict(
         motor=motor, ratings=ratings, inverter=inverter, sensor=sensor, tolerances=tolerances,
-        control=control, scenario=scenario, tuning=tuning,
+        control=control, scenario=scenario, tuning=tuning, thermal=thermal, operating=operating,
     )  # fmt: skip
     return DriveSpec(
         source, MotorTable.of(motor), RatingsTable.of(ratings), InverterTable.of(inverter),
         SensorTable.of(sensor), ToleranceTable.of(tolerances), ControlTable.of(control),
         ScenarioTable.of(scenario), TuningTable.of(tuning), derived, tuple(notes), flux_map,
-        {name: tuple(values) for name, values in tables.items()},
+        {name: tuple(values) for name, values in tables.items()}, ThermalTable.of(thermal),
+        OperatingTable.of(operating),
     )  # fmt: skip
+
+
+#: Defaults of a drive file with ``[thermal]``: ``{key: (value, how)}``.
+THERMAL_DEFAULTS = {
+    "motor.reference_temperature_c": (20.0, "20 degC, the temperature data sheets state R at"),
+    "motor.r_temp_coeff_per_k": (0.00393, "copper's 0.00393 /K at 20 degC (IEC 60028)"),
+    "motor.psi_f_temp_coeff_per_k": (
+        -0.0011,
+        "sintered NdFeB's -0.11 %/K (magnet data sheets: -0.10 to -0.12 %/K)",
+    ),
+    "thermal.ambient_c": (40.0, "40 degC, the reference coolant temperature of IEC 60034-1"),
+}
+
+
+def complete_thermal(motor, temperature, thermal, operating, derived, where) -> None:
+    """Put ``[motor]``'s temperature keys into ``motor`` and complete ``[thermal]`` (defaults noted in
+    ``derived``); refuse a ``[thermal]`` without its network's values, on a multi-phase motor, and an
+    ``[operating]`` temperature range without ``[thermal]`` or a DC-link band outside a drive's."""
+    motor.update(temperature)
+    if not thermal:
+        needs = [k for k in ("winding_temperature_c", "ambient_c") if k in operating]
+        if needs:
+            raise ParameterError(
+                f"{where}: [operating] {', '.join(needs)} vary the winding's temperature, which needs a "
+                "thermal model: add [thermal] with r_th_k_per_w (K/W) and c_th_j_per_k (J/K)."
+            )
+    else:
+        if motor.get("n_phases", 3) != 3:
+            raise ParameterError(
+                f"{where}: [thermal] heats a three-phase motor (copper loss 1.5 R |i_dq|^2); this motor has "
+                f"{motor['n_phases']} phases: drop [thermal]."
+            )
+        missing = [k for k in ("r_th_k_per_w", "c_th_j_per_k") if k not in thermal]
+        if missing:
+            raise ParameterError(
+                f"{where}: [thermal] lacks {', '.join(missing)}: give the winding's thermal resistance to "
+                "ambient r_th_k_per_w (K/W: the steady winding rise over the copper loss, e.g. 60 K / 120 W "
+                "= 0.5) and heat capacity c_th_j_per_k (J/K: the heating time constant over r_th)."
+            )
+        for name, (value, how) in THERMAL_DEFAULTS.items():
+            table, key = name.split(".")
+            values = motor if table == "motor" else thermal
+            if key not in values:
+                values[key] = value
+                derived[name] = how
+        if "initial_c" not in thermal:
+            thermal["initial_c"] = thermal["ambient_c"]
+            derived["thermal.initial_c"] = "the ambient: a cold start"
+    band = operating.get("u_dc_v")
+    if band is not None and not (DC_LINK_RANGE_V[0] <= band[0] and band[1] <= DC_LINK_RANGE_V[1]):
+        raise ParameterError(
+            f"{where}: [operating] u_dc_v = [{plain(band[0])}, {plain(band[1])}] V is outside the "
+            f"{plain(DC_LINK_RANGE_V[0])}-{plain(DC_LINK_RANGE_V[1])} V of drive DC links: give it in V."
+        )

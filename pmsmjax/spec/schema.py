@@ -11,11 +11,17 @@ MOTOR_FIELDS = ("R", "L_d", "L_q", "psi_f", "pole_pairs", "J", "B")
 MULTIPHASE_FIELDS = ("n_phases", "L_ls", "psi_f3")
 MOTOR_UNITS = {"R": "ohm", "L_d": "H", "L_q": "H", "psi_f": "Wb", "pole_pairs": "", "J": "kg m^2"}
 MOTOR_UNITS.update(B="N m s/rad", L_ls="H", psi_f3="Wb", n_phases="")
+#: ``[motor]``'s temperature keys: the temperature its ``R`` and ``psi_f`` hold at and their coefficients.
+MOTOR_TEMPERATURE_UNITS = {
+    "reference_temperature_c": "degC",
+    "r_temp_coeff_per_k": "1/K",
+    "psi_f_temp_coeff_per_k": "1/K",
+}
 
 #: Every table and its keys with their units (``"int"``: a whole number; ``"str"``: text; ``"range"``: a
 #: [low, high] pair).
 TABLES = {
-    "motor": {**MOTOR_UNITS, "trust_units": "bool", "flux_map": "str"},
+    "motor": {**MOTOR_UNITS, **MOTOR_TEMPERATURE_UNITS, "trust_units": "bool", "flux_map": "str"},
     "ratings": {
         "rated_speed_rpm": "r/min",
         "rated_torque_nm": "N m",
@@ -54,6 +60,8 @@ TABLES = {
     },  # fmt: skip
     "scenario": {"speed_rpm": "r/min", "load_nm": "N m", "load_time_s": "s", "duration_s": "s"},
     "tuning": {"speed_rpm": "range", "load_nm": "range", "duration_s": "range"},
+    "thermal": {"r_th_k_per_w": "K/W", "c_th_j_per_k": "J/K", "ambient_c": "degC", "initial_c": "degC"},
+    "operating": {"winding_temperature_c": "range", "u_dc_v": "range", "ambient_c": "range"},
 }
 SENSOR_KINDS = ("exact", "encoder")
 #: The ``[sensor]`` keys of an encoder, and of the phase-current sensors (any kind).
@@ -404,3 +412,35 @@ def check_current_sensors(sensor: dict, tolerances: dict, max_current_a: float, 
             f"{where}: [tolerances] {', '.join(spread)} spread the current sensors, which [sensor] does not "
             "give: add them, e.g. current_offset_a = [0.0, 0.0] for two sensors on phases a and b."
         )
+
+
+def read_thermal(motor: dict, thermal: dict, where: str) -> tuple[dict, dict]:
+    """``[motor]``'s temperature keys and the ``[thermal]`` table as floats, each a finite number (the
+    thermal resistance and capacity above 0); their plausibility is
+    [`pmsmjax.spec.plausibility.check_thermal_units`][pmsmjax.spec.plausibility.check_thermal_units]'s."""
+    temperature = {}
+    for key, unit in MOTOR_TEMPERATURE_UNITS.items():
+        if key in motor:
+            v = motor[key]
+            if not is_number(v) or not math.isfinite(v):
+                raise ParameterError(f"{where}: [motor] {key} must be a finite number ({unit}), {got(v)}.")
+            temperature[key] = float(v)
+    values = numbers(thermal, "thermal", where, positive=("r_th_k_per_w", "c_th_j_per_k"), signed=True)
+    return temperature, values
+
+
+def read_operating(values: dict, where: str) -> dict:
+    """The ``[operating]`` table's ``[low, high]`` pairs, checked (finite, ``low <= high``; the DC link
+    above 0)."""
+    out = {}
+    for key, v in values.items():
+        name = f"{where}: [operating] {key}"
+        unit = {"u_dc_v": "V"}.get(key, "degC")
+        if not (isinstance(v, list) and len(v) == 2 and all(is_number(x) and math.isfinite(x) for x in v)):
+            raise ParameterError(f"{name} must be [low, high], two finite numbers in {unit}, {got(v)}.")
+        low, high = (float(x) for x in v)
+        if not low <= high or (key == "u_dc_v" and low <= 0):
+            need = "0 < low <= high" if key == "u_dc_v" else "low <= high"
+            raise ParameterError(f"{name} = [{plain(low)}, {plain(high)}] {unit}: give {need}.")
+        out[key] = [low, high]
+    return out

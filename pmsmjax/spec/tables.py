@@ -21,6 +21,8 @@ __all__ = [
     "ControlTable",
     "ScenarioTable",
     "TuningTable",
+    "ThermalTable",
+    "OperatingTable",
 ]
 
 
@@ -68,6 +70,9 @@ class MotorTable(Table):
         L_ls: leakage inductance of a six- or five-phase motor, H.
         psi_f3: third-harmonic magnet flux of a five-phase motor, Wb.
         n_phases: 6 or 5 for a multi-phase motor; None for three phases.
+        reference_temperature_c: temperature at which ``R`` and ``psi_f`` hold, degC.
+        r_temp_coeff_per_k: relative change of ``R`` per kelvin, 1/K (copper 0.00393).
+        psi_f_temp_coeff_per_k: relative change of ``psi_f`` per kelvin, 1/K (NdFeB -0.001 to -0.0012).
     """
 
     flux_map: str | None = None
@@ -81,6 +86,9 @@ class MotorTable(Table):
     L_ls: float | None = None
     psi_f3: float | None = None
     n_phases: int | None = None
+    reference_temperature_c: float | None = None
+    r_temp_coeff_per_k: float | None = None
+    psi_f_temp_coeff_per_k: float | None = None
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -171,3 +179,26 @@ class TuningTable(Table):
     speed_rpm: list
     load_nm: list
     duration_s: list
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ThermalTable(Table):
+    """``[thermal]``: the winding's one-node thermal network, thermal resistance to ambient (K/W) and heat
+    capacity (J/K), the ambient and the run's initial winding temperature (degC); empty (every field None)
+    for a drive file without ``[thermal]`` (constant ``R`` and ``psi_f``)."""
+
+    r_th_k_per_w: float | None = None
+    c_th_j_per_k: float | None = None
+    ambient_c: float | None = None
+    initial_c: float | None = None
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class OperatingTable(Table):
+    """``[operating]``: what varies in use, as ranges ``[low, high]``: the winding temperature at the start
+    of a run (degC), the DC link (V), the ambient (degC); only those the file gives. Monte Carlo studies
+    and robust tuning draw from them, uniformly."""
+
+    winding_temperature_c: list | None = None
+    u_dc_v: list | None = None
+    ambient_c: list | None = None

@@ -122,9 +122,34 @@ _PLANT_KEYS_3 = ("R", "L_d", "L_q", "psi_f", "J", "B", "u_dc_v")
 
 def plant_spread(spec: DriveSpec) -> dict:
     """``{parameter: relative half-width}`` of the drive file's ``[tolerances]`` that apply to its
-    machine (``L_ls`` on a multi-phase motor only), for ``make_batch(plant_spread=...)``."""
+    machine (``L_ls`` on a multi-phase motor only), for ``make_batch(plant_spread=...)``, with the
+    ``[operating]`` bands as ``(low, high)`` factors of the nominal value
+    ([`operating_factors`][tuning.autotune.drive_scaling.operating_factors]; a DC-link band replaces the
+    ``u_dc_v`` tolerance)."""
     keys = _PLANT_KEYS_3 + (("L_ls",) if spec.n_phases != 3 else ())
-    return {k: float(v) for k, v in spec.tolerances.items() if k in keys and v > 0}
+    spread = {k: float(v) for k, v in spec.tolerances.items() if k in keys and v > 0}
+    return {**spread, **operating_factors(spec)}
+
+
+def operating_factors(spec: DriveSpec) -> dict:
+    """The drive file's ``[operating]`` bands as ``{plant-scale name: (low, high)}`` factors of the drive's
+    nominal values: ``u_dc_v`` of ``[inverter] u_dc_v``; the winding temperature (``initial_k``) of
+    ``[thermal] initial_c`` and the ambient (``ambient_k``) of ``[thermal] ambient_c``, in kelvin (a uniform
+    factor is a uniform temperature in the band)."""
+    from pmsmjax.units import celsius_to_kelvin
+
+    op = spec.operating
+    out = {}
+    if "u_dc_v" in op:
+        out["u_dc_v"] = tuple(v / spec.u_dc_v for v in op["u_dc_v"])
+    for key, name, nominal in (
+        ("winding_temperature_c", "initial_k", "initial_c"),
+        ("ambient_c", "ambient_k", "ambient_c"),
+    ):
+        if key in op:
+            kelvin = celsius_to_kelvin(spec.thermal[nominal])
+            out[name] = tuple(celsius_to_kelvin(v) / kelvin for v in op[key])
+    return out
 
 
 def worst_share_mean(costs, share: float = WORST_SHARE) -> float:

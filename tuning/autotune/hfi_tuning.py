@@ -50,7 +50,7 @@ from pmsmjax.spec.drive_spec import DriveSpec
 from pmsmjax.spec.validation import ParameterError, plain
 from pmsmjax.units import rpm_to_rad_s
 from tuning.autotune.drive_scaling import noise_scale, speed_scale, torque_scale
-from tuning.autotune.scenario_batches import WARMUP_S, ScenarioBatch
+from tuning.autotune.scenario_batches import WARMUP_S, ScenarioBatch, plant_factors
 from tuning.parameters import set_leaves
 
 #: Scenario kinds of the injection batches.
@@ -167,7 +167,7 @@ def make_injection_batch(
         kind_list.append(kind)
         w0s.append(float(w0))
         th0s.append(np.radians(rng.uniform(-INITIAL_ANGLE_DEG, INITIAL_ANGLE_DEG)))
-    scale = {k: jnp.asarray(1.0 + rng.uniform(-f, f, n)) for k, f in dict(plant_spread or {}).items()}
+    scale = plant_factors(rng, dict(plant_spread or {}), n)
     return ScenarioBatch(
         stack_scenarios(rows),
         jnp.asarray(durations),

@@ -33,7 +33,8 @@ speeds, loads, noise and times are the book drive's scaled to the drive
 penalty weights are the defaults scaled to the drive's ITAE
 ([`tuning.autotune.drive_scaling.scaled_weights`][tuning.autotune.drive_scaling.scaled_weights]).
 
-Robustness (``robust``): training over plant draws from the drive file's ``[tolerances]`` (uniform
+Robustness (``robust``): training over plant draws from the drive file's ``[tolerances]`` and
+``[operating]`` bands (uniform
 within +-half-width per parameter, the DC link included; the controller's model stays nominal). Every
 run on a drive file with tolerances reports, for the held-out scenarios, the nominal cost (nominal
 plant) and the worst-decile cost (mean of the worst 10 % of per-scenario costs over plant draws from the
@@ -191,8 +192,9 @@ def run_tune_job(
     if robust:
         if not tolerances:
             raise ParameterError(
-                f"--robust: the drive {spec.source} has no [tolerances] table: add one to the drive file "
-                "(relative half-widths, e.g. R = 0.1, J = 0.3) or tune without --robust."
+                f"--robust: the drive {spec.source} has no [tolerances] or [operating] table: add one to the "
+                "drive file (relative half-widths, e.g. R = 0.1, J = 0.3; operating ranges, e.g. u_dc_v = "
+                "[280, 330]) or tune without --robust."
             )
         plant_spread = {**tolerances, **(plant_spread or {})}
     if estimator is not None:

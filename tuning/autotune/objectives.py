@@ -184,13 +184,18 @@ def aggregate(costs, w: ObjectiveWeights):
     return jnp.mean(jnp.sort(costs)[-k:])
 
 
+#: The plant-scale names that scale a warm motor's thermal network (its initial and ambient temperature, K).
+THERMAL_SCALED = ("initial_k", "ambient_k")
+
+
 def batch_metrics(drive: Drive, batch: ScenarioBatch) -> dict:
     """Metrics of every scenario of ``batch`` run on ``drive``: a dict of ``(B,)`` arrays."""
     limit = drive.controller.current_limit
 
     def one(scenario, duration, t_load, scale, speed0, theta0, observe_from):
         plant = drive
-        names = [f"machine.motor.{n}" for n in scale if n != "u_dc_v"]
+        names = [f"machine.motor.{n}" for n in scale if n not in ("u_dc_v",) + THERMAL_SCALED]
+        names += [f"thermal.{n}" for n in scale if n in THERMAL_SCALED]  # a warm motor's temperatures, K
         if names:
             plant = set_leaves(plant, names, [get_leaf(drive, n) * scale[n.rsplit(".", 1)[1]] for n in names])
         if "u_dc_v" in scale:  # the DC link the bridge applies and the controller measures

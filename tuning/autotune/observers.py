@@ -65,7 +65,7 @@ from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
 from tuning.autotune.drive_scaling import noise_scale
 from tuning.autotune.hfi_tuning import injection_sensorless_drive
-from tuning.autotune.scenario_batches import WARMUP_S, ScenarioBatch
+from tuning.autotune.scenario_batches import WARMUP_S, ScenarioBatch, plant_factors
 from tuning.parameters import get_leaf, set_leaves
 
 #: Rated speed of the book drive for the observer batches, r/min (the top of the observer accuracy bands;
@@ -258,7 +258,7 @@ def make_observer_batch(
         w0s.append(w0)
         th0s.append(rng.uniform(-np.pi, np.pi))
     spread = dict(plant_spread or {})
-    scale = {k: jnp.asarray(1.0 + rng.uniform(-f, f, n)) for k, f in spread.items()}
+    scale = plant_factors(rng, spread, n)
     return ScenarioBatch(
         stack_scenarios(rows),
         jnp.asarray(durations),

@@ -34,7 +34,9 @@ class ScenarioBatch(eqx.Module):
     - `plant_scale`: ``{motor parameter: (B,) factor}``: each scenario runs a plant whose parameter is
       the drive's times this factor (robust tuning over parameter spreads; empty for the nominal plant).
       The controller's own motor model stays nominal, as it would on a real drive; ``u_dc_v`` scales the
-      bridge's DC link, which the controller measures (its voltage limit follows).
+      bridge's DC link, which the controller measures (its voltage limit follows); ``initial_k`` and
+      ``ambient_k`` scale a warm motor's initial winding and ambient temperatures (kelvin,
+      [`pmsmjax.machines.thermal.WindingThermal`][pmsmjax.machines.thermal.WindingThermal]).
     - `initial_speed_m`, `initial_theta_e`: ``(B,)`` mechanical speed (rad/s) and electrical angle (rad)
       each scenario starts at (``None``: at rest, angle 0); the observer batches of
       [`tuning.autotune.observers`][tuning.autotune.observers] start at speed.
@@ -92,7 +94,9 @@ def make_batch(
     ``plant_spread = {"J": 0.5, "R": 0.2, ...}`` draws each scenario's plant parameter uniformly within
     +-50 %, +-20 %, ... of nominal (see
     [`ScenarioBatch.plant_scale`][tuning.autotune.scenario_batches.ScenarioBatch]; ``u_dc_v`` scales the DC
-    link, ``L_ls`` a multi-phase motor's leakage inductance).
+    link, ``L_ls`` a multi-phase motor's leakage inductance); a ``(low, high)`` pair instead of a half-width
+    draws the factor uniformly in ``[low, high]`` (a drive file's ``[operating]`` bands:
+    [`tuning.autotune.drive_scaling.plant_spread`][tuning.autotune.drive_scaling.plant_spread]).
     """
     if n < 1:
         raise ParameterError(f"a scenario batch needs n >= 1 scenarios, got {n}.")
@@ -105,11 +109,16 @@ def make_batch(
     if duration_s[0] <= 0:
         raise ParameterError(f"duration_s must be positive, got {duration_s}.")
     spread = dict(plant_spread or {})
-    allowed = ("R", "L_d", "L_q", "psi_f", "J", "B", "L_ls", "u_dc_v")
+    allowed = ("R", "L_d", "L_q", "psi_f", "J", "B", "L_ls", "u_dc_v", "initial_k", "ambient_k")
     for name, frac in spread.items():
         if name not in allowed:
             raise ParameterError(f"plant_spread: unknown motor parameter {name!r}; choose from {allowed}.")
-        if not (np.isfinite(frac) and 0 <= frac < 1):
+        if isinstance(frac, (tuple, list)):
+            if not (len(frac) == 2 and all(np.isfinite(frac)) and 0 < frac[0] <= frac[1]):
+                raise ParameterError(
+                    f"plant_spread[{name!r}] = {frac} must be factors (low, high) with 0 < low <= high."
+                )
+        elif not (np.isfinite(frac) and 0 <= frac < 1):
             raise ParameterError(
                 f"plant_spread[{name!r}] = {frac} must be a fraction in [0, 1) (e.g. 0.2 for +-20 %)."
             )
@@ -137,7 +146,19 @@ def make_batch(
         load_times.append(t_load)
         kind_list.append(kind)
     # Drawn after the scenarios, so adding a spread leaves the scenarios of a seed unchanged.
-    scale = {name: jnp.asarray(1.0 + rng.uniform(-frac, frac, n)) for name, frac in spread.items()}
+    scale = plant_factors(rng, spread, n)
     return ScenarioBatch(
         stack_scenarios(rows), jnp.asarray(durations), jnp.asarray(load_times), tuple(kind_list), scale
     )
+
+
+def plant_factors(rng, spread: dict, n: int) -> dict:
+    """``{name: (n,) factor}`` drawn from ``rng``: ``1 + U(-f, f)`` for a half-width ``f``, ``U(low, high)``
+    for a ``(low, high)`` pair (``make_batch``'s ``plant_spread``)."""
+    out = {}
+    for name, frac in spread.items():
+        if isinstance(frac, (tuple, list)):
+            out[name] = jnp.asarray(rng.uniform(frac[0], frac[1], n))
+        else:
+            out[name] = jnp.asarray(1.0 + rng.uniform(-frac, frac, n))
+    return out

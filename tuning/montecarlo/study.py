@@ -18,6 +18,8 @@ book drive, bit for bit. Each varied parameter is named by a dotted path:
   an absolute half-width in A, since the nominal offset may be 0) and gain (relative), on a drive file
   whose ``[sensor]`` gives current sensors; the file's ``[tolerances] current_offset_a`` and
   ``current_gain`` spread every sensor independently.
+- ``thermal.initial_k``, ``thermal.ambient_k``: a warm motor's (a drive file with ``[thermal]``) winding
+  temperature at the start of the run and its ambient, K.
 - ``controller.<path>``: any scalar array leaf of the controller, e.g. ``controller.speed.kp``.
 - ``scenario.speed_rpm``, ``scenario.load_nm``: the speed step (r/min) and the load step (N m).
 
@@ -49,6 +51,12 @@ A ``[parameters]`` table replaces the default set
 ([`default_tolerances`][tuning.montecarlo.study.default_tolerances]) as a whole; a parameter's nominal value
 defaults to the drive's (or the scenario's) own. Drive and scenario values left out (None) are the drive
 file's.
+
+**Operating conditions** (``[operating]``, what varies in use, apart from the ``[tolerances]``, what is not
+known): the default set adds each band as a uniform draw over it
+([`operating_parameters`][tuning.montecarlo.study.operating_parameters]): the initial winding temperature
+(``winding_temperature_c``) and the ambient (``ambient_c``) in kelvin, the DC link (``u_dc_v``, replacing
+the ``u_dc_v`` tolerance).
 """
 
 import dataclasses
@@ -206,6 +214,7 @@ class Study:
         if self.parameters is None:
             tolerances = default_tolerances(spec) if self.estimator is None else SENSORLESS_TOLERANCES
             default = {k: {"distribution": "uniform", "tolerance": v} for k, v in tolerances.items()}
+            default.update(operating_parameters(spec))
             object.__setattr__(self, "parameters", default)
         for f in ("n", "chunk_size", "decimate", "n_substeps"):
             v = getattr(self, f)
@@ -329,6 +338,30 @@ def default_tolerances(spec: DriveSpec) -> dict[str, float]:
     return out
 
 
+def operating_parameters(spec: DriveSpec) -> dict[str, dict]:
+    """The drive file's ``[operating]`` bands as study parameters, each uniform over its band ``[low, high]``
+    (nominal its middle, tolerance its half-width over the middle): ``thermal.initial_k`` (the winding
+    temperature at the start of a run) and ``thermal.ambient_k`` in kelvin (so that the middle is never 0),
+    ``bridge.u_dc`` in V."""
+    from pmsmjax.units import celsius_to_kelvin
+
+    out = {}
+    for key, name, to_si in (
+        ("winding_temperature_c", "thermal.initial_k", celsius_to_kelvin),
+        ("ambient_c", "thermal.ambient_k", celsius_to_kelvin),
+        ("u_dc_v", "bridge.u_dc", float),
+    ):
+        if key in spec.operating:
+            low, high = (to_si(v) for v in spec.operating[key])
+            middle = 0.5 * (low + high)
+            out[name] = {
+                "distribution": "uniform",
+                "nominal": middle,
+                "tolerance": (high - low) / (2 * middle),
+            }
+    return out
+
+
 def _with_gains(drive: Drive, path) -> Drive:
     """``drive`` with the gains file ``path``, each gain checked against the drive's own
     ([`check_gains`][tuning.parameters.check_gains])."""
@@ -386,6 +419,8 @@ def check_name(drive: Drive, name: str) -> None:
     allowed = [f"motor.{f}" for f in fields] + ["bridge.u_dc"] + [f"scenario.{f}" for f in SCENARIO_FIELDS]
     sensors = tuple(SENSOR_TOLERANCE_PARAMETERS.values())
     allowed += [n for n in array_leaf_names(drive) if n.startswith(sensors)]
+    if drive.thermal is not None:
+        allowed += ["thermal.initial_k", "thermal.ambient_k"]
     controller = [n for n in array_leaf_names(drive) if n.startswith("controller.") and ".model." not in n]
     if name not in allowed and name not in controller:
         raise ParameterError(
