@@ -385,8 +385,9 @@ def demo_spec(args, spec) -> demo_job.DemoSpec:
 def run(args) -> int:
     """Simulate the drive's scenario under the chosen control method; writes the trace, summary.json
     and figures to ``--out``. Returns the exit status."""
-    # Drawing starts loading matplotlib on the second core now, while this process loads JAX and simulates.
-    worker = None if args.no_figures else FigureWorker.start(preload=_load_plotting)
+    # Two figure workers load matplotlib now, while this process loads JAX and simulates; then they draw the
+    # overview and the panels at the same time.
+    workers = [] if args.no_figures else FigureWorker.start_several(2, preload=_load_plotting)
     try:
         spec = precheck(args)
         out = checks.output_folder(args.out)
@@ -399,15 +400,17 @@ def run(args) -> int:
             raise checks.user_terms(err, USER_TERMS) from None
         check_memory(args, drive.Ts)
         result = demo_job.run(request, drive, scenario)
-        write(args, request, result, out, worker)
+        write(args, request, result, out, workers)
     finally:
-        if worker is not None:
+        for worker in workers:
             worker.close()
     return 0
 
 
 def _load_plotting() -> None:
-    """What the figure worker imports before its first figure."""
+    """What a figure worker imports before its first figure."""
+    import matplotlib.pyplot  # noqa: F401
+
     import pmsmjax.plotting.traces  # noqa: F401
 
 
@@ -445,7 +448,7 @@ def check_memory(args, Ts: float) -> None:
     )
 
 
-def write(args, request: demo_job.DemoSpec, result: demo_job.DemoResult, out, worker=None) -> None:
+def write(args, request: demo_job.DemoSpec, result: demo_job.DemoResult, out, workers=()) -> None:
     """Write the trace (``--format``), summary.json and, unless ``--no-figures``, the figures into the
     folder ``out``, then print the result's report and what was written."""
     import numpy as np
@@ -472,7 +475,7 @@ def write(args, request: demo_job.DemoSpec, result: demo_job.DemoResult, out, wo
             + (f", sensorless ({args.estimator}, I/f start)" if args.estimator else ""),
             current_limit_a=result.current_limit_a,
             voltage_limit_v=result.voltage_limit_v,
-            worker=worker,
+            workers=workers,
         )
     )
     if result.layout is not None and not args.no_figures:

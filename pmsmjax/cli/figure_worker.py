@@ -25,6 +25,9 @@ from collections.abc import Callable
 
 _LENGTH = struct.Struct("!Q")
 
+#: The command's ends of its workers' pipes, which a worker forked later closes.
+_PARENT_ENDS: set[int] = set()
+
 
 def _write_message(fd: int, payload) -> None:
     data = pickle.dumps(payload, protocol=pickle.HIGHEST_PROTOCOL)
@@ -85,6 +88,8 @@ class FigureWorker:
         if pid == 0:  # the worker
             os.close(task_write)
             os.close(result_read)
+            for fd in _PARENT_ENDS:  # an earlier worker's pipe ends: its end of file is its parent's alone
+                os.close(fd)
             code = 1
             try:
                 # SIGTERM ends a figure as Ctrl-C does: the atomic write removes its temporary file.
@@ -95,7 +100,20 @@ class FigureWorker:
                 os._exit(code)  # never the command's clean-up (its lock, its temporary files)
         os.close(task_read)
         os.close(result_write)
+        _PARENT_ENDS.update((task_write, result_read))
         return cls(pid, task_write, result_read)
+
+    @classmethod
+    def start_several(cls, count: int, preload: Callable[[], None]) -> "list[FigureWorker]":
+        """Up to ``count`` workers ([`start`][pmsmjax.cli.figure_worker.FigureWorker.start]); none where a
+        worker cannot be forked."""
+        workers = []
+        for _ in range(count):
+            worker = cls.start(preload)
+            if worker is None:
+                break
+            workers.append(worker)
+        return workers
 
     def submit(self, function: Callable, *args, **kwargs) -> None:
         """Hand ``function(*args, **kwargs)`` to the worker (``function`` importable by name, the arguments
@@ -119,6 +137,7 @@ class FigureWorker:
         if self.pid is None:
             return
         for fd in (self._task_fd, self._result_fd):
+            _PARENT_ENDS.discard(fd)
             try:
                 os.close(fd)
             except OSError:

@@ -1,15 +1,26 @@
 """Figures in the style of the book's result plots (speed, currents, torque, voltages against time)."""
 
 from pathlib import Path
+from types import SimpleNamespace
+from typing import TYPE_CHECKING
 
-# No backend is forced: matplotlib falls back to Agg without a display (the CLI), and notebooks keep
-# their inline backend.
-import matplotlib.pyplot as plt
 import numpy as np
 
 from pmsmjax.io.logs import atomic_write
-from pmsmjax.trace import Trace
 from pmsmjax.units import rad_s_to_rpm
+
+
+def _pyplot():
+    """``matplotlib.pyplot``, loaded when a figure is first drawn: a command whose figures are drawn by a
+    figure worker never loads it. No backend is forced: matplotlib falls back to Agg without a display
+    (the CLI), and notebooks keep their inline backend."""
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+if TYPE_CHECKING:  # the figures read arrays only: drawing them loads no JAX (a figure worker does not)
+    from pmsmjax.trace import Trace
 
 
 def save_figure(fig, path: Path) -> Path:
@@ -18,7 +29,7 @@ def save_figure(fig, path: Path) -> Path:
     try:
         return atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=120, bbox_inches="tight"))
     finally:
-        plt.close(fig)
+        _pyplot().close(fig)
 
 
 #: Legends sit outside the plot area, to the right, so they never hide a curve.
@@ -26,11 +37,11 @@ LEGEND = dict(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, f
 LIMIT_STYLE = dict(color="tab:red", ls=":", lw=1.2)
 
 
-def _panel(ax, trace: Trace, title: str, ylabel: str, lines, limits=()):
+def _panel(ax, trace: "Trace", title: str, ylabel: str, lines, limits=()):
     """Draw ``lines`` = [(values (N,), matplotlib format, label), ...] against time on ``ax``, and
     ``limits`` = [(value, label), ...] as red dotted horizontal lines at +value, and at -value when the
     curves go that way (a line far below positive-only curves would only squeeze them)."""
-    ax = ax or plt.subplots(figsize=(8, 3))[1]
+    ax = ax or _pyplot().subplots(figsize=(8, 3))[1]
     t = np.asarray(trace.t)
     low = 0.0
     for values, fmt, label in lines:
@@ -48,13 +59,13 @@ def _panel(ax, trace: Trace, title: str, ylabel: str, lines, limits=()):
     return ax
 
 
-def plot_speed(trace: Trace, ax=None):
+def plot_speed(trace: "Trace", ax=None):
     """Speed and its reference, r/min."""
     lines = [(rad_s_to_rpm(trace.speed_ref), "k--", "reference"), (trace.speed_rpm, "-", "speed")]
     return _panel(ax, trace, "Speed", "n / (r/min)", lines)
 
 
-def plot_dq_currents(trace: Trace, ax=None, current_limit_a: float | None = None):
+def plot_dq_currents(trace: "Trace", ax=None, current_limit_a: float | None = None):
     """dq currents and their references, A; ``current_limit_a``: the controller's limit on |i_dq*|."""
     lines = [(trace.i_dq[:, 0], "-", "$i_d$"), (trace.i_dq[:, 1], "-", "$i_q$")]
     lines.append((trace.i_dq_ref[:, 0], "k:", "$i_d^*$"))
@@ -62,19 +73,19 @@ def plot_dq_currents(trace: Trace, ax=None, current_limit_a: float | None = None
     return _panel(ax, trace, "dq currents", "i / A", lines, [(current_limit_a, "current limit")])
 
 
-def plot_phase_currents(trace: Trace, ax=None, current_limit_a: float | None = None):
+def plot_phase_currents(trace: "Trace", ax=None, current_limit_a: float | None = None):
     """Phase currents, A, with the peak current limit."""
     lines = [(trace.i_abc[:, k], "-", f"$i_{name}$") for k, name in enumerate("abc")]
     return _panel(ax, trace, "Phase currents", "i / A", lines, [(current_limit_a, "current limit")])
 
 
-def plot_torque(trace: Trace, ax=None):
+def plot_torque(trace: "Trace", ax=None):
     """Electromagnetic and load torque, N m."""
     lines = [(trace.torque, "-", "$T_e$"), (trace.load_torque, "k--", "$T_L$")]
     return _panel(ax, trace, "Torque", "T / (N m)", lines)
 
 
-def plot_voltages(trace: Trace, ax=None, voltage_limit_v: float | None = None):
+def plot_voltages(trace: "Trace", ax=None, voltage_limit_v: float | None = None):
     """dq voltage commands and their magnitude, V, with the modulator's linear limit."""
     u = np.asarray(trace.u_dq_ref)
     lines = [
@@ -96,11 +107,14 @@ def _panels(current_limit_a, voltage_limit_v):
 
 
 def overview_figure(
-    trace: Trace, title: str = "", current_limit_a: float | None = None, voltage_limit_v: float | None = None
+    trace: "Trace",
+    title: str = "",
+    current_limit_a: float | None = None,
+    voltage_limit_v: float | None = None,
 ):
     """All five panels in one figure (limits drawn when given: A, V)."""
     panels = _panels(current_limit_a, voltage_limit_v)
-    fig, axes = plt.subplots(len(panels), 1, figsize=(9, 13), sharex=True)
+    fig, axes = _pyplot().subplots(len(panels), 1, figsize=(9, 13), sharex=True)
     for (_, plot), ax in zip(panels, axes, strict=True):
         plot(trace, ax)
     for ax in axes[:-1]:
@@ -111,35 +125,70 @@ def overview_figure(
     return fig
 
 
+#: The trace signals the figures draw.
+FIGURE_SIGNALS = (
+    "t",
+    "speed_ref",
+    "speed_rpm",
+    "i_dq",
+    "i_dq_ref",
+    "i_abc",
+    "torque",
+    "load_torque",
+    "u_dq_ref",
+)
+
+
+def figure_data(trace: "Trace") -> SimpleNamespace:
+    """What the figures read of ``trace`` (its [`FIGURE_SIGNALS`][pmsmjax.plotting.traces.FIGURE_SIGNALS] as
+    NumPy arrays): picklable, and unpickled without JAX, for a figure worker."""
+    return SimpleNamespace(**{name: np.asarray(getattr(trace, name)) for name in FIGURE_SIGNALS})
+
+
 def save_overview_figure(
-    trace: Trace, path: Path, title: str = "", current_limit_a: float | None = None,
+    trace: "Trace", path: Path, title: str = "", current_limit_a: float | None = None,
     voltage_limit_v: float | None = None,
 ) -> Path:  # fmt: skip
     """Write [`overview_figure`][pmsmjax.plotting.traces.overview_figure] to ``path``; returns it."""
     return save_figure(overview_figure(trace, title, current_limit_a, voltage_limit_v), path)
 
 
+def save_panel_figures(
+    trace: "Trace", out_dir: Path, current_limit_a: float | None = None, voltage_limit_v: float | None = None
+) -> list[Path]:
+    """Write one PNG per panel (speed, dq and phase currents, torque, voltages) into ``out_dir``; returns
+    the paths."""
+    paths = []
+    for name, plot in _panels(current_limit_a, voltage_limit_v):
+        fig, ax = _pyplot().subplots(figsize=(8, 3))
+        plot(trace, ax)
+        fig.tight_layout()
+        paths.append(save_figure(fig, Path(out_dir) / f"{name}.png"))
+    return paths
+
+
 def save_demo_figures(
-    trace: Trace,
+    trace: "Trace",
     out_dir: Path,
     title: str = "",
     current_limit_a: float | None = None,
     voltage_limit_v: float | None = None,
-    worker=None,
+    workers=(),
 ) -> list[Path]:
     """Write ``overview.png`` and one PNG per panel into ``out_dir``; returns the paths.
 
-    With a ``worker`` (a [`FigureWorker`][pmsmjax.cli.figure_worker.FigureWorker]: ``submit`` a call,
-    collect its ``result``) the overview is drawn there, at the same time as the panels here (the same
-    files)."""
+    With ``workers`` ([`FigureWorker`][pmsmjax.cli.figure_worker.FigureWorker]s: ``submit`` a call,
+    collect its ``result``) the overview and the panels are drawn there, at the same time (the same files);
+    what has no worker is drawn here."""
     out_dir = Path(out_dir)
-    overview = (trace, out_dir / "overview.png", title, current_limit_a, voltage_limit_v)
-    if worker is not None:
-        worker.submit(save_overview_figure, *overview)
-    paths = [] if worker is not None else [save_overview_figure(*overview)]
-    for name, plot in _panels(current_limit_a, voltage_limit_v):
-        fig, ax = plt.subplots(figsize=(8, 3))
-        plot(trace, ax)
-        fig.tight_layout()
-        paths.append(save_figure(fig, out_dir / f"{name}.png"))
-    return paths if worker is None else [worker.result(), *paths]
+    data = figure_data(trace) if workers else trace
+    jobs = [
+        (save_overview_figure, (data, out_dir / "overview.png", title, current_limit_a, voltage_limit_v)),
+        (save_panel_figures, (data, out_dir, current_limit_a, voltage_limit_v)),
+    ]
+    workers = list(workers)[: len(jobs)]
+    for worker, (function, args) in zip(workers, jobs, strict=False):
+        worker.submit(function, *args)
+    here = [function(*args) for function, args in jobs[len(workers) :]]
+    done = [worker.result() for worker in workers] + here
+    return [done[0], *done[1]]

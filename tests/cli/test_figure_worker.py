@@ -128,3 +128,26 @@ def test_trace_survives_the_pipe():
     again = pickle.loads(pickle.dumps(trace))
     assert np.array_equal(np.asarray(again.i_dq), np.asarray(trace.i_dq))
     assert isinstance(again.i_dq, np.ndarray)
+
+
+def test_two_workers_draw_at_once_and_both_end(tmp_path):
+    """A second worker forked after the first must not hold the first one's pipe: each ends when closed."""
+    result = _run(
+        """
+        import math, os
+        from pmsmjax.cli.figure_worker import FigureWorker
+
+        workers = FigureWorker.start_several(2, preload=lambda: None)
+        assert len(workers) == 2
+        for k, worker in enumerate(workers):
+            worker.submit(math.factorial, 4 + k)
+        print([worker.result() for worker in workers])
+        pids = [worker.pid for worker in workers]
+        for worker in workers:
+            worker.close()
+        print([os.path.exists(f"/proc/{pid}") for pid in pids])
+        """,
+        tmp_path,
+    )
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split("\n")[:2] == ["[24, 120]", "[False, False]"]
