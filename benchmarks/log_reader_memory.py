@@ -27,7 +27,7 @@ LIMIT = 5.0
 CHILD = r"""
 import json, sys, time
 import numpy as np
-from pmsmjax.io import logs
+from pmsmjax.io import csv_logs, logs
 
 def status(key):
     with open("/proc/self/status") as f:
@@ -42,7 +42,7 @@ except OSError:
     reset = False
 chunk = int(sys.argv[3])
 if chunk:
-    logs.CSV_CHUNK_LINES = chunk
+    csv_logs.CSV_CHUNK_LINES = chunk
 before = status("VmRSS")
 t0 = time.perf_counter()
 cols = logs.read_log(sys.argv[1], tuple(sys.argv[2].split(",")))

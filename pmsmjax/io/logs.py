@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pmsmjax.io.csv_logs import read_csv_columns, read_csv_names
 from pmsmjax.spec.validation import ParameterError
 
 __all__ = [
@@ -79,7 +80,7 @@ def read_log(
     suffix = path.suffix.lower()
     line_offset = None
     if suffix in (".csv", ".txt"):
-        raw, line_offset = _read_csv(path, required + optional, required)
+        raw, line_offset = read_csv_columns(path, required + optional, required)
     elif suffix == ".npz":
         raw = _read_npz(path)
     elif suffix == ".mat":
@@ -99,7 +100,7 @@ def column_names(path: str | os.PathLike) -> list[str]:
     """Every column name in the log at ``path`` (for hints about misspelt columns); ``[]`` if it cannot be
     read ([`read_log`][pmsmjax.io.logs.read_log] reports why)."""
     path = Path(path)
-    readers = {".csv": _read_csv_names, ".txt": _read_csv_names, ".npz": _read_npz, ".mat": _read_mat}
+    readers = {".csv": read_csv_names, ".txt": read_csv_names, ".npz": _read_npz, ".mat": _read_mat}
     reader = readers.get(path.suffix.lower())
     if reader is None or not path.is_file():
         return []
@@ -272,200 +273,6 @@ def _where(row: int, line_offset) -> str:
         return ""
     line = line_offset.get(row) if isinstance(line_offset, Mapping) else row + line_offset
     return "" if line is None else f" (file line {line})"
-
-
-#: Lines parsed at a time by the CSV reader: bounds the text held in memory (about 8 MB of Python strings
-#: for 70-byte lines) while keeping NumPy's per-call overhead negligible.
-CSV_CHUNK_LINES = 65_536
-
-
-class _RowLines(Mapping):
-    """Row index -> 1-based file line of a CSV log, stored as the rows where the offset between the two
-    changes (blank and comment lines between rows), not one entry per row."""
-
-    def __init__(self, n_rows: int, starts: list[int], offsets: list[int]):
-        self._n = n_rows
-        self._starts = np.asarray(starts, dtype=np.int64)
-        self._offsets = np.asarray(offsets, dtype=np.int64)
-
-    def __getitem__(self, row: int) -> int:
-        if not 0 <= row < self._n:
-            raise KeyError(row)
-        k = int(np.searchsorted(self._starts, row, side="right")) - 1
-        return int(row + self._offsets[k])
-
-    def __len__(self) -> int:
-        return self._n
-
-    def __iter__(self):
-        return iter(range(self._n))
-
-
-def _csv_header(path: Path, f) -> tuple[list[str], int]:
-    """The column names of an open CSV log ``f`` and the 1-based line of its header."""
-    line_no = 0
-    for line in f:
-        line_no += 1
-        if line.strip() and not line.lstrip().startswith("#"):
-            break
-    else:
-        raise ParameterError(f"log file {path} is empty: it needs a header row and data rows.")
-    names = [n.strip().strip("\"'").strip() for n in line.split(",")]
-    if all(_is_number(n) for n in names):
-        raise ParameterError(
-            f"log file {path}: the first line {line.strip()!r} is data, not a header: add a "
-            "header row naming the columns, e.g. 'time,u_d,u_q'."
-        )
-    if any(not n for n in names):
-        raise ParameterError(
-            f"log file {path}: the header {line.strip()!r} has an empty column name (check for "
-            "a trailing comma); name every column."
-        )
-    dupes = sorted({n for n in names if names.count(n) > 1})
-    if dupes:
-        raise ParameterError(f"log file {path}: column(s) {', '.join(dupes)} appear twice in the header.")
-    return names, line_no
-
-
-def _open_text(path: Path):
-    return open(path, encoding="utf-8-sig", newline=None)
-
-
-def _read_csv_names(path: Path) -> dict[str, None]:
-    """``{name: None}`` for every column of the CSV log's header (the data is not read)."""
-    try:
-        with _open_text(path) as f:
-            names, _ = _csv_header(path, f)
-    except UnicodeDecodeError as err:
-        raise ParameterError(f"log file {path}: not a text CSV file ({err}).") from err
-    return dict.fromkeys(names)
-
-
-def _read_csv(
-    path: Path,
-    wanted: Iterable[str] | None = None,
-    required: Iterable[str] = (),
-    chunk_lines: int | None = None,
-) -> tuple[dict[str, np.ndarray | None], _RowLines]:
-    """Header + comma-separated rows -> ``({name: column}, row index -> 1-based file line)``.
-
-    Streams the file `chunk_lines` lines at a time (default `CSV_CHUNK_LINES`) into one preallocated
-    float64 array per column (sized from the file's bytes per line, grown by half when short), so the
-    peak memory is about the parsed columns plus one chunk of text. Only the columns named in `wanted`
-    (all with None) are parsed, the others map to None; every row's field count is checked against the
-    header all the same. With a name of `required` missing from the header nothing is parsed (every
-    column maps to None, for [`check_columns`][pmsmjax.io.logs.check_columns] to refuse).
-    """
-    chunk_lines = CSV_CHUNK_LINES if chunk_lines is None else int(chunk_lines)
-    try:
-        with _open_text(path) as f:
-            names, header_line = _csv_header(path, f)
-            if any(r not in names for r in required):
-                return dict.fromkeys(names), _RowLines(0, [0], [header_line + 1])
-            wanted = names if wanted is None else [n for n in names if n in set(wanted)]
-            cols = [names.index(n) for n in wanted]
-            columns, row_lines = _parse_rows(path, f, names, cols, header_line, chunk_lines)
-    except UnicodeDecodeError as err:
-        raise ParameterError(f"log file {path}: not a text CSV file ({err}).") from err
-    out: dict[str, np.ndarray | None] = dict.fromkeys(names)
-    out.update(zip(wanted, columns, strict=True))
-    return out, row_lines
-
-
-def _parse_rows(path: Path, f, names: list[str], cols: list[int], header_line: int, chunk_lines: int):
-    """The data rows of the open CSV ``f`` (after its header) -> (list of (N,) float64 columns ``cols``,
-    `_RowLines`)."""
-    import itertools
-
-    n_fields = len(names)
-    size = os.fstat(f.fileno()).st_size
-    buf = None
-    n = 0  # rows stored
-    line_no = header_line  # file lines consumed
-    starts, offsets = [0], [header_line + 1]  # row r sits on line r + offset
-
-    def mark(row: int, line: int) -> None:
-        """Row ``row`` is on file line ``line``: record a change of offset."""
-        if line - row != offsets[-1]:
-            if starts[-1] == row:
-                offsets[-1] = line - row
-            else:
-                starts.append(row)
-                offsets.append(line - row)
-
-    while True:
-        lines = list(itertools.islice(f, chunk_lines))
-        if not lines:
-            break
-        skip = [not (t := s.lstrip()) or t[0] == "#" for s in lines]
-
-        if any(skip):
-            kept = []
-            for k, (s, drop) in enumerate(zip(lines, skip, strict=True)):
-                if not drop:
-                    if k == 0 or skip[k - 1]:
-                        mark(n + len(kept), line_no + k + 1)
-                    kept.append(s)
-        else:
-            kept = lines
-            mark(n, line_no + 1)
-        bad = next((k for k, s in enumerate(kept) if s.count(",") != n_fields - 1), None)
-        if bad is not None:
-            row = n + bad
-            line = _RowLines(row + 1, starts, offsets)[row]
-            n_got = kept[bad].count(",") + 1
-            raise ParameterError(
-                f"log file {path}, line {line}: {n_got} fields but the header names {n_fields} "
-                f"columns ({', '.join(names)}): every row needs one value per column."
-            )
-        line_no += len(lines)
-        if not kept:
-            continue
-        block = _parse_block(kept, cols)
-        if buf is None:
-            per_line = max(sum(map(len, lines)) / len(lines), 1.0)
-            buf = np.empty((len(cols), max(int(1.02 * size / per_line) + 16, len(kept))), np.float64)
-        if n + len(kept) > buf.shape[1]:
-            grown = np.empty((len(cols), max(int(1.5 * buf.shape[1]), n + len(kept))), np.float64)
-            grown[:, :n] = buf[:, :n]
-            buf = grown
-        buf[:, n : n + len(kept)] = block.T
-        n += len(kept)
-        del lines, kept, block
-    if buf is None:
-        return [np.zeros(0) for _ in cols], _RowLines(0, starts, offsets)
-    if n < 0.9 * buf.shape[1]:  # an overestimate worth giving back
-        buf = buf[:, :n].copy()
-    return [buf[j, :n] for j in range(len(cols))], _RowLines(n, starts, offsets)
-
-
-def _parse_block(lines: list[str], cols: list[int]) -> np.ndarray:
-    """``(len(lines), len(cols))`` float64 of the CSV data ``lines``; a field that is empty or no number
-    reads as NaN (which [`check_columns`][pmsmjax.io.logs.check_columns] then locates)."""
-    if not cols:
-        return np.zeros((len(lines), 0))
-    try:
-        return np.loadtxt(
-            lines, delimiter=",", dtype=np.float64, comments=None, ndmin=2, usecols=cols, quotechar=None
-        )
-    except ValueError:
-        # The slow reader, only for a chunk with a bad field: it turns such fields into NaN.
-        return np.genfromtxt(
-            io.StringIO("".join(s if s.endswith("\n") else s + "\n" for s in lines)),
-            delimiter=",",
-            dtype=np.float64,
-            comments=None,
-            ndmin=2,
-            usecols=cols,
-        ).reshape(len(lines), len(cols))
-
-
-def _is_number(s: str) -> bool:
-    try:
-        float(s)
-    except ValueError:
-        return False
-    return True
 
 
 def _read_npz(path: Path) -> dict[str, np.ndarray]:

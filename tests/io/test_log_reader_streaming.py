@@ -5,7 +5,7 @@ a bad row is named by its file line whatever chunk it falls in."""
 import numpy as np
 import pytest
 
-from pmsmjax.io import logs
+from pmsmjax.io import csv_logs, logs
 from pmsmjax.io.logs import read_log
 from pmsmjax.spec.validation import ParameterError
 
@@ -37,7 +37,7 @@ def rows():
 def test_chunked_columns_equal_loadtxt(tmp_path, rows, chunk, monkeypatch):
     path = tmp_path / "log.csv"
     write_log(path, rows, {0: "", 5: "# note", 6: "", 21: "#"})
-    monkeypatch.setattr(logs, "CSV_CHUNK_LINES", chunk)
+    monkeypatch.setattr(csv_logs, "CSV_CHUNK_LINES", chunk)
     got = read_log(path, NAMES)
     expected = np.loadtxt(path, delimiter=",", skiprows=2, comments="#", ndmin=2)
     assert expected.shape == (23, 4)
@@ -50,7 +50,7 @@ def test_chunked_columns_equal_loadtxt(tmp_path, rows, chunk, monkeypatch):
 def test_row_lines_across_skipped_lines(tmp_path, rows, chunk):
     path = tmp_path / "log.csv"
     lines = write_log(path, rows, {0: "", 3: "# x", 4: "", 9: "#", 10: "  "})
-    raw, row_lines = logs._read_csv(path, chunk_lines=chunk)
+    raw, row_lines = csv_logs.read_csv_columns(path, chunk_lines=chunk)
     data_lines = [k + 1 for k, s in enumerate(lines[2:], start=2) if s.strip() and not s.startswith("#")]
     assert [row_lines[r] for r in range(len(rows))] == data_lines
     assert len(row_lines) == len(rows)
@@ -64,7 +64,7 @@ def test_nan_row_named_by_file_line(tmp_path, rows, chunk, monkeypatch):
     fields = lines[bad].split(",")
     lines[bad] = ",".join([fields[0], "", *fields[2:]])
     path.write_text("\n".join(lines) + "\n")
-    monkeypatch.setattr(logs, "CSV_CHUNK_LINES", chunk)
+    monkeypatch.setattr(csv_logs, "CSV_CHUNK_LINES", chunk)
     with pytest.raises(ParameterError, match=rf"'u_d' is NaN .* at row 11 \(file line {bad + 1}\)"):
         read_log(path, NAMES)
 
@@ -75,7 +75,7 @@ def test_short_row_named_by_file_line(tmp_path, rows, chunk, monkeypatch):
     lines = write_log(path, rows)
     lines[15] = lines[15].rsplit(",", 1)[0]
     path.write_text("\n".join(lines) + "\n")
-    monkeypatch.setattr(logs, "CSV_CHUNK_LINES", chunk)
+    monkeypatch.setattr(csv_logs, "CSV_CHUNK_LINES", chunk)
     with pytest.raises(ParameterError, match=r"line 16: 3 fields but the header names 4 columns"):
         read_log(path, NAMES)
 
@@ -86,7 +86,7 @@ def test_only_wanted_columns_are_parsed_and_unused_ones_named(tmp_path, rows):
     unused = []
     got = read_log(path, ("time", "u_q"), unused=unused)
     assert list(got) == ["time", "u_q"] and unused == ["u_d", "i_d"]
-    raw, _ = logs._read_csv(path, ("time", "u_q"))
+    raw, _ = csv_logs.read_csv_columns(path, ("time", "u_q"))
     assert raw["u_d"] is None and raw["i_d"] is None
     np.testing.assert_array_equal(got["u_q"], rows[:, 2])
 
