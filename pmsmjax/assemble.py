@@ -36,6 +36,7 @@ from pmsmjax.drive import Drive
 from pmsmjax.machines.motor import PMSMParameters
 from pmsmjax.spec import registry
 from pmsmjax.spec.validation import ParameterError
+from pmsmjax.spec_blocks import spec_flux_map, spec_motor, spec_scenario, startup_options
 
 __all__ = [
     "assemble",
@@ -388,67 +389,6 @@ def map_aware(estimator, spec):
         return map_angle_corrected(found, flux_map)
 
     return aware(estimator)
-
-
-# --- the drive file's values as blocks ------------------------------------------------------------------
-def spec_motor(spec):
-    """The drive file's motor: [`PMSMParameters`][pmsmjax.machines.motor.PMSMParameters], or a six- or
-    five-phase [`MultiPhaseParameters`][pmsmjax.machines.multiphase_motor.MultiPhaseParameters]."""
-    if spec.n_phases == 3:
-        return PMSMParameters(**{k: spec.motor[k] for k in _MOTOR_KEYS})
-    from pmsmjax.presets.five_phase import five_phase_motor
-    from pmsmjax.presets.six_phase import six_phase_motor
-
-    if spec.source in ("book", "book_salient"):  # the rewind presets compute their values: keep them exact
-        rewind = six_phase_motor if spec.n_phases == 6 else five_phase_motor
-        return rewind(spec.source == "book_salient")
-    from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
-
-    extra = {"psi_f3": spec.motor["psi_f3"]} if "psi_f3" in spec.motor else {}
-    values = {k: spec.motor[k] for k in _MOTOR_KEYS + ("L_ls",)}
-    return MultiPhaseParameters(**values, n_phases=spec.n_phases, **extra)
-
-
-_MOTOR_KEYS = ("R", "L_d", "L_q", "psi_f", "pole_pairs", "J", "B")
-
-
-def spec_flux_map(spec):
-    """The drive file's flux map as the plant's interpolant
-    ([`FluxMap`][pmsmjax.machines.pmsm_flux_map.FluxMap]), or None when the file has none."""
-    if spec.flux_map is None:
-        return None
-    from pmsmjax.machines.pmsm_flux_map import FluxMap
-
-    return FluxMap.from_grid(spec.flux_map)
-
-
-def spec_scenario(spec, speed_rpm=None, load_nm=None, load_time_s=None, duration_s=None):
-    """The drive file's scenario (``[scenario]``, derived where absent), each value overridable: a speed
-    step from rest to ``speed_rpm`` (r/min) at t = 0, a load step 0 -> ``load_nm`` (N m) at
-    ``load_time_s`` (s), ``duration_s`` (s) in all."""
-    from pmsmjax.presets.three_phase import book_scenario
-
-    s = spec.scenario
-    pick = lambda value, key: s[key] if value is None else value
-    return book_scenario(
-        pick(speed_rpm, "speed_rpm"),
-        pick(load_nm, "load_nm"),
-        pick(load_time_s, "load_time_s"),
-        pick(duration_s, "duration_s"),
-    )
-
-
-def startup_options(spec) -> dict:
-    """The I/f start of a sensorless drive on ``spec``
-    ([`StartupEstimator`][pmsmjax.estimators.startup.StartupEstimator] keywords; ``[control]`` startup
-    values)."""
-    c = spec.control
-    return {
-        "i_start": c["startup_current_a"],
-        "accel": c["startup_acceleration_rad_s2"],
-        "handover_speed": c["handover_speed_rad_s"],
-        "blend_speed": c["blend_speed_rad_s"],
-    }
 
 
 # --- the steps applied to a built drive, and the book's sensorless drive ----------------------------

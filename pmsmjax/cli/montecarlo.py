@@ -264,7 +264,8 @@ def run(args) -> int:
         compilation_cache=args.compilation_cache,
     )
     from tuning.montecarlo import run_study
-    from tuning.montecarlo.study import Study, read_study_toml
+    from tuning.montecarlo.study import Study
+    from tuning.montecarlo.study_file import read_study_toml
 
     kwargs = read_study_toml(args.config) if args.config else {}
     for key, value in (

@@ -20,11 +20,12 @@ from pmsmjax.machines.motor import PMSMParameters
 from pmsmjax.presets.three_phase import book_drive
 from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rad_s_to_rpm
-from tuning.montecarlo import VOLATILE_KEYS, StudyRunner, chunk_layout, run_study
+from tuning.montecarlo import VOLATILE_KEYS, StudyRunner, chunk_layout, physical_range, run_study
 from tuning.montecarlo import study as mc_study
 from tuning.montecarlo.distributions import Distribution, sample, unit_samples
 from tuning.montecarlo.kernel import METRICS, run_metrics
-from tuning.montecarlo.study import Study, read_study_toml
+from tuning.montecarlo.study import Study
+from tuning.montecarlo.study_file import read_study_toml
 from tuning.montecarlo.summary import cvar, failures, metric_statistics, spearman_ranks
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -109,9 +110,9 @@ def test_nonphysical_samples_are_counted_and_refused_or_clipped(tmp_path):
     expected = {"motor.J": int(np.sum(raw["motor.J"] <= 0)), "motor.B": int(np.sum(raw["motor.B"] < 0))}
     assert expected["motor.J"] > 100  # a one-sigma band of 100 %: about 16 % below zero
     with pytest.raises(ParameterError, match=f"motor.J: {expected['motor.J']}"):
-        mc_study.enforce_physical({k: v.copy() for k, v in raw.items()}, nominals, "refuse")
+        physical_range.enforce_physical({k: v.copy() for k, v in raw.items()}, nominals, "refuse")
     clipped = {k: v.copy() for k, v in raw.items()}
-    counts = mc_study.enforce_physical(clipped, nominals, "clip")
+    counts = physical_range.enforce_physical(clipped, nominals, "clip")
     assert counts == expected
     assert clipped["motor.J"].min() == pytest.approx(0.01 * 0.003) and clipped["motor.B"].min() == 0.0
 

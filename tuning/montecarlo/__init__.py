@@ -21,7 +21,8 @@ arrays).
 from tuning.montecarlo.cpu_devices import split_cpu
 from tuning.montecarlo.distributions import Distribution, sample
 from tuning.montecarlo.runner import VOLATILE_KEYS, StudyRunner, chunk_layout, load_results, run_study
-from tuning.montecarlo.study import Study, read_study_toml
+from tuning.montecarlo.study import Study
+from tuning.montecarlo.study_file import read_study_toml
 
 __all__ = [
     "Study",

@@ -50,6 +50,7 @@ from pmsmjax.machines.integrate import max_stable_substep
 from pmsmjax.simulate import check_simulation, period_inputs
 from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
+from tuning.montecarlo import physical_range
 from tuning.montecarlo import study as mc_study
 from tuning.montecarlo.chunking import auto_chunk_size, bytes_per_run
 from tuning.montecarlo.distributions import sample
@@ -340,7 +341,7 @@ def run_study(
     runner.check()
     dists = mc_study.distributions(study, runner.drive)
     samples = sample(dists, study.n, study.seed, study.sampling)
-    nonphysical = mc_study.enforce_physical(
+    nonphysical = physical_range.enforce_physical(
         samples, {k: d.nominal for k, d in dists.items()}, study.nonphysical
     )
     runner.check(samples)

@@ -61,21 +61,19 @@ the ``u_dc_v`` tolerance).
 
 import dataclasses
 import math
-from pathlib import Path
 
 import jax.numpy as jnp
-import numpy as np
 
 from pmsmjax import presets
 from pmsmjax.drive import Drive
 from pmsmjax.inverters.averaged import AveragedBridge
 from pmsmjax.io.drive_files import drive_spec
-from pmsmjax.io.toml_parser import read_toml
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.spec.drive_spec import TABLES, DriveSpec
 from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
 from tuning.montecarlo.distributions import KINDS, SAMPLING, Distribution
+from tuning.montecarlo.physical_range import ABSOLUTE_PARAMETERS
 from tuning.parameters import (
     apply_gains,
     array_leaf_names,
@@ -113,17 +111,11 @@ TOLERANCE_PARAMETERS = {
     for k in TABLES["tolerances"]
     if k not in SENSOR_TOLERANCE_PARAMETERS
 }
-#: Study parameters whose tolerance is an absolute half-width in their unit (signed, nominal possibly 0).
-ABSOLUTE_PARAMETERS = ("current_sensor.offset_a",)
 #: The machine setting -> the drive file's phase count.
 PHASES = {"three-phase": 3, "six-phase": 6, "five-phase": 5}
 #: Periods between the fan chart's samples, at most (the largest divisor of the run's periods up to this).
 DECIMATE_AT_MOST = 40
 # Parameters that must stay > 0 (the rest of the drive's parameters must stay >= 0).
-NONNEGATIVE = ("motor.psi_f", "motor.B")
-#: Where ``nonphysical = "clip"`` puts a sample below its bound: this fraction of the nominal value
-#: for parameters that must be > 0 (a zero inductance or inertia cannot be simulated), 0 for the others.
-CLIP_FRACTION = 0.01
 
 
 @dataclasses.dataclass(frozen=True)
@@ -453,38 +445,6 @@ def distributions(study: Study, drive: Drive) -> dict[str, Distribution]:
     return out
 
 
-def lower_bound(name: str) -> tuple[float, bool]:
-    """``(bound, strict)``: the physical range of ``name`` is ``> bound`` (strict) or ``>= bound``."""
-    if name.startswith(("scenario.", *ABSOLUTE_PARAMETERS)):
-        return -math.inf, False
-    return 0.0, name not in NONNEGATIVE
-
-
-def enforce_physical(samples: dict[str, np.ndarray], nominals: dict[str, float], mode: str) -> dict:
-    """Count (and with ``mode="clip"`` clip) samples outside each parameter's physical range.
-
-    **Returns:** ``{name: count}`` of non-physical samples; ``samples`` is clipped in place.
-    Raises [`ParameterError`][pmsmjax.spec.validation.ParameterError] with ``mode="refuse"`` when any sample
-    is non-physical.
-    """
-    counts = {}
-    for name, x in samples.items():
-        bound, strict = lower_bound(name)
-        bad = (x <= bound) if strict else (x < bound)
-        counts[name] = int(np.sum(bad))
-        if counts[name] and mode == "clip":
-            x[bad] = bound + CLIP_FRACTION * abs(nominals[name]) if strict else bound
-    if mode == "refuse" and any(counts.values()):
-        detail = ", ".join(f"{k}: {v}" for k, v in counts.items() if v)
-        raise ParameterError(
-            f"non-physical samples ({detail} of {len(next(iter(samples.values())))}) outside the "
-            "physical range "
-            "(> 0; >= 0 for psi_f and B): narrow the tolerance, use a lognormal distribution, or set "
-            "nonphysical = 'clip' (--clip) to move them to the bound."
-        )
-    return counts
-
-
 def apply_sample(drive: Drive, study: Study, names: tuple[str, ...], values) -> tuple[Drive, Scenario]:
     """The drive and scenario of one run: ``values (P,)`` (may be traced) for the parameters ``names``."""
     drive_names = [n for n in names if not n.startswith("scenario.")]
@@ -513,57 +473,3 @@ def apply_sample(drive: Drive, study: Study, names: tuple[str, ...], values) -> 
         ),
     )
     return drive, scenario
-
-
-_SECTIONS = {
-    "study": ("n", "seed", "sampling", "chunk_size", "nonphysical", "decimate", "sensitivity_runs"),
-    "drive": (
-        "motor",
-        "gains",
-        "current_bandwidth",
-        "speed_bandwidth",
-        "current_limit",
-        "u_dc",
-        "n_substeps",
-        "unroll_substeps",
-        "machine",
-        "control",
-        "pwm",
-        "estimator",
-    ),
-    "scenario": ("speed_rpm", "load_nm", "load_time_s", "duration_s"),
-    "thresholds": ("current_a", "tracking_rpm"),
-}
-
-
-def read_study_toml(path) -> dict:
-    """Study settings from a TOML file as keyword arguments of [`Study`][tuning.montecarlo.study.Study]
-    (checked by it)."""
-    path = Path(path)
-    if not path.is_file():
-        raise ParameterError(f"study file {path} does not exist: check the path.")
-    data = read_toml(path, f"study file {path}")
-    unknown = sorted(set(data) - set(_SECTIONS) - {"parameters"})
-    if unknown:
-        raise ParameterError(
-            f"study file {path}: unknown tables {unknown}; allowed: {sorted(_SECTIONS)} and parameters."
-        )
-    kwargs = {}
-    for section, keys in _SECTIONS.items():
-        table = data.get(section, {})
-        bad = sorted(set(table) - set(keys))
-        if bad:
-            raise ParameterError(
-                f"study file {path}: unknown keys {bad} in [{section}]; allowed: {', '.join(keys)}."
-            )
-        for k, v in table.items():
-            name = {"current_a": "current_threshold_a", "tracking_rpm": "tracking_threshold_rpm"}.get(k, k)
-            kwargs[name] = v
-    if "gains" in kwargs:
-        gains = Path(kwargs["gains"])
-        kwargs["gains"] = str(gains if gains.is_absolute() else path.parent / gains)
-    if "parameters" in data:
-        kwargs["parameters"] = {
-            k: dict(v) if isinstance(v, dict) else v for k, v in data["parameters"].items()
-        }
-    return kwargs
