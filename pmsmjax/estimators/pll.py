@@ -33,6 +33,8 @@ from pmsmjax.spec.validation import check_positive
 
 
 class PLLState(eqx.Module):
+    """A PLL's angle and speed."""
+
     theta: Array  # rad, electrical angle (wrapped)
     omega: Array  # rad/s, electrical speed
 

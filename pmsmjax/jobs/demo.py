@@ -18,6 +18,7 @@ from pmsmjax.spec.schema import MAX_RUN_PERIODS
 from pmsmjax.spec.validation import ParameterError, plain
 
 __all__ = [
+    "MAX_LOAD_FACTOR",
     "DEFINITIONS",
     "MAX_SPEED_FACTOR",
     "DemoResult",

@@ -177,7 +177,7 @@ def save_demo_figures(
 ) -> list[Path]:
     """Write ``overview.png`` and one PNG per panel into ``out_dir``; returns the paths.
 
-    With ``workers`` ([`FigureWorker`][pmsmjax.cli.figure_worker.FigureWorker]s: ``submit`` a call,
+    With ``workers`` (the command line's ``FigureWorker``: ``submit`` a call,
     collect its ``result``) the overview and the panels are drawn there, at the same time (the same files);
     what has no worker is drawn here."""
     out_dir = Path(out_dir)

@@ -33,6 +33,7 @@ from pmsmjax.spec.drive_spec import DriveSpec
 from pmsmjax.spec.steady_state import top_speed_rpm
 
 __all__ = [
+    "operating_factors",
     "BOOK_RATED_SPEED_RPM",
     "BOOK_RATED_TORQUE_NM",
     "BOOK_TUNING_DURATION_S",
