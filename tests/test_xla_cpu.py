@@ -1,12 +1,12 @@
 """The XLA:CPU setting pmsmjax requests on import (pmsmjax/xla_cpu.py): added once, never over a user's own
-choice, and in effect: the flux-map plant's sub-step loop compiles into one kernel."""
+choice, and in effect as users run (the suite itself compiles without it, tests/conftest.py): the
+flux-map plant's sub-step loop compiles into one kernel, and a run computes the same numbers."""
 
 import os
 import subprocess
 import sys
 
-import jax
-import jax.numpy as jnp
+import numpy as np
 
 import pmsmjax  # noqa: F401  (the import requests the setting)
 from pmsmjax.xla_cpu import SMALL_LOOP_BYTES, request_small_loop_kernels
@@ -58,22 +58,55 @@ def test_the_merged_options_reach_xla(tmp_path):
     assert r.stdout.strip().endswith("True"), r.stdout
 
 
+#: The option tests/conftest.py adds for the suite's own compiles.
+TEST_XLA_OPTION = "--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=0"
+
+
+def _users_environment() -> dict:
+    """The environment without the suite's own XLA option (tests/conftest.py): as a user's command runs."""
+    env = dict(os.environ)
+    env["XLA_FLAGS"] = env.get("XLA_FLAGS", "").replace(TEST_XLA_OPTION, "").strip()
+    return env
+
+
+def _run(script: str, env: dict) -> str:
+    r = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=False)
+    assert r.returncode == 0, r.stderr[-2000:]
+    return r.stdout
+
+
 def test_the_flux_map_plants_loop_compiles_into_one_kernel():
-    # XLA's default limit (1 kB) leaves this loop to the per-kernel runtime (checked by hand with the
-    # limit set back to 1024 in XLA_FLAGS); the requested one makes it a single kernel.
-    if jax.default_backend() != "cpu":
-        return
-    from pmsmjax.assemble import spec_drive
-    from pmsmjax.io.drive_files import drive_spec
-    from pmsmjax.machines import MachineInput, advance
+    # XLA's default limit (1 kB) leaves this loop to the per-kernel runtime; the requested one makes it a
+    # single kernel. A fresh interpreter as a user's: the suite itself compiles with XLA's default.
+    script = (
+        "import jax, jax.numpy as jnp\n"
+        "from pmsmjax.assemble import spec_drive\n"
+        "from pmsmjax.io.drive_files import drive_spec\n"
+        "from pmsmjax.machines import MachineInput, advance\n"
+        "machine = spec_drive(drive_spec('saturated-ipm')).machine\n"
+        "def period(machine, state, u):\n"
+        "    return advance(machine, state, MachineInput(u, jnp.zeros_like(u[0])), 1e-4, 10)\n"
+        "state = machine.initial_state((0.0, 0.0), 100.0, 0.0)\n"
+        "u = jnp.asarray([10.0, 50.0], state.currents.dtype)\n"
+        "text = jax.jit(period).lower(machine, state, u).compile().as_text()\n"
+        "print(type(machine).__name__, 'xla_cpu_small_call=\"true\"' in text)\n"
+    )
+    assert _run(script, _users_environment()).split() == ["PMSMFluxMapdq", "True"]
 
-    machine = spec_drive(drive_spec("saturated-ipm")).machine
-    assert type(machine).__name__ == "PMSMFluxMapdq"
 
-    def period(machine, state, u):
-        return advance(machine, state, MachineInput(u, jnp.zeros_like(u[0])), 1e-4, 10)
-
-    state = machine.initial_state((0.0, 0.0), 100.0, 0.0)
-    u = jnp.asarray([10.0, 50.0], state.currents.dtype)
-    compiled = jax.jit(period).lower(machine, state, u).compile().as_text()
-    assert 'xla_cpu_small_call="true"' in compiled
+def test_a_run_computes_the_same_with_and_without_small_loop_kernels():
+    """The suite runs without the option; with it (as users run), the book drive's trace is the same to
+    rounding: the option changes how XLA executes a loop, not what it computes."""
+    script = (
+        "import jax, numpy as np\n"
+        "jax.config.update('jax_enable_x64', True)\n"
+        "from pmsmjax import presets\n"
+        "from pmsmjax.simulate import simulate\n"
+        "trace = simulate(presets.book_drive(), presets.book_scenario(duration_s=0.05, load_time_s=0.02))\n"
+        "print(' '.join(repr(float(x)) for x in np.asarray(trace.i_dq).ravel()[::97]))\n"
+        "print(repr(float(np.asarray(trace.omega_m)[-1])))\n"
+    )
+    with_kernels = _run(script, _users_environment()).split()
+    without = _run(script, dict(os.environ)).split()
+    assert len(with_kernels) == len(without) > 10
+    np.testing.assert_allclose(np.array(with_kernels, float), np.array(without, float), rtol=1e-9, atol=1e-9)
