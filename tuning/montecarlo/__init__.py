@@ -18,9 +18,10 @@ importing this package runs the imports below: none of them may touch a device a
 arrays).
 """
 
+from tuning.montecarlo.chunk_files import load_results
 from tuning.montecarlo.cpu_devices import split_cpu
 from tuning.montecarlo.distributions import Distribution, sample
-from tuning.montecarlo.runner import VOLATILE_KEYS, StudyRunner, chunk_layout, load_results, run_study
+from tuning.montecarlo.runner import VOLATILE_KEYS, StudyRunner, chunk_layout, run_study
 from tuning.montecarlo.study import Study
 from tuning.montecarlo.study_file import read_study_toml
 

@@ -35,7 +35,6 @@ import hashlib
 import json
 import math
 import time
-import warnings
 from collections.abc import Callable
 from pathlib import Path
 
@@ -52,6 +51,7 @@ from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
 from tuning.montecarlo import physical_range
 from tuning.montecarlo import study as mc_study
+from tuning.montecarlo.chunk_files import load_agreed
 from tuning.montecarlo.chunking import auto_chunk_size, bytes_per_run
 from tuning.montecarlo.distributions import sample
 from tuning.montecarlo.kernel import METRICS, OBSERVER_METRICS, run_metrics
@@ -288,40 +288,6 @@ def fingerprint(study: Study, drive, values: np.ndarray, dtype) -> str:
     return h.hexdigest()[:16]
 
 
-def _load_agreed(path: Path, key: str, rows: int):
-    """`_load_chunk` on process 0, its decision shared with every process (they must all take part
-    in computing a missing chunk). Only process 0 reads, writes and summarises; the others get ``{}``
-    for a chunk that process 0 has."""
-    data = _load_chunk(path, key, rows) if jax.process_index() == 0 else None
-    if jax.process_count() == 1:
-        return data
-    from jax.experimental import multihost_utils
-
-    have = bool(multihost_utils.broadcast_one_to_all(np.asarray(data is not None)))
-    return (data if data is not None else {}) if have else None
-
-
-def _load_chunk(path: Path, key: str, rows: int):
-    """A chunk file's arrays if it exists and carries ``key`` (study fingerprint, first run and run count
-    of the chunk) and ``rows`` runs, else None."""
-    if not path.is_file():
-        return None
-    try:
-        with np.load(path, allow_pickle=False) as f:
-            if str(f["fingerprint"]) != key or f["finite"].shape[0] != rows:
-                return None
-            return {k: f[k] for k in f.files if k != "fingerprint"}
-    except Exception as err:  # noqa: BLE001 (a truncated zip raises BadZipFile, EOFError, zlib.error, ...)
-        # Atomic writes never leave a half chunk, so this is an outside change (a full disk when copied,
-        # a truncated transfer): the runs are recomputed and the file rewritten.
-        warnings.warn(
-            f"{path} is damaged ({type(err).__name__}: {' '.join(str(err).split())[:80]}): computing its "
-            "runs again and rewriting it",
-            stacklevel=2,
-        )
-        return None
-
-
 def run_study(
     study: Study,
     out_dir,
@@ -389,7 +355,7 @@ def run_study(
             lo, hi = c * size, min((c + 1) * size, study.n)
             path = chunk_dir / f"chunk_{c:05d}.npz"
             chunk_key = f"{key}:{lo}:{hi - lo}"
-            data = _load_agreed(path, chunk_key, hi - lo)
+            data = load_agreed(path, chunk_key, hi - lo)
             launched = None
             if data is None:
                 runner.compile("forward", size)  # outside the timed region (a no-op after the first)
@@ -421,7 +387,7 @@ def run_study(
     if n_sens:
         sens_path = chunk_dir / "sensitivities.npz"
         sens_key = f"{key}:sensitivities:{n_sens}"
-        data = _load_agreed(sens_path, sens_key, n_sens)
+        data = load_agreed(sens_path, sens_key, n_sens)
         if data is None:
             s_size, _ = chunk_layout(n_sens, n_sens, n_dev)
             padded = _pad(values[:n_sens], s_size)
@@ -479,27 +445,6 @@ def run_study(
     text = json.dumps(summary, indent=2, allow_nan=False) + "\n"
     atomic_write(out / "summary.json", lambda f: f.write(text.encode()))
     return summary
-
-
-def load_results(out_dir) -> dict:
-    """Every run's metrics and decimated record from a study folder's chunk files, in run order:
-    ``{name: (n,) or (n, N / decimate) array}`` (for analyses beyond summary.json)."""
-    paths = sorted((Path(out_dir) / "chunks").glob("chunk_*.npz"))
-    if not paths:
-        raise ParameterError(f"no chunk files in {Path(out_dir) / 'chunks'}: run the study first.")
-    parts = []
-    for path in paths:
-        try:
-            with np.load(path, allow_pickle=False) as f:
-                parts.append({k: f[k] for k in f.files})
-        except Exception as err:  # noqa: BLE001 (BadZipFile, EOFError, zlib.error, ...)
-            raise ParameterError(
-                f"{path} is damaged ({type(err).__name__}): rerun the study on {out_dir} to compute its "
-                "runs again."
-            ) from err
-    if len({str(p.pop("fingerprint")).split(":")[0] for p in parts}) != 1:
-        raise ParameterError(f"{out_dir} holds chunks of different studies: use one folder per study.")
-    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
 
 def _finite_or_none(x):
