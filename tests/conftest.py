@@ -5,20 +5,8 @@ is loaded from disk by the next instead of compiled again."""
 import os
 from pathlib import Path
 
-#: The option ``import pmsmjax`` adds to ``XLA_FLAGS`` (pmsmjax/xla_cpu.py) compiles a drive's small loops
-#: into one kernel each: runs are faster, but reverse-mode programs take two to three times longer to compile,
-#: and the suite compiles far more than it runs. Its tests (and the commands they start) therefore compile
-#: with XLA:CPU's default loop emission, and tests/test_xla_cpu.py checks, in fresh interpreters with the
-#: option on, that it makes the loops one kernel and that a run computes the same numbers with it.
-#: ``PMSMJAX_TEST_SMALL_LOOPS=1`` runs the whole suite with the option instead.
-TEST_XLA_OPTION = "--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=0"
-if os.environ.get("PMSMJAX_TEST_SMALL_LOOPS") != "1" and "xla_backend_extra_options" not in os.environ.get(
-    "XLA_FLAGS", ""
-):
-    os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {TEST_XLA_OPTION}".strip()
-
-import jax  # noqa: E402 (after XLA_FLAGS)
-import pytest  # noqa: E402
+import jax
+import pytest
 
 jax.config.update("jax_enable_x64", True)
 

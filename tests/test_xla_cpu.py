@@ -1,6 +1,6 @@
 """The XLA:CPU setting pmsmjax requests on import (pmsmjax/xla_cpu.py): added once, never over a user's own
-choice, and in effect as users run (the suite itself compiles without it, tests/conftest.py): the
-flux-map plant's sub-step loop compiles into one kernel, and a run computes the same numbers."""
+choice, and in effect: the flux-map plant's sub-step loop compiles into one kernel, and a run computes the
+same numbers with it as without."""
 
 import os
 import subprocess
@@ -58,14 +58,14 @@ def test_the_merged_options_reach_xla(tmp_path):
     assert r.stdout.strip().endswith("True"), r.stdout
 
 
-#: The option tests/conftest.py adds for the suite's own compiles.
-TEST_XLA_OPTION = "--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=0"
+#: The XLA option that switches small-loop kernels off (XLA:CPU's default loop emission).
+WITHOUT_SMALL_LOOPS = "--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=0"
 
 
 def _users_environment() -> dict:
-    """The environment without the suite's own XLA option (tests/conftest.py): as a user's command runs."""
+    """The environment as a user's command runs: without an XLA option of the caller's."""
     env = dict(os.environ)
-    env["XLA_FLAGS"] = env.get("XLA_FLAGS", "").replace(TEST_XLA_OPTION, "").strip()
+    env.pop("XLA_FLAGS", None)
     return env
 
 
@@ -77,7 +77,7 @@ def _run(script: str, env: dict) -> str:
 
 def test_the_flux_map_plants_loop_compiles_into_one_kernel():
     # XLA's default limit (1 kB) leaves this loop to the per-kernel runtime; the requested one makes it a
-    # single kernel. A fresh interpreter as a user's: the suite itself compiles with XLA's default.
+    # single kernel (in a fresh interpreter, as a user's command runs).
     script = (
         "import jax, jax.numpy as jnp\n"
         "from pmsmjax.assemble import spec_drive\n"
@@ -95,8 +95,8 @@ def test_the_flux_map_plants_loop_compiles_into_one_kernel():
 
 
 def test_a_run_computes_the_same_with_and_without_small_loop_kernels():
-    """The suite runs without the option; with it (as users run), the book drive's trace is the same to
-    rounding: the option changes how XLA executes a loop, not what it computes."""
+    """With small-loop kernels (as users run) and without them (XLA's default), the book drive's trace is the
+    same to rounding: the option changes how XLA executes a loop, not what it computes."""
     script = (
         "import jax, numpy as np\n"
         "jax.config.update('jax_enable_x64', True)\n"
@@ -107,6 +107,6 @@ def test_a_run_computes_the_same_with_and_without_small_loop_kernels():
         "print(repr(float(np.asarray(trace.omega_m)[-1])))\n"
     )
     with_kernels = _run(script, _users_environment()).split()
-    without = _run(script, dict(os.environ)).split()
+    without = _run(script, {**_users_environment(), "XLA_FLAGS": WITHOUT_SMALL_LOOPS}).split()
     assert len(with_kernels) == len(without) > 10
     np.testing.assert_allclose(np.array(with_kernels, float), np.array(without, float), rtol=1e-9, atol=1e-9)
