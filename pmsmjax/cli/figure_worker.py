@@ -8,7 +8,7 @@ loads JAX and simulates, then draws the figures it is handed on the machine's se
 draws the others. Each figure is the same file, byte for byte, as the command would draw itself.
 
 Where a worker cannot help or cannot be forked safely (one core, JAX already loaded as under pytest or in a
-notebook, no ``os.fork``), [`FigureWorker.start`][pmsmjax.cli.figure_worker.FigureWorker.start]
+notebook, an operating system other than Linux), [`FigureWorker.start`][pmsmjax.cli.figure_worker.FigureWorker.start]
 returns ``None`` and the command draws every figure itself.
 
 The worker never runs the command's clean-up: it leaves through ``os._exit`` whatever happens, so the
@@ -78,9 +78,10 @@ class FigureWorker:
     def start(cls, preload: Callable[[], None]) -> "FigureWorker | None":
         """Fork the worker; it calls ``preload`` (import what drawing needs) and waits for a task.
 
-        Returns ``None`` (draw in the command instead) on one core, once JAX is loaded, or without
-        ``os.fork``."""
-        if not hasattr(os, "fork") or "jax" in sys.modules or _cores() < 2:
+        Returns ``None`` (draw in the command instead) on one core, once JAX is loaded, or off Linux."""
+        # Linux only: macOS's system frameworks are not safe to use in a forked child (Python's own
+        # multiprocessing stopped forking there), and Windows has no fork.
+        if not sys.platform.startswith("linux") or "jax" in sys.modules or _cores() < 2:
             return None
         task_read, task_write = os.pipe()
         result_read, result_write = os.pipe()
