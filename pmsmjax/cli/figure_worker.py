@@ -8,8 +8,9 @@ loads JAX and simulates, then draws the figures it is handed on the machine's se
 draws the others. Each figure is the same file, byte for byte, as the command would draw itself.
 
 Where a worker cannot help or cannot be forked safely (one core, JAX already loaded as under pytest or in a
-notebook, an operating system other than Linux), [`FigureWorker.start`][pmsmjax.cli.figure_worker.FigureWorker.start]
-returns ``None`` and the command draws every figure itself.
+notebook, an operating system other than Linux),
+[`FigureWorker.start`][pmsmjax.cli.figure_worker.FigureWorker.start] returns ``None`` and the command draws
+every figure itself.
 
 The worker never runs the command's clean-up: it leaves through ``os._exit`` whatever happens, so the
 command's folder lock and temporary files stay the command's. A task that fails in the worker comes back as
