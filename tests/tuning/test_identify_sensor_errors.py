@@ -145,6 +145,15 @@ def test_three_sensors_and_their_common_offset():
     _check(errors, THREE, z=3.0)
 
 
+def test_exact_sensors_are_reported_exact():
+    """No errors in the log: no errors found (offsets, ratio and encoder offset within their intervals of
+    zero, one and zero)."""
+    errors = identify_sensor_errors(
+        sensor_log_from_columns(_stator_log((0.0, 0.0), (1.0, 1.0), 0.0, seed=5))[0]
+    )
+    _check(errors, {"offset": (0.0, 0.0), "gain": (1.0, 1.0), "delta": 0.0})
+
+
 def test_ideal_model_fit_of_the_same_log_is_wrong_and_the_corrected_one_right(two):
     """The equation-error fit of today's identification (tuning.identify.electrical.warm_start) on the log
     as read against the same fit once the identified errors are taken out. Measured: as read R -16.6 %,
