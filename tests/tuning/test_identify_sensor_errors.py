@@ -154,6 +154,15 @@ def test_exact_sensors_are_reported_exact():
     _check(errors, {"offset": (0.0, 0.0), "gain": (1.0, 1.0), "delta": 0.0})
 
 
+def test_at_standstill_the_encoder_offset_is_not_determined():
+    t = np.arange(2001) * TS
+    th = np.full_like(t, 0.4)
+    u = 0.5 * np.sin(2 * np.pi * 50 * t)
+    cols = {"time": t, "u_alpha": u, "u_beta": -u, "i_a": u / R, "i_b": -u / R, "theta_e": th}
+    enc = identify_sensor_errors(sensor_log_from_columns(cols)[0]).summary["encoder_offset_rad"]
+    assert enc["identifiable"] is False and enc["ci95"] == [None, None] and "180 deg" in enc["note"]
+
+
 def test_ideal_model_fit_of_the_same_log_is_wrong_and_the_corrected_one_right(two):
     """The equation-error fit of today's identification (tuning.identify.electrical.warm_start) on the log
     as read against the same fit once the identified errors are taken out. Measured: as read R -16.6 %,

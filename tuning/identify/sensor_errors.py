@@ -364,6 +364,15 @@ def _result(pr: _Problem, p, se, sol, w_v, log) -> SensorErrors:
     ]
     enc = _entry(delta, se[-1], "rad", lim["encoder_offset_rad"])
     enc["value_deg"] = math.degrees(delta)
+    turns = float(np.sum(np.abs(np.angle(np.exp(1j * np.diff(pr.theta_m)))))) / (2 * math.pi)
+    if turns < 1.0:
+        # Without back-EMF only the saliency sees the angle, and it cannot tell d from -d (180 deg apart).
+        enc.update(identifiable=False, ci95=[None, None])
+        enc["note"] = (
+            f"not determined by this log: the rotor turns {turns:.2g} electrical revolutions (at least "
+            "one is needed: the back-EMF gives the encoder offset; the saliency alone leaves it 180 deg "
+            "ambiguous)"
+        )
     rv = pr.voltage_residuals(p)
     summary = {
         "sensors": k,
