@@ -2,6 +2,7 @@
 ([`tuning.identify`][tuning.identify]), and the identified motor as a drive file
 ([`tuning.identify.motor_file`][tuning.identify.motor_file])."""
 
+import math
 import sys
 
 from pmsmjax.cli import checks, memory
@@ -80,6 +81,16 @@ def add_parser(sub):
         "none (only the logged T_L)",
     )
     p.add_argument("--dead-time", action="store_true", help="estimate an inverter dead-time voltage V_dt")
+    p.add_argument(
+        "--sensor-errors",
+        action="store_true",
+        help="first identify the current sensors' offsets (A), their gains relative to sensor a and the "
+        "encoder's angle offset (electrical rad), with 95 %% intervals, from a log of the phase currents as "
+        "read (i_a, i_b, and i_c with a third sensor), the measured theta_e and stator-frame voltages held "
+        "by a real inverter; the motor is then identified on the corrected log and motor.toml's [sensor] "
+        "gets them. The absolute current gain is not identifiable (R and L absorb it): R, L_d, L_q are per "
+        "ampere as sensor a reads it (default: off, the sensors taken as exact)",
+    )
     p.add_argument("--no-figures", action="store_true", help="do not write fit.png")
     p.add_argument(
         "--flux-map",
@@ -162,6 +173,8 @@ def run(args) -> int:
     columns, units = _pairs(args.columns, "--columns"), _pairs(args.units, "--units")
     memory.check_log("identify", args.log, args.max_memory_gb)
     if args.flux_map:
+        if args.sensor_errors:
+            raise ParameterError("--sensor-errors belongs to the linear fit: drop it or --flux-map.")
         return _run_flux_map(args, prior, pole_pairs, fixed, columns, units)
     if args.inverter_error or args.flux_map_step is not None:
         flag = "--inverter-error" if args.inverter_error else "--flux-map-step"
@@ -187,11 +200,14 @@ def run(args) -> int:
         u_dc=args.u_dc,
         resample=args.resample,
         figures=not args.no_figures,
+        sensor_errors=args.sensor_errors,
         **options,
     )
     s = result.summary
     for note in s["log"]["notes"]:
         print(note)
+    if "sensor_errors" in s:
+        _print_sensor_errors(s["sensor_errors"])
     for name, p in s["parameters"].items():
         ci = p["ci95"]
         interval = f"[{ci[0]:.5g}, {ci[1]:.5g}]" if ci[0] is not None else "[not determined]"
@@ -204,6 +220,19 @@ def run(args) -> int:
         + ("" if args.no_figures else ", fit.png")
     )
     return _write_motor_file(args, s, pole_pairs, prior)
+
+
+def _print_sensor_errors(errors: dict) -> None:
+    """One line per identified sensor error, with its 95 % interval."""
+    rows = [(f"current offset {e['sensor']}", e, 1e3, "mA") for e in errors["current_offset_a"]]
+    rows += [(f"current gain {e['sensor']}/a", e, 1.0, "") for e in errors["current_gain"][1:]]
+    rows.append(("encoder offset", errors["encoder_offset_rad"], math.degrees(1.0), "deg el."))
+    for name, e, f, unit in rows:
+        lo, hi = e["ci95"]
+        interval = f"[{f * lo:.5g}, {f * hi:.5g}]" if lo is not None else "[not determined]"
+        flag = "" if e["identifiable"] else "  NOT IDENTIFIABLE"
+        print(f"{name:18s} {f * e['value']:.6g} {unit:7s} 95 % {interval}{flag}")
+    print(f"absolute current gain: not identifiable ({errors['not_identifiable']['absolute_current_gain']})")
 
 
 def _run_flux_map(args, prior, pole_pairs: int, fixed: dict, columns: dict, units: dict) -> int:

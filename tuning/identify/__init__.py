@@ -12,6 +12,8 @@
 - [`uncertainty`][tuning.identify.uncertainty]: standard errors, 95 % intervals, identifiability.
 - [`plots`][tuning.identify.plots]: measured against fitted signals.
 - [`motor_file`][tuning.identify.motor_file]: the identified motor as a drive file (``DIR/motor.toml``).
+- [`sensor_errors`][tuning.identify.sensor_errors]: the current sensors' offsets, their gains relative to
+  sensor a and the encoder offset from a stator-frame log (``pmsmjax identify --sensor-errors``).
 - [`flux_map_fit`][tuning.identify.flux_map_fit], [`flux_map_files`][tuning.identify.flux_map_files]: a
   saturated machine's flux map from a constant-speed log (``pmsmjax identify --flux-map``); its test logs are
   made by [`saturated_reference_log`][tuning.identify.saturated_reference_log].

@@ -12,6 +12,11 @@
   value keeps the prior file's tolerance, if it has one; a fixed value gets none.
 - ``[ratings]``, ``[inverter]``, ``[sensor]``: copied from the prior, only the values its file states
   (values it derived came from the prior's motor and are derived again from the identified one).
+- With identified sensor errors (``sensor_errors`` in ``params.json``, ``pmsmjax identify --sensor-errors``):
+  ``[sensor]`` ``current_offset_a`` and ``current_gain`` (relative to sensor a, whose gain is written as 1:
+  a log does not give the absolute gain) and, for an encoder (``kind = "encoder"`` in the prior; its lines
+  are not in a log), ``encoder_offset_rad``; ``[tolerances]`` ``current_offset_a`` (A) and ``current_gain``
+  the largest half-widths of their 95 % intervals. A value the log does not determine is not written.
 """
 
 from pathlib import Path
@@ -67,9 +72,38 @@ def motor_file_tables(summary: dict, pole_pairs: int, prior: DriveSpec | None = 
             tables["sensor"] = dict(prior.sensor)
         if "u_dc_v" in prior.tolerances:
             tolerances["u_dc_v"] = prior.tolerances["u_dc_v"]
+    if summary.get("sensor_errors"):
+        sensor = _sensor_table(summary["sensor_errors"], prior, tolerances, comments)
+        if sensor != {"kind": "exact"}:
+            tables["sensor"] = sensor
     if tolerances:
         tables["tolerances"] = tolerances
     return tables, comments
+
+
+def _sensor_table(errors: dict, prior: DriveSpec | None, tolerances: dict, comments: dict) -> dict:
+    """The ``[sensor]`` table with the identified sensor errors (module docstring); fills `tolerances`
+    and `comments`."""
+    sensor = dict(prior.sensor) if prior is not None else {"kind": "exact"}
+    offsets, gains = errors["current_offset_a"], errors["current_gain"]
+    if all(e["identifiable"] is not False for e in offsets + gains):
+        sensor["current_offset_a"] = [e["value"] for e in offsets]
+        sensor["current_gain"] = [e["value"] for e in gains]
+        comments["sensor.current_offset_a"] = "identified (A)"
+        comments["sensor.current_gain"] = "relative to sensor a: a log does not give the absolute gain"
+        tolerances["current_offset_a"] = max(e["ci95"][1] - e["value"] for e in offsets)
+        tolerances["current_gain"] = max((e["ci95"][1] - e["value"]) / e["value"] for e in gains)
+    enc = errors["encoder_offset_rad"]
+    if enc["identifiable"]:
+        if sensor["kind"] == "encoder":
+            sensor["encoder_offset_rad"] = enc["value"]
+            comments["sensor.encoder_offset_rad"] = "identified (electrical rad)"
+        else:
+            comments["sensor.kind"] = (
+                f"identified encoder offset {enc['value']:.6g} electrical rad: an encoder (kind = "
+                '"encoder", its lines) takes it as encoder_offset_rad'
+            )
+    return sensor
 
 
 def write_motor_file(path, summary: dict, pole_pairs: int, prior: DriveSpec | None = None) -> Path:
@@ -81,6 +115,10 @@ def write_motor_file(path, summary: dict, pole_pairs: int, prior: DriveSpec | No
     )
     if prior is not None:
         header += f";\n[ratings], [inverter], [sensor] and undetermined values from the prior {prior.source}"
+    if summary.get("sensor_errors"):
+        header += (
+            ";\n[sensor] the identified current-sensor offsets, gains relative to sensor a and encoder offset"
+        )
     header += "."
     write_drive_file(path, tables, header=header, comments=comments)
     return Path(path)

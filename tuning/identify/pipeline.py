@@ -40,7 +40,7 @@ from tuning.identify import electrical as el
 from tuning.identify import fit as id_fit
 from tuning.identify import mechanical as me
 from tuning.identify.fit import FitResult
-from tuning.identify.log import DriveLog, load_drive_log, read_log_config
+from tuning.identify.log import DriveLog, drive_log_from_columns, load_drive_log, read_log_config
 from tuning.identify.uncertainty import (
     ADVICE,
     EXCITATION_AVERAGE_S,
@@ -353,6 +353,31 @@ def _summary(log: DriveLog, opt: IdentifyOptions, fit: FitResult, held: dict) ->
     }
 
 
+def _corrected_log(path, pole_pairs: int, columns: dict, units: dict, *, hold: str, u_dc, resample: bool):
+    """``(DriveLog, SensorErrors)``: the sensor errors of the log at ``path`` and the log without them."""
+    from tuning.identify.log_columns import read_canonical
+    from tuning.identify.sensor_errors import (
+        corrected_columns,
+        identify_sensor_errors,
+        sensor_log_from_columns,
+    )
+
+    if hold == "rotor":
+        raise ParameterError(
+            f"log {path}: the sensor-error fit takes the logged voltage as held in the stator frame (a real "
+            "inverter); a rotor-frame hold (a dq-model simulator) has no sensors to identify: drop --hold "
+            "rotor or --sensor-errors."
+        )
+    source = f"log {path}"
+    present = read_canonical(path, columns)
+    slog, cols = sensor_log_from_columns(present, units=units, u_dc=u_dc, resample=resample, source=source)
+    errors = identify_sensor_errors(slog)
+    corrected = corrected_columns(cols, errors)
+    log = drive_log_from_columns(corrected, pole_pairs, hold=hold, u_dc=u_dc, source=source)
+    note = "currents and angle corrected by the identified sensor errors (sensor_errors)"
+    return dataclasses.replace(log, notes=(*log.notes, note)), errors
+
+
 def identify_file(
     log_path: str | os.PathLike,
     out_dir: str | os.PathLike,
@@ -365,6 +390,7 @@ def identify_file(
     u_dc: float | None = None,
     resample: bool = False,
     figures: bool = True,
+    sensor_errors: bool = False,
     **options,
 ) -> IdentifyResult:
     """Read ``log_path``, identify, write ``out_dir/params.json`` (and ``fit.png``); returns the result.
@@ -374,8 +400,11 @@ def identify_file(
     [`tuning.identify.hold`][tuning.identify.hold]), ``"stator"`` or ``"rotor"``. `config`: TOML with
     ``[columns]``, ``[units]``, ``[log]`` (``hold``, ``u_dc``, ``resample``) and ``[identify]``
     ([`IdentifyOptions`][tuning.identify.pipeline.IdentifyOptions] fields; ``fixed``/``start`` as tables);
-    explicit arguments win over it. Everything is checked before anything is compiled; files are written
-    atomically.
+    explicit arguments win over it. `sensor_errors`: first fit the current sensors' offsets, their gains
+    relative to sensor a and the encoder offset from the phase currents and the measured angle
+    ([`tuning.identify.sensor_errors`][tuning.identify.sensor_errors]), take them out of the log and
+    identify the motor on the corrected log; the summary gets a ``sensor_errors`` entry. Everything is
+    checked before anything is compiled; files are written atomically.
     """
     cfg = read_log_config(config) if config else {"columns": {}, "units": {}, "log": {}, "identify": {}}
     cols = {**cfg["columns"], **(columns or {})}
@@ -389,17 +418,20 @@ def identify_file(
     if bad:
         raise ParameterError(f"[identify] table: unknown keys {bad}; allowed: {', '.join(sorted(fields))}.")
     opts = IdentifyOptions(pole_pairs=pole_pairs, **{**cfg["identify"], **options})
-    log = load_drive_log(
-        log_path,
-        pole_pairs,
-        columns=cols,
-        units=unit_map,
-        hold=hold or log_cfg.get("hold", DEFAULT_HOLD),
-        u_dc=u_dc if u_dc is not None else log_cfg.get("u_dc"),
-        resample=resample or bool(log_cfg.get("resample", False)),
-    )
+    read = {
+        "hold": hold or log_cfg.get("hold", DEFAULT_HOLD),
+        "u_dc": u_dc if u_dc is not None else log_cfg.get("u_dc"),
+        "resample": resample or bool(log_cfg.get("resample", False)),
+    }
+    sensors = None
+    if sensor_errors:
+        log, sensors = _corrected_log(log_path, pole_pairs, cols, unit_map, **read)
+    else:
+        log = load_drive_log(log_path, pole_pairs, columns=cols, units=unit_map, **read)
     out = check_output_folder(out_dir)
     result = identify(log, opts)
+    if sensors is not None:
+        result.summary["sensor_errors"] = sensors.summary
     out.mkdir(parents=True, exist_ok=True)
     atomic_write(out / "params.json", lambda f: f.write(json.dumps(result.summary, indent=2).encode()))
     if figures:
