@@ -7,6 +7,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 import pmsmjax  # noqa: F401  (the import requests the setting)
 from pmsmjax.xla_cpu import SMALL_LOOP_BYTES, request_small_loop_kernels
@@ -94,6 +95,7 @@ def test_the_flux_map_plants_loop_compiles_into_one_kernel():
     assert _run(script, _users_environment()).split() == ["PMSMFluxMapdq", "True"]
 
 
+@pytest.mark.slow
 def test_a_run_computes_the_same_with_and_without_small_loop_kernels():
     """With small-loop kernels (as users run) and without them (XLA's default), the book drive's trace is the
     same to rounding: the option changes how XLA executes a loop, not what it computes."""

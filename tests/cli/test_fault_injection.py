@@ -79,6 +79,7 @@ def summary_figures(summary: dict) -> dict:
     return {k: summary[k] for k in ("metrics", "failures", "n_runs")}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP])
 def test_montecarlo_terminated_mid_chunk_leaves_no_debris_and_resumes(
     tmp_path, tiny, capsys, monkeypatch, signum

@@ -11,6 +11,7 @@ import sys
 import textwrap
 
 import numpy as np
+import pytest
 
 from pmsmjax.cli.figure_worker import FigureWorker
 from pmsmjax.plotting.traces import save_overview_figure
@@ -28,6 +29,7 @@ def test_no_worker_once_jax_is_loaded():
     assert FigureWorker.start(preload=lambda: None) is None
 
 
+@pytest.mark.slow
 def test_worker_draws_the_overview_byte_for_byte(tmp_path):
     scenario = book_scenario(duration_s=0.05, load_time_s=0.02)
     trace = simulate(book_drive(), scenario, decimate=5).to_numpy()

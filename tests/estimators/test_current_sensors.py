@@ -165,6 +165,7 @@ def test_the_ideal_sensor_leaves_the_compiled_program_unchanged(monkeypatch):
     assert "offset" not in repr(jax.tree_util.tree_leaves(encoder.estimator))
 
 
+@pytest.mark.slow
 def test_gradients_through_the_sensors_are_finite_and_pass_the_adc_straight_through():
     """d(mean i_d^2)/d(offset) by reverse mode through a 1 mA ADC (straight-through: the forward value is
     the exact rounding, the derivative 1) against central differences of the same drive without the ADC:

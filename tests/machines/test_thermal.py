@@ -264,6 +264,7 @@ def test_trace_records_the_winding_temperature(warm_run):
     np.testing.assert_allclose(columns["winding_temperature_c"][0], 80.0, rtol=1e-12)
 
 
+@pytest.mark.slow
 def test_gradient_through_thermal_parameters(warm_run):
     drive, _ = warm_run
     scenario = Scenario(

@@ -61,6 +61,7 @@ def test_study_draws_the_operating_bands(warm_file):
     )
 
 
+@pytest.mark.slow
 def test_robust_tuning_batches_draw_the_operating_bands(warm_file):
     from tuning.autotune.objectives import batch_metrics
 
