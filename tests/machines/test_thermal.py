@@ -110,15 +110,16 @@ def _energy_terms(machine, thermal_net, temperature_k, currents, omega_m, theta_
     return p_in, p_cu, dW, p_mech
 
 
+def linear_machine(frame: str, motor):
+    """The plant of ``motor`` in ``frame``: the dq, alpha-beta and abc models, or the saturated dq one."""
+    makers = {"dq": PMSMdq, "alpha_beta": PMSMAlphaBeta, "abc": PMSMabc, "saturated": saturated_machine}
+    return makers[frame](motor)
+
+
 @pytest.mark.parametrize("frame", ["dq", "alpha_beta", "abc", "saturated"])
 def test_warm_plant_power_balance(frame):
     motor = book_motor(salient=True)
-    machine = {
-        "dq": lambda: PMSMdq(motor),
-        "alpha_beta": lambda: PMSMAlphaBeta(motor),
-        "abc": lambda: PMSMabc(motor),
-        "saturated": lambda: saturated_machine(motor),
-    }[frame]()
+    machine = linear_machine(frame, motor)
     net = thermal()
     rng = np.random.default_rng(7)
     for _ in range(4):
@@ -157,12 +158,7 @@ def test_hot_magnet_lowers_torque_and_back_emf(frame):
     if frame == "flux_map":
         machine = _flux_map_machine()
     else:
-        machine = {
-            "dq": lambda: PMSMdq(motor),
-            "alpha_beta": lambda: PMSMAlphaBeta(motor),
-            "abc": lambda: PMSMabc(motor),
-            "saturated": lambda: saturated_machine(motor),
-        }[frame]()
+        machine = linear_machine(frame, motor)
     net = thermal()
     dT = 100.0
     k_r, k_psi = net.factors(net.reference_k + dT)
