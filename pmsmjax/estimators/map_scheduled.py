@@ -27,7 +27,7 @@ design rule gave for the constant model. That suits the sliding-mode observers a
 scheduled with the default filter, oscillated from 5 A and lost the angle at the rated current on the
 saturated-ipm map (``python -m benchmarks.flux_map_observers``), while with the same map model held
 fixed at that current it is steady (0.19 degree): the per-sample change of its model excites it
-(rescaling its adaptation gains with the scheduled ``(L / psi_f)^2`` made it worse). A 30 rad/s
+(rescaling its adaptation gains with the scheduled ``(L / psi_f)^2`` does not damp it). A 30 rad/s
 ``current_cutoff`` damps it to 0.3-0.4 degree peak-to-peak at 10-25 A, at the price of a model that
 follows a load change in tens of milliseconds.
 

@@ -40,8 +40,8 @@ and as a maximum over time it put kinks into the loss that stalled BFGS (measure
 no accepted step in 42 iterations).
 ``ANGLE_WEIGHT`` (rad s per rad) makes 1 electrical degree RMS cost as much as 0.17 rad s of ITAE, about
 a batch scenario's whole ITAE: most of the ITAE is the speed loop's own step response, which the
-observer's gains hardly move, so with a weight 5x lower (tried first) the angle term was 7 % of the
-EKF's cost and the tuner stopped on the relative-improvement rule before the angle error moved.
+observer's gains hardly move, so with a weight 5x lower the angle term would be 7 % of the
+EKF's cost and the tuner would stop on the relative-improvement rule before the angle error moved.
 
 Measurement noise (``NOISE_CURRENT_A``, ``NOISE_VOLTAGE_V``) is added to what the observer samples: a
 noise-free closed loop rewards high observer gains without limit (tuned noise-free, the smo's linear-zone
