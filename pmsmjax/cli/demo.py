@@ -445,6 +445,7 @@ def check_memory(args, Ts: float) -> None:
         f"{args.decimate}); the run",
         fix,
         args.max_memory_gb,
+        floor=memory.BASE_BYTES,
     )
 
 

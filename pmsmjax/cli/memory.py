@@ -128,7 +128,9 @@ def budget_bytes(max_memory_gb: float | None = None) -> tuple[float, str]:
     return (cap if free is None else min(cap, 0.5 * free)), "default"
 
 
-def check_fits(need: float, what: str, fix: str, max_memory_gb: float | None = None) -> None:
+def check_fits(
+    need: float, what: str, fix: str, max_memory_gb: float | None = None, floor: float = 0.0
+) -> None:
     """Refuse work whose estimated peak memory `need` (bytes) exceeds the budget, in one line.
 
     Args:
@@ -136,6 +138,8 @@ def check_fits(need: float, what: str, fix: str, max_memory_gb: float | None = N
         what: the work, e.g. ``"--duration-s 1000 s at 10 kHz: 10,000,000 periods"``.
         fix: what to change, e.g. ``"pass --decimate 100 (about 1.6 GB)"``.
         max_memory_gb: ``--max-memory-gb``, GB, or None for the default budget.
+        floor: what the command needs whatever the size of its work, bytes: a budget below it can only be
+            raised (a smaller run would not fit either).
 
     Raises:
         ParameterError: ``"<what> needs about X GB of memory (estimate), above the budget of Y GB
@@ -148,6 +152,8 @@ def check_fits(need: float, what: str, fix: str, max_memory_gb: float | None = N
         "default": f"the lesser of {DEFAULT_CAP_GB:g} GB and half the available memory",
         "--max-memory-gb": "--max-memory-gb",
     }.get(source, source)
+    if budget < floor:
+        fix = f"the command itself needs about {gb(floor)} whatever the size of the work"
     raise ParameterError(
         f"{what} needs about {gb(need)} of memory (estimate), above the budget of {gb(budget)} "
         f"({origin}): {fix}, or raise --max-memory-gb if the machine has the memory."
@@ -244,5 +250,6 @@ def check_log(command: str, path, max_memory_gb: float | None = None) -> int | N
         f"give it at most {fit:,} rows (cut the log to the part that matters, or decimate it: keep every "
         f"{-(-n_rows // max(fit, 1)):,}th row)",
         max_memory_gb,
+        floor=LOG_BASE_BYTES[command],
     )
     return n_rows

@@ -245,6 +245,7 @@ def check_memory(study, max_memory_gb: float | None) -> None:
         f"give --n {fit:,} or fewer (several studies with different --seed), or a larger --decimate in the "
         "study TOML",
         max_memory_gb,
+        floor=memory.BASE_BYTES,
     )
 
 

@@ -114,3 +114,14 @@ def test_long_log_refused_from_its_size(tmp_path, capsys, command):
     line = refused(capsys, [command, str(log), "--max-memory-gb", "0.5", "--out", str(out), *extra], out)
     assert f"the log {log} has {rows:,} rows; {command} needs about" in line
     assert f"give it at most {rows - 1:,} rows" in line
+
+
+def test_a_budget_below_the_commands_own_need_asks_for_more_not_for_less_work(tmp_path, capsys):
+    """Below what any run needs, a shorter run cannot fit: the refusal says so instead of a zero duration."""
+    out = tmp_path / "out"
+    assert main(["demo", "--max-memory-gb", "0.001", "--out", str(out)]) == 2
+    line = capsys.readouterr().err.strip()
+    assert "the command itself needs about 0.3 GB" in line and "at most 0 s" not in line
+    assert not out.exists()
+    with pytest.raises(ParameterError, match="needs about 0.3 GB whatever the size"):
+        memory.check_fits(2 * memory.BASE_BYTES, "a run", "give less", 0.001, floor=memory.BASE_BYTES)
