@@ -31,13 +31,16 @@ from pmsmjax.spec.validation import ParameterError
 __all__ = [
     "CANONICAL",
     "CURRENT_SETS",
+    "GAP_STEPS",
     "MAX_JITTER",
+    "MIN_CAPTURE_ROWS",
     "MAX_STEP_S",
     "MEANINGS",
     "UNITS",
     "VOLTAGE_SETS",
     "apply_units",
     "check_grid",
+    "segment_bounds",
     "check_speed_against_angle",
     "pick_set",
     "read_canonical",
@@ -81,6 +84,10 @@ UNITS = {
 }
 #: Sampling steps deviating more than this from the median are irregular (refused or resampled).
 MAX_JITTER = 0.05
+#: A step longer than this many median steps is a gap between two captures of a burst log.
+GAP_STEPS = 1.5
+#: Fewest rows a capture of a burst log may have.
+MIN_CAPTURE_ROWS = 20
 #: Longest sampling step accepted, s: the electrical time constants of drives are a few ms.
 MAX_STEP_S = 1e-3
 
@@ -164,8 +171,52 @@ def apply_units(c: dict, units: dict, source: str) -> None:
             c[n] = c[n] * table[unit]
 
 
-def check_grid(c: dict, dt: np.ndarray, resample: bool, source: str):
-    """Refuse (or resample) an irregular time grid; returns ``(columns, dt, note or None)``."""
+def segment_bounds(time: np.ndarray) -> np.ndarray:
+    """``(S + 1,)`` row indices of the captures in a log recorded in bursts: capture ``s`` is rows
+    ``bounds[s]:bounds[s + 1]``. A step longer than ``GAP_STEPS`` median steps is a gap between two captures
+    (a re-triggered scope, a firmware datalog buffer); a log without gaps is one capture."""
+    dt = np.diff(time)
+    med = float(np.median(dt)) if dt.size else 0.0
+    gaps = np.flatnonzero(dt > GAP_STEPS * med) + 1
+    return np.concatenate([[0], gaps, [time.size]]).astype(int)
+
+
+def check_grid(c: dict, dt: np.ndarray, resample: bool, source: str, bursts: bool = False):
+    """Refuse (or resample) an irregular time grid; returns ``(columns, dt, note or None)``.
+
+    With ``bursts``, a gap longer than ``GAP_STEPS`` median steps separates two captures
+    ([`segment_bounds`][tuning.identify.log_columns.segment_bounds]) and only the sampling inside each capture
+    must be regular; each capture needs ``MIN_CAPTURE_ROWS`` rows. The note then names the captures."""
+    if not bursts:
+        return _check_regular(c, dt, resample, source)
+    bounds = segment_bounds(c["time"])
+    short = [(a, b) for a, b in zip(bounds[:-1], bounds[1:], strict=True) if b - a < MIN_CAPTURE_ROWS]
+    if short:
+        a, b = short[0]
+        raise ParameterError(
+            f"{source}: the capture at rows {a + 1}..{b} (t = {c['time'][a]:.6g} s) has {b - a} row(s), "
+            f"fewer than {MIN_CAPTURE_ROWS}: a time gap longer than {GAP_STEPS:g} sampling steps starts "
+            "a new capture; drop the stray rows or record longer captures."
+        )
+    parts, notes = [], []
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        part = {n: v[a:b] for n, v in c.items()}
+        part, _, note = _check_regular(part, np.diff(part["time"]), resample, source)
+        parts.append(part)
+        notes += [note] if note else []
+    out = {n: np.concatenate([p[n] for p in parts]) for n in c}
+    n_caps = len(parts)
+    if n_caps > 1:
+        gaps = np.diff(c["time"])[bounds[1:-1] - 1]
+        notes.append(
+            f"{n_caps} captures separated by time gaps ({gaps.min():.3g} to {gaps.max():.3g} s) fitted as "
+            "separate segments: no window or block spans a gap"
+        )
+    return out, np.diff(out["time"]), "; ".join(notes) or None
+
+
+def _check_regular(c: dict, dt: np.ndarray, resample: bool, source: str):
+    """[`check_grid`][tuning.identify.log_columns.check_grid] for one capture."""
     med = float(np.median(dt))
     dev = np.abs(dt / med - 1.0)
     if dev.max() <= MAX_JITTER:
