@@ -13,7 +13,9 @@ Canonical columns (SI units after conversion):
 - currents, one set: ``i_d, i_q`` | ``i_alpha, i_beta`` | ``i_a, i_b, i_c``, A (``mA``);
 - ``theta_e`` electrical angle (rad; ``deg``) and/or ``omega_m`` mechanical speed (rad/s; ``rpm``,
   ``Hz`` = rev/s);
-- ``T_L`` known load torque, N m (optional).
+- ``T_L`` known load torque, N m (optional);
+- ``temperature_c`` winding temperature, degC (optional: R and psi_f as functions of it, and the thermal
+  network).
 
 Each check raises a [`ParameterError`][pmsmjax.spec.validation.ParameterError] naming the column and the fix.
 """
@@ -58,7 +60,7 @@ VOLTAGE_SETS = {
 CURRENT_SETS = {"dq": ("i_d", "i_q"), "alpha_beta": ("i_alpha", "i_beta"), "abc": ("i_a", "i_b", "i_c")}
 #: Every canonical column name.
 CANONICAL = (
-    ("time", "theta_e", "omega_m", "T_L", "U_dc")
+    ("time", "theta_e", "omega_m", "T_L", "U_dc", "temperature_c")
     + sum(VOLTAGE_SETS.values(), ())
     + sum(CURRENT_SETS.values(), ())
 )
@@ -69,6 +71,7 @@ MEANINGS = {
     "omega_m": "mechanical speed, rad/s",
     "T_L": "known load torque, N m",
     "U_dc": "DC-link voltage, V",
+    "temperature_c": "winding temperature, degC",
     **{c: "voltage, V" for c in sum(VOLTAGE_SETS.values(), ()) if not c.startswith("d_")},
     **{c: "duty cycle, 0..1" for c in VOLTAGE_SETS["duty"]},
     **{c: "current, A" for c in sum(CURRENT_SETS.values(), ())},

@@ -14,33 +14,20 @@ electrical frequency whose alpha-beta vector is the offset; a gain mismatch dist
 an ellipse, a ripple at twice the electrical frequency; an encoder offset turns the measured frame, so the
 back-EMF, which lies on the rotor's q axis, shows up on the measured d axis as ``-omega_e psi_f sin(delta)``.
 
-**Formulation.** One nonlinear least-squares fit of the stator voltage equation
-``u_ab = R i_ab + d psi_ab / dt`` integrated over blocks of ``block`` log intervals, in the stationary frame
-where the held voltage's integral is exact (``sum u_k dt_k``):
-
-``sum u_k dt_k = R int i_ab dt + psi_ab(t_end) - psi_ab(t_start)``,
-``psi_ab = e^{j theta} (L_d i_d + j L_q i_q + psi_f)``, ``i_dq = e^{-j theta} i_ab``,
-``theta = theta_m - delta``, and the true currents ``i_k = (m_k - o_k) / g_k``. The trapezoidal ``int i dt``
-is corrected by its error from the back-EMF's curvature, ``-h^3 omega_e^2 psi_f e^{j theta} / (12 L_d)`` per
-interval ``h``: left in, it lies along the back-EMF and turns the fitted encoder offset by about
-``R h^2 omega_e / (12 L)`` (1e-4 rad at 10 kHz and 480 rad/s, two standard errors of a 0.4 s log).
-
-The unknowns are R, L_d, L_q, psi_f, the offsets, the gains relative to sensor a and ``delta``: the encoder
-offset is fitted jointly with the machine instead of read off a zero crossing of the back-EMF (the usual
-encoder-offset calibration at standstill locks the rotor with a d-axis current, as ODrive's
+**Formulation.** One nonlinear least-squares fit of the stator voltage equation integrated over blocks
+of the log ([`tuning.identify.stator_frame_fit`][tuning.identify.stator_frame_fit]), with R, L_d, L_q,
+psi_f, the offsets, the gains relative to sensor a and the encoder offset ``delta`` as unknowns (and, given
+a ``temperature_c`` column, the temperature coefficients of R and psi_f). The encoder offset is fitted
+jointly with the machine instead of read off a zero crossing of the back-EMF (the usual encoder-offset
+calibration at standstill locks the rotor with a d-axis current, as ODrive's
 ``ENCODER_OFFSET_CALIBRATION`` and TI's SPRABZ0 do; with the back-EMF it is the angle of the no-load
 voltage against the counted angle). At speed the fit separates ``delta`` from the ``L_q i_q`` cross term
 because the log's currents vary (steps of i_d and i_q, two speeds). With three sensors the sampled
 currents must also sum to zero (Kirchhoff), which adds a residual per sample and pins the offsets' common
-part, which the amplitude-invariant Clarke transform drops.
-
-The start is linear: without sensor errors the flux is ``L_S i_ab + L_D e^{j 2 theta_m} conj(i_ab) e^{-2 j
-delta} + psi_f e^{-j delta} e^{j theta_m}`` (``L_S, L_D`` the mean and half-difference of L_d, L_q), linear in
-R, L_S and the complex coefficients ``L_D e^{-2 j delta}`` and ``psi_f e^{-j delta}``, so ``delta`` and psi_f
-start from any offset. The fit is SciPy's Levenberg-Marquardt; the covariance is the identification's
-sandwich with Newey-West lags
+part, which the amplitude-invariant Clarke transform drops. The fit is SciPy's Levenberg-Marquardt from
+the linear start; the covariance is the identification's sandwich with Newey-West lags
 ([`tuning.identify.uncertainty.covariance`][tuning.identify.uncertainty.covariance]) and 95 % intervals are
-1.96 standard errors.
+1.96 standard errors. A log recorded in bursts is cut into blocks capture by capture.
 
 **What a log cannot give.** The absolute current gain: scaling every current by ``g`` is explained by R,
 L_d, L_q divided by ``g`` (psi_f and the encoder offset do not move), so the gains are reported relative to
@@ -59,7 +46,16 @@ from scipy import optimize
 
 from pmsmjax.io.logs import check_columns
 from pmsmjax.spec.validation import ParameterError
-from tuning.identify.log_columns import VOLTAGE_SETS, apply_units, check_grid, pick_set, to_dq64
+from tuning.identify.log_columns import (
+    VOLTAGE_SETS,
+    apply_units,
+    check_grid,
+    pick_set,
+    segment_bounds,
+    to_dq64,
+)
+from tuning.identify.stator_frame_fit import StatorFrameProblem, central_jacobian, noise_level, true_currents
+from tuning.identify.temperature_coefficients import temperature_summary
 from tuning.identify.uncertainty import covariance
 
 __all__ = [
@@ -94,6 +90,8 @@ class SensorLog:
         m: ``(N, k)`` phase currents as read by the ``k`` sensors (phases a, b (, c)), A.
         theta_m: ``(N,)`` measured electrical angle, rad.
         source: A name for messages.
+        segments: ``(S + 1,)`` first row of each capture and the row count (one capture: ``[0, N]``).
+        temperature_c: ``(N,)`` winding temperature, degC, or None.
     """
 
     time: np.ndarray
@@ -101,6 +99,12 @@ class SensorLog:
     m: np.ndarray
     theta_m: np.ndarray
     source: str = "log"
+    segments: np.ndarray | None = None
+    temperature_c: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.segments is None:
+            object.__setattr__(self, "segments", np.array([0, self.time.size]))
 
     @property
     def n_sensors(self) -> int:
@@ -164,10 +168,10 @@ def sensor_log_from_columns(
     need = ["time", *_STATOR_VOLTAGE_SETS[vset], "i_a", "i_b", "theta_e"]
     if vset == "duty" and u_dc is None:
         need.append("U_dc")
-    optional = [n for n in ("i_c", "omega_m", "T_L", "U_dc") if n not in need]
+    optional = [n for n in ("i_c", "omega_m", "T_L", "U_dc", "temperature_c") if n not in need]
     c = check_columns(cols, need, optional, source=source)
     apply_units(c, units or {}, source)
-    c, _, _ = check_grid(c, np.diff(c["time"]), resample, source)
+    c, _, _ = check_grid(c, np.diff(c["time"]), resample, source, bursts=True)
     with jax.enable_x64(True):
         u_ab = to_dq64(c, _STATOR_VOLTAGE_SETS[vset], vset, np.zeros_like(c["time"]), u_dc)
     phases = [c["i_a"], c["i_b"]]
@@ -176,107 +180,22 @@ def sensor_log_from_columns(
         scale = max(float(np.max(np.abs(c["i_a"]))), 1e-12)
         if np.max(np.abs(total)) > 1e-9 * scale:
             phases.append(c["i_c"])
-    log = SensorLog(c["time"], np.asarray(u_ab), np.stack(phases, axis=1), c["theta_e"], source)
+    log = SensorLog(
+        c["time"], np.asarray(u_ab), np.stack(phases, axis=1), c["theta_e"], source,
+        segments=segment_bounds(c["time"]), temperature_c=c.get("temperature_c"),
+    )  # fmt: skip
     return log, c
 
 
-def _true_currents(m, offset, gain):
-    """``(N, k)`` true phase currents and ``(N,)`` complex alpha-beta current from the readings."""
-    i = (m - offset) / gain
-    if i.shape[1] == 2:
-        i_ab = i[:, 0] + 1j * (i[:, 0] + 2.0 * i[:, 1]) / _SQRT3
-    else:
-        i_ab = (2.0 * i[:, 0] - i[:, 1] - i[:, 2]) / 3.0 + 1j * (i[:, 1] - i[:, 2]) / _SQRT3
-    return i, i_ab
-
-
-class _Problem:
-    """The block residuals of the module docstring for the unknowns ``x`` (scaled)."""
-
-    def __init__(self, log: SensorLog, block: int):
-        t = log.time
-        dt = np.diff(t)
-        self.k = log.n_sensors
-        self.n_b = (t.size - 1) // block
-        if self.n_b < 10:
-            raise ParameterError(
-                f"{log.source}: {t.size} samples make {self.n_b} blocks of {block} intervals; record at "
-                f"least {10 * block + 1} samples."
-            )
-        end = self.n_b * block
-        self.block = block
-        self.dt = dt[:end]
-        u = log.u_ab[:end, 0] + 1j * log.u_ab[:end, 1]
-        self.U = (u * self.dt).reshape(self.n_b, block).sum(axis=1)
-        self.m = log.m[: end + 1]
-        self.theta_m = log.theta_m[: end + 1]
-        self.edges = np.arange(0, end + 1, block)
-        # Trapezoid error of int i over an interval, -h^3 i'' / 12, from its largest part: the back-EMF turns
-        # the current at i'' = omega_e^2 psi_f e^{j theta} / L_d (the rest is smaller by R / (omega_e L)).
-        step = np.angle(np.exp(1j * np.diff(self.theta_m)))
-        self.curvature = (step / self.dt) ** 2 * self.dt**3 / 12.0
-        self.theta_mid = self.theta_m[:-1] + 0.5 * step
-        self.names = ["R", "L_d", "L_q", "psi_f"] + [f"o_{p}" for p in "abc"[: self.k]]
-        self.names += [f"g_{p}" for p in "bc"[: self.k - 1]] + ["delta"]
-        self.w_kirchhoff = 0.0
-
-    def unpack(self, p):
-        k = self.k
-        return p[0], p[1], p[2], p[3], p[4 : 4 + k], np.concatenate([[1.0], p[4 + k : 3 + 2 * k]]), p[-1]
-
-    def voltage_residuals(self, p):
-        R, L_d, L_q, psi_f, offset, gain, delta = self.unpack(p)
-        _, i_ab = _true_currents(self.m, offset, gain)
-        e = np.exp(1j * (self.theta_m - delta))
-        i_dq = i_ab * np.conj(e)
-        psi = e * (L_d * i_dq.real + psi_f + 1j * L_q * i_dq.imag)
-        trap = 0.5 * (i_ab[:-1] + i_ab[1:]) * self.dt
-        trap = trap - self.curvature * psi_f / L_d * np.exp(1j * (self.theta_mid - delta))
-        int_i = trap.reshape(self.n_b, self.block).sum(axis=1)
-        r = self.U - R * int_i - (psi[self.edges[1:]] - psi[self.edges[:-1]])
-        return np.stack([r.real, r.imag], axis=1).ravel()
-
-    def kirchhoff_residuals(self, p):
-        _, _, _, _, offset, gain, _ = self.unpack(p)
-        i, _ = _true_currents(self.m, offset, gain)
-        return i.sum(axis=1)
-
-    def residuals(self, p, w_v=1.0):
-        r = self.voltage_residuals(p) * w_v
-        if self.k == 3:
-            r = np.concatenate([r, self.w_kirchhoff * self.kirchhoff_residuals(p)])
-        return r
-
-    def start(self) -> np.ndarray:
-        """The linear start of the module docstring (no current-sensor errors)."""
-        i_ab = _true_currents(self.m, np.zeros(self.k), np.ones(self.k))[1]
-        a, b = self.edges[:-1], self.edges[1:]
-        z1 = np.exp(1j * self.theta_m)
-        z2 = np.exp(2j * self.theta_m) * np.conj(i_ab)
-        d = lambda x: x[b] - x[a]
-        trap = (0.5 * (i_ab[:-1] + i_ab[1:]) * self.dt).reshape(self.n_b, self.block).sum(axis=1)
-        ri = lambda x: np.concatenate([x.real, x.imag])
-        cols = [ri(trap), ri(d(i_ab)), ri(d(z2)), ri(1j * d(z2)), ri(d(z1)), ri(1j * d(z1))]
-        A = np.stack(cols, axis=1)
-        scale = np.linalg.norm(A, axis=0)
-        scale[scale == 0] = 1.0
-        x = np.linalg.lstsq(A / scale, ri(self.U), rcond=None)[0] / scale
-        R, L_s, k2, c = x[0], x[1], x[2] + 1j * x[3], x[4] + 1j * x[5]
-        delta = -float(np.angle(c))
-        L_dlt = float((k2 * np.exp(2j * delta)).real)
-        L_d, L_q = L_s + L_dlt, L_s - L_dlt
-        floor = max(abs(L_s), 1e-6) * 0.1
-        start = [max(R, 1e-3), max(L_d, floor), max(L_q, floor), max(abs(c), 1e-4)]
-        return np.array(start + [0.0] * self.k + [1.0] * (self.k - 1) + [delta])
-
-
-def identify_sensor_errors(log: SensorLog, block: int = 50) -> SensorErrors:
-    """Fit the current-sensor offsets, their relative gains and the encoder offset (module docstring).
+def identify_sensor_errors(log: SensorLog, block: int = 50, reference_c: float = 20.0) -> SensorErrors:
+    """Fit the current-sensor offsets, their relative gains and the encoder offset (module docstring);
+    with a temperature column, also R and psi_f at ``reference_c`` and their temperature coefficients.
 
     Args:
         log: The stator-frame log
             ([`sensor_log_from_columns`][tuning.identify.sensor_errors.sensor_log_from_columns]).
         block: Log intervals per integration block.
+        reference_c: The temperature R and psi_f are stated at, degC (used with a temperature column).
 
     Returns:
         The [`SensorErrors`][tuning.identify.sensor_errors.SensorErrors], with intervals in its summary.
@@ -284,13 +203,15 @@ def identify_sensor_errors(log: SensorLog, block: int = 50) -> SensorErrors:
     Raises:
         ParameterError: For a log too short for the blocks, or a fit that fails numerically.
     """
-    pr = _Problem(log, block)
+    pr = StatorFrameProblem(log, block, reference_c)
     p0 = pr.start()
     i_rms = float(np.sqrt(np.mean(log.m**2)))
+    n = pr.n_machine
     scale = np.abs(p0)
-    scale[4 : 4 + pr.k] = max(0.01 * i_rms, 1e-3)
-    scale[4 + pr.k :] = 1.0  # gains and the angle: order one
-    sigma_i = _noise_level(log.m)
+    scale[4:n] = np.maximum(scale[4:n], 1e-4)  # temperature coefficients, 1/K
+    scale[n : n + pr.k] = max(0.01 * i_rms, 1e-3)
+    scale[n + pr.k :] = 1.0  # gains and the angle: order one
+    sigma_i = noise_level(log.m)
     if pr.k == 3:
         pr.w_kirchhoff = 1.0 / max(_SQRT3 * sigma_i, 1e-9)  # three readings' noise in each sum
     w_v = 1.0
@@ -306,7 +227,7 @@ def identify_sensor_errors(log: SensorLog, block: int = 50) -> SensorErrors:
         if pr.k == 2 or moved < 0.02:
             break
     p = x * scale
-    J = _jacobian(lambda x: pr.residuals(x * scale, w_v), x) / scale  # per unit of each parameter
+    J = central_jacobian(lambda x: pr.residuals(x * scale, w_v), x) / scale  # per unit of each parameter
     r = pr.residuals(p, w_v)
     groups = [(J[: 2 * pr.n_b], r[: 2 * pr.n_b], (1, pr.n_b), 3)]
     if pr.k == 3:
@@ -317,23 +238,6 @@ def identify_sensor_errors(log: SensorLog, block: int = 50) -> SensorErrors:
     cov = covariance(groups)[0]
     se = np.sqrt(np.abs(np.diag(cov)))
     return _result(pr, p, se, sol, w_v, log)
-
-
-def _jacobian(f, x, h=1e-6):
-    """Central-difference Jacobian of ``f`` at ``x`` (unknowns scaled to order one)."""
-    cols = []
-    for j in range(x.size):
-        e = np.zeros_like(x)
-        e[j] = h
-        cols.append((f(x + e) - f(x - e)) / (2 * h))
-    return np.stack(cols, axis=1)
-
-
-def _noise_level(m: np.ndarray) -> float:
-    """White-noise level of the current readings, A (MAD of second differences, as the fit's weights)."""
-    d2 = np.diff(m, 2, axis=0)
-    mad = np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0)
-    return float(np.max(1.4826 * mad / np.sqrt(6.0)))
 
 
 def _entry(value, stderr, unit, limit):
@@ -348,18 +252,18 @@ def _entry(value, stderr, unit, limit):
     }
 
 
-def _result(pr: _Problem, p, se, sol, w_v, log) -> SensorErrors:
-    R, L_d, L_q, psi_f, offset, gain, delta = pr.unpack(p)
+def _result(pr: StatorFrameProblem, p, se, sol, w_v, log) -> SensorErrors:
+    R, L_d, L_q, psi_f, alpha, beta, offset, gain, delta = pr.unpack(p)
     delta = float(math.remainder(delta, 2 * math.pi))
-    k = pr.k
+    k, n = pr.k, pr.n_machine
     lim = IDENTIFIABLE_STDERR
     offsets = [
-        _entry(offset[j], se[4 + j], "A", lim["current_offset_a"]) | {"sensor": "abc"[j]} for j in range(k)
+        _entry(offset[j], se[n + j], "A", lim["current_offset_a"]) | {"sensor": "abc"[j]} for j in range(k)
     ]
     gains = [{"value": 1.0, "stderr": 0.0, "ci95": [1.0, 1.0], "unit": "", "identifiable": None,
               "sensor": "a", "note": "the reference: the gains are relative to sensor a"}]  # fmt: skip
     gains += [
-        _entry(gain[j], se[3 + k + j], "", lim["current_gain"] * gain[j]) | {"sensor": "abc"[j]}
+        _entry(gain[j], se[n - 1 + k + j], "", lim["current_gain"] * gain[j]) | {"sensor": "abc"[j]}
         for j in range(1, k)
     ]
     enc = _entry(delta, se[-1], "rad", lim["encoder_offset_rad"])
@@ -396,6 +300,9 @@ def _result(pr: _Problem, p, se, sol, w_v, log) -> SensorErrors:
         "log": {"source": log.source, "samples": int(log.time.size)},
     }
     machine = {"R": float(R), "L_d": float(L_d), "L_q": float(L_q), "psi_f": float(psi_f)}
+    if pr.thermal:
+        summary["temperature"] = temperature_summary(pr, p, se, log)
+        machine |= {"r_temp_coeff_per_k": float(alpha), "psi_f_temp_coeff_per_k": float(beta)}
     return SensorErrors(np.asarray(offset, float), np.asarray(gain, float), delta, machine, summary)
 
 
@@ -421,7 +328,7 @@ def corrected_columns(cols: dict, errors: SensorErrors) -> dict:
     delta = errors.encoder_offset_rad if s["encoder_offset_rad"]["identifiable"] else 0.0
     k = errors.offset_a.size
     m = np.stack([cols["i_a"], cols["i_b"]] + ([cols["i_c"]] if k == 3 else []), axis=1)
-    i, _ = _true_currents(m, offset, gain)
+    i, _ = true_currents(m, offset, gain)
     keep = ("time", "omega_m", "T_L", "U_dc", *sum(_STATOR_VOLTAGE_SETS.values(), ()))
     out = {n: cols[n] for n in keep if n in cols}
     out["i_a"], out["i_b"] = i[:, 0], i[:, 1]

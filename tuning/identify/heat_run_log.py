@@ -1,0 +1,187 @@
+"""A heat-run log of an imperfect drive made without this project's engine: a warm motor, faulty current
+sensors and a turned encoder, recorded in bursts, so that the identification of temperature coefficients,
+a thermal network and sensor errors is tested on data the code under test did not make.
+
+**The run.** A dynamometer holds the speed while the drive's current loop follows a periodic pattern of
+d- and q-current steps around an operating level; the level is high for the heating part of the run and
+low for the cooling part. Every ``capture_every_s`` a capture of one pattern period is recorded (a
+re-triggered scope or a firmware datalog buffer: the rows between captures are not in the log), at a
+speed that alternates between two values from capture to capture.
+
+**The physics** (the motor of :data:`MOTOR`):
+
+- dq machine with ``R(T) = R (1 + alpha (T - T_ref))`` and ``psi_f(T) = psi_f (1 + beta (T - T_ref))``
+  (one temperature: the magnet at the winding's), the stator-frame voltage held over each control period
+  (an averaged inverter) and turned into dq at the rotor angle of each instant;
+- one thermal node, ``C_th dT/dt = 1.5 R(T) |i_dq|^2 - (T - T_amb) / R_th`` (amplitude-invariant dq
+  currents), integrated with the currents inside a capture, and between captures with the loss of the
+  pattern held (its mean ``|i_dq|^2`` over the capture at that level: the pattern repeats between
+  captures);
+- sensors: ``m_k = g_k i_k + o_k + noise`` on phases a and b (the firmware computes ``i_c = -i_a - i_b``),
+  the measured angle ``theta_e + delta``, a winding-temperature sensor with white noise.
+
+The current PI (400 Hz bandwidth, back-EMF and cross-coupling feed-forward from the cold nameplate values)
+reads the faulty sensors and turns them with the faulty angle, as firmware does. Each capture starts after
+one pattern period of warm-up, so the loop and the currents are in their periodic steady state.
+
+**Integrators.** SciPy's ``solve_ivp``: DOP853 for the electrical and thermal states of all captures at
+once (one control period per call), LSODA for the thermal node between captures. The loss held between
+captures is that of the capture at the same level; it is found by two passes (the captures at the
+temperatures of the first pass give the losses of the second).
+"""
+
+import math
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+__all__ = ["MOTOR", "SENSORS", "THERMAL", "heat_run_log", "true_values"]
+
+#: The motor at its reference temperature (ohm, H, H, Wb, pole pairs; degC and 1/K for the coefficients).
+MOTOR = {
+    "R": 0.5,
+    "L_d": 2.0e-3,
+    "L_q": 3.0e-3,
+    "psi_f": 0.08,
+    "pole_pairs": 4,
+    "reference_temperature_c": 20.0,
+    "r_temp_coeff_per_k": 0.00393,
+    "psi_f_temp_coeff_per_k": -0.0011,
+}
+#: The winding's thermal node: K/W, J/K, degC.
+THERMAL = {"r_th_k_per_w": 1.0, "c_th_j_per_k": 300.0, "ambient_c": 25.0}
+#: Sensor errors: offsets (A) and gains of the sensors on phases a and b, encoder offset (electrical rad).
+SENSORS = {"current_offset_a": (0.08, -0.05), "current_gain": (0.99, 1.005), "encoder_offset_rad": 0.12}
+#: The current pattern of one period, (i_d, i_q) in A per step, at the heating level.
+PATTERN_A = ((0.0, 9.0), (-3.0, 8.0), (0.0, -9.0), (2.0, 8.0), (-2.5, -8.0))
+_TWO_PI_3 = 2.0 * math.pi / 3.0
+
+
+def true_values() -> dict:
+    """Every value the log was made with: ``{"motor", "thermal", "sensors"}``."""
+    return {"motor": dict(MOTOR), "thermal": dict(THERMAL), "sensors": dict(SENSORS)}
+
+
+def _resistance(T):
+    return MOTOR["R"] * (1.0 + MOTOR["r_temp_coeff_per_k"] * (T - MOTOR["reference_temperature_c"]))
+
+
+def _flux(T):
+    return MOTOR["psi_f"] * (1.0 + MOTOR["psi_f_temp_coeff_per_k"] * (T - MOTOR["reference_temperature_c"]))
+
+
+def _capture_rhs(w_e, u_ab):
+    """The rhs of every capture's ``(i_d, i_q, theta_e, T)`` with the held stator voltages ``u_ab``."""
+    L_d, L_q, c_th, r_th, t_amb = (
+        MOTOR["L_d"], MOTOR["L_q"], THERMAL["c_th_j_per_k"], THERMAL["r_th_k_per_w"], THERMAL["ambient_c"],
+    )  # fmt: skip
+
+    def rhs(_t, flat):
+        i_d, i_q, th, T = flat.reshape(4, -1)
+        c, s = np.cos(th), np.sin(th)
+        u_d, u_q = c * u_ab[0] + s * u_ab[1], -s * u_ab[0] + c * u_ab[1]
+        R = _resistance(T)
+        di_d = (u_d - R * i_d + w_e * L_q * i_q) / L_d
+        di_q = (u_q - R * i_q - w_e * (L_d * i_d + _flux(T))) / L_q
+        dT = (1.5 * R * (i_d**2 + i_q**2) - (T - t_amb) / r_th) / c_th
+        return np.concatenate([di_d, di_q, w_e, dT])
+
+    return rhs
+
+
+def _captures(t0, T0, speeds, levels, ts, rows, rng):
+    """Simulate every capture (a warm-up period, then ``rows`` logged rows); returns the logged columns
+    ``(n, rows)`` and each capture's mean true ``|i_dq|^2``, A^2."""
+    n = t0.size
+    p = MOTOR["pole_pairs"]
+    w_e = p * speeds
+    gain, offset = np.asarray(SENSORS["current_gain"]), np.asarray(SENSORS["current_offset_a"])
+    delta = SENSORS["encoder_offset_rad"]
+    bw = 2.0 * math.pi * 400.0
+    steps = len(PATTERN_A)
+    period = rows - 1
+    x = np.stack([np.zeros(n), np.zeros(n), np.full(n, 0.3), T0])
+    integ = np.zeros((2, n))
+    names = ("u_alpha", "u_beta", "i_a", "i_b", "theta_e", "temperature_c", "i_sq_true")
+    log = {k: np.zeros((n, rows)) for k in names}
+    for j in range(period + rows):
+        i_d, i_q, th, T = x
+        ph = [th - q * _TWO_PI_3 for q in range(2)]
+        i_true = np.stack([np.cos(a) * i_d - np.sin(a) * i_q for a in ph])
+        m = gain[:, None] * i_true + offset[:, None] + 0.01 * rng.standard_normal((2, n))
+        th_m = th + delta
+        i_al, i_be = m[0], (m[0] + 2.0 * m[1]) / math.sqrt(3.0)
+        c, s = np.cos(th_m), np.sin(th_m)
+        md, mq = c * i_al + s * i_be, -s * i_al + c * i_be
+        ref = np.asarray(PATTERN_A[(j % period) * steps // period], float)[:, None] * levels[None, :]
+        e = ref - np.stack([md, mq])
+        integ += MOTOR["R"] * bw * ts * e
+        u_d = MOTOR["L_d"] * bw * e[0] + integ[0] - w_e * MOTOR["L_q"] * mq
+        u_q = MOTOR["L_q"] * bw * e[1] + integ[1] + w_e * (MOTOR["L_d"] * md + MOTOR["psi_f"])
+        u_ab = np.stack([c * u_d - s * u_q, s * u_d + c * u_q])
+        k = j - period
+        if k >= 0:
+            log["u_alpha"][:, k], log["u_beta"][:, k] = u_ab
+            log["i_a"][:, k], log["i_b"][:, k] = m
+            log["theta_e"][:, k] = np.remainder(th_m + math.pi, 2.0 * math.pi) - math.pi
+            log["temperature_c"][:, k] = T + 0.2 * rng.standard_normal(n)
+            log["i_sq_true"][:, k] = i_d**2 + i_q**2
+        if j < period + rows - 1:
+            sol = solve_ivp(_capture_rhs(w_e, u_ab), (0.0, ts), x.ravel(), method="DOP853", rtol=1e-10,
+                            atol=1e-12)  # fmt: skip
+            x = sol.y[:, -1].reshape(4, n)
+    return log, log["i_sq_true"][:, :-1].mean(axis=1)
+
+
+def _temperatures(t_caps, i_sq, t_end):
+    """Winding temperature at ``t_caps`` with each capture's loss held until the next (LSODA), degC."""
+    r_th, c_th, t_amb = THERMAL["r_th_k_per_w"], THERMAL["c_th_j_per_k"], THERMAL["ambient_c"]
+
+    def rhs(t, T):
+        s = min(max(int(np.searchsorted(t_caps, t, side="right")) - 1, 0), t_caps.size - 1)
+        return [(1.5 * _resistance(T[0]) * i_sq[s] - (T[0] - t_amb) / r_th) / c_th]
+
+    grid = np.concatenate([t_caps, [t_end]])
+    sol = solve_ivp(rhs, (0.0, t_end), [t_amb], method="LSODA", t_eval=grid, rtol=1e-10, atol=1e-10,
+                    max_step=float(np.min(np.diff(grid))) / 2.0)  # fmt: skip
+    return sol.y[0, :-1]
+
+
+def heat_run_log(
+    duration_s: float = 1500.0,
+    heating_s: float = 900.0,
+    capture_every_s: float = 30.0,
+    capture_s: float = 0.05,
+    ts: float = 1e-4,
+    speeds_rad_s: tuple = (60.0, 120.0),
+    cooling_level: float = 0.35,
+    seed: int = 0,
+) -> dict:
+    """Columns of a heat-run log recorded in bursts (module docstring).
+
+    Args:
+        duration_s: Length of the run, s. heating_s: The run's heating part, s (the pattern at full level).
+        capture_every_s: Time between capture starts, s. capture_s: Length of a capture (one pattern
+            period), s. ts: Control and sampling period, s.
+        speeds_rad_s: The two mechanical speeds the captures alternate between, rad/s.
+        cooling_level: The pattern's scale after ``heating_s``.
+        seed: Noise seed.
+
+    Returns:
+        ``{column: (N,) array}``: ``time`` (s, with gaps between captures), ``u_alpha``, ``u_beta`` (V, held
+        from a row to the next), ``i_a``, ``i_b`` (A, as the sensors read them), ``theta_e`` (measured,
+        rad), ``omega_m`` (rad/s), ``temperature_c`` (measured winding temperature, degC).
+    """
+    rows = round(capture_s / ts) + 1
+    t_caps = np.arange(0.0, duration_s - capture_s, capture_every_s) + capture_s  # after a warm-up period
+    n = t_caps.size
+    speeds = np.asarray(speeds_rad_s, float)[np.arange(n) % 2]
+    levels = np.where(t_caps < heating_s, 1.0, cooling_level)
+    i_sq = np.mean(np.sum(np.square(PATTERN_A), axis=1)) * levels**2  # first pass: the references
+    for _ in range(2):
+        T0 = _temperatures(t_caps - capture_s, i_sq, duration_s)
+        log, i_sq = _captures(t_caps - capture_s, T0, speeds, levels, ts, rows, np.random.default_rng(seed))
+    time = t_caps[:, None] + ts * np.arange(rows)[None, :]
+    out = {"time": time.ravel(), "omega_m": np.repeat(speeds, rows)}
+    out.update({k: v.ravel() for k, v in log.items() if k != "i_sq_true"})
+    return out
