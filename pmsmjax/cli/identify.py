@@ -91,6 +91,16 @@ def add_parser(sub):
         "gets them. The absolute current gain is not identifiable (R and L absorb it): R, L_d, L_q are per "
         "ampere as sensor a reads it (default: off, the sensors taken as exact)",
     )
+    p.add_argument(
+        "--ambient-c",
+        type=float,
+        default=None,
+        metavar="DEGC",
+        help="the ambient (coolant) temperature of a heat-run log, degC, when known; a log with a "
+        "temperature_c column (winding temperature, degC) gives R and psi_f at the --motor prior's "
+        "reference_temperature_c (default 20 degC), their temperature coefficients and the winding's thermal "
+        "network, whose ambient is fitted unless given here (default: fitted)",
+    )
     p.add_argument("--no-figures", action="store_true", help="do not write fit.png")
     p.add_argument(
         "--flux-map",
@@ -201,6 +211,8 @@ def run(args) -> int:
         resample=args.resample,
         figures=not args.no_figures,
         sensor_errors=args.sensor_errors,
+        reference_c=_reference_temperature_c(prior),
+        ambient_c=args.ambient_c,
         **options,
     )
     s = result.summary
@@ -208,6 +220,8 @@ def run(args) -> int:
         print(note)
     if "sensor_errors" in s:
         _print_sensor_errors(s["sensor_errors"])
+    if "temperature" in s:
+        _print_temperature(s["temperature"])
     for name, p in s["parameters"].items():
         ci = p["ci95"]
         interval = f"[{ci[0]:.5g}, {ci[1]:.5g}]" if ci[0] is not None else "[not determined]"
@@ -233,6 +247,38 @@ def _print_sensor_errors(errors: dict) -> None:
         flag = "" if e["identifiable"] else "  NOT IDENTIFIABLE"
         print(f"{name:18s} {f * e['value']:.6g} {unit:7s} 95 % {interval}{flag}")
     print(f"absolute current gain: not identifiable ({errors['not_identifiable']['absolute_current_gain']})")
+
+
+def _reference_temperature_c(prior) -> float:
+    """The temperature R and psi_f are identified at: the prior's ``[motor] reference_temperature_c``, else
+    20 degC (what data sheets state R at)."""
+    stated = prior.motor.get("reference_temperature_c") if prior is not None else None
+    return float(stated) if stated is not None else 20.0
+
+
+def _print_temperature(report: dict) -> None:
+    """One line per temperature coefficient and thermal-network parameter, with its 95 % interval."""
+    low, high = report["logged_range_c"]
+    print(f"winding temperature logged {low:.1f} to {high:.1f} degC; R and psi_f at "
+          f"{report['reference_temperature_c']:g} degC")  # fmt: skip
+    rows = [("R temp. coeff.", report["r_temp_coeff_per_k"]),
+            ("psi_f temp. coeff.", report["psi_f_temp_coeff_per_k"])]  # fmt: skip
+    network = report["thermal_network"]
+    if "r_th_k_per_w" in network:
+        rows += [
+            ("thermal resistance", network["r_th_k_per_w"]),
+            ("thermal capacity", network["c_th_j_per_k"]),
+            ("time constant", network["time_constant_s"]),
+        ]
+        if not network["ambient_c"].get("given"):
+            rows.append(("ambient", network["ambient_c"]))
+    else:
+        print(f"thermal network: NOT IDENTIFIABLE ({network['note']})")
+    for name, e in rows:
+        lo, hi = e["ci95"]
+        interval = f"[{lo:.5g}, {hi:.5g}]" if lo is not None else "[not determined]"
+        flag = "" if e["identifiable"] else "  NOT IDENTIFIABLE"
+        print(f"{name:18s} {e['value']:.6g} {e['unit']:7s} 95 % {interval}{flag}")
 
 
 def _run_flux_map(args, prior, pole_pairs: int, fixed: dict, columns: dict, units: dict) -> int:

@@ -17,6 +17,12 @@
   a log does not give the absolute gain) and, for an encoder (``kind = "encoder"`` in the prior; its lines
   are not in a log), ``encoder_offset_rad``; ``[tolerances]`` ``current_offset_a`` (A) and ``current_gain``
   the largest half-widths of their 95 % intervals. A value the log does not determine is not written.
+- With a winding-temperature column (``temperature`` in ``params.json``): ``[motor]``
+  ``reference_temperature_c``, ``r_temp_coeff_per_k`` and ``psi_f_temp_coeff_per_k`` (R and psi_f are then
+  the values at the reference temperature), and ``[thermal]`` ``r_th_k_per_w``, ``c_th_j_per_k`` and
+  ``ambient_c`` of the fitted network, each only when identified. ``[operating]`` (the ranges a drive runs
+  over) is the user's and is carried over from the prior: the intervals go to ``[tolerances]``, never to
+  ``[operating]``.
 """
 
 from pathlib import Path
@@ -76,6 +82,8 @@ def motor_file_tables(summary: dict, pole_pairs: int, prior: DriveSpec | None = 
         sensor = _sensor_table(summary["sensor_errors"], prior, tolerances, comments)
         if sensor != {"kind": "exact"}:
             tables["sensor"] = sensor
+    if summary.get("temperature"):
+        tables |= _temperature_tables(summary["temperature"], motor, prior, comments)
     if tolerances:
         tables["tolerances"] = tolerances
     return tables, comments
@@ -104,6 +112,33 @@ def _sensor_table(errors: dict, prior: DriveSpec | None, tolerances: dict, comme
                 '"encoder", its lines) takes it as encoder_offset_rad'
             )
     return sensor
+
+
+def _temperature_tables(report: dict, motor: dict, prior: DriveSpec | None, comments: dict) -> dict:
+    """``[motor]``'s temperature keys (added to `motor`) and the ``[thermal]`` and ``[operating]`` tables of
+    an identified temperature ``report`` (module docstring)."""
+    coefficients = ("r_temp_coeff_per_k", "psi_f_temp_coeff_per_k")
+    if all(report[n]["identifiable"] for n in coefficients):
+        motor["reference_temperature_c"] = report["reference_temperature_c"]
+        for name in coefficients:
+            motor[name] = report[name]["value"]
+            comments[f"motor.{name}"] = "identified (1/K)"
+    tables = {}
+    network = report.get("thermal_network", {})
+    names = ("r_th_k_per_w", "c_th_j_per_k")
+    if network and all(network.get(n, {}).get("identifiable") for n in names):
+        thermal = {n: network[n]["value"] for n in names}
+        thermal["ambient_c"] = network["ambient_c"]["value"]
+        comments["thermal.r_th_k_per_w"] = (
+            "identified: per ampere as sensor a reads it (scales with 1 / its gain)"
+        )
+        comments["thermal.ambient_c"] = "given" if network["ambient_c"].get("given") else "identified"
+        tables["thermal"] = thermal
+    elif prior is not None and prior.thermal:
+        tables["thermal"] = dict(prior.thermal)
+    if prior is not None and prior.operating:
+        tables["operating"] = {k: list(v) for k, v in prior.operating.items()}
+    return tables
 
 
 def write_motor_file(path, summary: dict, pole_pairs: int, prior: DriveSpec | None = None) -> Path:

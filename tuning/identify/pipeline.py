@@ -41,6 +41,7 @@ from tuning.identify import fit as id_fit
 from tuning.identify import mechanical as me
 from tuning.identify.fit import FitResult
 from tuning.identify.log import DriveLog, drive_log_from_columns, load_drive_log, read_log_config
+from tuning.identify.thermal_network_fit import temperature_report
 from tuning.identify.uncertainty import (
     ADVICE,
     EXCITATION_AVERAGE_S,
@@ -353,8 +354,11 @@ def _summary(log: DriveLog, opt: IdentifyOptions, fit: FitResult, held: dict) ->
     }
 
 
-def _corrected_log(path, pole_pairs: int, columns: dict, units: dict, *, hold: str, u_dc, resample: bool):
-    """``(DriveLog, SensorErrors)``: the sensor errors of the log at ``path`` and the log without them."""
+def _corrected_log(path, pole_pairs: int, columns: dict, units: dict, *, hold: str, u_dc, resample: bool,
+                   reference_c: float):  # fmt: skip
+    """``(DriveLog, SensorErrors, corrected columns)``: the stator-frame fit of the log at ``path`` (sensor
+    errors, and with a temperature column R(T) and psi_f(T) at ``reference_c`` degC) and the log without
+    the sensor errors."""
     from tuning.identify.log_columns import read_canonical
     from tuning.identify.sensor_errors import (
         corrected_columns,
@@ -371,11 +375,27 @@ def _corrected_log(path, pole_pairs: int, columns: dict, units: dict, *, hold: s
     source = f"log {path}"
     present = read_canonical(path, columns)
     slog, cols = sensor_log_from_columns(present, units=units, u_dc=u_dc, resample=resample, source=source)
-    errors = identify_sensor_errors(slog)
+    errors = identify_sensor_errors(slog, reference_c=reference_c)
     corrected = corrected_columns(cols, errors)
+    if slog.temperature_c is not None:
+        corrected["temperature_c"] = cols["temperature_c"]
     log = drive_log_from_columns(corrected, pole_pairs, hold=hold, u_dc=u_dc, source=source)
     note = "currents and angle corrected by the identified sensor errors (sensor_errors)"
-    return dataclasses.replace(log, notes=(*log.notes, note)), errors
+    return dataclasses.replace(log, notes=(*log.notes, note)), errors, corrected
+
+
+def _temperature_coeffs(errors) -> dict | None:
+    """The coefficients the main fit takes as known, when the stator-frame fit determined them."""
+    t = errors.summary.get("temperature")
+    if t is None or not (
+        t["r_temp_coeff_per_k"]["identifiable"] and t["psi_f_temp_coeff_per_k"]["identifiable"]
+    ):
+        return None
+    return {
+        "reference_temperature_c": t["reference_temperature_c"],
+        "r_temp_coeff_per_k": t["r_temp_coeff_per_k"]["value"],
+        "psi_f_temp_coeff_per_k": t["psi_f_temp_coeff_per_k"]["value"],
+    }
 
 
 def identify_file(
@@ -391,6 +411,8 @@ def identify_file(
     resample: bool = False,
     figures: bool = True,
     sensor_errors: bool = False,
+    reference_c: float = 20.0,
+    ambient_c: float | None = None,
     **options,
 ) -> IdentifyResult:
     """Read ``log_path``, identify, write ``out_dir/params.json`` (and ``fit.png``); returns the result.
@@ -403,16 +425,22 @@ def identify_file(
     explicit arguments win over it. `sensor_errors`: first fit the current sensors' offsets, their gains
     relative to sensor a and the encoder offset from the phase currents and the measured angle
     ([`tuning.identify.sensor_errors`][tuning.identify.sensor_errors]), take them out of the log and
-    identify the motor on the corrected log; the summary gets a ``sensor_errors`` entry. Everything is
-    checked before anything is compiled; files are written atomically.
+    identify the motor on the corrected log; the summary gets a ``sensor_errors`` entry. A log with a
+    ``temperature_c`` column (winding temperature, degC) is fitted that way whether or not `sensor_errors`
+    is asked for: the stator-frame fit also gives R and psi_f at `reference_c` (degC) and their temperature
+    coefficients, the main fit takes those coefficients as known, and the thermal network is fitted
+    ([`tuning.identify.thermal_network_fit`][tuning.identify.thermal_network_fit]; `ambient_c`, degC, when
+    known, else fitted); the summary gets a ``temperature`` entry. Everything is checked before anything is
+    compiled; files are written atomically.
     """
     cfg = read_log_config(config) if config else {"columns": {}, "units": {}, "log": {}, "identify": {}}
     cols = {**cfg["columns"], **(columns or {})}
     unit_map = {**cfg["units"], **(units or {})}
     log_cfg = cfg["log"]
-    bad = sorted(set(log_cfg) - {"hold", "u_dc", "resample"})
+    bad = sorted(set(log_cfg) - {"hold", "u_dc", "resample", "ambient_c"})
     if bad:
-        raise ParameterError(f"[log] table: unknown keys {bad}; allowed: hold, u_dc, resample.")
+        raise ParameterError(f"[log] table: unknown keys {bad}; allowed: ambient_c, hold, u_dc, resample.")
+    ambient_c = ambient_c if ambient_c is not None else log_cfg.get("ambient_c")
     fields = {f.name for f in dataclasses.fields(IdentifyOptions)}
     bad = sorted(set(cfg["identify"]) - fields)
     if bad:
@@ -424,14 +452,22 @@ def identify_file(
         "resample": resample or bool(log_cfg.get("resample", False)),
     }
     sensors = None
-    if sensor_errors:
-        log, sensors = _corrected_log(log_path, pole_pairs, cols, unit_map, **read)
-    else:
+    if not sensor_errors:
         log = load_drive_log(log_path, pole_pairs, columns=cols, units=unit_map, **read)
+        sensor_errors = getattr(log, "temperature_c", None) is not None
+    if sensor_errors:
+        log, sensors, corrected = _corrected_log(
+            log_path, pole_pairs, cols, unit_map, **read, reference_c=reference_c
+        )
+        coeffs = _temperature_coeffs(sensors)
+        if coeffs is not None:
+            opts = dataclasses.replace(opts, temperature_coeffs=coeffs)
     out = check_output_folder(out_dir)
     result = identify(log, opts)
     if sensors is not None:
         result.summary["sensor_errors"] = sensors.summary
+        if "temperature" in sensors.summary:
+            result.summary["temperature"] = temperature_report(sensors, corrected, log.segments, ambient_c)
     out.mkdir(parents=True, exist_ok=True)
     atomic_write(out / "params.json", lambda f: f.write(json.dumps(result.summary, indent=2).encode()))
     if figures:
