@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from pmsmjax.spec.validation import ParameterError
-from tuning.identify.heat_run_log import MOTOR, SENSORS, THERMAL, heat_run_log
+from tuning.identify.heat_run_log import DEAD_TIME_V, MOTOR, SENSORS, THERMAL, heat_run_log
 from tuning.identify.log_columns import segment_bounds
 from tuning.identify.sensor_errors import corrected_columns, identify_sensor_errors, sensor_log_from_columns
 from tuning.identify.thermal_network_fit import temperature_report
@@ -28,9 +28,9 @@ from tuning.identify.thermal_network_fit import temperature_report
 G_A = SENSORS["current_gain"][0]
 
 
-def _fit(cols, ambient_c=None):
+def _fit(cols, ambient_c=None, dead_time=True):
     slog, c = sensor_log_from_columns(cols)
-    errors = identify_sensor_errors(slog, reference_c=MOTOR["reference_temperature_c"])
+    errors = identify_sensor_errors(slog, reference_c=MOTOR["reference_temperature_c"], dead_time=dead_time)
     corrected = corrected_columns(c, errors)
     if "temperature_c" in c:
         corrected["temperature_c"] = c["temperature_c"]
@@ -71,6 +71,7 @@ def test_r_and_psi_f_at_the_reference_and_their_coefficients(fitted):
     _close(report["psi_f_temp_coeff_per_k"], MOTOR["psi_f_temp_coeff_per_k"], 0.05)
     for name in ("L_d", "L_q"):
         assert abs(errors.machine[name] / (MOTOR[name] / G_A) - 1.0) < 0.02, name
+    assert abs(errors.machine["V_dt"] / DEAD_TIME_V - 1.0) < 0.01
 
 
 def test_sensor_errors_of_the_warm_motor(fitted):
@@ -104,6 +105,18 @@ def test_an_ideal_model_of_the_same_log_is_wrong(heat_run, fitted):
     assert errors.machine["R"] / (MOTOR["R"] / G_A) - 1.0 > 0.15
     assert errors.machine["psi_f"] / MOTOR["psi_f"] - 1.0 < -0.03
     assert abs(fitted[0].machine["R"] / (MOTOR["R"] / G_A) - 1.0) < 0.01  # the warm model: within 1 %
+
+
+def test_an_ideal_inverter_biases_the_offsets_and_r(heat_run, fitted):
+    """The dead time's loss lies along the current, as ``R i`` does, and its sign pattern has a part at
+    the fundamental that an offset's ``R o`` can take: left out, it pushes into R, its coefficient and the
+    offsets."""
+    errors, report = _fit(heat_run, dead_time=False)
+    offset = errors.summary["current_offset_a"][0]["value"]
+    assert abs(offset - SENSORS["current_offset_a"][0]) > 0.02  # 4x the 5 mA a calibration needs
+    assert report["R"]["value"] / (MOTOR["R"] / G_A) - 1.0 > 0.1
+    assert report["r_temp_coeff_per_k"]["value"] / MOTOR["r_temp_coeff_per_k"] - 1.0 < -0.2
+    assert abs(fitted[0].summary["current_offset_a"][0]["value"] - SENSORS["current_offset_a"][0]) < 0.005
 
 
 def test_too_little_warming_leaves_the_coefficients_undetermined(heat_run):

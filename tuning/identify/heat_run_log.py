@@ -17,6 +17,8 @@ speed that alternates between two values from capture to capture.
   currents), integrated with the currents inside a capture, and between captures with the loss of the
   pattern held (its mean ``|i_dq|^2`` over the capture at that level: the pattern repeats between
   captures);
+- an inverter that loses ``V_dt sign(i_x)`` on each phase (dead time), at the sign of the phase current at
+  the start of each control period, held with the commanded voltage over the period;
 - sensors: ``m_k = g_k i_k + o_k + noise`` on phases a and b (the firmware computes ``i_c = -i_a - i_b``),
   the measured angle ``theta_e + delta``, a winding-temperature sensor with white noise.
 
@@ -35,7 +37,7 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
-__all__ = ["MOTOR", "SENSORS", "THERMAL", "heat_run_log", "true_values"]
+__all__ = ["DEAD_TIME_V", "MOTOR", "SENSORS", "THERMAL", "heat_run_log", "true_values"]
 
 #: The motor at its reference temperature (ohm, H, H, Wb, pole pairs; degC and 1/K for the coefficients).
 MOTOR = {
@@ -52,14 +54,17 @@ MOTOR = {
 THERMAL = {"r_th_k_per_w": 1.0, "c_th_j_per_k": 300.0, "ambient_c": 25.0}
 #: Sensor errors: offsets (A) and gains of the sensors on phases a and b, encoder offset (electrical rad).
 SENSORS = {"current_offset_a": (0.08, -0.05), "current_gain": (0.99, 1.005), "encoder_offset_rad": 0.12}
+#: The inverter's error voltage per phase, V (dead time x switching frequency x DC-link voltage: 1 us at
+#: 10 kHz on 50 V).
+DEAD_TIME_V = 0.5
 #: The current pattern of one period, (i_d, i_q) in A per step, at the heating level.
 PATTERN_A = ((0.0, 9.0), (-3.0, 8.0), (0.0, -9.0), (2.0, 8.0), (-2.5, -8.0))
 _TWO_PI_3 = 2.0 * math.pi / 3.0
 
 
 def true_values() -> dict:
-    """Every value the log was made with: ``{"motor", "thermal", "sensors"}``."""
-    return {"motor": dict(MOTOR), "thermal": dict(THERMAL), "sensors": dict(SENSORS)}
+    """Every value the log was made with: ``{"motor", "thermal", "sensors", "V_dt"}``."""
+    return {"motor": dict(MOTOR), "thermal": dict(THERMAL), "sensors": dict(SENSORS), "V_dt": DEAD_TIME_V}
 
 
 def _resistance(T):
@@ -106,8 +111,9 @@ def _captures(t0, T0, speeds, levels, ts, rows, rng):
     log = {k: np.zeros((n, rows)) for k in names}
     for j in range(period + rows):
         i_d, i_q, th, T = x
-        ph = [th - q * _TWO_PI_3 for q in range(2)]
-        i_true = np.stack([np.cos(a) * i_d - np.sin(a) * i_q for a in ph])
+        ph = [th - q * _TWO_PI_3 for q in range(3)]
+        i_abc = np.stack([np.cos(a) * i_d - np.sin(a) * i_q for a in ph])
+        i_true = i_abc[:2]
         m = gain[:, None] * i_true + offset[:, None] + 0.01 * rng.standard_normal((2, n))
         th_m = th + delta
         i_al, i_be = m[0], (m[0] + 2.0 * m[1]) / math.sqrt(3.0)
@@ -119,6 +125,10 @@ def _captures(t0, T0, speeds, levels, ts, rows, rng):
         u_d = MOTOR["L_d"] * bw * e[0] + integ[0] - w_e * MOTOR["L_q"] * mq
         u_q = MOTOR["L_q"] * bw * e[1] + integ[1] + w_e * (MOTOR["L_d"] * md + MOTOR["psi_f"])
         u_ab = np.stack([c * u_d - s * u_q, s * u_d + c * u_q])
+        sgn = np.sign(i_abc)
+        lost = DEAD_TIME_V * np.stack(
+            [(2 * sgn[0] - sgn[1] - sgn[2]) / 3, (sgn[1] - sgn[2]) / math.sqrt(3.0)]
+        )
         k = j - period
         if k >= 0:
             log["u_alpha"][:, k], log["u_beta"][:, k] = u_ab
@@ -127,7 +137,7 @@ def _captures(t0, T0, speeds, levels, ts, rows, rng):
             log["temperature_c"][:, k] = T + 0.2 * rng.standard_normal(n)
             log["i_sq_true"][:, k] = i_d**2 + i_q**2
         if j < period + rows - 1:
-            sol = solve_ivp(_capture_rhs(w_e, u_ab), (0.0, ts), x.ravel(), method="DOP853", rtol=1e-10,
+            sol = solve_ivp(_capture_rhs(w_e, u_ab - lost), (0.0, ts), x.ravel(), method="DOP853", rtol=1e-10,
                             atol=1e-12)  # fmt: skip
             x = sol.y[:, -1].reshape(4, n)
     return log, log["i_sq_true"][:, :-1].mean(axis=1)

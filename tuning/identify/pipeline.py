@@ -355,7 +355,7 @@ def _summary(log: DriveLog, opt: IdentifyOptions, fit: FitResult, held: dict) ->
 
 
 def _corrected_log(path, pole_pairs: int, columns: dict, units: dict, *, hold: str, u_dc, resample: bool,
-                   reference_c: float):  # fmt: skip
+                   reference_c: float, dead_time: bool):  # fmt: skip
     """``(DriveLog, SensorErrors, corrected columns)``: the stator-frame fit of the log at ``path`` (sensor
     errors, and with a temperature column R(T) and psi_f(T) at ``reference_c`` degC) and the log without
     the sensor errors."""
@@ -375,7 +375,7 @@ def _corrected_log(path, pole_pairs: int, columns: dict, units: dict, *, hold: s
     source = f"log {path}"
     present = read_canonical(path, columns)
     slog, cols = sensor_log_from_columns(present, units=units, u_dc=u_dc, resample=resample, source=source)
-    errors = identify_sensor_errors(slog, reference_c=reference_c)
+    errors = identify_sensor_errors(slog, reference_c=reference_c, dead_time=dead_time)
     corrected = corrected_columns(cols, errors)
     if slog.temperature_c is not None:
         corrected["temperature_c"] = cols["temperature_c"]

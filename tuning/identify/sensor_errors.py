@@ -187,7 +187,9 @@ def sensor_log_from_columns(
     return log, c
 
 
-def identify_sensor_errors(log: SensorLog, block: int = 50, reference_c: float = 20.0) -> SensorErrors:
+def identify_sensor_errors(
+    log: SensorLog, block: int = 50, reference_c: float = 20.0, dead_time: bool = False
+) -> SensorErrors:
     """Fit the current-sensor offsets, their relative gains and the encoder offset (module docstring);
     with a temperature column, also R and psi_f at ``reference_c`` and their temperature coefficients.
 
@@ -196,6 +198,8 @@ def identify_sensor_errors(log: SensorLog, block: int = 50, reference_c: float =
             ([`sensor_log_from_columns`][tuning.identify.sensor_errors.sensor_log_from_columns]).
         block: Log intervals per integration block.
         reference_c: The temperature R and psi_f are stated at, degC (used with a temperature column).
+        dead_time: Fit the inverter's error voltage with them (``V_dt``, V per phase): without it an
+            uncorrected dead time biases the offsets.
 
     Returns:
         The [`SensorErrors`][tuning.identify.sensor_errors.SensorErrors], with intervals in its summary.
@@ -203,12 +207,12 @@ def identify_sensor_errors(log: SensorLog, block: int = 50, reference_c: float =
     Raises:
         ParameterError: For a log too short for the blocks, or a fit that fails numerically.
     """
-    pr = StatorFrameProblem(log, block, reference_c)
+    pr = StatorFrameProblem(log, block, reference_c, dead_time)
     p0 = pr.start()
     i_rms = float(np.sqrt(np.mean(log.m**2)))
     n = pr.n_machine
     scale = np.abs(p0)
-    scale[4:n] = np.maximum(scale[4:n], 1e-4)  # temperature coefficients, 1/K
+    scale[4:n] = np.maximum(scale[4:n], 1e-4)  # temperature coefficients (1/K), V_dt (V)
     scale[n : n + pr.k] = max(0.01 * i_rms, 1e-3)
     scale[n + pr.k :] = 1.0  # gains and the angle: order one
     sigma_i = noise_level(log.m)
@@ -253,8 +257,9 @@ def _entry(value, stderr, unit, limit):
 
 
 def _result(pr: StatorFrameProblem, p, se, sol, w_v, log) -> SensorErrors:
-    R, L_d, L_q, psi_f, alpha, beta, offset, gain, delta = pr.unpack(p)
-    delta = float(math.remainder(delta, 2 * math.pi))
+    v = pr.unpack(p)
+    R, L_d, L_q, psi_f, offset, gain = (v[n] for n in ("R", "L_d", "L_q", "psi_f", "offset", "gain"))
+    delta = float(math.remainder(v["delta"], 2 * math.pi))
     k, n = pr.k, pr.n_machine
     lim = IDENTIFIABLE_STDERR
     offsets = [
@@ -302,7 +307,10 @@ def _result(pr: StatorFrameProblem, p, se, sol, w_v, log) -> SensorErrors:
     machine = {"R": float(R), "L_d": float(L_d), "L_q": float(L_q), "psi_f": float(psi_f)}
     if pr.thermal:
         summary["temperature"] = temperature_summary(pr, p, se, log)
-        machine |= {"r_temp_coeff_per_k": float(alpha), "psi_f_temp_coeff_per_k": float(beta)}
+        machine |= {"r_temp_coeff_per_k": float(v["alpha"]), "psi_f_temp_coeff_per_k": float(v["beta"])}
+    if pr.dead_time:
+        machine["V_dt"] = float(v["V_dt"])
+        summary["machine_of_this_fit"]["V_dt"] = float(v["V_dt"])
     return SensorErrors(np.asarray(offset, float), np.asarray(gain, float), delta, machine, summary)
 
 

@@ -7,7 +7,12 @@ frame where the held voltage's integral is exact;
 ``psi_ab = e^{j theta} (L_d i_d + j L_q i_q + psi_f,b)``, ``i_dq = e^{-j theta} i_ab``,
 ``theta = theta_m - delta``, the true currents ``i_k = (m_k - o_k) / g_k``, and with a temperature column
 ``R_b = R (1 + alpha (T_b - T_ref))``, ``psi_f,b = psi_f (1 + beta (T_b - T_ref))`` at the block's mean
-logged temperature ``T_b`` (without one, ``R_b = R``, ``psi_f,b = psi_f``). The trapezoidal ``int i dt`` is
+logged temperature ``T_b`` (without one, ``R_b = R``, ``psi_f,b = psi_f``). With ``dead_time`` the bridge
+loses ``V_dt tanh(i_x / eps)`` on each phase ``x`` over each interval (the inverter's error voltage, at
+the interval's first sample, as
+[`tuning.identify.electrical`][tuning.identify.electrical] models it): ``u_k`` becomes
+``u_k - V_dt clarke(tanh(i_abc,k / eps))``; left out, that error lies along the current and biases the
+offsets, which are seen through ``R o`` only. The trapezoidal ``int i dt`` is
 corrected by its error from the back-EMF's curvature, ``-h^3 omega_e^2 psi_f e^{j theta} / (12 L_d)`` per
 interval ``h`` (left in, it lies along the back-EMF and turns the fitted encoder offset by about
 ``R h^2 omega_e / (12 L)``).
@@ -77,12 +82,15 @@ class StatorFrameProblem:
         log: A [`tuning.identify.sensor_errors.SensorLog`][tuning.identify.sensor_errors.SensorLog].
         block: Log intervals per block.
         reference_c: ``T_ref``, degC: the temperature R and psi_f are fitted at (with a temperature column).
+        dead_time: Fit the inverter's error voltage ``V_dt`` (V per phase).
+        dead_time_eps_a: The current over which its sign is smoothed, A.
 
     Raises:
         ParameterError: For a log with fewer than 10 whole blocks.
     """
 
-    def __init__(self, log, block: int, reference_c: float = 20.0):
+    def __init__(self, log, block: int, reference_c: float = 20.0, dead_time: bool = False,
+                 dead_time_eps_a: float = 0.05):  # fmt: skip
         t = log.time
         dt = np.diff(t)
         self.k = log.n_sensors
@@ -112,10 +120,14 @@ class StatorFrameProblem:
             self.dT = (c[b + 1] - c[a]) / (b + 1 - a) - self.reference_c
         else:
             self.dT = np.zeros(self.n_b)
+        self.dead_time = dead_time
+        self.eps = dead_time_eps_a
         self.names = ["R", "L_d", "L_q", "psi_f"]
         self.names += ["r_temp_coeff_per_k", "psi_f_temp_coeff_per_k"] if self.thermal else []
+        self.names += ["V_dt"] if dead_time else []
+        #: Unknowns before the sensors' (the machine's, the coefficients, V_dt).
+        self.n_machine = len(self.names)
         self.names += [f"o_{p}" for p in "abc"[: self.k]] + [f"g_{p}" for p in "bc"[: self.k - 1]] + ["delta"]
-        self.n_machine = 6 if self.thermal else 4
         self.w_kirchhoff = 0.0
 
     def _sum(self, per_interval: np.ndarray) -> np.ndarray:
@@ -123,17 +135,33 @@ class StatorFrameProblem:
         c = np.concatenate([[0.0], np.cumsum(per_interval)])
         return c[self.edges[:, 1]] - c[self.edges[:, 0]]
 
-    def unpack(self, p):
-        """``(R, L_d, L_q, psi_f, alpha, beta, offsets (k,), gains (k,), delta)`` from ``p``."""
+    def unpack(self, p) -> dict:
+        """``{R, L_d, L_q, psi_f, alpha, beta, V_dt, offset (k,), gain (k,), delta}`` from ``p`` (the
+        coefficients and V_dt zero when not fitted; ``gain[0] = 1``)."""
         k, n = self.k, self.n_machine
-        alpha, beta = (p[4], p[5]) if self.thermal else (0.0, 0.0)
-        gains = np.concatenate([[1.0], p[n + k : n + 2 * k - 1]])
-        return p[0], p[1], p[2], p[3], alpha, beta, p[n : n + k], gains, p[-1]
+        v = dict(zip(self.names[:n], p[:n], strict=True))
+        return {
+            "R": v["R"], "L_d": v["L_d"], "L_q": v["L_q"], "psi_f": v["psi_f"],
+            "alpha": v.get("r_temp_coeff_per_k", 0.0), "beta": v.get("psi_f_temp_coeff_per_k", 0.0),
+            "V_dt": v.get("V_dt", 0.0), "offset": p[n : n + k],
+            "gain": np.concatenate([[1.0], p[n + k : n + 2 * k - 1]]), "delta": p[-1],
+        }  # fmt: skip
+
+    def _dead_time_volt_seconds(self, i: np.ndarray) -> np.ndarray:
+        """``(n_b,)`` complex alpha-beta volt-seconds lost per volt of ``V_dt`` over each block."""
+        if i.shape[1] == 2:
+            i = np.concatenate([i, -i.sum(axis=1, keepdims=True)], axis=1)
+        sgn = np.tanh(i[:-1] / self.eps)
+        e_ab = (2.0 * sgn[:, 0] - sgn[:, 1] - sgn[:, 2]) / 3.0 + 1j * (sgn[:, 1] - sgn[:, 2]) / _SQRT3
+        return self._sum(e_ab * self.dt)
 
     def voltage_residuals(self, p) -> np.ndarray:
         """``(2 n_b,)`` real and imaginary block residuals, V s."""
-        R, L_d, L_q, psi_f, alpha, beta, offset, gain, delta = self.unpack(p)
-        _, i_ab = true_currents(self.m, offset, gain)
+        v = self.unpack(p)
+        R, L_d, L_q, psi_f, alpha, beta, delta = (
+            v[n] for n in ("R", "L_d", "L_q", "psi_f", "alpha", "beta", "delta")
+        )
+        i, i_ab = true_currents(self.m, v["offset"], v["gain"])
         e = np.exp(1j * (self.theta_m - delta))
         i_dq = i_ab * np.conj(e)
         flux = e * (L_d * i_dq.real + 1j * L_q * i_dq.imag)
@@ -144,12 +172,14 @@ class StatorFrameProblem:
         a, b = self.edges[:, 0], self.edges[:, 1]
         d_psi = flux[b] - flux[a] + psi_b * (e[b] - e[a])
         r = self.U - R * (1.0 + alpha * self.dT) * int_i - d_psi
+        if self.dead_time:
+            r = r - v["V_dt"] * self._dead_time_volt_seconds(i)
         return np.stack([r.real, r.imag], axis=1).ravel()
 
     def kirchhoff_residuals(self, p) -> np.ndarray:
         """``(N,)`` sums of the three true phase currents (three sensors), A."""
-        offset, gain = self.unpack(p)[6:8]
-        i, _ = true_currents(self.m, offset, gain)
+        v = self.unpack(p)
+        i, _ = true_currents(self.m, v["offset"], v["gain"])
         return i.sum(axis=1)
 
     def residuals(self, p, w_v: float = 1.0) -> np.ndarray:
@@ -171,6 +201,8 @@ class StatorFrameProblem:
         cols = [ri(trap), ri(d(i_ab)), ri(d(z2)), ri(1j * d(z2)), ri(d(z1)), ri(1j * d(z1))]
         if self.thermal:
             cols += [ri(trap * self.dT), ri(d(z1) * self.dT), ri(1j * d(z1) * self.dT)]
+        if self.dead_time:
+            cols.append(ri(self._dead_time_volt_seconds(self.m)))
         A = np.stack(cols, axis=1)
         scale = np.linalg.norm(A, axis=0)
         scale[scale == 0] = 1.0
@@ -183,4 +215,6 @@ class StatorFrameProblem:
         start = [max(R, 1e-3), max(L_d, floor), max(L_q, floor), max(abs(c), 1e-4)]
         if self.thermal:
             start += [x[6] / start[0], float(((x[7] + 1j * x[8]) / c).real)]
+        if self.dead_time:
+            start.append(x[-1])
         return np.array(start + [0.0] * self.k + [1.0] * (self.k - 1) + [delta])

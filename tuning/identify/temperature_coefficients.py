@@ -47,18 +47,9 @@ def temperature_summary(problem, p: np.ndarray, se: np.ndarray, log) -> dict:
     low, high = float(np.min(log.temperature_c)), float(np.max(log.temperature_c))
     span_ok = high - low >= MIN_TEMPERATURE_SPAN_K
     entries = {}
-    for j, (name, unit) in enumerate(
-        (
-            ("R", "ohm"),
-            ("L_d", "H"),
-            ("L_q", "H"),
-            ("psi_f", "Wb"),
-            ("r_temp_coeff_per_k", "1/K"),
-            ("psi_f_temp_coeff_per_k", "1/K"),
-        )  # fmt: skip
-    ):
-        if name in ("L_d", "L_q"):
-            continue
+    units = {"R": "ohm", "psi_f": "Wb", "r_temp_coeff_per_k": "1/K", "psi_f_temp_coeff_per_k": "1/K"}
+    for name, unit in units.items():
+        j = problem.names.index(name)
         coefficient = name.endswith("_per_k")
         rel = se[j] / max(abs(p[j]), 1e-300)
         entries[name] = _entry(p[j], se[j], unit, rel < REL_TOL and (span_ok or not coefficient))
