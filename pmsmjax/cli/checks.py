@@ -65,8 +65,9 @@ def add_out_flag(p, default: str | None = None) -> None:
 
 
 def add_key_values_flag(p, flag: str, metavar: str, help: str) -> None:
-    """`flag` taking KEY=VALUE words (``--units time=ms omega_m=rpm``; default none)."""
-    p.add_argument(flag, nargs="+", default=[], metavar=metavar, help=help)
+    """`flag` taking KEY=VALUE words (``--units time=ms omega_m=rpm``; default none); given again, its words
+    add to the earlier ones (``--fix J=1e-3 --fix B=1e-4`` holds both)."""
+    p.add_argument(flag, nargs="+", action="extend", default=[], metavar=metavar, help=help)
 
 
 def add_log_column_flags(p, example: str, units_help: str) -> None:

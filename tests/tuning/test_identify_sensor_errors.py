@@ -230,8 +230,8 @@ def test_cli_identifies_the_sensors_then_the_motor(two, tmp_path, capsys):
     (tmp_path / "prior.toml").write_text(PRIOR)
     out = tmp_path / "id"
     status = main(["identify", str(tmp_path / "log.csv"), "--sensor-errors", "--motor",
-                   str(tmp_path / "prior.toml"), "--out", str(out), "--fix", f"J={J_M}", "--load", "none",
-                   "--no-figures"])  # fmt: skip
+                   str(tmp_path / "prior.toml"), "--out", str(out), "--fix", f"J={J_M}", "--fix", f"B={B_M}",
+                   "--load", "none", "--no-figures"])  # fmt: skip
     text = capsys.readouterr().out
     assert status == 0, text
     assert "encoder offset" in text and "absolute current gain: not identifiable" in text
@@ -239,6 +239,9 @@ def test_cli_identifies_the_sensors_then_the_motor(two, tmp_path, capsys):
     assert abs(s["sensor_errors"]["encoder_offset_rad"]["value"] - TWO["delta"]) < math.radians(0.3)
     assert s["parameters"]["psi_f"]["value"] == pytest.approx(PSI, rel=0.002)
     assert s["parameters"]["R"]["value"] == pytest.approx(R / TWO["gain"][0], rel=0.005)
+    # --fix given twice holds both, and with every mechanical parameter held the fit still runs.
+    assert s["parameters"]["J"]["fixed"] and s["parameters"]["J"]["value"] == J_M
+    assert s["parameters"]["B"]["fixed"] and s["parameters"]["B"]["value"] == B_M
     spec = drive_spec(str(out / "motor.toml"))
     assert spec.sensor["current_gain"][1] == pytest.approx(TWO["gain"][1] / TWO["gain"][0], rel=0.002)
     assert spec.sensor["encoder_offset_rad"] == pytest.approx(TWO["delta"], abs=math.radians(0.3))

@@ -117,6 +117,8 @@ def warm_start(data: MechanicalData, pe: dict, fixed: dict) -> tuple[dict, float
     for name, value in fixed.items():
         lhs = lhs - value * cols.pop(name)
     names = list(cols)
+    if not names:  # every mechanical parameter held fixed: the residual is the equation's own
+        return {}, float(np.sqrt(np.mean(lhs**2)) / fixed["J"])
     A = np.stack([cols[n] for n in names], axis=1)
     scale = np.linalg.norm(A, axis=0)
     scale[scale == 0] = 1.0

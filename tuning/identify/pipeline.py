@@ -457,7 +457,7 @@ def identify_file(
         sensor_errors = getattr(log, "temperature_c", None) is not None
     if sensor_errors:
         log, sensors, corrected = _corrected_log(
-            log_path, pole_pairs, cols, unit_map, **read, reference_c=reference_c
+            log_path, pole_pairs, cols, unit_map, **read, reference_c=reference_c, dead_time=opts.dead_time
         )
         coeffs = _temperature_coeffs(sensors)
         if coeffs is not None:
