@@ -13,18 +13,21 @@ from pmsmjax.drive import Drive
 from pmsmjax.frames.multiphase import PhaseLayout
 from pmsmjax.inverters.multiphase_bridges import MultiPhaseAveragedBridge, MultiPhaseSwitchingBridge
 from pmsmjax.machines.multiphase_motor import MultiPhaseParameters
-from pmsmjax.presets.book_constants import (
-    BOOK_CURRENT_BANDWIDTH,
-    BOOK_CURRENT_LIMIT,
-    BOOK_DC_LINK,
-    BOOK_SPEED_BANDWIDTH,
-    BOOK_TS,
-)
+from pmsmjax.presets.drive_options import FOC_OPTIONS, with_drive_options
 from pmsmjax.presets.three_phase import PR_W_C
 from pmsmjax.spec.registry import REGISTRY
 from pmsmjax.spec.validation import ParameterError
 
-__all__ = ["machine_controls", "multiphase_bridge", "multiphase_drive_function", "multiphase_machine"]
+__all__ = [
+    "MULTIPHASE_OPTIONS",
+    "machine_controls",
+    "multiphase_bridge",
+    "multiphase_drive_function",
+    "multiphase_machine",
+]
+
+#: The shared keyword options the multi-phase drives take: the book cascade's, without a d-axis block.
+MULTIPHASE_OPTIONS = tuple(o for o in FOC_OPTIONS if o != "d_axis")
 
 
 def machine_controls(machine: str) -> dict[str, str]:
@@ -71,45 +74,45 @@ def multiphase_drive_function(
     """The drive function ``module.name`` (docstring `doc`) of the multi-phase ``machine`` (``"six-phase"``):
     `default_motor` when none is given, a modulator of `pwms` (name -> constructor; `default_pwm` by
     default), the machine model ``machine_model(motor, frame, mechanics, resistance_scale)`` and the current
-    block ``current_block(control, motor, current_bandwidth, w_c)``, the n-leg bridge of ``layout``."""
+    block ``current_block(control, motor, current_bandwidth, w_c)``, the n-leg bridge of ``layout``; the
+    shared keyword options are [`MULTIPHASE_OPTIONS`][pmsmjax.presets.multiphase.MULTIPHASE_OPTIONS]."""
 
+    @with_drive_options(*MULTIPHASE_OPTIONS)
     def drive(
         motor: MultiPhaseParameters | None = None,
         *,
         control: str = "vsd",
         pwm: str = default_pwm,
         bridge: str = "averaged",
-        frame: str = "dq",
-        mechanics: str = "dynamic",
-        mode: str = "speed",
-        current_bandwidth: float = BOOK_CURRENT_BANDWIDTH,
-        speed_bandwidth: float = BOOK_SPEED_BANDWIDTH,
-        current_limit: float = BOOK_CURRENT_LIMIT,
-        u_dc: float = BOOK_DC_LINK,
-        Ts: float = BOOK_TS,
-        n_substeps: int = 10,
-        computation_delay: bool = True,
-        speed_divider: int = 1,
         w_c: float = PR_W_C,
         dead_time: float | None = None,
         resistance_scale=None,
+        **options,
     ) -> Drive:
         motor = default_motor() if motor is None else motor
         if pwm not in pwms:
             raise ParameterError(f"{machine} pwm must be one of {', '.join(pwms)}, got {pwm!r}.")
-        plant = machine_model(motor, frame, mechanics, resistance_scale)
-        current = current_block(control, motor, current_bandwidth, w_c)
+        plant = machine_model(motor, options["frame"], options["mechanics"], resistance_scale)
+        current = current_block(control, motor, options["current_bandwidth"], w_c)
         modulator = pwms[pwm]()
-        inverter = multiphase_bridge(bridge, u_dc, dead_time, layout)
+        inverter = multiphase_bridge(bridge, options["u_dc"], dead_time, layout)
         controller = MultiPhaseFOC(
             model=motor,
-            speed=speed_loop_active_damping(motor, speed_bandwidth),
+            speed=speed_loop_active_damping(motor, options["speed_bandwidth"]),
             current=current,
-            current_limit=current_limit,
-            mode=mode,
-            speed_divider=speed_divider,
+            current_limit=options["current_limit"],
+            mode=options["mode"],
+            speed_divider=options["speed_divider"],
         )
-        return Drive(plant, controller, modulator, inverter, Ts, n_substeps, computation_delay)
+        return Drive(
+            plant,
+            controller,
+            modulator,
+            inverter,
+            Ts=options["Ts"],
+            n_substeps=options["n_substeps"],
+            computation_delay=options["computation_delay"],
+        )
 
     drive.__name__ = drive.__qualname__ = name
     drive.__module__ = module

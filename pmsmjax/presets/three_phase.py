@@ -9,7 +9,6 @@ Drives: [`book_drive`][pmsmjax.presets.three_phase.book_drive] (FOC, SVPWM) and
 
 from pathlib import Path
 
-from pmsmjax.controllers.base import AbstractDAxisReference
 from pmsmjax.controllers.design import current_loop_imc, speed_loop_active_damping
 from pmsmjax.controllers.dtc import SwitchingTableDTC
 from pmsmjax.controllers.field_weakening import VoltageFeedbackFieldWeakening
@@ -27,19 +26,17 @@ from pmsmjax.machines.motor import PMSMParameters
 from pmsmjax.machines.pmsm3 import PMSMabc, PMSMAlphaBeta, PMSMdq
 from pmsmjax.presets.book_constants import (
     BOOK_CURRENT_BANDWIDTH,
-    BOOK_CURRENT_LIMIT,
-    BOOK_DC_LINK,
     BOOK_DURATION_S,
     BOOK_LOAD_NM,
     BOOK_LOAD_TIME_S,
     BOOK_MOTOR,
     BOOK_SALIENT_MOTOR,
-    BOOK_SPEED_BANDWIDTH,
     BOOK_SPEED_STEP_RPM,
     BOOK_TS,
     DTC_SAMPLE_PERIOD_S,
     HYSTERESIS_SAMPLE_PERIOD_S,
 )
+from pmsmjax.presets.drive_options import COMPARATOR_OPTIONS, FOC_OPTIONS, with_drive_options
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.spec.validation import ParameterError, check_positive
 from pmsmjax.units import rpm_to_rad_s
@@ -68,23 +65,10 @@ def make_machine(motor: PMSMParameters, frame: str = "dq", mechanics: str = "dyn
     return _MACHINE_FRAMES[frame](motor, mechanics=mechanics)
 
 
-def book_drive(
-    motor: PMSMParameters | None = None,
-    *,
-    frame: str = "dq",
-    mechanics: str = "dynamic",
-    mode: str = "speed",
-    current_bandwidth: float = BOOK_CURRENT_BANDWIDTH,
-    speed_bandwidth: float = BOOK_SPEED_BANDWIDTH,
-    current_limit: float = BOOK_CURRENT_LIMIT,
-    u_dc: float = BOOK_DC_LINK,
-    Ts: float = BOOK_TS,
-    n_substeps: int = 10,
-    computation_delay: bool = True,
-    speed_divider: int = 1,
-    d_axis: AbstractDAxisReference | None = None,
-) -> Drive:
-    """The book's FOC drive: design-rule PI gains, SVPWM, averaged bridge, dq machine.
+@with_drive_options(*FOC_OPTIONS)
+def book_drive(motor: PMSMParameters | None = None, **options) -> Drive:
+    """The book's FOC drive: design-rule PI gains, SVPWM, averaged bridge, dq machine; the keyword options
+    are those of [`FOC_OPTIONS`][pmsmjax.presets.drive_options.FOC_OPTIONS], the book's by default.
 
     The controller's motor model is the plant's motor (pass a different ``FOC.model`` to study
     mismatch); gains follow [`current_loop_imc`][pmsmjax.controllers.design.current_loop_imc] and
@@ -94,34 +78,16 @@ def book_drive(
     ``None`` is i_d = 0 control (the scenario's ``i_d*``).
     """
     motor = book_motor() if motor is None else motor
-    speed = speed_loop_active_damping(motor, speed_bandwidth)
-    current = current_loop_imc(motor, current_bandwidth)
-    return _foc_drive(
-        motor, speed, current, frame=frame, mechanics=mechanics, mode=mode, current_limit=current_limit,
-        u_dc=u_dc, Ts=Ts, n_substeps=n_substeps, computation_delay=computation_delay,
-        speed_divider=speed_divider, d_axis=d_axis,
-    )  # fmt: skip
+    speed = speed_loop_active_damping(motor, options.pop("speed_bandwidth"))
+    current = current_loop_imc(motor, options.pop("current_bandwidth"))
+    return _foc_drive(motor, speed, current, **options)
 
 
-def _book_options(options) -> dict:
-    """The keyword options of [`book_drive`][pmsmjax.presets.three_phase.book_drive]: `options` (as the
-    variants of its cascade, [`smc_drive`][pmsmjax.presets.three_phase.smc_drive] and
-    [`pr_drive`][pmsmjax.presets.three_phase.pr_drive], take them) and its defaults for the others; one it
-    does not take is a TypeError."""
-    defaults = book_drive.__kwdefaults__
-    unknown = sorted(set(options) - set(defaults))
-    if unknown:
-        raise TypeError(f"book_drive() got unexpected keyword arguments {', '.join(map(repr, unknown))}")
-    return {**defaults, **options}
-
-
-def _foc_drive(
-    motor, speed, current, *, frame, mechanics, mode, current_limit, u_dc, Ts, n_substeps, computation_delay,
-    speed_divider, d_axis,
-) -> Drive:  # fmt: skip
+def _foc_drive(motor, speed, current, *, current_limit, d_axis, mode, speed_divider, **plant) -> Drive:
     """The FOC drive of [`book_drive`][pmsmjax.presets.three_phase.book_drive] with the given speed and
     current blocks (the variants of the book's cascade: [`smc_drive`][pmsmjax.presets.three_phase.smc_drive],
-    [`pr_drive`][pmsmjax.presets.three_phase.pr_drive]), SVPWM on the averaged bridge."""
+    [`pr_drive`][pmsmjax.presets.three_phase.pr_drive]), SVPWM on the averaged bridge; ``plant``: the
+    options of [`_averaged_drive`][pmsmjax.presets.three_phase._averaged_drive]."""
     controller = FOC(
         model=motor,
         speed=speed,
@@ -131,10 +97,7 @@ def _foc_drive(
         mode=mode,
         speed_divider=speed_divider,
     )
-    return _averaged_drive(
-        motor, controller, SVPWM(), frame=frame, mechanics=mechanics, u_dc=u_dc, Ts=Ts,
-        n_substeps=n_substeps, computation_delay=computation_delay,
-    )  # fmt: skip
+    return _averaged_drive(motor, controller, SVPWM(), **plant)
 
 
 def _averaged_drive(
@@ -163,6 +126,18 @@ def _comparator_speed_divider(sample_period_s: float, speed_period_s: float) -> 
     return max(1, round(speed_period_s / sample_period_s))
 
 
+def _speed_loop(options: dict, speed_divider: int) -> dict:
+    """The speed-loop keywords of the controllers that hold their own design-rule speed PI (hysteresis,
+    table and sliding-mode DTC), taken out of a preset's `options`: ``mode``, ``speed_bandwidth`` (rad/s)
+    and ``speed_divider`` (control periods per speed-loop period)."""
+    return {
+        "mode": options.pop("mode"),
+        "speed_divider": speed_divider,
+        "speed_bandwidth": options.pop("speed_bandwidth"),
+    }
+
+
+@with_drive_options(*FOC_OPTIONS)
 def smc_drive(
     motor: PMSMParameters | None = None,
     *,
@@ -171,33 +146,32 @@ def smc_drive(
     reaching_ratio: float = 5.0,
     load_torque_rate_nm_s: float = 1000.0,
     margin: float = 1.2,
-    **drive_kw,
+    **options,
 ) -> Drive:
     """The book's FOC drive ([`book_drive`][pmsmjax.presets.three_phase.book_drive]) with the sliding-mode
     speed block (the book, ch. 3).
 
-    ``drive_kw`` go to [`book_drive`][pmsmjax.presets.three_phase.book_drive] (frame, Ts, current_limit,
-    current_bandwidth, ...; the ``speed_bandwidth`` there is unused). The sliding-mode gains follow
+    The keyword options are [`book_drive`][pmsmjax.presets.three_phase.book_drive]'s (frame, Ts,
+    current_limit, current_bandwidth, ...; its ``speed_bandwidth`` is unused). The sliding-mode gains follow
     [`pmsmjax.controllers.smc.smc_design`][pmsmjax.controllers.smc.smc_design] from the same motor, current
     limit, current-loop bandwidth and speed-loop period: defaults c = 50 1/s (20 ms surface time constant),
     q = 250 1/s, eps = 4.2e5 rad/s^3 (10 N m in 10 ms plus friction, 20 % margin), boundary 1.39e3 rad/s^2.
     """
     motor = book_motor() if motor is None else motor
-    kw = _book_options(drive_kw)
-    kw.pop("speed_bandwidth")  # the sliding-mode law replaces the PI speed loop
-    current_bandwidth = kw.pop("current_bandwidth")
+    options.pop("speed_bandwidth")  # the sliding-mode law replaces the PI speed loop
+    current_bandwidth = options.pop("current_bandwidth")
     speed = smc_design(
         motor,
         time_constant_s,
         reaching_ratio=reaching_ratio,
         load_torque_rate_nm_s=load_torque_rate_nm_s,
-        current_limit_a=kw["current_limit"],
+        current_limit_a=options["current_limit"],
         current_bandwidth_rad_s=current_bandwidth,
-        Ts=kw["Ts"] * kw["speed_divider"],
+        Ts=options["Ts"] * options["speed_divider"],
         margin=margin,
         switching=switching,
     )
-    return _foc_drive(motor, speed, current_loop_imc(motor, current_bandwidth), **kw)
+    return _foc_drive(motor, speed, current_loop_imc(motor, current_bandwidth), **options)
 
 
 #: Hysteresis drive defaults: full band, A; comparator sample period, s; speed-loop period, s (the book's
@@ -206,22 +180,16 @@ HYSTERESIS_BAND_A = 0.5
 HYSTERESIS_SPEED_PERIOD_S = BOOK_TS
 
 
+@with_drive_options(*COMPARATOR_OPTIONS, n_substeps=1, computation_delay=False)
 def hysteresis_drive(
     motor: PMSMParameters | None = None,
     *,
     band_a: float = HYSTERESIS_BAND_A,
     sample_period_s: float = HYSTERESIS_SAMPLE_PERIOD_S,
     speed_period_s: float = HYSTERESIS_SPEED_PERIOD_S,
-    frame: str = "dq",
-    mechanics: str = "dynamic",
-    mode: str = "speed",
-    speed_bandwidth: float = BOOK_SPEED_BANDWIDTH,
-    current_limit: float = BOOK_CURRENT_LIMIT,
-    u_dc: float = BOOK_DC_LINK,
-    n_substeps: int = 1,
-    computation_delay: bool = False,
     comparator: str = "exact",
     smooth_width_a: float = 0.05,
+    **options,
 ) -> Drive:
     """The book's motor under hysteresis current control (the book, ch. 3) with the design-rule speed PI.
 
@@ -254,25 +222,21 @@ def hysteresis_drive(
     controller = HysteresisCurrentControl(
         motor,
         band_a,
-        current_limit,
-        mode=mode,
-        speed_divider=divider,
+        options.pop("current_limit"),
         comparator=comparator,
         smooth_width_a=smooth_width_a,
-        speed_bandwidth=speed_bandwidth,
+        **_speed_loop(options, divider),
     )
-    return _averaged_drive(
-        motor, controller, None, frame=frame, mechanics=mechanics, u_dc=u_dc, Ts=sample_period_s,
-        n_substeps=n_substeps, computation_delay=computation_delay,
-    )  # fmt: skip
+    return _averaged_drive(motor, controller, None, Ts=sample_period_s, **options)
 
 
+@with_drive_options(*(o for o in FOC_OPTIONS if o != "d_axis"))
 def field_weakening_drive(
     motor: PMSMParameters | None = None,
     *,
     field_weakening_bandwidth: float | None = None,
     voltage_margin: float = 0.95,
-    **kwargs,
+    **options,
 ) -> Drive:
     """[`book_drive`][pmsmjax.presets.three_phase.book_drive] with MTPA and voltage-feedback field weakening,
     for speeds above base speed.
@@ -281,12 +245,11 @@ def field_weakening_drive(
     2321 r/min at no load; this one reaches 3000 r/min (tests/controllers/test_field_weakening.py).
     ``field_weakening_bandwidth`` (rad/s) defaults to a third of the current-loop bandwidth (367 rad/s for
     the book's 1100 rad/s; 50 to 800 rad/s all reach 2500 and 3000 r/min, the slower ones touching the
-    voltage limit more often on the way). ``kwargs`` go to
-    [`book_drive`][pmsmjax.presets.three_phase.book_drive].
+    voltage limit more often on the way). The other keyword options are
+    [`book_drive`][pmsmjax.presets.three_phase.book_drive]'s.
     """
-    current_bandwidth = kwargs.get("current_bandwidth", BOOK_CURRENT_BANDWIDTH)
-    fw = field_weakening_block(current_bandwidth, field_weakening_bandwidth, voltage_margin)
-    return book_drive(motor, d_axis=fw, **kwargs)
+    fw = field_weakening_block(options["current_bandwidth"], field_weakening_bandwidth, voltage_margin)
+    return book_drive(motor, d_axis=fw, **options)
 
 
 def field_weakening_block(
@@ -303,6 +266,7 @@ def field_weakening_block(
     return VoltageFeedbackFieldWeakening(field_weakening_bandwidth, voltage_margin, mtpa=True)
 
 
+@with_drive_options(*FOC_OPTIONS)
 def pr_drive(
     motor: PMSMParameters | None = None,
     *,
@@ -310,27 +274,26 @@ def pr_drive(
     discretisation: str = "tustin-prewarp",
     phase_lead: bool = True,
     back_emf_feedforward: bool = True,
-    **kw,
+    **options,
 ) -> Drive:
     """The book drive with the proportional-resonant current loop in alpha-beta (the book, ch. 3).
 
     Same speed loop, limits, modulator, bridge and machine as
-    [`book_drive`][pmsmjax.presets.three_phase.book_drive] (``kw`` goes there); the current block is
+    [`book_drive`][pmsmjax.presets.three_phase.book_drive] (its keyword options); the current block is
     [`pmsmjax.controllers.pr.pr_design`][pmsmjax.controllers.pr.pr_design] at the same current bandwidth, with
     resonator damping ``w_c`` (rad/s) and the given static options.
     """
     motor = book_motor() if motor is None else motor
-    kw = _book_options(kw)
-    speed = speed_loop_active_damping(motor, kw.pop("speed_bandwidth"))
+    speed = speed_loop_active_damping(motor, options.pop("speed_bandwidth"))
     current = pr_design(
         motor,
-        kw.pop("current_bandwidth"),
+        options.pop("current_bandwidth"),
         w_c,
         discretisation=discretisation,
         phase_lead=phase_lead,
         back_emf_feedforward=back_emf_feedforward,
     )
-    return _foc_drive(motor, speed, current, **kw)
+    return _foc_drive(motor, speed, current, **options)
 
 
 def book_scenario(
@@ -372,6 +335,7 @@ DTC_SPEED_PERIOD_S = BOOK_TS
 FLUX_OBSERVER_CROSSOVER = 50.0
 
 
+@with_drive_options(*COMPARATOR_OPTIONS, n_substeps=1, computation_delay=False)
 def dtc_drive(
     motor: PMSMParameters | None = None,
     *,
@@ -382,14 +346,7 @@ def dtc_drive(
     flux_ref_wb: float | None = None,
     speed_period_s: float = DTC_SPEED_PERIOD_S,
     crossover_rad_s: float = FLUX_OBSERVER_CROSSOVER,
-    frame: str = "dq",
-    mechanics: str = "dynamic",
-    mode: str = "speed",
-    speed_bandwidth: float = BOOK_SPEED_BANDWIDTH,
-    current_limit: float = BOOK_CURRENT_LIMIT,
-    u_dc: float = BOOK_DC_LINK,
-    n_substeps: int = 1,
-    computation_delay: bool = False,
+    **options,
 ) -> Drive:
     """The book's motor under switching-table DTC (the book, ch. 4) with the design-rule speed PI.
 
@@ -418,20 +375,16 @@ def dtc_drive(
         motor,
         torque_band_nm,
         flux_band_wb,
-        current_limit,
+        options.pop("current_limit"),
         flux_ref_wb=flux_ref_wb,
         torque_levels=torque_levels,
-        mode=mode,
-        speed_divider=divider,
-        speed_bandwidth=speed_bandwidth,
+        **_speed_loop(options, divider),
     )
-    return _averaged_drive(
-        motor, controller, None, frame=frame, mechanics=mechanics, u_dc=u_dc, Ts=sample_period_s,
-        n_substeps=n_substeps, computation_delay=computation_delay,
-        estimator=StatorFluxObserver(motor, crossover_rad_s),
-    )  # fmt: skip
+    observer = StatorFluxObserver(motor, crossover_rad_s)
+    return _averaged_drive(motor, controller, None, Ts=sample_period_s, estimator=observer, **options)
 
 
+@with_drive_options(*(o for o in FOC_OPTIONS if o not in ("current_bandwidth", "d_axis")))
 def smc_dtc_drive(
     motor: PMSMParameters | None = None,
     *,
@@ -442,16 +395,7 @@ def smc_dtc_drive(
     flux_bandwidth: float = 2000.0,
     flux_ref_wb: float | None = None,
     crossover_rad_s: float = FLUX_OBSERVER_CROSSOVER,
-    frame: str = "dq",
-    mechanics: str = "dynamic",
-    mode: str = "speed",
-    speed_bandwidth: float = BOOK_SPEED_BANDWIDTH,
-    current_limit: float = BOOK_CURRENT_LIMIT,
-    u_dc: float = BOOK_DC_LINK,
-    Ts: float = BOOK_TS,
-    n_substeps: int = 10,
-    computation_delay: bool = True,
-    speed_divider: int = 1,
+    **options,
 ) -> Drive:
     """The book's motor under sliding-mode DTC with SVPWM (the book, ch. 4) and the design-rule speed PI.
 
@@ -471,20 +415,15 @@ def smc_dtc_drive(
         flux_rate_wb_per_s=flux_rate_wb_per_s,
         torque_bandwidth_rad_s=torque_bandwidth,
         flux_bandwidth_rad_s=flux_bandwidth,
-        Ts=Ts,
+        Ts=options["Ts"],
     )
     controller = SlidingModeDTC(
         motor,
-        current_limit=current_limit,
+        current_limit=options.pop("current_limit"),
         flux_ref_wb=flux_ref_wb,
         switching=switching,
-        mode=mode,
-        speed_divider=speed_divider,
-        speed_bandwidth=speed_bandwidth,
+        **_speed_loop(options, options.pop("speed_divider")),
         **gains,
     )
-    return _averaged_drive(
-        motor, controller, SVPWM(), frame=frame, mechanics=mechanics, u_dc=u_dc, Ts=Ts,
-        n_substeps=n_substeps, computation_delay=computation_delay,
-        estimator=StatorFluxObserver(motor, crossover_rad_s),
-    )  # fmt: skip
+    observer = StatorFluxObserver(motor, crossover_rad_s)
+    return _averaged_drive(motor, controller, SVPWM(), estimator=observer, **options)
