@@ -148,11 +148,12 @@ def precheck(args):
         flags={"u_dc_v": "--u-dc", "max_current_a": "--current-limit"},
     )
     robust = args.robust or _config_robust(args.config)
-    if robust and not spec.tolerances:
+    if robust and not (spec.tolerances or spec.operating):  # the job draws from either table
         where = "--robust" if args.robust else f"--config {args.config}: [job] robust = true"
         raise ParameterError(
-            f"{where}: the drive {spec.source} has no [tolerances] table: add one to the drive file "
-            "(relative half-widths, e.g. R = 0.1, J = 0.3) or tune without --robust."
+            f"{where}: the drive {spec.source} has no [tolerances] or [operating] table: add one to the "
+            "drive file (relative half-widths, e.g. R = 0.1, J = 0.3; operating ranges, e.g. u_dc_v = "
+            "[280, 330]) or tune without --robust."
         )
     if args.duration_s and args.duration_s[0] > args.duration_s[1]:
         low, high = args.duration_s

@@ -72,11 +72,37 @@ def test_robust_without_tolerances_is_refused(tmp_path, capsys):
     motor = tmp_path / "motor.toml"
     motor.write_text(BOOK_MOTOR_ONLY)
     out = tmp_path / "tune"
-    refused(capsys, ["tune", "--motor", motor, "--robust", "--out", out], str(motor), "[tolerances]", out=out)
+    refused(
+        capsys,
+        ["tune", "--motor", motor, "--robust", "--out", out],
+        str(motor),
+        "[tolerances]",
+        "[operating]",
+        out=out,
+    )
     config = tmp_path / "job.toml"
     config.write_text("[job]\nrobust = true\n")
     argv = ["tune", "--motor", motor, "--config", config, "--out", out]
     refused(capsys, argv, "[job] robust = true", "[tolerances]", out=out)
+
+
+@pytest.mark.slow
+def test_robust_tune_over_the_operating_range_alone(tmp_path, capsys):
+    """A drive file with ``[operating]`` but no ``[tolerances]`` tunes with --robust: the plant draws are
+    the winding temperatures of its band and nothing else."""
+    motor = tmp_path / "warm.toml"
+    motor.write_text(
+        f"[motor]\n{BOOK_MOTOR_ONLY}\n[thermal]\nr_th_k_per_w = 0.5\nc_th_j_per_k = 1500.0\n"
+        "ambient_c = 20.0\ninitial_c = 20.0\n\n[operating]\nwinding_temperature_c = [20.0, 140.0]\n"
+    )
+    out = tmp_path / "tune"
+    argv = ["tune", "--motor", motor, "--robust", "--out", out, "--train", "2", "--heldout", "4"]
+    argv += ["--iterations", "1", "--eval-substeps", "1", "--duration-s", "0.03", "0.04", "--no-progress"]
+    assert main([str(a) for a in argv]) == 0
+    data = json.loads((out / "result.json").read_text())
+    assert data["robust"] is True and set(data["config"]["plant_spread"]) == {"initial_k"}
+    start_k = 293.15 * np.asarray(data["robustness"]["plant_scale"]["initial_k"])
+    assert np.all((293.15 - 1e-3 <= start_k) & (start_k <= 413.15 + 1e-3)) and np.ptp(start_k) > 10.0
 
 
 def test_drive_flags_are_checked_before_any_work(tmp_path, capsys):
