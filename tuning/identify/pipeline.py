@@ -41,6 +41,7 @@ from tuning.identify import fit as id_fit
 from tuning.identify import mechanical as me
 from tuning.identify.fit import FitResult
 from tuning.identify.log import DriveLog, drive_log_from_columns, load_drive_log, read_log_config
+from tuning.identify.temperature_coeffs import check_coeffs
 from tuning.identify.uncertainty import (
     ADVICE,
     EXCITATION_AVERAGE_S,
@@ -83,6 +84,10 @@ class IdentifyOptions:
     - `n_substeps`: RK4 steps per log interval (1 is accurate at 10 kHz; see the tests).
     - `rel_tol`: a parameter is identifiable when its relative standard error is below this.
     - `max_steps`: Levenberg-Marquardt step limit per solve.
+    - `temperature_coeffs`: None, or known temperature coefficients ``{"reference_temperature_c": T_ref,
+      "r_temp_coeff_per_k": alpha, "psi_f_temp_coeff_per_k": beta}`` for a log with a ``temperature_c``
+      column: R and psi_f are fitted at T_ref
+      ([`tuning.identify.temperature_coeffs`][tuning.identify.temperature_coeffs]).
     """
 
     pole_pairs: int
@@ -96,8 +101,10 @@ class IdentifyOptions:
     n_substeps: int = 1
     rel_tol: float = 0.05
     max_steps: int = 100
+    temperature_coeffs: Mapping[str, float] | None = None
 
     def __post_init__(self):
+        object.__setattr__(self, "temperature_coeffs", check_coeffs(self.temperature_coeffs))
         if not isinstance(self.pole_pairs, int) or isinstance(self.pole_pairs, bool) or self.pole_pairs < 1:
             raise ParameterError(
                 f"pole_pairs must be a positive integer (poles / 2), got {self.pole_pairs!r}."
@@ -144,7 +151,7 @@ def _identify(log: DriveLog, opt: IdentifyOptions) -> IdentifyResult:
     dt = float(np.median(np.diff(log.time)))
     w_el = max(2, round(opt.electrical_window_s / dt))
     w_me = max(2, round(opt.mechanical_window_s / dt))
-    if log.n - 1 < w_el:
+    if log.captures == 1 and log.n - 1 < w_el:
         raise ParameterError(
             f"{log.source}: {log.n} samples ({log.time[-1] - log.time[0]:.3g} s) is shorter than one "
             f"electrical window ({opt.electrical_window_s} s): record longer or shorten the window."
@@ -152,11 +159,18 @@ def _identify(log: DriveLog, opt: IdentifyOptions) -> IdentifyResult:
     fixed = dict(opt.fixed)
     if opt.load == "none":
         fixed.setdefault("T_c", 0.0)
+    if opt.temperature_coeffs is not None and log.temperature_c is None:
+        raise ParameterError(
+            f"{log.source}: temperature_coeffs are given but the log has no temperature_c column (winding "
+            "temperature, degC): map it (--columns temperature_c=NAME) or drop temperature_coeffs."
+        )
     el_fixed = {k: v for k, v in fixed.items() if k in el.ELECTRICAL_NAMES}
-    _, explained = el.warm_start(log, opt.pole_pairs, log.hold, el_fixed, opt.dead_time)
+    _, explained = el.warm_start(
+        log, opt.pole_pairs, log.hold, el_fixed, opt.dead_time, temperature_coeffs=opt.temperature_coeffs
+    )
     _check_consistency(log, opt, explained)
     t_checked = time.perf_counter()
-    motion = motion_excitation(log.omega_m, opt.load)
+    motion = motion_excitation(log.omega_m, opt.load, log.segments)
     held = tuple(n for n, m in motion.items() if not m["excited"] and n not in fixed)
     try:
         result = _fit(log, opt, fixed, w_el, w_me, held)
@@ -186,6 +200,7 @@ def _fit(log: DriveLog, opt: IdentifyOptions, fixed: dict, w_el: int, w_me: int,
         n_substeps=opt.n_substeps,
         max_steps=opt.max_steps,
         held=held,
+        temperature_coeffs=opt.temperature_coeffs,
     )
 
 
@@ -293,12 +308,14 @@ def _summary(log: DriveLog, opt: IdentifyOptions, fit: FitResult, held: dict) ->
     d, md = fit.electrical, fit.mechanical
     err_i, err_w = fit.residuals["i_dq"], fit.residuals["omega_end"]
     torque = np.asarray(me.electromagnetic_torque(fit.values, log.i_dq, opt.pole_pairs))
-    excited = excitation(log.time, log.i_dq)
+    excited = excitation(log.time, log.i_dq, bounds=log.segments)
     params = _entries(fit, opt.rel_tol, float(np.sqrt(np.mean(torque**2))), excited, held)
     rms = lambda x, axis=None: np.sqrt(np.mean(np.square(x), axis=axis))
     unidentifiable = [n for n, p in params.items() if p["identifiable"] is False]
     lam = np.linalg.eigvalsh(fit.M)
+    temperature = _temperature(log, opt, params)
     return {
+        **temperature,
         "parameters": {n: params[n] for n in NAMES},
         "extra_parameters": {n: p for n, p in params.items() if n not in NAMES},
         "identifiability": {
@@ -345,6 +362,7 @@ def _summary(log: DriveLog, opt: IdentifyOptions, fit: FitResult, held: dict) ->
         "log": {
             "source": log.source,
             "samples": int(log.n),
+            "captures": log.captures,
             "duration_s": float(log.time[-1] - log.time[0]),
             "hold": log.hold,
             "pole_pairs": opt.pole_pairs,
@@ -353,9 +371,32 @@ def _summary(log: DriveLog, opt: IdentifyOptions, fit: FitResult, held: dict) ->
     }
 
 
-def _corrected_log(path, pole_pairs: int, columns: dict, units: dict, *, hold: str, u_dc, resample: bool):
+def _temperature(log: DriveLog, opt: IdentifyOptions, params: dict) -> dict:
+    """``{"temperature": ...}`` when R and psi_f were fitted at a reference temperature (their entries get
+    ``at_temperature_c``), else ``{}``."""
+    coeffs = opt.temperature_coeffs
+    if coeffs is None or log.temperature_c is None:
+        return {}
+    for name in ("R", "psi_f"):
+        params[name]["at_temperature_c"] = coeffs["reference_temperature_c"]
+    return {
+        "temperature": {
+            **coeffs,
+            "coefficients": "given, not fitted",
+            "logged_temperature_c": [float(np.min(log.temperature_c)), float(np.max(log.temperature_c))],
+            "model": "R (1 + r_temp_coeff_per_k (T_w - T_ref)), "
+            "psi_f (1 + psi_f_temp_coeff_per_k (T_w - T_ref)), "
+            "T_w the mean logged winding temperature of each shooting window",
+        }
+    }
+
+
+def _corrected_log(
+    path, pole_pairs: int, columns: dict, units: dict, *, hold: str, u_dc, resample: bool, encoder_lines=None,
+    counter_bits=None,
+):  # fmt: skip
     """``(DriveLog, SensorErrors)``: the sensor errors of the log at ``path`` and the log without them."""
-    from tuning.identify.log_columns import read_canonical
+    from tuning.identify.log_columns import counts_to_angle, read_canonical
     from tuning.identify.sensor_errors import (
         corrected_columns,
         identify_sensor_errors,
@@ -370,6 +411,7 @@ def _corrected_log(path, pole_pairs: int, columns: dict, units: dict, *, hold: s
         )
     source = f"log {path}"
     present = read_canonical(path, columns)
+    counts_to_angle(present, pole_pairs, encoder_lines, counter_bits, source)
     slog, cols = sensor_log_from_columns(present, units=units, u_dc=u_dc, resample=resample, source=source)
     errors = identify_sensor_errors(slog)
     corrected = corrected_columns(cols, errors)
@@ -391,6 +433,8 @@ def identify_file(
     resample: bool = False,
     figures: bool = True,
     sensor_errors: bool = False,
+    encoder_lines: int | None = None,
+    counter_bits: int | None = None,
     **options,
 ) -> IdentifyResult:
     """Read ``log_path``, identify, write ``out_dir/params.json`` (and ``fit.png``); returns the result.
@@ -398,21 +442,26 @@ def identify_file(
     `hold`: ``"auto"`` (default,
     [`pmsmjax.recorded.replay.DEFAULT_HOLD`][pmsmjax.recorded.replay.DEFAULT_HOLD]: the hold that fits better,
     [`tuning.identify.hold`][tuning.identify.hold]), ``"stator"`` or ``"rotor"``. `config`: TOML with
-    ``[columns]``, ``[units]``, ``[log]`` (``hold``, ``u_dc``, ``resample``) and ``[identify]``
+    ``[columns]``, ``[units]``, ``[log]`` (``hold``, ``u_dc``, ``resample``, ``encoder_lines``,
+    ``counter_bits``) and ``[identify]``
     ([`IdentifyOptions`][tuning.identify.pipeline.IdentifyOptions] fields; ``fixed``/``start`` as tables);
     explicit arguments win over it. `sensor_errors`: first fit the current sensors' offsets, their gains
     relative to sensor a and the encoder offset from the phase currents and the measured angle
     ([`tuning.identify.sensor_errors`][tuning.identify.sensor_errors]), take them out of the log and
-    identify the motor on the corrected log; the summary gets a ``sensor_errors`` entry. Everything is
-    checked before anything is compiled; files are written atomically.
+    identify the motor on the corrected log; the summary gets a ``sensor_errors`` entry. `encoder_lines`,
+    `counter_bits`: the encoder of an ``encoder_counts`` column
+    ([`tuning.identify.log_columns.angle_from_counts`][tuning.identify.log_columns.angle_from_counts]).
+    Everything is checked before anything is compiled; files are written atomically.
     """
     cfg = read_log_config(config) if config else {"columns": {}, "units": {}, "log": {}, "identify": {}}
     cols = {**cfg["columns"], **(columns or {})}
     unit_map = {**cfg["units"], **(units or {})}
     log_cfg = cfg["log"]
-    bad = sorted(set(log_cfg) - {"hold", "u_dc", "resample"})
+    bad = sorted(set(log_cfg) - {"hold", "u_dc", "resample", "encoder_lines", "counter_bits"})
     if bad:
-        raise ParameterError(f"[log] table: unknown keys {bad}; allowed: hold, u_dc, resample.")
+        raise ParameterError(
+            f"[log] table: unknown keys {bad}; allowed: hold, u_dc, resample, encoder_lines, counter_bits."
+        )
     fields = {f.name for f in dataclasses.fields(IdentifyOptions)}
     bad = sorted(set(cfg["identify"]) - fields)
     if bad:
@@ -422,6 +471,8 @@ def identify_file(
         "hold": hold or log_cfg.get("hold", DEFAULT_HOLD),
         "u_dc": u_dc if u_dc is not None else log_cfg.get("u_dc"),
         "resample": resample or bool(log_cfg.get("resample", False)),
+        "encoder_lines": encoder_lines if encoder_lines is not None else log_cfg.get("encoder_lines"),
+        "counter_bits": counter_bits if counter_bits is not None else log_cfg.get("counter_bits"),
     }
     sensors = None
     if sensor_errors:
