@@ -7,6 +7,7 @@ each around a speed step, are kept and the rows between them (gaps of 0.2 to 1 s
 re-triggered captures would record. 1 % current and 0.5 % voltage noise.
 """
 
+import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
@@ -15,6 +16,7 @@ from pmsmjax.spec.validation import ParameterError
 from tuning.identify import IdentifyOptions, identify
 from tuning.identify.log import drive_log_from_columns
 from tuning.identify.log_columns import MIN_CAPTURE_ROWS
+from tuning.identify.plots import fit_figure
 from tuning.identify.reference_log import reference_drive_log
 from tuning.identify.windows import block_starts, segment_windows
 
@@ -73,7 +75,8 @@ def test_burst_log_is_fitted_capture_by_capture(burst):
     cols, _ = burst
     log = drive_log_from_columns(cols, 4, hold="stator")
     assert log.captures == 8 and np.all(np.diff(log.segments) == 500)
-    s = identify(log, IdentifyOptions(pole_pairs=4)).summary
+    result = identify(log, IdentifyOptions(pole_pairs=4))
+    s = result.summary
     assert s["log"]["captures"] == 8
     assert any("8 captures" in n for n in s["log"]["notes"])
     assert s["solver"]["electrical_windows"] == 8 and s["solver"]["mechanical_windows"] == 32
@@ -82,6 +85,11 @@ def test_burst_log_is_fitted_capture_by_capture(burst):
         assert abs(p["value"] / truth - 1.0) < tol, (name, p["value"] / truth - 1.0)
         assert p["identifiable"] is True, name
         assert p["ci95"][0] < truth < p["ci95"][1], (name, p)
+    # The figure puts every window's samples at their own rows (windows laid per capture).
+    fig = fit_figure(result)
+    line = fig.axes[0].lines[0]
+    np.testing.assert_array_equal(line.get_xdata()[:499], cols["time"][1:500])
+    plt.close(fig)
 
 
 def test_fitting_across_the_gaps_is_badly_wrong(burst):
