@@ -70,6 +70,13 @@ def add_parser(sub):
         help="DC-link voltage, V, for duty logs without a U_dc column (default: none)",
     )
     p.add_argument("--resample", action="store_true", help="resample an irregular time grid (with a warning)")
+    p.add_argument(
+        "--encoder-lines",
+        type=checks.count(),
+        default=None,
+        help="lines per revolution of the encoder whose quadrature count (column encoder_counts, 4 per line, "
+        "zero at its index) the log gives instead of theta_e (default: [sensor] lines of --motor)",
+    )
     checks.add_key_values_flag(
         p, "--fix", "NAME=VALUE", "hold parameters fixed, SI units, e.g. L_d=0.0041 (default: none)"
     )
@@ -213,6 +220,7 @@ def run(args) -> int:
         sensor_errors=args.sensor_errors,
         reference_c=_reference_temperature_c(prior),
         ambient_c=args.ambient_c,
+        encoder_lines=_encoder_lines(args, prior),
         **options,
     )
     s = result.summary
@@ -234,6 +242,13 @@ def run(args) -> int:
         + ("" if args.no_figures else ", fit.png")
     )
     return _write_motor_file(args, s, pole_pairs, prior)
+
+
+def _encoder_lines(args, prior):
+    """``--encoder-lines``, else the prior drive file's ``[sensor] lines``, else None."""
+    if args.encoder_lines is not None:
+        return args.encoder_lines
+    return (prior.sensor or {}).get("lines") if prior is not None else None
 
 
 def _print_sensor_errors(errors: dict) -> None:

@@ -201,7 +201,7 @@ def test_speed_or_angle_alone_is_completed_from_the_other(clean):
     [
         (lambda c: c.update(i_q=np.where(np.arange(c["time"].size) == 7, np.nan, c["i_q"])), "'i_q' is NaN"),
         (lambda c: c.update(time=np.where(np.arange(c["time"].size) == 9, 0.0, c["time"])), "increasing"),
-        (lambda c: c.update(time=np.concatenate([c["time"][:50], c["time"][50:] + 0.01])), "irregular"),
+        (lambda c: c.update(time=np.concatenate([c["time"][:50], c["time"][50:] + 3e-5])), "irregular"),
         (lambda c: c.update(omega_m=c["omega_m"] * 30 / np.pi), "rpm"),
         (lambda c: c.update(omega_m=c["omega_m"] * 4), "electrical speed"),
         (lambda c: c.update(time=c["time"] * 1e3), "time = 'ms'"),
@@ -216,13 +216,16 @@ def test_bad_logs_are_refused_with_the_reason(clean, edit, message):
         drive_log_from_columns(cols, 4)
 
 
-def test_gaps_can_be_resampled_with_a_warning(clean):
+def test_irregular_sampling_can_be_resampled_and_a_gap_starts_a_capture(clean):
     cols = {k: clean[k][:2000].copy() for k in COLUMNS}
-    keep = np.ones(2000, bool)
-    keep[500:503] = False  # three samples dropped
+    late = {**cols, "time": np.concatenate([cols["time"][:500], cols["time"][500:] + 3e-5])}  # one 1.3-step
     with pytest.warns(UserWarning, match="resampled"):
-        log = drive_log_from_columns({k: v[keep] for k, v in cols.items()}, 4, resample=True)
-    assert np.allclose(np.diff(log.time), 1e-4) and "resampled" in log.notes[0]
+        log = drive_log_from_columns(late, 4, resample=True)
+    assert np.allclose(np.diff(log.time), 1e-4) and "resampled" in log.notes[0] and log.captures == 1
+    keep = np.ones(2000, bool)
+    keep[500:503] = False  # three samples dropped: two captures, nothing interpolated across the gap
+    log = drive_log_from_columns({k: v[keep] for k, v in cols.items()}, 4)
+    assert log.segments.tolist() == [0, 500, 1997] and "2 captures" in log.notes[0]
 
 
 @pytest.mark.parametrize("fault", ["rpm_without_angle", "swapped_voltages"])

@@ -37,7 +37,8 @@ import numpy as np
 from pmsmjax._types import Array
 from pmsmjax.frames.three_phase import SQRT3, abc_to_alpha_beta, dq_to_abc, park
 from tuning.identify.parameters import ParameterMap
-from tuning.identify.windows import interval_windows, sample_windows, window_layout
+from tuning.identify.temperature_scaling import scales
+from tuning.identify.windows import block_starts, interval_windows, sample_windows, segment_windows
 
 __all__ = ["ELECTRICAL_NAMES", "ElectricalData", "electrical_residuals", "simulate_windows", "warm_start"]
 
@@ -60,6 +61,8 @@ class ElectricalData(eqx.Module):
     - `cs`: ``(n_w, W, S, 2)`` cos and sin of the rotor angle at the stages (dead-time term only).
     - `i`: ``(n_w, W+1, 2)`` measured dq currents, A. `sigma`: ``(2,)`` noise level of i_d, i_q, A.
     - static: `n_substeps`, `dead_time` (bool), `dead_time_eps` (smoothing current of its sign, A).
+    - `r_scale`, `psi_scale`: ``(n_w,)`` factors on R and psi_f at each window's mean winding temperature
+      ([`tuning.identify.temperature_scaling`][tuning.identify.temperature_scaling]), or None.
     """
 
     dt: Array
@@ -71,12 +74,26 @@ class ElectricalData(eqx.Module):
     n_substeps: int = eqx.field(static=True)
     dead_time: bool = eqx.field(static=True)
     dead_time_eps: float = eqx.field(static=True)
+    r_scale: Array | None = None
+    psi_scale: Array | None = None
 
     @staticmethod
-    def from_log(log, window: int, sigma, pole_pairs, hold, n_substeps, dead_time, dead_time_eps):
+    def from_log(
+        log,
+        window: int,
+        sigma,
+        pole_pairs,
+        hold,
+        n_substeps,
+        dead_time,
+        dead_time_eps,
+        temperature_coeffs=None,
+    ):
         """From a [`tuning.identify.log.DriveLog`][tuning.identify.log.DriveLog]; `window` is the target
-        window length in intervals."""
-        n_w, W = window_layout(log.time.size, window)
+        window length in intervals (windows per capture,
+        [`tuning.identify.windows.segment_windows`][tuning.identify.windows.segment_windows])."""
+        starts, W = segment_windows(log.segments, window)
+        k = scales(log.temperature_c, starts, W, temperature_coeffs)
         dt = np.diff(log.time)
         w0, w1 = log.omega_m[:-1], log.omega_m[1:]
         tau = dt[:, None] * np.arange(2 * n_substeps + 1)[None, :] / (2 * n_substeps)  # (N-1, S)
@@ -88,17 +105,19 @@ class ElectricalData(eqx.Module):
             c, s = np.cos(phi), np.sin(phi)
             u = np.stack([c * u[..., 0] + s * u[..., 1], -s * u[..., 0] + c * u[..., 1]], axis=-1)
         th = log.theta_e[:-1, None] + phi
-        f = lambda x: jnp.asarray(interval_windows(x, n_w, W), jnp.float64)
+        f = lambda x: jnp.asarray(interval_windows(x, starts, W), jnp.float64)
         return ElectricalData(
             dt=f(dt),
             u=f(u),
             w_e=f(w_e),
             cs=f(np.stack([np.cos(th), np.sin(th)], axis=-1)),
-            i=jnp.asarray(sample_windows(log.i_dq, n_w, W), jnp.float64),
+            i=jnp.asarray(sample_windows(log.i_dq, starts, W), jnp.float64),
             sigma=jnp.asarray(sigma, jnp.float64),
             n_substeps=n_substeps,
             dead_time=dead_time,
             dead_time_eps=dead_time_eps,
+            r_scale=None if k is None else jnp.asarray(k[0], jnp.float64),
+            psi_scale=None if k is None else jnp.asarray(k[1], jnp.float64),
         )
 
 
@@ -143,8 +162,12 @@ def _window(p: dict, data: ElectricalData, x0, dt, u, w_e, cs):
 def simulate_windows(pmap: ParameterMap, theta: Array, x0: Array, data: ElectricalData) -> Array:
     """``(n_w, W, 2)`` simulated currents at samples 1..W of every window from ``x0 (n_w, 2)``, A."""
     p = pmap.values(theta)
-    sim = lambda x, dt, u, w_e, cs: _window(p, data, x, dt, u, w_e, cs)
-    return jax.vmap(sim)(x0, data.dt, data.u, data.w_e, data.cs)
+    if data.r_scale is None:
+        sim = lambda x, dt, u, w_e, cs: _window(p, data, x, dt, u, w_e, cs)
+        return jax.vmap(sim)(x0, data.dt, data.u, data.w_e, data.cs)
+    at = lambda kr, kp: {**p, "R": p["R"] * kr, "psi_f": p["psi_f"] * kp}
+    sim = lambda x, dt, u, w_e, cs, kr, kp: _window(at(kr, kp), data, x, dt, u, w_e, cs)
+    return jax.vmap(sim)(x0, data.dt, data.u, data.w_e, data.cs, data.r_scale, data.psi_scale)
 
 
 def electrical_residuals(theta: Array, args) -> Array:
@@ -157,9 +180,11 @@ def electrical_residuals(theta: Array, args) -> Array:
 
 
 def warm_start(
-    log, pole_pairs: int, hold: str, fixed: dict, dead_time: bool, block: int = 20
+    log, pole_pairs: int, hold: str, fixed: dict, dead_time: bool, block: int = 20, temperature_coeffs=None
 ) -> tuple[dict, float]:
-    """Equation-error least squares over blocks of ``block`` intervals.
+    """Equation-error least squares over blocks of ``block`` intervals, laid per capture (none spans a gap
+    between the captures of a burst log); with `temperature_coeffs` and a logged temperature, R and psi_f
+    scaled per block as in the output-error fit.
 
     Returns ``(start values (SI), explained)``: ``explained`` is the fraction of the integrated voltage
     the model explains (near 1 for a consistent log; far below when columns are swapped or mislabelled).
@@ -178,14 +203,18 @@ def warm_start(
     else:
         u = u[:-1]
     trap = lambda x: 0.5 * (x[:-1] + x[1:]) * dt[(...,) + (None,) * (x.ndim - 1)]
-    n_b = (t.size - 1) // block
-    blocks = lambda x: x[: n_b * block].reshape((n_b, block) + x.shape[1:]).sum(axis=1)
+    starts = block_starts(log.segments, block)
+    n_b = starts.size
+    blocks = lambda x: interval_windows(x, starts, block).sum(axis=1)
     int_u = blocks(u * dt[:, None])
     int_i = blocks(trap(i))
-    d_i = i[block : n_b * block + 1 : block] - i[0 : n_b * block : block]
+    d_i = i[starts + block] - i[starts]
     int_wi = blocks(trap(w_e[:, None] * i))
     int_w = blocks(trap(w_e))
     zero = np.zeros(n_b)
+    k = scales(log.temperature_c, starts, block, temperature_coeffs)
+    if k is not None:
+        int_i, int_w = int_i * k[0][:, None], int_w * k[1]
     # rows: d then q; columns R, L_d, L_q, psi_f (+ V_dt)
     cols = {
         "R": np.concatenate([int_i[:, 0], int_i[:, 1]]),
@@ -239,9 +268,9 @@ def coupling_ratio(log, pole_pairs: int, block: int = 20) -> tuple[float, float]
     t, u, i, w_e = log.time, log.u_dq, log.i_dq, pole_pairs * log.omega_m
     dt = np.diff(t)
     trap = lambda x: 0.5 * (x[:-1] + x[1:]) * dt
-    n_b = (t.size - 1) // block
-    blocks = lambda x: x[: n_b * block].reshape(n_b, block).sum(axis=1)
-    d = lambda x: x[block : n_b * block + 1 : block] - x[0 : n_b * block : block]
+    starts = block_starts(log.segments, block)
+    blocks = lambda x: interval_windows(x, starts, block).sum(axis=1)
+    d = lambda x: x[starts + block] - x[starts]
     lhs_d, lhs_q = blocks(u[:-1, 0] * dt), blocks(u[:-1, 1] * dt)
     A_d = np.stack([blocks(trap(i[:, 0])), d(i[:, 0]), -blocks(trap(w_e * i[:, 1]))], axis=1)
     A_q = np.stack([blocks(trap(i[:, 1])), d(i[:, 1]), blocks(trap(w_e * i[:, 0])), blocks(trap(w_e))], 1)

@@ -69,13 +69,17 @@ class FitResult:
     ok: bool
 
 
-def noise_level(x: np.ndarray) -> float:
-    """Robust white-noise standard deviation of a smooth signal plus noise: MAD of the second difference.
+def noise_level(x: np.ndarray, bounds=None) -> float:
+    """Robust white-noise standard deviation of a smooth signal plus noise: MAD of the second difference
+    (taken inside each capture ``bounds[s]:bounds[s + 1]`` of a burst log, none across a gap).
 
     For white noise of variance s^2 the second difference has variance 6 s^2; the smooth part of a
     current sampled at 10 kHz contributes little, and the median ignores the samples where it does.
     """
-    d2 = np.diff(x, 2)
+    if bounds is None or len(bounds) <= 2:
+        d2 = np.diff(x, 2)
+    else:
+        d2 = np.concatenate([np.diff(x[a:b], 2) for a, b in zip(bounds[:-1], bounds[1:], strict=True)])
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
 
 
@@ -106,7 +110,7 @@ def _solve_and_linearise(y0, args, max_steps: int, rtol: float):
 
 
 def fit(log, pole_pairs: int, *, hold, fixed, start, dead_time, dead_time_eps, windows, n_substeps,
-        max_steps=100, rtol=1e-6, held=()) -> FitResult:  # fmt: skip
+        max_steps=100, rtol=1e-6, held=(), temperature_coeffs=None) -> FitResult:  # fmt: skip
     """Fit every free parameter to a [`DriveLog`][tuning.identify.log.DriveLog].
 
     `fixed`: ``{name: value}`` held fixed; `held`: names held at their warm start (the log does not
@@ -114,13 +118,21 @@ def fit(log, pole_pairs: int, *, hold, fixed, start, dead_time, dead_time_eps, w
     [`tuning.identify.uncertainty.motion_excitation`][tuning.identify.uncertainty.motion_excitation]);
     `start`: start values replacing the warm start; `windows`: ``(electrical, mechanical)`` shooting-window
     lengths in log intervals; `hold`, `dead_time`, `dead_time_eps`, `n_substeps`: model options
-    ([`tuning.identify.electrical`][tuning.identify.electrical]).
+    ([`tuning.identify.electrical`][tuning.identify.electrical]); `temperature_coeffs`: known temperature
+    coefficients of R and psi_f
+    ([`tuning.identify.temperature_scaling`][tuning.identify.temperature_scaling]), applied when the log has a
+    temperature.
     """
     e_names = el.ELECTRICAL_NAMES if dead_time else el.ELECTRICAL_NAMES[:4]
-    e_start, _ = el.warm_start(log, pole_pairs, hold, {n: fixed[n] for n in e_names if n in fixed}, dead_time)
+    e_fixed = {n: fixed[n] for n in e_names if n in fixed}
+    e_start, _ = el.warm_start(
+        log, pole_pairs, hold, e_fixed, dead_time, temperature_coeffs=temperature_coeffs
+    )
     e_start.update({n: start[n] for n in e_names if n in start})
     e_vals = {n: fixed.get(n, e_start.get(n)) for n in e_names}
-    mdata = me.MechanicalData.from_log(log, windows[1], 1.0, pole_pairs)
+    mdata = me.MechanicalData.from_log(
+        log, windows[1], 1.0, pole_pairs, temperature_coeffs=temperature_coeffs
+    )
     m_fixed = {n: fixed[n] for n in me.MECHANICAL_NAMES if n in fixed}
     m_start, sigma_w = me.warm_start(mdata, e_vals, m_fixed)
     m_start.update({n: start[n] for n in me.MECHANICAL_NAMES if n in start})
@@ -138,11 +150,11 @@ def fit(log, pole_pairs: int, *, hold, fixed, start, dead_time, dead_time_eps, w
         jnp.asarray([values[n] for n in names], jnp.float64),
         jnp.asarray(scale, jnp.float64),
     )
-    sigma_i = np.array([noise_level(log.i_dq[:, 0]), noise_level(log.i_dq[:, 1])])
+    sigma_i = np.array([noise_level(log.i_dq[:, 0], log.segments), noise_level(log.i_dq[:, 1], log.segments)])
     sigma_i = np.maximum(sigma_i, 1e-9 + 1e-6 * np.max(np.abs(log.i_dq)))
     sigma_w = max(sigma_w, 1e-12)
     edata = el.ElectricalData.from_log(log, windows[0], sigma_i, pole_pairs, hold, n_substeps, dead_time,
-                                       dead_time_eps)  # fmt: skip
+                                       dead_time_eps, temperature_coeffs)  # fmt: skip
     y = jnp.zeros(pmap.n_free, jnp.float64)
     steps_total, ok = 0, True
     for _ in range(3):

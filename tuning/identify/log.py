@@ -13,10 +13,15 @@ the recording, as in [`pmsmjax.recorded.replay`][pmsmjax.recorded.replay]: ``"st
 Checks, all before any fitting, each a [`ParameterError`][pmsmjax.spec.validation.ParameterError] naming the
 column and the fix: missing or unknown columns (with close-name hints; a file column that looks like a
 misspelt canonical one the log lacks, ``omgea_m``, is refused rather than left unused), NaN/inf,
-non-increasing time ([`pmsmjax.io.logs.check_columns`][pmsmjax.io.logs.check_columns]), irregular sampling or
-gaps (refused, or resampled with a warning when asked), a sampling step too long for the electrical dynamics,
-and a speed inconsistent with the angle (rpm in a rad/s column, electrical instead of mechanical speed, wrong
-pole pairs).
+non-increasing time ([`pmsmjax.io.logs.check_columns`][pmsmjax.io.logs.check_columns]), irregular sampling
+inside a capture (refused, or resampled with a warning when asked), a sampling step too long for the
+electrical dynamics, and a speed inconsistent with the angle (rpm in a rad/s column, electrical instead of
+mechanical speed, wrong pole pairs).
+
+**Bursts.** A log recorded in bursts (a scope's re-triggered captures, a firmware datalog buffer) has time
+gaps longer than ``GAP_STEPS`` sampling steps between its captures; each capture becomes a segment
+(`DriveLog.segments`) and nothing derived from the log spans a gap: a speed derived from the angle, an angle
+integrated from the speed, the shooting windows and the equation-error blocks of the fit are all per capture.
 """
 
 import dataclasses
@@ -38,8 +43,10 @@ from tuning.identify.log_columns import (
     apply_units,
     check_grid,
     check_speed_against_angle,
+    counts_to_angle,
     pick_set,
     read_canonical,
+    segment_bounds,
     to_dq64,
 )
 
@@ -61,6 +68,9 @@ class DriveLog:
       (integrated from the speed, starting at 0, when the log has no angle).
     - `load_torque`: ``(N,)`` known load, N m (zeros when not logged).
     - `hold`: ``"stator"`` or ``"rotor"``; `source`: a name for messages; `notes`: what was derived.
+    - `segments`: ``(S + 1,)`` row indices of the captures (capture ``s`` is rows
+      ``segments[s]:segments[s + 1]``; ``[0, N]``, one capture, when not given).
+    - `temperature_c`: ``(N,)`` winding temperature, degC, or None when not logged.
     """
 
     time: np.ndarray
@@ -72,6 +82,17 @@ class DriveLog:
     hold: str = "stator"
     source: str = "log"
     notes: tuple[str, ...] = ()
+    segments: np.ndarray | None = None
+    temperature_c: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.segments is None:
+            object.__setattr__(self, "segments", np.array([0, self.time.size]))
+
+    @property
+    def captures(self) -> int:
+        """Number of captures (segments) in the log."""
+        return int(self.segments.size - 1)
 
     @property
     def n(self) -> int:
@@ -102,13 +123,18 @@ def load_drive_log(
     hold: str = "stator",
     u_dc: float | None = None,
     resample: bool = False,
+    encoder_lines: int | None = None,
+    counter_bits: int | None = None,
 ) -> DriveLog:
     """Read a ``.csv``/``.npz``/``.mat`` log and return a checked [`DriveLog`][tuning.identify.log.DriveLog].
 
     `columns`: ``{canonical: name in file}``; `units`: ``{canonical or "current"/"voltage": unit}``;
     `hold`: ``"stator"`` (real inverter) or ``"rotor"`` (dq-model simulator); `u_dc`: DC-link voltage,
-    V, for duty logs without a ``U_dc`` column; `resample`: resample an irregular time grid onto a
-    uniform one (with a warning) instead of refusing it.
+    V, for duty logs without a ``U_dc`` column; `resample`: resample an irregular time grid inside each
+    capture onto a uniform one (with a warning) instead of refusing it; `encoder_lines`: lines per revolution
+    of the encoder whose ``encoder_counts`` the log gives instead of ``theta_e``, `counter_bits`: the width of
+    its counter when it wraps (else detected), see
+    [`angle_from_counts`][tuning.identify.log_columns.angle_from_counts].
     """
     unused: list[str] = []
     present = read_canonical(path, columns, unused)
@@ -121,7 +147,15 @@ def load_drive_log(
             f"(--columns {known}={col}) or rename it; rename or drop it if it is something else."
         )
     log = drive_log_from_columns(
-        present, pole_pairs, units=units, hold=hold, u_dc=u_dc, resample=resample, source=f"log {path}"
+        present,
+        pole_pairs,
+        units=units,
+        hold=hold,
+        u_dc=u_dc,
+        resample=resample,
+        source=f"log {path}",
+        encoder_lines=encoder_lines,
+        counter_bits=counter_bits,
     )
     if unused:
         log = dataclasses.replace(log, notes=log.notes + (f"columns not used: {', '.join(unused)}",))
@@ -137,6 +171,8 @@ def drive_log_from_columns(
     u_dc: float | None = None,
     resample: bool = False,
     source: str = "log",
+    encoder_lines: int | None = None,
+    counter_bits: int | None = None,
 ) -> DriveLog:
     """Build a checked [`DriveLog`][tuning.identify.log.DriveLog] from canonical columns (NumPy arrays); see
     [`load_drive_log`][tuning.identify.log.load_drive_log]."""
@@ -152,22 +188,31 @@ def drive_log_from_columns(
     need = ["time", *VOLTAGE_SETS[vset], *CURRENT_SETS[iset]]
     if vset == "duty" and u_dc is None:
         need.append("U_dc")
-    if "theta_e" not in cols and "omega_m" not in cols:
+    if "theta_e" in cols and "encoder_counts" in cols:
+        raise ParameterError(
+            f"{source}: has both theta_e and encoder_counts, two angles: keep one (map the other away in the "
+            "column map, or drop its column)."
+        )
+    angle = "encoder_counts" if "encoder_counts" in cols else "theta_e"
+    if angle not in cols and "omega_m" not in cols:
         raise ParameterError(
             f"{source}: needs the rotor angle theta_e (electrical rad) and/or the speed omega_m (mechanical "
             "rad/s); neither column is present: add one or map its name in the column map."
         )
-    if (vset != "dq" or iset != "dq") and "theta_e" not in cols:
+    if (vset != "dq" or iset != "dq") and angle not in cols:
         raise ParameterError(
             f"{source}: {vset if vset != 'dq' else iset} signals need the electrical angle theta_e to turn "
             "them into dq: add a theta_e column (rad) or log dq signals."
         )
-    optional = [c for c in ("theta_e", "omega_m", "T_L", "U_dc") if c not in need]
+    optional = [c for c in (angle, "omega_m", "T_L", "U_dc", "temperature_c") if c not in need]
     c = check_columns(cols, need, optional, source=source)
     apply_units(c, units or {}, source)
     notes = []
+    from_counts = counts_to_angle(c, pole_pairs, encoder_lines, counter_bits, source)
+    if from_counts:
+        notes.append(from_counts)
     dt = np.diff(c["time"])
-    c, dt, resampled = check_grid(c, dt, resample, source)
+    c, dt, resampled = check_grid(c, dt, resample, source, bursts=True)
     if resampled:
         notes.append(resampled)
     if np.median(dt) > MAX_STEP_S:
@@ -186,15 +231,24 @@ def drive_log_from_columns(
 
     if "theta_e" in c and "omega_m" in c:
         check_speed_against_angle(c, pole_pairs, source)
+    bounds = segment_bounds(c["time"])
+    per_capture = lambda f: np.concatenate([f(a, b) for a, b in zip(bounds[:-1], bounds[1:], strict=True)])
     if "omega_m" not in c:
-        th = np.unwrap(c["theta_e"])
-        c["omega_m"] = np.gradient(th, c["time"]) / pole_pairs
+        c["omega_m"] = per_capture(
+            lambda a, b: np.gradient(np.unwrap(c["theta_e"][a:b]), c["time"][a:b]) / pole_pairs
+        )
         notes.append("omega_m derived from the derivative of theta_e")
     if "theta_e" not in c:
         w_e = pole_pairs * c["omega_m"]
-        th = np.concatenate([[0.0], np.cumsum(0.5 * (w_e[1:] + w_e[:-1]) * dt)])
+
+        def integral(a, b):
+            w, h = w_e[a:b], np.diff(c["time"][a:b])
+            return np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * h)])
+
+        th = per_capture(integral)
         c["theta_e"] = np.mod(th + np.pi, 2 * np.pi) - np.pi
-        notes.append("theta_e integrated from omega_m (starting at 0)")
+        start = "starting at 0" if bounds.size == 2 else "starting at 0 in each capture"
+        notes.append(f"theta_e integrated from omega_m ({start})")
 
     th = c["theta_e"]
     u = _to_dq(c, VOLTAGE_SETS[vset], vset, th, u_dc)
@@ -209,6 +263,8 @@ def drive_log_from_columns(
         hold="stator" if hold == "auto" else hold,
         source=source,
         notes=tuple(notes),
+        segments=bounds,
+        temperature_c=c.get("temperature_c"),
     )
     if hold == "auto":
         from tuning.identify.hold import detect_hold

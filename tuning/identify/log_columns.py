@@ -13,9 +13,13 @@ Canonical columns (SI units after conversion):
 - currents, one set: ``i_d, i_q`` | ``i_alpha, i_beta`` | ``i_a, i_b, i_c``, A (``mA``);
 - ``theta_e`` electrical angle (rad; ``deg``) and/or ``omega_m`` mechanical speed (rad/s; ``rpm``,
   ``Hz`` = rev/s);
+- ``encoder_counts`` instead of ``theta_e``: an incremental encoder's quadrature count (4 per line), turned
+  into ``theta_e`` by [`angle_from_counts`][tuning.identify.log_columns.angle_from_counts] with the encoder's
+  lines per revolution. Its zero is the encoder's index, not the rotor's d axis: the offset between them is
+  what ``identify --sensor-errors`` fits; without that fit it must be zero or compensated in the count;
 - ``T_L`` known load torque, N m (optional);
-- ``temperature_c`` winding temperature, degC (optional: R and psi_f as functions of it, and the thermal
-  network).
+- ``temperature_c`` winding temperature, degC (optional: R and psi_f as functions of it, their coefficients
+  and the thermal network).
 
 Each check raises a [`ParameterError`][pmsmjax.spec.validation.ParameterError] naming the column and the fix.
 """
@@ -44,6 +48,9 @@ __all__ = [
     "check_grid",
     "segment_bounds",
     "check_speed_against_angle",
+    "angle_from_counts",
+    "counts_to_angle",
+    "COUNTER_BITS",
     "pick_set",
     "read_canonical",
     "to_dq64",
@@ -60,7 +67,7 @@ VOLTAGE_SETS = {
 CURRENT_SETS = {"dq": ("i_d", "i_q"), "alpha_beta": ("i_alpha", "i_beta"), "abc": ("i_a", "i_b", "i_c")}
 #: Every canonical column name.
 CANONICAL = (
-    ("time", "theta_e", "omega_m", "T_L", "U_dc", "temperature_c")
+    ("time", "theta_e", "omega_m", "T_L", "U_dc", "encoder_counts", "temperature_c")
     + sum(VOLTAGE_SETS.values(), ())
     + sum(CURRENT_SETS.values(), ())
 )
@@ -71,6 +78,7 @@ MEANINGS = {
     "omega_m": "mechanical speed, rad/s",
     "T_L": "known load torque, N m",
     "U_dc": "DC-link voltage, V",
+    "encoder_counts": "incremental encoder count, 4 per line",
     "temperature_c": "winding temperature, degC",
     **{c: "voltage, V" for c in sum(VOLTAGE_SETS.values(), ()) if not c.startswith("d_")},
     **{c: "duty cycle, 0..1" for c in VOLTAGE_SETS["duty"]},
@@ -84,6 +92,7 @@ UNITS = {
     "current": {"A": 1.0, "mA": 1e-3},
     "voltage": {"V": 1.0, "mV": 1e-3, "kV": 1e3},
     "T_L": {"N m": 1.0, "Nm": 1.0},
+    "temperature_c": {"degC": 1.0, "C": 1.0},
 }
 #: Sampling steps deviating more than this from the median are irregular (refused or resampled).
 MAX_JITTER = 0.05
@@ -93,6 +102,8 @@ GAP_STEPS = 1.5
 MIN_CAPTURE_ROWS = 20
 #: Longest sampling step accepted, s: the electrical time constants of drives are a few ms.
 MAX_STEP_S = 1e-3
+#: Widths of the hardware counters whose wrap is recognised in an encoder count (16- and 32-bit timers).
+COUNTER_BITS = (16, 32)
 
 
 def read_canonical(path, columns: dict | None, unused: list | None = None) -> dict:
@@ -165,7 +176,8 @@ def apply_units(c: dict, units: dict, source: str) -> None:
             group, targets = ("current" if key.startswith("i_") else "voltage"), [key] if key in c else []
         else:
             raise ParameterError(
-                f"units: unknown key {key!r}; use time, omega_m, theta_e, T_L, current, voltage or a column."
+                f"units: unknown key {key!r}; use time, omega_m, theta_e, T_L, temperature_c, current, "
+                "voltage or a column."
             )
         table = UNITS[group]
         if unit not in table:
@@ -249,11 +261,16 @@ def _check_regular(c: dict, dt: np.ndarray, resample: bool, source: str):
 
 
 def check_speed_against_angle(c: dict, pole_pairs: int, source: str) -> None:
-    """The angle's rate of change must be ``pole_pairs * omega_m``; name the likely mistake otherwise."""
-    t, th, w = c["time"], np.unwrap(c["theta_e"]), pole_pairs * c["omega_m"]
-    step = max(1, th.size // 2000)  # differences over several samples: quantised angles stay usable
-    rate = np.diff(th[::step]) / np.diff(t[::step])
-    w_mid = 0.5 * (w[::step][1:] + w[::step][:-1])
+    """The angle's rate of change must be ``pole_pairs * omega_m`` (compared inside each capture of a burst
+    log); name the likely mistake otherwise."""
+    step = max(1, c["time"].size // 2000)  # differences over several samples: quantised angles stay usable
+    bounds = segment_bounds(c["time"])
+    rates, mids = [], []
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):  # no difference spans a gap between captures
+        t, th, w = c["time"][a:b], np.unwrap(c["theta_e"][a:b]), pole_pairs * c["omega_m"][a:b]
+        rates.append(np.diff(th[::step]) / np.diff(t[::step]))
+        mids.append(0.5 * (w[::step][1:] + w[::step][:-1]))
+    rate, w_mid = np.concatenate(rates), np.concatenate(mids)
     if np.sqrt(np.mean(w_mid**2)) < 1.0 or np.sqrt(np.mean(rate**2)) < 1.0:
         return  # (nearly) standstill: nothing to compare
     ratio = float(np.dot(rate, w_mid) / np.dot(w_mid, w_mid))
@@ -295,3 +312,92 @@ def to_dq64(c: dict, names, frame: str, th: np.ndarray, u_dc) -> np.ndarray:
             )
         ab = np.asarray(abc_to_alpha_beta(np.asarray(phase_voltages(duties, vdc))))
     return np.asarray(park(ab, th), dtype=np.float64)
+
+
+def angle_from_counts(
+    counts, lines: int, pole_pairs: int, counter_bits: int | None = None, bounds=None
+) -> np.ndarray:
+    """``theta_e = pole_pairs * 2 pi * counts / (4 lines)``, electrical rad wrapped to (-pi, pi].
+
+    `counts`: an incremental encoder's quadrature count (4 per line, zero at its index); `lines`: lines per
+    mechanical revolution. A count from a hardware counter that wraps is unwrapped first: with
+    `counter_bits` its width; without, a count whose values fit a 16- or 32-bit counter
+    ([`COUNTER_BITS`][tuning.identify.log_columns.COUNTER_BITS], signed or unsigned) and that jumps by more
+    than half of it between two rows is taken as wrapping there. `bounds`: the ``(S + 1,)`` first rows of the
+    captures of a burst log ([`segment_bounds`][tuning.identify.log_columns.segment_bounds]); the count is
+    unwrapped inside each capture only (how often the counter wrapped in a gap is unknown)."""
+    counts = np.asarray(counts, dtype=np.float64)
+    bounds = np.array([0, counts.size]) if bounds is None else np.asarray(bounds, dtype=int)
+    bits = counter_bits if counter_bits is not None else _detected_bits(counts, bounds)
+    if bits is not None and counts.size > 1:
+        m = float(2**bits)
+        parts = []
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+            d = np.diff(counts[a:b])
+            d = d - m * np.round(d / m)
+            parts.append(counts[a] + np.concatenate([[0.0], np.cumsum(d)]))
+        counts = np.concatenate(parts)
+    per_rev = 4.0 * lines
+    mech = np.mod(counts, per_rev) / per_rev  # fraction of a mechanical revolution, exact for integers
+    th = np.mod(pole_pairs * mech, 1.0) * (2.0 * np.pi)  # [0, 2 pi)
+    return np.where(th > np.pi, th - 2.0 * np.pi, th)
+
+
+def _detected_bits(counts: np.ndarray, bounds: np.ndarray) -> int | None:
+    """The width of the counter a count wraps in (a jump of more than half of it inside a capture), or None
+    when it does not wrap."""
+    steps = [np.abs(np.diff(counts[a:b])) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    jump = max((float(s.max()) for s in steps if s.size), default=0.0)
+    lo, hi = counts.min(), counts.max()
+    for bits in COUNTER_BITS:
+        m = 2.0**bits
+        if (0 <= lo and hi < m) or (-m / 2 <= lo and hi < m / 2):
+            return bits if jump > m / 2 else None
+    return None
+
+
+def counts_to_angle(c: dict, pole_pairs: int, lines, counter_bits, source: str) -> str | None:
+    """Replace ``c["encoder_counts"]`` in place by ``c["theta_e"]``
+    ([`angle_from_counts`][tuning.identify.log_columns.angle_from_counts], per capture of a burst log);
+    returns a note, or None when the log has no count. Refuses a log with both an angle and a count, a count
+    without its lines, and a burst log whose counter wraps at a count that is not a whole number of
+    revolutions (each capture's angle would then be off by the unknown wraps in the gap before it)."""
+    if "encoder_counts" not in c:
+        return None
+    if "theta_e" in c:
+        raise ParameterError(
+            f"{source}: has both theta_e and encoder_counts, two angles: keep one (map the other away in the "
+            "column map, e.g. --columns theta_e=NAME for the angle only, or drop the theta_e column)."
+        )
+    if lines is None:
+        raise ParameterError(
+            f"{source}: encoder_counts needs the encoder's lines per revolution to become an angle: give "
+            "--encoder-lines N ([log] encoder_lines = N in the log config) or a --motor drive file with "
+            "[sensor] lines."
+        )
+    if not (isinstance(lines, (int, np.integer)) and not isinstance(lines, bool) and lines > 0):
+        raise ParameterError(f"encoder lines must be a positive integer (per revolution), got {lines!r}.")
+    if counter_bits is not None and not (
+        isinstance(counter_bits, (int, np.integer))
+        and not isinstance(counter_bits, bool)
+        and counter_bits > 1
+    ):
+        raise ParameterError(
+            f"counter_bits must be the counter's width in bits (e.g. 16 or 32), got {counter_bits!r}."
+        )
+    counts = np.asarray(c["encoder_counts"], dtype=np.float64)
+    bounds = segment_bounds(c["time"]) if "time" in c else np.array([0, counts.size])
+    bits = counter_bits if counter_bits is not None else _detected_bits(counts, bounds)
+    if bits is not None and bounds.size > 2 and 2**bits % (4 * int(lines)):
+        raise ParameterError(
+            f"{source}: encoder_counts wrap in a {bits}-bit counter, which is not a whole number of "
+            f"revolutions ({4 * int(lines)} counts): in the gaps between the {bounds.size - 1} captures it "
+            "wraps an unknown number of times, so their angles disagree: record theta_e, or a count that "
+            "wraps once per revolution (the timer's reload at 4 x lines), or one capture."
+        )
+    del c["encoder_counts"]
+    c["theta_e"] = angle_from_counts(counts, int(lines), pole_pairs, bits, bounds)
+    wrap = f", unwrapped from a {bits}-bit counter" if bits is not None else ""
+    return (
+        f"theta_e from encoder_counts ({lines} lines, 4 counts per line{wrap}; zero at the encoder's index)"
+    )

@@ -24,7 +24,8 @@ import numpy as np
 
 from pmsmjax._types import Array
 from tuning.identify.parameters import ParameterMap
-from tuning.identify.windows import interval_windows, sample_windows, window_layout
+from tuning.identify.temperature_scaling import scales
+from tuning.identify.windows import interval_windows, sample_windows, segment_windows
 
 __all__ = ["MECHANICAL_NAMES", "MechanicalData", "mechanical_residuals", "simulate_speed", "warm_start"]
 
@@ -35,7 +36,10 @@ MECHANICAL_NAMES = ("J", "B", "T_c")
 class MechanicalData(eqx.Module):
     """The log cut into windows. `dt`: ``(n_w, W)`` s; `w`: ``(n_w, W+1)`` rad/s; `i`: ``(n_w, W+1, 2)``
     A; `load`: ``(n_w, W+1)`` logged load torque, N m; `sigma`: speed-residual scale, rad/s; static
-    `pole_pairs`, `n_substeps`."""
+    `pole_pairs`, `n_substeps`; `psi_scale`: ``(n_w,)`` factor on psi_f at each window's mean winding
+    temperature ([`tuning.identify.temperature_scaling`][tuning.identify.temperature_scaling]) or None.
+    Windows are laid per capture
+    ([`tuning.identify.windows.segment_windows`][tuning.identify.windows.segment_windows])."""
 
     dt: Array
     w: Array
@@ -44,19 +48,24 @@ class MechanicalData(eqx.Module):
     sigma: Array
     pole_pairs: int = eqx.field(static=True)
     n_substeps: int = eqx.field(static=True)
+    psi_scale: Array | None = None
 
     @staticmethod
-    def from_log(log, window: int, sigma: float, pole_pairs: int, n_substeps: int = 1):
-        n_w, W = window_layout(log.time.size, window)
+    def from_log(
+        log, window: int, sigma: float, pole_pairs: int, n_substeps: int = 1, temperature_coeffs=None
+    ):
+        starts, W = segment_windows(log.segments, window)
         f = lambda x: jnp.asarray(x, jnp.float64)
+        k = scales(log.temperature_c, starts, W, temperature_coeffs)
         return MechanicalData(
-            dt=f(interval_windows(np.diff(log.time), n_w, W)),
-            w=f(sample_windows(log.omega_m, n_w, W)),
-            i=f(sample_windows(log.i_dq, n_w, W)),
-            load=f(sample_windows(log.load_torque, n_w, W)),
+            dt=f(interval_windows(np.diff(log.time), starts, W)),
+            w=f(sample_windows(log.omega_m, starts, W)),
+            i=f(sample_windows(log.i_dq, starts, W)),
+            load=f(sample_windows(log.load_torque, starts, W)),
             sigma=f(sigma),
             pole_pairs=pole_pairs,
             n_substeps=n_substeps,
+            psi_scale=None if k is None else f(k[1]),
         )
 
 
@@ -64,6 +73,11 @@ def electromagnetic_torque(pe: dict, i_dq, pole_pairs: int):
     """``T_e`` (N m) from dq currents ``(..., 2)`` A and electrical parameters ``pe``."""
     i_d, i_q = i_dq[..., 0], i_dq[..., 1]
     return 1.5 * pole_pairs * (pe["psi_f"] * i_q + (pe["L_d"] - pe["L_q"]) * i_d * i_q)
+
+
+def _at_temperature(p: dict, psi_scale):
+    """``p`` with psi_f at each window's temperature (``psi_f (n_w, 1)``), or ``p`` when not scaled."""
+    return p if psi_scale is None else {**p, "psi_f": p["psi_f"] * psi_scale[:, None]}
 
 
 def _window(pm: dict, data: MechanicalData, w0, dt, torque):
@@ -92,7 +106,7 @@ def simulate_speed(pmap: ParameterMap, theta, data: MechanicalData):
 
     ``pmap`` holds the electrical parameters too (the torque needs psi_f, L_d, L_q).
     """
-    p = pmap.values(theta)
+    p = _at_temperature(pmap.values(theta), data.psi_scale)
     torque = electromagnetic_torque(p, data.i, data.pole_pairs) - data.load
     return jax.vmap(lambda w0, dt, tq: _window(p, data, w0, dt, tq))(data.w[:, 0], data.dt, torque)
 
@@ -110,7 +124,9 @@ def warm_start(data: MechanicalData, pe: dict, fixed: dict) -> tuple[dict, float
     ``rms(equation residual) / J``, used as the first weight of the output-error fit.
     """
     d = jax.tree.map(np.asarray, data)
-    torque = np.asarray(electromagnetic_torque(pe, d.i, data.pole_pairs)) - d.load
+    torque = (
+        np.asarray(electromagnetic_torque(_at_temperature(pe, d.psi_scale), d.i, data.pole_pairs)) - d.load
+    )
     trap = lambda x: np.sum(0.5 * (x[:, :-1] + x[:, 1:]) * d.dt, axis=1)
     lhs = trap(torque)
     cols = {"J": d.w[:, -1] - d.w[:, 0], "B": trap(d.w), "T_c": d.dt.sum(axis=1)}

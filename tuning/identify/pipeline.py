@@ -40,7 +40,9 @@ from tuning.identify import electrical as el
 from tuning.identify import fit as id_fit
 from tuning.identify import mechanical as me
 from tuning.identify.fit import FitResult
-from tuning.identify.log import DriveLog, drive_log_from_columns, load_drive_log, read_log_config
+from tuning.identify.log import DriveLog, load_drive_log, read_log_config
+from tuning.identify.stator_stage import fitted_temperature_coeffs, stator_frame_stage
+from tuning.identify.temperature_scaling import check_coeffs
 from tuning.identify.thermal_network_fit import temperature_report
 from tuning.identify.uncertainty import (
     ADVICE,
@@ -84,6 +86,10 @@ class IdentifyOptions:
     - `n_substeps`: RK4 steps per log interval (1 is accurate at 10 kHz; see the tests).
     - `rel_tol`: a parameter is identifiable when its relative standard error is below this.
     - `max_steps`: Levenberg-Marquardt step limit per solve.
+    - `temperature_coeffs`: None, or known temperature coefficients ``{"reference_temperature_c": T_ref,
+      "r_temp_coeff_per_k": alpha, "psi_f_temp_coeff_per_k": beta}`` for a log with a ``temperature_c``
+      column: R and psi_f are fitted at T_ref
+      ([`tuning.identify.temperature_scaling`][tuning.identify.temperature_scaling]).
     """
 
     pole_pairs: int
@@ -97,8 +103,10 @@ class IdentifyOptions:
     n_substeps: int = 1
     rel_tol: float = 0.05
     max_steps: int = 100
+    temperature_coeffs: Mapping[str, float] | None = None
 
     def __post_init__(self):
+        object.__setattr__(self, "temperature_coeffs", check_coeffs(self.temperature_coeffs))
         if not isinstance(self.pole_pairs, int) or isinstance(self.pole_pairs, bool) or self.pole_pairs < 1:
             raise ParameterError(
                 f"pole_pairs must be a positive integer (poles / 2), got {self.pole_pairs!r}."
@@ -145,7 +153,7 @@ def _identify(log: DriveLog, opt: IdentifyOptions) -> IdentifyResult:
     dt = float(np.median(np.diff(log.time)))
     w_el = max(2, round(opt.electrical_window_s / dt))
     w_me = max(2, round(opt.mechanical_window_s / dt))
-    if log.n - 1 < w_el:
+    if log.captures == 1 and log.n - 1 < w_el:
         raise ParameterError(
             f"{log.source}: {log.n} samples ({log.time[-1] - log.time[0]:.3g} s) is shorter than one "
             f"electrical window ({opt.electrical_window_s} s): record longer or shorten the window."
@@ -153,11 +161,18 @@ def _identify(log: DriveLog, opt: IdentifyOptions) -> IdentifyResult:
     fixed = dict(opt.fixed)
     if opt.load == "none":
         fixed.setdefault("T_c", 0.0)
+    if opt.temperature_coeffs is not None and log.temperature_c is None:
+        raise ParameterError(
+            f"{log.source}: temperature_coeffs are given but the log has no temperature_c column (winding "
+            "temperature, degC): map it (--columns temperature_c=NAME) or drop temperature_coeffs."
+        )
     el_fixed = {k: v for k, v in fixed.items() if k in el.ELECTRICAL_NAMES}
-    _, explained = el.warm_start(log, opt.pole_pairs, log.hold, el_fixed, opt.dead_time)
+    _, explained = el.warm_start(
+        log, opt.pole_pairs, log.hold, el_fixed, opt.dead_time, temperature_coeffs=opt.temperature_coeffs
+    )
     _check_consistency(log, opt, explained)
     t_checked = time.perf_counter()
-    motion = motion_excitation(log.omega_m, opt.load)
+    motion = motion_excitation(log.omega_m, opt.load, log.segments)
     held = tuple(n for n, m in motion.items() if not m["excited"] and n not in fixed)
     try:
         result = _fit(log, opt, fixed, w_el, w_me, held)
@@ -187,6 +202,7 @@ def _fit(log: DriveLog, opt: IdentifyOptions, fixed: dict, w_el: int, w_me: int,
         n_substeps=opt.n_substeps,
         max_steps=opt.max_steps,
         held=held,
+        temperature_coeffs=opt.temperature_coeffs,
     )
 
 
@@ -294,12 +310,14 @@ def _summary(log: DriveLog, opt: IdentifyOptions, fit: FitResult, held: dict) ->
     d, md = fit.electrical, fit.mechanical
     err_i, err_w = fit.residuals["i_dq"], fit.residuals["omega_end"]
     torque = np.asarray(me.electromagnetic_torque(fit.values, log.i_dq, opt.pole_pairs))
-    excited = excitation(log.time, log.i_dq)
+    excited = excitation(log.time, log.i_dq, bounds=log.segments)
     params = _entries(fit, opt.rel_tol, float(np.sqrt(np.mean(torque**2))), excited, held)
     rms = lambda x, axis=None: np.sqrt(np.mean(np.square(x), axis=axis))
     unidentifiable = [n for n, p in params.items() if p["identifiable"] is False]
     lam = np.linalg.eigvalsh(fit.M)
+    temperature = _temperature(log, opt, params)
     return {
+        **temperature,
         "parameters": {n: params[n] for n in NAMES},
         "extra_parameters": {n: p for n, p in params.items() if n not in NAMES},
         "identifiability": {
@@ -346,6 +364,7 @@ def _summary(log: DriveLog, opt: IdentifyOptions, fit: FitResult, held: dict) ->
         "log": {
             "source": log.source,
             "samples": int(log.n),
+            "captures": log.captures,
             "duration_s": float(log.time[-1] - log.time[0]),
             "hold": log.hold,
             "pole_pairs": opt.pole_pairs,
@@ -354,47 +373,23 @@ def _summary(log: DriveLog, opt: IdentifyOptions, fit: FitResult, held: dict) ->
     }
 
 
-def _corrected_log(path, pole_pairs: int, columns: dict, units: dict, *, hold: str, u_dc, resample: bool,
-                   reference_c: float, dead_time: bool):  # fmt: skip
-    """``(DriveLog, SensorErrors, corrected columns)``: the stator-frame fit of the log at ``path`` (sensor
-    errors, and with a temperature column R(T) and psi_f(T) at ``reference_c`` degC) and the log without
-    the sensor errors."""
-    from tuning.identify.log_columns import read_canonical
-    from tuning.identify.sensor_errors import (
-        corrected_columns,
-        identify_sensor_errors,
-        sensor_log_from_columns,
-    )
-
-    if hold == "rotor":
-        raise ParameterError(
-            f"log {path}: the sensor-error fit takes the logged voltage as held in the stator frame (a real "
-            "inverter); a rotor-frame hold (a dq-model simulator) has no sensors to identify: drop --hold "
-            "rotor or --sensor-errors."
-        )
-    source = f"log {path}"
-    present = read_canonical(path, columns)
-    slog, cols = sensor_log_from_columns(present, units=units, u_dc=u_dc, resample=resample, source=source)
-    errors = identify_sensor_errors(slog, reference_c=reference_c, dead_time=dead_time)
-    corrected = corrected_columns(cols, errors)
-    if slog.temperature_c is not None:
-        corrected["temperature_c"] = cols["temperature_c"]
-    log = drive_log_from_columns(corrected, pole_pairs, hold=hold, u_dc=u_dc, source=source)
-    note = "currents and angle corrected by the identified sensor errors (sensor_errors)"
-    return dataclasses.replace(log, notes=(*log.notes, note)), errors, corrected
-
-
-def _temperature_coeffs(errors) -> dict | None:
-    """The coefficients the main fit takes as known, when the stator-frame fit determined them."""
-    t = errors.summary.get("temperature")
-    if t is None or not (
-        t["r_temp_coeff_per_k"]["identifiable"] and t["psi_f_temp_coeff_per_k"]["identifiable"]
-    ):
-        return None
+def _temperature(log: DriveLog, opt: IdentifyOptions, params: dict) -> dict:
+    """``{"temperature": ...}`` when R and psi_f were fitted at a reference temperature (their entries get
+    ``at_temperature_c``), else ``{}``."""
+    coeffs = opt.temperature_coeffs
+    if coeffs is None or log.temperature_c is None:
+        return {}
+    for name in ("R", "psi_f"):
+        params[name]["at_temperature_c"] = coeffs["reference_temperature_c"]
     return {
-        "reference_temperature_c": t["reference_temperature_c"],
-        "r_temp_coeff_per_k": t["r_temp_coeff_per_k"]["value"],
-        "psi_f_temp_coeff_per_k": t["psi_f_temp_coeff_per_k"]["value"],
+        "temperature": {
+            **coeffs,
+            "coefficients": "given, not fitted",
+            "logged_temperature_c": [float(np.min(log.temperature_c)), float(np.max(log.temperature_c))],
+            "model": "R (1 + r_temp_coeff_per_k (T_w - T_ref)), "
+            "psi_f (1 + psi_f_temp_coeff_per_k (T_w - T_ref)), "
+            "T_w the mean logged winding temperature of each shooting window",
+        }
     }
 
 
@@ -413,6 +408,8 @@ def identify_file(
     sensor_errors: bool = False,
     reference_c: float = 20.0,
     ambient_c: float | None = None,
+    encoder_lines: int | None = None,
+    counter_bits: int | None = None,
     **options,
 ) -> IdentifyResult:
     """Read ``log_path``, identify, write ``out_dir/params.json`` (and ``fit.png``); returns the result.
@@ -420,7 +417,8 @@ def identify_file(
     `hold`: ``"auto"`` (default,
     [`pmsmjax.recorded.replay.DEFAULT_HOLD`][pmsmjax.recorded.replay.DEFAULT_HOLD]: the hold that fits better,
     [`tuning.identify.hold`][tuning.identify.hold]), ``"stator"`` or ``"rotor"``. `config`: TOML with
-    ``[columns]``, ``[units]``, ``[log]`` (``hold``, ``u_dc``, ``resample``) and ``[identify]``
+    ``[columns]``, ``[units]``, ``[log]`` (``hold``, ``u_dc``, ``resample``, ``encoder_lines``,
+    ``counter_bits``) and ``[identify]``
     ([`IdentifyOptions`][tuning.identify.pipeline.IdentifyOptions] fields; ``fixed``/``start`` as tables);
     explicit arguments win over it. `sensor_errors`: first fit the current sensors' offsets, their gains
     relative to sensor a and the encoder offset from the phase currents and the measured angle
@@ -430,16 +428,19 @@ def identify_file(
     is asked for: the stator-frame fit also gives R and psi_f at `reference_c` (degC) and their temperature
     coefficients, the main fit takes those coefficients as known, and the thermal network is fitted
     ([`tuning.identify.thermal_network_fit`][tuning.identify.thermal_network_fit]; `ambient_c`, degC, when
-    known, else fitted); the summary gets a ``temperature`` entry. Everything is checked before anything is
-    compiled; files are written atomically.
+    known, else fitted); the summary gets a ``temperature`` entry. `encoder_lines`, `counter_bits`: the
+    encoder of an ``encoder_counts`` column
+    ([`tuning.identify.log_columns.angle_from_counts`][tuning.identify.log_columns.angle_from_counts]).
+    Everything is checked before anything is compiled; files are written atomically.
     """
     cfg = read_log_config(config) if config else {"columns": {}, "units": {}, "log": {}, "identify": {}}
     cols = {**cfg["columns"], **(columns or {})}
     unit_map = {**cfg["units"], **(units or {})}
     log_cfg = cfg["log"]
-    bad = sorted(set(log_cfg) - {"hold", "u_dc", "resample", "ambient_c"})
+    allowed = {"hold", "u_dc", "resample", "encoder_lines", "counter_bits", "ambient_c"}
+    bad = sorted(set(log_cfg) - allowed)
     if bad:
-        raise ParameterError(f"[log] table: unknown keys {bad}; allowed: ambient_c, hold, u_dc, resample.")
+        raise ParameterError(f"[log] table: unknown keys {bad}; allowed: {', '.join(sorted(allowed))}.")
     ambient_c = ambient_c if ambient_c is not None else log_cfg.get("ambient_c")
     fields = {f.name for f in dataclasses.fields(IdentifyOptions)}
     bad = sorted(set(cfg["identify"]) - fields)
@@ -450,17 +451,20 @@ def identify_file(
         "hold": hold or log_cfg.get("hold", DEFAULT_HOLD),
         "u_dc": u_dc if u_dc is not None else log_cfg.get("u_dc"),
         "resample": resample or bool(log_cfg.get("resample", False)),
+        "encoder_lines": encoder_lines if encoder_lines is not None else log_cfg.get("encoder_lines"),
+        "counter_bits": counter_bits if counter_bits is not None else log_cfg.get("counter_bits"),
     }
-    sensors = None
+    sensors, asked = None, sensor_errors
     if not sensor_errors:
         log = load_drive_log(log_path, pole_pairs, columns=cols, units=unit_map, **read)
-        sensor_errors = getattr(log, "temperature_c", None) is not None
+        sensor_errors = log.temperature_c is not None and opts.temperature_coeffs is None
     if sensor_errors:
-        log, sensors, corrected = _corrected_log(
-            log_path, pole_pairs, cols, unit_map, **read, reference_c=reference_c, dead_time=opts.dead_time
-        )
-        coeffs = _temperature_coeffs(sensors)
-        if coeffs is not None:
+        log, sensors, corrected = stator_frame_stage(
+            log_path, pole_pairs, cols, unit_map, **read, reference_c=reference_c, dead_time=opts.dead_time,
+            asked=asked,
+        )  # fmt: skip
+        coeffs = fitted_temperature_coeffs(sensors)
+        if coeffs is not None and opts.temperature_coeffs is None:
             opts = dataclasses.replace(opts, temperature_coeffs=coeffs)
     out = check_output_folder(out_dir)
     result = identify(log, opts)

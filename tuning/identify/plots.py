@@ -10,6 +10,7 @@ import numpy as np
 from pmsmjax.plotting.traces import save_figure
 from tuning.identify import electrical as el
 from tuning.identify import mechanical as me
+from tuning.identify.windows import segment_windows
 
 __all__ = ["fit_figure", "save_fit_figure"]
 
@@ -29,11 +30,14 @@ def fit_figure(result, zoom_s: float = 0.05):
         d, theta = fit.electrical, jnp.asarray(fit.theta)
         sim = np.asarray(el.simulate_windows(fit.pmap, theta, d.i[:, 0, :], d))
         n_w, W = sim.shape[:2]
-        t = log.time[1 : n_w * W + 1]
+        # samples 1..W of every window (windows laid per capture in a burst log)
+        starts = W * np.arange(n_w) if log.captures == 1 else segment_windows(log.segments, W)[0]
+        rows = (starts[:, None] + np.arange(1, W + 1)[None, :]).reshape(-1)
+        t = log.time[rows]
         i_fit = sim.reshape(-1, 2)
         md = me.MechanicalData.from_log(log, W, 1.0, fit.mechanical.pole_pairs)
         w_fit = np.asarray(me.simulate_speed(fit.pmap, theta, md)).reshape(-1)
-    measured = log.i_dq[1 : n_w * W + 1]
+    measured = log.i_dq[rows]
     rpm = 30.0 / np.pi
     fig, axes = plt.subplots(5, 1, figsize=(10, 12.5))
     mid = 0.5 * (t[0] + t[-1])
@@ -65,7 +69,7 @@ def fit_figure(result, zoom_s: float = 0.05):
         title=f"Current residuals (fitted - measured): RMS over {1e3 * RESIDUAL_BLOCK_S:g} ms blocks / noise "
         "level (1: only noise left)",
     )
-    axes[4].plot(t, rpm * log.omega_m[1 : n_w * W + 1], "-", color="0.6", lw=2.2, label="measured")
+    axes[4].plot(t, rpm * log.omega_m[rows], "-", color="0.6", lw=2.2, label="measured")
     axes[4].plot(t, rpm * w_fit, "-", lw=0.9, color="C0", label="fitted model")
     axes[4].set(ylabel="n / (r/min)", title="speed")
     for ax in axes:

@@ -59,7 +59,9 @@ EXCITATION_AVERAGE_S = 0.5e-3
 EXCITED_BY = {"L_d": 0, "L_q": 1}
 
 
-def excitation(time: np.ndarray, i_dq: np.ndarray, average_s: float = EXCITATION_AVERAGE_S) -> dict:
+def excitation(
+    time: np.ndarray, i_dq: np.ndarray, average_s: float = EXCITATION_AVERAGE_S, bounds=None
+) -> dict:
     """How much each current axis varies beyond its noise: ``{"L_d": {...}, "L_q": {...}}``.
 
     **Why.** L_d is determined only by how i_d moves (``L_d di_d/dt`` in the d equation, ``w_e L_d i_d``
@@ -77,14 +79,21 @@ def excitation(time: np.ndarray, i_dq: np.ndarray, average_s: float = EXCITATION
     averaged samples). ``ratio = rms / sigma``: noise alone gives about ``1 / sqrt(m)`` (0.45 at 10 kHz),
     an i_d PRBS of +-3 A over 0.045 A of noise about 30; measured on i_d ~ 0 logs 0.2-0.6. An inductance
     whose axis has ``ratio < MIN_EXCITATION`` is reported not identifiable whatever its covariance says.
+    The differences and averages of a burst log are taken inside each capture (`bounds`, ``(S + 1,)`` rows).
     """
     dt = float(np.median(np.diff(time)))
     m = max(1, int(round(average_s / dt)))
+    parts = _captures(bounds)
     out = {}
     for name, axis in EXCITED_BY.items():
         x = np.asarray(i_dq[:, axis], dtype=float)
-        sigma = float(np.std(np.diff(x)) / np.sqrt(2.0))
-        smooth = np.convolve(x, np.ones(m) / m, mode="valid") if x.size >= m else x
+        if parts is None:
+            sigma = float(np.std(np.diff(x)) / np.sqrt(2.0))
+            smooth = np.convolve(x, np.ones(m) / m, mode="valid") if x.size >= m else x
+        else:
+            sigma = float(np.std(np.concatenate([np.diff(x[a:b]) for a, b in parts])) / np.sqrt(2.0))
+            avg = lambda v: np.convolve(v, np.ones(m) / m, mode="valid") if v.size >= m else v
+            smooth = np.concatenate([avg(x[a:b]) for a, b in parts])
         rms = float(np.sqrt(np.mean((smooth - smooth.mean()) ** 2)))
         ratio = rms / sigma if sigma > 0 else np.inf
         out[name] = {
@@ -97,7 +106,7 @@ def excitation(time: np.ndarray, i_dq: np.ndarray, average_s: float = EXCITATION
     return out
 
 
-def motion_excitation(omega_m: np.ndarray, load: str) -> dict:
+def motion_excitation(omega_m: np.ndarray, load: str, bounds=None) -> dict:
     """Whether the speed of a log carries what psi_f, J and B need: ``{name: {"excited", "reason"}}``.
 
     **Why.** The mechanical residuals compare the logged speed with the speed the torque would give. On a
@@ -112,11 +121,14 @@ def motion_excitation(omega_m: np.ndarray, load: str) -> dict:
     several speeds (at one speed ``B w`` is one more constant), and without one (``load = "none"``) a
     speed other than zero; psi_f needs rotation (at standstill ``w_e psi_f = 0`` and the torque has no
     motion to show). "Changes" means a spread (max - min) above 1e-9 of the largest speed plus the speed's
-    own noise (first differences), so that a noisy constant speed does not count.
+    own noise (first differences, inside each capture of a burst log: `bounds`), so that a noisy constant
+    speed does not count.
     """
     w = np.asarray(omega_m, dtype=float)
     scale = float(np.max(np.abs(w))) if w.size else 0.0
-    noise = float(np.std(np.diff(w)) / np.sqrt(2.0)) if w.size > 1 else 0.0
+    parts = _captures(bounds)
+    diffs = np.diff(w) if parts is None else np.concatenate([np.diff(w[a:b]) for a, b in parts])
+    noise = float(np.std(diffs) / np.sqrt(2.0)) if w.size > 1 else 0.0
     varies = float(np.ptp(w)) > MIN_EXCITATION * noise + 1e-9 * scale if w.size else False
     turns = scale > MIN_EXCITATION * noise and scale > 0.0
     b_ok = varies if load == "constant" else turns
@@ -130,6 +142,13 @@ def motion_excitation(omega_m: np.ndarray, load: str) -> dict:
         },
         "psi_f": {"excited": bool(turns), "reason": "the rotor never turns (no back-EMF)"},
     }
+
+
+def _captures(bounds):
+    """``[(first row, end row)]`` of the captures of a burst log, or None for one capture."""
+    if bounds is None or len(bounds) <= 2:
+        return None
+    return list(zip(bounds[:-1], bounds[1:], strict=True))
 
 
 def _inverse(M: np.ndarray) -> np.ndarray:
