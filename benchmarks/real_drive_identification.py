@@ -81,7 +81,7 @@ def run(folder: Path) -> dict:
             0.0,
             "deg",
         ),  # fmt: skip
-        ("V_dt", DEAD_TIME_V, p["V_dt"]["value"], 0.0, "V"),
+        ("V_dt", DEAD_TIME_V, real["extra_parameters"]["V_dt"]["value"], 0.0, "V"),
     ]
     table = []
     for name, truth, got, naive, unit in rows:

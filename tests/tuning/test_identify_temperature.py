@@ -14,11 +14,15 @@ The bounds below are the accuracy a commissioning engineer needs (R within 1 %, 
 95 % intervals where the model is exact.
 """
 
+import json
 import math
 
 import numpy as np
 import pytest
 
+from pmsmjax.cli import main
+from pmsmjax.io.drive_files import drive_spec
+from pmsmjax.io.logs import write_csv_atomic
 from pmsmjax.spec.validation import ParameterError
 from tuning.identify.heat_run_log import DEAD_TIME_V, MOTOR, SENSORS, THERMAL, heat_run_log
 from tuning.identify.log_columns import segment_bounds
@@ -144,3 +148,55 @@ def test_a_capture_too_short_is_refused(heat_run):
     cols = {k: np.concatenate([v[:600], v[-5:]]) for k, v in heat_run.items()}
     with pytest.raises(ParameterError, match=r"capture at rows .* fewer than 20"):
         sensor_log_from_columns(cols)
+
+
+PRIOR = (
+    "[motor]\nR = 0.5\nL_d = 0.002\nL_q = 0.003\npsi_f = 0.08\npole_pairs = 4\nJ = 0.001\nB = 0.0001\n"
+    '[sensor]\nkind = "encoder"\nlines = 2500\n'
+    "[thermal]\nr_th_k_per_w = 1.5\nc_th_j_per_k = 500.0\n"  # a data-sheet guess the heat run replaces
+    "[operating]\nwinding_temperature_c = [20.0, 120.0]\n"
+)
+
+
+@pytest.mark.slow
+def test_identify_then_tune_montecarlo_and_demo_run_on_the_warm_imperfect_drive(heat_run, tmp_path, capsys):
+    """The chain on the heat run's CSV: ``identify --sensor-errors --dead-time`` writes motor.toml with
+    the temperature keys, [thermal], the sensors and [operating] from the prior, and every command reads it.
+    Measured: R +0.13 %, L_d -0.11 %, L_q -0.16 % (per sensor-a ampere), psi_f +0.004 %, V_dt -0.5 %."""
+    write_csv_atomic(tmp_path / "log.csv", heat_run)
+    (tmp_path / "prior.toml").write_text(PRIOR)
+    out = tmp_path / "id"
+    argv = ["identify", str(tmp_path / "log.csv"), "--sensor-errors", "--dead-time", "--motor",
+            str(tmp_path / "prior.toml"), "--out", str(out), "--fix", "J=0.001", "--fix", "B=0.0001",
+            "--load", "none", "--no-figures"]  # fmt: skip
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "thermal resistance" in text and "50 captures" in text
+    s = json.loads((out / "params.json").read_text())
+    p = s["parameters"]
+    assert p["R"]["at_temperature_c"] == 20.0
+    assert abs(p["R"]["value"] / (MOTOR["R"] / G_A) - 1.0) < 0.01
+    assert abs(p["psi_f"]["value"] / MOTOR["psi_f"] - 1.0) < 0.005
+    for name in ("L_d", "L_q"):
+        assert abs(p[name]["value"] / (MOTOR[name] / G_A) - 1.0) < 0.02
+    assert abs(s["extra_parameters"]["V_dt"]["value"] / DEAD_TIME_V - 1.0) < 0.02
+    spec = drive_spec(str(out / "motor.toml"))
+    assert spec.motor["r_temp_coeff_per_k"] == pytest.approx(MOTOR["r_temp_coeff_per_k"], rel=0.05)
+    assert spec.motor["psi_f_temp_coeff_per_k"] == pytest.approx(MOTOR["psi_f_temp_coeff_per_k"], rel=0.05)
+    assert spec.thermal["r_th_k_per_w"] == pytest.approx(THERMAL["r_th_k_per_w"], rel=0.1)
+    assert spec.thermal["c_th_j_per_k"] == pytest.approx(THERMAL["c_th_j_per_k"], rel=0.1)
+    assert list(spec.operating["winding_temperature_c"]) == [20.0, 120.0]  # the user's range, not an interval
+    assert spec.sensor["encoder_offset_rad"] == pytest.approx(SENSORS["encoder_offset_rad"], abs=1e-3)
+
+    motor = str(out / "motor.toml")
+    tune = ["tune", "--motor", motor, "--robust", "--train", "4", "--heldout", "4", "--iterations", "3"]
+    assert main([*tune, "--out", str(tmp_path / "tune"), "--no-progress"]) == 0
+    gains = str(tmp_path / "tune" / "gains.toml")
+    mc = ["montecarlo", "--motor", motor, "--gains", gains, "--n", "16", "--out", str(tmp_path / "mc")]
+    assert main([*mc, "--no-progress", "--no-figures"]) == 0
+    study = json.loads((tmp_path / "mc" / "summary.json").read_text())
+    assert "thermal.initial_k" in study["parameters"]  # [operating] drawn with [tolerances]
+    demo = ["demo", "--motor", motor, "--gains", gains, "--out", str(tmp_path / "demo"), "--no-figures"]
+    assert main(demo) == 0
+    summary = json.loads((tmp_path / "demo" / "summary.json").read_text())
+    assert summary["operating_point"]["flags"] == []

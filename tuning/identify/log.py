@@ -184,6 +184,11 @@ def drive_log_from_columns(
             f"log), got {hold!r}."
         )
     vset = pick_set(cols, VOLTAGE_SETS, "voltage", source)
+    two_sensors = "i_a" in cols and "i_b" in cols and "i_c" not in cols
+    if two_sensors:  # two current sensors: the third current as the firmware computes it
+        cols = {**cols, "i_c": -(np.asarray(cols["i_a"], float) + np.asarray(cols["i_b"], float))}
+        if units and "i_a" in units:
+            units = {**units, "i_c": units["i_a"]}
     iset = pick_set(cols, CURRENT_SETS, "current", source)
     need = ["time", *VOLTAGE_SETS[vset], *CURRENT_SETS[iset]]
     if vset == "duty" and u_dc is None:
@@ -207,7 +212,7 @@ def drive_log_from_columns(
     optional = [c for c in (angle, "omega_m", "T_L", "U_dc", "temperature_c") if c not in need]
     c = check_columns(cols, need, optional, source=source)
     apply_units(c, units or {}, source)
-    notes = []
+    notes = ["i_c = -i_a - i_b (two current sensors)"] if two_sensors and iset == "abc" else []
     from_counts = counts_to_angle(c, pole_pairs, encoder_lines, counter_bits, source)
     if from_counts:
         notes.append(from_counts)

@@ -10,7 +10,8 @@ Canonical columns (SI units after conversion):
 - ``time`` (s; ``ms``, ``us`` accepted);
 - voltages, one set: ``u_d, u_q`` | ``u_alpha, u_beta`` | ``u_a, u_b, u_c`` | duties ``d_a, d_b, d_c``
   (0..1) with ``U_dc`` (a column or the ``u_dc`` option), V;
-- currents, one set: ``i_d, i_q`` | ``i_alpha, i_beta`` | ``i_a, i_b, i_c``, A (``mA``);
+- currents, one set: ``i_d, i_q`` | ``i_alpha, i_beta`` | ``i_a, i_b, i_c`` (or ``i_a, i_b`` of two sensors,
+  ``i_c = -i_a - i_b``), A (``mA``);
 - ``theta_e`` electrical angle (rad; ``deg``) and/or ``omega_m`` mechanical speed (rad/s; ``rpm``,
   ``Hz`` = rev/s);
 - ``encoder_counts`` instead of ``theta_e``: an incremental encoder's quadrature count (4 per line), turned
