@@ -19,6 +19,7 @@ floating-point contraction, the C99 default of GCC and Clang in ``-std=c99``) it
 float32 duties to rounding; ``cosf``, ``sinf``, ``tanhf`` of the C library differ from XLA's by an ulp or so.
 """
 
+import re
 import textwrap
 from pathlib import Path
 
@@ -151,8 +152,8 @@ void pmsm_controller_step(pmsm_controller *c, const pmsm_inputs *in, pmsm_output
     )
 
 
-def _constants(d: ControllerDescription) -> str:
-    """The ``static const float`` block: every number the step uses, float32, ``%.9g``."""
+def _constants(d: ControllerDescription, code: str) -> str:
+    """The ``static const float`` block: every number the step's ``code`` uses, float32, ``%.9g``."""
     rows = [
         ("PMSM_TS", d.Ts_s, "s, control period"),
         ("PMSM_TS_SPEED", d.speed_period_s, "s, speed-loop period"),
@@ -187,6 +188,7 @@ def _constants(d: ControllerDescription) -> str:
             ("PMSM_DT_SIGN_CURRENT", d.sign_current_a, "A, current of the smoothed sign"),
             ("PMSM_DT_AHEAD_PERIODS", 1.5 if d.computation_delay else 0.5, "periods to the applied middle"),
         ]
+    rows = [row for row in rows if re.search(rf"\b{row[0]}\b", code)]
     width = max(len(name) for name, _, _ in rows)
     lines = [
         f"static const float {name.ljust(width)} = {c_float(value)};" + (f"  /* {unit} */" if unit else "")
@@ -197,11 +199,8 @@ def _constants(d: ControllerDescription) -> str:
 
 
 def _source(d: ControllerDescription) -> str:
-    return (
-        header_comment(d)
-        + '#include "pmsm_controller.h"\n\n#include <math.h>\n\n'
-        + _constants(d)
-        + """
+    code = (
+        """
 static inline float clip(float v, float lo, float hi)
 {
     v = v > lo ? v : lo;
@@ -241,6 +240,12 @@ void pmsm_controller_step(pmsm_controller *c, const pmsm_inputs *in, pmsm_output
         + "\n    /* 5. modulator */\n"
         + svpwm_block()
         + "}\n"
+    )
+    return (
+        header_comment(d)
+        + '#include "pmsm_controller.h"\n\n#include <math.h>\n\n'
+        + _constants(d, code)
+        + code
     )
 
 
