@@ -87,17 +87,16 @@ def run(args) -> int:
     spec = precheck(args)
     out = checks.output_folder(args.out)
     gains = read_gains_flag(args.gains)
-    from pmsmjax.assemble import assemble
+    from pmsmjax.export.build import export_drive
     from pmsmjax.export.c_source import write_c
     from pmsmjax.export.description import describe
 
-    options = {}
-    if args.field_weakening:
-        from pmsmjax.presets import field_weakening_block
-
-        options["d_axis"] = field_weakening_block(spec.control["current_bandwidth_rad_s"])
-    drive = assemble(spec, args.control, options=options)
-    drive = apply_gains_flag(drive, gains, args.control)
+    drive = export_drive(
+        spec,
+        args.control,
+        args.field_weakening,
+        lambda drive, control: apply_gains_flag(drive, gains, control),
+    )
     description = describe(drive, spec.source, args.gains, where=f"--motor {args.motor}")
     out.mkdir(parents=True, exist_ok=True)
     written = write_c(description, out)

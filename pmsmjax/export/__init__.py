@@ -1,7 +1,9 @@
 """A built drive's controller written out for firmware (``pmsmjax export``).
 
-Two steps, one module each:
+Three steps, one module each:
 
+- [`pmsmjax.export.build`][pmsmjax.export.build]: the drive file -> the drive, as ``pmsmjax demo`` builds it,
+  with the gains of a gains file;
 - [`pmsmjax.export.description`][pmsmjax.export.description]: a built
   [`Drive`][pmsmjax.drive.Drive] (its design-rule or tuned gains in place) -> a
   [`ControllerDescription`][pmsmjax.export.description.ControllerDescription], plain float32 numbers and the
