@@ -334,3 +334,28 @@ def test_float_literals_round_trip_float32():
     assert (c_float(15.0), c_float(0.5), c_float(-3e-7)) == ("15.0f", "0.5f", "-3e-07f")
     values = np.random.default_rng(0).lognormal(0, 8, 200).astype(np.float32)
     assert all(np.float32(float(c_float(float(v))[:-1])) == v for v in values)
+
+
+@needs_cc
+@pytest.mark.parametrize(
+    "flags", [[], ["--field-weakening", "--motor", "industrial-5k6w"]], ids=["book", "fw"]
+)
+def test_the_c_target_compiles_under_strict_firmware_warnings(tmp_path, flags):
+    """No implicit double arithmetic (a float-only FPU), no conversion or shadowing, ISO C99 only."""
+    folder = export(tmp_path, *flags)
+    strict = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Wpedantic", "-Wdouble-promotion", "-Wconversion"]
+    built = subprocess.run(
+        [
+            CC,
+            *strict,
+            "-Wshadow",
+            "-Werror",
+            "-c",
+            str(folder / "pmsm_controller.c"),
+            "-o",
+            str(tmp_path / "c.o"),
+        ],
+        capture_output=True,
+        text=True,
+    )
+    assert built.returncode == 0, built.stderr
