@@ -76,7 +76,7 @@ class ControllerDescription:
             without compensation.
         dead_time_current_source: ``"reference"`` or ``"measured"``, whose phase-current signs the
             compensation predicts.
-        gains: ``{dotted name: value}`` of every gain written (the names ``pmsmjax tune`` uses).
+        gains: ``{dotted name in the drive: value}`` of every gain written (the names of a gains file).
     """
 
     source: str
