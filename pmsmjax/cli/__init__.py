@@ -1,5 +1,5 @@
 """The ``pmsmjax`` command: ``demo`` (alias ``simulate``), ``replay``, ``tune``, ``bench``, ``pwm-compare``,
-``compare``, ``identify``, ``montecarlo`` and ``observe``.
+``compare``, ``identify``, ``montecarlo``, ``observe`` and ``export``.
 
 Every subcommand checks its input before compiling anything and writes each output file atomically
 (temporary file in the same folder, then rename), so an interrupted or failed run leaves no half file.
@@ -54,6 +54,7 @@ SUBCOMMANDS = (
     "identify",
     "montecarlo",
     "observe",
+    "export",
 )
 
 

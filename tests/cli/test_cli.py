@@ -32,6 +32,7 @@ def test_subcommand_list_is_complete():
         "identify",
         "montecarlo",
         "observe",
+        "export",
     }
     assert set(_subcommands()) == expected
 

@@ -1,0 +1,15 @@
+"""A built drive's controller written out for firmware (``pmsmjax export``).
+
+Three steps, one module each:
+
+- [`pmsmjax.export.build`][pmsmjax.export.build]: the drive file -> the drive, as ``pmsmjax demo`` builds it,
+  with the gains of a gains file;
+- [`pmsmjax.export.description`][pmsmjax.export.description]: a built
+  [`Drive`][pmsmjax.drive.Drive] (its design-rule or tuned gains in place) -> a
+  [`ControllerDescription`][pmsmjax.export.description.ControllerDescription], plain float32 numbers and the
+  static choices of the cascade; a controller export cannot reproduce is refused in one line;
+- [`pmsmjax.export.c_source`][pmsmjax.export.c_source]: the description -> a self-contained C99 controller
+  (``pmsm_controller.h``, ``pmsm_controller.c``), float32, the same operations in the same order as the
+  simulator's controller step, whose code blocks are in
+  [`pmsmjax.export.c_blocks`][pmsmjax.export.c_blocks].
+"""
