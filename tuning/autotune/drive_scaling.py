@@ -123,11 +123,13 @@ _PLANT_KEYS_3 = ("R", "L_d", "L_q", "psi_f", "J", "B", "u_dc_v")
 
 def plant_spread(spec: DriveSpec) -> dict:
     """``{parameter: relative half-width}`` of the drive file's ``[tolerances]`` that apply to its
-    machine (``L_ls`` on a multi-phase motor only), for ``make_batch(plant_spread=...)``, with the
+    machine (``L_ls`` on a multi-phase motor only) and its current sensors (``current_offset_a``, an absolute
+    half-width in A, and ``current_gain``), for ``make_batch(plant_spread=...)``, with the
     ``[operating]`` bands as ``(low, high)`` factors of the nominal value
     ([`operating_factors`][tuning.autotune.drive_scaling.operating_factors]; a DC-link band replaces the
     ``u_dc_v`` tolerance)."""
     keys = _PLANT_KEYS_3 + (("L_ls",) if spec.n_phases != 3 else ())
+    keys += ("current_offset_a", "current_gain") if "current_offset_a" in spec.sensor else ()
     spread = {k: float(v) for k, v in spec.tolerances.items() if k in keys and v > 0}
     return {**spread, **operating_factors(spec)}
 

@@ -20,7 +20,7 @@ from pmsmjax.analysis import metrics, observer_errors
 from pmsmjax.drive import Drive
 from pmsmjax.spec.validation import ParameterError
 from pmsmjax.trace import Trace
-from tuning.autotune.scenario_batches import ScenarioBatch
+from tuning.autotune.scenario_batches import SENSOR_SPREADS, ScenarioBatch
 from tuning.parameters import get_leaf, set_leaves
 
 METRIC_NAMES = (
@@ -194,12 +194,19 @@ def batch_metrics(drive: Drive, batch: ScenarioBatch) -> dict:
 
     def one(scenario, duration, t_load, scale, speed0, theta0, observe_from):
         plant = drive
-        names = [f"machine.motor.{n}" for n in scale if n not in ("u_dc_v",) + THERMAL_SCALED]
+        names = [
+            f"machine.motor.{n}" for n in scale if n not in ("u_dc_v",) + THERMAL_SCALED + SENSOR_SPREADS
+        ]
         names += [f"thermal.{n}" for n in scale if n in THERMAL_SCALED]  # a warm motor's temperatures, K
         if names:
             plant = set_leaves(plant, names, [get_leaf(drive, n) * scale[n.rsplit(".", 1)[1]] for n in names])
         if "u_dc_v" in scale:  # the DC link the bridge applies and the controller measures
             plant = set_leaves(plant, ["bridge.u_dc"], [drive.bridge.u_dc * scale["u_dc_v"]])
+        if "current_offset_a" in scale or "current_gain" in scale:  # the sensors the controller reads
+            k = drive.current_sensor.offset_a.shape[0]
+            offset = drive.current_sensor.offset_a + scale.get("current_offset_a", jnp.zeros(3))[:k]
+            gain = drive.current_sensor.gain * scale.get("current_gain", jnp.ones(3))[:k]
+            plant = set_leaves(plant, ["current_sensor.offset_a", "current_sensor.gain"], [offset, gain])
         start = None if speed0 is None else start_at_speed(plant, speed0, theta0)
         trace = pmsmjax.simulate(plant, scenario, initial_state=start)
         observe_from = 0.0 if observe_from is None else observe_from

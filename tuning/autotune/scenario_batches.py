@@ -36,7 +36,11 @@ class ScenarioBatch(eqx.Module):
       The controller's own motor model stays nominal, as it would on a real drive; ``u_dc_v`` scales the
       bridge's DC link, which the controller measures (its voltage limit follows); ``initial_k`` and
       ``ambient_k`` scale a warm motor's initial winding and ambient temperatures (kelvin,
-      [`pmsmjax.machines.thermal.WindingThermal`][pmsmjax.machines.thermal.WindingThermal]).
+      [`pmsmjax.machines.thermal.WindingThermal`][pmsmjax.machines.thermal.WindingThermal]);
+      ``current_offset_a`` (``(B, 3)``, A, *added* to each current sensor's offset: an offset's nominal may
+      be zero) and ``current_gain`` (``(B, 3)`` factors of each sensor's gain) draw the current sensors
+      ([`pmsmjax.estimators.current_sensors.CurrentSensors`][pmsmjax.estimators.current_sensors.CurrentSensors];
+      the first ``k`` columns serve ``k`` sensors).
     - `initial_speed_m`, `initial_theta_e`: ``(B,)`` mechanical speed (rad/s) and electrical angle (rad)
       each scenario starts at (``None``: at rest, angle 0); the observer batches of
       [`tuning.autotune.observers`][tuning.autotune.observers] start at speed.
@@ -92,7 +96,8 @@ def make_batch(
     duration. Durations are drawn from ``duration_s`` and rounded to whole periods ``Ts``.
 
     ``plant_spread = {"J": 0.5, "R": 0.2, ...}`` draws each scenario's plant parameter uniformly within
-    +-50 %, +-20 %, ... of nominal (see
+    +-50 %, +-20 %, ... of nominal (``current_offset_a``: an absolute half-width in A, every sensor drawn
+    independently; see
     [`ScenarioBatch.plant_scale`][tuning.autotune.scenario_batches.ScenarioBatch]; ``u_dc_v`` scales the DC
     link, ``L_ls`` a multi-phase motor's leakage inductance); a ``(low, high)`` pair instead of a half-width
     draws the factor uniformly in ``[low, high]`` (a drive file's ``[operating]`` bands:
@@ -110,10 +115,16 @@ def make_batch(
         raise ParameterError(f"duration_s must be positive, got {duration_s}.")
     spread = dict(plant_spread or {})
     allowed = ("R", "L_d", "L_q", "psi_f", "J", "B", "L_ls", "u_dc_v", "initial_k", "ambient_k")
+    allowed += SENSOR_SPREADS
     for name, frac in spread.items():
         if name not in allowed:
             raise ParameterError(f"plant_spread: unknown motor parameter {name!r}; choose from {allowed}.")
-        if isinstance(frac, (tuple, list)):
+        if name == "current_offset_a":
+            if not (np.isfinite(frac) and frac >= 0):
+                raise ParameterError(
+                    f"plant_spread['current_offset_a'] = {frac} must be a half-width >= 0, A."
+                )
+        elif isinstance(frac, (tuple, list)):
             if not (len(frac) == 2 and all(np.isfinite(frac)) and 0 < frac[0] <= frac[1]):
                 raise ParameterError(
                     f"plant_spread[{name!r}] = {frac} must be factors (low, high) with 0 < low <= high."
@@ -152,12 +163,19 @@ def make_batch(
     )
 
 
+#: The spreads that draw the current sensors, one value per sensor.
+SENSOR_SPREADS = ("current_offset_a", "current_gain")
+
+
 def plant_factors(rng, spread: dict, n: int) -> dict:
     """``{name: (n,) factor}`` drawn from ``rng``: ``1 + U(-f, f)`` for a half-width ``f``, ``U(low, high)``
     for a ``(low, high)`` pair (``make_batch``'s ``plant_spread``)."""
     out = {}
     for name, frac in spread.items():
-        if isinstance(frac, (tuple, list)):
+        if name in SENSOR_SPREADS:  # one draw per sensor (three columns; k sensors use the first k)
+            centre = 0.0 if name == "current_offset_a" else 1.0
+            out[name] = jnp.asarray(centre + rng.uniform(-frac, frac, (n, 3)))
+        elif isinstance(frac, (tuple, list)):
             out[name] = jnp.asarray(rng.uniform(frac[0], frac[1], n))
         else:
             out[name] = jnp.asarray(1.0 + rng.uniform(-frac, frac, n))
