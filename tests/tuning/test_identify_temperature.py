@@ -200,3 +200,31 @@ def test_identify_then_tune_montecarlo_and_demo_run_on_the_warm_imperfect_drive(
     assert main(demo) == 0
     summary = json.loads((tmp_path / "demo" / "summary.json").read_text())
     assert summary["operating_point"]["flags"] == []
+
+
+def test_duties_with_the_dc_link_give_the_same_fit(heat_run, fitted):
+    """The same heat run logged as a firmware logs it: the duties of a min-max (SVPWM-equivalent) modulator
+    on a 600 V DC link (the reference loop's current steps ask for up to 240 V) instead of the alpha-beta
+    voltages; the fit reads the same volt-seconds."""
+    u_dc = 600.0
+    u_a = heat_run["u_alpha"]
+    u_b = -0.5 * heat_run["u_alpha"] + 0.5 * math.sqrt(3.0) * heat_run["u_beta"]
+    u_c = -u_a - u_b
+    u = np.stack([u_a, u_b, u_c])
+    u = u - 0.5 * (u.max(axis=0) + u.min(axis=0))
+    duties = 0.5 + u / u_dc
+    assert duties.min() > 0.0 and duties.max() < 1.0
+    cols = {k: v for k, v in heat_run.items() if k not in ("u_alpha", "u_beta")}
+    cols |= {"d_a": duties[0], "d_b": duties[1], "d_c": duties[2], "U_dc": np.full(u_a.size, u_dc)}
+    errors, report = _fit(cols)
+    reference = fitted[1]
+    for name in (
+        "R",
+        "psi_f",
+        "r_temp_coeff_per_k",
+        "psi_f_temp_coeff_per_k",
+    ):  # to rounding, far below noise
+        assert abs(report[name]["value"] - reference[name]["value"]) < 0.05 * reference[name]["stderr"], name
+    assert errors.summary["encoder_offset_rad"]["value"] == pytest.approx(
+        SENSORS["encoder_offset_rad"], abs=1e-3
+    )
