@@ -27,7 +27,7 @@ from pmsmjax.presets.three_phase import book_drive, book_motor
 from pmsmjax.scenarios import Profile, Scenario
 from pmsmjax.simulate import simulate
 
-#: A servo's shaft on the book motor: motor 1.5e-3, load 3e-3 kg m^2, K 2000 N m/rad (resonance 200 Hz).
+#: A servo's shaft on the book motor: motor 1.5e-3, load 3e-3 kg m^2, K 2000 N m/rad (resonance 225 Hz).
 J_M, J_L, K_S, D_S = 1.5e-3, 3.0e-3, 2000.0, 0.05
 
 
