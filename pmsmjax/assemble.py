@@ -19,7 +19,11 @@ The steps of [`assemble`][pmsmjax.assemble.assemble], in order (each a function 
    ([`current_sensor_parts`][pmsmjax.assemble.current_sensor_parts]), which the controller and the
    estimator then read;
 6. a ``[thermal]`` table: the winding's thermal network and the motor's temperature coefficients
-   ([`thermal_part`][pmsmjax.assemble.thermal_part]), a warm motor.
+   ([`thermal_part`][pmsmjax.assemble.thermal_part]), a warm motor;
+7. a ``[mechanics]`` table: the compliant shaft in the plant
+   ([`shaft_parts`][pmsmjax.spec_blocks.shaft_parts]; the presets design for the total inertia), and the
+   ``[control]`` speed-loop filters in the speed PI
+   ([`speed_filter_parts`][pmsmjax.spec_blocks.speed_filter_parts]).
 
 The parts of steps 2-6 are collected and put into the preset's drive by one
 [`with_parts`][pmsmjax.assemble.with_parts] call. The presets' own builders
@@ -36,7 +40,15 @@ from pmsmjax.drive import Drive
 from pmsmjax.machines.motor import PMSMParameters
 from pmsmjax.spec import registry
 from pmsmjax.spec.validation import ParameterError
-from pmsmjax.spec_blocks import spec_flux_map, spec_motor, spec_scenario, startup_options
+from pmsmjax.spec_blocks import (
+    design_motor,
+    shaft_parts,
+    spec_flux_map,
+    spec_motor,
+    spec_scenario,
+    speed_filter_parts,
+    startup_options,
+)
 
 __all__ = [
     "assemble",
@@ -49,6 +61,8 @@ __all__ = [
     "observer",
     "map_aware",
     "thermal_part",
+    "shaft_parts",
+    "speed_filter_parts",
     "spec_motor",
     "spec_flux_map",
     "spec_scenario",
@@ -175,7 +189,7 @@ def assemble(
     user = dict(options or {})
     registry.check_options(entry, set(user) - {"control"})
     merged = {**drive_options(spec, control, machine), **user}
-    motor = spec_motor(spec)
+    motor = design_motor(spec)
     if machine == "three-phase":
         drive = registry.load_factory(entry)(motor, **merged)
     else:
@@ -208,7 +222,8 @@ def assemble(
     parts.update(current_sensor_parts(spec, machine))
     if spec.thermal:
         parts["thermal"] = thermal_part(spec)
-    return with_parts(drive, parts)
+    drive = with_parts(drive, parts)
+    return with_parts(drive, {**shaft_parts(spec), **speed_filter_parts(spec, drive)})
 
 
 def current_sensor_parts(spec, machine: str = "three-phase") -> dict:

@@ -237,7 +237,7 @@ class Drive(eqx.Module):
         """
         ms = state.machine
         if self.machine.mechanics == "imposed":
-            ms = MachineState(ms.currents, jnp.asarray(x.speed_ref, ms.omega_m.dtype), ms.theta_e)
+            ms = MachineState(ms.currents, jnp.asarray(x.speed_ref, ms.omega_m.dtype), ms.theta_e, ms.shaft)
         sample = self.sample(ms, state.last_duties)
         estimator_state, estimate = self.estimator.step(state.estimator, sample, self.Ts)
         refs = References(x.speed_ref, x.id_ref, x.iq_ref)

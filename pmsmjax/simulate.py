@@ -217,4 +217,5 @@ def trace_from_records(drive: Drive, rec: PeriodRecord, xs: PeriodInputs, dt: fl
         theta_e_est=theta_e_est,
         omega_m_est=omega_m_est,
         winding_temperature=rec.temperature,
+        load_speed=None if ms.shaft is None else ms.shaft[:, 1],
     )

@@ -1,9 +1,19 @@
-"""A drive file's values as the blocks the engine takes: its motor, flux map, scenario and I/f start
-(the parts [`assemble`][pmsmjax.assemble.assemble] builds a drive from; re-exported there)."""
+"""A drive file's values as the blocks the engine takes: its motor, flux map, scenario, I/f start, compliant
+shaft and speed-loop filters (the parts [`assemble`][pmsmjax.assemble.assemble] builds a drive from;
+re-exported there)."""
 
 from pmsmjax.machines.motor import PMSMParameters
+from pmsmjax.spec.validation import ParameterError
 
-__all__ = ["spec_motor", "spec_flux_map", "spec_scenario", "startup_options"]
+__all__ = [
+    "spec_motor",
+    "spec_flux_map",
+    "spec_scenario",
+    "startup_options",
+    "design_motor",
+    "shaft_parts",
+    "speed_filter_parts",
+]
 
 
 def spec_motor(spec):
@@ -64,3 +74,57 @@ def startup_options(spec) -> dict:
         "handover_speed": c["handover_speed_rad_s"],
         "blend_speed": c["blend_speed_rad_s"],
     }
+
+
+def design_motor(spec):
+    """The motor the control presets design for: [`spec_motor`][pmsmjax.spec_blocks.spec_motor], with a
+    ``[mechanics]`` shaft its ``J`` the total inertia of motor and load (a rigid body: the design rules' and
+    the controller model's view of the drive)."""
+    motor = spec_motor(spec)
+    if not spec.mechanics:
+        return motor
+    import dataclasses
+
+    return dataclasses.replace(motor, J=spec.motor["J"] + spec.mechanics["load_inertia"])
+
+
+def shaft_parts(spec) -> dict:
+    """The parts that put the file's ``[mechanics]`` shaft into the plant: the motor's own ``J`` and the load
+    inertia, stiffness and damping ([`pmsmjax.machines.shaft`][pmsmjax.machines.shaft]); none for a rigid
+    shaft. The controller's model keeps the total inertia."""
+    if not spec.mechanics:
+        return {}
+    from pmsmjax.machines.motor import as_float
+
+    m = spec.mechanics
+    values = {
+        "J": spec.motor["J"],
+        "load_inertia": m["load_inertia"],
+        "shaft_stiffness": m["shaft_stiffness_nm_per_rad"],
+        "shaft_damping": m["shaft_damping_nm_s_per_rad"],
+    }
+    return {f"machine.motor.{k}": as_float(v) for k, v in values.items()}
+
+
+def speed_filter_parts(spec, drive) -> dict:
+    """The part that puts the file's ``[control]`` speed-loop filters into the speed PI of ``drive``
+    ([`SpeedLoopFilters`][pmsmjax.controllers.speed_filters.SpeedLoopFilters]); none without them. Refused in
+    one line on a drive whose speed loop is not the PI, or whose speed loop runs slower than the file's
+    checks assumed (a notch at or above its Nyquist frequency)."""
+    c = spec.control
+    keys = ("speed_filter_hz", "notch_hz", "notch_width_hz", "notch_depth_db")
+    if not any(k in c for k in keys):
+        return {}
+    from pmsmjax.controllers.speed_filters import SpeedLoopFilters
+    from pmsmjax.controllers.speed_pi import SpeedLoopGains
+
+    speed = getattr(drive.controller, "speed", None)
+    if not isinstance(speed, SpeedLoopGains) or getattr(drive.controller, "mode", "speed") != "speed":
+        raise ParameterError(
+            f"{spec.source}: [control] {', '.join(k for k in keys if k in c)} filter a speed PI; this "
+            f"drive's controller ({type(drive.controller).__name__}) runs none: choose control pi (or "
+            "another with the speed PI), or drop the filters."
+        )
+    filters = SpeedLoopFilters(*(c.get(k) for k in keys))
+    filters.check_rate(drive.Ts * drive.controller.speed_divider, f"{spec.source}: [control]")
+    return {"controller.speed.filters": filters}

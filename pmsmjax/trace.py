@@ -69,6 +69,9 @@ COLUMN_UNITS = {
 #: [`pmsmjax.machines.thermal`][pmsmjax.machines.thermal]).
 THERMAL_COLUMN_UNITS = {"winding_temperature_c": "degC (winding temperature at the period start)"}
 
+#: The further column of a drive with a compliant shaft ([`pmsmjax.machines.shaft`][pmsmjax.machines.shaft]).
+SHAFT_COLUMN_UNITS = {"load_speed": "rad/s (load-side mechanical speed)"}
+
 #: The further columns of a six-phase trace (the second set U, V, W;
 #: [`Trace.columns`][pmsmjax.trace.Trace.columns]).
 SIX_PHASE_COLUMN_UNITS = {
@@ -109,6 +112,8 @@ class Trace(eqx.Module):
             ``omega_m`` with the exact sensor).
         winding_temperature: Winding temperature at the period start, K; ``None`` without a thermal
             network (exported as ``winding_temperature_c``, degC).
+        load_speed: Load-side mechanical speed at the period start, rad/s; ``None`` for a rigid shaft
+            (``omega_m`` is then the load's speed too).
     """
 
     t: Array
@@ -126,6 +131,7 @@ class Trace(eqx.Module):
     theta_e_est: Array
     omega_m_est: Array
     winding_temperature: Array | None = None
+    load_speed: Array | None = None
 
     @property
     def speed_rpm(self) -> Array:
@@ -164,6 +170,8 @@ class Trace(eqx.Module):
                 out[f"duty_{phase}"] = np.asarray(self.duties)[..., k]
         if self.winding_temperature is not None:
             out["winding_temperature_c"] = np.asarray(self.winding_temperature) - CELSIUS_K
+        if self.load_speed is not None:
+            out["load_speed"] = np.asarray(self.load_speed)
         return out
 
     def to_numpy(self) -> "Trace":

@@ -28,6 +28,7 @@ import jax.numpy as jnp
 from pmsmjax._types import Array
 from pmsmjax.controllers.base import AbstractSpeedController
 from pmsmjax.controllers.pi import clip_symmetric, pi_update, realisable_reference_tracking
+from pmsmjax.controllers.speed_filters import SpeedLoopFilters
 from pmsmjax.spec.validation import check_choice
 
 AntiWindup = Literal["realisable_reference", "reset"]
@@ -39,20 +40,37 @@ class SpeedLoopGains(AbstractSpeedController):
     `anti_windup` (static): ``"realisable_reference"`` (default, tracking time constant ``kp/ki``) or
     ``"reset"`` (tracking gain 1 per period: the integral reset onto the limit each period; kept to
     reproduce the earlier behaviour and to compare).
+
+    `filters`: a low-pass on the speed feedback and a notch on the output
+    ([`SpeedLoopFilters`][pmsmjax.controllers.speed_filters.SpeedLoopFilters], for a compliant shaft); the
+    state is then ``(integral, filter state)`` and the notched output is limited to ``+-iq_max`` again.
+    None (default): no filters, the state the integral alone.
     """
 
     kp: Array
     ki: Array
     active_damping: Array
     anti_windup: AntiWindup = eqx.field(static=True, default="realisable_reference")
+    filters: SpeedLoopFilters | None = None
 
     def __check_init__(self):
         check_choice("anti_windup", self.anti_windup, ("realisable_reference", "reset"))
 
     def init(self, dtype):
-        return jnp.zeros((), dtype)
+        if self.filters is None:
+            return jnp.zeros((), dtype)
+        return jnp.zeros((), dtype), self.filters.init(dtype)
 
     def step(self, state, speed_ref, omega_m, iq_max, Ts):
+        if self.filters is None:
+            return self._pi(state, speed_ref, omega_m, iq_max, Ts)
+        integral, filter_state = state
+        filter_state, omega_seen = self.filters.feedback(filter_state, omega_m, Ts)
+        integral, i_ref = self._pi(integral, speed_ref, omega_seen, iq_max, Ts)
+        filter_state, i_ref = self.filters.reference(filter_state, i_ref, Ts)
+        return (integral, filter_state), jnp.clip(i_ref, -iq_max, iq_max)
+
+    def _pi(self, state, speed_ref, omega_m, iq_max, Ts):
         return pi_update(
             self.kp,
             self.ki,
@@ -71,7 +89,11 @@ class SpeedLoopGains(AbstractSpeedController):
     def steady_state(self, state, omega_m):
         """The integral holding the active-damping term ``B_a w`` (A): its no-load steady state at ``omega_m``
         (rad/s). From a zero integral the damping term alone would brake a machine started at speed."""
-        return jnp.asarray(self.active_damping * omega_m, state.dtype)
+        if self.filters is None:
+            return jnp.asarray(self.active_damping * omega_m, state.dtype)
+        integral, filter_state = state
+        held = jnp.asarray(self.active_damping * omega_m, integral.dtype)
+        return held, self.filters.steady_state(filter_state, omega_m)
 
 
 __all__ = ["SpeedLoopGains"]

@@ -307,6 +307,10 @@ def run(spec: DemoSpec, drive, scenario) -> DemoResult:
 
         summary["drive"]["thermal"] = thermal_entry(drive, trace)
         summary["trace_columns"] = {**summary["trace_columns"], **THERMAL_COLUMN_UNITS}
+    if trace.load_speed is not None:  # a compliant shaft: the load's own speed
+        from pmsmjax.trace import SHAFT_COLUMN_UNITS
+
+        summary["trace_columns"] = {**summary["trace_columns"], **SHAFT_COLUMN_UNITS}
     return DemoResult(
         trace=trace,
         summary=summary,

@@ -19,6 +19,7 @@ import jax.numpy as jnp
 from pmsmjax._types import Array
 from pmsmjax.frames.three_phase import dq_to_abc, inverse_park, park
 from pmsmjax.machines.motor import PMSMParameters
+from pmsmjax.machines.shaft import has_shaft, initial_shaft_state, two_mass_derivative
 
 Mechanics = Literal["dynamic", "imposed"]
 HoldFrame = Literal["stator", "rotor"]
@@ -31,11 +32,14 @@ class MachineState(eqx.Module):
         currents: ``(n,)`` stator currents in the model's own frame (dq, alpha-beta or abc), A.
         omega_m: Mechanical speed, rad/s.
         theta_e: Electrical rotor angle (d axis from the A axis), rad; wrapped once per control period.
+        shaft: ``(2,)`` a compliant shaft's twist (rad) and load speed (rad/s)
+            ([`pmsmjax.machines.shaft`][pmsmjax.machines.shaft]); ``None`` for a rigid shaft.
     """
 
     currents: Array
     omega_m: Array
     theta_e: Array
+    shaft: Array | None = None
 
 
 class MachineInput(eqx.Module):
@@ -88,8 +92,10 @@ class AbstractMachine(eqx.Module):
     [`phase_currents`][pmsmjax.machines.base.AbstractMachine.phase_currents] /
     [`stationary_currents`][pmsmjax.machines.base.AbstractMachine.stationary_currents]. Subclasses implement
     the electrical part in their frame; the mechanics are shared: ``J dw_m/dt = T_e - T_L - B w_m``
-    (``mechanics="dynamic"``) or ``dw_m/dt = 0`` with the speed set from outside each period
-    (``mechanics="imposed"``, a dynamometer); ``dth_e/dt = p_n w_m``.
+    (``mechanics="dynamic"``; with a compliant shaft in the motor's parameters, the two-mass mechanics of
+    [`pmsmjax.machines.shaft`][pmsmjax.machines.shaft], the load torque on the load side, and under an
+    imposed speed the load swinging on the held motor) or ``dw_m/dt = 0`` with the speed set from outside
+    each period (``mechanics="imposed"``, a dynamometer); ``dth_e/dt = p_n w_m``.
     """
 
     motor: eqx.AbstractVar[PMSMParameters]
@@ -154,7 +160,9 @@ class AbstractMachine(eqx.Module):
         dtype = self.motor.R.dtype
         theta = jnp.asarray(theta_e, dtype)
         i_dq = jnp.asarray(i_dq, dtype)
-        return MachineState(self.currents_from_dq(i_dq, theta), jnp.asarray(omega_m, dtype), theta)
+        omega = jnp.asarray(omega_m, dtype)
+        shaft = initial_shaft_state(omega, dtype) if has_shaft(self.motor) else None
+        return MachineState(self.currents_from_dq(i_dq, theta), omega, theta, shaft)
 
     def vector_field(self, t, state: MachineState, inputs: MachineInput) -> MachineState:
         """Continuous-time dynamics ``dx/dt`` (diffrax signature ``f(t, y, args)``).
@@ -172,12 +180,20 @@ class AbstractMachine(eqx.Module):
         m = self.motor
         omega_e = m.pole_pairs * state.omega_m
         di = self.current_derivative(state.currents, state.theta_e, omega_e, inputs)
+        dshaft = None
         if self.mechanics == "dynamic":
             torque = self.torque(state.currents, state.theta_e)
-            domega = (torque - inputs.load_torque - m.B * state.omega_m) / m.J
-        else:
+            if state.shaft is None:
+                domega = (torque - inputs.load_torque - m.B * state.omega_m) / m.J
+            else:
+                domega, dshaft = two_mass_derivative(
+                    m, torque, state.omega_m, state.shaft, inputs.load_torque
+                )
+        else:  # a dynamometer holds the motor's speed; a compliant shaft's load still swings on it
             domega = jnp.zeros_like(state.omega_m)
-        return MachineState(di, domega, omega_e)
+            if state.shaft is not None:
+                dshaft = two_mass_derivative(m, 0.0, state.omega_m, state.shaft, inputs.load_torque)[1]
+        return MachineState(di, domega, omega_e, dshaft)
 
     def currents_dq(self, state: MachineState) -> Array:
         """dq currents of ``state`` (fundamental plane, at the state's rotor angle).

@@ -143,20 +143,21 @@ def advance(
         carry = (state, inputs.dq(state.theta_e))
         step = lambda _, c: rk4_step_rotating_hold(machine, c[0], c[1], inputs.load_torque, h)
         state = step(0, carry)[0] if n_substeps == 1 else loop(step, carry)[0]
-        return MachineState(state.currents, state.omega_m, wrap_angle(state.theta_e))
+        return MachineState(state.currents, state.omega_m, wrap_angle(state.theta_e), state.shaft)
     body = lambda _, x: rk4_step(machine, x, inputs, h)
     if n_substeps == 1:
         state = body(0, state)
     else:
         state = loop(body, state)
-    return MachineState(state.currents, state.omega_m, wrap_angle(state.theta_e))
+    return MachineState(state.currents, state.omega_m, wrap_angle(state.theta_e), state.shaft)
 
 
 def max_stable_substep(motor_or_machine, max_speed_m) -> float:
     """Longest RK4 sub-step we accept: 0.5 / (fastest electrical rate), from concrete values.
 
     The electrical rates are ``R/L`` (the current's own pole; L the smallest inductance, the leakage for a
-    multi-phase machine) and ``omega_e`` (rotation of the flux); RK4 is stable to about 2.8 on both axes and
+    multi-phase machine) and ``omega_e`` (rotation of the flux), with a compliant shaft also its resonance
+    and its damper's rate; RK4 is stable to about 2.8 on both axes and
     accurate to 1e-4 per period at 0.5. Used by the input checks, so it works on NumPy values (it must not
     create JAX tracers inside a jit).
 
@@ -175,4 +176,10 @@ def max_stable_substep(motor_or_machine, max_speed_m) -> float:
         if is_concrete(L_leak):
             L_min = np.minimum(L_min, np.asarray(jax.device_get(L_leak), dtype=float))
     rate = np.maximum(R / L_min, motor.pole_pairs * np.abs(max_speed_m))
+    shaft = (getattr(motor, "load_inertia", None), getattr(motor, "shaft_stiffness", None))
+    if shaft[0] is not None and all(is_concrete(x) for x in shaft):
+        # a compliant shaft: its resonance and its damper's rate (pmsmjax/machines/shaft.py)
+        J, J_L, K, D = (np.asarray(jax.device_get(x), float) for x in (motor.J, *shaft, motor.shaft_damping))
+        inverse_inertia = (J + J_L) / (J * J_L)
+        rate = np.maximum(rate, np.maximum(np.sqrt(K * inverse_inertia), D * inverse_inertia))
     return float(np.min(0.5 / rate))

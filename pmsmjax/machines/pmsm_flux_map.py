@@ -46,6 +46,7 @@ from pmsmjax.machines.flux_map import FluxMapGrid, excursion, flux_and_inductanc
 from pmsmjax.machines.integrate import rotate_back
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.machines.pmsm3 import _solve2
+from pmsmjax.machines.shaft import two_mass_derivative
 
 __all__ = ["FluxMap", "PMSMFluxMapdq", "flux_map_machine"]
 
@@ -164,12 +165,13 @@ class PMSMFluxMapdq(AbstractMachine):
         the torque share its flux).
 
         Args:
-            x: ``(4,)`` packed state ``[i_d, i_q, omega_m, theta_e]``.
+            x: ``(4,)`` packed state ``[i_d, i_q, omega_m, theta_e]``, or ``(6,)`` with a compliant shaft's
+                twist (rad) and load speed (rad/s) after them.
             u_dq: ``(2,)`` rotor-frame voltage, V.
             load_torque: Load torque, N m.
 
         Returns:
-            ``(4,)`` derivative of ``x``.
+            The derivative of ``x``, its shape.
         """
         m = self.motor
         i = x[:2]
@@ -181,12 +183,20 @@ class PMSMFluxMapdq(AbstractMachine):
         inverse_det = 1.0 / (L[0, 0] * L[1, 1] - L[0, 1] * L[1, 0])  # one division on the critical path
         di_d = (L[1, 1] * b_d - L[0, 1] * b_q) * inverse_det
         di_q = (L[0, 0] * b_q - L[1, 0] * b_d) * inverse_det
+        dshaft = ()
         if self.mechanics == "dynamic":
             torque = dq.torque(dq.torque_factor(m.pole_pairs), i[0], i[1], psi[0], psi[1])
-            domega = (torque - load_torque - m.B * x[2]) / m.J
-        else:
+            if x.shape[0] == 4:
+                domega = (torque - load_torque - m.B * x[2]) / m.J
+            else:
+                domega, d = two_mass_derivative(m, torque, x[2], x[4:], load_torque)
+                dshaft = (d[0], d[1])
+        else:  # a dynamometer holds the motor's speed; a compliant shaft's load still swings on it
             domega = jnp.zeros_like(x[2])
-        return jnp.stack([di_d, di_q, domega, omega_e])
+            if x.shape[0] == 6:
+                d = two_mass_derivative(m, 0.0, x[2], x[4:], load_torque)[1]
+                dshaft = (d[0], d[1])
+        return jnp.stack([di_d, di_q, domega, omega_e, *dshaft])
 
     def vector_field(self, t, state: MachineState, inputs: MachineInput) -> MachineState:
         """Continuous-time dynamics (diffrax signature), with the map evaluated once.
@@ -197,9 +207,9 @@ class PMSMFluxMapdq(AbstractMachine):
             inputs: The held voltage and load torque.
         """
         del t
-        x = jnp.concatenate([state.currents, jnp.stack([state.omega_m, state.theta_e])])
+        x = _packed(state)
         dx = self.packed_derivative(x, inputs.dq(state.theta_e), inputs.load_torque)
-        return MachineState(dx[:2], dx[2], dx[3])
+        return MachineState(dx[:2], dx[2], dx[3], None if state.shaft is None else dx[4:])
 
     @property
     def split_advance(self):
@@ -237,8 +247,10 @@ def advance_packed(
     turn = (lambda u, delta: rotate_back(u, delta)) if rotating else (lambda u, delta: u)
     f = lambda x, u: machine.packed_derivative(x, u, inputs.load_torque)
 
+    n = 4 if state.shaft is None else 6  # [i_d, i_q, omega_m, theta_e (, twist, load speed)]
+
     def substep(_, c):
-        x, u = c[:4], c[4:]
+        x, u = c[:n], c[n:]
         k1 = f(x, u)
         k2 = f(x + (0.5 * h) * k1, turn(u, (0.5 * h) * k1[3]))
         k3 = f(x + (0.5 * h) * k2, turn(u, (0.5 * h) * k2[3]))
@@ -246,10 +258,16 @@ def advance_packed(
         increment = (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         return jnp.concatenate([x + increment, turn(u, increment[3])])
 
-    dtype = state.currents.dtype
-    x0 = jnp.concatenate([state.currents, jnp.stack([state.omega_m, state.theta_e]).astype(dtype)])
+    x0 = _packed(state)
     c = jax.lax.fori_loop(0, n_substeps, substep, jnp.concatenate([x0, inputs.dq(state.theta_e)[:2]]))
-    return MachineState(c[:2], c[2], wrap_angle(c[3]))
+    return MachineState(c[:2], c[2], wrap_angle(c[3]), None if state.shaft is None else c[4:6])
+
+
+def _packed(state: MachineState) -> Array:
+    """``[i_d, i_q, omega_m, theta_e]`` (and a compliant shaft's ``[twist, load speed]``) in one vector."""
+    dtype = state.currents.dtype
+    parts = [state.currents, jnp.stack([state.omega_m, state.theta_e]).astype(dtype)]
+    return jnp.concatenate(parts if state.shaft is None else parts + [state.shaft.astype(dtype)])
 
 
 def flux_map_machine(

@@ -31,6 +31,11 @@ Layout (SI units; every table but ``[motor]`` optional)::
     [operating]    what varies in use, [low, high]: winding_temperature_c (a run's initial winding
                    temperature; needs [thermal]), u_dc_v, ambient_c (needs [thermal]) (Monte Carlo draws,
                    robust tuning)
+    [mechanics]    a compliant shaft: load_inertia (kg m^2; [motor] J is then the motor's own),
+                   shaft_stiffness_nm_per_rad, shaft_damping_nm_s_per_rad (default 0); [tolerances]
+                   load_inertia and shaft_stiffness_nm_per_rad spread them; [control] speed_filter_hz,
+                   notch_hz, notch_width_hz, notch_depth_db: the speed loop's filters
+                   (pmsmjax.spec.mechanics)
 
 With a flux map the simulated machine is the map's
 ([`pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq]) and ``L_d``,
@@ -63,6 +68,7 @@ import numpy as np
 from pmsmjax.spec import derivations as derive
 from pmsmjax.spec import design_rules as rules
 from pmsmjax.spec import schema
+from pmsmjax.spec.mechanics import complete_filters, read_mechanics, rigid_equivalent
 from pmsmjax.spec.plausibility import check_flux_map_units, check_motor_units, check_thermal_units
 from pmsmjax.spec.schema import (
     DC_LINK_RANGE_V,
@@ -76,6 +82,7 @@ from pmsmjax.spec.schema import (
 from pmsmjax.spec.tables import (
     ControlTable,
     InverterTable,
+    MechanicsTable,
     MotorTable,
     OperatingTable,
     RatingsTable,
@@ -111,6 +118,7 @@ class DriveSpec:
       ([`FluxMapGrid`][pmsmjax.machines.flux_map.FluxMapGrid]), None without one.
     - `thermal`: the winding's thermal network (``[thermal]``, complete), empty without one;
     - `operating`: the ranges of ``[operating]`` the file gives.
+    - `mechanics`: the compliant shaft of ``[mechanics]`` (complete), empty for a rigid shaft.
     """
 
     source: str
@@ -130,6 +138,7 @@ class DriveSpec:
     key_order: dict | None = dataclasses.field(default=None, compare=False, repr=False)
     thermal: ThermalTable = dataclasses.field(default_factory=ThermalTable)
     operating: OperatingTable = dataclasses.field(default_factory=OperatingTable)
+    mechanics: MechanicsTable = dataclasses.field(default_factory=MechanicsTable)
 
     @property
     def n_phases(self) -> int:
@@ -168,7 +177,7 @@ class DriveSpec:
             "source": self.source,
             **{t: table(t) for t in ("motor", "ratings", "inverter", "sensor", "tolerances")},
             **{t: table(t) for t in ("control", "scenario", "tuning")},
-            **{t: table(t) for t in ("thermal", "operating") if getattr(self, t)},
+            **{t: table(t) for t in ("thermal", "operating", "mechanics") if getattr(self, t)},
             "derived": dict(self.derived),
             "notes": list(self.notes),
         }
@@ -256,7 +265,19 @@ def complete(
         check_motor_units(motor, f"{where} [motor]", Ts)
     derive.complete_ratings(motor, ratings, inverter, derived, name_of)
     notes = derive.check_rated_point(motor, ratings, inverter, name_of)
-    derive.complete_control(motor, ratings, control, Ts, derived, where)
+    shaft = read_mechanics(tables["mechanics"], motor, where)
+    derive.complete_control(rigid_equivalent(motor, shaft), ratings, control, Ts, derived, where)
+    complete_filters(control, Ts, derived, where)
+    mechanics = {} if not shaft else {
+        "load_inertia": shaft["load_inertia"], "shaft_stiffness_nm_per_rad": shaft["shaft_stiffness"],
+        "shaft_damping_nm_s_per_rad": shaft["shaft_damping"],
+    }  # fmt: skip
+    spread = sorted(k for k in ("load_inertia", "shaft_stiffness_nm_per_rad") if k in tolerances)
+    if spread and not shaft:
+        raise ParameterError(
+            f"{where}: [tolerances] {', '.join(spread)} spread a compliant shaft, which the file does not "
+            "give: add [mechanics] (load_inertia, shaft_stiffness_nm_per_rad) or drop them."
+        )
     schema.check_current_sensors(sensor, tolerances, ratings["max_current_a"], where)
     if sensor.get("delay_s", 0.0) > MAX_SENSOR_DELAY_PERIODS * Ts:
         raise ParameterError(
@@ -310,13 +331,14 @@ def complete(
     tables = dict(
         motor=motor, ratings=ratings, inverter=inverter, sensor=sensor, tolerances=tolerances,
         control=control, scenario=scenario, tuning=tuning, thermal=thermal, operating=operating,
+        mechanics=mechanics,
     )  # fmt: skip
     return DriveSpec(
         source, MotorTable.of(motor), RatingsTable.of(ratings), InverterTable.of(inverter),
         SensorTable.of(sensor), ToleranceTable.of(tolerances), ControlTable.of(control),
         ScenarioTable.of(scenario), TuningTable.of(tuning), derived, tuple(notes), flux_map,
         {name: tuple(values) for name, values in tables.items()}, ThermalTable.of(thermal),
-        OperatingTable.of(operating),
+        OperatingTable.of(operating), MechanicsTable.of(mechanics),
     )  # fmt: skip
 
 

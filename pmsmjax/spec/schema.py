@@ -5,6 +5,7 @@ table and key, the value in its unit and the fix. Plain Python."""
 import difflib
 import math
 
+from pmsmjax.spec.mechanics import FILTER_UNITS, MECHANICS_UNITS
 from pmsmjax.spec.validation import ParameterError, plain
 
 MOTOR_FIELDS = ("R", "L_d", "L_q", "psi_f", "pole_pairs", "J", "B")
@@ -49,6 +50,8 @@ TABLES = {
         **{k: "" for k in ("R", "L_d", "L_q", "psi_f", "J", "B", "L_ls", "u_dc_v")},
         "current_offset_a": "A",
         "current_gain": "",
+        "load_inertia": "",
+        "shaft_stiffness_nm_per_rad": "",
     },  # fmt: skip
     "control": {
         "current_bandwidth_rad_s": "rad/s",
@@ -57,11 +60,13 @@ TABLES = {
         "startup_acceleration_rad_s2": "rad/s^2",
         "handover_speed_rad_s": "rad/s",
         "blend_speed_rad_s": "rad/s",
+        **FILTER_UNITS,
     },  # fmt: skip
     "scenario": {"speed_rpm": "r/min", "load_nm": "N m", "load_time_s": "s", "duration_s": "s"},
     "tuning": {"speed_rpm": "range", "load_nm": "range", "duration_s": "range"},
     "thermal": {"r_th_k_per_w": "K/W", "c_th_j_per_k": "J/K", "ambient_c": "degC", "initial_c": "degC"},
     "operating": {"winding_temperature_c": "range", "u_dc_v": "range", "ambient_c": "range"},
+    "mechanics": MECHANICS_UNITS,
 }
 SENSOR_KINDS = ("exact", "encoder")
 #: The ``[sensor]`` keys of an encoder, and of the phase-current sensors (any kind).

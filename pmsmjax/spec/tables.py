@@ -23,6 +23,7 @@ __all__ = [
     "TuningTable",
     "ThermalTable",
     "OperatingTable",
+    "MechanicsTable",
 ]
 
 
@@ -145,12 +146,16 @@ class ToleranceTable(Table):
     u_dc_v: float | None = None
     current_offset_a: float | None = None
     current_gain: float | None = None
+    load_inertia: float | None = None
+    shaft_stiffness_nm_per_rad: float | None = None
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class ControlTable(Table):
     """``[control]``: current- and speed-loop bandwidths (rad/s) and the sensorless I/f start: current
-    (A), acceleration (rad/s^2), hand-over speed and blend span (mechanical rad/s)."""
+    (A), acceleration (rad/s^2), hand-over speed and blend span (mechanical rad/s); the speed loop's
+    optional filters: a low-pass on the speed feedback (Hz) and a notch on its output (centre and width
+    Hz, depth dB), None when left out."""
 
     current_bandwidth_rad_s: float
     speed_bandwidth_rad_s: float
@@ -158,6 +163,10 @@ class ControlTable(Table):
     startup_acceleration_rad_s2: float
     handover_speed_rad_s: float
     blend_speed_rad_s: float
+    speed_filter_hz: float | None = None
+    notch_hz: float | None = None
+    notch_width_hz: float | None = None
+    notch_depth_db: float | None = None
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -202,3 +211,14 @@ class OperatingTable(Table):
     winding_temperature_c: list | None = None
     u_dc_v: list | None = None
     ambient_c: list | None = None
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class MechanicsTable(Table):
+    """``[mechanics]``: a compliant shaft between the motor (``[motor] J``) and its load: the load's inertia
+    (kg m^2), the shaft's torsional stiffness (N m/rad) and damping (N m s/rad); empty (every field None)
+    for a rigid shaft."""
+
+    load_inertia: float | None = None
+    shaft_stiffness_nm_per_rad: float | None = None
+    shaft_damping_nm_s_per_rad: float | None = None

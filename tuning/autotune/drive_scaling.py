@@ -119,6 +119,8 @@ def scaled_weights(weights, spec: DriveSpec):
 
 #: Tolerances of a drive file that a batch's plant draws can vary (the motor's parameters and the DC link).
 _PLANT_KEYS_3 = ("R", "L_d", "L_q", "psi_f", "J", "B", "u_dc_v")
+#: A compliant shaft's tolerances -> the motor parameters they scale ([`pmsmjax.machines.shaft`]).
+_SHAFT_KEYS = {"load_inertia": "load_inertia", "shaft_stiffness_nm_per_rad": "shaft_stiffness"}
 
 
 def plant_spread(spec: DriveSpec) -> dict:
@@ -131,7 +133,8 @@ def plant_spread(spec: DriveSpec) -> dict:
     keys = _PLANT_KEYS_3 + (("L_ls",) if spec.n_phases != 3 else ())
     keys += ("current_offset_a", "current_gain") if "current_offset_a" in spec.sensor else ()
     spread = {k: float(v) for k, v in spec.tolerances.items() if k in keys and v > 0}
-    return {**spread, **operating_factors(spec)}
+    shaft = {_SHAFT_KEYS[k]: float(v) for k, v in spec.tolerances.items() if k in _SHAFT_KEYS and v > 0}
+    return {**spread, **shaft, **operating_factors(spec)}
 
 
 def operating_factors(spec: DriveSpec) -> dict:

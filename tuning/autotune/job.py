@@ -135,6 +135,15 @@ def read_tune_toml(path) -> dict:
     return out
 
 
+def speed_filter_names(spec: DriveSpec, estimator=None) -> tuple[str, ...]:
+    """The speed-loop filters of the drive file's ``[control]`` (low-pass cut-off, notch centre, width and
+    depth), tuned with the speed PI by default; none for an observer's tuning or a file without them."""
+    keys = ("speed_filter_hz", "notch_hz", "notch_width_hz", "notch_depth_db")
+    if estimator is not None:
+        return ()
+    return tuple(f"controller.speed.filters.{k}" for k in keys if k in spec.control)
+
+
 def evaluate(drive, batch: ScenarioBatch, weights: ObjectiveWeights) -> dict:
     """Batch summary (means, worst cases, cost) and per-scenario metrics of ``drive`` on ``batch``."""
     m = jax.device_get(batch_metrics(drive, batch))
@@ -236,7 +245,7 @@ def run_tune_job(
     if weights is None:  # the control's or observer's defaults, their penalties priced for the drive
         weights = drive_scaling.scaled_weights(ObjectiveWeights(**tuning.weights), spec)
     if config.names is None:
-        config = dataclasses.replace(config, names=tuning.names)
+        config = dataclasses.replace(config, names=tuning.names + speed_filter_names(spec, estimator))
     batch_maker = batches.make
     duration_s = batches.duration_s if duration_s is None else duration_s
     batch_options = dict(duration_s=duration_s, kinds=kinds)

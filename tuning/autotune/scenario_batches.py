@@ -116,6 +116,7 @@ def make_batch(
     spread = dict(plant_spread or {})
     allowed = ("R", "L_d", "L_q", "psi_f", "J", "B", "L_ls", "u_dc_v", "initial_k", "ambient_k")
     allowed += SENSOR_SPREADS
+    allowed += ("load_inertia", "shaft_stiffness", "shaft_damping")  # a compliant shaft's
     for name, frac in spread.items():
         if name not in allowed:
             raise ParameterError(f"plant_spread: unknown motor parameter {name!r}; choose from {allowed}.")

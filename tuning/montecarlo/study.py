@@ -111,6 +111,9 @@ TOLERANCE_PARAMETERS = {
     for k in TABLES["tolerances"]
     if k not in SENSOR_TOLERANCE_PARAMETERS
 }
+#: A compliant shaft's parameters ([`pmsmjax.machines.shaft`][pmsmjax.machines.shaft]) as study parameters.
+SHAFT_FIELDS = ("load_inertia", "shaft_stiffness", "shaft_damping")
+TOLERANCE_PARAMETERS["shaft_stiffness_nm_per_rad"] = "motor.shaft_stiffness"
 #: The machine setting -> the drive file's phase count.
 PHASES = {"three-phase": 3, "six-phase": 6, "five-phase": 5}
 #: Periods between the fan chart's samples, at most (the largest divisor of the run's periods up to this).
@@ -408,6 +411,8 @@ def check_name(drive: Drive, name: str) -> None:
     may vary on `drive` (a motor field, ``bridge.u_dc``, a scenario field, a current sensor's offset or gain,
     or a controller leaf), listing them."""
     fields = MOTOR_FIELDS + drive.machine.motor.leakage_fields
+    if getattr(drive.machine.motor, "load_inertia", None) is not None:
+        fields += SHAFT_FIELDS
     allowed = [f"motor.{f}" for f in fields] + ["bridge.u_dc"] + [f"scenario.{f}" for f in SCENARIO_FIELDS]
     sensors = tuple(SENSOR_TOLERANCE_PARAMETERS.values())
     allowed += [n for n in array_leaf_names(drive) if n.startswith(sensors)]
