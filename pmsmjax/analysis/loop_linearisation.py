@@ -36,6 +36,7 @@ sensor, with a modulator; the operating point inside the voltage and current lim
 open and a linearisation says nothing).
 """
 
+import dataclasses
 from typing import Literal
 
 import equinox as eqx
@@ -59,6 +60,8 @@ __all__ = [
     "linearise",
     "linearise_traced",
     "steady_state",
+    "operating_state",
+    "current_mode",
 ]
 
 Loop = Literal["current", "speed"]
@@ -315,3 +318,22 @@ def linearise_traced(drive: Drive, speed_m, load_nm, settle_periods: int = 500, 
     _, (Js, residuals, zs) = jax.lax.scan(newton, z0, None, length=newton_steps + 1)
     J = Js[-1]
     return LinearDrive(J[:n, :n], J[:n, n:], J[n:, :n], J[n:, n:], zs[-1], residuals[-1], drive.Ts)
+
+
+def operating_state(drive: Drive, lin: LinearDrive, settle_periods: int = 500) -> DriveState:
+    """The drive's state at the steady state ``lin.state`` (at electrical angle 0), e.g. to start a
+    simulation there; ``settle_periods`` as given to
+    [`linearise`][pmsmjax.analysis.loop_linearisation.linearise] (it fixes the state's layout only)."""
+    dtype = drive.machine.motor.R.dtype
+    template = jax.eval_shape(
+        lambda d: steady_state(d, jnp.zeros((), dtype), jnp.zeros((), dtype), settle_periods), drive
+    )
+    template = jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype), template)
+    parts, static = _split(drive, template)
+    unravel = ravel_pytree(parts)[1]
+    return _join(drive, unravel(lin.state), static, 0.0)
+
+
+def current_mode(drive: Drive) -> Drive:
+    """``drive`` with its FOC in current mode: the speed loop opened, ``i_q*`` from the scenario."""
+    return eqx.tree_at(lambda d: d.controller, drive, dataclasses.replace(drive.controller, mode="current"))

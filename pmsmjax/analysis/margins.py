@@ -9,9 +9,11 @@ margin and the sensitivity peak of Åström and Murray (*Feedback Systems*, 2nd 
   crossover below the Nyquist frequency (a compliant shaft's resonance can lift ``|L|`` above 1 again, where
   ``arg L`` may lie anywhere); whether the closed loop is stable at all is the spectral radius's question
   ([`LinearDrive.spectral_radius`][pmsmjax.analysis.loop_linearisation.LinearDrive.spectral_radius]);
-- **gain margin** ``GM = -20 log10 |L(f_180)|`` dB at every phase crossover ``arg L = -180 deg`` (``L`` real and
+- **gain margin** ``GM = -20 log10 |L(f_180)|`` dB at every phase crossover ``arg L = -180 deg`` (``L``
+real and
   negative), the smallest; ``inf`` without a phase crossover below Nyquist;
-- **sensitivity peak** ``M_s = max |S|``, ``S = 1/(1 + L)``: the inverse of the shortest distance from ``L`` to
+- **sensitivity peak** ``M_s = max |S|``, ``S = 1/(1 + L)``: the inverse of the shortest distance from
+``L`` to
   -1 (``M_s <= 2`` guarantees ``GM >= 6 dB`` and ``PM >= 29 deg``);
 - **bandwidth** (Hz): the lowest frequency where the complementary sensitivity ``|T| = |1 - S|`` falls below
   -3 dB.
@@ -29,7 +31,7 @@ import numpy as np
 from pmsmjax._types import Array
 from pmsmjax.analysis.loop_linearisation import LinearDrive
 
-__all__ = ["LoopMargins", "loop_margins", "frequency_grid"]
+__all__ = ["LoopMargins", "loop_margins", "frequency_grid", "drive_margins", "margins_line"]
 
 #: Default grid: points and lowest frequency, Hz.
 GRID_POINTS = 400
@@ -134,3 +136,52 @@ def loop_margins(lin: LinearDrive, loop: str, freq_hz=None) -> LoopMargins:
     f_b, _ = _crossings(logf, t_db, below, lambda ff: ff)
     bandwidth = jnp.min(jnp.where(below, f_b, inf))
     return LoopMargins(crossover, phase_margin, gain_margin, s_abs[k], f[k], bandwidth)
+
+
+def drive_margins(drive, speed_m: float, load_nm: float, where: str = "") -> dict:
+    """Both loops' margins at the steady state of ``speed_m`` (mechanical rad/s) and ``load_nm`` (N m),
+    for a report (summary.json, result.json): ``{"operating_point", "spectral_radius", "stable",
+    "fixed_point_residual", "current": {...}, "speed": {...}}``, the loops' entries
+    [`LoopMargins.as_dict`][pmsmjax.analysis.margins.LoopMargins.as_dict].
+
+    Raises:
+        ParameterError: For a drive or an operating point outside the linearisation's scope
+            ([`check_linearisable`][pmsmjax.analysis.loop_linearisation.check_linearisable]; ``where`` names
+            the operating point's source in the message).
+    """
+    from pmsmjax.analysis.loop_linearisation import check_linearisable
+
+    check_linearisable(drive, speed_m, load_nm, where=where)
+    dtype = drive.machine.motor.R.dtype
+    lin, margins = _margins(drive, jnp.asarray(speed_m, dtype), jnp.asarray(load_nm, dtype))
+    rho = float(lin.spectral_radius())
+    out = {
+        "operating_point": {"speed_rad_s": float(speed_m), "load_nm": float(load_nm)},
+        "spectral_radius": rho,
+        "stable": rho < 1.0,
+        "fixed_point_residual": float(lin.residual),
+    }
+    out.update({loop: m.as_dict() for loop, m in margins.items()})
+    return out
+
+
+@eqx.filter_jit
+def _margins(drive, speed_m, load_nm):
+    from pmsmjax.analysis.loop_linearisation import LOOPS, linearise_traced
+
+    lin = linearise_traced(drive, speed_m, load_nm)
+    return lin, {loop: loop_margins(lin, loop) for loop in LOOPS}
+
+
+def margins_line(entry: dict) -> str:
+    """One console line of [`drive_margins`][pmsmjax.analysis.margins.drive_margins]'s report."""
+    parts = []
+    for loop in ("current", "speed"):
+        m = entry[loop]
+        fmt = lambda v, spec: "n/a" if v is None else format(v, spec)  # noqa: E731
+        parts.append(
+            f"{loop} loop: crossover {fmt(m['crossover_hz'], '.4g')} Hz, "
+            f"PM {fmt(m['phase_margin_deg'], '.1f')} deg, GM {fmt(m['gain_margin_db'], '.1f')} dB, Ms {fmt(m['sensitivity_peak'], '.2f')}"
+        )
+    stable = "stable" if entry["stable"] else "UNSTABLE"
+    return f"margins ({stable}, spectral radius {entry['spectral_radius']:.4f}): " + "; ".join(parts)

@@ -95,6 +95,8 @@ JOB_KEYS = (
     "machine",
     "estimator",
     "robust",
+    "min_phase_margin_deg",
+    "max_sensitivity_peak",
 )
 #: How the machine names the drive file's phase count.
 MACHINE_PHASES = {"three-phase": 3, "six-phase": 6, "five-phase": 5}
@@ -180,6 +182,8 @@ def run_tune_job(
     estimator: str | None = None,
     drive: DriveSpec | str = "book",
     robust: bool = False,
+    min_phase_margin_deg: float | None = None,
+    max_sensitivity_peak: float | None = None,
     weights: ObjectiveWeights | None = None,
     config: TuneConfig = DEFAULT_CONFIG,
     progress: bool = True,
@@ -193,7 +197,12 @@ def run_tune_job(
     control ``pi``). `duration_s` defaults to the drive file's ``[tuning] duration_s`` for a control and
     half of it for an observer (book: 0.3-0.5 s, 0.15-0.25 s). `robust`: train over plant draws from the
     drive file's ``[tolerances]`` (refused without them); `plant_spread` (``{parameter: half-width}``)
-    sets such draws explicitly for the train and held-out batches."""
+    sets such draws explicitly for the train and held-out batches. `min_phase_margin_deg`,
+    `max_sensitivity_peak`: margin constraints of both loops on every training plant
+    ([`tuning.autotune.margin_constraints`][tuning.autotune.margin_constraints]) at the ``[tuning]`` ranges'
+    middle speed and load (control ``pi``, three-phase); result.json ``margins`` reports the margins
+    before and
+    after on the nominal plant and the worst over the held-out plant draws."""
     if machine not in MACHINE_PHASES:
         raise ParameterError(f"machine must be 'three-phase', 'six-phase' or 'five-phase', got {machine!r}.")
     spec = drive if isinstance(drive, DriveSpec) else drive_spec(drive, n_phases=MACHINE_PHASES[machine])
@@ -244,6 +253,9 @@ def run_tune_job(
         batches = drive_batches(spec)
     if weights is None:  # the control's or observer's defaults, their penalties priced for the drive
         weights = drive_scaling.scaled_weights(ObjectiveWeights(**tuning.weights), spec)
+    weights = margin_weights(
+        weights, spec, control, machine, estimator, min_phase_margin_deg, max_sensitivity_peak
+    )
     if config.names is None:
         config = dataclasses.replace(config, names=tuning.names + speed_filter_names(spec, estimator))
     batch_maker = batches.make
@@ -334,6 +346,8 @@ def run_tune_job(
     }
     if estimator is not None:
         data["stability"] = _stability(tuned_exact)
+    if estimator is None and control == "pi" and machine == "three-phase":
+        data["margins"] = margins_report(exact, tuned_exact, drawn, weights, spec)
     what = f"--estimator {estimator}" if estimator is not None else f"--control {control}"
     write_gains_toml(
         out / "gains.toml",
@@ -345,6 +359,79 @@ def run_tune_job(
     atomic_write(out / "result.json", lambda f: f.write(json.dumps(data, indent=2).encode()))
     _figures(out, exact, tuned_exact, train, result.history)
     return data
+
+
+def margin_operating_point(spec: DriveSpec) -> tuple[float, float]:
+    """The operating point the margins are judged at: the middle of the drive file's ``[tuning]`` speed
+    (rad/s,
+    mechanical) and load (N m) ranges."""
+    speed = float(np.mean(spec.tuning.speed_rpm)) * np.pi / 30.0
+    return speed, float(np.mean(spec.tuning.load_nm))
+
+
+def margin_weights(weights, spec, control, machine, estimator, min_pm, max_ms) -> ObjectiveWeights:
+    """``weights`` with the margin constraints given (None: the weights' own, e.g. from a config's
+    ``[weights]``) and, when any is set, the operating point; refused outside the linearisation's scope."""
+    if min_pm is not None or max_ms is not None:
+        weights = dataclasses.replace(
+            weights,
+            min_phase_margin_deg=weights.min_phase_margin_deg if min_pm is None else float(min_pm),
+            max_sensitivity_peak=weights.max_sensitivity_peak if max_ms is None else float(max_ms),
+        )
+    if weights.min_phase_margin_deg <= 0 and weights.max_sensitivity_peak <= 0:
+        return weights
+    if estimator is not None or control != "pi" or machine != "three-phase":
+        raise ParameterError(
+            "--min-phase-margin-deg / --max-sensitivity-peak constrain the three-phase FOC's loops (control "
+            "pi, no --estimator): drop them for this tuning."
+        )
+    if weights.max_sensitivity_peak and weights.max_sensitivity_peak <= 1.0:
+        raise ParameterError(
+            f"--max-sensitivity-peak {weights.max_sensitivity_peak:g} is not above 1 (|S| reaches 1 at "
+            "high frequency on every loop): give e.g. 1.6 to 2."
+        )
+    if weights.min_phase_margin_deg >= 90.0:
+        raise ParameterError(
+            f"--min-phase-margin-deg {weights.min_phase_margin_deg:g} is not below 90 deg: give e.g. 30 "
+            "to 60."
+        )
+    speed, load = margin_operating_point(spec)
+    return dataclasses.replace(weights, margin_speed_rad_s=speed, margin_load_nm=load)
+
+
+def margins_report(before, after, drawn, weights, spec) -> dict:
+    """result.json's ``margins``: both loops' margins at the operating point
+    ([`margin_operating_point`][tuning.autotune.job.margin_operating_point]) on the nominal plant before and
+    after tuning, and the worst phase margin and sensitivity peak over the held-out plant draws ``drawn``
+    (None: no tolerances); a drive or point outside the linearisation's scope is reported, not raised."""
+    from pmsmjax.analysis.margins import drive_margins
+    from tuning.autotune.margin_constraints import plant_margins
+    from tuning.autotune.objectives import scaled_plant
+
+    speed, load = margin_operating_point(spec)
+    out = {"operating_point": {"speed_rad_s": speed, "load_nm": load}}
+    if weights.min_phase_margin_deg > 0 or weights.max_sensitivity_peak > 0:
+        out["constraints"] = {
+            "min_phase_margin_deg": weights.min_phase_margin_deg or None,
+            "max_sensitivity_peak": weights.max_sensitivity_peak or None,
+        }
+    point = dataclasses.replace(weights, margin_speed_rad_s=speed, margin_load_nm=load)
+    try:
+        for name, drive in (("before", before), ("after", after)):
+            entry = {"nominal": drive_margins(drive, speed, load, "[tuning] ranges' middle")}
+            if drawn is not None:
+                m = jax.device_get(plant_margins(drive, drawn, point, scaled_plant))
+                entry["worst_over_drawn_plants"] = {
+                    loop: {
+                        "phase_margin_deg": float(np.min(v.phase_margin_deg)),
+                        "sensitivity_peak": float(np.max(v.sensitivity_peak)),
+                    }
+                    for loop, v in m.items()
+                }
+            out[name] = entry
+    except ParameterError as err:
+        out["skipped"] = str(err)
+    return out
 
 
 def _robustness(before, after, heldout, nominal, drawn, report, weights, tolerances) -> dict:
