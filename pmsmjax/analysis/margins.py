@@ -181,7 +181,8 @@ def margins_line(entry: dict) -> str:
         fmt = lambda v, spec: "n/a" if v is None else format(v, spec)  # noqa: E731
         parts.append(
             f"{loop} loop: crossover {fmt(m['crossover_hz'], '.4g')} Hz, "
-            f"PM {fmt(m['phase_margin_deg'], '.1f')} deg, GM {fmt(m['gain_margin_db'], '.1f')} dB, Ms {fmt(m['sensitivity_peak'], '.2f')}"
+            f"PM {fmt(m['phase_margin_deg'], '.1f')} deg, GM {fmt(m['gain_margin_db'], '.1f')} dB, "
+            f"Ms {fmt(m['sensitivity_peak'], '.2f')}"
         )
     stable = "stable" if entry["stable"] else "UNSTABLE"
     return f"margins ({stable}, spectral radius {entry['spectral_radius']:.4f}): " + "; ".join(parts)
