@@ -46,7 +46,9 @@ import numpy as np
 from jax.flatten_util import ravel_pytree
 
 from pmsmjax._types import Array
+from pmsmjax.controllers.current_pi import CurrentLoopGains
 from pmsmjax.controllers.foc import FOC
+from pmsmjax.controllers.speed_pi import SpeedLoopGains
 from pmsmjax.drive import Drive, DriveState, PeriodInputs
 from pmsmjax.estimators.position_sensors import ExactSensor
 from pmsmjax.frames.three_phase import inverse_park, park
@@ -149,6 +151,11 @@ def check_linearisable(drive: Drive, speed_m, load_nm, where: str = "") -> None:
         raise ParameterError(
             f"loop margins are computed for the three-phase FOC drive (control pi), not for "
             f"{type(c).__name__} on {drive.machine.n_phases} phases: build the drive with control 'pi'."
+        )
+    if not (isinstance(c.speed, SpeedLoopGains) and isinstance(c.current, CurrentLoopGains)):
+        raise ParameterError(
+            f"loop margins are computed for the PI speed and current loops (control 'pi'), not for "
+            f"{type(c.speed).__name__} and {type(c.current).__name__}: build the drive with control 'pi'."
         )
     if c.mode != "speed" or c.speed_divider != 1:
         raise ParameterError(
