@@ -12,10 +12,13 @@ and injected at a loop's break point:
 
 With the other loop closed, ``y = v - w`` is what the loop returns, ``y = -L v``, so the sensitivity from
 ``w`` to ``v`` is ``S = 1 / (1 + L)`` and the loop transfer (return ratio) ``L = 1/S - 1`` (Åström and Murray,
-*Feedback Systems*, 2nd ed., 2021, sec. 9.3 and 12.2; MATLAB's FOC Autotuner reports the same figures for
-the loops it tunes). Its Jacobians ``A = dF/dx``, ``B = dF/dw`` and the output's ``C = dv/dx``, ``D = dv/dw``
-come from ``jax.jacfwd`` through the whole step, so ``S(z) = C (zI - A)^-1 B + D`` at ``z = exp(j w Ts)`` is
-the exact small-signal response of the sampled-data loop (delay, PWM hold and sub-steps included), for a
+*Feedback Systems*, 2nd ed., 2021: the loop transfer, stability margins and the sensitivity functions).
+MATLAB's Field Oriented Control Autotuner estimates each loop's frequency response from sinusoidal
+perturbations added to that loop's plant input, one loop at a time, and tunes each to a bandwidth and a phase
+margin (https://www.mathworks.com/help/mcb/ref/fieldorientedcontrolautotuner.html). The map's Jacobians
+``A = dF/dx``, ``B = dF/dw`` and the output's ``C = dv/dx``, ``D = dv/dw`` come from forward-mode AD
+through the whole step, so ``S(z) = C (zI - A)^-1 B + D`` at ``z = exp(j w Ts)`` is the exact small-signal
+response of the sampled-data loop (delay, PWM hold and sub-steps included), for a
 perturbation held over each period and signals sampled at the period starts.
 
 **The rotating angle.** The state's electrical angle ``theta_e`` grows without bound at a steady speed, and

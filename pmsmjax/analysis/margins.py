@@ -1,8 +1,9 @@
 """Stability margins of a drive's loop from its linearised sampled-data loop transfer ``L(e^{j w Ts})``.
 
-The figures MATLAB's FOC Autotuner reports for each loop it tunes (bandwidth and phase margin), plus the gain
-margin and the sensitivity peak of Åström and Murray (*Feedback Systems*, 2nd ed., 2021, sec. 10.3 and
-12.2):
+The figures MATLAB's Field Oriented Control Autotuner tunes each loop to (bandwidth and phase margin,
+https://www.mathworks.com/help/mcb/ref/fieldorientedcontrolautotuner.html), plus the gain margin and the
+sensitivity peak of Åström and Murray (*Feedback Systems*, 2nd ed., 2021: stability margins, and the maximum
+sensitivity as the inverse of the shortest distance to -1):
 
 - **crossover** ``f_c`` (Hz): where ``|L| = 1``; the **phase margin** ``PM = 180 deg + arg L(f_c)``, taken
   as the angle between ``L(f_c)`` and -1, ``|arg(-L(f_c))|`` in [0, 180] deg, the smallest over every
