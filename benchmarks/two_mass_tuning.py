@@ -87,13 +87,11 @@ def evaluate_sets(sets: dict, n_eval: int) -> dict:
     from pmsmjax.assemble import spec_drive
     from pmsmjax.io.drive_files import drive_spec
     from tuning.autotune import drive_scaling
-    from tuning.autotune.job import margin_operating_point
-    from tuning.autotune.margin_constraints import plant_margins
-    from tuning.autotune.objectives import scaled_plant
     from tuning.autotune.controls import control_tuning
     from tuning.autotune.drive_batches import drive_batches
     from tuning.autotune.job import evaluate
-    from tuning.autotune.objectives import ObjectiveWeights
+    from tuning.autotune.margin_constraints import margin_operating_point, plant_margins
+    from tuning.autotune.objectives import ObjectiveWeights, scaled_plant
     from tuning.parameters import apply_gains
 
     out = {}

@@ -66,6 +66,7 @@ from pmsmjax.units import rad_s_to_rpm
 from tuning.autotune import drive_scaling
 from tuning.autotune.controls import control_tuning
 from tuning.autotune.drive_batches import drive_batches
+from tuning.autotune.margin_constraints import margin_weights, margins_report
 from tuning.autotune.objectives import ObjectiveWeights, aggregate, batch_metrics, scenario_cost
 from tuning.autotune.observers import OBSERVER_CONFIG, observer_drive, observer_tuning
 from tuning.autotune.scenario_batches import ScenarioBatch
@@ -359,79 +360,6 @@ def run_tune_job(
     atomic_write(out / "result.json", lambda f: f.write(json.dumps(data, indent=2).encode()))
     _figures(out, exact, tuned_exact, train, result.history)
     return data
-
-
-def margin_operating_point(spec: DriveSpec) -> tuple[float, float]:
-    """The operating point the margins are judged at: the middle of the drive file's ``[tuning]`` speed
-    (rad/s,
-    mechanical) and load (N m) ranges."""
-    speed = float(np.mean(spec.tuning.speed_rpm)) * np.pi / 30.0
-    return speed, float(np.mean(spec.tuning.load_nm))
-
-
-def margin_weights(weights, spec, control, machine, estimator, min_pm, max_ms) -> ObjectiveWeights:
-    """``weights`` with the margin constraints given (None: the weights' own, e.g. from a config's
-    ``[weights]``) and, when any is set, the operating point; refused outside the linearisation's scope."""
-    if min_pm is not None or max_ms is not None:
-        weights = dataclasses.replace(
-            weights,
-            min_phase_margin_deg=weights.min_phase_margin_deg if min_pm is None else float(min_pm),
-            max_sensitivity_peak=weights.max_sensitivity_peak if max_ms is None else float(max_ms),
-        )
-    if weights.min_phase_margin_deg <= 0 and weights.max_sensitivity_peak <= 0:
-        return weights
-    if estimator is not None or control != "pi" or machine != "three-phase":
-        raise ParameterError(
-            "--min-phase-margin-deg / --max-sensitivity-peak constrain the three-phase FOC's loops (control "
-            "pi, no --estimator): drop them for this tuning."
-        )
-    if weights.max_sensitivity_peak and weights.max_sensitivity_peak <= 1.0:
-        raise ParameterError(
-            f"--max-sensitivity-peak {weights.max_sensitivity_peak:g} is not above 1 (|S| reaches 1 at "
-            "high frequency on every loop): give e.g. 1.6 to 2."
-        )
-    if weights.min_phase_margin_deg >= 90.0:
-        raise ParameterError(
-            f"--min-phase-margin-deg {weights.min_phase_margin_deg:g} is not below 90 deg: give e.g. 30 "
-            "to 60."
-        )
-    speed, load = margin_operating_point(spec)
-    return dataclasses.replace(weights, margin_speed_rad_s=speed, margin_load_nm=load)
-
-
-def margins_report(before, after, drawn, weights, spec) -> dict:
-    """result.json's ``margins``: both loops' margins at the operating point
-    ([`margin_operating_point`][tuning.autotune.job.margin_operating_point]) on the nominal plant before and
-    after tuning, and the worst phase margin and sensitivity peak over the held-out plant draws ``drawn``
-    (None: no tolerances); a drive or point outside the linearisation's scope is reported, not raised."""
-    from pmsmjax.analysis.margins import drive_margins
-    from tuning.autotune.margin_constraints import plant_margins
-    from tuning.autotune.objectives import scaled_plant
-
-    speed, load = margin_operating_point(spec)
-    out = {"operating_point": {"speed_rad_s": speed, "load_nm": load}}
-    if weights.min_phase_margin_deg > 0 or weights.max_sensitivity_peak > 0:
-        out["constraints"] = {
-            "min_phase_margin_deg": weights.min_phase_margin_deg or None,
-            "max_sensitivity_peak": weights.max_sensitivity_peak or None,
-        }
-    point = dataclasses.replace(weights, margin_speed_rad_s=speed, margin_load_nm=load)
-    try:
-        for name, drive in (("before", before), ("after", after)):
-            entry = {"nominal": drive_margins(drive, speed, load, "[tuning] ranges' middle")}
-            if drawn is not None:
-                m = jax.device_get(plant_margins(drive, drawn, point, scaled_plant))
-                entry["worst_over_drawn_plants"] = {
-                    loop: {
-                        "phase_margin_deg": float(np.min(v.phase_margin_deg)),
-                        "sensitivity_peak": float(np.max(v.sensitivity_peak)),
-                    }
-                    for loop, v in m.items()
-                }
-            out[name] = entry
-    except ParameterError as err:
-        out["skipped"] = str(err)
-    return out
 
 
 def _robustness(before, after, heldout, nominal, drawn, report, weights, tolerances) -> dict:

@@ -15,10 +15,22 @@ and the
 interpolated crossovers), so the gradient pushes back as soon as a plant crosses the threshold.
 """
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
+import numpy as np
 
-__all__ = ["constrained", "margin_penalty", "plant_margins"]
+from pmsmjax.spec.validation import ParameterError
+
+__all__ = [
+    "constrained",
+    "margin_penalty",
+    "plant_margins",
+    "margin_operating_point",
+    "margin_weights",
+    "margins_report",
+]
 
 
 def constrained(weights) -> bool:
@@ -60,3 +72,75 @@ def margin_penalty(drive, batch, weights, plant_of):
                 jnp.maximum(m.sensitivity_peak - weights.max_sensitivity_peak, 0.0)
             )
     return weights.margin_penalty * total
+
+
+def margin_operating_point(spec) -> tuple[float, float]:
+    """The operating point the margins are judged at: the middle of the drive file's ``[tuning]`` speed
+    (rad/s,
+    mechanical) and load (N m) ranges."""
+    speed = float(np.mean(spec.tuning.speed_rpm)) * np.pi / 30.0
+    return speed, float(np.mean(spec.tuning.load_nm))
+
+
+def margin_weights(weights, spec, control, machine, estimator, min_pm, max_ms):
+    """``weights`` with the margin constraints given (None: the weights' own, e.g. from a config's
+    ``[weights]``) and, when any is set, the operating point; refused outside the linearisation's scope."""
+    if min_pm is not None or max_ms is not None:
+        weights = dataclasses.replace(
+            weights,
+            min_phase_margin_deg=weights.min_phase_margin_deg if min_pm is None else float(min_pm),
+            max_sensitivity_peak=weights.max_sensitivity_peak if max_ms is None else float(max_ms),
+        )
+    if weights.min_phase_margin_deg <= 0 and weights.max_sensitivity_peak <= 0:
+        return weights
+    if estimator is not None or control != "pi" or machine != "three-phase":
+        raise ParameterError(
+            "--min-phase-margin-deg / --max-sensitivity-peak constrain the three-phase FOC's loops (control "
+            "pi, no --estimator): drop them for this tuning."
+        )
+    if weights.max_sensitivity_peak and weights.max_sensitivity_peak <= 1.0:
+        raise ParameterError(
+            f"--max-sensitivity-peak {weights.max_sensitivity_peak:g} is not above 1 (|S| reaches 1 at "
+            "high frequency on every loop): give e.g. 1.6 to 2."
+        )
+    if weights.min_phase_margin_deg >= 90.0:
+        raise ParameterError(
+            f"--min-phase-margin-deg {weights.min_phase_margin_deg:g} is not below 90 deg: give e.g. 30 "
+            "to 60."
+        )
+    speed, load = margin_operating_point(spec)
+    return dataclasses.replace(weights, margin_speed_rad_s=speed, margin_load_nm=load)
+
+
+def margins_report(before, after, drawn, weights, spec) -> dict:
+    """result.json's ``margins``: both loops' margins at the operating point
+    ([`margin_operating_point`][tuning.autotune.margin_constraints.margin_operating_point]) on the nominal
+    plant before and after tuning, and the worst phase margin and sensitivity peak over the held-out plant draws ``drawn``
+    (None: no tolerances); a drive or point outside the linearisation's scope is reported, not raised."""
+    from pmsmjax.analysis.margins import drive_margins
+    from tuning.autotune.objectives import scaled_plant
+
+    speed, load = margin_operating_point(spec)
+    out = {"operating_point": {"speed_rad_s": speed, "load_nm": load}}
+    if weights.min_phase_margin_deg > 0 or weights.max_sensitivity_peak > 0:
+        out["constraints"] = {
+            "min_phase_margin_deg": weights.min_phase_margin_deg or None,
+            "max_sensitivity_peak": weights.max_sensitivity_peak or None,
+        }
+    point = dataclasses.replace(weights, margin_speed_rad_s=speed, margin_load_nm=load)
+    try:
+        for name, drive in (("before", before), ("after", after)):
+            entry = {"nominal": drive_margins(drive, speed, load, "[tuning] ranges' middle")}
+            if drawn is not None:
+                m = jax.device_get(plant_margins(drive, drawn, point, scaled_plant))
+                entry["worst_over_drawn_plants"] = {
+                    loop: {
+                        "phase_margin_deg": float(np.min(v.phase_margin_deg)),
+                        "sensitivity_peak": float(np.max(v.sensitivity_peak)),
+                    }
+                    for loop, v in m.items()
+                }
+            out[name] = entry
+    except ParameterError as err:
+        out["skipped"] = str(err)
+    return out
