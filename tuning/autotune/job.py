@@ -67,7 +67,13 @@ from tuning.autotune import drive_scaling
 from tuning.autotune.controls import control_tuning
 from tuning.autotune.drive_batches import drive_batches
 from tuning.autotune.margin_constraints import margin_weights, margins_report
-from tuning.autotune.objectives import ObjectiveWeights, aggregate, batch_metrics, scenario_cost
+from tuning.autotune.objectives import (
+    ObjectiveWeights,
+    aggregate,
+    batch_metrics,
+    scaled_plant,
+    scenario_cost,
+)
 from tuning.autotune.observers import OBSERVER_CONFIG, observer_drive, observer_tuning
 from tuning.autotune.scenario_batches import ScenarioBatch
 from tuning.autotune.tuner import TuneConfig, tune
@@ -348,7 +354,7 @@ def run_tune_job(
     if estimator is not None:
         data["stability"] = _stability(tuned_exact)
     if estimator is None and control == "pi" and machine == "three-phase":
-        data["margins"] = margins_report(exact, tuned_exact, drawn, weights, spec)
+        data["margins"] = margins_report(exact, tuned_exact, drawn, weights, spec, scaled_plant)
     what = f"--estimator {estimator}" if estimator is not None else f"--control {control}"
     write_gains_toml(
         out / "gains.toml",

@@ -112,13 +112,13 @@ def margin_weights(weights, spec, control, machine, estimator, min_pm, max_ms):
     return dataclasses.replace(weights, margin_speed_rad_s=speed, margin_load_nm=load)
 
 
-def margins_report(before, after, drawn, weights, spec) -> dict:
+def margins_report(before, after, drawn, weights, spec, plant_of) -> dict:
     """result.json's ``margins``: both loops' margins at the operating point
     ([`margin_operating_point`][tuning.autotune.margin_constraints.margin_operating_point]) on the nominal
-    plant before and after tuning, and the worst phase margin and sensitivity peak over the held-out plant draws ``drawn``
-    (None: no tolerances); a drive or point outside the linearisation's scope is reported, not raised."""
+    plant before and after tuning, and the worst phase margin and sensitivity peak over the held-out plant
+    draws ``drawn`` (None: no tolerances; ``plant_of(drive, scale)`` builds a draw); a drive or point outside
+    the linearisation's scope is reported, not raised."""
     from pmsmjax.analysis.margins import drive_margins
-    from tuning.autotune.objectives import scaled_plant
 
     speed, load = margin_operating_point(spec)
     out = {"operating_point": {"speed_rad_s": speed, "load_nm": load}}
@@ -132,7 +132,7 @@ def margins_report(before, after, drawn, weights, spec) -> dict:
         for name, drive in (("before", before), ("after", after)):
             entry = {"nominal": drive_margins(drive, speed, load, "[tuning] ranges' middle")}
             if drawn is not None:
-                m = jax.device_get(plant_margins(drive, drawn, point, scaled_plant))
+                m = jax.device_get(plant_margins(drive, drawn, point, plant_of))
                 entry["worst_over_drawn_plants"] = {
                     loop: {
                         "phase_margin_deg": float(np.min(v.phase_margin_deg)),
