@@ -136,8 +136,8 @@ def bode_figure(preset, lin, curves, margins, folder: Path) -> Path:
             ax_m.axvline(m["crossover_hz"], color=color, ls=":", lw=1)
             ax_p.axvline(m["crossover_hz"], color=color, ls=":", lw=1)
             ax_p.annotate(
-                f"{loop}: PM {m['phase_margin_deg']:.1f} deg at {m['crossover_hz']:.3g} Hz, "
-                f"Ms {m['sensitivity_peak']:.2f}",
+                f"{loop}: first crossover {m['crossover_hz']:.3g} Hz, PM {m['phase_margin_deg']:.1f} deg "
+                f"(least over the crossovers), Ms {m['sensitivity_peak']:.2f}",
                 xy=(m["crossover_hz"], -180.0 + m["phase_margin_deg"]),
                 xytext=(5, -20 if loop == "speed" else 15),
                 textcoords="offset points",

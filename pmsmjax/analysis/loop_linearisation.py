@@ -65,6 +65,7 @@ __all__ = [
     "linearise",
     "linearise_traced",
     "steady_state",
+    "solve_small",
     "operating_state",
     "current_mode",
 ]
@@ -108,7 +109,7 @@ class LinearDrive(eqx.Module):
 
         def one(fk):
             z = jnp.exp(1j * 2.0 * jnp.pi * fk * self.Ts).astype(cdtype)
-            x = jnp.linalg.solve(z * eye - self.A.astype(cdtype), self.B.astype(cdtype))
+            x = solve_small(z * eye - self.A.astype(cdtype), self.B.astype(cdtype))
             return self.C.astype(cdtype) @ x + self.D
 
         return jax.vmap(one)(f.reshape(-1)).reshape(f.shape + (2, 2))
@@ -133,6 +134,23 @@ class LinearDrive(eqx.Module):
         """Largest ``|eigenvalue|`` of ``A``: the closed loop (both loops closed) is stable below 1. NumPy
         on concrete values (one or a batch ``(..., n, n)``), not traced."""
         return np.max(np.abs(np.linalg.eigvals(np.asarray(self.A, dtype=np.float64))), axis=-1)
+
+
+def solve_small(M: Array, b: Array) -> Array:
+    """``M^-1 b`` for a small ``M (n, n)`` and ``b (n, k)`` by Gauss-Jordan elimination with partial pivoting,
+    written out in array operations (``n`` steps, no LAPACK call): XLA:CPU runs a loop that contains a
+    LAPACK custom call as one kernel under pmsmjax's small-loop setting ([`pmsmjax.xla_cpu`][pmsmjax.xla_cpu]),
+    and such a loop (these Newton steps, and their reverse-mode transpose) was seen to stall on a loaded
+    2-core machine; real or complex."""
+    n = M.shape[0]
+    Ab = jnp.concatenate([M, b], axis=1)
+    rows = jnp.arange(n)
+    for k in range(n):
+        p = jnp.argmax(jnp.where(rows >= k, jnp.abs(Ab[:, k]), -1.0))
+        swapped = Ab.at[k].set(Ab[p]).at[p].set(Ab[k])
+        row = swapped[k] / swapped[k, k]
+        Ab = (swapped - jnp.outer(swapped[:, k], row)).at[k].set(row)
+    return Ab[:, n:]
 
 
 def check_linearisable(drive: Drive, speed_m, load_nm, where: str = "") -> None:
@@ -322,7 +340,7 @@ def linearise_traced(drive: Drive, speed_m, load_nm, settle_periods: int = 500, 
         out, jvp = jax.linearize(f, zw)
         J = jax.vmap(jvp, out_axes=1)(basis)
         r = out[:n] - zz
-        return zz - jnp.linalg.solve(J[:n, :n] - eye, r), (J, jnp.linalg.norm(r), zz)
+        return zz - solve_small(J[:n, :n] - eye, r[:, None])[:, 0], (J, jnp.linalg.norm(r), zz)
 
     # newton_steps updates, and one more pass for the Jacobian at the last point (its update unused)
     _, (Js, residuals, zs) = jax.lax.scan(newton, z0, None, length=newton_steps + 1)
