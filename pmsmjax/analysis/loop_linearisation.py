@@ -137,11 +137,11 @@ class LinearDrive(eqx.Module):
 
 
 def solve_small(M: Array, b: Array) -> Array:
-    """``M^-1 b`` for a small ``M (n, n)`` and ``b (n, k)`` by Gauss-Jordan elimination with partial pivoting,
-    written out in array operations (``n`` steps, no LAPACK call): XLA:CPU runs a loop that contains a
-    LAPACK custom call as one kernel under pmsmjax's small-loop setting ([`pmsmjax.xla_cpu`][pmsmjax.xla_cpu]),
-    and such a loop (these Newton steps, and their reverse-mode transpose) was seen to stall on a loaded
-    2-core machine; real or complex."""
+    """``M^-1 b`` for a small ``M (n, n)`` and ``b (n, k)`` (real or complex) by Gauss-Jordan elimination
+    with partial pivoting, written out in array operations (``n`` steps, no LAPACK call): XLA:CPU runs a
+    loop that contains a LAPACK custom call as one kernel under pmsmjax's small-loop setting
+    ([`pmsmjax.xla_cpu`][pmsmjax.xla_cpu]), and such a loop (these Newton steps, and their reverse-mode
+    transpose) was seen to stall on a loaded 2-core machine."""
     n = M.shape[0]
     Ab = jnp.concatenate([M, b], axis=1)
     rows = jnp.arange(n)
