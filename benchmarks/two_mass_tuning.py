@@ -30,7 +30,7 @@ a rated-speed step, then 80 % of the rated torque): failure rates (divergence, c
 The Monte Carlo runs also linearise every draw (``--linear-stability``): a draw whose linearised loop has a
 spectral radius >= 1 counts as the failure ``unstable_linearisation``.
 
-``python -m benchmarks.two_mass_tuning [--iterations 60] [--train 16] [--eval 32] [--mc 1000] [--min-pm 45]
+``python -m benchmarks.two_mass_tuning [--iterations 60] [--train 16] [--eval 32] [--mc 1000] [--min-pm 40]
 [--json FILE]``
 """
 
@@ -144,7 +144,7 @@ def montecarlo(path: Path, gains: Path | None, n: int, out: Path) -> dict:
     }
 
 
-def run(iterations: int, train: int, n_eval: int, n_mc: int, folder: Path, min_pm: float = 45.0) -> dict:
+def run(iterations: int, train: int, n_eval: int, n_mc: int, folder: Path, min_pm: float = 40.0) -> dict:
     rule = drive_file(folder / "rules.toml", None)
     notch = drive_file(folder / "notch.toml", START_FILTERS)
     seconds = {"tune": tune(notch, folder / "tune", train, iterations)}
