@@ -209,7 +209,7 @@ def main(argv=None) -> dict:
     p.add_argument("--eval", type=int, default=32)
     p.add_argument("--mc", type=int, default=1000)
     p.add_argument(
-        "--min-pm", type=float, default=45.0, help="phase-margin floor of the constrained set, deg"
+        "--min-pm", type=float, default=40.0, help="phase-margin floor of the constrained set, deg"
     )
     p.add_argument("--folder", default="two_mass_tuning_out")
     p.add_argument("--json", default=None)
