@@ -14,11 +14,12 @@ is the high-inductance (high-permeance) axis and a PM-assisted rotor's magnet li
 axis is the magnet's (PMSM convention). The conversion, as motulator's ``import_syre_data`` does it:
 ``i_d = -Iq``, ``i_q = Id``, ``psi_d = -Fq``, ``psi_q = Fd``; a rotation of the frame by 90 degrees, which
 keeps the torque ``1.5 p (psi_d i_q - psi_q i_d)``. SyR-e's "PM" axes (surface-PM style: d along the
-magnet) need no conversion. Which: ``dataSet.axisType`` ("SR" or "PM") when the file has it, else SyR-e's
-own rule (``sum(Id(:,1)) < 0``: a d current below zero means "PM", else "SR"). Assumption: that rule is
-taken from a SyR-e script that loads ``fdfq_idiq_n256.mat`` (found by its text in SyR-e's MATLAB sources,
-its file not pinned), not from a documented file format; a full-plane "SR" map without ``dataSet`` would be
-read as "PM".
+magnet) need no conversion. Which: ``dataSet.axisType`` ("SR" or "PM") when the file has it; else where
+the magnet's flux lies at zero current (``|Fq(0, 0)|`` ten times ``|Fd(0, 0)|`` or more: "SR"; the other way
+round: "PM"); else (no zero-current point, no magnet) SyR-e's own rule, ``sum(Id(:,1)) < 0`` (a d current
+below zero) means "PM". Assumption: that last rule is taken from a SyR-e script that loads
+``fdfq_idiq_n256.mat`` (found by its text in SyR-e's MATLAB sources, its file not pinned), not from a
+documented file format.
 
 **Half a q axis.** SyR-e simulates one half of the plane (its ``Id >= 0``: pmsmjax's ``i_q >= 0``). A map
 whose q currents are all >= 0 (or all <= 0) is mirrored by the rotor's symmetry about the d axis:
@@ -82,6 +83,17 @@ def _axes(Id, Iq, where):
     )
 
 
+def _magnet_axes(ids, iqs, Fd, Fq) -> str:
+    """ "SR" or "PM" from where the magnet's flux lies at zero current (module docstring); SyR-e's own rule
+    for a map without a zero-current point or without a magnet."""
+    j, k = int(np.argmin(np.abs(ids))), int(np.argmin(np.abs(iqs)))
+    near_zero = abs(ids[j]) <= np.ptp(ids) / 1e6 and abs(iqs[k]) <= np.ptp(iqs) / 1e6
+    fd, fq = (abs(float(F[j, k])) for F in (Fd, Fq))
+    if near_zero and max(fd, fq) > 10.0 * min(fd, fq) and max(fd, fq) > 0:
+        return "PM" if fd > fq else "SR"
+    return "PM" if ids.min() < 0 else "SR"  # SyR-e's sum(Id(:,1)) < 0
+
+
 def mirror_half_q(i_d, i_q, psi_d, psi_q, tolerance: float = 1e-9):
     """Mirror a map whose q currents are all >= 0 or all <= 0 (module docstring); others unchanged.
     Arrays ``(n_d, n_q)`` with rows along i_d, axes increasing. Returns ``(i_d, i_q, psi_d, psi_q,
@@ -131,7 +143,7 @@ def syre_grid(arrays: dict, where: str):
     if transpose:  # rows along SyR-e's d axis
         Fd, Fq = Fd.T, Fq.T
     if axis_type is None:
-        axis_type = "PM" if ids.min() < 0 else "SR"  # SyR-e's sum(Id(:,1)) < 0
+        axis_type = _magnet_axes(ids, iqs, Fd, Fq)
     if axis_type not in ("SR", "PM"):
         raise ParameterError(f"{where}: dataSet.axisType = {axis_type!r}: SyR-e's axes are 'SR' or 'PM'.")
     if axis_type == "SR":  # pmsmjax d = SyR-e -q, pmsmjax q = SyR-e d
