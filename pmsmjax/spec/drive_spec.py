@@ -6,7 +6,12 @@ Layout (SI units; every table but ``[motor]`` optional)::
     [motor]        R, L_d, L_q, psi_f, pole_pairs, J, B (ohm, H, H, Wb, -, kg m^2, N m s/rad);
                    n_phases = 6 or 5 with L_ls (H) and, five-phase, psi_f3 (Wb); trust_units = true;
                    flux_map = "map.csv" (three-phase: a measured flux map, path relative to the drive
-                   file, read by pmsmjax.io.flux_map_files; L_d, L_q, psi_f then optional)
+                   file, read by pmsmjax.io.flux_map_files; L_d, L_q, psi_f then optional) and
+                   flux_map_format = "grid" | "points" | "syre" | "inductance" | "motulator"
+                   (pmsmjax.io.flux_map_formats; default: by the file's extension and content);
+                   datasheet values instead of R, L_d, L_q, psi_f: r_ll_ohm, l_ll_h,
+                   ke_v_peak_per_krpm_ll or ke_v_rms_per_krpm_ll, kt_nm_per_a_rms or kt_nm_per_a_peak,
+                   kv_rpm_per_v (pmsmjax.spec.datasheet, each convention there)
     [ratings]      rated_speed_rpm, rated_torque_nm or rated_current_a (A peak), max_current_a (A peak)
     [inverter]     u_dc_v, switching_frequency_hz, control_frequency_hz (default: the switching
                    frequency), dead_time_s, device_drop_v (a switch's or diode's on-state voltage, V),
@@ -65,9 +70,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from pmsmjax.spec import datasheet, schema
 from pmsmjax.spec import derivations as derive
 from pmsmjax.spec import design_rules as rules
-from pmsmjax.spec import schema
 from pmsmjax.spec.mechanics import complete_filters, read_mechanics, rigid_equivalent
 from pmsmjax.spec.plausibility import check_flux_map_units, check_motor_units, check_thermal_units
 from pmsmjax.spec.schema import (
@@ -194,6 +199,7 @@ def complete(
     flags: Mapping[str, str] | None = None,
     flux_map=None,
     flux_map_path: str | None = None,
+    flux_map_how: str = "",
 ) -> DriveSpec:
     """Check and complete a drive file's tables (module docstring).
 
@@ -210,19 +216,23 @@ def complete(
         flux_map: the ``[motor] flux_map`` grid ([`FluxMapGrid`][pmsmjax.machines.flux_map.FluxMapGrid]) as
             read.
         flux_map_path: its absolute path (what ``motor["flux_map"]`` reports).
+        flux_map_how: how the map file was converted or filled (``derived["motor.flux_map"]``), empty for
+            a complete grid in pmsmjax's layout.
 
     Returns:
         The checked, completed drive.
     """
     tables = {table: dict(values) for table, values in tables.items()}  # completed in place below
-    flux_map_derived = {}
+    flux_map_derived = datasheet.convert(tables["motor"], where)  # r_ll_ohm, ke, kt, kv: to R, L, psi_f
+    if flux_map_how:
+        flux_map_derived["motor.flux_map"] = flux_map_how
     if flux_map is not None:
         if check_units and tables["motor"].get("trust_units", False) is not True:
             peak = max(
                 float(abs(np.asarray(flux_map.psi_d)).max()), float(abs(np.asarray(flux_map.psi_q)).max())
             )
             check_flux_map_units(peak, f"{where} [motor] flux_map {flux_map_path}")
-        flux_map_derived = derive.flux_map_motor(tables["motor"], tables["ratings"], flux_map, flux_map_path)
+        flux_map_derived |= derive.flux_map_motor(tables["motor"], tables["ratings"], flux_map, flux_map_path)
     motor = schema.read_motor(tables["motor"], where, n_phases)
     trust = tables["motor"].get("trust_units", False)
     ratings = schema.numbers(tables["ratings"], "ratings", where)

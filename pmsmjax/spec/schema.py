@@ -5,6 +5,7 @@ table and key, the value in its unit and the fix. Plain Python."""
 import difflib
 import math
 
+from pmsmjax.spec.datasheet import DATASHEET_UNITS
 from pmsmjax.spec.mechanics import FILTER_UNITS, MECHANICS_UNITS
 from pmsmjax.spec.validation import ParameterError, plain
 
@@ -22,7 +23,14 @@ MOTOR_TEMPERATURE_UNITS = {
 #: Every table and its keys with their units (``"int"``: a whole number; ``"str"``: text; ``"range"``: a
 #: [low, high] pair).
 TABLES = {
-    "motor": {**MOTOR_UNITS, **MOTOR_TEMPERATURE_UNITS, "trust_units": "bool", "flux_map": "str"},
+    "motor": {
+        **MOTOR_UNITS,
+        **MOTOR_TEMPERATURE_UNITS,
+        "trust_units": "bool",
+        "flux_map": "str",
+        "flux_map_format": "str",
+        **DATASHEET_UNITS,
+    },  # fmt: skip
     "ratings": {
         "rated_speed_rpm": "r/min",
         "rated_torque_nm": "N m",
