@@ -19,7 +19,9 @@ The steps of [`assemble`][pmsmjax.assemble.assemble], in order (each a function 
    ([`current_sensor_parts`][pmsmjax.assemble.current_sensor_parts]), which the controller and the
    estimator then read;
 6. a ``[thermal]`` table: the winding's thermal network and the motor's temperature coefficients
-   ([`thermal_part`][pmsmjax.assemble.thermal_part]), a warm motor.
+   ([`thermal_part`][pmsmjax.assemble.thermal_part]), a warm motor;
+7. a ``[harmonics]`` table: the plant's magnet flux harmonics and cogging torque
+   ([`harmonics_part`][pmsmjax.assemble.harmonics_part]), put into the machine the steps before chose.
 
 The parts of steps 2-6 are collected and put into the preset's drive by one
 [`with_parts`][pmsmjax.assemble.with_parts] call. The presets' own builders
@@ -49,6 +51,7 @@ __all__ = [
     "observer",
     "map_aware",
     "thermal_part",
+    "harmonics_part",
     "spec_motor",
     "spec_flux_map",
     "spec_scenario",
@@ -208,7 +211,26 @@ def assemble(
     parts.update(current_sensor_parts(spec, machine))
     if spec.thermal:
         parts["thermal"] = thermal_part(spec)
-    return with_parts(drive, parts)
+    drive = with_parts(drive, parts)
+    if spec.harmonics:  # into the machine as built above (the flux map's plant replaces the dq one)
+        drive = with_parts(drive, {"machine.harmonics": harmonics_part(spec, drive.machine)})
+    return drive
+
+
+def harmonics_part(spec, machine):
+    """The drive file's magnet flux harmonics and cogging torque
+    ([`MagnetHarmonics`][pmsmjax.machines.harmonics.MagnetHarmonics], ``[harmonics]``) for ``machine``;
+    refused in one line for a plant that has no model of them (the saturated dq, multi-phase plants)."""
+    from pmsmjax.machines.harmonics import MagnetHarmonics
+
+    if not hasattr(machine, "harmonics"):
+        raise ParameterError(
+            f"{spec.source}: [harmonics] are modelled in the three-phase dq, alpha-beta, abc and flux-map "
+            f"plants; this drive simulates a {type(machine).__name__}: choose one of those or drop "
+            "[harmonics]."
+        )
+    h = spec.harmonics
+    return MagnetHarmonics.from_rows(h.get("flux", ()), h.get("cogging", ()))
 
 
 def current_sensor_parts(spec, machine: str = "three-phase") -> dict:

@@ -31,6 +31,9 @@ Layout (SI units; every table but ``[motor]`` optional)::
     [operating]    what varies in use, [low, high]: winding_temperature_c (a run's initial winding
                    temperature; needs [thermal]), u_dc_v, ambient_c (needs [thermal]) (Monte Carlo draws,
                    robust tuning)
+    [harmonics]    flux = [[5, 0.0019, 0.4], ...] (magnet flux harmonics: order per electrical revolution,
+                   Wb, rad), cogging = [[6, 0.045, 0.3], ...] (cogging torque: order, N m, rad), three-phase
+                   motors (pmsmjax.spec.harmonics)
 
 With a flux map the simulated machine is the map's
 ([`pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq]) and ``L_d``,
@@ -63,6 +66,7 @@ import numpy as np
 from pmsmjax.spec import derivations as derive
 from pmsmjax.spec import design_rules as rules
 from pmsmjax.spec import schema
+from pmsmjax.spec.harmonics import read_harmonics
 from pmsmjax.spec.plausibility import check_flux_map_units, check_motor_units, check_thermal_units
 from pmsmjax.spec.schema import (
     DC_LINK_RANGE_V,
@@ -75,6 +79,7 @@ from pmsmjax.spec.schema import (
 )
 from pmsmjax.spec.tables import (
     ControlTable,
+    HarmonicsTable,
     InverterTable,
     MotorTable,
     OperatingTable,
@@ -110,7 +115,8 @@ class DriveSpec:
     - `flux_map`: the ``[motor] flux_map`` grid as read once
       ([`FluxMapGrid`][pmsmjax.machines.flux_map.FluxMapGrid]), None without one.
     - `thermal`: the winding's thermal network (``[thermal]``, complete), empty without one;
-    - `operating`: the ranges of ``[operating]`` the file gives.
+    - `operating`: the ranges of ``[operating]`` the file gives;
+    - `harmonics`: the magnet flux harmonics and cogging torque (``[harmonics]``), empty without them.
     """
 
     source: str
@@ -130,6 +136,7 @@ class DriveSpec:
     key_order: dict | None = dataclasses.field(default=None, compare=False, repr=False)
     thermal: ThermalTable = dataclasses.field(default_factory=ThermalTable)
     operating: OperatingTable = dataclasses.field(default_factory=OperatingTable)
+    harmonics: HarmonicsTable = dataclasses.field(default_factory=HarmonicsTable)
 
     @property
     def n_phases(self) -> int:
@@ -168,7 +175,7 @@ class DriveSpec:
             "source": self.source,
             **{t: table(t) for t in ("motor", "ratings", "inverter", "sensor", "tolerances")},
             **{t: table(t) for t in ("control", "scenario", "tuning")},
-            **{t: table(t) for t in ("thermal", "operating") if getattr(self, t)},
+            **{t: table(t) for t in ("thermal", "operating", "harmonics") if getattr(self, t)},
             "derived": dict(self.derived),
             "notes": list(self.notes),
         }
@@ -301,6 +308,7 @@ def complete(
                 tuning[key] = value
                 derived[f"tuning.{key}"] = derive.TUNING_HOW[key]
     complete_thermal(motor, temperature, thermal, operating, derived, where)
+    harmonics = read_harmonics(tables["harmonics"], motor, ratings, where, trust is True or not check_units)
     for key, value in tolerances.items():
         if key != "current_offset_a" and not value < 1.0:
             raise ParameterError(
@@ -310,13 +318,14 @@ def complete(
     tables = dict(
         motor=motor, ratings=ratings, inverter=inverter, sensor=sensor, tolerances=tolerances,
         control=control, scenario=scenario, tuning=tuning, thermal=thermal, operating=operating,
+        harmonics=harmonics,
     )  # fmt: skip
     return DriveSpec(
         source, MotorTable.of(motor), RatingsTable.of(ratings), InverterTable.of(inverter),
         SensorTable.of(sensor), ToleranceTable.of(tolerances), ControlTable.of(control),
         ScenarioTable.of(scenario), TuningTable.of(tuning), derived, tuple(notes), flux_map,
         {name: tuple(values) for name, values in tables.items()}, ThermalTable.of(thermal),
-        OperatingTable.of(operating),
+        OperatingTable.of(operating), HarmonicsTable.of(harmonics),
     )  # fmt: skip
 
 

@@ -23,6 +23,7 @@ __all__ = [
     "TuningTable",
     "ThermalTable",
     "OperatingTable",
+    "HarmonicsTable",
 ]
 
 
@@ -202,3 +203,13 @@ class OperatingTable(Table):
     winding_temperature_c: list | None = None
     u_dc_v: list | None = None
     ambient_c: list | None = None
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class HarmonicsTable(Table):
+    """``[harmonics]``: magnet flux harmonics (``flux``, rows ``(order, amplitude Wb, phase rad)``) and
+    cogging torque (``cogging``, rows ``(order, amplitude N m, phase rad)``), orders per electrical
+    revolution ([`pmsmjax.spec.harmonics`][pmsmjax.spec.harmonics]); empty for a drive file without it."""
+
+    flux: tuple | None = None
+    cogging: tuple | None = None
