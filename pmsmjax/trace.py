@@ -69,6 +69,10 @@ COLUMN_UNITS = {
 #: [`pmsmjax.machines.thermal`][pmsmjax.machines.thermal]).
 THERMAL_COLUMN_UNITS = {"winding_temperature_c": "degC (winding temperature at the period start)"}
 
+#: The further column of a drive with cogging torque (``[harmonics] cogging``,
+#: [`pmsmjax.machines.harmonics`][pmsmjax.machines.harmonics]); the ``torque`` column includes it.
+COGGING_COLUMN_UNITS = {"cogging_torque": "N m (cogging torque at the period start, included in torque)"}
+
 #: The further columns of a six-phase trace (the second set U, V, W;
 #: [`Trace.columns`][pmsmjax.trace.Trace.columns]).
 SIX_PHASE_COLUMN_UNITS = {
@@ -109,6 +113,8 @@ class Trace(eqx.Module):
             ``omega_m`` with the exact sensor).
         winding_temperature: Winding temperature at the period start, K; ``None`` without a thermal
             network (exported as ``winding_temperature_c``, degC).
+        cogging_torque: Cogging torque at the period start, N m (part of ``torque``); ``None`` without
+            cogging.
     """
 
     t: Array
@@ -126,6 +132,7 @@ class Trace(eqx.Module):
     theta_e_est: Array
     omega_m_est: Array
     winding_temperature: Array | None = None
+    cogging_torque: Array | None = None
 
     @property
     def speed_rpm(self) -> Array:
@@ -164,6 +171,8 @@ class Trace(eqx.Module):
                 out[f"duty_{phase}"] = np.asarray(self.duties)[..., k]
         if self.winding_temperature is not None:
             out["winding_temperature_c"] = np.asarray(self.winding_temperature) - CELSIUS_K
+        if self.cogging_torque is not None:
+            out["cogging_torque"] = np.asarray(self.cogging_torque)
         return out
 
     def to_numpy(self) -> "Trace":

@@ -61,10 +61,19 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax._types import Array
+from pmsmjax.machines.integrate import rotate_back
 from pmsmjax.machines.motor import as_float
 from pmsmjax.spec.validation import ParameterError, check_finite, check_nonnegative
 
-__all__ = ["MagnetHarmonics", "check_flux_orders", "check_cogging_orders", "sequence", "PHASE_SHIFTS"]
+__all__ = [
+    "MagnetHarmonics",
+    "check_flux_orders",
+    "check_cogging_orders",
+    "sequence",
+    "phasors",
+    "cos_sin",
+    "PHASE_SHIFTS",
+]
 
 #: Phase axes a, b, c, rad (NumPy float64; converted where used so the precision of that moment applies).
 PHASE_SHIFTS = np.array([0.0, 2.0 * np.pi / 3.0, 4.0 * np.pi / 3.0])
@@ -101,6 +110,57 @@ def check_flux_orders(orders, name: str = "MagnetHarmonics.flux") -> tuple[int, 
 def check_cogging_orders(orders, name: str = "MagnetHarmonics.cogging") -> tuple[int, ...]:
     """The cogging torque's orders as ints, each a whole number >= 1 (refused in one line otherwise)."""
     return _orders(orders, name)
+
+
+def cos_sin(x) -> tuple[Array, Array]:
+    """``(cos x, sin x)`` without transcendental functions: ``x`` reduced to one turn, the Taylor series of
+    [`rotate_back`][pmsmjax.machines.integrate.rotate_back] at an eighth of it (``|x/8| <= pi/8``, where the
+    series is exact to the float type's rounding), then three double-angle steps (rounding below 1e-15 in
+    float64, 1e-6 in float32). XLA:CPU evaluates ``jnp.cos`` and ``jnp.sin`` element by element; these
+    products fuse into a batched run's loop, which made a batch with ripple several times cheaper.
+
+    Args:
+        x: Angle, rad (any magnitude a run reaches; reduced by whole turns).
+    """
+    turns = jnp.round(x * (0.5 / np.pi))
+    y = (x - turns * (2.0 * np.pi)) * 0.125
+    c, minus_s = rotate_back(jnp.stack([jnp.ones_like(y), jnp.zeros_like(y)]), y)
+    s = -minus_s
+    for _ in range(3):
+        c, s = c * c - s * s, 2.0 * c * s
+    return c, s
+
+
+def phasors(theta, multiples: tuple[int, ...], phase) -> list[tuple[Array, Array]]:
+    """``[(cos(n th + phi_n), sin(n th + phi_n)), ...]``, one pair per static whole multiple ``n >= 1`` of
+    ``theta`` (rad), with the phases ``phase`` (``(len(multiples),)`` rad).
+
+    One [`cos_sin`][pmsmjax.machines.harmonics.cos_sin] of ``theta``, then the powers of ``exp(j th)``
+    by repeated squaring (shared between equal or halved multiples): in an RK4 stage transcendental
+    functions cost more than the rest of a rotor-frame model's arithmetic (docs/performance.md,
+    "Engine"). Scalars throughout (no stacking or summing over an axis), so that a batched run fuses
+    them into the stage's loop; the phases' cosines and sines do not change within a period and are
+    computed once. Rounding grows with ``log2 n`` products: below 1e-6 relative in float32 for
+    ``n <= 64``.
+    """
+    c1, s1 = cos_sin(theta)
+    cache = {1: (c1, s1)}
+
+    def power(n):
+        if n not in cache:
+            c, s = power(n // 2)
+            c, s = c * c - s * s, 2.0 * c * s
+            if n % 2:
+                c, s = c * c1 - s * s1, s * c1 + c * s1
+            cache[n] = (c, s)
+        return cache[n]
+
+    out = []
+    for j, n in enumerate(multiples):
+        cn, sn = power(int(n))
+        cp, sp = jnp.cos(phase[..., j]), jnp.sin(phase[..., j])
+        out.append((cn * cp - sn * sp, sn * cp + cn * sp))
+    return out
 
 
 def sequence(orders) -> np.ndarray:
@@ -190,23 +250,31 @@ class MagnetHarmonics(eqx.Module):
 
     def flux_alpha_beta(self, theta_e) -> tuple[Array, Array]:
         """``(psi_h,ab (2,) Wb, d psi_h,ab / d theta_e (2,) Wb/rad)`` at ``theta_e`` (rad)."""
-        k = np.asarray(self.flux_orders, float)
-        sigma = sequence(self.flux_orders)
-        angle = k * theta_e + self.flux_phase
-        c, s = self.flux_amplitude * jnp.cos(angle), self.flux_amplitude * jnp.sin(angle)
-        psi = jnp.stack([jnp.sum(c), jnp.sum(sigma * s)])
-        dpsi = jnp.stack([-jnp.sum(k * s), jnp.sum(k * sigma * c)])
-        return psi, dpsi
+        psi_a = psi_b = dpsi_a = dpsi_b = 0.0
+        pairs = phasors(theta_e, self.flux_orders, self.flux_phase)
+        rows = zip(self.flux_orders, sequence(self.flux_orders), pairs, strict=True)
+        for j, (k, sigma, (cos, sin)) in enumerate(rows):
+            c, s = self.flux_amplitude[..., j] * cos, self.flux_amplitude[..., j] * sin
+            psi_a, psi_b = psi_a + c, psi_b + sigma * s
+            dpsi_a, dpsi_b = dpsi_a - k * s, dpsi_b + k * sigma * c
+        return jnp.stack([psi_a, psi_b]), jnp.stack([dpsi_a, dpsi_b])
 
     def emf_dq(self, theta_e) -> Array:
         """``eps_dq (2,)``, Wb/rad: the rotor-frame harmonic EMF per electrical rad/s,
         ``d psi_h,dq / d th + J psi_h,dq = sum_k A_k k [-sin m_k, sigma_k cos m_k]`` (module docstring);
         the voltage equations add ``w_e eps_dq`` and the torque ``1.5 p i_dq . eps_dq``."""
-        k = np.asarray(self.flux_orders, float)
-        sigma = sequence(self.flux_orders)
-        m = (k - sigma) * theta_e + self.flux_phase
-        ka = k * self.flux_amplitude
-        return jnp.stack([-jnp.sum(ka * jnp.sin(m)), jnp.sum(sigma * ka * jnp.cos(m))])
+        return jnp.stack(self._emf_dq(theta_e))
+
+    def _emf_dq(self, theta_e) -> tuple[Array, Array]:
+        sigmas = sequence(self.flux_orders)
+        multiples = tuple(int(k - sigma) for k, sigma in zip(self.flux_orders, sigmas, strict=True))
+        e_d = e_q = 0.0
+        for j, (k, sigma, (cos, sin)) in enumerate(
+            zip(self.flux_orders, sigmas, phasors(theta_e, multiples, self.flux_phase), strict=True)
+        ):
+            ka = k * self.flux_amplitude[..., j]
+            e_d, e_q = e_d - ka * sin, e_q + sigma * ka * cos
+        return e_d, e_q
 
     def flux_dq(self, theta_e) -> Array:
         """``psi_h,dq (2,)``, Wb, at ``theta_e`` (rad): the harmonics seen from the rotor."""
@@ -221,8 +289,10 @@ class MagnetHarmonics(eqx.Module):
         """Cogging torque at the electrical angle ``theta_e`` (rad), N m (0 without cogging)."""
         if not self.has_cogging:
             return jnp.zeros_like(theta_e)
-        n = np.asarray(self.cogging_orders, float)
-        return jnp.sum(self.cogging_amplitude * jnp.sin(n * theta_e + self.cogging_phase))
+        torque = 0.0
+        for j, (_, sin) in enumerate(phasors(theta_e, self.cogging_orders, self.cogging_phase)):
+            torque = torque + self.cogging_amplitude[..., j] * sin
+        return torque
 
     def cogging_energy(self, theta_e, pole_pairs: int) -> Array:
         """Cogging co-energy ``W_cog`` at ``theta_e`` (rad), J: ``T_cog = -dW_cog/dtheta_m``."""
@@ -242,5 +312,6 @@ class MagnetHarmonics(eqx.Module):
         """
         torque = self.cogging_torque(theta_e)
         if self.has_flux:
-            torque = torque + 1.5 * pole_pairs * (i_dq @ self.emf_dq(theta_e))
+            e_d, e_q = self._emf_dq(theta_e)
+            torque = torque + 1.5 * pole_pairs * (i_dq[0] * e_d + i_dq[1] * e_q)
         return torque
