@@ -53,3 +53,31 @@ def test_learnt_table_cuts_the_speed_ripple_tenfold():
     iq = np.asarray(result.table.iq_a)
     assert abs(iq.mean()) < 1e-4 * np.ptp(iq)
     assert 0.5 < np.ptp(iq) / (2 * 0.06 / 1.0962) < 2.0
+
+
+def test_anticogging_csv_round_trip_and_refusals(tmp_path):
+    from pmsmjax.io.anticogging_files import read_anticogging_csv, write_anticogging_csv
+
+    iq = np.array([0.01, -0.02, 0.03, 0.0])
+    path = write_anticogging_csv(tmp_path / "anticogging.csv", iq)
+    np.testing.assert_array_equal(read_anticogging_csv(path), iq)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("theta_e_rad,iq_a\n0.0,0.1\n1.0,0.2\n")
+    with pytest.raises(ParameterError, match=r"bins 2 pi j / 2"):
+        read_anticogging_csv(bad)
+    bad.write_text("angle,iq\n0.0,0.1\n")
+    with pytest.raises(ParameterError, match="header must be theta_e_rad,iq_a"):
+        read_anticogging_csv(bad)
+
+
+def test_tune_anticogging_refuses_a_drive_without_cogging(tmp_path):
+    import subprocess
+    import sys
+
+    done = subprocess.run(
+        [sys.executable, "-m", "pmsmjax", "tune", "--motor", "book", "--anticogging", "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode != 0
+    assert "has no [harmonics] cogging" in done.stderr and len(done.stderr.strip().splitlines()) == 1
