@@ -1,10 +1,10 @@
 """Anticogging: a feed-forward q current over the rotor angle, added to the current loop's reference.
 
 A cogging torque ``T_cog(theta)`` repeats with the rotor's position; a q current ``i_q,ff(theta) ~ -T_cog /
-(1.5 p psi_f)`` cancels it before the speed loop has to. ODrive's anticogging calibration learns such a
-table by running slowly in position control and recording the integrator's output at each encoder count
-(ODrive documentation, "Anticogging"); here the table is a differentiable block learnt by gradients through
-the closed loop (`tuning.autotune.anticogging`).
+(1.5 p psi_f)`` cancels it before the speed loop has to. ODrive's firmware calibrates such a table by
+stepping its position setpoint slowly through the encoder counts and storing the velocity integrator's
+current at each (ODrive, ``Firmware/MotorControl/controller.cpp``); here the table is a differentiable
+block learnt by gradients through the closed loop (`tuning.autotune.anticogging`).
 
 **Table.** ``N`` values ``i_q[j]`` at ``theta_e = 2 pi j / N`` over one **electrical** revolution,
 interpolated linearly and periodically. Per electrical revolution because the plant's cogging and flux

@@ -32,8 +32,8 @@ speed. The harmonics do not depend on the current (no saturation of the harmonic
 stored magnetic energy are the machine's.
 
 **Cogging torque** (Zhu and Howe, "Influence of design parameters on cogging torque in permanent magnet
-machines", IEEE Trans. Energy Conversion 15(4), 2000): the magnets' attraction to the stator teeth, a torque
-of zero mean at zero current, periodic in the slot pitch:
+machines", IEEE Trans. Energy Conversion 15(4), pp. 407-412, 2000): the magnets' attraction to the
+stator teeth, a torque of zero mean at zero current, periodic in the slot pitch:
 
     ``T_cog = sum_j C_j sin(n_j theta_e + phi_j)``   (N m on the shaft, ``n_j`` per electrical revolution).
 

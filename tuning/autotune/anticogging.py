@@ -10,8 +10,9 @@ directions). The problem is nearly linear in the table (the feed-forward current
 only the flux harmonics' torque ``1.5 p i_q . eps`` and the loop's clipping are not), so a few steps
 converge.
 
-ODrive calibrates its table by running the motor slowly under position control and recording the position
-integrator at each encoder count (ODrive documentation, "Anticogging"): a direct measurement of the torque
+ODrive's firmware calibrates its table by stepping the position setpoint slowly through the encoder counts
+and storing the velocity integrator's current at each (``Firmware/MotorControl/controller.cpp``): a direct
+measurement of the torque
 needed at each angle, which requires a stiff position loop and many revolutions. The fit here needs neither:
 it sees the speed loop's response to the table and chooses the table that cancels what is left, the loop's
 lag at the cogging frequency included.
