@@ -315,11 +315,11 @@ def _anticogging(args, spec) -> int:
             f"--anticogging: the drive {spec.source} has no [harmonics] cogging: add the cogging torque "
             "(e.g. cogging = [[6, 0.045, 0.3]]) to the drive file."
         )
-    from pmsmjax.assemble import assemble
     from tuning.autotune.anticogging_job import run_anticogging_job
 
-    drive = assemble(spec, args.control or "pi")
-    data = run_anticogging_job(args.out, drive, n_bins=args.anticogging_bins, speed_rpm=args.anticogging_rpm)
+    data = run_anticogging_job(
+        args.out, spec, args.control or "pi", n_bins=args.anticogging_bins, speed_rpm=args.anticogging_rpm
+    )
     b, a = data["speed_error_before_rpm"], data["speed_error_after_rpm"]
     print(
         f"speed error at {plain(args.anticogging_rpm)} r/min: RMS {b['rms_rpm']:.4f} -> {a['rms_rpm']:.4f} "

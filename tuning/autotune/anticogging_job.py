@@ -15,13 +15,14 @@ __all__ = ["run_anticogging_job"]
 
 
 def run_anticogging_job(
-    out, drive, *, n_bins: int = 128, speed_rpm: float = 30.0, max_steps: int = 3
+    out, spec, control: str = "pi", *, n_bins: int = 128, speed_rpm: float = 30.0, max_steps: int = 3
 ) -> dict:
-    """Learn ``drive``'s table and write ``out/anticogging.csv`` and ``out/anticogging.json``.
+    """Learn the table of ``spec``'s drive and write ``out/anticogging.csv`` and ``out/anticogging.json``.
 
     Args:
         out: Output folder (created).
-        drive: The drive (a three-phase FOC cascade in speed mode, with the plant's cogging).
+        spec: The drive file ([`DriveSpec`][pmsmjax.spec.drive_spec.DriveSpec], with ``[harmonics]``).
+        control: The FOC control method its drive runs (``"pi"`` or ``"smc"``).
         n_bins: Bins over one electrical revolution.
         speed_rpm: The speed the ripple is minimised at, r/min.
         max_steps: Gauss-Newton steps at most.
@@ -29,6 +30,9 @@ def run_anticogging_job(
     Returns:
         What ``anticogging.json`` holds.
     """
+    from pmsmjax.assemble import assemble
+
+    drive = assemble(spec, control)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
