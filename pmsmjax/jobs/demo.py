@@ -311,6 +311,10 @@ def run(spec: DemoSpec, drive, scenario) -> DemoResult:
         from pmsmjax.trace import SHAFT_COLUMN_UNITS
 
         summary["trace_columns"] = {**summary["trace_columns"], **SHAFT_COLUMN_UNITS}
+    if trace.cogging_torque is not None:
+        from pmsmjax.trace import COGGING_COLUMN_UNITS
+
+        summary["trace_columns"] = {**summary["trace_columns"], **COGGING_COLUMN_UNITS}
     return DemoResult(
         trace=trace,
         summary=summary,

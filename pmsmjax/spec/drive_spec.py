@@ -41,6 +41,9 @@ Layout (SI units; every table but ``[motor]`` optional)::
                    load_inertia and shaft_stiffness_nm_per_rad spread them; [control] speed_filter_hz,
                    notch_hz, notch_width_hz, notch_depth_db: the speed loop's filters
                    (pmsmjax.spec.mechanics)
+    [harmonics]    flux = [[5, 0.0019, 0.4], ...] (magnet flux harmonics: order per electrical revolution,
+                   Wb, rad), cogging = [[6, 0.045, 0.3], ...] (cogging torque: order, N m, rad), three-phase
+                   motors (pmsmjax.spec.harmonics)
 
 With a flux map the simulated machine is the map's
 ([`pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq]) and ``L_d``,
@@ -73,6 +76,7 @@ import numpy as np
 from pmsmjax.spec import datasheet, schema
 from pmsmjax.spec import derivations as derive
 from pmsmjax.spec import design_rules as rules
+from pmsmjax.spec.harmonics import read_harmonics
 from pmsmjax.spec.mechanics import complete_filters, read_mechanics, rigid_equivalent
 from pmsmjax.spec.plausibility import check_flux_map_units, check_motor_units, check_thermal_units
 from pmsmjax.spec.schema import (
@@ -86,6 +90,7 @@ from pmsmjax.spec.schema import (
 )
 from pmsmjax.spec.tables import (
     ControlTable,
+    HarmonicsTable,
     InverterTable,
     MechanicsTable,
     MotorTable,
@@ -122,8 +127,9 @@ class DriveSpec:
     - `flux_map`: the ``[motor] flux_map`` grid as read once
       ([`FluxMapGrid`][pmsmjax.machines.flux_map.FluxMapGrid]), None without one.
     - `thermal`: the winding's thermal network (``[thermal]``, complete), empty without one;
-    - `operating`: the ranges of ``[operating]`` the file gives.
-    - `mechanics`: the compliant shaft of ``[mechanics]`` (complete), empty for a rigid shaft.
+    - `operating`: the ranges of ``[operating]`` the file gives;
+    - `mechanics`: the compliant shaft of ``[mechanics]`` (complete), empty for a rigid shaft;
+    - `harmonics`: the magnet flux harmonics and cogging torque (``[harmonics]``), empty without them.
     """
 
     source: str
@@ -144,6 +150,7 @@ class DriveSpec:
     thermal: ThermalTable = dataclasses.field(default_factory=ThermalTable)
     operating: OperatingTable = dataclasses.field(default_factory=OperatingTable)
     mechanics: MechanicsTable = dataclasses.field(default_factory=MechanicsTable)
+    harmonics: HarmonicsTable = dataclasses.field(default_factory=HarmonicsTable)
 
     @property
     def n_phases(self) -> int:
@@ -182,7 +189,7 @@ class DriveSpec:
             "source": self.source,
             **{t: table(t) for t in ("motor", "ratings", "inverter", "sensor", "tolerances")},
             **{t: table(t) for t in ("control", "scenario", "tuning")},
-            **{t: table(t) for t in ("thermal", "operating", "mechanics") if getattr(self, t)},
+            **{t: table(t) for t in ("thermal", "operating", "mechanics", "harmonics") if getattr(self, t)},
             "derived": dict(self.derived),
             "notes": list(self.notes),
         }
@@ -332,6 +339,7 @@ def complete(
                 tuning[key] = value
                 derived[f"tuning.{key}"] = derive.TUNING_HOW[key]
     complete_thermal(motor, temperature, thermal, operating, derived, where)
+    harmonics = read_harmonics(tables["harmonics"], motor, ratings, where, trust is True or not check_units)
     for key, value in tolerances.items():
         if key != "current_offset_a" and not value < 1.0:
             raise ParameterError(
@@ -342,13 +350,14 @@ def complete(
         motor=motor, ratings=ratings, inverter=inverter, sensor=sensor, tolerances=tolerances,
         control=control, scenario=scenario, tuning=tuning, thermal=thermal, operating=operating,
         mechanics=mechanics,
+        harmonics=harmonics,
     )  # fmt: skip
     return DriveSpec(
         source, MotorTable.of(motor), RatingsTable.of(ratings), InverterTable.of(inverter),
         SensorTable.of(sensor), ToleranceTable.of(tolerances), ControlTable.of(control),
         ScenarioTable.of(scenario), TuningTable.of(tuning), derived, tuple(notes), flux_map,
         {name: tuple(values) for name, values in tables.items()}, ThermalTable.of(thermal),
-        OperatingTable.of(operating), MechanicsTable.of(mechanics),
+        OperatingTable.of(operating), MechanicsTable.of(mechanics), HarmonicsTable.of(harmonics),
     )  # fmt: skip
 
 

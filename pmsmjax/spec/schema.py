@@ -75,6 +75,7 @@ TABLES = {
     "thermal": {"r_th_k_per_w": "K/W", "c_th_j_per_k": "J/K", "ambient_c": "degC", "initial_c": "degC"},
     "operating": {"winding_temperature_c": "range", "u_dc_v": "range", "ambient_c": "range"},
     "mechanics": MECHANICS_UNITS,
+    "harmonics": {"flux": "rows [order, Wb, rad]", "cogging": "rows [order, N m, rad]"},
 }
 SENSOR_KINDS = ("exact", "encoder")
 #: The ``[sensor]`` keys of an encoder, and of the phase-current sensors (any kind).
