@@ -204,8 +204,8 @@ def test_log_dialect_slips_are_refused_in_one_line(capsys, tmp_path):
         for command in (["replay", comma, "--motor", "book"], ["observe", comma, "--motor", "book",
                                                                 "--observer", "smo"]):  # fmt: skip
             refused(capsys, [*command, "--config", config, "--out", out], *needles)
-    refused(capsys, ["replay", comma, "--motor", "book", "--units", "time=ms", "--time-unit", "us", "--out", out],
-            "--time-unit us contradicts")  # fmt: skip
+    argv = ["replay", comma, "--motor", "book", "--units", "time=ms", "--time-unit", "us", "--out", out]
+    refused(capsys, argv, "--time-unit us contradicts")
     named = drive(tmp_path, "named.csv", "Time [ms],u_d [V],u_q [A]\n0,1,2\n0.1,1,2\n")
     refused(capsys, ["replay", named, "--motor", "book", "--out", out], "'u_q [A]'", "not a unit of u_q")
     named = drive(tmp_path, "named.csv", "Time [ms],u_d [V],u_q\n0,1,2\n0.1,1,2\n")
@@ -234,7 +234,8 @@ def test_replay_reads_a_semicolon_log_in_ms_through_a_column_map(tmp_path):
     si = write_csv_atomic(tmp_path / "si.csv", cols)
     lines = ["Logger;bench", "", "# exported", "Time [ms];Ud;Uq;speed;Id/mA;Iq/mA"]
     lines += [
-        ";".join(f"{v:.17g}" for v in (1e3 * a, b, c, d, e, f)) for a, b, c, d, e, f in zip(*cols.values())
+        ";".join(f"{v:.17g}" for v in (1e3 * a, b, c, d, e, f))
+        for a, b, c, d, e, f in zip(*cols.values(), strict=True)
     ]
     tool = drive(tmp_path, "tool.csv", "\n".join(lines) + "\n")
     config = drive(tmp_path, "c.toml", '[columns]\nu_d = "Ud"\nu_q = "Uq"\ni_d = "Id"\ni_q = "Iq"\n')
