@@ -50,12 +50,13 @@ def add_parser(sub):
         "the values the log does not determine and motor.toml's [ratings], [inverter], [sensor] "
         "(default: none)",
     )
-    p.add_argument(
-        "--config",
-        default=None,
-        help="TOML with [columns], [units], [log], [identify] tables (default: none)",
+    checks.add_log_column_flags(
+        p,
+        "u_d=Ud",
+        "e.g. omega_m=rpm time=ms (omega_m=erpm: electrical r/min; default: SI: s, V, A, rad/s, rad, or the "
+        "unit in a column's name)",
+        tables="[columns], [units], [log], [identify]",
     )
-    checks.add_log_column_flags(p, "u_d=Ud", "e.g. omega_m=rpm time=ms (default: SI: s, V, A, rad/s, rad)")
     p.add_argument(
         "--hold",
         choices=["auto", "stator", "rotor"],
@@ -187,7 +188,8 @@ def run(args) -> int:
         checks.existing_file(args.config, "--config", "config file")
     prior, pole_pairs = prior_and_pole_pairs(args)
     fixed = _pairs(args.fix, "--fix", _finite)
-    columns, units = _pairs(args.columns, "--columns"), _pairs(args.units, "--units")
+    columns = checks.key_values(args.columns, "--columns")
+    units = checks.key_values(args.units, "--units", "time=ms")
     memory.check_log("identify", args.log, args.max_memory_gb)
     if args.flux_map:
         if args.sensor_errors:

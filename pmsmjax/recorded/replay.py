@@ -38,7 +38,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax.frames.three_phase import inverse_park, wrap_angle
-from pmsmjax.io.logs import check_columns, misspelt_columns, read_log, write_csv_atomic
+from pmsmjax.io.logs import check_columns, misspelt_columns, write_csv_atomic
+from pmsmjax.io.mapped_logs import read_mapped_log
 from pmsmjax.machines.base import MachineInput, MachineState
 from pmsmjax.machines.integrate import advance, max_stable_substep
 from pmsmjax.machines.motor import PMSMParameters
@@ -380,6 +381,9 @@ def replay_log(
     time_unit: str = "s",
     check_units: bool = True,
     report: list | None = None,
+    columns: dict | None = None,
+    units: dict | None = None,
+    dialect=None,
 ) -> dict[str, np.ndarray]:
     """Replay a log file; returns ``(N,)`` float64 arrays by
     [`REPLAY_COLUMNS`][pmsmjax.recorded.replay.REPLAY_COLUMNS], in that order.
@@ -398,6 +402,9 @@ def replay_log(
     - `check_units`: refuse a time step implausible for a drive log (a time in ms read as s) and motor
       values implausible in SI units ([`pmsmjax.spec.plausibility`][pmsmjax.spec.plausibility]).
     - `report`: a list that receives one line per note (the hold chosen, columns not used).
+    - `columns`, `units`, `dialect`: the column map, the units map (``time`` as `time_unit`; units in the
+      column names count too) and a CSV file's stated dialect
+      ([`pmsmjax.io.mapped_logs.read_mapped_log`][pmsmjax.io.mapped_logs.read_mapped_log]).
 
     Row k is the state at the log's row k (time in s). All input is read and checked before anything is
     compiled. A column that looks like a misspelt one replay reads (``omega`` for ``omega_m``) is refused:
@@ -409,7 +416,14 @@ def replay_log(
         raise ParameterError(f"time_unit must be one of {', '.join(TIME_UNITS)}, got {time_unit!r}.")
     required, optional = LOG_COLUMNS
     unused: list[str] = []
-    log = read_log(log_path, required, optional, unused=unused)
+    units = dict(units or {})
+    if time_unit != "s":
+        units.setdefault("time", time_unit)
+    mot = load_motor(motor, check_units=check_units)
+    log = read_mapped_log(
+        log_path, required, optional, columns=columns, units=units, dialect=dialect,
+        pole_pairs=int(mot.pole_pairs), unused=unused,
+    )  # fmt: skip
     absent = [c for c in optional if c not in log]
     wrong = misspelt_columns(unused, absent)
     if wrong:
@@ -421,12 +435,10 @@ def replay_log(
         )
     if unused and report is not None:
         report.append(f"columns not used: {', '.join(unused)}")
-    mot = load_motor(motor, check_units=check_units)
     from pmsmjax.assemble import spec_flux_map
     from pmsmjax.io.drive_files import drive_spec
 
     flux_map = spec_flux_map(drive_spec(motor, check_units=check_units))  # None without [motor] flux_map
-    log["time"] = log["time"] * TIME_UNITS[time_unit]
     if check_units:
         tau = min(float(mot.L_d), float(mot.L_q)) / float(mot.R)
         check_time_step(

@@ -33,6 +33,7 @@ import jax
 import numpy as np
 from scipy import stats
 
+from pmsmjax.io.log_formats import READER_KEYS, reader_options
 from pmsmjax.io.logs import atomic_write, check_output_folder
 from pmsmjax.recorded.replay import DEFAULT_HOLD
 from pmsmjax.spec.validation import ParameterError
@@ -418,7 +419,8 @@ def identify_file(
     [`pmsmjax.recorded.replay.DEFAULT_HOLD`][pmsmjax.recorded.replay.DEFAULT_HOLD]: the hold that fits better,
     [`tuning.identify.hold`][tuning.identify.hold]), ``"stator"`` or ``"rotor"``. `config`: TOML with
     ``[columns]``, ``[units]``, ``[log]`` (``hold``, ``u_dc``, ``resample``, ``encoder_lines``,
-    ``counter_bits``) and ``[identify]``
+    ``counter_bits``; how the file is written: ``format``, ``delimiter``, ``header_row``, ``decimal``,
+    [`pmsmjax.io.log_formats`][pmsmjax.io.log_formats]) and ``[identify]``
     ([`IdentifyOptions`][tuning.identify.pipeline.IdentifyOptions] fields; ``fixed``/``start`` as tables);
     explicit arguments win over it. `sensor_errors`: first fit the current sensors' offsets, their gains
     relative to sensor a and the encoder offset from the phase currents and the measured angle
@@ -437,10 +439,11 @@ def identify_file(
     cols = {**cfg["columns"], **(columns or {})}
     unit_map = {**cfg["units"], **(units or {})}
     log_cfg = cfg["log"]
-    allowed = {"hold", "u_dc", "resample", "encoder_lines", "counter_bits", "ambient_c"}
+    allowed = {"hold", "u_dc", "resample", "encoder_lines", "counter_bits", "ambient_c", *READER_KEYS}
     bad = sorted(set(log_cfg) - allowed)
     if bad:
         raise ParameterError(f"[log] table: unknown keys {bad}; allowed: {', '.join(sorted(allowed))}.")
+    dialect, cols, unit_map = reader_options(log_cfg, cols, unit_map)
     ambient_c = ambient_c if ambient_c is not None else log_cfg.get("ambient_c")
     fields = {f.name for f in dataclasses.fields(IdentifyOptions)}
     bad = sorted(set(cfg["identify"]) - fields)
@@ -453,6 +456,7 @@ def identify_file(
         "resample": resample or bool(log_cfg.get("resample", False)),
         "encoder_lines": encoder_lines if encoder_lines is not None else log_cfg.get("encoder_lines"),
         "counter_bits": counter_bits if counter_bits is not None else log_cfg.get("counter_bits"),
+        "dialect": dialect,
     }
     sensors, asked = None, sensor_errors
     if not sensor_errors:

@@ -133,7 +133,7 @@ class SensorErrors:
 
 def sensor_log_from_columns(
     cols: dict, *, units: dict | None = None, u_dc: float | None = None, resample: bool = False,
-    source: str = "log",
+    source: str = "log", pole_pairs: int | None = None,
 ) -> tuple[SensorLog, dict]:  # fmt: skip
     """Check canonical columns for a sensor-error fit.
 
@@ -146,6 +146,7 @@ def sensor_log_from_columns(
         u_dc: DC-link voltage, V, for duties without a ``U_dc`` column.
         resample: Resample an irregular time grid instead of refusing it.
         source: A name for messages.
+        pole_pairs: The motor's pole pairs, for a speed in erpm.
 
     Returns:
         ``(SensorLog, columns)``: the log, and the columns used, in SI units (for
@@ -170,7 +171,7 @@ def sensor_log_from_columns(
         need.append("U_dc")
     optional = [n for n in ("i_c", "omega_m", "T_L", "U_dc", "temperature_c") if n not in need]
     c = check_columns(cols, need, optional, source=source)
-    apply_units(c, units or {}, source)
+    apply_units(c, units or {}, source, pole_pairs)
     c, _, _ = check_grid(c, np.diff(c["time"]), resample, source, bursts=True)
     with jax.enable_x64(True):
         u_ab = to_dq64(c, _STATOR_VOLTAGE_SETS[vset], vset, np.zeros_like(c["time"]), u_dc)

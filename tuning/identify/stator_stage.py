@@ -7,6 +7,7 @@ coefficients taken as known.
 
 import dataclasses
 
+from pmsmjax.io.log_units import merge_units
 from pmsmjax.spec.validation import ParameterError
 from tuning.identify.log import drive_log_from_columns
 from tuning.identify.log_columns import counts_to_angle, read_canonical
@@ -17,7 +18,7 @@ __all__ = ["stator_frame_stage", "fitted_temperature_coeffs"]
 
 def stator_frame_stage(
     path, pole_pairs: int, columns: dict, units: dict, *, hold: str, u_dc, resample: bool, reference_c: float,
-    dead_time: bool, encoder_lines=None, counter_bits=None, asked: bool = True,
+    dead_time: bool, encoder_lines=None, counter_bits=None, asked: bool = True, dialect=None,
 ):  # fmt: skip
     """``(DriveLog, SensorErrors, corrected columns)``: the stator-frame fit of the log at ``path`` (sensor
     errors, and with a temperature column R(T) and psi_f(T) at ``reference_c`` degC) and the log without
@@ -26,7 +27,7 @@ def stator_frame_stage(
     try:
         return _stage(path, pole_pairs, columns, units, hold=hold, u_dc=u_dc, resample=resample,
                       reference_c=reference_c, dead_time=dead_time, encoder_lines=encoder_lines,
-                      counter_bits=counter_bits)  # fmt: skip
+                      counter_bits=counter_bits, dialect=dialect)  # fmt: skip
     except ParameterError as err:
         if asked:
             raise
@@ -39,7 +40,7 @@ def stator_frame_stage(
 
 
 def _stage(path, pole_pairs, columns, units, *, hold, u_dc, resample, reference_c, dead_time, encoder_lines,
-           counter_bits):  # fmt: skip
+           counter_bits, dialect):  # fmt: skip
     if hold == "rotor":
         raise ParameterError(
             f"log {path}: the sensor-error fit takes the logged voltage as held in the stator frame (a real "
@@ -47,9 +48,13 @@ def _stage(path, pole_pairs, columns, units, *, hold, u_dc, resample, reference_
             "rotor or --sensor-errors."
         )
     source = f"log {path}"
-    present = read_canonical(path, columns)
+    named: dict = {}
+    present = read_canonical(path, columns, dialect=dialect, named_units=named)
     counts_to_angle(present, pole_pairs, encoder_lines, counter_bits, source)
-    slog, cols = sensor_log_from_columns(present, units=units, u_dc=u_dc, resample=resample, source=source)
+    units = merge_units(named, dict(units or {}), source)
+    slog, cols = sensor_log_from_columns(
+        present, units=units, u_dc=u_dc, resample=resample, source=source, pole_pairs=pole_pairs
+    )
     errors = identify_sensor_errors(slog, reference_c=reference_c, dead_time=dead_time)
     corrected = corrected_columns(cols, errors)
     if slog.temperature_c is not None:
