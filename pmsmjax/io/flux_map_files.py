@@ -201,69 +201,24 @@ def _csv_header(path: Path) -> list[str]:
 
 
 def _read_csv(path: Path, where: str):
-    try:
-        text = path.read_bytes().decode("utf-8-sig")  # an editor's byte-order mark is not the header's
-    except UnicodeDecodeError as err:
-        raise ParameterError(
-            f"{where}: not a text file (byte {err.start} is not UTF-8): a CSV flux map is text with the "
-            f"header {','.join(CSV_COLUMNS)}; a binary map is a .npz or .mat file."
-        ) from None
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
-    if not lines:
-        raise ParameterError(
-            f"{where} is empty: it needs the header {','.join(CSV_COLUMNS)} and one row per point."
-        )
-    header = [h.strip() for h in lines[0].split(",")]
-    missing = [c for c in CSV_COLUMNS if c not in header]
-    if missing:
-        raise ParameterError(
-            f"{where} lacks the column(s) {', '.join(missing)} (header: {','.join(header)}): the header must "
-            f"name {','.join(CSV_COLUMNS)} (A, A, Wb, Wb)."
-        )
-    try:
-        rows = np.array([[float(x) for x in ln.split(",")] for ln in lines[1:]], dtype=float)
-    except ValueError as err:
-        raise ParameterError(
-            f"{where}: a value is not a number ({err}); every row holds four numbers."
-        ) from err
-    if rows.ndim != 2 or rows.shape[1] != len(header):
-        raise ParameterError(f"{where}: every row needs {len(header)} values, as many as the header names.")
-    cols = {c: rows[:, header.index(c)] for c in CSV_COLUMNS}
-    i_d, i_q = _distinct(cols["i_d"]), _distinct(cols["i_q"])
-    if np.isnan(i_d).any() or np.isnan(i_q).any():
-        raise ParameterError(f"{where}: a current (i_d or i_q) is NaN: every row needs its grid point.")
-    if len(rows) != i_d.size * i_q.size:
-        raise ParameterError(
-            f"{where}: {len(rows)} rows do not fill the {i_d.size} x {i_q.size} grid of its distinct i_d and "
-            "i_q values: give exactly one row per grid point (a rectangular grid, no holes or repeats; NaN "
-            'fluxes mark holes), or set [motor] flux_map_format = "points" for scattered points.'
-        )
-    j, k = np.searchsorted(i_d, cols["i_d"]), np.searchsorted(i_q, cols["i_q"])
-    if _distinct(j * i_q.size + k).size != len(rows):
-        raise ParameterError(f"{where}: a grid point appears twice: give one row per (i_d, i_q).")
-    psi_d, psi_q = np.empty((i_d.size, i_q.size)), np.empty((i_d.size, i_q.size))
-    psi_d[j, k], psi_q[j, k] = cols["psi_d"], cols["psi_q"]
-    if MEASURED_COLUMN in header:
-        marks = rows[:, header.index(MEASURED_COLUMN)]
-        if not np.all((marks == 0) | (marks == 1)):
-            raise ParameterError(
-                f"{where}: the {MEASURED_COLUMN} column holds "
-                f"{plain(marks[(marks != 0) & (marks != 1)][0])}: "
-                "give 1 (a measured point) or 0 (a filled one)."
-            )
-        measured = np.empty((i_d.size, i_q.size), dtype=bool)
-        measured[j, k] = marks == 1
-        return i_d, i_q, psi_d, psi_q, measured
-    return i_d, i_q, psi_d, psi_q, None
+    from pmsmjax.io.flux_map_formats.columns import read_csv_columns, rows_to_grid
 
-
-def _distinct(values: np.ndarray) -> np.ndarray:
-    """The sorted distinct values of ``values`` (``np.unique`` without its first call's import of
-    ``numpy.ma``, a fifth of reading a drive file with a map); NaNs are kept, each, at the end."""
-    ordered = np.sort(values)
-    first = np.ones(ordered.size, dtype=bool)
-    first[1:] = ordered[1:] != ordered[:-1]
-    return ordered[first]
+    hint = (
+        f": a CSV flux map is text with the header {','.join(CSV_COLUMNS)}; a binary map is a .npz or .mat "
+        "file"
+    )
+    cols = read_csv_columns(path, CSV_COLUMNS, where, optional=(MEASURED_COLUMN,), binary_hint=hint)
+    marks = cols.get(MEASURED_COLUMN)
+    if marks is not None and not np.all((marks == 0) | (marks == 1)):
+        raise ParameterError(
+            f"{where}: the {MEASURED_COLUMN} column holds {plain(marks[(marks != 0) & (marks != 1)][0])}: "
+            "give 1 (a measured point) or 0 (a filled one)."
+        )
+    values = {"psi_d": cols["psi_d"], "psi_q": cols["psi_q"]}
+    if marks is not None:
+        values["measured"] = marks == 1
+    i_d, i_q, grids = rows_to_grid(cols["i_d"], cols["i_q"], values, where, {"measured": bool})
+    return i_d, i_q, grids["psi_d"], grids["psi_q"], grids.get("measured")
 
 
 def read_flux_map_measured(path, fmt: str | None = None) -> np.ndarray | None:
