@@ -108,7 +108,10 @@ class FluxMapCurrentLoop(AbstractCurrentController):
         psi_ref, _ = self.flux_map(i_dq_ref)
         flux_error = psi_ref - psi
         bandwidths = jnp.stack([self.kp_d, self.kp_q]) / self.L_design  # rad/s per axis
-        proportional = bandwidths * flux_error  # = bandwidths * L_inc e for a small error e
+        # = bandwidths * L_inc e for a small error e; held to the voltage limit, so that a flux step of
+        # more than u_max / a_c (a reluctance machine's q axis) does not make the anti-windup park the
+        # integral at the limit less the whole proportional action
+        proportional = clip_magnitude(ctx.u_max)(bandwidths * flux_error)
         # the integral sees the flux error as a current error through the local inductance (module
         # docstring): for a small error it is e itself
         error = _solve2(L, flux_error)

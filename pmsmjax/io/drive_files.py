@@ -41,6 +41,7 @@ PRESET_FILES = {
     "book": "book.toml",
     "book_salient": "book_salient.toml",
     "saturated-ipm": "saturated_ipm.toml",
+    "pm-syrm": "pm_syrm.toml",
     "servo-400w": "servo_400w_48v.toml",
     "industrial-5k6w": "industrial_5k6w_540v.toml",
     "outer-rotor-24v": "outer_rotor_24v.toml",
