@@ -69,8 +69,12 @@ __all__ = [
     "current_flux",
     "flux_observer_design",
     "FLUX_OBSERVER_BANDWIDTH",
+    "FLUX_OBSERVER_SIGMA0",
 ]
 
+#: Flux-error attenuation at standstill of the design rule, rad/s (module docstring: a small value keeps the
+#: slowest pole ``~ w^2 / (2 sigma)`` fast at low speed; benchmarks/map_observer_range.py).
+FLUX_OBSERVER_SIGMA0 = 5.0
 #: Angle-loop bandwidth ``alpha`` of [`flux_observer_design`][pmsmjax.estimators.map_flux_observer.flux_observer_design],
 #: rad/s.
 FLUX_OBSERVER_BANDWIDTH = 800.0
@@ -135,7 +139,7 @@ class MapFluxObserver(AbstractModelObserver):
     max_speed: float = eqx.field(static=True, default=0.0)
 
     def __check_init__(self):
-        fix = "the design rule gives sigma0 = R (1/L_d + 1/L_q) / 4"
+        fix = f"the design rule gives sigma0 = {FLUX_OBSERVER_SIGMA0:g} rad/s"
         check_positive("MapFluxObserver.sigma0 (flux-error attenuation at standstill)", self.sigma0, "rad/s", fix)
         check_nonnegative("MapFluxObserver.zeta (flux-error damping at speed)", self.zeta, "", "give 0.2 to 1")
         check_positive("MapFluxObserver.k_theta (angle gain)", self.k_theta, "1/s", "give 2 alpha")
@@ -213,7 +217,7 @@ def flux_observer_design(
     Ts: float,
     *,
     bandwidth: float = FLUX_OBSERVER_BANDWIDTH,
-    sigma0: float | None = None,
+    sigma0: float = FLUX_OBSERVER_SIGMA0,
     zeta: float = 0.5,
     max_speed_rpm: float = 6000.0,
     model: PMSMParameters | None = None,
@@ -221,15 +225,14 @@ def flux_observer_design(
 ) -> MapFluxObserver:
     """The flux observer for ``motor`` (or ``model``) at period ``Ts`` (s): angle loop with a double pole at
     ``-bandwidth`` (rad/s: ``k_theta = 2 bw``, ``k_omega = bw^2``), flux attenuation ``sigma0 + zeta |w^|``
-    (``sigma0`` rad/s, default ``R (1/L_d + 1/L_q) / 4``, the standstill pole ``-2 sigma0`` of the order of
-    the stator time constants; ``zeta`` the damping at speed), its sampled flux loop checked up to
+    (``sigma0`` rad/s: the standstill pole is ``-2 sigma0``, and at a low speed ``w << sigma`` the slowest
+    flux-error pole is about ``-w^2 / (2 sigma)``, so a small ``sigma0`` is what makes the angle converge at
+    low speed; ``zeta`` the damping at speed), its sampled flux loop checked up to
     ``max_speed_rpm`` (r/min); on ``flux_map`` when given (module docstring)."""
     check_positive("Ts (control period)", Ts, "s")
     check_positive("bandwidth (flux observer angle loop)", bandwidth, "rad/s")
     check_positive("max_speed_rpm (flux observer)", max_speed_rpm, "r/min")
     model = motor if model is None else model
-    if sigma0 is None:
-        sigma0 = 0.25 * float(model.R) * (1.0 / float(model.L_d) + 1.0 / float(model.L_q))
     bw = as_float(bandwidth)
     w_max = rpm_to_rad_s(max_speed_rpm) * int(model.pole_pairs)
     return MapFluxObserver(model, sigma0, zeta, 2.0 * bw, bw * bw, flux_map, float(w_max))
