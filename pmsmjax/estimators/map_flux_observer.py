@@ -92,12 +92,13 @@ def current_flux(model: PMSMParameters, flux_map: FluxMap | None, i_dq: Array) -
 
 def auxiliary_flux(psi: Array, L: Array, i_dq: Array) -> Array:
     """``psi_a = psi - L_qq i_d - j L_dd i_q + j L_dq i*`` ((2,) Wb, module docstring) from the flux
-    ``psi (2,)`` Wb and incremental inductances ``L (2, 2)`` H at ``i_dq (2,)`` A."""
-    l_dq = 0.5 * (L[0, 1] + L[1, 0])
+    ``psi (2,)`` Wb and incremental inductances ``L (2, 2)`` H (``L[x, y] = dpsi_x/di_y``) at ``i_dq (2,)``
+    A. Written with each cross inductance where the angle derivative puts it (``L_qd`` in the d part,
+    ``L_dq`` in the q part), so it is exact for a measured map that is not quite reciprocal."""
     return jnp.stack(
         [
-            psi[0] - L[1, 1] * i_dq[0] + l_dq * i_dq[1],
-            psi[1] - L[0, 0] * i_dq[1] + l_dq * i_dq[0],
+            psi[0] - L[1, 1] * i_dq[0] + L[1, 0] * i_dq[1],
+            psi[1] - L[0, 0] * i_dq[1] + L[0, 1] * i_dq[0],
         ]
     )
 
