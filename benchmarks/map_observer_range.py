@@ -191,7 +191,8 @@ def format_table(results: list[dict]) -> str:
                 continue
             lines.append(
                 f"    {pt['speed_rpm']:7.0f} r/min {pt['torque_nm']:6.2f} N m: {pt['status']:5s} "
-                f"max {pt['max_abs_deg']:6.2f} deg, mean {pt['mean_deg']:+6.2f}, peak {pt['peak_current_a']:.1f} A"
+                f"max {pt['max_abs_deg']:6.2f} deg, mean {pt['mean_deg']:+6.2f}, "
+                f"peak {pt['peak_current_a']:.1f} A"
             )
     return "\n".join(lines)
 

@@ -75,8 +75,8 @@ __all__ = [
 #: Flux-error attenuation at standstill of the design rule, rad/s (module docstring: a small value keeps the
 #: slowest pole ``~ w^2 / (2 sigma)`` fast at low speed; benchmarks/map_observer_range.py).
 FLUX_OBSERVER_SIGMA0 = 5.0
-#: Angle-loop bandwidth ``alpha`` of [`flux_observer_design`][pmsmjax.estimators.map_flux_observer.flux_observer_design],
-#: rad/s.
+#: Angle-loop bandwidth ``alpha`` of the design rule
+#: ([`flux_observer_design`][pmsmjax.estimators.map_flux_observer.flux_observer_design]), rad/s.
 FLUX_OBSERVER_BANDWIDTH = 800.0
 
 
@@ -141,8 +141,12 @@ class MapFluxObserver(AbstractModelObserver):
 
     def __check_init__(self):
         fix = f"the design rule gives sigma0 = {FLUX_OBSERVER_SIGMA0:g} rad/s"
-        check_positive("MapFluxObserver.sigma0 (flux-error attenuation at standstill)", self.sigma0, "rad/s", fix)
-        check_nonnegative("MapFluxObserver.zeta (flux-error damping at speed)", self.zeta, "", "give 0.2 to 1")
+        check_positive(
+            "MapFluxObserver.sigma0 (flux-error attenuation at standstill)", self.sigma0, "rad/s", fix
+        )
+        check_nonnegative(
+            "MapFluxObserver.zeta (flux-error damping at speed)", self.zeta, "", "give 0.2 to 1"
+        )
         check_positive("MapFluxObserver.k_theta (angle gain)", self.k_theta, "1/s", "give 2 alpha")
         check_positive("MapFluxObserver.k_omega (speed gain)", self.k_omega, "1/s^2", "give alpha^2")
 
@@ -178,7 +182,9 @@ class MapFluxObserver(AbstractModelObserver):
     def init(self, sample: Sample) -> MapFluxObserverState:
         zero = jnp.zeros((), sample.i_ab.dtype)
         psi, _ = self.flux(park(sample.i_ab, zero))
-        return MapFluxObserverState(inverse_park(psi.astype(sample.i_ab.dtype), zero), zero, zero, sample.i_ab)
+        return MapFluxObserverState(
+            inverse_park(psi.astype(sample.i_ab.dtype), zero), zero, zero, sample.i_ab
+        )
 
     def step(self, state: MapFluxObserverState, sample: Sample, Ts: float):
         m = self.model

@@ -68,14 +68,16 @@ class PowerLawSaturation:
             for k in range(2):
                 dp = np.zeros(2)
                 dp[k] = h
-                jac[:, k] = (np.array(self.current(*(psi + dp))) - np.array(self.current(*(psi - dp))))
+                jac[:, k] = np.array(self.current(*(psi + dp))) - np.array(self.current(*(psi - dp)))
                 jac[:, k] /= 2 * h
             step = np.linalg.solve(jac, r)
             psi = psi - step / max(1.0, float(np.max(np.abs(step))) / 0.05)  # damped far from the root
         return psi
 
 
-def sample_flux_map(model: PowerLawSaturation, i_max: float, step: float, source: str = "power-law") -> FluxMapGrid:
+def sample_flux_map(
+    model: PowerLawSaturation, i_max: float, step: float, source: str = "power-law"
+) -> FluxMapGrid:
     """``model``'s flux map on the square grid ``[-i_max, i_max]^2`` A with spacing ``step`` A."""
     axis = np.arange(-i_max, i_max + 0.5 * step, step)
     psi = np.array([[model.flux(i_d, i_q) for i_q in axis] for i_d in axis])

@@ -253,7 +253,7 @@ REGISTRY: tuple[Method, ...] = (
     ),
     _estimator(
         "flux-observer",
-        "reduced-order stator-flux observer on the current-flux relation (flux map or linear), speed-adaptive",
+        "reduced-order stator-flux observer on the flux map or linear model, speed-adaptive (Hinkkanen 2018)",
         "pmsmjax.estimators.map_flux_observer:flux_observer_design",
         ("bandwidth", "sigma0", "zeta", "max_speed_rpm", "model", "flux_map"),
         "observer",

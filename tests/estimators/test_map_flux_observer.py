@@ -17,7 +17,8 @@ import pytest
 
 from pmsmjax import presets
 from pmsmjax.analysis.observer_errors import angle_error
-from pmsmjax.assemble import assemble, spec_scenario, spec_flux_map
+from pmsmjax.assemble import assemble, spec_flux_map, spec_scenario
+from pmsmjax.drive import PeriodInputs
 from pmsmjax.estimators import OBSERVERS
 from pmsmjax.estimators.map_flux_observer import (
     MapFluxObserver,
@@ -27,7 +28,6 @@ from pmsmjax.estimators.registry import make_observer
 from pmsmjax.frames.three_phase import inverse_park, park
 from pmsmjax.io.drive_files import drive_spec
 from pmsmjax.machines.syrm_saturation import PowerLawSaturation
-from pmsmjax.drive import PeriodInputs
 from pmsmjax.simulate import simulate
 from pmsmjax.spec.validation import ParameterError
 from pmsmjax.units import rpm_to_rad_s
