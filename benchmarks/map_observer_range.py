@@ -19,6 +19,11 @@ back-EMF observer the back-EMF floor of its angle extraction (``emf_floor_fracti
 and the residual of the map's steady angle correction.
 
     python -m benchmarks.map_observer_range [--json out.json] [--figure out.png] [--quick]
+    python -m benchmarks.map_observer_range --startup [--figure out.png]
+
+``--startup``: the start from standstill of each map drive (its I/f start and hand-over, speed step to
+``STARTUP`` with the rated load stepped on) with each observer, on the averaged and the switching bridge:
+peak current, largest angle error after the hand-over, steady error under load, and a figure.
 """
 
 import argparse
@@ -197,12 +202,89 @@ def format_table(results: list[dict]) -> str:
     return "\n".join(lines)
 
 
+#: Start-up runs: speed r/min, load N m, load time s, duration s (the ones of
+#: tests/estimators/test_map_flux_observer.py).
+STARTUP = {"saturated-ipm": (4500.0, 6.175, 0.3, 0.5), "pm-syrm": (2800.0, 22.4, 0.6, 1.0)}
+
+
+def startup_runs(path) -> list[dict]:
+    """The start-ups of ``STARTUP`` (module docstring), a figure of speed, angle error and current at
+    ``path``; float32 as ``pmsmjax demo``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from pmsmjax.assemble import assemble, spec_scenario, with_parts
+    from pmsmjax.inverters.switching import SwitchingBridge
+
+    jax.config.update("jax_enable_x64", False)
+    rows = []
+    fig, axes = plt.subplots(3, len(STARTUP), figsize=(11, 8), sharex="col", squeeze=False)
+    for col, (name, (rpm, load, t_load, duration)) in enumerate(STARTUP.items()):
+        spec = drive_spec(name)
+        c = spec.control
+        end = (c["handover_speed_rad_s"] + c["blend_speed_rad_s"]) / c["startup_acceleration_rad_s2"]
+        for observer in OBSERVERS:
+            for bridge in ("averaged", "switching"):
+                drive = assemble(spec, "pi", estimator=observer)
+                if bridge == "switching":
+                    drive = with_parts(drive, {"bridge": SwitchingBridge(drive.bridge.u_dc)})
+                tr = simulate(drive, spec_scenario(spec, rpm, load, t_load, duration)).to_numpy()
+                t = np.asarray(tr.t)
+                e = np.degrees(np.asarray(angle_error(tr.theta_e_est, tr.theta_e)))
+                i = np.hypot(tr.i_dq[:, 0], tr.i_dq[:, 1])
+                rows.append(
+                    {
+                        "drive": name,
+                        "observer": observer,
+                        "bridge": bridge,
+                        "handover_end_s": end,
+                        "peak_current_a": float(i.max()),
+                        "limit_a": float(drive.controller.current_limit),
+                        "max_error_after_handover_deg": float(np.abs(e[t > end + 0.02]).max()),
+                        "steady_error_under_load_deg": float(np.abs(e[t > duration - 0.1]).max()),
+                        "final_speed_rpm": float(tr.omega_m[-1] * 30.0 / math.pi),
+                    }  # fmt: skip
+                )
+                if bridge == "averaged":
+                    ax = axes[:, col]
+                    ax[0].plot(t, tr.omega_m * 30.0 / math.pi, label=observer)
+                    ax[1].plot(t, np.clip(e, -30.0, 30.0), label=observer)
+                    ax[2].plot(t, i, label=observer)
+        axes[0, col].set_title(f"{name}: {rpm:.0f} r/min, {load:g} N m at {t_load:g} s", fontsize=10)
+        axes[0, col].set_ylabel("speed, r/min")
+        axes[1, col].set_ylabel("angle error, el. deg (clipped at 30)")
+        axes[1, col].axvline(end, color="0.5", ls=":")
+        axes[2, col].set_ylabel("current |i|, A")
+        axes[2, col].axhline(float(drive.controller.current_limit), color="r", ls="--", lw=0.8)
+        axes[2, col].set_xlabel("time, s")
+        axes[0, col].legend(fontsize=8)
+    fig.suptitle("Start from standstill (I/f; hand-over ends at the dotted line), averaged bridge")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", help="write the results here")
     parser.add_argument("--figure", default="docs/assets/ch05_map_observer_range.png")
     parser.add_argument("--quick", action="store_true", help="a coarse grid")
+    parser.add_argument("--startup", action="store_true", help="the start-ups instead of the grid")
     args = parser.parse_args()
+    if args.startup:
+        rows = startup_runs(args.figure)
+        for r in rows:
+            print(
+                f"{r['drive']:>14} {r['observer']:>14} {r['bridge']:>9}: peak {r['peak_current_a']:.1f} A "
+                f"(limit {r['limit_a']:g}), after hand-over max {r['max_error_after_handover_deg']:.2f} deg, "
+                f"under load {r['steady_error_under_load_deg']:.2f} deg, {r['final_speed_rpm']:.0f} r/min"
+            )
+        if args.json:
+            with open(args.json, "w") as f:
+                json.dump(rows, f, indent=1)
+        return
     results = run(args.quick)
     print(format_table(results))
     if args.json:
