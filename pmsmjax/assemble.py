@@ -423,6 +423,8 @@ def map_aware(estimator, spec):
             return with_parts(found, {"observer": aware(found.observer)})
         if isinstance(found, (HFIRotating, HFIPulsating)):
             return cross_saturation_compensated(found, flux_map)
+        if hasattr(found, "with_flux_map"):  # an observer written on the current-flux relation reads the map
+            return found.with_flux_map(flux_map)
         return map_angle_corrected(found, flux_map)
 
     return aware(estimator)

@@ -63,6 +63,7 @@ def add_parser(sub):
             "dq-smo",
             "mras",
             "ekf",
+            "flux-observer",
             "hfi-rotating",
             "hfi-pulsating",
             "hybrid",

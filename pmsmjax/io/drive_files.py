@@ -43,6 +43,7 @@ PRESET_FILES = {
     "book": "book.toml",
     "book_salient": "book_salient.toml",
     "saturated-ipm": "saturated_ipm.toml",
+    "pm-syrm": "pm_syrm.toml",
     "servo-400w": "servo_400w_48v.toml",
     "servo-two-mass": "servo_two_mass.toml",
     "industrial-5k6w": "industrial_5k6w_540v.toml",
