@@ -36,6 +36,7 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from pmsmjax.machines.flux_map import FluxMapGrid
 from tuning.identify.saturated_reference_log import (
     _add_noise,
     _columns,
@@ -53,6 +54,7 @@ __all__ = [
     "syrm_speed_controlled_log",
     "STAIRCASE_D",
     "STAIRCASE_Q",
+    "steady_state_map",
 ]
 
 #: The current map's coefficients (A/Wb, A/Wb^(1+S), ...) of motulator's 6.7 kW SyRM example, with a small
@@ -263,3 +265,29 @@ def syrm_speed_controlled_log(
         x = sol.y[:, -1]
         pending = command
     return _add_noise(_columns(rows), noise, seed)
+
+
+def steady_state_map(
+    log, R: float, pole_pairs: int, i_d_points=STAIRCASE_D, i_q_points=STAIRCASE_Q
+) -> FluxMapGrid:
+    """The naive estimate a staircase gives without its transients: at each operating point of
+    [`syrm_staircase_log`][tuning.identify.reluctance_reference_log.syrm_staircase_log]'s ``log`` (a
+    [`DriveLog`][tuning.identify.log.DriveLog]), the flux from the steady-state voltage equation
+    ``u = R i + w_e J psi`` (``R`` ohm, ``pole_pairs``) with the voltage, current and speed averaged over
+    the dwell's second half (the voltage over each period as the stator-frame hold applies it), on the grid
+    of the operating points (``i_d_points x i_q_points``, A) and interpolated as every map is."""
+    from tuning.identify.flux_map_fit import _voltage_integrals
+
+    n = len(i_d_points) * len(i_q_points)
+    per_point = log.n // n
+    w_e = pole_pairs * np.asarray(log.omega_m, dtype=float)
+    dt = np.diff(log.time)
+    u = _voltage_integrals(np.asarray(log.u_dq), w_e, dt, log.hold) / dt[:, None]
+    walk = operating_walk(i_d_points, i_q_points)[:n]
+    psi = np.zeros((len(i_d_points), len(i_q_points), 2))
+    for k, (d, q) in enumerate(walk):
+        s = slice(k * per_point + per_point // 2, (k + 1) * per_point - 1)
+        um, im, wm = u[s].mean(axis=0), log.i_dq[s].mean(axis=0), w_e[s].mean()
+        j, c = int(np.flatnonzero(i_d_points == d)[0]), int(np.flatnonzero(i_q_points == q)[0])
+        psi[j, c] = [(um[1] - R * im[1]) / wm, (R * im[0] - um[0]) / wm]
+    return FluxMapGrid(i_d_points, i_q_points, psi[..., 0], psi[..., 1], source="steady-state estimate")
