@@ -87,23 +87,38 @@ def _violations(x, S_d, S_q, n_d, n_q, floor_h, rise_wb, n_columns):
     return rows, bounds
 
 
-def solve_constrained(
-    M, target, n_d: int, n_q: int, step, floor_h: float, where: str
-) -> tuple[np.ndarray, int]:
-    """``(x, cuts)``: the least-squares solution of ``M x ~ target`` (unknowns ``[psi_d nodes, psi_q nodes,
-    others]``) whose map stores energy (module docstring) with inductances of at least ``floor_h`` H, and
-    the number of constraints it took. Raises [`ParameterError`][pmsmjax.spec.validation.ParameterError]
-    (one line, naming ``where``) if the constraints cannot be met."""
-    n_columns = M.shape[1]
+def factor(M, target) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(R, f, norms)``: the triangular factor of ``M`` with its columns scaled to unit ``norms``,
+    ``f = Q^T target``; the unconstrained solution is ``R^-1 f / norms`` (`free_solution`)."""
     norms = np.linalg.norm(M, axis=0)
     norms[norms == 0] = 1.0
     Q, R = qr(M / norms, mode="economic")
-    f = Q.T @ target
+    return R, Q.T @ target, norms
+
+
+def free_solution(factored) -> np.ndarray:
+    """The unconstrained least-squares solution of a
+    [`factor`][tuning.identify.flux_map_constraints.factor]."""
+    R, f, norms = factored
+    return solve_triangular(R, f) / norms
+
+
+def solve_constrained(
+    factored, n_d: int, n_q: int, step, floor_h: float, where: str
+) -> tuple[np.ndarray, int]:
+    """``(x, cuts)``: the least-squares solution of ``M x ~ target`` (as
+    [`factor`][tuning.identify.flux_map_constraints.factor] gives it; unknowns ``[psi_d nodes, psi_q nodes,
+    others]``) whose map stores energy (module docstring) with inductances of at least ``floor_h`` H, and
+    the number of constraints it took. Raises
+    [`ParameterError`][pmsmjax.spec.validation.ParameterError] (one line, naming ``where``) if the
+    constraints cannot be met."""
+    R, f, norms = factored
+    n_columns = R.shape[1]
 
     def unscale(y):
         return y / norms
 
-    x = unscale(solve_triangular(R, f))
+    x = free_solution(factored)
     S_d, S_q = slope_operators(n_d, n_q, step)
     rise_wb = 0.5 * floor_h * float(min(step))
     G, h = np.zeros((0, n_columns)), np.zeros(0)

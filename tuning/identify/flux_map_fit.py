@@ -74,7 +74,13 @@ from pmsmjax.machines.flux_map import FluxMapGrid, flux_and_inductance, hermite_
 from pmsmjax.spec.design_rules import round_up_nice
 from pmsmjax.spec.validation import ParameterError, plain
 from tuning.identify.electrical import _dead_time_voltage
-from tuning.identify.flux_map_constraints import slope_operators, solve_constrained, symmetric_inductances
+from tuning.identify.flux_map_constraints import (
+    factor,
+    free_solution,
+    slope_operators,
+    solve_constrained,
+    symmetric_inductances,
+)
 
 __all__ = [
     "FluxMapFit",
@@ -399,10 +405,11 @@ def fit_flux_map(
         M = np.vstack([A_eps, SMOOTHNESS * scale * prior])
         target = np.concatenate([rhs, prior_rhs])
         cuts = 0
+        factored = factor(M, target)
         if constrained:
-            x, cuts = solve_constrained(M, target, n_d, n_q, h, floor_h, where)
+            x, cuts = solve_constrained(factored, n_d, n_q, h, floor_h, where)
         else:
-            x, *_ = np.linalg.lstsq(M, target, rcond=None)
+            x = free_solution(factored)
         return x, A_eps, float(np.sum((M @ x - target) ** 2)), cuts
 
     eps = error_smoothing_a
