@@ -17,6 +17,7 @@ TARGETS = {
     "c": "pmsm_controller.h and pmsm_controller.c: a float32 C99 controller",
     "odrive": "odrive_config.txt (odrivetool lines) and odrive_config.json: ODrive 0.5.x parameters",
     "simplefoc": "simplefoc_gains.h (C++ for the sketch) and simplefoc_gains.json: SimpleFOC parameters",
+    "vesc": "vesc_mcconf.txt (name = value) and vesc_mcconf.json: VESC mcconf parameters",
 }
 #: The control methods export writes.
 EXPORTED_CONTROLS = ("pi",)
@@ -49,7 +50,8 @@ def add_parser(sub):
         default="c",
         help="what to write: c (pmsm_controller.h and .c, float32 C99; default), odrive (the gains as "
         "ODrive 0.5.x parameters: odrive_config.txt for odrivetool, odrive_config.json), simplefoc (the "
-        "gains as SimpleFOC PIDController fields: simplefoc_gains.h, simplefoc_gains.json)",
+        "gains as SimpleFOC PIDController fields: simplefoc_gains.h, simplefoc_gains.json), vesc (the "
+        "gains as VESC mcconf parameters: vesc_mcconf.txt, vesc_mcconf.json)",
     )
     p.add_argument(
         "--fixed-point",
@@ -159,6 +161,10 @@ def target_files(
         from pmsmjax.export.simplefoc import simplefoc_files
 
         return simplefoc_files(description, spec.inverter.u_dc_v, where)
+    if target == "vesc":
+        from pmsmjax.export.vesc import vesc_files
+
+        return vesc_files(description, where)
     if fixed_point is not None:
         from pmsmjax.export.c_fixed_source import c_fixed_files
         from pmsmjax.export.fixed_point import fixed_scaling
