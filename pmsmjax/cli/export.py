@@ -17,6 +17,7 @@ TARGETS = {
     "c": "pmsm_controller.h and pmsm_controller.c: a float32 C99 controller",
     "odrive": "odrive_config.txt (odrivetool lines) and odrive_config.json: ODrive 0.5.x parameters",
     "simplefoc": "simplefoc_gains.h (C++ for the sketch) and simplefoc_gains.json: SimpleFOC parameters",
+    "vesc": "vesc_mcconf.txt (name = value) and vesc_mcconf.json: VESC mcconf parameters",
 }
 #: The control methods export writes.
 EXPORTED_CONTROLS = ("pi",)
@@ -49,7 +50,17 @@ def add_parser(sub):
         default="c",
         help="what to write: c (pmsm_controller.h and .c, float32 C99; default), odrive (the gains as "
         "ODrive 0.5.x parameters: odrive_config.txt for odrivetool, odrive_config.json), simplefoc (the "
-        "gains as SimpleFOC PIDController fields: simplefoc_gains.h, simplefoc_gains.json)",
+        "gains as SimpleFOC PIDController fields: simplefoc_gains.h, simplefoc_gains.json), vesc (the "
+        "gains as VESC mcconf parameters: vesc_mcconf.txt, vesc_mcconf.json)",
+    )
+    p.add_argument(
+        "--fixed-point",
+        choices=("q15", "q31"),
+        default=None,
+        help="with --target c: write the controller in integer arithmetic, per unit (pmsm_controller_q15.h "
+        "and .c: int16 words, int32 intermediates; q31: int32 words, int64 intermediates), the bases, Q "
+        "formats, saturation and rounding stated in the header; the i_d = 0 cascade without dead-time "
+        "compensation (default: float32)",
     )
     p.add_argument(
         "--control",
@@ -90,6 +101,17 @@ def precheck(args):
             "i_d = 0 cascade's gains, not MTPA or the voltage loop; drop --field-weakening, or use "
             "--target c."
         )
+    if args.fixed_point is not None and args.target != "c":
+        raise ParameterError(
+            f"--fixed-point {args.fixed_point} with --target {args.target}: the fixed-point controller is a "
+            f"C target; give --target c, or drop --fixed-point for the {args.target} parameters."
+        )
+    if args.fixed_point is not None and args.field_weakening:
+        raise ParameterError(
+            f"--fixed-point {args.fixed_point} with --field-weakening: the fixed-point controller writes the "
+            "i_d = 0 cascade, not MTPA or the voltage loop; drop --field-weakening, or drop --fixed-point "
+            "for the float32 controller."
+        )
     read_gains_flag(args.gains)
     return spec
 
@@ -111,7 +133,9 @@ def run(args) -> int:
     )
     where = f"--motor {args.motor}"
     description = describe(drive, spec.source, args.gains, where=where)
-    files = target_files(args.target, description, spec, where)  # refusals before anything is written
+    files = target_files(
+        args.target, description, spec, where, args.fixed_point
+    )  # refusals before anything is written
     out.mkdir(parents=True, exist_ok=True)
     written = write_files(files, out)
     gains_text = "design-rule gains" if args.gains is None else f"gains of {args.gains}"
@@ -124,9 +148,11 @@ def run(args) -> int:
     return 0
 
 
-def target_files(target: str, description, spec, where: str) -> dict[str, str]:
-    """``{file name: text}`` of ``--target`` for the described controller; a vendor's refusal is raised here,
-    before anything is written."""
+def target_files(
+    target: str, description, spec, where: str, fixed_point: str | None = None
+) -> dict[str, str]:
+    """``{file name: text}`` of ``--target`` (``fixed_point``: ``"q15"``, ``"q31"`` or None for float32) for
+    the described controller; a vendor's refusal is raised here, before anything is written."""
     if target == "odrive":
         from pmsmjax.export.odrive import odrive_files
 
@@ -135,6 +161,16 @@ def target_files(target: str, description, spec, where: str) -> dict[str, str]:
         from pmsmjax.export.simplefoc import simplefoc_files
 
         return simplefoc_files(description, spec.inverter.u_dc_v, where)
+    if target == "vesc":
+        from pmsmjax.export.vesc import vesc_files
+
+        return vesc_files(description, where)
+    if fixed_point is not None:
+        from pmsmjax.export.c_fixed_source import c_fixed_files
+        from pmsmjax.export.fixed_point import fixed_scaling
+
+        scaling = fixed_scaling(description, spec.inverter.u_dc_v, fixed_point, where)
+        return c_fixed_files(description, scaling)
     from pmsmjax.export.c_source import c_files
 
     return c_files(description)
