@@ -23,6 +23,10 @@
   ``ambient_c`` of the fitted network, each only when identified. ``[operating]`` (the ranges a drive runs
   over) is the user's and is carried over from the prior: the intervals go to ``[tolerances]``, never to
   ``[operating]``.
+- With identified ripple (``harmonics`` in ``params.json``, ``--flux-harmonics``, ``--cogging-orders``):
+  ``[harmonics]`` ``flux`` and ``cogging`` rows ``[order, amplitude, phase]`` of the orders the log
+  determines ([`tuning.identify.ripple_stage.harmonics_table`][tuning.identify.ripple_stage.harmonics_table]);
+  without them the prior's ``[harmonics]`` is carried over.
 """
 
 from pathlib import Path
@@ -84,6 +88,7 @@ def motor_file_tables(summary: dict, pole_pairs: int, prior: DriveSpec | None = 
             tables["sensor"] = sensor
     if summary.get("temperature"):
         tables |= _temperature_tables(summary["temperature"], motor, prior, comments)
+    _ripple_tables(summary, prior, tables, comments)
     if tolerances:
         tables["tolerances"] = tolerances
     return tables, comments
@@ -139,6 +144,21 @@ def _temperature_tables(report: dict, motor: dict, prior: DriveSpec | None, comm
     if prior is not None and prior.operating:
         tables["operating"] = {k: list(v) for k, v in prior.operating.items()}
     return tables
+
+
+def _ripple_tables(summary: dict, prior: DriveSpec | None, tables: dict, comments: dict) -> None:
+    """Add ``[harmonics]`` (identified, else the prior's) to `tables` (module docstring)."""
+    from tuning.identify.ripple_stage import harmonics_table
+
+    table, notes = harmonics_table(summary.get("harmonics") or {})
+    if table:
+        tables["harmonics"] = table
+        for key in table:
+            comments[f"harmonics.{key}"] = "identified: [order, amplitude, phase (rad)]" + (
+                "; " + "; ".join(notes) if notes else ""
+            )
+    elif prior is not None and prior.harmonics:
+        tables["harmonics"] = {k: [list(r) for r in v] for k, v in dict(prior.harmonics).items()}
 
 
 def write_motor_file(path, summary: dict, pole_pairs: int, prior: DriveSpec | None = None) -> Path:

@@ -411,6 +411,8 @@ def identify_file(
     ambient_c: float | None = None,
     encoder_lines: int | None = None,
     counter_bits: int | None = None,
+    flux_orders=(),
+    cogging_orders=(),
     **options,
 ) -> IdentifyResult:
     """Read ``log_path``, identify, write ``out_dir/params.json`` (and ``fit.png``); returns the result.
@@ -433,6 +435,10 @@ def identify_file(
     known, else fitted); the summary gets a ``temperature`` entry. `encoder_lines`, `counter_bits`: the
     encoder of an ``encoder_counts`` column
     ([`tuning.identify.log_columns.angle_from_counts`][tuning.identify.log_columns.angle_from_counts]).
+    `flux_orders`, `cogging_orders`: magnet flux harmonics (fitted in the stator-frame stage, which they
+    turn on) and cogging torque (from a logged shaft torque ``T_L``) of those orders per electrical
+    revolution, taken out of the log before the main fit
+    ([`tuning.identify.ripple_stage`][tuning.identify.ripple_stage]); the summary gets ``harmonics``.
     Everything is checked before anything is compiled; files are written atomically.
     """
     cfg = read_log_config(config) if config else {"columns": {}, "units": {}, "log": {}, "identify": {}}
@@ -458,14 +464,16 @@ def identify_file(
         "counter_bits": counter_bits if counter_bits is not None else log_cfg.get("counter_bits"),
         "dialect": dialect,
     }
-    sensors, asked = None, sensor_errors
+    ripple = {"flux_orders": tuple(flux_orders), "cogging_orders": tuple(cogging_orders)}
+    sensors, asked = None, sensor_errors or bool(flux_orders or cogging_orders)
+    sensor_errors = asked
     if not sensor_errors:
         log = load_drive_log(log_path, pole_pairs, columns=cols, units=unit_map, **read)
         sensor_errors = log.temperature_c is not None and opts.temperature_coeffs is None
     if sensor_errors:
         log, sensors, corrected = stator_frame_stage(
             log_path, pole_pairs, cols, unit_map, **read, reference_c=reference_c, dead_time=opts.dead_time,
-            asked=asked,
+            asked=asked, **ripple,
         )  # fmt: skip
         coeffs = fitted_temperature_coeffs(sensors)
         if coeffs is not None and opts.temperature_coeffs is None:
@@ -473,7 +481,10 @@ def identify_file(
     out = check_output_folder(out_dir)
     result = identify(log, opts)
     if sensors is not None:
+        harmonics = sensors.summary.pop("harmonics", None)
         result.summary["sensor_errors"] = sensors.summary
+        if harmonics:
+            result.summary["harmonics"] = harmonics
         if "temperature" in sensors.summary:
             result.summary["temperature"] = temperature_report(sensors, corrected, log.segments, ambient_c)
     out.mkdir(parents=True, exist_ok=True)
