@@ -7,6 +7,8 @@ coefficients taken as known.
 
 import dataclasses
 
+import numpy as np
+
 from pmsmjax.io.log_units import merge_units
 from pmsmjax.spec.validation import ParameterError
 from tuning.identify.cogging_fit import check_torque_column
@@ -64,18 +66,44 @@ def _stage(path, pole_pairs, columns, units, *, hold, u_dc, resample, reference_
     slog, cols = sensor_log_from_columns(
         present, units=units, u_dc=u_dc, resample=resample, source=source, pole_pairs=pole_pairs
     )
+    narrow = _narrow_temperature(slog.temperature_c)
+    if narrow:
+        # R and R alpha (psi_f and psi_f beta) are one unknown each when the temperature stands still: fit
+        # the machine at the logged temperature instead of a degenerate pair.
+        slog = dataclasses.replace(slog, temperature_c=None)
     errors = identify_sensor_errors(
         slog, reference_c=reference_c, dead_time=dead_time, flux_orders=flux_orders
     )
     corrected = corrected_columns(cols, errors)
-    if slog.temperature_c is not None:
+    if "temperature_c" in cols:
         corrected["temperature_c"] = cols["temperature_c"]
     if flux_orders or cogging_orders:
         corrected, harmonics = ripple_stage(slog, corrected, errors, pole_pairs, cogging_orders, reference_c)
         errors.summary["harmonics"] = harmonics
     log = drive_log_from_columns(corrected, pole_pairs, hold=hold, u_dc=u_dc, source=source)
     note = "currents and angle corrected by the identified sensor errors (sensor_errors)"
-    return dataclasses.replace(log, notes=(*log.notes, note)), errors, corrected
+    notes = (*log.notes, note) + ((narrow,) if narrow else ())
+    return dataclasses.replace(log, notes=notes), errors, corrected
+
+
+#: A winding temperature whose 10 ms means span less than this (K) is taken as constant by the stage.
+STILL_SPAN_K = 2.0
+
+
+def _narrow_temperature(temperature_c) -> str | None:
+    """A note when the logged temperature stands still (its 100-row means span under `STILL_SPAN_K`), else
+    None."""
+    if temperature_c is None:
+        return None
+    rows = temperature_c.size // 100 * 100
+    means = temperature_c[:rows].reshape(-1, 100).mean(axis=1) if rows else temperature_c
+    span = float(np.ptp(means))
+    if span >= STILL_SPAN_K:
+        return None
+    return (
+        f"the winding temperature spans {span:.2g} K (under {STILL_SPAN_K:g} K): R and psi_f are fitted at "
+        "the logged temperature, without temperature coefficients"
+    )
 
 
 def fitted_temperature_coeffs(errors) -> dict | None:
