@@ -125,6 +125,14 @@ def add_parser(sub):
         "shaft torque T_L of a slow held-speed run (a dynamometer holds the speed, a torque sensor logs "
         "T_L); motor.toml gets [harmonics] cogging (default: none)",
     )
+    p.add_argument(
+        "--two-mass",
+        action="store_true",
+        help="fit a compliant shaft to a run with speed steps: the motor's and the load's inertia, the "
+        "shaft's stiffness and damping and the resonance, with 95 %% intervals, from the motor speed and "
+        "the identified machine's torque; motor.toml gets [mechanics] and the motor's own J, B (default: "
+        "rigid)",
+    )
     p.add_argument("--no-figures", action="store_true", help="do not write fit.png")
     p.add_argument(
         "--flux-map",
@@ -211,6 +219,8 @@ def run(args) -> int:
     if args.flux_map:
         if args.sensor_errors:
             raise ParameterError("--sensor-errors belongs to the linear fit: drop it or --flux-map.")
+        if args.two_mass:
+            raise ParameterError("--two-mass belongs to the linear fit: drop it or --flux-map.")
         for flag, given in (
             ("--flux-harmonics", ripple["flux_orders"]),
             ("--cogging-orders", ripple["cogging_orders"]),
@@ -247,6 +257,7 @@ def run(args) -> int:
         ambient_c=args.ambient_c,
         encoder_lines=_encoder_lines(args, prior),
         **ripple,
+        two_mass=args.two_mass,
         **options,
     )
     s = result.summary
@@ -258,6 +269,8 @@ def run(args) -> int:
         _print_temperature(s["temperature"])
     if "harmonics" in s:
         _print_harmonics(s["harmonics"])
+    if "two_mass" in s:
+        _print_two_mass(s["two_mass"])
     for name, p in s["parameters"].items():
         ci = p["ci95"]
         interval = f"[{ci[0]:.5g}, {ci[1]:.5g}]" if ci[0] is not None else "[not determined]"
@@ -316,6 +329,25 @@ def _print_harmonics(harmonics: dict) -> None:
     scale = harmonics.get("cogging", {}).get("torque_scale")
     if scale and "stderr" in scale:
         print(f"torque scale (logged / model) {scale['value']:.5g} +- {1.96 * scale['stderr']:.2g} (95 %)")
+
+
+def _print_two_mass(shaft: dict) -> None:
+    """One line per two-mass parameter and frequency, with its 95 % interval."""
+    names = {
+        "J_m": "motor inertia",
+        "J_L": "load inertia",
+        "K": "shaft stiffness",
+        "D": "shaft damping",
+        "B": "friction B",
+        "resonance_hz": "resonance",
+        "anti_resonance_hz": "anti-resonance",
+    }
+    for key, name in names.items():
+        e = shaft[key]
+        lo, hi = e["ci95"]
+        interval = f"[{lo:.5g}, {hi:.5g}]" if lo is not None else "[not determined]"
+        flag = "" if e["identifiable"] else "  NOT IDENTIFIABLE"
+        print(f"{name:18s} {e['value']:.6g} {e['unit']:9s} 95 % {interval}{flag}")
 
 
 def _encoder_lines(args, prior):

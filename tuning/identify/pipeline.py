@@ -413,6 +413,7 @@ def identify_file(
     counter_bits: int | None = None,
     flux_orders=(),
     cogging_orders=(),
+    two_mass: bool = False,
     **options,
 ) -> IdentifyResult:
     """Read ``log_path``, identify, write ``out_dir/params.json`` (and ``fit.png``); returns the result.
@@ -439,6 +440,10 @@ def identify_file(
     turn on) and cogging torque (from a logged shaft torque ``T_L``) of those orders per electrical
     revolution, taken out of the log before the main fit
     ([`tuning.identify.ripple_stage`][tuning.identify.ripple_stage]); the summary gets ``harmonics``.
+    `two_mass`: fit a compliant shaft (motor and load inertia, stiffness, damping) to the motor speed of a
+    run with speed steps, driven by the identified machine's torque
+    ([`tuning.identify.two_mass_fit`][tuning.identify.two_mass_fit]; turns the stator-frame stage on); the
+    summary gets ``two_mass``.
     Everything is checked before anything is compiled; files are written atomically.
     """
     cfg = read_log_config(config) if config else {"columns": {}, "units": {}, "log": {}, "identify": {}}
@@ -465,7 +470,7 @@ def identify_file(
         "dialect": dialect,
     }
     ripple = {"flux_orders": tuple(flux_orders), "cogging_orders": tuple(cogging_orders)}
-    sensors, asked = None, sensor_errors or bool(flux_orders or cogging_orders)
+    sensors, asked = None, sensor_errors or bool(flux_orders or cogging_orders or two_mass)
     sensor_errors = asked
     if not sensor_errors:
         log = load_drive_log(log_path, pole_pairs, columns=cols, units=unit_map, **read)
@@ -475,6 +480,12 @@ def identify_file(
             log_path, pole_pairs, cols, unit_map, **read, reference_c=reference_c, dead_time=opts.dead_time,
             asked=asked, **ripple,
         )  # fmt: skip
+        shaft = None
+        if two_mass:
+            from tuning.identify.two_mass_fit import two_mass_from_columns
+
+            shaft = two_mass_from_columns(corrected, sensors.machine, sensors.summary.get("harmonics"),
+                                          pole_pairs, reference_c, log.segments, log.source)  # fmt: skip
         coeffs = fitted_temperature_coeffs(sensors)
         if coeffs is not None and opts.temperature_coeffs is None:
             opts = dataclasses.replace(opts, temperature_coeffs=coeffs)
@@ -485,6 +496,8 @@ def identify_file(
         result.summary["sensor_errors"] = sensors.summary
         if harmonics:
             result.summary["harmonics"] = harmonics
+        if shaft is not None:
+            result.summary["two_mass"] = shaft
         if "temperature" in sensors.summary:
             result.summary["temperature"] = temperature_report(sensors, corrected, log.segments, ambient_c)
     out.mkdir(parents=True, exist_ok=True)

@@ -33,7 +33,7 @@ from pmsmjax.spec.validation import ParameterError
 from tuning.identify.stator_frame_fit import central_jacobian
 from tuning.identify.uncertainty import covariance
 
-__all__ = ["TwoMassProblem", "fit_two_mass", "REL_TOL"]
+__all__ = ["TwoMassProblem", "fit_two_mass", "two_mass_from_columns", "REL_TOL"]
 
 #: A parameter is identifiable when its relative standard error is below this.
 REL_TOL = 0.05
@@ -195,3 +195,23 @@ def fit_two_mass(time, omega_m, torque, segments=None, window_s: float = 0.05, s
     )
     out["solver"] = {"converged": bool(sol.success), "evaluations": int(sol.nfev)}
     return out
+
+
+def two_mass_from_columns(
+    cols: dict, machine: dict, harmonics: dict | None, pole_pairs: int, reference_c: float, segments,
+    source: str = "log",
+) -> dict:  # fmt: skip
+    """:func:`fit_two_mass` on the stator-frame stage's corrected columns: the torque of the identified
+    ``machine`` ([`SensorErrors.machine`][tuning.identify.sensor_errors.SensorErrors]) plus the identified
+    cogging of ``harmonics`` (``params.json``'s entry, or None)."""
+    from tuning.identify.cogging_fit import electromagnetic_torque
+
+    if "omega_m" not in cols:
+        raise ParameterError(
+            f"{source}: --two-mass needs the motor speed omega_m: log it, or drop --two-mass."
+        )
+    torque = electromagnetic_torque(cols, machine, pole_pairs, reference_c)
+    for row in (harmonics or {}).get("cogging", {}).get("rows", []):
+        n, c, phi = row["order"], row["amplitude"]["value"], row["phase_rad"]["value"]
+        torque = torque + c * np.sin(n * cols["theta_e"] + phi)
+    return fit_two_mass(cols["time"], cols["omega_m"], torque, segments, source=source)
