@@ -402,7 +402,9 @@ def run(args) -> int:
         table = _read_anticogging(getattr(args, "anticogging", None))
         adjust = None if gains is None else (lambda drive, control: apply_gains_flag(drive, gains, control))
         if table is not None:
-            adjust = _with_anticogging(adjust, table)
+            from pmsmjax.jobs.anticogging_table import with_anticogging
+
+            adjust = with_anticogging(adjust, table)
         try:
             request = demo_spec(args, spec)
             drive, scenario = demo_job.build(request, adjust)
@@ -424,25 +426,6 @@ def _read_anticogging(path):
     from pmsmjax.io.anticogging_files import read_anticogging_csv
 
     return read_anticogging_csv(path)
-
-
-def _with_anticogging(adjust, iq_a):
-    """``adjust`` followed by putting the table into the drive's FOC (refused in one line for a drive
-    without one)."""
-
-    def apply(drive, control):
-        from pmsmjax.assemble import with_parts
-        from pmsmjax.controllers.anticogging import AnticoggingTable
-
-        drive = adjust(drive, control) if adjust is not None else drive
-        if not hasattr(drive.controller, "anticogging"):
-            raise ParameterError(
-                f"--anticogging feeds a q current forward in a field-oriented controller; --control "
-                f"{control} has none: choose a FOC control (pi, ...) or drop --anticogging."
-            )
-        return with_parts(drive, {"controller.anticogging": AnticoggingTable(iq_a)})
-
-    return apply
 
 
 def _load_plotting() -> None:

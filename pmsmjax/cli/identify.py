@@ -287,29 +287,41 @@ def run(args) -> int:
 
 def _ripple_orders(args) -> dict:
     """``{"flux_orders", "cogging_orders"}`` from ``--flux-harmonics`` and ``--cogging-orders`` (comma
-    lists of whole numbers; checked, no JAX)."""
-    from pmsmjax.machines.harmonics import check_cogging_orders
-    from tuning.identify.flux_harmonics_fit import checked_orders
-
+    lists of whole numbers per electrical revolution; flux orders not 1 and not triplen, as
+    [`pmsmjax.machines.harmonics`][pmsmjax.machines.harmonics] has them; checked in plain Python)."""
     out = {}
-    for flag, key, attr, check in (
-        ("--flux-harmonics", "flux_orders", "flux_harmonics", checked_orders),
-        ("--cogging-orders", "cogging_orders", "cogging_orders", check_cogging_orders),
+    for flag, key, attr in (
+        ("--flux-harmonics", "flux_orders", "flux_harmonics"),
+        ("--cogging-orders", "cogging_orders", "cogging_orders"),
     ):
         text = getattr(args, attr)
         if text is None:
             out[key] = ()
             continue
+        example = "5,7" if key == "flux_orders" else "6,12"
         try:
             orders = [int(v) for v in text.split(",")]
         except ValueError:
+            orders = []
+        if not orders or min(orders) < 1:
             raise ParameterError(
-                f"{flag} {text}: give whole orders per electrical revolution separated by commas, e.g. "
-                f"{flag} {'5,7' if key == 'flux_orders' else '6,12'}."
-            ) from None
-        out[key] = tuple(check(orders, flag))
+                f"{flag} {text}: give whole orders >= 1 per electrical revolution separated by commas, e.g. "
+                f"{flag} {example}."
+            )
         if len(set(orders)) != len(orders):
             raise ParameterError(f"{flag} {text}: an order is given twice; give each once.")
+        if key == "flux_orders":
+            for k in orders:
+                if k == 1:
+                    raise ParameterError(
+                        f"{flag} order 1 is the fundamental, which the fit gives as psi_f: drop it."
+                    )
+                if k % 3 == 0:
+                    raise ParameterError(
+                        f"{flag} order {k} is triplen: zero-sequence, it drives no current and makes no "
+                        "torque in a star winding without neutral (phase EMF only, not line): drop it."
+                    )
+        out[key] = tuple(orders)
     return out
 
 

@@ -83,16 +83,16 @@ def duty_scan(machine, error, state0, dt, duties, u_dc, omega_m, load_torque, n_
     return states
 
 
-def replay_duty_log(motor, spec, log: dict, n_substeps: int | None = None) -> dict:
+def replay_duty_log(motor, spec, log: dict, n_substeps: int) -> dict:
     """Replay the SI columns ``log`` (``time``, ``d_a``, ``d_b``, ``d_c``, ``U_dc``, and ``omega_m``,
     ``T_L``, ``theta_e``, ``i_d``, ``i_q`` when present) on ``motor``
     ([`PMSMParameters`][pmsmjax.machines.motor.PMSMParameters]) with the drive file ``spec``'s harmonics and
     inverter error; returns ``{time, i_d, i_q, omega_m, theta_e}`` (``(N,)`` float64, row 0 the initial
-    state: the first row's ``theta_e``, ``i_d``, ``i_q`` when logged, else rest at angle 0)."""
+    state: the first row's ``theta_e``, ``i_d``, ``i_q`` when logged, else rest at angle 0), with
+    ``n_substeps`` RK4 steps per row."""
     from pmsmjax.frames.three_phase import wrap_angle
     from pmsmjax.machines.harmonics import MagnetHarmonics
     from pmsmjax.machines.pmsm3 import PMSMdq
-    from pmsmjax.recorded.replay import _dynamic_speed_bound, default_substeps
 
     t = np.asarray(log["time"], float)
     dt = np.diff(t)
@@ -103,11 +103,6 @@ def replay_duty_log(motor, spec, log: dict, n_substeps: int | None = None) -> di
     h = spec.harmonics
     harmonics = MagnetHarmonics.from_rows(h.get("flux", ()), h.get("cogging", ())) if h else None
     machine = PMSMdq(motor, mechanics="imposed" if imposed else "dynamic", harmonics=harmonics)
-    if imposed:
-        max_speed = float(np.max(np.abs(log["omega_m"])))
-    else:
-        max_speed = _dynamic_speed_bound(motor, stator_voltages(duties, u_dc), tl, 0.0)
-    n_substeps = n_substeps or default_substeps(motor, float(dt.max()), max_speed)
     error = inverter_error(spec, float(np.median(dt)))
     i0 = np.array([log["i_d"][0], log["i_q"][0]]) if "i_d" in log and "i_q" in log else np.zeros(2)
     th0 = float(log["theta_e"][0]) if "theta_e" in log else 0.0

@@ -480,7 +480,7 @@ def replay_log(
             "or neither."
         )
     if duty:
-        from pmsmjax.recorded.duty_replay import replay_duty_log
+        from pmsmjax.recorded.duty_replay import replay_duty_log, stator_voltages
 
         if flux_map is not None:
             raise ParameterError(
@@ -489,7 +489,19 @@ def replay_log(
             )
         if report is not None:
             report.append("hold: stator (duties: the inverter holds the stator-frame voltage)")
-        result = replay_duty_log(mot, spec, log, n_substeps)
+        if "omega_m" in log:
+            top = float(np.max(np.abs(log["omega_m"])))
+        else:
+            duties = np.stack([log[c] for c in ("d_a", "d_b", "d_c")], axis=1)
+            tl = log.get("T_L", np.zeros_like(log["time"]))
+            top = _dynamic_speed_bound(mot, stator_voltages(duties, log["U_dc"]), tl, 0.0)
+        need = default_substeps(mot, float(np.diff(log["time"]).max()), top)
+        if n_substeps is not None and n_substeps < need:
+            raise ParameterError(
+                f"n_substeps = {n_substeps} is below the {need} RK4 steps per row that the machine's fastest "
+                f"rate at {top:.4g} rad/s needs: set n_substeps >= {need} or leave it unset."
+            )
+        result = replay_duty_log(mot, spec, log, n_substeps or need)
         return {c: result[c] for c in REPLAY_COLUMNS}
     i0 = (log["i_d"][0], log["i_q"][0]) if "i_d" in log else (0.0, 0.0)
     kwargs = dict(

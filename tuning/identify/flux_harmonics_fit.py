@@ -24,8 +24,6 @@ import math
 
 import numpy as np
 
-from pmsmjax.machines.harmonics import check_flux_orders
-
 __all__ = ["flux_ab", "start_columns", "rotate_start", "amplitude_phase", "flux_harmonics_summary"]
 
 
@@ -124,18 +122,3 @@ def flux_harmonics_summary(problem, p: np.ndarray, cov: np.ndarray) -> dict:
         "model": "psi_pm,x += A cos(k (theta_e - s_x) + phi) on phase x (axis s_x), fitted in the "
         "stator-frame voltage equation with the sensor errors",
     }
-
-
-def checked_orders(orders, flag: str = "--flux-harmonics") -> tuple[int, ...]:
-    """The flux orders as ints, refused in one line naming ``flag`` (not 1, not triplen, no repeats)."""
-    orders = check_flux_orders(orders, flag)
-    if len(set(orders)) != len(orders):
-        raise_repeat(flag, orders)
-    return orders
-
-
-def raise_repeat(flag: str, orders) -> None:
-    """Refuse an order given twice, in one line."""
-    from pmsmjax.spec.validation import ParameterError
-
-    raise ParameterError(f"{flag} {','.join(map(str, orders))}: an order is given twice; give each once.")
