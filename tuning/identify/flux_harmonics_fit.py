@@ -24,7 +24,15 @@ import math
 
 import numpy as np
 
-__all__ = ["flux_ab", "start_columns", "rotate_start", "amplitude_phase", "flux_harmonics_summary"]
+__all__ = [
+    "flux_ab",
+    "dflux_ab",
+    "start_columns",
+    "rotate_start",
+    "amplitude_phase",
+    "harmonic_entries",
+    "flux_harmonics_summary",
+]
 
 
 def flux_ab(theta: np.ndarray, orders, coeffs) -> np.ndarray:

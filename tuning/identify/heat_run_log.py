@@ -26,6 +26,12 @@ The current PI (400 Hz bandwidth, back-EMF and cross-coupling feed-forward from 
 reads the faulty sensors and turns them with the faulty angle, as firmware does. Each capture starts after
 one pattern period of warm-up, so the loop and the currents are in their periodic steady state.
 
+**Ripple** (``ripple=RIPPLE``): the motor also has magnet flux harmonics, whose back-EMF is the derivative
+of the Clarke transform of the three phase fluxes ``A cos(k (theta_e - s_x) + phi)`` (:func:`harmonic_flux`),
+each capture starts at a random angle, and a torque sensor between the motor and the dynamometer logs the
+shaft torque ``T_L`` (:func:`shaft_torque`: the electromagnetic torque with the harmonics' part from the power
+balance, cogging ``C sin(n theta_e + phi)``, less viscous and Coulomb friction, with white noise).
+
 **Integrators.** SciPy's ``solve_ivp``: DOP853 for the electrical and thermal states of all captures at
 once (one control period per call), LSODA for the thermal node between captures. The loss held between
 captures is that of the capture at the same level; it is found by two passes (the captures at the
@@ -37,7 +43,10 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
-__all__ = ["DEAD_TIME_V", "MOTOR", "SENSORS", "THERMAL", "RIPPLE", "heat_run_log", "true_values"]
+__all__ = [
+    "DEAD_TIME_V", "MOTOR", "SENSORS", "THERMAL", "RIPPLE", "heat_run_log", "true_values", "harmonic_flux",
+    "shaft_torque",
+]  # fmt: skip
 
 #: The motor at its reference temperature (ohm, H, H, Wb, pole pairs; degC and 1/K for the coefficients).
 MOTOR = {
