@@ -97,7 +97,7 @@ def scipy_reference(log: dict) -> dict:
 
 def test_replay_of_duties_follows_an_independent_simulator(tmp_path):
     """Measured: currents within 0.45 % of their peak (RMS), speed within 0.43 % of its peak; without the
-    inverter error and the harmonics the replay is off by several times that."""
+    inverter error and the harmonics the replay is off by 18 % of the peak."""
     log = duty_log()
     write_csv_atomic(tmp_path / "log.csv", log)
     (tmp_path / "drive.toml").write_text(DRIVE)
@@ -118,7 +118,7 @@ def test_replay_of_duties_follows_an_independent_simulator(tmp_path):
                  "--out", str(tmp_path / "ideal")]) == 0  # fmt: skip
     bare = read_log(tmp_path / "ideal" / "replay.csv", ("time", "i_d", "i_q"))
     bare_err = np.sqrt(np.mean((bare["i_d"] - ref["i_d"]) ** 2 + (bare["i_q"] - ref["i_q"]) ** 2))
-    assert bare_err > 3.0 * err and bare_err > 0.02 * peak, (bare_err, err, peak)
+    assert bare_err > 0.1 * peak, (bare_err, err, peak)
 
 
 def test_a_duty_log_refuses_a_rotor_hold(tmp_path, capsys):

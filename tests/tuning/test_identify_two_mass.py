@@ -58,7 +58,7 @@ def test_the_shaft_and_its_resonance(fitted):
 
 def test_a_rigid_model_of_the_same_log_is_wrong(fitted, log):
     """A rigid shaft is the two-mass fit with a stiff spring: started there and held, it leaves the ringing
-    in the residual, 5x the speed noise."""
+    in the residual: measured 1.09 rad/s, 22x the speed noise."""
     from tuning.identify.two_mass_fit import TwoMassProblem
 
     _, corrected, shaft = fitted
@@ -68,7 +68,7 @@ def test_a_rigid_model_of_the_same_log_is_wrong(fitted, log):
     pr = TwoMassProblem(corrected["time"], corrected["omega_m"], torque, np.array([0, log["time"].size]), 500)
     j = shaft["J_m"]["value"] + shaft["J_L"]["value"]
     rigid = np.array([*np.log([0.5 * j, 0.5 * j, 1e7, 1e2, shaft["B"]["value"]]), 0.0])
-    assert float(np.sqrt(np.mean(pr.residuals(rigid) ** 2))) > 5 * shaft["residual_rms_rad_s"]
+    assert float(np.sqrt(np.mean(pr.residuals(rigid) ** 2))) > 10 * shaft["residual_rms_rad_s"]
 
 
 def test_a_constant_speed_is_refused():
