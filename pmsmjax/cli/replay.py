@@ -8,7 +8,7 @@ from pmsmjax.spec.validation import ParameterError
 
 #: The columns replay reads ([`pmsmjax.recorded.replay.LOG_COLUMNS`][pmsmjax.recorded.replay.LOG_COLUMNS]),
 #: named here so that the flags are checked before anything heavy is imported.
-READS = ("time", "u_d", "u_q", "omega_m", "T_L", "theta_e", "i_d", "i_q")
+READS = ("time", "u_d", "u_q", "omega_m", "T_L", "theta_e", "i_d", "i_q", "d_a", "d_b", "d_c", "U_dc")
 
 
 def add_parser(sub):
@@ -18,7 +18,9 @@ def add_parser(sub):
         help="run the machine under a recorded voltage sequence",
         description=(
             "Replay a log (CSV/NPZ/MAT; columns mapped with --columns, units with --units or the names' "
-            "suffixes, the file's dialect with --config [log]) with columns time,u_d,u_q and optionally "
+            "suffixes, the file's dialect with --config [log]) with columns time,u_d,u_q (or the leg duties "
+            "d_a,d_b,d_c and U_dc, through the averaged inverter with the drive file's [inverter] dead time "
+            "and device drop, stator-frame hold) and optionally "
             "omega_m (imposed speed, mechanical rad/s), T_L (N m), theta_e, i_d, i_q (row 0: the initial "
             "state). Row k's voltage is held until row k+1. Writes DIR/replay.csv with "
             "time,i_d,i_q,omega_m,theta_e (row k = state at row k's time; time in s). A column that looks "

@@ -168,6 +168,11 @@ def write_drive_file(path, tables: Mapping[str, Mapping], header: str = "", comm
                 text = "true" if value else "false"
             elif isinstance(value, str):
                 text = f'"{value}"'
+            elif isinstance(value, (list, tuple)) and value and isinstance(value[0], (list, tuple)):
+                number = lambda v: (
+                    str(v) if isinstance(v, int) and not isinstance(v, bool) else repr(float(v))
+                )
+                text = "[" + ", ".join("[" + ", ".join(map(number, row)) + "]" for row in value) + "]"
             elif isinstance(value, (list, tuple)):
                 text = "[" + ", ".join(repr(float(v)) for v in value) + "]"
             elif isinstance(value, int):

@@ -372,6 +372,17 @@ def check_no_gap(time: np.ndarray, source: str) -> None:
         )
 
 
+def _is_duty_log(log_path, columns, dialect) -> bool:
+    """Whether the log gives the leg duties ``d_a, d_b, d_c`` (and no ``u_d``): a duty replay."""
+    from pmsmjax.io.logs import column_names
+    from pmsmjax.io.mapped_logs import resolve_columns
+
+    canonical = ("u_d", "u_q", "d_a", "d_b", "d_c", "U_dc")
+    mapped = {k: v for k, v in (columns or {}).items() if k in canonical}
+    found, _ = resolve_columns(column_names(log_path, dialect), canonical, mapped, f"log {log_path}")
+    return "u_d" not in found and all(c in found for c in ("d_a", "d_b", "d_c"))
+
+
 def replay_log(
     log_path: str | os.PathLike,
     motor: str | os.PathLike,
@@ -390,7 +401,10 @@ def replay_log(
 
     **Arguments:**
 
-    - `log_path`: ``.csv``/``.npz``/``.mat`` log with columns ``time`` (s), ``u_d``, ``u_q`` (V), and
+    - `log_path`: ``.csv``/``.npz``/``.mat`` log with columns ``time`` (s), ``u_d``, ``u_q`` (V) or the leg
+      duties ``d_a``, ``d_b``, ``d_c`` with the DC link ``U_dc`` (V; through the averaged inverter with the
+      drive file's ``[inverter]`` error and ``[harmonics]``,
+      [`pmsmjax.recorded.duty_replay`][pmsmjax.recorded.duty_replay]), and
       optionally ``omega_m`` (imposed speed, mechanical rad/s), ``T_L`` (load torque, N m, dynamic speed)
       and ``theta_e`` (rad), ``i_d``, ``i_q`` (A), whose first row sets the initial state.
     - `motor`: a preset name (``book``, ``book_salient``) or a TOML file with ``R, L_d, L_q, psi_f,
@@ -420,6 +434,16 @@ def replay_log(
     if time_unit != "s":
         units.setdefault("time", time_unit)
     mot = load_motor(motor, check_units=check_units)
+    duty = _is_duty_log(log_path, columns, dialect)
+    if duty:
+        from pmsmjax.recorded.duty_replay import DUTY_COLUMNS
+
+        if hold == "rotor":
+            raise ParameterError(
+                f"log {log_path}: duties are held by the inverter in the stator frame, not the rotor's: drop "
+                "--hold rotor (or log u_d, u_q of a dq-model simulator)."
+            )
+        required = ("time", *DUTY_COLUMNS)
     log = read_mapped_log(
         log_path, required, optional, columns=columns, units=units, dialect=dialect,
         pole_pairs=int(mot.pole_pairs), unused=unused,
@@ -438,7 +462,8 @@ def replay_log(
     from pmsmjax.assemble import spec_flux_map
     from pmsmjax.io.drive_files import drive_spec
 
-    flux_map = spec_flux_map(drive_spec(motor, check_units=check_units))  # None without [motor] flux_map
+    spec = drive_spec(motor, check_units=check_units)
+    flux_map = spec_flux_map(spec)  # None without [motor] flux_map
     if check_units:
         tau = min(float(mot.L_d), float(mot.L_q)) / float(mot.R)
         check_time_step(
@@ -454,6 +479,30 @@ def replay_log(
             f"log {log_path} has {have} but not {lack}: give both (row 0 sets the initial current) "
             "or neither."
         )
+    if duty:
+        from pmsmjax.recorded.duty_replay import replay_duty_log, stator_voltages
+
+        if flux_map is not None:
+            raise ParameterError(
+                f"log {log_path}: a duty log is replayed on the linear machine; {motor} has a flux map: "
+                "replay u_d, u_q instead, or drop [motor] flux_map."
+            )
+        if report is not None:
+            report.append("hold: stator (duties: the inverter holds the stator-frame voltage)")
+        if "omega_m" in log:
+            top = float(np.max(np.abs(log["omega_m"])))
+        else:
+            duties = np.stack([log[c] for c in ("d_a", "d_b", "d_c")], axis=1)
+            tl = log.get("T_L", np.zeros_like(log["time"]))
+            top = _dynamic_speed_bound(mot, stator_voltages(duties, log["U_dc"]), tl, 0.0)
+        need = default_substeps(mot, float(np.diff(log["time"]).max()), top)
+        if n_substeps is not None and n_substeps < need:
+            raise ParameterError(
+                f"n_substeps = {n_substeps} is below the {need} RK4 steps per row that the machine's fastest "
+                f"rate at {top:.4g} rad/s needs: set n_substeps >= {need} or leave it unset."
+            )
+        result = replay_duty_log(mot, spec, log, n_substeps or need)
+        return {c: result[c] for c in REPLAY_COLUMNS}
     i0 = (log["i_d"][0], log["i_q"][0]) if "i_d" in log else (0.0, 0.0)
     kwargs = dict(
         time=log["time"],

@@ -411,6 +411,9 @@ def identify_file(
     ambient_c: float | None = None,
     encoder_lines: int | None = None,
     counter_bits: int | None = None,
+    flux_orders=(),
+    cogging_orders=(),
+    two_mass: bool = False,
     **options,
 ) -> IdentifyResult:
     """Read ``log_path``, identify, write ``out_dir/params.json`` (and ``fit.png``); returns the result.
@@ -433,6 +436,14 @@ def identify_file(
     known, else fitted); the summary gets a ``temperature`` entry. `encoder_lines`, `counter_bits`: the
     encoder of an ``encoder_counts`` column
     ([`tuning.identify.log_columns.angle_from_counts`][tuning.identify.log_columns.angle_from_counts]).
+    `flux_orders`, `cogging_orders`: magnet flux harmonics (fitted in the stator-frame stage, which they
+    turn on) and cogging torque (from a logged shaft torque ``T_L``) of those orders per electrical
+    revolution, taken out of the log before the main fit
+    ([`tuning.identify.ripple_stage`][tuning.identify.ripple_stage]); the summary gets ``harmonics``.
+    `two_mass`: fit a compliant shaft (motor and load inertia, stiffness, damping) to the motor speed of a
+    run with speed steps, driven by the identified machine's torque
+    ([`tuning.identify.two_mass_fit`][tuning.identify.two_mass_fit]; turns the stator-frame stage on); the
+    summary gets ``two_mass``.
     Everything is checked before anything is compiled; files are written atomically.
     """
     cfg = read_log_config(config) if config else {"columns": {}, "units": {}, "log": {}, "identify": {}}
@@ -458,22 +469,35 @@ def identify_file(
         "counter_bits": counter_bits if counter_bits is not None else log_cfg.get("counter_bits"),
         "dialect": dialect,
     }
-    sensors, asked = None, sensor_errors
+    ripple = {"flux_orders": tuple(flux_orders), "cogging_orders": tuple(cogging_orders)}
+    sensors, asked = None, sensor_errors or bool(flux_orders or cogging_orders or two_mass)
+    sensor_errors = asked
     if not sensor_errors:
         log = load_drive_log(log_path, pole_pairs, columns=cols, units=unit_map, **read)
         sensor_errors = log.temperature_c is not None and opts.temperature_coeffs is None
     if sensor_errors:
         log, sensors, corrected = stator_frame_stage(
             log_path, pole_pairs, cols, unit_map, **read, reference_c=reference_c, dead_time=opts.dead_time,
-            asked=asked,
+            asked=asked, **ripple,
         )  # fmt: skip
+        shaft = None
+        if two_mass:
+            from tuning.identify.two_mass_fit import two_mass_from_columns
+
+            shaft = two_mass_from_columns(corrected, sensors.machine, sensors.summary.get("harmonics"),
+                                          pole_pairs, reference_c, log.segments, log.source)  # fmt: skip
         coeffs = fitted_temperature_coeffs(sensors)
         if coeffs is not None and opts.temperature_coeffs is None:
             opts = dataclasses.replace(opts, temperature_coeffs=coeffs)
     out = check_output_folder(out_dir)
     result = identify(log, opts)
     if sensors is not None:
+        harmonics = sensors.summary.pop("harmonics", None)
         result.summary["sensor_errors"] = sensors.summary
+        if harmonics:
+            result.summary["harmonics"] = harmonics
+        if shaft is not None:
+            result.summary["two_mass"] = shaft
         if "temperature" in sensors.summary:
             result.summary["temperature"] = temperature_report(sensors, corrected, log.segments, ambient_c)
     out.mkdir(parents=True, exist_ok=True)

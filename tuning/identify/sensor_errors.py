@@ -46,6 +46,7 @@ from scipy import optimize
 
 from pmsmjax.io.logs import check_columns
 from pmsmjax.spec.validation import ParameterError
+from tuning.identify.flux_harmonics_fit import flux_harmonics_summary
 from tuning.identify.log_columns import (
     VOLTAGE_SETS,
     apply_units,
@@ -189,7 +190,7 @@ def sensor_log_from_columns(
 
 
 def identify_sensor_errors(
-    log: SensorLog, block: int = 50, reference_c: float = 20.0, dead_time: bool = False
+    log: SensorLog, block: int = 50, reference_c: float = 20.0, dead_time: bool = False, flux_orders=()
 ) -> SensorErrors:
     """Fit the current-sensor offsets, their relative gains and the encoder offset (module docstring);
     with a temperature column, also R and psi_f at ``reference_c`` and their temperature coefficients.
@@ -201,6 +202,9 @@ def identify_sensor_errors(
         reference_c: The temperature R and psi_f are stated at, degC (used with a temperature column).
         dead_time: Fit the inverter's error voltage with them (``V_dt``, V per phase): without it an
             uncorrected dead time biases the offsets.
+        flux_orders: Orders of magnet flux harmonics fitted with them
+            ([`tuning.identify.flux_harmonics_fit`][tuning.identify.flux_harmonics_fit]); the summary then
+            has ``flux_harmonics`` and the machine ``flux_harmonics`` (complex amplitudes, Wb).
 
     Returns:
         The [`SensorErrors`][tuning.identify.sensor_errors.SensorErrors], with intervals in its summary.
@@ -208,7 +212,7 @@ def identify_sensor_errors(
     Raises:
         ParameterError: For a log too short for the blocks, or a fit that fails numerically.
     """
-    pr = StatorFrameProblem(log, block, reference_c, dead_time)
+    pr = StatorFrameProblem(log, block, reference_c, dead_time, flux_orders=flux_orders)
     p0 = pr.start()
     i_rms = float(np.sqrt(np.mean(log.m**2)))
     n = pr.n_machine
@@ -242,7 +246,11 @@ def identify_sensor_errors(
         raise ParameterError(f"{log.source}: the sensor-error fit failed numerically (non-finite values).")
     cov = covariance(groups)[0]
     se = np.sqrt(np.abs(np.diag(cov)))
-    return _result(pr, p, se, sol, w_v, log)
+    result = _result(pr, p, se, sol, w_v, log)
+    if pr.flux_orders:
+        result.summary["flux_harmonics"] = flux_harmonics_summary(pr, p, cov)
+        result.machine["flux_harmonics"] = (pr.flux_orders, pr.unpack(p)["flux_h"])
+    return result
 
 
 def _entry(value, stderr, unit, limit):
