@@ -61,7 +61,7 @@ def identify_flux_map_file(
         "measured_points": int(fit.measured.sum()),
         "grid_points": int(fit.measured.size),
         "residual_rms_wb": fit.residual_rms_wb,
-        "energy_constraints": fit.constraints,
+        "smoothness": fit.smoothness,
         "windows": fit.n_windows,
         "notes": list(log.notes),
     }
