@@ -55,7 +55,7 @@ MA_INDUCTANCE_H = 1e-5
 class FluxMapRead:
     """A map file as read: the checked `grid`, its `measured` marks (``(n_d, n_q)`` bool, None when every
     point was measured and the file marks none), the `fmt` it was read as (a key of
-    [`FORMATS`][pmsmjax.io.flux_map_formats.FORMATS]) and `how`: one line on what was converted or
+    ``pmsmjax.io.flux_map_formats.FORMATS``) and `how`: one line on what was converted or
     filled, empty for a complete grid in pmsmjax's layout."""
 
     grid: FluxMapGrid
@@ -72,7 +72,7 @@ _READ = {}
 
 def read_flux_map(path, fmt: str | None = None) -> FluxMapGrid:
     """Read and check the flux map ``path`` (``.csv``, ``.npz`` or ``.mat``; module docstring) as the
-    format `fmt` ([`FORMATS`][pmsmjax.io.flux_map_formats.FORMATS]; None: by extension and content)."""
+    format `fmt` (``pmsmjax.io.flux_map_formats.FORMATS``; None: by extension and content)."""
     return read_flux_map_file(path, fmt).grid
 
 
