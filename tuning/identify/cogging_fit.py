@@ -25,7 +25,7 @@ lags ([`tuning.identify.uncertainty.covariance`][tuning.identify.uncertainty.cov
 phases get their intervals by the delta method.
 
 The held speed is taken as the log's ``omega_m`` (a dynamometer holds it: no acceleration term); a run
-whose speed varies by more than :data:`MAX_SPEED_RIPPLE` of its mean within a capture is refused, as the
+whose speed varies by more than ``MAX_SPEED_RIPPLE`` of its mean within a capture is refused, as the
 inertia torque would enter the fit.
 """
 

@@ -8,7 +8,7 @@ low for the cooling part. Every ``capture_every_s`` a capture of one pattern per
 re-triggered scope or a firmware datalog buffer: the rows between captures are not in the log), at a
 speed that alternates between two values from capture to capture.
 
-**The physics** (the motor of :data:`MOTOR`):
+**The physics** (the motor of ``MOTOR``):
 
 - dq machine with ``R(T) = R (1 + alpha (T - T_ref))`` and ``psi_f(T) = psi_f (1 + beta (T - T_ref))``
   (one temperature: the magnet at the winding's), the stator-frame voltage held over each control period
@@ -27,9 +27,9 @@ reads the faulty sensors and turns them with the faulty angle, as firmware does.
 one pattern period of warm-up, so the loop and the currents are in their periodic steady state.
 
 **Ripple** (``ripple=RIPPLE``): the motor also has magnet flux harmonics, whose back-EMF is the derivative
-of the Clarke transform of the three phase fluxes ``A cos(k (theta_e - s_x) + phi)`` (:func:`harmonic_flux`),
+of the Clarke transform of the three phase fluxes ``A cos(k (theta_e - s_x) + phi)`` (``harmonic_flux``),
 each capture starts at a random angle, and a torque sensor between the motor and the dynamometer logs the
-shaft torque ``T_L`` (:func:`shaft_torque`: the electromagnetic torque with the harmonics' part from the power
+shaft torque ``T_L`` (``shaft_torque``: the electromagnetic torque with the harmonics' part from the power
 balance, cogging ``C sin(n theta_e + phi)``, less viscous and Coulomb friction, with white noise).
 
 **Integrators.** SciPy's ``solve_ivp``: DOP853 for the electrical and thermal states of all captures at
@@ -235,9 +235,9 @@ def heat_run_log(
         speeds_rad_s: The two mechanical speeds the captures alternate between, rad/s.
         cooling_level: The pattern's scale after ``heating_s``.
         seed: Noise seed.
-        ripple: None, or magnet flux harmonics and cogging (as :data:`RIPPLE`): the motor then has them,
+        ripple: None, or magnet flux harmonics and cogging (as ``RIPPLE``): the motor then has them,
             each capture starts at a random angle, and the log gets the shaft torque ``T_L`` that a torque
-            sensor between the motor and the dynamometer reads (:func:`shaft_torque` with the sensor's
+            sensor between the motor and the dynamometer reads (``shaft_torque`` with the sensor's
             noise).
 
     Returns:

@@ -11,7 +11,7 @@ feed-forward are those of the heat run. The torque steps at the ends of the curr
 **The physics**: the heat run's dq machine and thermal node, and
 
 - ``J_m dw_m/dt = T_e - B w_m - T_s``, ``J_L dw_L/dt = T_s``, ``dphi/dt = w_m - w_L``,
-  ``T_s = K phi + D (w_m - w_L)`` (:data:`SHAFT`), ``T_e = 1.5 p (psi_f(T) i_q + (L_d - L_q) i_d i_q)``;
+  ``T_s = K phi + D (w_m - w_L)`` (``SHAFT``), ``T_e = 1.5 p (psi_f(T) i_q + (L_d - L_q) i_d i_q)``;
 - the logged speed: the motor's, with white noise ``SPEED_NOISE_RAD_S`` (an encoder's speed estimate).
 
 **Integrator.** SciPy's ``solve_ivp`` (DOP853) over each control period with the stator voltage held.

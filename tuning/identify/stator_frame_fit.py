@@ -80,7 +80,7 @@ def _block_edges(bounds: np.ndarray, block: int) -> np.ndarray:
 
 
 class StatorFrameProblem:
-    """The block residuals of the module docstring for the unknowns ``p`` (SI; order of :attr:`names`).
+    """The block residuals of the module docstring for the unknowns ``p`` (SI; order of ``names``).
 
     Args:
         log: A [`tuning.identify.sensor_errors.SensorLog`][tuning.identify.sensor_errors.SensorLog].

@@ -201,7 +201,7 @@ def two_mass_from_columns(
     cols: dict, machine: dict, harmonics: dict | None, pole_pairs: int, reference_c: float, segments,
     source: str = "log",
 ) -> dict:  # fmt: skip
-    """:func:`fit_two_mass` on the stator-frame stage's corrected columns: the torque of the identified
+    """``fit_two_mass`` on the stator-frame stage's corrected columns: the torque of the identified
     ``machine`` ([`SensorErrors.machine`][tuning.identify.sensor_errors.SensorErrors]) plus the identified
     cogging of ``harmonics`` (``params.json``'s entry, or None)."""
     from tuning.identify.cogging_fit import electromagnetic_torque
