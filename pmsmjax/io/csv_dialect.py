@@ -12,8 +12,8 @@ Accepted:
 **Finding the header.** Without ``header_row`` the header is the first line whose fields are all names
 (none reads as a number) followed, past blank and comment lines, by a row of numbers (or empty fields) with
 the same field count; the delimiter is the one of comma, semicolon, tab and whitespace that makes such a
-pair earliest in the file (the most fields on a tie). A file where no delimiter makes one is read as before
-dialects: the first line that is not blank or a comment is a comma-separated header, so its refusals name
+pair earliest in the file (the most fields on a tie). A file where no delimiter makes one is read as a plain
+CSV: the first line that is not blank or a comment is a comma-separated header, so its refusals name
 that line. A semicolon, tab or whitespace file whose numbers have decimal commas is refused unless
 ``decimal = ","`` is given: ``1,5`` could also be two fields.
 """
