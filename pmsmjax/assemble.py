@@ -24,6 +24,8 @@ The steps of [`assemble`][pmsmjax.assemble.assemble], in order (each a function 
    ([`shaft_parts`][pmsmjax.spec_blocks.shaft_parts]; the presets design for the total inertia), and the
    ``[control]`` speed-loop filters in the speed PI
    ([`speed_filter_parts`][pmsmjax.spec_blocks.speed_filter_parts]).
+8. a ``[harmonics]`` table: the plant's magnet flux harmonics and cogging torque
+   ([`harmonics_part`][pmsmjax.assemble.harmonics_part]), put into the machine the steps before chose.
 
 The parts of steps 2-6 are collected and put into the preset's drive by one
 [`with_parts`][pmsmjax.assemble.with_parts] call. The presets' own builders
@@ -63,6 +65,7 @@ __all__ = [
     "thermal_part",
     "shaft_parts",
     "speed_filter_parts",
+    "harmonics_part",
     "spec_motor",
     "spec_flux_map",
     "spec_scenario",
@@ -223,7 +226,26 @@ def assemble(
     if spec.thermal:
         parts["thermal"] = thermal_part(spec)
     drive = with_parts(drive, parts)
-    return with_parts(drive, {**shaft_parts(spec), **speed_filter_parts(spec, drive)})
+    drive = with_parts(drive, {**shaft_parts(spec), **speed_filter_parts(spec, drive)})
+    if spec.harmonics:  # into the machine as built above (the flux map's plant replaces the dq one)
+        drive = with_parts(drive, {"machine.harmonics": harmonics_part(spec, drive.machine)})
+    return drive
+
+
+def harmonics_part(spec, machine):
+    """The drive file's magnet flux harmonics and cogging torque
+    ([`MagnetHarmonics`][pmsmjax.machines.harmonics.MagnetHarmonics], ``[harmonics]``) for ``machine``;
+    refused in one line for a plant that has no model of them (the saturated dq, multi-phase plants)."""
+    from pmsmjax.machines.harmonics import MagnetHarmonics
+
+    if not hasattr(machine, "harmonics"):
+        raise ParameterError(
+            f"{spec.source}: [harmonics] are modelled in the three-phase dq, alpha-beta, abc and flux-map "
+            f"plants; this drive simulates a {type(machine).__name__}: choose one of those or drop "
+            "[harmonics]."
+        )
+    h = spec.harmonics
+    return MagnetHarmonics.from_rows(h.get("flux", ()), h.get("cogging", ()))
 
 
 def current_sensor_parts(spec, machine: str = "three-phase") -> dict:
@@ -401,6 +423,8 @@ def map_aware(estimator, spec):
             return with_parts(found, {"observer": aware(found.observer)})
         if isinstance(found, (HFIRotating, HFIPulsating)):
             return cross_saturation_compensated(found, flux_map)
+        if hasattr(found, "with_flux_map"):  # an observer written on the current-flux relation reads the map
+            return found.with_flux_map(flux_map)
         return map_angle_corrected(found, flux_map)
 
     return aware(estimator)

@@ -221,4 +221,14 @@ def trace_from_records(drive: Drive, rec: PeriodRecord, xs: PeriodInputs, dt: fl
         omega_m_est=omega_m_est,
         winding_temperature=rec.temperature,
         load_speed=None if ms.shaft is None else ms.shaft[:, 1],
+        cogging_torque=_cogging(machine, ms.theta_e),
     )
+
+
+def _cogging(machine, theta_e):
+    """``(N,)`` cogging torque at the recorded angles, N m, or None for a machine without cogging (computed
+    from the recorded angle after the scan: no cost per period)."""
+    harmonics = getattr(machine, "harmonics", None)
+    if harmonics is None or not harmonics.has_cogging:
+        return None
+    return jax.vmap(harmonics.cogging_torque)(theta_e)

@@ -71,6 +71,9 @@ THERMAL_COLUMN_UNITS = {"winding_temperature_c": "degC (winding temperature at t
 
 #: The further column of a drive with a compliant shaft ([`pmsmjax.machines.shaft`][pmsmjax.machines.shaft]).
 SHAFT_COLUMN_UNITS = {"load_speed": "rad/s (load-side mechanical speed)"}
+#: The further column of a drive with cogging torque (``[harmonics] cogging``,
+#: [`pmsmjax.machines.harmonics`][pmsmjax.machines.harmonics]); the ``torque`` column includes it.
+COGGING_COLUMN_UNITS = {"cogging_torque": "N m (cogging torque at the period start, included in torque)"}
 
 #: The further columns of a six-phase trace (the second set U, V, W;
 #: [`Trace.columns`][pmsmjax.trace.Trace.columns]).
@@ -114,6 +117,8 @@ class Trace(eqx.Module):
             network (exported as ``winding_temperature_c``, degC).
         load_speed: Load-side mechanical speed at the period start, rad/s; ``None`` for a rigid shaft
             (``omega_m`` is then the load's speed too).
+        cogging_torque: Cogging torque at the period start, N m (part of ``torque``); ``None`` without
+            cogging.
     """
 
     t: Array
@@ -132,6 +137,7 @@ class Trace(eqx.Module):
     omega_m_est: Array
     winding_temperature: Array | None = None
     load_speed: Array | None = None
+    cogging_torque: Array | None = None
 
     @property
     def speed_rpm(self) -> Array:
@@ -172,6 +178,8 @@ class Trace(eqx.Module):
             out["winding_temperature_c"] = np.asarray(self.winding_temperature) - CELSIUS_K
         if self.load_speed is not None:
             out["load_speed"] = np.asarray(self.load_speed)
+        if self.cogging_torque is not None:
+            out["cogging_torque"] = np.asarray(self.cogging_torque)
         return out
 
     def to_numpy(self) -> "Trace":

@@ -33,6 +33,13 @@ found by simulating from the state at speed and then a few Newton steps on ``G(z
 an integrator of the speed and drops out. Lifting puts duties of the same differential voltage with another
 common-mode part: the three-phase bridges apply line-to-line voltages only, so the plant sees the same.
 
+**The fundamental wave.** Magnet flux harmonics, cogging torque, an anticogging table and the inverter's
+error voltage (with its compensation) make the period map depend on the rotor angle: their steady state is
+a periodic orbit in the rotor frame as well. They are periodic disturbances of the loops, not part of their
+small-signal gain, so the drive is linearised without them
+([`fundamental_wave`][pmsmjax.analysis.loop_linearisation.fundamental_wave]): the margins are those of the
+fundamental-wave drive.
+
 Scope (refused otherwise, before compiling): a three-phase cascaded FOC
 ([`FOC`][pmsmjax.controllers.foc.FOC]) in speed mode with the speed loop every period, on the exact position
 sensor, with a modulator; the operating point inside the voltage and current limits (at the limits the loop is
@@ -68,6 +75,7 @@ __all__ = [
     "solve_small",
     "operating_state",
     "current_mode",
+    "fundamental_wave",
 ]
 
 Loop = Literal["current", "speed"]
@@ -214,6 +222,27 @@ def check_linearisable(drive: Drive, speed_m, load_nm, where: str = "") -> None:
         )
 
 
+def fundamental_wave(drive: Drive) -> Drive:
+    """``drive`` without its angle-dependent parts (module docstring): the machine's magnet flux harmonics
+    and cogging, the controller's anticogging table and dead-time compensation, the averaged bridge's dead
+    time and device drop."""
+    from pmsmjax.inverters.averaged import AveragedBridge
+
+    if getattr(drive.machine, "harmonics", None) is not None:
+        drive = eqx.tree_at(lambda d: d.machine.harmonics, drive, None, is_leaf=lambda x: x is None)
+    c = drive.controller
+    if isinstance(c, FOC) and (c.anticogging is not None or c.dead_time_compensation is not None):
+        drive = eqx.tree_at(
+            lambda d: d.controller,
+            drive,
+            dataclasses.replace(c, anticogging=None, dead_time_compensation=None),
+        )
+    b = drive.bridge
+    if isinstance(b, AveragedBridge) and b.voltage_error is not None:
+        drive = eqx.tree_at(lambda d: d.bridge, drive, AveragedBridge(b.u_dc, b.unroll_substeps))
+    return drive
+
+
 def _inputs(drive: Drive, speed_m, load_nm, w_current=None, w_speed=None) -> PeriodInputs:
     """Constant inputs at the operating point, with the injections (A) where given."""
     dtype = drive.machine.motor.R.dtype
@@ -314,6 +343,7 @@ def linearise(
 def linearise_traced(drive: Drive, speed_m, load_nm, settle_periods: int = 500, newton_steps: int = 4):
     """[`linearise`][pmsmjax.analysis.loop_linearisation.linearise] without the check, for use inside
     ``jax.jit``, ``jax.vmap`` and ``jax.grad`` (compiled with the caller)."""
+    drive = fundamental_wave(drive)
     parts, static = _split(drive, steady_state(drive, speed_m, load_nm, settle_periods))
     z0, unravel = ravel_pytree(parts)
     n = z0.shape[0]

@@ -34,6 +34,8 @@ __all__ = [
     "add_out_flag",
     "add_key_values_flag",
     "add_log_column_flags",
+    "key_values",
+    "log_reading",
     "number",
     "real",
     "positive",
@@ -70,13 +72,77 @@ def add_key_values_flag(p, flag: str, metavar: str, help: str) -> None:
     p.add_argument(flag, nargs="+", action="extend", default=[], metavar=metavar, help=help)
 
 
-def add_log_column_flags(p, example: str, units_help: str) -> None:
-    """``--columns`` (the log's names of the canonical columns, e.g. `example`) and ``--units`` (help
-    `units_help`) of a command that reads a log."""
+def add_log_column_flags(
+    p, example: str, units_help: str, tables: str = "[columns], [units] and [log]"
+) -> None:
+    """The flags of every command that reads a log: ``--config`` (a TOML file with `tables`), ``--columns``
+    (the log's names of the canonical columns, e.g. `example`; a name may hold spaces and brackets:
+    ``--columns i_a="Phase A [A]"``) and ``--units`` (help `units_help`)."""
+    p.add_argument(
+        "--config",
+        default=None,
+        help=f'TOML with {tables} tables; [log] also says how the file is written: format = "vesc", '
+        "delimiter, header_row, decimal (default: none, found from the file)",
+    )
     add_key_values_flag(
-        p, "--columns", "CANONICAL=NAME", f"column map, e.g. {example} (default: the canonical names)"
+        p,
+        "--columns",
+        "CANONICAL=NAME",
+        f'column map, e.g. {example} or i_a="Phase A [A]" (default: the canonical names, also with a unit '
+        "suffix such as 'Time [ms]')",
     )
     add_key_values_flag(p, "--units", "COLUMN=UNIT", units_help)
+
+
+def key_values(items, flag: str, example: str = "u_d=Ud") -> dict[str, str]:
+    """``{key: value}`` of KEY=VALUE words given to `flag` (a value keeps its inner spaces and brackets;
+    quotes around it are dropped); a word without ``=`` is refused in one line."""
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ParameterError(f"{flag} {item}: not KEY=VALUE; write e.g. {flag} {example}.")
+        value = value.strip()
+        if len(value) > 1 and value[0] == value[-1] and value[0] in "\"'":
+            value = value[1:-1]
+        out[key.strip()] = value
+    return out
+
+
+def log_reading(args, allowed: set, command: str, readable=None):
+    """``(columns, units, dialect, [log] table)`` of a command that reads a log: the ``--config`` file's
+    ``[columns]``, ``[units]`` and ``[log]`` tables under ``--columns`` and ``--units`` (which win), and the
+    file's dialect from ``[log]``
+    ([`pmsmjax.io.log_formats.reader_options`][pmsmjax.io.log_formats.reader_options]; `readable`: the
+    canonical columns the command reads, for a format preset). A ``[log]`` key outside `allowed` and the
+    reader keys is refused, naming the keys `command` takes."""
+    from pmsmjax.io.log_formats import READER_KEYS, reader_options
+
+    cfg = {"columns": {}, "units": {}, "log": {}}
+    if getattr(args, "config", None) is not None:
+        from pmsmjax.io.toml_parser import read_toml
+
+        path = existing_file(args.config, "--config", "config file")
+        data = read_toml(path, f"log config {path}")
+        unknown = sorted(set(data) - set(cfg))
+        if unknown:
+            raise ParameterError(
+                f"log config {path}: unknown tables {unknown}; {command} reads [columns], [units] and [log]."
+            )
+        for table in cfg:
+            if not isinstance(data.get(table, {}), dict):
+                raise ParameterError(f"log config {path}: {table} must be a table, [{table}].")
+            cfg[table] = dict(data.get(table, {}))
+    keys = set(allowed) | set(READER_KEYS)
+    bad = sorted(set(cfg["log"]) - keys)
+    if bad:
+        raise ParameterError(
+            f"[log] table: unknown keys {bad}; allowed for {command}: {', '.join(sorted(keys))}."
+        )
+    columns = {**cfg["columns"], **key_values(args.columns, "--columns")}
+    units = {**cfg["units"], **key_values(args.units, "--units", "time=ms")}
+    dialect, columns, units = reader_options(cfg["log"], columns, units, readable=readable)
+    return columns, units, dialect, cfg["log"]
 
 
 def number(

@@ -294,6 +294,13 @@ def add_parser(sub):
         help="dtc: comparator sample period, us (default 25)",
     )
     add_gains_flag(p)
+    p.add_argument(
+        "--anticogging",
+        metavar="FILE",
+        default=None,
+        help="the FOC's anticogging table learnt by pmsmjax tune --anticogging (DIR/anticogging.csv: "
+        "theta_e_rad, iq_a over one electrical revolution), fed forward on the q current (default: none)",
+    )
     drive_flags.add_trust_units_flag(
         p,
         "accept motor values outside the plausible ranges of pmsmjax.spec.plausibility (an inductance above "
@@ -399,7 +406,12 @@ def run(args) -> int:
         spec = precheck(args)
         out = checks.output_folder(args.out)
         gains = read_gains_flag(args.gains)
+        table = _read_anticogging(getattr(args, "anticogging", None))
         adjust = None if gains is None else (lambda drive, control: apply_gains_flag(drive, gains, control))
+        if table is not None:
+            from pmsmjax.jobs.anticogging_table import with_anticogging
+
+            adjust = with_anticogging(adjust, table)
         try:
             request = demo_spec(args, spec)
             drive, scenario = demo_job.build(request, adjust)
@@ -412,6 +424,15 @@ def run(args) -> int:
         for worker in workers:
             worker.close()
     return 0
+
+
+def _read_anticogging(path):
+    """The ``--anticogging`` table's ``(N,)`` q currents, A (read and checked before JAX), or None."""
+    if path is None:
+        return None
+    from pmsmjax.io.anticogging_files import read_anticogging_csv
+
+    return read_anticogging_csv(path)
 
 
 def _load_plotting() -> None:

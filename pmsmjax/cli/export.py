@@ -13,7 +13,12 @@ from pmsmjax.spec import registry
 from pmsmjax.spec.validation import ParameterError
 
 #: The targets and what each writes.
-TARGETS = {"c": "pmsm_controller.h and pmsm_controller.c: a float32 C99 controller"}
+TARGETS = {
+    "c": "pmsm_controller.h and pmsm_controller.c: a float32 C99 controller",
+    "odrive": "odrive_config.txt (odrivetool lines) and odrive_config.json: ODrive 0.5.x parameters",
+    "simplefoc": "simplefoc_gains.h (C++ for the sketch) and simplefoc_gains.json: SimpleFOC parameters",
+    "vesc": "vesc_mcconf.txt (name = value) and vesc_mcconf.json: VESC mcconf parameters",
+}
 #: The control methods export writes.
 EXPORTED_CONTROLS = ("pi",)
 
@@ -43,7 +48,19 @@ def add_parser(sub):
         "--target",
         choices=tuple(TARGETS),
         default="c",
-        help="what to write: c (pmsm_controller.h and .c, float32 C99; default)",
+        help="what to write: c (pmsm_controller.h and .c, float32 C99; default), odrive (the gains as "
+        "ODrive 0.5.x parameters: odrive_config.txt for odrivetool, odrive_config.json), simplefoc (the "
+        "gains as SimpleFOC PIDController fields: simplefoc_gains.h, simplefoc_gains.json), vesc (the "
+        "gains as VESC mcconf parameters: vesc_mcconf.txt, vesc_mcconf.json)",
+    )
+    p.add_argument(
+        "--fixed-point",
+        choices=("q15", "q31"),
+        default=None,
+        help="with --target c: write the controller in integer arithmetic, per unit (pmsm_controller_q15.h "
+        "and .c: int16 words, int32 intermediates; q31: int32 words, int64 intermediates), the bases, Q "
+        "formats, saturation and rounding stated in the header; the i_d = 0 cascade without dead-time "
+        "compensation (default: float32)",
     )
     p.add_argument(
         "--control",
@@ -78,6 +95,23 @@ def precheck(args):
             "which pmsmjax export does not write (it writes the linear-model FOC): export a drive file "
             "without a flux map (L_d, L_q, psi_f in [motor])."
         )
+    if args.target != "c" and args.field_weakening:
+        raise ParameterError(
+            f"--target {args.target} with --field-weakening: the {args.target} parameters written are the "
+            "i_d = 0 cascade's gains, not MTPA or the voltage loop; drop --field-weakening, or use "
+            "--target c."
+        )
+    if args.fixed_point is not None and args.target != "c":
+        raise ParameterError(
+            f"--fixed-point {args.fixed_point} with --target {args.target}: the fixed-point controller is a "
+            f"C target; give --target c, or drop --fixed-point for the {args.target} parameters."
+        )
+    if args.fixed_point is not None and args.field_weakening:
+        raise ParameterError(
+            f"--fixed-point {args.fixed_point} with --field-weakening: the fixed-point controller writes the "
+            "i_d = 0 cascade, not MTPA or the voltage loop; drop --field-weakening, or drop --fixed-point "
+            "for the float32 controller."
+        )
     read_gains_flag(args.gains)
     return spec
 
@@ -88,8 +122,8 @@ def run(args) -> int:
     out = checks.output_folder(args.out)
     gains = read_gains_flag(args.gains)
     from pmsmjax.export.build import export_drive
-    from pmsmjax.export.c_source import write_c
     from pmsmjax.export.description import describe
+    from pmsmjax.export.vendor_gains import write_files
 
     drive = export_drive(
         spec,
@@ -97,9 +131,13 @@ def run(args) -> int:
         args.field_weakening,
         lambda drive, control: apply_gains_flag(drive, gains, control),
     )
-    description = describe(drive, spec.source, args.gains, where=f"--motor {args.motor}")
+    where = f"--motor {args.motor}"
+    description = describe(drive, spec.source, args.gains, where=where)
+    files = target_files(
+        args.target, description, spec, where, args.fixed_point
+    )  # refusals before anything is written
     out.mkdir(parents=True, exist_ok=True)
-    written = write_c(description, out)
+    written = write_files(files, out)
     gains_text = "design-rule gains" if args.gains is None else f"gains of {args.gains}"
     print(
         f"{drive_flags.drive_name(spec)} drive, {gains_text}: Ts {description.Ts_s:g} s, "
@@ -108,3 +146,31 @@ def run(args) -> int:
     )
     print("wrote " + ", ".join(str(p) for p in written))
     return 0
+
+
+def target_files(
+    target: str, description, spec, where: str, fixed_point: str | None = None
+) -> dict[str, str]:
+    """``{file name: text}`` of ``--target`` (``fixed_point``: ``"q15"``, ``"q31"`` or None for float32) for
+    the described controller; a vendor's refusal is raised here, before anything is written."""
+    if target == "odrive":
+        from pmsmjax.export.odrive import odrive_files
+
+        return odrive_files(description, spec.ratings.rated_speed_rpm, where)
+    if target == "simplefoc":
+        from pmsmjax.export.simplefoc import simplefoc_files
+
+        return simplefoc_files(description, spec.inverter.u_dc_v, where)
+    if target == "vesc":
+        from pmsmjax.export.vesc import vesc_files
+
+        return vesc_files(description, where)
+    if fixed_point is not None:
+        from pmsmjax.export.c_fixed_source import c_fixed_files
+        from pmsmjax.export.fixed_point import fixed_scaling
+
+        scaling = fixed_scaling(description, spec.inverter.u_dc_v, fixed_point, where)
+        return c_fixed_files(description, scaling)
+    from pmsmjax.export.c_source import c_files
+
+    return c_files(description)

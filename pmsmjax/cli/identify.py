@@ -50,12 +50,13 @@ def add_parser(sub):
         "the values the log does not determine and motor.toml's [ratings], [inverter], [sensor] "
         "(default: none)",
     )
-    p.add_argument(
-        "--config",
-        default=None,
-        help="TOML with [columns], [units], [log], [identify] tables (default: none)",
+    checks.add_log_column_flags(
+        p,
+        "u_d=Ud",
+        "e.g. omega_m=rpm time=ms (omega_m=erpm: electrical r/min; default: SI: s, V, A, rad/s, rad, or the "
+        "unit in a column's name)",
+        tables="[columns], [units], [log], [identify]",
     )
-    checks.add_log_column_flags(p, "u_d=Ud", "e.g. omega_m=rpm time=ms (default: SI: s, V, A, rad/s, rad)")
     p.add_argument(
         "--hold",
         choices=["auto", "stator", "rotor"],
@@ -107,6 +108,30 @@ def add_parser(sub):
         "temperature_c column (winding temperature, degC) gives R and psi_f at the --motor prior's "
         "reference_temperature_c (default 20 degC), their temperature coefficients and the winding's thermal "
         "network, whose ambient is fitted unless given here (default: fitted)",
+    )
+    p.add_argument(
+        "--flux-harmonics",
+        metavar="ORDERS",
+        default=None,
+        help="fit magnet flux harmonics of these orders per electrical revolution (e.g. 5,7; not 1, not "
+        "triplen) with the sensor errors in the stator-frame voltage equation, from a log at speed (both "
+        "directions separate them best); motor.toml gets [harmonics] flux (default: none)",
+    )
+    p.add_argument(
+        "--cogging-orders",
+        metavar="ORDERS",
+        default=None,
+        help="fit the cogging torque of these orders per electrical revolution (e.g. 6,12) from the logged "
+        "shaft torque T_L of a slow held-speed run (a dynamometer holds the speed, a torque sensor logs "
+        "T_L); motor.toml gets [harmonics] cogging (default: none)",
+    )
+    p.add_argument(
+        "--two-mass",
+        action="store_true",
+        help="fit a compliant shaft to a run with speed steps: the motor's and the load's inertia, the "
+        "shaft's stiffness and damping and the resonance, with 95 %% intervals, from the motor speed and "
+        "the identified machine's torque; motor.toml gets [mechanics] and the motor's own J, B (default: "
+        "rigid)",
     )
     p.add_argument("--no-figures", action="store_true", help="do not write fit.png")
     p.add_argument(
@@ -187,11 +212,21 @@ def run(args) -> int:
         checks.existing_file(args.config, "--config", "config file")
     prior, pole_pairs = prior_and_pole_pairs(args)
     fixed = _pairs(args.fix, "--fix", _finite)
-    columns, units = _pairs(args.columns, "--columns"), _pairs(args.units, "--units")
+    columns = checks.key_values(args.columns, "--columns")
+    units = checks.key_values(args.units, "--units", "time=ms")
     memory.check_log("identify", args.log, args.max_memory_gb)
+    ripple = _ripple_orders(args)
     if args.flux_map:
         if args.sensor_errors:
             raise ParameterError("--sensor-errors belongs to the linear fit: drop it or --flux-map.")
+        if args.two_mass:
+            raise ParameterError("--two-mass belongs to the linear fit: drop it or --flux-map.")
+        for flag, given in (
+            ("--flux-harmonics", ripple["flux_orders"]),
+            ("--cogging-orders", ripple["cogging_orders"]),
+        ):
+            if given:
+                raise ParameterError(f"{flag} belongs to the linear fit: drop it or --flux-map.")
         return _run_flux_map(args, prior, pole_pairs, fixed, columns, units)
     if args.inverter_error or args.flux_map_step is not None:
         flag = "--inverter-error" if args.inverter_error else "--flux-map-step"
@@ -221,6 +256,8 @@ def run(args) -> int:
         reference_c=_reference_temperature_c(prior),
         ambient_c=args.ambient_c,
         encoder_lines=_encoder_lines(args, prior),
+        **ripple,
+        two_mass=args.two_mass,
         **options,
     )
     s = result.summary
@@ -230,6 +267,10 @@ def run(args) -> int:
         _print_sensor_errors(s["sensor_errors"])
     if "temperature" in s:
         _print_temperature(s["temperature"])
+    if "harmonics" in s:
+        _print_harmonics(s["harmonics"])
+    if "two_mass" in s:
+        _print_two_mass(s["two_mass"])
     for name, p in s["parameters"].items():
         ci = p["ci95"]
         interval = f"[{ci[0]:.5g}, {ci[1]:.5g}]" if ci[0] is not None else "[not determined]"
@@ -242,6 +283,83 @@ def run(args) -> int:
         + ("" if args.no_figures else ", fit.png")
     )
     return _write_motor_file(args, s, pole_pairs, prior)
+
+
+def _ripple_orders(args) -> dict:
+    """``{"flux_orders", "cogging_orders"}`` from ``--flux-harmonics`` and ``--cogging-orders`` (comma
+    lists of whole numbers per electrical revolution; flux orders not 1 and not triplen, as
+    [`pmsmjax.machines.harmonics`][pmsmjax.machines.harmonics] has them; checked in plain Python)."""
+    out = {}
+    for flag, key, attr in (
+        ("--flux-harmonics", "flux_orders", "flux_harmonics"),
+        ("--cogging-orders", "cogging_orders", "cogging_orders"),
+    ):
+        text = getattr(args, attr)
+        if text is None:
+            out[key] = ()
+            continue
+        example = "5,7" if key == "flux_orders" else "6,12"
+        try:
+            orders = [int(v) for v in text.split(",")]
+        except ValueError:
+            orders = []
+        if not orders or min(orders) < 1:
+            raise ParameterError(
+                f"{flag} {text}: give whole orders >= 1 per electrical revolution separated by commas, e.g. "
+                f"{flag} {example}."
+            )
+        if len(set(orders)) != len(orders):
+            raise ParameterError(f"{flag} {text}: an order is given twice; give each once.")
+        if key == "flux_orders":
+            for k in orders:
+                if k == 1:
+                    raise ParameterError(
+                        f"{flag} order 1 is the fundamental, which the fit gives as psi_f: drop it."
+                    )
+                if k % 3 == 0:
+                    raise ParameterError(
+                        f"{flag} order {k} is triplen: zero-sequence, it drives no current and makes no "
+                        "torque in a star winding without neutral (phase EMF only, not line): drop it."
+                    )
+        out[key] = tuple(orders)
+    return out
+
+
+def _print_harmonics(harmonics: dict) -> None:
+    """One line per identified harmonic: amplitude and phase with their 95 % intervals."""
+    for key, unit, f in (("flux", "mWb", 1e3), ("cogging", "N m", 1.0)):
+        for row in harmonics.get(key, {}).get("rows", []):
+            a, ph = row["amplitude"], row["phase_rad"]
+            if a["identifiable"]:
+                lo, hi = a["ci95"]
+                plo, phi = ph["ci95"]
+                print(f"{key} order {row['order']:<3d} {f * a['value']:.5g} {unit} 95 % [{f * lo:.5g}, "
+                      f"{f * hi:.5g}], phase {math.degrees(ph['value']):.4g} deg 95 % "
+                      f"[{math.degrees(plo):.4g}, {math.degrees(phi):.4g}]")  # fmt: skip
+            else:
+                print(f"{key} order {row['order']:<3d} {f * a['value']:.3g} {unit}  NOT IDENTIFIABLE")
+    scale = harmonics.get("cogging", {}).get("torque_scale")
+    if scale and "stderr" in scale:
+        print(f"torque scale (logged / model) {scale['value']:.5g} +- {1.96 * scale['stderr']:.2g} (95 %)")
+
+
+def _print_two_mass(shaft: dict) -> None:
+    """One line per two-mass parameter and frequency, with its 95 % interval."""
+    names = {
+        "J_m": "motor inertia",
+        "J_L": "load inertia",
+        "K": "shaft stiffness",
+        "D": "shaft damping",
+        "B": "friction B",
+        "resonance_hz": "resonance",
+        "anti_resonance_hz": "anti-resonance",
+    }
+    for key, name in names.items():
+        e = shaft[key]
+        lo, hi = e["ci95"]
+        interval = f"[{lo:.5g}, {hi:.5g}]" if lo is not None else "[not determined]"
+        flag = "" if e["identifiable"] else "  NOT IDENTIFIABLE"
+        print(f"{name:18s} {e['value']:.6g} {e['unit']:9s} 95 % {interval}{flag}")
 
 
 def _encoder_lines(args, prior):

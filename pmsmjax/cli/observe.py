@@ -38,10 +38,9 @@ def add_parser(sub):
         "rotating injection)",
     )
     checks.add_out_flag(p)
-    p.add_argument(
-        "--config", default=None, help="TOML with [columns], [units] and [log] tables (default: none)"
+    checks.add_log_column_flags(
+        p, "i_alpha=Ialpha", "e.g. time=ms omega_m=rpm (default: SI, or the unit in a column's name)"
     )
-    checks.add_log_column_flags(p, "i_alpha=Ialpha", "e.g. time=ms omega_m=rpm (default: SI)")
     p.add_argument(
         "--truth-columns",
         default="",
@@ -116,7 +115,6 @@ def run(args) -> int:
 
     # The command line is the one place where pmsmjax reaches up into the tuning workflows (the log reader
     # is shared with `pmsmjax identify`).
-    from tuning.identify.log import read_log_config
     from tuning.identify.stator_log import load_stator_log
 
     hf_flags = {"--hf-voltage": args.hf_voltage, "--hf-frequency": args.hf_frequency}
@@ -128,18 +126,16 @@ def run(args) -> int:
     if args.settle_s < 0:
         raise ParameterError(f"--settle-s must be >= 0 s, got {args.settle_s}.")
     truth = tuple(c.strip() for c in args.truth_columns.split(",") if c.strip())
-    cfg = read_log_config(args.config) if args.config else {"columns": {}, "units": {}, "log": {}}
-    bad = sorted(set(cfg["log"]) - {"u_dc", "resample"})
-    if bad:
-        raise ParameterError(f"[log] table: unknown keys {bad}; allowed for observe: u_dc, resample.")
+    columns, units, dialect, log_table = checks.log_reading(args, {"u_dc", "resample"}, "observe")
     log = load_stator_log(
         args.log,
-        columns={**cfg["columns"], **_pairs(args.columns, "--columns")},
-        units={**cfg["units"], **_pairs(args.units, "--units")},
-        u_dc=args.u_dc if args.u_dc is not None else cfg["log"].get("u_dc"),
-        resample=args.resample or bool(cfg["log"].get("resample", False)),
+        columns=columns,
+        units=units,
+        u_dc=args.u_dc if args.u_dc is not None else log_table.get("u_dc"),
+        resample=args.resample or bool(log_table.get("resample", False)),
         truth=truth,
         pole_pairs=drive.motor["pole_pairs"],
+        dialect=dialect,
     )
     _check_excitation(log, drive, args.log)
     spec = ObserveSpec(

@@ -63,6 +63,7 @@ def add_parser(sub):
             "dq-smo",
             "mras",
             "ekf",
+            "flux-observer",
             "hfi-rotating",
             "hfi-pulsating",
             "hybrid",
@@ -134,6 +135,17 @@ def add_parser(sub):
         type=checks.positive(),
         help="constrain both loops' sensitivity peak max|S| to at most this (> 1, e.g. 1.7; default: none)",
     )
+    p.add_argument(
+        "--anticogging",
+        action="store_true",
+        help="learn the FOC's anticogging table (q current over one electrical revolution) instead of the "
+        "gains: minimises the speed ripple at --anticogging-rpm by Gauss-Newton through the closed loop; "
+        "writes DIR/anticogging.csv and DIR/anticogging.json (the drive file needs [harmonics] cogging)",
+    )
+    p.add_argument(
+        "--anticogging-rpm", type=checks.positive("r/min"), default=30.0, help="speed, r/min (default 30)"
+    )
+    p.add_argument("--anticogging-bins", type=checks.count(), default=128, help="table bins (default 128)")
     p.add_argument("--fresh", action="store_true", help="ignore and replace an existing checkpoint")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
@@ -199,6 +211,8 @@ def run(args) -> int:
     """Tune the gains by gradients over a scenario batch (resuming from checkpoint.npz); writes
     gains.toml, result.json and figures to ``--out``. Returns the exit status."""
     spec = precheck(args)
+    if args.anticogging:
+        return _anticogging(args, spec)
     # The command line is the one place where pmsmjax reaches up into the tuning workflows.
     import dataclasses
 
@@ -304,5 +318,27 @@ def run(args) -> int:
     print(
         f"{data['iterations']} iterations ({data['stopped']}), wall {data['wall_time_s']:.1f} s "
         f"(compile {data['compile_time_s']:.1f} s); wrote {args.out}/gains.toml, result.json, figures"
+    )
+    return 0
+
+
+def _anticogging(args, spec) -> int:
+    """``--anticogging``: learn the table on the drive file's drive and write it to ``--out``."""
+    if not spec.harmonics.get("cogging"):
+        raise ParameterError(
+            f"--anticogging: the drive {spec.source} has no [harmonics] cogging: add the cogging torque "
+            "(e.g. cogging = [[6, 0.045, 0.3]]) to the drive file."
+        )
+    from tuning.autotune.anticogging_job import run_anticogging_job
+
+    data = run_anticogging_job(
+        args.out, spec, args.control or "pi", n_bins=args.anticogging_bins, speed_rpm=args.anticogging_rpm
+    )
+    b, a = data["speed_error_before_rpm"], data["speed_error_after_rpm"]
+    print(
+        f"speed error at {plain(args.anticogging_rpm)} r/min: RMS {b['rms_rpm']:.4f} -> {a['rms_rpm']:.4f} "
+        f"r/min ({data['rms_cut']:.1f}x), peak-to-peak {b['peak_to_peak_rpm']:.4f} -> "
+        f"{a['peak_to_peak_rpm']:.4f} r/min ({data['peak_to_peak_cut']:.1f}x); {data['steps']} steps, wall "
+        f"{data['wall_time_s']:.1f} s; wrote {args.out}/anticogging.csv, anticogging.json"
     )
     return 0

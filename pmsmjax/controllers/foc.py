@@ -12,7 +12,9 @@ Sampled-data, once per control period ``Ts``, on the estimator's angle and speed
 3. the current loop ([`AbstractCurrentController`][pmsmjax.controllers.base.AbstractCurrentController]: the dq
    PIs with decoupling and delay compensation of [`current_pi`][pmsmjax.controllers.current_pi] by default, or
    proportional-resonant in alpha-beta), limited to the modulator's linear range;
-4. optionally, dead-time compensation ([`dead_time_compensation`][pmsmjax.controllers.dead_time_compensation],
+4. optionally, anticogging ([`anticogging`][pmsmjax.controllers.anticogging], not in the book): a q current
+   over the rotor angle added to the current reference after the speed loop;
+5. optionally, dead-time compensation ([`dead_time_compensation`][pmsmjax.controllers.dead_time_compensation],
    not in the book): the inverter's predicted voltage error added back to the command.
 """
 
@@ -22,6 +24,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from pmsmjax._types import Array
+from pmsmjax.controllers.anticogging import AnticoggingTable
 from pmsmjax.controllers.base import (
     AbstractCurrentController,
     AbstractDAxisReference,
@@ -96,6 +99,11 @@ class AbstractFOC(AbstractSpeedCascade):
         compensation)."""
         return u
 
+    def feed_forward(self, i_dq_ref, estimate: Estimate) -> Array:
+        """The current reference ``i_dq_ref`` ((2,) A) the current block follows: here unchanged (FOC adds
+        its anticogging current)."""
+        return i_dq_ref
+
     def step(
         self, state: FOCState, sample: Sample, estimate: Estimate, refs: References, Ts, u_max, delayed
     ) -> tuple[FOCState, ControlOutput]:
@@ -104,6 +112,7 @@ class AbstractFOC(AbstractSpeedCascade):
         speed_state, d_axis_state, iq_ref, counter, i_dq_ref = cascade_references(
             self, state, estimate, refs, ctx
         )
+        i_dq_ref = self.feed_forward(i_dq_ref, estimate)
         current_state, u, u_dq = self.current.step(
             state.current, i_dq_ref, self.measured_currents(sample), estimate.theta_e, omega_e, ctx
         )
@@ -134,10 +143,20 @@ class FOC(AbstractFOC):
       controller's estimate of the inverter's dead time and device drop, its voltage added to the current
       loop's command (which the loop's own state, ``u_dq_prev``, does not include: it is the voltage the
       machine should see); ``None`` (default, as in the book): none.
+    - `anticogging`: an [`AnticoggingTable`][pmsmjax.controllers.anticogging.AnticoggingTable], its q
+      current at the estimated angle added to the current reference after the speed loop; ``None``
+      (default): none.
     """
 
     current: AbstractCurrentController
     dead_time_compensation: DeadTimeCompensation | None = None
+    anticogging: AnticoggingTable | None = None
+
+    def feed_forward(self, i_dq_ref, estimate: Estimate) -> Array:
+        """``i_dq_ref`` ((2,) A) plus the anticogging q current at the estimated angle, if any."""
+        if self.anticogging is None:
+            return i_dq_ref
+        return i_dq_ref.at[1].add(self.anticogging.current(estimate.theta_e))
 
     def corrected_command(
         self, u, i_dq_ref, sample: Sample, estimate: Estimate, omega_e, Ts, delayed

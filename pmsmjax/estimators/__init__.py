@@ -19,7 +19,10 @@ the map's cross-saturation angle out of HF injection and
 [`map_scheduled`][pmsmjax.estimators.map_scheduled.map_scheduled] gives a fundamental-model observer the map's
 model at the operating current and
 [`map_angle_corrected`][pmsmjax.estimators.map_angle_corrected.map_angle_corrected] keeps its constant model
-and takes the map's steady angle error out (the one that runs the closed loop cleanly).
+and takes the map's steady angle error out (the one that runs the closed loop cleanly);
+[`MapFluxObserver`][pmsmjax.estimators.map_flux_observer.MapFluxObserver] (``flux-observer``) estimates the
+stator flux on the current-flux relation itself (the map, or the linear model) and reads the angle from the
+flux mismatch.
 """
 
 from pmsmjax.estimators.adaptive_smo import AdaptiveSMO, adaptive_smo_design
@@ -33,6 +36,7 @@ from pmsmjax.estimators.hfi_pulsating import HFIPulsating, hfi_pulsating_design
 from pmsmjax.estimators.hfi_rotating import HFIRotating, hfi_rotating_design
 from pmsmjax.estimators.hybrid import HybridEstimator, HybridState, hybrid_design
 from pmsmjax.estimators.map_angle_corrected import MapAngleCorrected, map_angle_corrected
+from pmsmjax.estimators.map_flux_observer import MapFluxObserver, MapFluxObserverState, flux_observer_design
 from pmsmjax.estimators.map_scheduled import MapScheduled, map_scheduled
 from pmsmjax.estimators.mras import MRAS, mras_design
 from pmsmjax.estimators.pll import PLL, pll_design
@@ -93,4 +97,7 @@ __all__ = [
     "map_angle_corrected",
     "MapScheduled",
     "map_scheduled",
+    "MapFluxObserver",
+    "MapFluxObserverState",
+    "flux_observer_design",
 ]

@@ -12,4 +12,14 @@ Three steps, one module each:
   (``pmsm_controller.h``, ``pmsm_controller.c``), float32, the same operations in the same order as the
   simulator's controller step, whose code blocks are in
   [`pmsmjax.export.c_blocks`][pmsmjax.export.c_blocks].
+
+The vendor targets write the same description's gains in a firmware's own parameter names and units:
+[`pmsmjax.export.odrive`][pmsmjax.export.odrive] (ODrive 0.5.x, ``--target odrive``) and
+[`pmsmjax.export.simplefoc`][pmsmjax.export.simplefoc] (SimpleFOC, ``--target simplefoc``) and
+[`pmsmjax.export.vesc`][pmsmjax.export.vesc] (VESC mcconf, ``--target vesc``), with what they share in
+[`pmsmjax.export.vendor_gains`][pmsmjax.export.vendor_gains].
+
+``--target c --fixed-point q15 | q31`` writes the i_d = 0 cascade in integer arithmetic, per unit:
+[`pmsmjax.export.fixed_point`][pmsmjax.export.fixed_point] (bases, words, constants, the error bound) and
+[`pmsmjax.export.c_fixed_source`][pmsmjax.export.c_fixed_source] (the C).
 """

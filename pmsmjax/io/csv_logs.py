@@ -1,19 +1,22 @@
 """The CSV log reader behind [`read_log`][pmsmjax.io.logs.read_log]: streamed, so that its peak memory is
 about the parsed columns plus one block of text (``python -m benchmarks.log_reader_memory``).
 
-A CSV log's first line that is not empty and does not start with ``#`` is a header naming the columns,
-comma separated; every following line is one row; whitespace around names and values is ignored and an
-empty field reads as NaN (which [`check_columns`][pmsmjax.io.logs.check_columns] then locates). A byte-order
-mark is read as none.
+A CSV log has a header row naming the columns and one row per sample below it; the delimiter, the decimal
+mark and the header row are stated or found ([`pmsmjax.io.csv_dialect`][pmsmjax.io.csv_dialect]: comma,
+semicolon, tab or whitespace; a preamble above the header). Blank lines and comment lines (``#``, ``%``)
+are skipped; whitespace around names and values is ignored and an empty field reads as NaN (which
+[`check_columns`][pmsmjax.io.logs.check_columns] then locates). A byte-order mark is read as none.
 """
 
 import io
+import itertools
 import os
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 import numpy as np
 
+from pmsmjax.io.csv_dialect import CsvDialect, CsvLayout, find_layout, is_comment
 from pmsmjax.spec.validation import ParameterError
 
 __all__ = ["CSV_CHUNK_LINES", "RowLines", "read_csv_columns", "read_csv_names"]
@@ -46,44 +49,38 @@ class RowLines(Mapping):
         return iter(range(self._n))
 
 
-def _csv_header(path: Path, f) -> tuple[list[str], int]:
-    """The column names of an open CSV log ``f`` and the 1-based line of its header."""
-    line_no = 0
-    for line in f:
-        line_no += 1
-        if line.strip() and not line.lstrip().startswith("#"):
-            break
-    else:
-        raise ParameterError(f"log file {path} is empty: it needs a header row and data rows.")
-    names = [n.strip().strip("\"'").strip() for n in line.split(",")]
-    if all(_is_number(n) for n in names):
+def _csv_header(path: Path, dialect: CsvDialect | None) -> CsvLayout:
+    """The layout of the CSV log at ``path`` with its header's names checked."""
+    layout = find_layout(path, dialect)
+    names = layout.names
+    line = layout.delimiter.join(names)
+    if all(_is_number(n.replace(",", ".")) for n in names):
         raise ParameterError(
-            f"log file {path}: the first line {line.strip()!r} is data, not a header: add a "
+            f"log file {path}: line {layout.header_line} {line.strip()!r} is data, not a header: add a "
             "header row naming the columns, e.g. 'time,u_d,u_q'."
         )
     if any(not n for n in names):
         raise ParameterError(
-            f"log file {path}: the header {line.strip()!r} has an empty column name (check for "
-            "a trailing comma); name every column."
+            f"log file {path}: the header {line.strip()!r} (line {layout.header_line}) has an empty column "
+            "name (check for a doubled delimiter); name every column."
         )
     dupes = sorted({n for n in names if names.count(n) > 1})
     if dupes:
         raise ParameterError(f"log file {path}: column(s) {', '.join(dupes)} appear twice in the header.")
-    return names, line_no
+    return layout
 
 
 def _open_text(path: Path):
     return open(path, encoding="utf-8-sig", newline=None)
 
 
-def read_csv_names(path: Path) -> dict[str, None]:
+def read_csv_names(path: Path, dialect: CsvDialect | None = None) -> dict[str, None]:
     """``{name: None}`` for every column of the CSV log's header (the data is not read)."""
     try:
-        with _open_text(path) as f:
-            names, _ = _csv_header(path, f)
+        layout = _csv_header(path, dialect)
     except UnicodeDecodeError as err:
         raise ParameterError(f"log file {path}: not a text CSV file ({err}).") from err
-    return dict.fromkeys(names)
+    return dict.fromkeys(layout.names)
 
 
 def read_csv_columns(
@@ -91,25 +88,31 @@ def read_csv_columns(
     wanted: Iterable[str] | None = None,
     required: Iterable[str] = (),
     chunk_lines: int | None = None,
+    dialect: CsvDialect | None = None,
 ) -> tuple[dict[str, np.ndarray | None], RowLines]:
-    """Header + comma-separated rows -> ``({name: column}, row index -> 1-based file line)``.
+    """Header + delimited rows -> ``({name: column}, row index -> 1-based file line)``.
 
     Streams the file `chunk_lines` lines at a time (default `CSV_CHUNK_LINES`) into one preallocated
     float64 array per column (sized from the file's bytes per line, grown by half when short), so the
     peak memory is about the parsed columns plus one chunk of text. Only the columns named in `wanted`
     (all with None) are parsed, the others map to None; every row's field count is checked against the
     header all the same. With a name of `required` missing from the header nothing is parsed (every
-    column maps to None, for [`check_columns`][pmsmjax.io.logs.check_columns] to refuse).
+    column maps to None, for [`check_columns`][pmsmjax.io.logs.check_columns] to refuse). `dialect`: the
+    delimiter, decimal mark and header row as far as stated
+    ([`CsvDialect`][pmsmjax.io.csv_dialect.CsvDialect]; the rest is found).
     """
     chunk_lines = CSV_CHUNK_LINES if chunk_lines is None else int(chunk_lines)
     try:
+        layout = _csv_header(path, dialect)
+        names, header_line = layout.names, layout.header_line
         with _open_text(path) as f:
-            names, header_line = _csv_header(path, f)
+            for _ in itertools.islice(f, header_line):
+                pass
             if any(r not in names for r in required):
                 return dict.fromkeys(names), RowLines(0, [0], [header_line + 1])
             wanted = names if wanted is None else [n for n in names if n in set(wanted)]
             cols = [names.index(n) for n in wanted]
-            columns, row_lines = _parse_rows(path, f, names, cols, header_line, chunk_lines)
+            columns, row_lines = _parse_rows(path, f, layout, cols, chunk_lines)
     except UnicodeDecodeError as err:
         raise ParameterError(f"log file {path}: not a text CSV file ({err}).") from err
     out: dict[str, np.ndarray | None] = dict.fromkeys(names)
@@ -117,12 +120,15 @@ def read_csv_columns(
     return out, row_lines
 
 
-def _parse_rows(path: Path, f, names: list[str], cols: list[int], header_line: int, chunk_lines: int):
+def _fields(line: str, delimiter: str) -> int:
+    return len(line.split()) if delimiter == " " else line.count(delimiter) + 1
+
+
+def _parse_rows(path: Path, f, layout: CsvLayout, cols: list[int], chunk_lines: int):
     """The data rows of the open CSV ``f`` (after its header) -> (list of (N,) float64 columns ``cols``,
     `RowLines`)."""
-    import itertools
-
-    n_fields = len(names)
+    names, header_line, delim = layout.names, layout.header_line, layout.delimiter
+    n_fields = len(names) + layout.trailing
     size = os.fstat(f.fileno()).st_size
     buf = None
     n = 0  # rows stored
@@ -142,7 +148,7 @@ def _parse_rows(path: Path, f, names: list[str], cols: list[int], header_line: i
         lines = list(itertools.islice(f, chunk_lines))
         if not lines:
             break
-        skip = [not (t := s.lstrip()) or t[0] == "#" for s in lines]
+        skip = [is_comment(s) for s in lines]
 
         if any(skip):
             kept = []
@@ -154,19 +160,23 @@ def _parse_rows(path: Path, f, names: list[str], cols: list[int], header_line: i
         else:
             kept = lines
             mark(n, line_no + 1)
-        bad = next((k for k, s in enumerate(kept) if s.count(",") != n_fields - 1), None)
+        bad = next((k for k, s in enumerate(kept) if _fields(s, delim) != n_fields), None)
         if bad is not None:
             row = n + bad
             line = RowLines(row + 1, starts, offsets)[row]
-            n_got = kept[bad].count(",") + 1
+            text = kept[bad].rstrip("\r\n")
+            n_got = _fields(text, delim) - (layout.trailing and text.endswith(delim))
+            ends = " and a delimiter after the last" if layout.trailing else ""
             raise ParameterError(
-                f"log file {path}, line {line}: {n_got} fields but the header names {n_fields} "
-                f"columns ({', '.join(names)}): every row needs one value per column."
+                f"log file {path}, line {line}: {n_got} fields but the header names {len(names)} "
+                f"columns{ends} ({', '.join(names)}): every row needs one value per column."
             )
         line_no += len(lines)
         if not kept:
             continue
-        block = _parse_block(kept, cols)
+        if layout.decimal == ",":
+            kept = [s.replace(",", ".") for s in kept]
+        block = _parse_block(kept, cols, None if delim == " " else delim)
         if buf is None:
             per_line = max(sum(map(len, lines)) / len(lines), 1.0)
             buf = np.empty((len(cols), max(int(1.02 * size / per_line) + 16, len(kept))), np.float64)
@@ -184,20 +194,21 @@ def _parse_rows(path: Path, f, names: list[str], cols: list[int], header_line: i
     return [buf[j, :n] for j in range(len(cols))], RowLines(n, starts, offsets)
 
 
-def _parse_block(lines: list[str], cols: list[int]) -> np.ndarray:
-    """``(len(lines), len(cols))`` float64 of the CSV data ``lines``; a field that is empty or no number
-    reads as NaN (which [`check_columns`][pmsmjax.io.logs.check_columns] then locates)."""
+def _parse_block(lines: list[str], cols: list[int], delimiter: str | None = ",") -> np.ndarray:
+    """``(len(lines), len(cols))`` float64 of the CSV data ``lines`` (`delimiter` None: whitespace runs);
+    a field that is empty or no number reads as NaN (which [`check_columns`][pmsmjax.io.logs.check_columns]
+    then locates)."""
     if not cols:
         return np.zeros((len(lines), 0))
     try:
         return np.loadtxt(
-            lines, delimiter=",", dtype=np.float64, comments=None, ndmin=2, usecols=cols, quotechar=None
+            lines, delimiter=delimiter, dtype=np.float64, comments=None, ndmin=2, usecols=cols, quotechar=None
         )
     except ValueError:
         # The slow reader, only for a chunk with a bad field: it turns such fields into NaN.
         return np.genfromtxt(
             io.StringIO("".join(s if s.endswith("\n") else s + "\n" for s in lines)),
-            delimiter=",",
+            delimiter=delimiter,
             dtype=np.float64,
             comments=None,
             ndmin=2,

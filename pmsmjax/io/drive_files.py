@@ -2,7 +2,8 @@
 [`DriveSpec`][pmsmjax.spec.drive_spec.DriveSpec], and write one.
 
 Reading is the file's part only: the TOML, its tables and the ``[motor] flux_map`` file beside it
-([`pmsmjax.io.flux_map_files`][pmsmjax.io.flux_map_files]); the checks, defaults and derivations are the
+([`pmsmjax.io.flux_map_files`][pmsmjax.io.flux_map_files], in the layout ``[motor] flux_map_format`` names,
+[`pmsmjax.io.flux_map_formats`][pmsmjax.io.flux_map_formats]); the checks, defaults and derivations are the
 spec's ([`pmsmjax.spec.drive_spec`][pmsmjax.spec.drive_spec], whose docstring has the layout). The presets are
 drive files in ``pmsmjax/presets/motors/``.
 """
@@ -10,8 +11,9 @@ drive files in ``pmsmjax/presets/motors/``.
 from collections.abc import Mapping
 from pathlib import Path
 
-from pmsmjax.io.flux_map_files import read_flux_map
+from pmsmjax.io.flux_map_files import read_flux_map_file
 from pmsmjax.io.toml_parser import read_toml, tomllib
+from pmsmjax.spec.datasheet import refuse_ambiguous
 from pmsmjax.spec.drive_spec import (
     MOTOR_FIELDS,
     TABLES,
@@ -41,6 +43,7 @@ PRESET_FILES = {
     "book": "book.toml",
     "book_salient": "book_salient.toml",
     "saturated-ipm": "saturated_ipm.toml",
+    "pm-syrm": "pm_syrm.toml",
     "servo-400w": "servo_400w_48v.toml",
     "servo-two-mass": "servo_two_mass.toml",
     "industrial-5k6w": "industrial_5k6w_540v.toml",
@@ -112,9 +115,19 @@ def read_drive_file(
         raise ParameterError(f"{where} does not exist: check the path.")
     data = read_toml(path, where)
     tables = split_tables(data, where)
+    refuse_ambiguous(tables["motor"], where)
     for table, values in tables.items():
         check_keys(table, values, where)
     grid = map_path = None
+    how = ""
+    fmt = tables["motor"].pop("flux_map_format", None)
+    if fmt is not None and "flux_map" not in tables["motor"]:
+        raise ParameterError(
+            f'{where}: [motor] flux_map_format = {fmt!r} without a flux_map: add flux_map = "map.csv" or '
+            "drop the format."
+        )
+    if fmt is not None and not isinstance(fmt, str):
+        raise ParameterError(f'{where}: [motor] flux_map_format must be a name (e.g. "syre"), got {fmt!r}.')
     if "flux_map" in tables["motor"]:
         name = flux_map_name(tables["motor"], where)
         map_path = Path(name) if Path(name).is_absolute() else path.resolve().parent / name
@@ -124,11 +137,12 @@ def read_drive_file(
                 f"{where}: [motor] flux_map = {name!r}: {map_path} {state} (the path is relative to "
                 "the drive file's folder)."
             )
-        grid = read_flux_map(map_path)
+        read = read_flux_map_file(map_path, fmt, name=f"{where}: [motor] flux_map_format")
+        grid, how = read.grid, read.how
     return complete(
         tables, where=where, source=str(source if source is not None else path), n_phases=n_phases,
         check_units=check_units, overrides=overrides, flags=flags, flux_map=grid,
-        flux_map_path=None if map_path is None else str(map_path),
+        flux_map_path=None if map_path is None else str(map_path), flux_map_how=how,
     )  # fmt: skip
 
 
@@ -154,6 +168,11 @@ def write_drive_file(path, tables: Mapping[str, Mapping], header: str = "", comm
                 text = "true" if value else "false"
             elif isinstance(value, str):
                 text = f'"{value}"'
+            elif isinstance(value, (list, tuple)) and value and isinstance(value[0], (list, tuple)):
+                number = lambda v: (
+                    str(v) if isinstance(v, int) and not isinstance(v, bool) else repr(float(v))
+                )
+                text = "[" + ", ".join("[" + ", ".join(map(number, row)) + "]" for row in value) + "]"
             elif isinstance(value, (list, tuple)):
                 text = "[" + ", ".join(repr(float(v)) for v in value) + "]"
             elif isinstance(value, int):

@@ -14,18 +14,33 @@ Formats (SI units: A, Wb peak phase flux linkage in the amplitude-invariant dq f
 - **NPZ** or **MAT** with complex 2-D grids ``i_s_dq = i_d + j i_q`` and ``psi_s_dq = psi_d + j psi_q``
   (the layout some public machine-design tools write), rows along either axis.
 
+Other tools' layouts (scattered points, SyR-e, inductance tables, motulator) are converted into the same grid
+([`pmsmjax.io.flux_map_formats`][pmsmjax.io.flux_map_formats], chosen by ``[motor] flux_map_format`` or by
+the file's extension and content); a grid's NaN fluxes are holes, filled and marked not measured.
+
 A careless file (a missing column or array, a grid with holes or uneven steps, NaN, currents in mA) is
 refused with one [`ParameterError`][pmsmjax.spec.validation.ParameterError] naming the file and the fix.
 """
 
+import dataclasses
+import hashlib
 from pathlib import Path
 
 import numpy as np
 
+from pmsmjax.io.flux_map_formats import FORMATS
 from pmsmjax.machines.flux_map import FluxMapGrid
 from pmsmjax.spec.validation import ParameterError, plain
 
-__all__ = ["read_flux_map", "read_flux_map_measured", "write_flux_map_csv", "CSV_COLUMNS", "MEASURED_COLUMN"]
+__all__ = [
+    "read_flux_map",
+    "read_flux_map_file",
+    "read_flux_map_measured",
+    "write_flux_map_csv",
+    "FluxMapRead",
+    "CSV_COLUMNS",
+    "MEASURED_COLUMN",
+]
 
 CSV_COLUMNS = ("i_d", "i_q", "psi_d", "psi_q")
 #: The optional CSV column marking measured (1) and filled (0) grid points.
@@ -36,95 +51,182 @@ MA_CURRENT_A = 1000.0
 MA_INDUCTANCE_H = 1e-5
 
 
-def read_flux_map(path) -> FluxMapGrid:
-    """Read and check the flux map ``path`` (``.csv``, ``.npz`` or ``.mat``; module docstring)."""
+@dataclasses.dataclass(frozen=True, eq=False)
+class FluxMapRead:
+    """A map file as read: the checked `grid`, its `measured` marks (``(n_d, n_q)`` bool, None when every
+    point was measured and the file marks none), the `fmt` it was read as (a key of
+    ``pmsmjax.io.flux_map_formats.FORMATS``) and `how`: one line on what was converted or
+    filled, empty for a complete grid in pmsmjax's layout."""
+
+    grid: FluxMapGrid
+    measured: np.ndarray | None
+    fmt: str
+    how: str = ""
+
+
+#: The maps read so far: ``{absolute path: (content hash, FluxMapRead)}``. A map read again (the design
+#: rules re-read the drive file's map by its path) is read as it was the first time, in its drive file's
+#: ``flux_map_format``, without interpolating it again.
+_READ = {}
+
+
+def read_flux_map(path, fmt: str | None = None) -> FluxMapGrid:
+    """Read and check the flux map ``path`` (``.csv``, ``.npz`` or ``.mat``; module docstring) as the
+    format `fmt` (``pmsmjax.io.flux_map_formats.FORMATS``; None: by extension and content)."""
+    return read_flux_map_file(path, fmt).grid
+
+
+def read_flux_map_file(path, fmt: str | None = None, name: str = "flux_map_format") -> FluxMapRead:
+    """[`read_flux_map`][pmsmjax.io.flux_map_files.read_flux_map] with the measured marks and how the file
+    was converted ([`FluxMapRead`][pmsmjax.io.flux_map_files.FluxMapRead]); `name`: how a refusal names
+    `fmt`."""
     path = Path(path)
     where = f"flux map {path}"
     if not path.is_file():
         state = "is a folder: give the map file in it" if path.is_dir() else "does not exist: check the path"
         raise ParameterError(f"{where} {state} (relative to the drive file).")
+    if fmt is not None and fmt not in FORMATS:
+        raise ParameterError(
+            f"{name} = {fmt!r} is not a flux-map format: give one of {', '.join(map(repr, FORMATS))} "
+            "(or leave it out: the file's extension and content choose)."
+        )
+    key, stamp = str(path.resolve()), hashlib.blake2b(path.read_bytes(), digest_size=16).digest()
+    hit = _READ.get(key)
+    if hit is not None and hit[0] == stamp and fmt in (None, hit[1].fmt):
+        return hit[1]
+    read = _read(path, fmt, where, name)
+    _READ[key] = (stamp, read)
+    return read
+
+
+def _read(path: Path, fmt, where: str, name: str) -> FluxMapRead:
+    from pmsmjax.io.flux_map_formats import inductance_tables, motulator, syre
+
     suffix = path.suffix.lower()
-    if suffix == ".csv":
-        axes = _read_csv(path, where)[:4]
-    elif suffix in (".npz", ".mat"):
-        axes = _grid_arrays(_load_arrays(path, suffix, where), where)
-    else:
+    if suffix not in (".csv", ".npz", ".mat"):
         raise ParameterError(f"{where}: unknown format {suffix!r}: give a .csv, .npz or .mat file.")
-    _check_units(*axes, where)
-    return FluxMapGrid(*axes, source=where)
+    marks, how = None, ""
+    if suffix == ".csv":
+        if fmt is None:
+            header = _csv_header(path)
+            fmt = "inductance" if inductance_tables.is_inductance_table(header) else "grid"
+        if fmt == "points":
+            from pmsmjax.io.flux_map_formats.columns import read_csv_columns
+
+            return _points(read_csv_columns(path, CSV_COLUMNS, where), where)
+        if fmt == "grid":
+            *axes, marks = _read_csv(path, where)
+        elif fmt == "inductance":
+            *axes, how = inductance_tables.inductance_grid(path, where)
+        else:
+            raise ParameterError(f'{where}: {name} = "{fmt}" reads .npz or .mat files, not a CSV.')
+    else:
+        arrays = _load_arrays(path, suffix, where)
+        if fmt is None:
+            fmt = (
+                "syre" if syre.is_syre(arrays)
+                else "inductance" if inductance_tables.is_inductance_table(arrays)
+                else "motulator" if motulator.is_motulator(arrays) and not {"i_d", "psi_d"} <= arrays.keys()
+                else "grid"
+            )  # fmt: skip
+        if fmt == "points":
+            if motulator.is_motulator(arrays):
+                i_s, psi_s = motulator.complex_arrays(arrays, where)
+                arrays = {"i_d": i_s.real, "i_q": i_s.imag, "psi_d": psi_s.real, "psi_q": psi_s.imag}
+            return _points(arrays, where)
+        if fmt == "syre":
+            *axes, how = syre.syre_grid(arrays, where)
+        elif fmt == "inductance":
+            *axes, how = inductance_tables.inductance_grid(arrays, where)
+        elif fmt == "motulator":
+            i_s, psi_s = motulator.complex_arrays(arrays, where)
+            axes = motulator.rectangular(i_s, psi_s)
+            if axes is None:
+                cols = {"i_d": i_s.real, "i_q": i_s.imag, "psi_d": psi_s.real, "psi_q": psi_s.imag}
+                read = _points(cols, where)
+                return dataclasses.replace(
+                    read, fmt="motulator", how="motulator map off a current grid: " + read.how
+                )
+            how = "motulator map (complex i_s_dq, psi_s_dq)"
+        else:
+            axes = _grid_arrays(arrays, where)
+    i_d, i_q, psi_d, psi_q = (np.asarray(a, dtype=float) for a in axes)
+    if np.shape(psi_d) == np.shape(psi_q) == (i_d.size, i_q.size) and not (
+        np.all(np.isfinite(psi_d)) and np.all(np.isfinite(psi_q))
+    ):
+        from pmsmjax.io.flux_map_formats.scattered import fill_holes
+
+        psi_d, psi_q, known = fill_holes(i_d, i_q, psi_d, psi_q, where)
+        marks = known if marks is None else marks & known
+        holes = (
+            f"{int((~known).sum())} of {known.size} grid points were NaN: filled (thin-plate spline), "
+            "marked not measured"
+        )
+        how = f"{how}; {holes}" if how else holes
+    _check_units(i_d, i_q, psi_d, psi_q, where)
+    return FluxMapRead(FluxMapGrid(i_d, i_q, psi_d, psi_q, source=where), marks, fmt, how)
+
+
+def _points(arrays: dict, where: str) -> FluxMapRead:
+    """Scattered points (``i_d, i_q, psi_d, psi_q`` 1-D, any order) resampled on a grid."""
+    from pmsmjax.io.flux_map_formats.scattered import grid_from_points
+
+    missing = [c for c in CSV_COLUMNS if c not in arrays]
+    if missing:
+        raise ParameterError(
+            f"{where} lacks {', '.join(missing)}: scattered points need i_d, i_q (A), psi_d, psi_q (Wb), "
+            "one value per point."
+        )
+    cols = [np.asarray(arrays[c], dtype=float).reshape(-1) for c in CSV_COLUMNS]
+    grid, inside = grid_from_points(*cols, where=where)
+    _check_units(grid.i_d, grid.i_q, grid.psi_d, grid.psi_q, where)
+    how = (
+        f"{cols[0].size} scattered points interpolated (thin-plate spline) onto a {grid.i_d.size} x "
+        f"{grid.i_q.size} grid; {int((~inside).sum())} grid points outside their hull marked not measured"
+    )
+    return FluxMapRead(grid, inside, "points", how)
+
+
+def _csv_header(path: Path) -> list[str]:
+    """The names of the CSV's first line that is not a comment (empty for an unreadable file: the reader
+    then says why)."""
+    try:
+        text = path.read_bytes().decode("utf-8-sig")
+    except UnicodeDecodeError:
+        return []
+    for line in text.splitlines():
+        if line.strip() and not line.lstrip().startswith("#"):
+            return [h.strip() for h in line.split(",")]
+    return []
 
 
 def _read_csv(path: Path, where: str):
-    try:
-        text = path.read_bytes().decode("utf-8-sig")  # an editor's byte-order mark is not the header's
-    except UnicodeDecodeError as err:
+    from pmsmjax.io.flux_map_formats.columns import read_csv_columns, rows_to_grid
+
+    hint = (
+        f": a CSV flux map is text with the header {','.join(CSV_COLUMNS)}; a binary map is a .npz or .mat "
+        "file"
+    )
+    cols = read_csv_columns(path, CSV_COLUMNS, where, optional=(MEASURED_COLUMN,), binary_hint=hint)
+    marks = cols.get(MEASURED_COLUMN)
+    if marks is not None and not np.all((marks == 0) | (marks == 1)):
         raise ParameterError(
-            f"{where}: not a text file (byte {err.start} is not UTF-8): a CSV flux map is text with the "
-            f"header {','.join(CSV_COLUMNS)}; a binary map is a .npz or .mat file."
-        ) from None
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
-    if not lines:
-        raise ParameterError(
-            f"{where} is empty: it needs the header {','.join(CSV_COLUMNS)} and one row per point."
+            f"{where}: the {MEASURED_COLUMN} column holds {plain(marks[(marks != 0) & (marks != 1)][0])}: "
+            "give 1 (a measured point) or 0 (a filled one)."
         )
-    header = [h.strip() for h in lines[0].split(",")]
-    missing = [c for c in CSV_COLUMNS if c not in header]
-    if missing:
-        raise ParameterError(
-            f"{where} lacks the column(s) {', '.join(missing)} (header: {','.join(header)}): the header must "
-            f"name {','.join(CSV_COLUMNS)} (A, A, Wb, Wb)."
-        )
-    try:
-        rows = np.array([[float(x) for x in ln.split(",")] for ln in lines[1:]], dtype=float)
-    except ValueError as err:
-        raise ParameterError(
-            f"{where}: a value is not a number ({err}); every row holds four numbers."
-        ) from err
-    if rows.ndim != 2 or rows.shape[1] != len(header):
-        raise ParameterError(f"{where}: every row needs {len(header)} values, as many as the header names.")
-    cols = {c: rows[:, header.index(c)] for c in CSV_COLUMNS}
-    i_d, i_q = _distinct(cols["i_d"]), _distinct(cols["i_q"])
-    if np.isnan(i_d).any() or np.isnan(i_q).any():
-        raise ParameterError(f"{where}: a current (i_d or i_q) is NaN: every row needs its grid point.")
-    if len(rows) != i_d.size * i_q.size:
-        raise ParameterError(
-            f"{where}: {len(rows)} rows do not fill the {i_d.size} x {i_q.size} grid of its distinct i_d and "
-            "i_q values: give exactly one row per grid point (a rectangular grid, no holes or repeats)."
-        )
-    j, k = np.searchsorted(i_d, cols["i_d"]), np.searchsorted(i_q, cols["i_q"])
-    if _distinct(j * i_q.size + k).size != len(rows):
-        raise ParameterError(f"{where}: a grid point appears twice: give one row per (i_d, i_q).")
-    psi_d, psi_q = np.empty((i_d.size, i_q.size)), np.empty((i_d.size, i_q.size))
-    psi_d[j, k], psi_q[j, k] = cols["psi_d"], cols["psi_q"]
-    if MEASURED_COLUMN in header:
-        marks = rows[:, header.index(MEASURED_COLUMN)]
-        if not np.all((marks == 0) | (marks == 1)):
-            raise ParameterError(
-                f"{where}: the {MEASURED_COLUMN} column holds "
-                f"{plain(marks[(marks != 0) & (marks != 1)][0])}: "
-                "give 1 (a measured point) or 0 (a filled one)."
-            )
-        measured = np.empty((i_d.size, i_q.size), dtype=bool)
-        measured[j, k] = marks == 1
-        return i_d, i_q, psi_d, psi_q, measured
-    return i_d, i_q, psi_d, psi_q, None
+    values = {"psi_d": cols["psi_d"], "psi_q": cols["psi_q"]}
+    if marks is not None:
+        values["measured"] = marks == 1
+    i_d, i_q, grids = rows_to_grid(cols["i_d"], cols["i_q"], values, where, {"measured": bool})
+    return i_d, i_q, grids["psi_d"], grids["psi_q"], grids.get("measured")
 
 
-def _distinct(values: np.ndarray) -> np.ndarray:
-    """The sorted distinct values of ``values`` (``np.unique`` without its first call's import of
-    ``numpy.ma``, a fifth of reading a drive file with a map); NaNs are kept, each, at the end."""
-    ordered = np.sort(values)
-    first = np.ones(ordered.size, dtype=bool)
-    first[1:] = ordered[1:] != ordered[:-1]
-    return ordered[first]
-
-
-def read_flux_map_measured(path) -> np.ndarray | None:
-    """``(n_d, n_q)`` bool marks of a CSV map's ``measured`` column (rows along i_d, as the grid), or None
-    when the file has no such column (every point measured); the file is checked as
+def read_flux_map_measured(path, fmt: str | None = None) -> np.ndarray | None:
+    """``(n_d, n_q)`` bool marks of the map's measured grid points (rows along i_d, as the grid): a CSV's
+    ``measured`` column, the filled NaN holes, the grid points outside scattered points' hull; None when the
+    file marks none and has no holes (every point measured). The file is read and checked as
     [`read_flux_map`][pmsmjax.io.flux_map_files.read_flux_map]."""
-    read_flux_map(path)
-    return _read_csv(Path(path), f"flux map {path}")[4] if Path(path).suffix.lower() == ".csv" else None
+    return read_flux_map_file(path, fmt).measured
 
 
 def _load_arrays(path: Path, suffix: str, where: str) -> dict:

@@ -2,11 +2,13 @@
 
 A log is a set of equally long 1-D numeric columns, one of which is usually the time in seconds:
 
-- CSV: the first line that is not empty and does not start with ``#`` is a header naming the columns,
-  comma separated; every following line is one row. Whitespace around names and values is ignored, an
+- CSV: a header row naming the columns, then one row per sample; comma, semicolon, tab or whitespace
+  separated, a preamble above the header, decimal commas on request
+  ([`pmsmjax.io.csv_dialect`][pmsmjax.io.csv_dialect]). Whitespace around names and values is ignored, an
   empty field reads as NaN (and is then reported as such).
 - ``.npz``: one array per column, the key is the column name (``np.savez(path, time=t, u_d=...)``).
-- ``.mat``: one variable per column (``save log.mat time u_d u_q`` in MATLAB); row or column vectors.
+- ``.mat``: one variable per column (``save log.mat time u_d u_q`` in MATLAB, v4 to v7.3); row or column
+  vectors ([`pmsmjax.io.mat_files`][pmsmjax.io.mat_files]).
 
 [`read_log`][pmsmjax.io.logs.read_log] returns the requested columns as float64 NumPy arrays after
 [`check_columns`][pmsmjax.io.logs.check_columns] has checked them: required columns present, no NaN/inf, at
@@ -28,7 +30,9 @@ from pathlib import Path
 
 import numpy as np
 
+from pmsmjax.io.csv_dialect import CsvDialect
 from pmsmjax.io.csv_logs import read_csv_columns, read_csv_names
+from pmsmjax.io.mat_files import mat_names, mat_rows, read_mat
 from pmsmjax.spec.validation import ParameterError
 
 __all__ = [
@@ -56,6 +60,7 @@ def read_log(
     *,
     time: str | None = "time",
     unused: list | None = None,
+    dialect: CsvDialect | None = None,
 ) -> dict[str, np.ndarray]:
     """Read and check a logged data file; returns ``{column: (N,) float64 array}``.
 
@@ -65,6 +70,8 @@ def read_log(
     - `required`: column names that must be present.
     - `optional`: column names returned when present.
     - `time`: name of the time column (s) that must be strictly increasing, or ``None`` for no such check.
+    - `dialect`: a CSV file's delimiter, decimal mark and header row as far as stated
+      ([`CsvDialect`][pmsmjax.io.csv_dialect.CsvDialect]; the rest is found from the file).
 
     Only the required and the present optional columns are returned (in that order); other columns are
     ignored, and their names appended to `unused` when a list is given (to report them, or to catch a
@@ -80,11 +87,11 @@ def read_log(
     suffix = path.suffix.lower()
     line_offset = None
     if suffix in (".csv", ".txt"):
-        raw, line_offset = read_csv_columns(path, required + optional, required)
+        raw, line_offset = read_csv_columns(path, required + optional, required, dialect=dialect)
     elif suffix == ".npz":
         raw = _read_npz(path)
     elif suffix == ".mat":
-        raw = _read_mat(path)
+        raw = read_mat(path)
     else:
         raise ParameterError(
             f"log file {path}: unknown format {path.suffix!r}; use one of {', '.join(LOG_SUFFIXES)} "
@@ -96,17 +103,18 @@ def read_log(
     return check_columns(raw, required, optional, time=time, source=f"log {path}", line_offset=line_offset)
 
 
-def column_names(path: str | os.PathLike) -> list[str]:
-    """Every column name in the log at ``path`` (for hints about misspelt columns); ``[]`` if it cannot be
-    read ([`read_log`][pmsmjax.io.logs.read_log] reports why)."""
+def column_names(path: str | os.PathLike, dialect: CsvDialect | None = None) -> list[str]:
+    """Every column name in the log at ``path`` (for hints about misspelt columns, and to map names with
+    units); ``[]`` if it cannot be read ([`read_log`][pmsmjax.io.logs.read_log] reports why)."""
     path = Path(path)
-    readers = {".csv": read_csv_names, ".txt": read_csv_names, ".npz": _read_npz, ".mat": _read_mat}
+    csv = lambda p: read_csv_names(p, dialect)
+    readers = {".csv": csv, ".txt": csv, ".npz": _read_npz, ".mat": mat_names}
     reader = readers.get(path.suffix.lower())
     if reader is None or not path.is_file():
         return []
     try:
         raw = reader(path)
-    except ParameterError:
+    except (ParameterError, UnicodeDecodeError, OSError):
         return []
     return list(raw[0] if isinstance(raw, tuple) else raw)
 
@@ -117,7 +125,7 @@ def log_rows(path: str | os.PathLike) -> int | None:
 
     A CSV file's is an upper bound: its lines after the first, blank and comment lines included (counted
     in 1 MiB blocks). An ``.npz`` file's is its longest array's element count, from the arrays' headers;
-    a ``.mat`` file's its longest variable's, from ``scipy.io.whosmat``.
+    a ``.mat`` file's its longest variable's, from ``scipy.io.whosmat`` (v7.3: the HDF5 datasets' shapes).
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -146,10 +154,7 @@ def log_rows(path: str | os.PathLike) -> int | None:
                     longest = max(longest, int(np.prod(shape, dtype=np.int64)))
             return longest
         if suffix == ".mat":
-            import scipy.io
-
-            shapes = [shape for _, shape, _ in scipy.io.whosmat(path)]
-            return max((int(np.prod(s, dtype=np.int64)) for s in shapes), default=0)
+            return mat_rows(path)
     except Exception:
         return None
     return None
@@ -284,19 +289,6 @@ def _read_npz(path: Path) -> dict[str, np.ndarray]:
             f"log file {path}: cannot read it as NumPy .npz ({err}); write it with "
             "np.savez(path, time=t, u_d=...)."
         ) from err
-
-
-def _read_mat(path: Path) -> dict[str, np.ndarray]:
-    import scipy.io
-
-    try:
-        data = scipy.io.loadmat(path, squeeze_me=True)
-    except Exception as err:
-        raise ParameterError(
-            f"log file {path}: cannot read it as a MATLAB .mat file ({err}); save one variable per column "
-            "(v7 or earlier; v7.3/HDF5 files need save(..., '-v7'))."
-        ) from err
-    return {k: v for k, v in data.items() if not k.startswith("__")}
 
 
 # --------------------------------------------------------------------------------------------------

@@ -325,6 +325,10 @@ def run(spec: DemoSpec, drive, scenario) -> DemoResult:
         t0 = time.perf_counter()
         summary["loop_margins"] = drive_margins(drive, speed_m, spec.load_nm, "--speed-rpm, --load-nm")
         summary["timing"]["margins_s"] = time.perf_counter() - t0
+    if trace.cogging_torque is not None:
+        from pmsmjax.trace import COGGING_COLUMN_UNITS
+
+        summary["trace_columns"] = {**summary["trace_columns"], **COGGING_COLUMN_UNITS}
     return DemoResult(
         trace=trace,
         summary=summary,

@@ -7,6 +7,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from pmsmjax.io.csv_dialect import CsvDialect
 from pmsmjax.recorded.replay import DEFAULT_HOLD, replay_log
 
 
@@ -15,7 +16,8 @@ class ReplaySpec:
     """What to replay: `log` a ``.csv``/``.npz``/``.mat`` log, `motor` a preset name or drive file, `hold`
     ``"auto"``, ``"rotor"`` or ``"stator"``, `n_substeps` RK4 steps per row (None: automatic),
     `time_unit` of the log's time column (``"s"``, ``"ms"``, ``"us"``), `check_units` refuse implausible
-    units (see [`pmsmjax.recorded.replay.replay_log`][pmsmjax.recorded.replay.replay_log])."""
+    units, `columns` the column map, `units` the units map, `dialect` a CSV file's stated dialect (see
+    [`pmsmjax.recorded.replay.replay_log`][pmsmjax.recorded.replay.replay_log])."""
 
     log: str | os.PathLike
     motor: str | os.PathLike
@@ -23,6 +25,9 @@ class ReplaySpec:
     n_substeps: int | None = None
     time_unit: str = "s"
     check_units: bool = True
+    columns: Mapping[str, str] | None = None
+    units: Mapping[str, str] | None = None
+    dialect: CsvDialect | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -46,5 +51,8 @@ def run_replay(spec: ReplaySpec) -> ReplayResult:
         time_unit=spec.time_unit,
         check_units=spec.check_units,
         report=notes,
+        columns=spec.columns,
+        units=spec.units,
+        dialect=spec.dialect,
     )
     return ReplayResult(columns, tuple(notes))

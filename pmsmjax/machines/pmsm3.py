@@ -16,6 +16,13 @@ independent check of each:
 
 In the flux-based models ``dpsi/dt = L(th) di/dt + w_e dpsi/dth``; the angle derivative of the flux is
 taken with ``jax.jvp`` so the EMF and reluctance terms cannot be mis-derived by hand.
+
+Each model takes optional ``harmonics`` ([`MagnetHarmonics`][pmsmjax.machines.harmonics.MagnetHarmonics]:
+magnet flux harmonics and cogging torque), written in the model's own frame: the abc model adds them to
+``psi_PM,abc`` (its co-energy torque then includes them), the alpha-beta model to its magnet flux with the
+torque ``1.5 p i . dpsi_h,ab/dth``, the dq model the rotor-frame EMF ``w_e eps_dq`` and torque
+``1.5 p i_dq . eps_dq``; each adds the cogging torque to ``torque``. ``None`` (default): the program is the
+sinusoidal machine's.
 """
 
 from typing import ClassVar
@@ -29,6 +36,7 @@ from pmsmjax._types import Array
 from pmsmjax.frames.three_phase import abc_to_alpha_beta, alpha_beta_to_abc, inverse_park, park
 from pmsmjax.machines import dq_equations as dq
 from pmsmjax.machines.base import AbstractMachine, MachineInput, Mechanics
+from pmsmjax.machines.harmonics import MagnetHarmonics
 from pmsmjax.machines.motor import PMSMParameters, as_float
 
 # NumPy float64 at import; converted where used so the JAX precision mode of that moment applies.
@@ -93,17 +101,31 @@ class PMSMdq(AbstractPMSMdq):
     of [`AbstractPMSMdq`][pmsmjax.machines.pmsm3.AbstractPMSMdq]).
 
     **Arguments:** `motor` ([`PMSMParameters`][pmsmjax.machines.motor.PMSMParameters]); `mechanics`:
-    ``"dynamic"`` or ``"imposed"`` speed.
+    ``"dynamic"`` or ``"imposed"`` speed; `harmonics`: magnet flux harmonics and cogging torque
+    ([`MagnetHarmonics`][pmsmjax.machines.harmonics.MagnetHarmonics]), ``None`` for none.
     """
 
     motor: PMSMParameters
     mechanics: Mechanics = eqx.field(static=True, default="dynamic")
+    harmonics: MagnetHarmonics | None = None
 
     def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
-        return self.linear_current_derivative(currents, theta_e, omega_e, u)
+        h = self.harmonics
+        if h is None or not h.has_flux:
+            return self.linear_current_derivative(currents, theta_e, omega_e, u)
+        # the harmonics' rotor-frame EMF w_e eps_dq, taken off the voltage
+        m, u_dq = self.motor, u.dq(theta_e) - omega_e * h.emf_dq(theta_e)
+        derivative = dq.linear_current_derivative(
+            m.R, m.L_d, m.L_q, m.psi_f, omega_e, currents[0], currents[1], u_dq[0], u_dq[1]
+        )
+        return jnp.stack(derivative)
 
     def torque(self, currents, theta_e):
-        return self.linear_torque(currents)
+        if self.harmonics is None:
+            return self.linear_torque(currents)
+        return self.linear_torque(currents) + self.harmonics.dq_torque(
+            currents, theta_e, self.motor.pole_pairs
+        )
 
 
 class PMSMAlphaBeta(AbstractMachine):
@@ -112,10 +134,12 @@ class PMSMAlphaBeta(AbstractMachine):
     Args:
         motor: The motor's parameters.
         mechanics: ``"dynamic"`` or ``"imposed"`` speed.
+        harmonics: Magnet flux harmonics and cogging torque, or ``None``.
     """
 
     motor: PMSMParameters
     mechanics: Mechanics = eqx.field(static=True, default="dynamic")
+    harmonics: MagnetHarmonics | None = None
 
     def inductance(self, theta_e) -> Array:
         """Alpha-beta inductance matrix at an electrical angle.
@@ -138,7 +162,10 @@ class PMSMAlphaBeta(AbstractMachine):
         Returns:
             ``(2,)`` flux linkage, Wb.
         """
-        return self.inductance(theta_e) @ currents + alpha_beta_magnet_flux(self.motor.psi_f, theta_e)
+        flux = self.inductance(theta_e) @ currents + alpha_beta_magnet_flux(self.motor.psi_f, theta_e)
+        if self.harmonics is not None and self.harmonics.has_flux:
+            flux = flux + self.harmonics.flux_alpha_beta(theta_e)[0]
+        return flux
 
     def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
         _, dflux_dtheta = jax.jvp(lambda th: self.flux(currents, th), (theta_e,), (jnp.ones_like(theta_e),))
@@ -146,8 +173,16 @@ class PMSMAlphaBeta(AbstractMachine):
         return _solve2(self.inductance(theta_e), rhs)
 
     def torque(self, currents, theta_e):
-        psi = self.flux(currents, theta_e)
-        return 1.5 * self.motor.pole_pairs * (psi[0] * currents[1] - psi[1] * currents[0])
+        p, h = self.motor.pole_pairs, self.harmonics
+        if h is None:
+            psi = self.flux(currents, theta_e)
+            return 1.5 * p * (psi[0] * currents[1] - psi[1] * currents[0])
+        # the sinusoidal machine's torque, plus the harmonics' 1.5 p i . dpsi_h/dth and the cogging torque
+        psi = self.inductance(theta_e) @ currents + alpha_beta_magnet_flux(self.motor.psi_f, theta_e)
+        torque = 1.5 * p * (psi[0] * currents[1] - psi[1] * currents[0]) + h.cogging_torque(theta_e)
+        if h.has_flux:
+            torque = torque + 1.5 * p * (currents @ h.flux_alpha_beta(theta_e)[1])
+        return torque
 
     def currents_to_dq(self, currents, theta_e):
         return park(currents, theta_e)
@@ -164,18 +199,27 @@ class PMSMabc(AbstractMachine):
         leakage_inductance: Per-phase leakage ``L_l``, H; it is also the zero-sequence inductance. It does
             not affect balanced operation; the default (``None``) is a tenth of ``min(L_d, L_q)``.
         mechanics: ``"dynamic"`` or ``"imposed"`` speed.
+        harmonics: Magnet flux harmonics and cogging torque, or ``None``.
     """
 
     motor: PMSMParameters
     leakage_inductance: Array
     mechanics: Mechanics = eqx.field(static=True, default="dynamic")
+    harmonics: MagnetHarmonics | None = None
 
-    def __init__(self, motor: PMSMParameters, leakage_inductance=None, mechanics: Mechanics = "dynamic"):
+    def __init__(
+        self,
+        motor: PMSMParameters,
+        leakage_inductance=None,
+        mechanics: Mechanics = "dynamic",
+        harmonics: MagnetHarmonics | None = None,
+    ):
         self.motor = motor
         if leakage_inductance is None:
             leakage_inductance = 0.1 * jnp.minimum(motor.L_d, motor.L_q)
         self.leakage_inductance = as_float(leakage_inductance)
         self.mechanics = mechanics
+        self.harmonics = harmonics
 
     def inductance(self, theta_e) -> Array:
         """Phase inductance matrix ``L_abc(theta_e)``.
@@ -204,7 +248,10 @@ class PMSMabc(AbstractMachine):
         Returns:
             ``(3,)`` flux linkages, Wb.
         """
-        return self.motor.psi_f * jnp.cos(theta_e - _PHASE_AXES)
+        flux = self.motor.psi_f * jnp.cos(theta_e - _PHASE_AXES)
+        if self.harmonics is not None and self.harmonics.has_flux:
+            flux = flux + self.harmonics.flux_abc(theta_e)
+        return flux
 
     def flux(self, currents, theta_e) -> Array:
         """Phase flux linkages.
@@ -228,7 +275,10 @@ class PMSMabc(AbstractMachine):
         def coenergy(th):
             return 0.5 * currents @ self.inductance(th) @ currents + currents @ self.magnet_flux(th)
 
-        return self.motor.pole_pairs * jax.grad(coenergy)(theta_e)
+        torque = self.motor.pole_pairs * jax.grad(coenergy)(theta_e)
+        if self.harmonics is not None:
+            torque = torque + self.harmonics.cogging_torque(theta_e)
+        return torque
 
     def currents_to_dq(self, currents, theta_e):
         return park(abc_to_alpha_beta(currents), theta_e)

@@ -29,6 +29,10 @@ derivative and the torque.
 [`PMSMFluxMapdq`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq] is the plant. Its ``motor`` keeps ``R``,
 ``J``, ``B``, ``pole_pairs`` and the linear model (``L_d``, ``L_q``, ``psi_f``) derived from the map, which
 the sub-step rule and a controller's design read; the electrical equations read only the map.
+
+With ``harmonics`` ([`MagnetHarmonics`][pmsmjax.machines.harmonics.MagnetHarmonics]) the voltage equations
+gain the harmonics' rotor-frame EMF ``w_e eps_dq(th)`` and the torque ``1.5 p i . eps_dq`` plus the cogging
+torque, as in the linear dq model; the harmonics add to the map's flux and do not saturate.
 """
 
 import dataclasses
@@ -43,6 +47,7 @@ from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines import dq_equations as dq
 from pmsmjax.machines.base import AbstractMachine, MachineInput, MachineState, Mechanics
 from pmsmjax.machines.flux_map import FluxMapGrid, excursion, flux_and_inductance
+from pmsmjax.machines.harmonics import MagnetHarmonics
 from pmsmjax.machines.integrate import rotate_back
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.machines.pmsm3 import _solve2
@@ -98,12 +103,14 @@ class PMSMFluxMapdq(AbstractMachine):
         magnet_flux_offset: Added to the map's ``psi_d``, Wb: a warm magnet's change of flux
             ([`at_temperature`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq.at_temperature]); ``None``
             (default): the map as measured.
+        harmonics: Magnet flux harmonics and cogging torque, or ``None`` (module docstring).
     """
 
     motor: PMSMParameters
     flux_map: FluxMap
     mechanics: Mechanics = eqx.field(static=True, default="dynamic")
     magnet_flux_offset: Array | None = None
+    harmonics: MagnetHarmonics | None = None
     # The equations see the angle only through the stator-frame voltage: integrate.advance's fast path.
     angle_only_in_voltage: ClassVar[bool] = True
 
@@ -131,7 +138,7 @@ class PMSMFluxMapdq(AbstractMachine):
         if self.magnet_flux_offset is not None:
             offset = offset + self.magnet_flux_offset
         warm = dataclasses.replace(m, R=m.R * resistance_factor, psi_f=m.psi_f * flux_factor)
-        return PMSMFluxMapdq(warm, self.flux_map, self.mechanics, offset)
+        return PMSMFluxMapdq(warm, self.flux_map, self.mechanics, offset, self.harmonics)
 
     def flux_dq(self, currents) -> Array:
         """Rotor-frame flux linkage ``[psi_d, psi_q]``.
@@ -147,12 +154,18 @@ class PMSMFluxMapdq(AbstractMachine):
     def current_derivative(self, currents, theta_e, omega_e, u: MachineInput):
         psi, L = self.flux_and_inductance(currents)
         u_dq = u.dq(theta_e)
+        if self.harmonics is not None and self.harmonics.has_flux:
+            u_dq = u_dq - omega_e * self.harmonics.emf_dq(theta_e)
         rotation = omega_e * jnp.stack([-psi[1], psi[0]])
         return _solve2(L, u_dq - self.motor.R * currents - rotation)
 
     def torque(self, currents, theta_e):
         psi = self.flux_dq(currents)
-        return dq.torque(dq.torque_factor(self.motor.pole_pairs), currents[0], currents[1], psi[0], psi[1])
+        p = self.motor.pole_pairs
+        torque = dq.torque(dq.torque_factor(p), currents[0], currents[1], psi[0], psi[1])
+        if self.harmonics is not None:
+            torque = torque + self.harmonics.dq_torque(currents, theta_e, p)
+        return torque
 
     def currents_to_dq(self, currents, theta_e):
         return currents
@@ -178,6 +191,9 @@ class PMSMFluxMapdq(AbstractMachine):
         psi, L = self.flux_and_inductance(i)
         omega_e = m.pole_pairs * x[2]
         # the 2x2 solve written out on scalars: one fused expression
+        h = self.harmonics
+        if h is not None and h.has_flux:  # the harmonics' rotor-frame EMF
+            u_dq = u_dq - omega_e * h.emf_dq(x[3])
         b_d = u_dq[0] - m.R * i[0] + omega_e * psi[1]
         b_q = u_dq[1] - m.R * i[1] - omega_e * psi[0]
         inverse_det = 1.0 / (L[0, 0] * L[1, 1] - L[0, 1] * L[1, 0])  # one division on the critical path
@@ -186,6 +202,8 @@ class PMSMFluxMapdq(AbstractMachine):
         dshaft = ()
         if self.mechanics == "dynamic":
             torque = dq.torque(dq.torque_factor(m.pole_pairs), i[0], i[1], psi[0], psi[1])
+            if h is not None:
+                torque = torque + h.dq_torque(i, x[3], m.pole_pairs)
             if x.shape[0] == 4:
                 domega = (torque - load_torque - m.B * x[2]) / m.J
             else:

@@ -16,11 +16,11 @@ The same two-inertia model as motulator's two-mass mechanics (``MechanicsTwoMass
 *resonance* (a pole pair) at ``w_r = sqrt(K (J_m + J_L) / (J_m J_L))`` and an *anti-resonance* (a zero
 pair: the load swinging against a motor that stands still) at ``w_a = sqrt(K / J_L)``; ``w_r / w_a =
 sqrt(1 + J_L / J_m)``. The resonance is what a fast speed loop excites; a notch on the torque reference
-(:mod:`pmsmjax.controllers.speed_filters`) takes the loop's gain away there.
+(``pmsmjax.controllers.speed_filters``) takes the loop's gain away there.
 
 **State.** [`MachineState.shaft`][pmsmjax.machines.base.MachineState] is ``(2,)`` ``[phi, w_L]`` (rad, rad/s)
 when the motor's parameters carry a shaft (``load_inertia`` not None) and ``None`` otherwise, so a rigid drive
-traces the same program as before the shaft existed. ``phi`` is a twist of thousandths of a radian: held as
+traces a program without any shaft state. ``phi`` is a twist of thousandths of a radian: held as
 the difference itself, not as two large angles, so it keeps its resolution in float32.
 
 **Energy.** ``d/dt (J_m w_m^2/2 + J_L w_L^2/2 + K phi^2/2) = T_e w_m - B w_m^2 - D (w_m - w_L)^2 - T_L w_L``

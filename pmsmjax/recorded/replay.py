@@ -38,7 +38,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax.frames.three_phase import inverse_park, wrap_angle
-from pmsmjax.io.logs import check_columns, misspelt_columns, read_log, write_csv_atomic
+from pmsmjax.io.logs import check_columns, misspelt_columns, write_csv_atomic
+from pmsmjax.io.mapped_logs import read_mapped_log
 from pmsmjax.machines.base import MachineInput, MachineState
 from pmsmjax.machines.integrate import advance, max_stable_substep
 from pmsmjax.machines.motor import PMSMParameters
@@ -371,6 +372,17 @@ def check_no_gap(time: np.ndarray, source: str) -> None:
         )
 
 
+def _is_duty_log(log_path, columns, dialect) -> bool:
+    """Whether the log gives the leg duties ``d_a, d_b, d_c`` (and no ``u_d``): a duty replay."""
+    from pmsmjax.io.logs import column_names
+    from pmsmjax.io.mapped_logs import resolve_columns
+
+    canonical = ("u_d", "u_q", "d_a", "d_b", "d_c", "U_dc")
+    mapped = {k: v for k, v in (columns or {}).items() if k in canonical}
+    found, _ = resolve_columns(column_names(log_path, dialect), canonical, mapped, f"log {log_path}")
+    return "u_d" not in found and all(c in found for c in ("d_a", "d_b", "d_c"))
+
+
 def replay_log(
     log_path: str | os.PathLike,
     motor: str | os.PathLike,
@@ -380,13 +392,19 @@ def replay_log(
     time_unit: str = "s",
     check_units: bool = True,
     report: list | None = None,
+    columns: dict | None = None,
+    units: dict | None = None,
+    dialect=None,
 ) -> dict[str, np.ndarray]:
     """Replay a log file; returns ``(N,)`` float64 arrays by
     [`REPLAY_COLUMNS`][pmsmjax.recorded.replay.REPLAY_COLUMNS], in that order.
 
     **Arguments:**
 
-    - `log_path`: ``.csv``/``.npz``/``.mat`` log with columns ``time`` (s), ``u_d``, ``u_q`` (V), and
+    - `log_path`: ``.csv``/``.npz``/``.mat`` log with columns ``time`` (s), ``u_d``, ``u_q`` (V) or the leg
+      duties ``d_a``, ``d_b``, ``d_c`` with the DC link ``U_dc`` (V; through the averaged inverter with the
+      drive file's ``[inverter]`` error and ``[harmonics]``,
+      [`pmsmjax.recorded.duty_replay`][pmsmjax.recorded.duty_replay]), and
       optionally ``omega_m`` (imposed speed, mechanical rad/s), ``T_L`` (load torque, N m, dynamic speed)
       and ``theta_e`` (rad), ``i_d``, ``i_q`` (A), whose first row sets the initial state.
     - `motor`: a preset name (``book``, ``book_salient``) or a TOML file with ``R, L_d, L_q, psi_f,
@@ -398,6 +416,9 @@ def replay_log(
     - `check_units`: refuse a time step implausible for a drive log (a time in ms read as s) and motor
       values implausible in SI units ([`pmsmjax.spec.plausibility`][pmsmjax.spec.plausibility]).
     - `report`: a list that receives one line per note (the hold chosen, columns not used).
+    - `columns`, `units`, `dialect`: the column map, the units map (``time`` as `time_unit`; units in the
+      column names count too) and a CSV file's stated dialect
+      ([`pmsmjax.io.mapped_logs.read_mapped_log`][pmsmjax.io.mapped_logs.read_mapped_log]).
 
     Row k is the state at the log's row k (time in s). All input is read and checked before anything is
     compiled. A column that looks like a misspelt one replay reads (``omega`` for ``omega_m``) is refused:
@@ -409,7 +430,24 @@ def replay_log(
         raise ParameterError(f"time_unit must be one of {', '.join(TIME_UNITS)}, got {time_unit!r}.")
     required, optional = LOG_COLUMNS
     unused: list[str] = []
-    log = read_log(log_path, required, optional, unused=unused)
+    units = dict(units or {})
+    if time_unit != "s":
+        units.setdefault("time", time_unit)
+    mot = load_motor(motor, check_units=check_units)
+    duty = _is_duty_log(log_path, columns, dialect)
+    if duty:
+        from pmsmjax.recorded.duty_replay import DUTY_COLUMNS
+
+        if hold == "rotor":
+            raise ParameterError(
+                f"log {log_path}: duties are held by the inverter in the stator frame, not the rotor's: drop "
+                "--hold rotor (or log u_d, u_q of a dq-model simulator)."
+            )
+        required = ("time", *DUTY_COLUMNS)
+    log = read_mapped_log(
+        log_path, required, optional, columns=columns, units=units, dialect=dialect,
+        pole_pairs=int(mot.pole_pairs), unused=unused,
+    )  # fmt: skip
     absent = [c for c in optional if c not in log]
     wrong = misspelt_columns(unused, absent)
     if wrong:
@@ -421,12 +459,11 @@ def replay_log(
         )
     if unused and report is not None:
         report.append(f"columns not used: {', '.join(unused)}")
-    mot = load_motor(motor, check_units=check_units)
     from pmsmjax.assemble import spec_flux_map
     from pmsmjax.io.drive_files import drive_spec
 
-    flux_map = spec_flux_map(drive_spec(motor, check_units=check_units))  # None without [motor] flux_map
-    log["time"] = log["time"] * TIME_UNITS[time_unit]
+    spec = drive_spec(motor, check_units=check_units)
+    flux_map = spec_flux_map(spec)  # None without [motor] flux_map
     if check_units:
         tau = min(float(mot.L_d), float(mot.L_q)) / float(mot.R)
         check_time_step(
@@ -442,6 +479,30 @@ def replay_log(
             f"log {log_path} has {have} but not {lack}: give both (row 0 sets the initial current) "
             "or neither."
         )
+    if duty:
+        from pmsmjax.recorded.duty_replay import replay_duty_log, stator_voltages
+
+        if flux_map is not None:
+            raise ParameterError(
+                f"log {log_path}: a duty log is replayed on the linear machine; {motor} has a flux map: "
+                "replay u_d, u_q instead, or drop [motor] flux_map."
+            )
+        if report is not None:
+            report.append("hold: stator (duties: the inverter holds the stator-frame voltage)")
+        if "omega_m" in log:
+            top = float(np.max(np.abs(log["omega_m"])))
+        else:
+            duties = np.stack([log[c] for c in ("d_a", "d_b", "d_c")], axis=1)
+            tl = log.get("T_L", np.zeros_like(log["time"]))
+            top = _dynamic_speed_bound(mot, stator_voltages(duties, log["U_dc"]), tl, 0.0)
+        need = default_substeps(mot, float(np.diff(log["time"]).max()), top)
+        if n_substeps is not None and n_substeps < need:
+            raise ParameterError(
+                f"n_substeps = {n_substeps} is below the {need} RK4 steps per row that the machine's fastest "
+                f"rate at {top:.4g} rad/s needs: set n_substeps >= {need} or leave it unset."
+            )
+        result = replay_duty_log(mot, spec, log, n_substeps or need)
+        return {c: result[c] for c in REPLAY_COLUMNS}
     i0 = (log["i_d"][0], log["i_q"][0]) if "i_d" in log else (0.0, 0.0)
     kwargs = dict(
         time=log["time"],

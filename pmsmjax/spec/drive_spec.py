@@ -6,7 +6,12 @@ Layout (SI units; every table but ``[motor]`` optional)::
     [motor]        R, L_d, L_q, psi_f, pole_pairs, J, B (ohm, H, H, Wb, -, kg m^2, N m s/rad);
                    n_phases = 6 or 5 with L_ls (H) and, five-phase, psi_f3 (Wb); trust_units = true;
                    flux_map = "map.csv" (three-phase: a measured flux map, path relative to the drive
-                   file, read by pmsmjax.io.flux_map_files; L_d, L_q, psi_f then optional)
+                   file, read by pmsmjax.io.flux_map_files; L_d, L_q, psi_f then optional) and
+                   flux_map_format = "grid" | "points" | "syre" | "inductance" | "motulator"
+                   (pmsmjax.io.flux_map_formats; default: by the file's extension and content);
+                   datasheet values instead of R, L_d, L_q, psi_f: r_ll_ohm, l_ll_h,
+                   ke_v_peak_per_krpm_ll or ke_v_rms_per_krpm_ll, kt_nm_per_a_rms or kt_nm_per_a_peak,
+                   kv_rpm_per_v (pmsmjax.spec.datasheet, each convention there)
     [ratings]      rated_speed_rpm, rated_torque_nm or rated_current_a (A peak), max_current_a (A peak)
     [inverter]     u_dc_v, switching_frequency_hz, control_frequency_hz (default: the switching
                    frequency), dead_time_s, device_drop_v (a switch's or diode's on-state voltage, V),
@@ -36,6 +41,9 @@ Layout (SI units; every table but ``[motor]`` optional)::
                    load_inertia and shaft_stiffness_nm_per_rad spread them; [control] speed_filter_hz,
                    notch_hz, notch_width_hz, notch_depth_db: the speed loop's filters
                    (pmsmjax.spec.mechanics)
+    [harmonics]    flux = [[5, 0.0019, 0.4], ...] (magnet flux harmonics: order per electrical revolution,
+                   Wb, rad), cogging = [[6, 0.045, 0.3], ...] (cogging torque: order, N m, rad), three-phase
+                   motors (pmsmjax.spec.harmonics)
 
 With a flux map the simulated machine is the map's
 ([`pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq`][pmsmjax.machines.pmsm_flux_map.PMSMFluxMapdq]) and ``L_d``,
@@ -65,9 +73,10 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from pmsmjax.spec import datasheet, schema
 from pmsmjax.spec import derivations as derive
 from pmsmjax.spec import design_rules as rules
-from pmsmjax.spec import schema
+from pmsmjax.spec.harmonics import read_harmonics
 from pmsmjax.spec.mechanics import complete_filters, read_mechanics, rigid_equivalent
 from pmsmjax.spec.plausibility import check_flux_map_units, check_motor_units, check_thermal_units
 from pmsmjax.spec.schema import (
@@ -81,6 +90,7 @@ from pmsmjax.spec.schema import (
 )
 from pmsmjax.spec.tables import (
     ControlTable,
+    HarmonicsTable,
     InverterTable,
     MechanicsTable,
     MotorTable,
@@ -117,8 +127,9 @@ class DriveSpec:
     - `flux_map`: the ``[motor] flux_map`` grid as read once
       ([`FluxMapGrid`][pmsmjax.machines.flux_map.FluxMapGrid]), None without one.
     - `thermal`: the winding's thermal network (``[thermal]``, complete), empty without one;
-    - `operating`: the ranges of ``[operating]`` the file gives.
-    - `mechanics`: the compliant shaft of ``[mechanics]`` (complete), empty for a rigid shaft.
+    - `operating`: the ranges of ``[operating]`` the file gives;
+    - `mechanics`: the compliant shaft of ``[mechanics]`` (complete), empty for a rigid shaft;
+    - `harmonics`: the magnet flux harmonics and cogging torque (``[harmonics]``), empty without them.
     """
 
     source: str
@@ -139,6 +150,7 @@ class DriveSpec:
     thermal: ThermalTable = dataclasses.field(default_factory=ThermalTable)
     operating: OperatingTable = dataclasses.field(default_factory=OperatingTable)
     mechanics: MechanicsTable = dataclasses.field(default_factory=MechanicsTable)
+    harmonics: HarmonicsTable = dataclasses.field(default_factory=HarmonicsTable)
 
     @property
     def n_phases(self) -> int:
@@ -177,7 +189,7 @@ class DriveSpec:
             "source": self.source,
             **{t: table(t) for t in ("motor", "ratings", "inverter", "sensor", "tolerances")},
             **{t: table(t) for t in ("control", "scenario", "tuning")},
-            **{t: table(t) for t in ("thermal", "operating", "mechanics") if getattr(self, t)},
+            **{t: table(t) for t in ("thermal", "operating", "mechanics", "harmonics") if getattr(self, t)},
             "derived": dict(self.derived),
             "notes": list(self.notes),
         }
@@ -194,6 +206,7 @@ def complete(
     flags: Mapping[str, str] | None = None,
     flux_map=None,
     flux_map_path: str | None = None,
+    flux_map_how: str = "",
 ) -> DriveSpec:
     """Check and complete a drive file's tables (module docstring).
 
@@ -210,19 +223,23 @@ def complete(
         flux_map: the ``[motor] flux_map`` grid ([`FluxMapGrid`][pmsmjax.machines.flux_map.FluxMapGrid]) as
             read.
         flux_map_path: its absolute path (what ``motor["flux_map"]`` reports).
+        flux_map_how: how the map file was converted or filled (``derived["motor.flux_map"]``), empty for
+            a complete grid in pmsmjax's layout.
 
     Returns:
         The checked, completed drive.
     """
     tables = {table: dict(values) for table, values in tables.items()}  # completed in place below
-    flux_map_derived = {}
+    flux_map_derived = datasheet.convert(tables["motor"], where)  # r_ll_ohm, ke, kt, kv: to R, L, psi_f
+    if flux_map_how:
+        flux_map_derived["motor.flux_map"] = flux_map_how
     if flux_map is not None:
         if check_units and tables["motor"].get("trust_units", False) is not True:
             peak = max(
                 float(abs(np.asarray(flux_map.psi_d)).max()), float(abs(np.asarray(flux_map.psi_q)).max())
             )
             check_flux_map_units(peak, f"{where} [motor] flux_map {flux_map_path}")
-        flux_map_derived = derive.flux_map_motor(tables["motor"], tables["ratings"], flux_map, flux_map_path)
+        flux_map_derived |= derive.flux_map_motor(tables["motor"], tables["ratings"], flux_map, flux_map_path)
     motor = schema.read_motor(tables["motor"], where, n_phases)
     trust = tables["motor"].get("trust_units", False)
     ratings = schema.numbers(tables["ratings"], "ratings", where)
@@ -322,6 +339,7 @@ def complete(
                 tuning[key] = value
                 derived[f"tuning.{key}"] = derive.TUNING_HOW[key]
     complete_thermal(motor, temperature, thermal, operating, derived, where)
+    harmonics = read_harmonics(tables["harmonics"], motor, ratings, where, trust is True or not check_units)
     for key, value in tolerances.items():
         if key != "current_offset_a" and not value < 1.0:
             raise ParameterError(
@@ -332,13 +350,14 @@ def complete(
         motor=motor, ratings=ratings, inverter=inverter, sensor=sensor, tolerances=tolerances,
         control=control, scenario=scenario, tuning=tuning, thermal=thermal, operating=operating,
         mechanics=mechanics,
+        harmonics=harmonics,
     )  # fmt: skip
     return DriveSpec(
         source, MotorTable.of(motor), RatingsTable.of(ratings), InverterTable.of(inverter),
         SensorTable.of(sensor), ToleranceTable.of(tolerances), ControlTable.of(control),
         ScenarioTable.of(scenario), TuningTable.of(tuning), derived, tuple(notes), flux_map,
         {name: tuple(values) for name, values in tables.items()}, ThermalTable.of(thermal),
-        OperatingTable.of(operating), MechanicsTable.of(mechanics),
+        OperatingTable.of(operating), MechanicsTable.of(mechanics), HarmonicsTable.of(harmonics),
     )  # fmt: skip
 
 

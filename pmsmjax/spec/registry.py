@@ -252,6 +252,13 @@ REGISTRY: tuple[Method, ...] = (
         "observer",
     ),
     _estimator(
+        "flux-observer",
+        "reduced-order stator-flux observer on the flux map or linear model, speed-adaptive (Hinkkanen 2018)",
+        "pmsmjax.estimators.map_flux_observer:flux_observer_design",
+        ("bandwidth", "sigma0", "zeta", "max_speed_rpm", "model", "flux_map"),
+        "observer",
+    ),
+    _estimator(
         "hfi-rotating",
         "rotating HF injection (salient machines, standstill and low speed; angle modulo pi)",
         "pmsmjax.estimators.hfi_rotating:hfi_rotating_design",

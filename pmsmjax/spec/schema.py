@@ -5,6 +5,7 @@ table and key, the value in its unit and the fix. Plain Python."""
 import difflib
 import math
 
+from pmsmjax.spec.datasheet import DATASHEET_UNITS
 from pmsmjax.spec.mechanics import FILTER_UNITS, MECHANICS_UNITS
 from pmsmjax.spec.validation import ParameterError, plain
 
@@ -22,7 +23,14 @@ MOTOR_TEMPERATURE_UNITS = {
 #: Every table and its keys with their units (``"int"``: a whole number; ``"str"``: text; ``"range"``: a
 #: [low, high] pair).
 TABLES = {
-    "motor": {**MOTOR_UNITS, **MOTOR_TEMPERATURE_UNITS, "trust_units": "bool", "flux_map": "str"},
+    "motor": {
+        **MOTOR_UNITS,
+        **MOTOR_TEMPERATURE_UNITS,
+        "trust_units": "bool",
+        "flux_map": "str",
+        "flux_map_format": "str",
+        **DATASHEET_UNITS,
+    },  # fmt: skip
     "ratings": {
         "rated_speed_rpm": "r/min",
         "rated_torque_nm": "N m",
@@ -67,6 +75,7 @@ TABLES = {
     "thermal": {"r_th_k_per_w": "K/W", "c_th_j_per_k": "J/K", "ambient_c": "degC", "initial_c": "degC"},
     "operating": {"winding_temperature_c": "range", "u_dc_v": "range", "ambient_c": "range"},
     "mechanics": MECHANICS_UNITS,
+    "harmonics": {"flux": "rows [order, Wb, rad]", "cogging": "rows [order, N m, rad]"},
 }
 SENSOR_KINDS = ("exact", "encoder")
 #: The ``[sensor]`` keys of an encoder, and of the phase-current sensors (any kind).

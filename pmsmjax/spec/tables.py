@@ -24,6 +24,7 @@ __all__ = [
     "ThermalTable",
     "OperatingTable",
     "MechanicsTable",
+    "HarmonicsTable",
 ]
 
 
@@ -222,3 +223,13 @@ class MechanicsTable(Table):
     load_inertia: float | None = None
     shaft_stiffness_nm_per_rad: float | None = None
     shaft_damping_nm_s_per_rad: float | None = None
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class HarmonicsTable(Table):
+    """``[harmonics]``: magnet flux harmonics (``flux``, rows ``(order, amplitude Wb, phase rad)``) and
+    cogging torque (``cogging``, rows ``(order, amplitude N m, phase rad)``), orders per electrical
+    revolution ([`pmsmjax.spec.harmonics`][pmsmjax.spec.harmonics]); empty for a drive file without it."""
+
+    flux: tuple | None = None
+    cogging: tuple | None = None

@@ -146,3 +146,28 @@ def test_drive_margin_gradient_matches_finite_differences():
     h = 1e-4 * float(kp)
     fd = (float(pm(kp + h)) - float(pm(kp - h))) / (2 * h)
     assert g == pytest.approx(fd, rel=1e-3)
+
+
+def test_angle_dependent_parts_are_left_out_of_the_linearisation(book):
+    """Harmonics, cogging and the inverter's error voltage make the steady state a periodic orbit even in the
+    rotor frame: the drive is linearised as its fundamental wave, the same matrices as the drive without
+    them (and a drive that has them still gets a converged fixed point)."""
+    from pmsmjax.analysis.loop_linearisation import fundamental_wave, linearise
+    from pmsmjax.assemble import with_parts
+    from pmsmjax.inverters.averaged import AveragedBridge
+    from pmsmjax.machines.harmonics import MagnetHarmonics
+
+    rippled = with_parts(
+        book,
+        {
+            "machine.harmonics": MagnetHarmonics.from_rows([[5, 0.0019, 0.4]], [[6, 0.045, 0.3]]),
+            "bridge": AveragedBridge(book.bridge.u_dc, dead_time=2e-6, device_drop=1.0),
+        },
+    )
+    assert rippled.machine.harmonics is not None and rippled.bridge.voltage_error is not None
+    bare = fundamental_wave(rippled)
+    assert bare.machine.harmonics is None and bare.bridge.voltage_error is None
+    a, b = linearise(rippled, 90.0, 5.0), linearise(book, 90.0, 5.0)
+    assert float(a.residual) < 1e-8
+    np.testing.assert_allclose(np.asarray(a.A), np.asarray(b.A), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(np.asarray(a.B), np.asarray(b.B), rtol=1e-12, atol=1e-12)

@@ -182,3 +182,134 @@ def test_demo_at_zero_speed_reference_runs_and_says_what_it_cannot_define(capsys
     assert all(
         value is None or np.isfinite(value) for value in metrics.values() if not isinstance(value, str)
     )
+
+
+# --- logs as instruments and firmware tools write them ----------------------------------------------
+def test_log_dialect_slips_are_refused_in_one_line(capsys, tmp_path):
+    t = np.arange(200) * 1e-4
+    rows = ["time;u_d;u_q"] + [f"{x:.6f};2,5;20,0".replace(".", ",", 1) for x in t]
+    comma = drive(tmp_path, "comma.csv", "\n".join(rows) + "\n")
+    out = tmp_path / "o"
+    identify = ["identify", comma, "--pole-pairs", "4", "--out", out]
+    refused(capsys, identify, "decimal comma", '[log] decimal = ","')
+    for table, needles in [
+        ('[log]\nformat = "vesk"\n', ["format = 'vesk'", "known: vesc"]),
+        ('[log]\ndelimiter = "|"\n', ["delimiter = '|'", '"whitespace"']),
+        ("[log]\nheader_row = 0\n", ["header_row = 0", "1-based line"]),
+        ('[log]\ndecimal = ","\ndelimiter = ","\n', ["other than the comma"]),
+        ('[log]\nencoding = "latin-1"\n', ["unknown keys ['encoding']"]),
+    ]:
+        config = drive(tmp_path, "c.toml", table)
+        refused(capsys, [*identify, "--config", config], *needles)
+        for command in (["replay", comma, "--motor", "book"], ["observe", comma, "--motor", "book",
+                                                                "--observer", "smo"]):  # fmt: skip
+            refused(capsys, [*command, "--config", config, "--out", out], *needles)
+    argv = ["replay", comma, "--motor", "book", "--units", "time=ms", "--time-unit", "us", "--out", out]
+    refused(capsys, argv, "--time-unit us contradicts")
+    named = drive(tmp_path, "named.csv", "Time [ms],u_d [V],u_q [A]\n0,1,2\n0.1,1,2\n")
+    refused(capsys, ["replay", named, "--motor", "book", "--out", out], "'u_q [A]'", "not a unit of u_q")
+    named = drive(tmp_path, "named.csv", "Time [ms],u_d [V],u_q\n0,1,2\n0.1,1,2\n")
+    refused(
+        capsys, ["replay", named, "--motor", "book", "--units", "time=s", "--out", out], "contradicts", "ms"
+    )
+    assert not out.exists()
+
+
+def test_a_column_name_with_spaces_and_brackets_on_the_command_line():
+    from pmsmjax.cli.checks import key_values
+
+    args = build_parser().parse_args(["identify", "x.csv", "--columns", "i_a=Phase A [A]", 'i_b="Ib (mA)"',
+                                      "--out", "o"])  # fmt: skip
+    assert key_values(args.columns, "--columns") == {"i_a": "Phase A [A]", "i_b": "Ib (mA)"}
+
+
+def test_replay_reads_a_semicolon_log_in_ms_through_a_column_map(tmp_path):
+    """The same log, once canonical in SI and once as a tool writes it (a preamble, semicolons, time in
+    ms, currents in mA, instrument names mapped in --config), replays to the same result."""
+    from pmsmjax.recorded.replay import replay_log
+
+    t = np.arange(300) * 1e-4
+    cols = {"time": t, "u_d": -2.0 + 0 * t, "u_q": 30.0 + 5 * np.sin(200 * t), "omega_m": 100.0 + 0 * t,
+            "i_d": 0 * t, "i_q": 0 * t}  # fmt: skip
+    si = write_csv_atomic(tmp_path / "si.csv", cols)
+    lines = ["Logger;bench", "", "# exported", "Time [ms];Ud;Uq;speed;Id/mA;Iq/mA"]
+    lines += [
+        ";".join(f"{v:.17g}" for v in (1e3 * a, b, c, d, e, f))
+        for a, b, c, d, e, f in zip(*cols.values(), strict=True)
+    ]
+    tool = drive(tmp_path, "tool.csv", "\n".join(lines) + "\n")
+    config = drive(tmp_path, "c.toml", '[columns]\nu_d = "Ud"\nu_q = "Uq"\ni_d = "Id"\ni_q = "Iq"\n')
+    from pmsmjax.cli.checks import log_reading
+
+    args = build_parser().parse_args(["replay", str(tool), "--motor", "book", "--config", str(config),
+                                      "--columns", "omega_m=speed", "--out", "o"])  # fmt: skip
+    columns, units, dialect, _ = log_reading(args, set(), "replay")
+    a = replay_log(si, "book", hold="stator")
+    b = replay_log(tool, "book", hold="stator", columns=columns, units=units, dialect=dialect)
+    for name in a:
+        np.testing.assert_allclose(b[name], a[name], rtol=1e-12, atol=1e-12, err_msg=name)
+
+
+DIALECTS = st.fixed_dictionaries(
+    {
+        "delimiter": st.sampled_from([",", ";", "\t", " "]),
+        "decimal": st.sampled_from([".", ","]),
+        "preamble": st.lists(
+            st.sampled_from(
+                ["Instrument{d}Scope", "Sample rate{d}10 kHz", "", "# note", "% exported", "Channels{d}4"]
+            ),
+            max_size=4,
+        ),  # fmt: skip
+        "suffixes": st.booleans(),
+        "trailing": st.booleans(),
+        "edit": st.one_of(st.none(), st.tuples(st.integers(0, 30), st.text(max_size=6))),
+    }
+)
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow])  # fmt: skip
+@given(dialect=DIALECTS)
+def test_a_log_in_any_dialect_reads_as_the_canonical_one_or_is_refused_in_one_line(dialect):
+    """A valid dq log written with a random delimiter, preamble, decimal mark, unit suffixes (time in ms,
+    currents in mA) and trailing delimiter reads to the canonical log's columns (the decimal comma stated
+    in [log]); with one line garbled it reads or is refused in one line."""
+    import tempfile
+    from pathlib import Path
+
+    from pmsmjax.io.csv_dialect import CsvDialect
+    from pmsmjax.spec.validation import ParameterError
+    from tuning.identify.log import load_drive_log
+
+    d, decimal = dialect["delimiter"], dialect["decimal"]
+    if d == ",":
+        decimal = "."
+    t = np.arange(40) * 1e-4
+    cols = {"time": t, "u_d": 1.5 + t, "u_q": 20.0 - t, "i_d": 0.25 + 0 * t, "i_q": 2.0 + 10 * t,
+            "omega_m": 50.0 + 0 * t}  # fmt: skip
+    scale = {"time": 1e3, "i_d": 1e3, "i_q": 1e3} if dialect["suffixes"] else {}
+    names = {"time": "Time [ms]", "i_d": "i_d/mA", "i_q": "i_q (mA)"} if dialect["suffixes"] else {}
+    if d == " ":  # names without spaces in a whitespace-separated file
+        names = {k: v.replace(" ", "") for k, v in names.items()}
+    sep = "  " if d == " " else d
+    end = d if dialect["trailing"] and d != " " else ""
+    fmt = lambda v: f"{v:.15g}".replace(".", ",") if decimal == "," else f"{v:.15g}"
+    lines = [p.format(d=sep if d != " " else ":") for p in dialect["preamble"]]
+    lines.append(sep.join(names.get(k, k) for k in cols) + end)
+    lines += [sep.join(fmt(scale.get(k, 1.0) * cols[k][r]) for k in cols) + end for r in range(t.size)]
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "log.csv"
+        path.write_text("\n".join(lines) + "\n")
+        log = load_drive_log(path, 4, dialect=CsvDialect(decimal=decimal))
+        np.testing.assert_allclose(log.time, t, rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(log.i_dq[:, 1], cols["i_q"], rtol=1e-12)
+        np.testing.assert_allclose(log.u_dq[:, 0], cols["u_d"], rtol=1e-12)
+        if dialect["edit"] is not None:
+            k, text = dialect["edit"]
+            k = k % len(lines)
+            lines[k] = lines[k][: len(lines[k]) // 2] + text
+            path.write_text("\n".join(lines) + "\n")
+            try:
+                load_drive_log(path, 4, dialect=CsvDialect(decimal=decimal))
+            except ParameterError as err:
+                assert "\n" not in str(err) and str(err)

@@ -265,7 +265,7 @@ def test_unstable_gains_are_refused_with_the_field_and_the_fix():
 
 
 def test_registry_names_options_and_design_rules():
-    assert NAMES == ("smo", "smo-pll", "adaptive-smo", "dq-smo", "mras", "ekf")
+    assert NAMES == ("smo", "smo-pll", "adaptive-smo", "dq-smo", "mras", "ekf", "flux-observer")
     with pytest.raises(ParameterError, match="did you mean 'smo-pll'"):
         make_observer("smo_pll", MOTOR, TS)
     with pytest.raises(ParameterError, match="pll_bandwidth do not apply"):

@@ -219,8 +219,6 @@ def check_closed_loop(name, drive, trace, rec) -> dict:
 def book(tmp_path_factory):
     """The book drive's C target (``pmsmjax export --motor book``), its drive and the open-loop run of the
     book scenario (``pmsmjax demo``'s default: 1000 r/min step, 10 N m at 0.2 s, 0.4 s)."""
-    if CC is None:
-        pytest.skip("no C compiler (cc or gcc) on PATH to build the C target")
     folder = export(tmp_path_factory.mktemp("book"), "--motor", "book")
     drive, scenario = float32_drive("book")
     c = CController(folder)

@@ -125,6 +125,7 @@ TUNABLE_OBSERVERS = {
     "dq-smo": ObserverTuning(_paths(*_SMO, "omega_c", "pll.kp", "pll.ki")),
     "mras": ObserverTuning(_paths("kp", "ki")),
     "ekf": ObserverTuning(_paths(*(f"q[{i}]" for i in range(4)), "r[0]", "r[1]")),
+    "flux-observer": ObserverTuning(_paths("sigma0", "zeta", "k_theta", "k_omega")),
     # chapter 6: filter cut-offs and PLL gains (rad/s, 1/s, 1/s^2); tuning.autotune.hfi_tuning
     "hfi-rotating": ObserverTuning(
         _paths("bandpass_bandwidth", "sequence_cutoff", "error_cutoff", "pll.kp", "pll.ki"), chapter6=True

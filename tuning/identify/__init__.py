@@ -17,6 +17,11 @@
 - [`flux_map_fit`][tuning.identify.flux_map_fit], [`flux_map_files`][tuning.identify.flux_map_files]: a
   saturated machine's flux map from a constant-speed log (``pmsmjax identify --flux-map``); its test logs are
   made by [`saturated_reference_log`][tuning.identify.saturated_reference_log].
+- [`flux_harmonics_fit`][tuning.identify.flux_harmonics_fit], [`cogging_fit`][tuning.identify.cogging_fit],
+  [`ripple_stage`][tuning.identify.ripple_stage]: magnet flux harmonics and cogging torque
+  (``--flux-harmonics``, ``--cogging-orders``); [`two_mass_fit`][tuning.identify.two_mass_fit]: a compliant
+  shaft (``--two-mass``); their test logs are made by [`heat_run_log`][tuning.identify.heat_run_log] and
+  [`shaft_reference_log`][tuning.identify.shaft_reference_log].
 - [`excitation`][tuning.identify.excitation]: an experiment that makes every parameter identifiable; simulated
   logs of it (for tests, notebooks and benchmarks) are
   [`pmsmjax.recorded.synthetic_logs.identification_log`][pmsmjax.recorded.synthetic_logs.identification_log].

@@ -8,7 +8,7 @@ low for the cooling part. Every ``capture_every_s`` a capture of one pattern per
 re-triggered scope or a firmware datalog buffer: the rows between captures are not in the log), at a
 speed that alternates between two values from capture to capture.
 
-**The physics** (the motor of :data:`MOTOR`):
+**The physics** (the motor of ``MOTOR``):
 
 - dq machine with ``R(T) = R (1 + alpha (T - T_ref))`` and ``psi_f(T) = psi_f (1 + beta (T - T_ref))``
   (one temperature: the magnet at the winding's), the stator-frame voltage held over each control period
@@ -26,6 +26,12 @@ The current PI (400 Hz bandwidth, back-EMF and cross-coupling feed-forward from 
 reads the faulty sensors and turns them with the faulty angle, as firmware does. Each capture starts after
 one pattern period of warm-up, so the loop and the currents are in their periodic steady state.
 
+**Ripple** (``ripple=RIPPLE``): the motor also has magnet flux harmonics, whose back-EMF is the derivative
+of the Clarke transform of the three phase fluxes ``A cos(k (theta_e - s_x) + phi)`` (``harmonic_flux``),
+each capture starts at a random angle, and a torque sensor between the motor and the dynamometer logs the
+shaft torque ``T_L`` (``shaft_torque``: the electromagnetic torque with the harmonics' part from the power
+balance, cogging ``C sin(n theta_e + phi)``, less viscous and Coulomb friction, with white noise).
+
 **Integrators.** SciPy's ``solve_ivp``: DOP853 for the electrical and thermal states of all captures at
 once (one control period per call), LSODA for the thermal node between captures. The loss held between
 captures is that of the capture at the same level; it is found by two passes (the captures at the
@@ -37,7 +43,10 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
-__all__ = ["DEAD_TIME_V", "MOTOR", "SENSORS", "THERMAL", "heat_run_log", "true_values"]
+__all__ = [
+    "DEAD_TIME_V", "MOTOR", "SENSORS", "THERMAL", "RIPPLE", "heat_run_log", "true_values", "harmonic_flux",
+    "shaft_torque",
+]  # fmt: skip
 
 #: The motor at its reference temperature (ohm, H, H, Wb, pole pairs; degC and 1/K for the coefficients).
 MOTOR = {
@@ -57,6 +66,17 @@ SENSORS = {"current_offset_a": (0.08, -0.05), "current_gain": (0.99, 1.005), "en
 #: The inverter's error voltage per phase, V (dead time x switching frequency x DC-link voltage: 1 us at
 #: 10 kHz on 50 V).
 DEAD_TIME_V = 0.5
+#: Magnet flux harmonics and cogging torque for ``heat_run_log(ripple=RIPPLE)``: ``flux`` rows ``(order,
+#: Wb, rad)`` of ``psi_h,x = A cos(k (theta_e - s_x) + phi)`` on phase ``x`` (axis ``s_x``), ``cogging`` rows
+#: ``(order, N m, rad)`` of ``T_cog = C sin(n theta_e + phi)``; the motor's friction ``B`` (N m s/rad) and
+#: Coulomb torque (N m) and the torque sensor's noise (N m) of the logged shaft torque.
+RIPPLE = {
+    "flux": ((5, 0.0016, 0.7), (7, 0.0008, -1.9)),
+    "cogging": ((6, 0.15, 0.4), (12, 0.05, -2.2)),
+    "B": 2e-4,
+    "coulomb_nm": 0.01,
+    "torque_noise_nm": 0.01,
+}
 #: The current pattern of one period, (i_d, i_q) in A per step, at the heating level.
 PATTERN_A = ((0.0, 9.0), (-3.0, 8.0), (0.0, -9.0), (2.0, 8.0), (-2.5, -8.0))
 _TWO_PI_3 = 2.0 * math.pi / 3.0
@@ -75,8 +95,24 @@ def _flux(T):
     return MOTOR["psi_f"] * (1.0 + MOTOR["psi_f_temp_coeff_per_k"] * (T - MOTOR["reference_temperature_c"]))
 
 
-def _capture_rhs(w_e, u_ab):
-    """The rhs of every capture's ``(i_d, i_q, theta_e, T)`` with the held stator voltages ``u_ab``."""
+def harmonic_flux(theta, flux_rows) -> tuple[np.ndarray, np.ndarray]:
+    """``(psi_h,ab, d psi_h,ab / d theta)``: the complex alpha-beta harmonic flux (Wb) of the phase fluxes
+    ``A cos(k (theta - s_x) + phi)`` (amplitude-invariant Clarke of the three phases) and its derivative
+    by the electrical angle ``theta`` (rad), Wb/rad."""
+    psi = [np.zeros_like(theta) for _ in range(3)]
+    dpsi = [np.zeros_like(theta) for _ in range(3)]
+    for k, a, phi in flux_rows:
+        for x in range(3):
+            arg = k * (theta - x * _TWO_PI_3) + phi
+            psi[x] = psi[x] + a * np.cos(arg)
+            dpsi[x] = dpsi[x] - a * k * np.sin(arg)
+    clarke = lambda v: (2.0 * v[0] - v[1] - v[2]) / 3.0 + 1j * (v[1] - v[2]) / math.sqrt(3.0)
+    return clarke(psi), clarke(dpsi)
+
+
+def _capture_rhs(w_e, u_ab, flux_rows=()):
+    """The rhs of every capture's ``(i_d, i_q, theta_e, T)`` with the held stator voltages ``u_ab`` (and the
+    back-EMF of the flux harmonics ``flux_rows``, turned into dq at the instant's angle)."""
     L_d, L_q, c_th, r_th, t_amb = (
         MOTOR["L_d"], MOTOR["L_q"], THERMAL["c_th_j_per_k"], THERMAL["r_th_k_per_w"], THERMAL["ambient_c"],
     )  # fmt: skip
@@ -85,6 +121,9 @@ def _capture_rhs(w_e, u_ab):
         i_d, i_q, th, T = flat.reshape(4, -1)
         c, s = np.cos(th), np.sin(th)
         u_d, u_q = c * u_ab[0] + s * u_ab[1], -s * u_ab[0] + c * u_ab[1]
+        if flux_rows:
+            e_h = w_e * harmonic_flux(th, flux_rows)[1] * (c - 1j * s)
+            u_d, u_q = u_d - e_h.real, u_q - e_h.imag
         R = _resistance(T)
         di_d = (u_d - R * i_d + w_e * L_q * i_q) / L_d
         di_q = (u_q - R * i_q - w_e * (L_d * i_d + _flux(T))) / L_q
@@ -94,7 +133,20 @@ def _capture_rhs(w_e, u_ab):
     return rhs
 
 
-def _captures(t0, T0, speeds, levels, ts, rows, rng):
+def shaft_torque(i_d, i_q, th, T, omega_m, ripple) -> np.ndarray:
+    """The torque a sensor between the motor and the dynamometer reads at a held speed, N m: the
+    electromagnetic torque (``1.5 p (psi_f(T) i_q + (L_d - L_q) i_d i_q)`` and the flux harmonics'
+    ``1.5 p Re(conj(i_ab) d psi_h,ab / d theta)``, from the power balance) plus cogging, less friction."""
+    p = MOTOR["pole_pairs"]
+    torque = 1.5 * p * (_flux(T) * i_q + (MOTOR["L_d"] - MOTOR["L_q"]) * i_d * i_q)
+    i_ab = (i_d + 1j * i_q) * np.exp(1j * th)
+    torque = torque + 1.5 * p * np.real(np.conj(i_ab) * harmonic_flux(th, ripple["flux"])[1])
+    for n, c, phi in ripple["cogging"]:
+        torque = torque + c * np.sin(n * th + phi)
+    return torque - ripple["B"] * omega_m - ripple["coulomb_nm"] * np.sign(omega_m)
+
+
+def _captures(t0, T0, speeds, levels, ts, rows, rng, ripple=None):
     """Simulate every capture (a warm-up period, then ``rows`` logged rows); returns the logged columns
     ``(n, rows)`` and each capture's mean true ``|i_dq|^2``, A^2."""
     n = t0.size
@@ -105,9 +157,12 @@ def _captures(t0, T0, speeds, levels, ts, rows, rng):
     bw = 2.0 * math.pi * 400.0
     steps = len(PATTERN_A)
     period = rows - 1
-    x = np.stack([np.zeros(n), np.zeros(n), np.full(n, 0.3), T0])
+    th0 = np.full(n, 0.3) if ripple is None else rng.uniform(-math.pi, math.pi, n)
+    flux_rows = () if ripple is None else ripple["flux"]
+    x = np.stack([np.zeros(n), np.zeros(n), th0, T0])
     integ = np.zeros((2, n))
     names = ("u_alpha", "u_beta", "i_a", "i_b", "theta_e", "temperature_c", "i_sq_true")
+    names += () if ripple is None else ("T_L",)
     log = {k: np.zeros((n, rows)) for k in names}
     for j in range(period + rows):
         i_d, i_q, th, T = x
@@ -136,9 +191,12 @@ def _captures(t0, T0, speeds, levels, ts, rows, rng):
             log["theta_e"][:, k] = np.remainder(th_m + math.pi, 2.0 * math.pi) - math.pi
             log["temperature_c"][:, k] = T + 0.2 * rng.standard_normal(n)
             log["i_sq_true"][:, k] = i_d**2 + i_q**2
+            if ripple is not None:
+                noise = ripple["torque_noise_nm"] * rng.standard_normal(n)
+                log["T_L"][:, k] = shaft_torque(i_d, i_q, th, T, speeds, ripple) + noise
         if j < period + rows - 1:
-            sol = solve_ivp(_capture_rhs(w_e, u_ab - lost), (0.0, ts), x.ravel(), method="DOP853", rtol=1e-10,
-                            atol=1e-12)  # fmt: skip
+            sol = solve_ivp(_capture_rhs(w_e, u_ab - lost, flux_rows), (0.0, ts), x.ravel(), method="DOP853",
+                            rtol=1e-10, atol=1e-12)  # fmt: skip
             x = sol.y[:, -1].reshape(4, n)
     return log, log["i_sq_true"][:, :-1].mean(axis=1)
 
@@ -166,6 +224,7 @@ def heat_run_log(
     speeds_rad_s: tuple = (60.0, 120.0),
     cooling_level: float = 0.35,
     seed: int = 0,
+    ripple: dict | None = None,
 ) -> dict:
     """Columns of a heat-run log recorded in bursts (module docstring).
 
@@ -176,11 +235,16 @@ def heat_run_log(
         speeds_rad_s: The two mechanical speeds the captures alternate between, rad/s.
         cooling_level: The pattern's scale after ``heating_s``.
         seed: Noise seed.
+        ripple: None, or magnet flux harmonics and cogging (as ``RIPPLE``): the motor then has them,
+            each capture starts at a random angle, and the log gets the shaft torque ``T_L`` that a torque
+            sensor between the motor and the dynamometer reads (``shaft_torque`` with the sensor's
+            noise).
 
     Returns:
         ``{column: (N,) array}``: ``time`` (s, with gaps between captures), ``u_alpha``, ``u_beta`` (V, held
         from a row to the next), ``i_a``, ``i_b`` (A, as the sensors read them), ``theta_e`` (measured,
-        rad), ``omega_m`` (rad/s), ``temperature_c`` (measured winding temperature, degC).
+        rad), ``omega_m`` (rad/s), ``temperature_c`` (measured winding temperature, degC); with ``ripple``
+        also ``T_L`` (the measured shaft torque, N m).
     """
     rows = round(capture_s / ts) + 1
     t_caps = np.arange(0.0, duration_s - capture_s, capture_every_s) + capture_s  # after a warm-up period
@@ -190,7 +254,8 @@ def heat_run_log(
     i_sq = np.mean(np.sum(np.square(PATTERN_A), axis=1)) * levels**2  # first pass: the references
     for _ in range(2):
         T0 = _temperatures(t_caps - capture_s, i_sq, duration_s)
-        log, i_sq = _captures(t_caps - capture_s, T0, speeds, levels, ts, rows, np.random.default_rng(seed))
+        rng = np.random.default_rng(seed)
+        log, i_sq = _captures(t_caps - capture_s, T0, speeds, levels, ts, rows, rng, ripple)
     time = t_caps[:, None] + ts * np.arange(rows)[None, :]
     out = {"time": time.ravel(), "omega_m": np.repeat(speeds, rows)}
     out.update({k: v.ravel() for k, v in log.items() if k != "i_sq_true"})

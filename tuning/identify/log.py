@@ -31,6 +31,8 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from pmsmjax.io.csv_dialect import CsvDialect
+from pmsmjax.io.log_units import merge_units
 from pmsmjax.io.logs import check_columns, misspelt_columns
 from pmsmjax.io.toml_parser import read_toml
 from pmsmjax.spec.validation import ParameterError
@@ -125,6 +127,7 @@ def load_drive_log(
     resample: bool = False,
     encoder_lines: int | None = None,
     counter_bits: int | None = None,
+    dialect: CsvDialect | None = None,
 ) -> DriveLog:
     """Read a ``.csv``/``.npz``/``.mat`` log and return a checked [`DriveLog`][tuning.identify.log.DriveLog].
 
@@ -134,10 +137,14 @@ def load_drive_log(
     capture onto a uniform one (with a warning) instead of refusing it; `encoder_lines`: lines per revolution
     of the encoder whose ``encoder_counts`` the log gives instead of ``theta_e``, `counter_bits`: the width of
     its counter when it wraps (else detected), see
-    [`angle_from_counts`][tuning.identify.log_columns.angle_from_counts].
+    [`angle_from_counts`][tuning.identify.log_columns.angle_from_counts]; `dialect`: a CSV file's stated
+    delimiter, decimal mark and header row ([`CsvDialect`][pmsmjax.io.csv_dialect.CsvDialect]). Units
+    in the column names (``Time [ms]``) add to `units`.
     """
     unused: list[str] = []
-    present = read_canonical(path, columns, unused)
+    named: dict = {}
+    present = read_canonical(path, columns, unused, dialect=dialect, named_units=named)
+    units = merge_units(named, dict(units or {}), f"log {path}")
     wrong = misspelt_columns(unused, [c for c in CANONICAL if c not in present])
     if wrong:
         col, known = wrong[0]
@@ -211,7 +218,7 @@ def drive_log_from_columns(
         )
     optional = [c for c in (angle, "omega_m", "T_L", "U_dc", "temperature_c") if c not in need]
     c = check_columns(cols, need, optional, source=source)
-    apply_units(c, units or {}, source)
+    apply_units(c, units or {}, source, pole_pairs)
     notes = ["i_c = -i_a - i_b (two current sensors)"] if two_sensors and iset == "abc" else []
     from_counts = counts_to_angle(c, pole_pairs, encoder_lines, counter_bits, source)
     if from_counts:
@@ -220,7 +227,7 @@ def drive_log_from_columns(
     c, dt, resampled = check_grid(c, dt, resample, source, bursts=True)
     if resampled:
         notes.append(resampled)
-    if np.median(dt) > MAX_STEP_S:
+    if np.median(dt) > MAX_STEP_S * (1.0 + 1e-9):  # a 1 ms step of a ms count, to rounding
         step = float(np.median(dt))
         unit = next((u for u, f in (("ms", 1e-3), ("us", 1e-6)) if step * f <= MAX_STEP_S), None)
         guess = (

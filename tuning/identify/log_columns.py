@@ -4,7 +4,9 @@
 through a column map, and the checks and conversions both logs make.
 
 Column names in the file are mapped to canonical names by a column map (``{canonical: name in file}``,
-from options or the ``[columns]`` table of a TOML file); units by ``{canonical: unit}`` (``[units]``).
+from options or the ``[columns]`` table of a TOML file); units by ``{canonical: unit}`` (``[units]``) or
+by the names (``Time [ms]``, ``i_a (A)``, ``Ia/mA``: [`pmsmjax.io.log_units`][pmsmjax.io.log_units]).
+Duties may be in ``%``.
 Canonical columns (SI units after conversion):
 
 - ``time`` (s; ``ms``, ``us`` accepted);
@@ -13,7 +15,7 @@ Canonical columns (SI units after conversion):
 - currents, one set: ``i_d, i_q`` | ``i_alpha, i_beta`` | ``i_a, i_b, i_c`` (or ``i_a, i_b`` of two sensors,
   ``i_c = -i_a - i_b``), A (``mA``);
 - ``theta_e`` electrical angle (rad; ``deg``) and/or ``omega_m`` mechanical speed (rad/s; ``rpm``,
-  ``Hz`` = rev/s);
+  ``Hz`` = rev/s, ``erpm`` = electrical r/min as VESC logs it);
 - ``encoder_counts`` instead of ``theta_e``: an incremental encoder's quadrature count (4 per line), turned
   into ``theta_e`` by [`angle_from_counts`][tuning.identify.log_columns.angle_from_counts] with the encoder's
   lines per revolution. Its zero is the encoder's index, not the rotor's d axis: the offset between them is
@@ -32,7 +34,12 @@ import numpy as np
 
 from pmsmjax.frames.three_phase import abc_to_alpha_beta, park
 from pmsmjax.inverters.averaged import phase_voltages
-from pmsmjax.io.logs import read_log
+from pmsmjax.io.csv_dialect import CsvDialect
+from pmsmjax.io.log_formats import PresetColumn
+from pmsmjax.io.log_units import UNITS as _UNITS
+from pmsmjax.io.log_units import apply_units as _apply_units
+from pmsmjax.io.logs import column_names, read_log
+from pmsmjax.io.mapped_logs import resolve_columns
 from pmsmjax.spec.validation import ParameterError
 
 __all__ = [
@@ -85,16 +92,9 @@ MEANINGS = {
     **{c: "duty cycle, 0..1" for c in VOLTAGE_SETS["duty"]},
     **{c: "current, A" for c in sum(CURRENT_SETS.values(), ())},
 }
-#: Accepted units: canonical column (or group) -> {unit: factor to SI}.
-UNITS = {
-    "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6},
-    "omega_m": {"rad/s": 1.0, "rpm": np.pi / 30.0, "Hz": 2.0 * np.pi},
-    "theta_e": {"rad": 1.0, "deg": np.pi / 180.0},
-    "current": {"A": 1.0, "mA": 1e-3},
-    "voltage": {"V": 1.0, "mV": 1e-3, "kV": 1e3},
-    "T_L": {"N m": 1.0, "Nm": 1.0},
-    "temperature_c": {"degC": 1.0, "C": 1.0},
-}
+#: Accepted units: canonical column (or group) -> {unit: factor to SI}
+#: ([`pmsmjax.io.log_units`][pmsmjax.io.log_units]).
+UNITS = _UNITS
 #: Sampling steps deviating more than this from the median are irregular (refused or resampled).
 MAX_JITTER = 0.05
 #: A step longer than this many median steps is a gap between two captures of a burst log.
@@ -107,9 +107,19 @@ MAX_STEP_S = 1e-3
 COUNTER_BITS = (16, 32)
 
 
-def read_canonical(path, columns: dict | None, unused: list | None = None) -> dict:
-    """The canonical columns present in the log at ``path``, read through the column map ``columns``;
-    the file's other column names are appended to ``unused`` when a list is given."""
+def read_canonical(
+    path,
+    columns: dict | None,
+    unused: list | None = None,
+    *,
+    dialect: CsvDialect | None = None,
+    named_units: dict | None = None,
+) -> dict:
+    """The canonical columns present in the log at ``path``, read through the column map ``columns``
+    (names with unit suffixes matched as [`pmsmjax.io.mapped_logs`][pmsmjax.io.mapped_logs] does); the
+    file's other column names are appended to ``unused`` when a list is given, and the units the matched
+    names carry to ``named_units`` (``{canonical: unit}``) when a dict is given. `dialect`: a CSV file's
+    stated delimiter, decimal mark and header row."""
     columns = dict(columns or {})
     bad = sorted(set(columns) - set(CANONICAL))
     if bad:
@@ -118,10 +128,15 @@ def read_canonical(path, columns: dict | None, unused: list | None = None) -> di
             f"column map: unknown canonical name(s) {bad} ({'; '.join(hints)}); the keys of [columns] "
             f"are canonical names ({', '.join(CANONICAL)}), the values the names in the file."
         )
-    wanted = [columns.get(c, c) for c in CANONICAL]
+    found, units = resolve_columns(column_names(path, dialect), CANONICAL, columns, f"log {path}")
+    to_file = {c: found.get(c, columns.get(c, c)) for c in CANONICAL}
     unused = [] if unused is None else unused
-    raw = read_log(path, (), wanted, time=None, unused=unused)
-    absent = [(c, name) for c, name in columns.items() if name not in raw]
+    raw = read_log(path, (), list(to_file.values()), time=None, unused=unused, dialect=dialect)
+    absent = [
+        (c, name)
+        for c, name in columns.items()
+        if to_file[c] not in raw and not isinstance(name, PresetColumn)
+    ]
     if absent:
         c, name = absent[0]
         listed = ", ".join(sorted({*raw, *unused})) or "none"
@@ -129,13 +144,15 @@ def read_canonical(path, columns: dict | None, unused: list | None = None) -> di
             f"column map {c}={name}: log {path} has no column {name!r} (its columns: {listed}): map {c} to "
             f'a column the log has (--columns {c}=NAME, or [columns] {c} = "NAME"), or drop the mapping.'
         )
-    back = {columns.get(c, c): c for c in CANONICAL}
+    back = {n: c for c, n in to_file.items()}
     present = {back[k]: v for k, v in raw.items()}
     if not present:
         raise ParameterError(
             f"log {path}: none of the expected columns is present ({', '.join(CANONICAL)}); map the "
             "file's names with a column map (--columns or a [columns] table)."
         )
+    if named_units is not None:
+        named_units.update({c: u for c, u in units.items() if c in present})
     return present
 
 
@@ -165,26 +182,10 @@ def pick_set(cols, sets, what, source) -> str:
     )
 
 
-def apply_units(c: dict, units: dict, source: str) -> None:
-    """Convert the columns of ``c`` in place to SI by ``units`` (``{column or group: unit}``)."""
-    for key, unit in units.items():
-        group = key if key in UNITS else None
-        if key in ("current", "voltage"):
-            targets = [n for n in c if n.startswith("i_" if key == "current" else "u_")]
-        elif key in UNITS:
-            targets = [key] if key in c else []
-        elif key.startswith("i_") or key.startswith("u_"):
-            group, targets = ("current" if key.startswith("i_") else "voltage"), [key] if key in c else []
-        else:
-            raise ParameterError(
-                f"units: unknown key {key!r}; use time, omega_m, theta_e, T_L, temperature_c, current, "
-                "voltage or a column."
-            )
-        table = UNITS[group]
-        if unit not in table:
-            raise ParameterError(f"units: {key} = {unit!r} is not one of {', '.join(table)}.")
-        for n in targets:
-            c[n] = c[n] * table[unit]
+def apply_units(c: dict, units: dict, source: str, pole_pairs: int | None = None) -> None:
+    """Convert the columns of ``c`` in place to SI by ``units`` (``{column or group: unit}``; ``erpm`` needs
+    `pole_pairs`): [`pmsmjax.io.log_units.apply_units`][pmsmjax.io.log_units.apply_units]."""
+    _apply_units(c, units, source, pole_pairs)
 
 
 def segment_bounds(time: np.ndarray) -> np.ndarray:

@@ -23,6 +23,14 @@
   ``ambient_c`` of the fitted network, each only when identified. ``[operating]`` (the ranges a drive runs
   over) is the user's and is carried over from the prior: the intervals go to ``[tolerances]``, never to
   ``[operating]``.
+- With identified ripple (``harmonics`` in ``params.json``, ``--flux-harmonics``, ``--cogging-orders``):
+  ``[harmonics]`` ``flux`` and ``cogging`` rows ``[order, amplitude, phase]`` of the orders the log
+  determines ([`tuning.identify.ripple_stage.harmonics_table`][tuning.identify.ripple_stage.harmonics_table]);
+  without them the prior's ``[harmonics]`` is carried over.
+- With an identified shaft (``two_mass`` in ``params.json``, ``--two-mass``): ``[motor]`` ``J`` and ``B`` the
+  motor's own (the two-mass fit's ``J_m``, ``B``) and ``[mechanics]`` ``load_inertia``,
+  ``shaft_stiffness_nm_per_rad``, ``shaft_damping_nm_s_per_rad``, each with its tolerance; a value the log
+  does not determine is not written (the shaft is written only when the inertia and the stiffness are).
 """
 
 from pathlib import Path
@@ -38,7 +46,8 @@ MOTOR_NAMES = ("R", "L_d", "L_q", "psi_f", "J", "B")
 
 def undetermined(summary: dict) -> list[str]:
     """The motor parameters of ``summary`` (``params.json``) that the log does not determine."""
-    return [n for n in MOTOR_NAMES if summary["parameters"][n]["identifiable"] is False]
+    shaft = _shaft_values(summary)
+    return [n for n in MOTOR_NAMES if summary["parameters"][n]["identifiable"] is False and n not in shaft]
 
 
 def _half_width(entry: dict) -> float:
@@ -84,6 +93,20 @@ def motor_file_tables(summary: dict, pole_pairs: int, prior: DriveSpec | None = 
             tables["sensor"] = sensor
     if summary.get("temperature"):
         tables |= _temperature_tables(summary["temperature"], motor, prior, comments)
+    _ripple_tables(summary, prior, tables, comments)
+    shaft = _shaft_values(summary)
+    if shaft:
+        two = summary["two_mass"]
+        for name, key in (("J", "J_m"), ("B", "B")):
+            if name in shaft:
+                motor[name], tolerances[name] = shaft[name], _half_width(two[key])
+                comments[f"motor.{name}"] = "the two-mass fit's (the motor's own)"
+        mechanics = {k: shaft[k] for k in _SHAFT_KEYS.values() if k in shaft}
+        tables["mechanics"] = mechanics
+        for key in ("load_inertia", "shaft_stiffness_nm_per_rad"):
+            tolerances[key] = _half_width(two[{v: k for k, v in _SHAFT_KEYS.items()}[key]])
+        if "shaft_damping_nm_s_per_rad" not in mechanics:
+            comments["mechanics.load_inertia"] = "the damping is not determined by the log: 0 (undamped)"
     if tolerances:
         tables["tolerances"] = tolerances
     return tables, comments
@@ -139,6 +162,35 @@ def _temperature_tables(report: dict, motor: dict, prior: DriveSpec | None, comm
     if prior is not None and prior.operating:
         tables["operating"] = {k: list(v) for k, v in prior.operating.items()}
     return tables
+
+
+_SHAFT_KEYS = {"J_L": "load_inertia", "K": "shaft_stiffness_nm_per_rad", "D": "shaft_damping_nm_s_per_rad"}
+
+
+def _shaft_values(summary: dict) -> dict:
+    """``{J, B, load_inertia, shaft_stiffness_nm_per_rad, shaft_damping_nm_s_per_rad}``: the identified
+    values of ``params.json``'s ``two_mass`` (empty unless J_L and K are identified)."""
+    two = summary.get("two_mass")
+    if not two or not (two["J_L"]["identifiable"] and two["K"]["identifiable"]):
+        return {}
+    out = {v: two[k]["value"] for k, v in _SHAFT_KEYS.items() if two[k]["identifiable"]}
+    out |= {n: two[k]["value"] for n, k in (("J", "J_m"), ("B", "B")) if two[k]["identifiable"]}
+    return out
+
+
+def _ripple_tables(summary: dict, prior: DriveSpec | None, tables: dict, comments: dict) -> None:
+    """Add ``[harmonics]`` (identified, else the prior's) to `tables` (module docstring)."""
+    from tuning.identify.ripple_stage import harmonics_table
+
+    table, notes = harmonics_table(summary.get("harmonics") or {})
+    if table:
+        tables["harmonics"] = table
+        for key in table:
+            comments[f"harmonics.{key}"] = "identified: [order, amplitude, phase (rad)]" + (
+                "; " + "; ".join(notes) if notes else ""
+            )
+    elif prior is not None and prior.harmonics:
+        tables["harmonics"] = {k: [list(r) for r in v] for k, v in dict(prior.harmonics).items()}
 
 
 def write_motor_file(path, summary: dict, pole_pairs: int, prior: DriveSpec | None = None) -> Path:

@@ -33,6 +33,7 @@ import jax
 import numpy as np
 from scipy import stats
 
+from pmsmjax.io.log_formats import READER_KEYS, reader_options
 from pmsmjax.io.logs import atomic_write, check_output_folder
 from pmsmjax.recorded.replay import DEFAULT_HOLD
 from pmsmjax.spec.validation import ParameterError
@@ -410,6 +411,9 @@ def identify_file(
     ambient_c: float | None = None,
     encoder_lines: int | None = None,
     counter_bits: int | None = None,
+    flux_orders=(),
+    cogging_orders=(),
+    two_mass: bool = False,
     **options,
 ) -> IdentifyResult:
     """Read ``log_path``, identify, write ``out_dir/params.json`` (and ``fit.png``); returns the result.
@@ -418,7 +422,8 @@ def identify_file(
     [`pmsmjax.recorded.replay.DEFAULT_HOLD`][pmsmjax.recorded.replay.DEFAULT_HOLD]: the hold that fits better,
     [`tuning.identify.hold`][tuning.identify.hold]), ``"stator"`` or ``"rotor"``. `config`: TOML with
     ``[columns]``, ``[units]``, ``[log]`` (``hold``, ``u_dc``, ``resample``, ``encoder_lines``,
-    ``counter_bits``) and ``[identify]``
+    ``counter_bits``; how the file is written: ``format``, ``delimiter``, ``header_row``, ``decimal``,
+    [`pmsmjax.io.log_formats`][pmsmjax.io.log_formats]) and ``[identify]``
     ([`IdentifyOptions`][tuning.identify.pipeline.IdentifyOptions] fields; ``fixed``/``start`` as tables);
     explicit arguments win over it. `sensor_errors`: first fit the current sensors' offsets, their gains
     relative to sensor a and the encoder offset from the phase currents and the measured angle
@@ -431,16 +436,25 @@ def identify_file(
     known, else fitted); the summary gets a ``temperature`` entry. `encoder_lines`, `counter_bits`: the
     encoder of an ``encoder_counts`` column
     ([`tuning.identify.log_columns.angle_from_counts`][tuning.identify.log_columns.angle_from_counts]).
+    `flux_orders`, `cogging_orders`: magnet flux harmonics (fitted in the stator-frame stage, which they
+    turn on) and cogging torque (from a logged shaft torque ``T_L``) of those orders per electrical
+    revolution, taken out of the log before the main fit
+    ([`tuning.identify.ripple_stage`][tuning.identify.ripple_stage]); the summary gets ``harmonics``.
+    `two_mass`: fit a compliant shaft (motor and load inertia, stiffness, damping) to the motor speed of a
+    run with speed steps, driven by the identified machine's torque
+    ([`tuning.identify.two_mass_fit`][tuning.identify.two_mass_fit]; turns the stator-frame stage on); the
+    summary gets ``two_mass``.
     Everything is checked before anything is compiled; files are written atomically.
     """
     cfg = read_log_config(config) if config else {"columns": {}, "units": {}, "log": {}, "identify": {}}
     cols = {**cfg["columns"], **(columns or {})}
     unit_map = {**cfg["units"], **(units or {})}
     log_cfg = cfg["log"]
-    allowed = {"hold", "u_dc", "resample", "encoder_lines", "counter_bits", "ambient_c"}
+    allowed = {"hold", "u_dc", "resample", "encoder_lines", "counter_bits", "ambient_c", *READER_KEYS}
     bad = sorted(set(log_cfg) - allowed)
     if bad:
         raise ParameterError(f"[log] table: unknown keys {bad}; allowed: {', '.join(sorted(allowed))}.")
+    dialect, cols, unit_map = reader_options(log_cfg, cols, unit_map)
     ambient_c = ambient_c if ambient_c is not None else log_cfg.get("ambient_c")
     fields = {f.name for f in dataclasses.fields(IdentifyOptions)}
     bad = sorted(set(cfg["identify"]) - fields)
@@ -453,23 +467,37 @@ def identify_file(
         "resample": resample or bool(log_cfg.get("resample", False)),
         "encoder_lines": encoder_lines if encoder_lines is not None else log_cfg.get("encoder_lines"),
         "counter_bits": counter_bits if counter_bits is not None else log_cfg.get("counter_bits"),
+        "dialect": dialect,
     }
-    sensors, asked = None, sensor_errors
+    ripple = {"flux_orders": tuple(flux_orders), "cogging_orders": tuple(cogging_orders)}
+    sensors, asked = None, sensor_errors or bool(flux_orders or cogging_orders or two_mass)
+    sensor_errors = asked
     if not sensor_errors:
         log = load_drive_log(log_path, pole_pairs, columns=cols, units=unit_map, **read)
         sensor_errors = log.temperature_c is not None and opts.temperature_coeffs is None
     if sensor_errors:
         log, sensors, corrected = stator_frame_stage(
             log_path, pole_pairs, cols, unit_map, **read, reference_c=reference_c, dead_time=opts.dead_time,
-            asked=asked,
+            asked=asked, **ripple,
         )  # fmt: skip
+        shaft = None
+        if two_mass:
+            from tuning.identify.two_mass_fit import two_mass_from_columns
+
+            shaft = two_mass_from_columns(corrected, sensors.machine, sensors.summary.get("harmonics"),
+                                          pole_pairs, reference_c, log.segments, log.source)  # fmt: skip
         coeffs = fitted_temperature_coeffs(sensors)
         if coeffs is not None and opts.temperature_coeffs is None:
             opts = dataclasses.replace(opts, temperature_coeffs=coeffs)
     out = check_output_folder(out_dir)
     result = identify(log, opts)
     if sensors is not None:
+        harmonics = sensors.summary.pop("harmonics", None)
         result.summary["sensor_errors"] = sensors.summary
+        if harmonics:
+            result.summary["harmonics"] = harmonics
+        if shaft is not None:
+            result.summary["two_mass"] = shaft
         if "temperature" in sensors.summary:
             result.summary["temperature"] = temperature_report(sensors, corrected, log.segments, ambient_c)
     out.mkdir(parents=True, exist_ok=True)

@@ -46,6 +46,7 @@ from scipy import optimize
 
 from pmsmjax.io.logs import check_columns
 from pmsmjax.spec.validation import ParameterError
+from tuning.identify.flux_harmonics_fit import flux_harmonics_summary
 from tuning.identify.log_columns import (
     VOLTAGE_SETS,
     apply_units,
@@ -133,7 +134,7 @@ class SensorErrors:
 
 def sensor_log_from_columns(
     cols: dict, *, units: dict | None = None, u_dc: float | None = None, resample: bool = False,
-    source: str = "log",
+    source: str = "log", pole_pairs: int | None = None,
 ) -> tuple[SensorLog, dict]:  # fmt: skip
     """Check canonical columns for a sensor-error fit.
 
@@ -146,6 +147,7 @@ def sensor_log_from_columns(
         u_dc: DC-link voltage, V, for duties without a ``U_dc`` column.
         resample: Resample an irregular time grid instead of refusing it.
         source: A name for messages.
+        pole_pairs: The motor's pole pairs, for a speed in erpm.
 
     Returns:
         ``(SensorLog, columns)``: the log, and the columns used, in SI units (for
@@ -170,7 +172,7 @@ def sensor_log_from_columns(
         need.append("U_dc")
     optional = [n for n in ("i_c", "omega_m", "T_L", "U_dc", "temperature_c") if n not in need]
     c = check_columns(cols, need, optional, source=source)
-    apply_units(c, units or {}, source)
+    apply_units(c, units or {}, source, pole_pairs)
     c, _, _ = check_grid(c, np.diff(c["time"]), resample, source, bursts=True)
     with jax.enable_x64(True):
         u_ab = to_dq64(c, _STATOR_VOLTAGE_SETS[vset], vset, np.zeros_like(c["time"]), u_dc)
@@ -188,7 +190,7 @@ def sensor_log_from_columns(
 
 
 def identify_sensor_errors(
-    log: SensorLog, block: int = 50, reference_c: float = 20.0, dead_time: bool = False
+    log: SensorLog, block: int = 50, reference_c: float = 20.0, dead_time: bool = False, flux_orders=()
 ) -> SensorErrors:
     """Fit the current-sensor offsets, their relative gains and the encoder offset (module docstring);
     with a temperature column, also R and psi_f at ``reference_c`` and their temperature coefficients.
@@ -200,6 +202,9 @@ def identify_sensor_errors(
         reference_c: The temperature R and psi_f are stated at, degC (used with a temperature column).
         dead_time: Fit the inverter's error voltage with them (``V_dt``, V per phase): without it an
             uncorrected dead time biases the offsets.
+        flux_orders: Orders of magnet flux harmonics fitted with them
+            ([`tuning.identify.flux_harmonics_fit`][tuning.identify.flux_harmonics_fit]); the summary then
+            has ``flux_harmonics`` and the machine ``flux_harmonics`` (complex amplitudes, Wb).
 
     Returns:
         The [`SensorErrors`][tuning.identify.sensor_errors.SensorErrors], with intervals in its summary.
@@ -207,7 +212,7 @@ def identify_sensor_errors(
     Raises:
         ParameterError: For a log too short for the blocks, or a fit that fails numerically.
     """
-    pr = StatorFrameProblem(log, block, reference_c, dead_time)
+    pr = StatorFrameProblem(log, block, reference_c, dead_time, flux_orders=flux_orders)
     p0 = pr.start()
     i_rms = float(np.sqrt(np.mean(log.m**2)))
     n = pr.n_machine
@@ -241,7 +246,11 @@ def identify_sensor_errors(
         raise ParameterError(f"{log.source}: the sensor-error fit failed numerically (non-finite values).")
     cov = covariance(groups)[0]
     se = np.sqrt(np.abs(np.diag(cov)))
-    return _result(pr, p, se, sol, w_v, log)
+    result = _result(pr, p, se, sol, w_v, log)
+    if pr.flux_orders:
+        result.summary["flux_harmonics"] = flux_harmonics_summary(pr, p, cov)
+        result.machine["flux_harmonics"] = (pr.flux_orders, pr.unpack(p)["flux_h"])
+    return result
 
 
 def _entry(value, stderr, unit, limit):

@@ -25,7 +25,10 @@ The start is linear: without sensor errors the flux is ``L_S i_ab + L_D e^{j 2 t
 e^{-2 j delta} + psi_f e^{-j delta} e^{j theta_m}`` (``L_S, L_D`` the mean and half-difference of L_d,
 L_q), linear in R, ``R alpha``, L_S and the complex coefficients ``L_D e^{-2 j delta}``,
 ``psi_f e^{-j delta}`` and ``psi_f beta e^{-j delta}``, so ``delta``, psi_f and the coefficients start
-from any value. The unknowns are then refined by SciPy's Levenberg-Marquardt
+from any value. Magnet flux harmonics (``flux_orders``) add their flux to ``psi_ab`` and join the start
+and the refinement as ``Re``, ``Im`` of each order's complex amplitude
+([`tuning.identify.flux_harmonics_fit`][tuning.identify.flux_harmonics_fit]). The unknowns are then refined
+by SciPy's Levenberg-Marquardt
 ([`tuning.identify.sensor_errors.identify_sensor_errors`][tuning.identify.sensor_errors.identify_sensor_errors]).
 """
 
@@ -34,6 +37,7 @@ import math
 import numpy as np
 
 from pmsmjax.spec.validation import ParameterError
+from tuning.identify import flux_harmonics_fit as fh
 
 __all__ = ["StatorFrameProblem", "true_currents", "central_jacobian", "noise_level"]
 
@@ -76,7 +80,7 @@ def _block_edges(bounds: np.ndarray, block: int) -> np.ndarray:
 
 
 class StatorFrameProblem:
-    """The block residuals of the module docstring for the unknowns ``p`` (SI; order of :attr:`names`).
+    """The block residuals of the module docstring for the unknowns ``p`` (SI; order of ``names``).
 
     Args:
         log: A [`tuning.identify.sensor_errors.SensorLog`][tuning.identify.sensor_errors.SensorLog].
@@ -84,13 +88,14 @@ class StatorFrameProblem:
         reference_c: ``T_ref``, degC: the temperature R and psi_f are fitted at (with a temperature column).
         dead_time: Fit the inverter's error voltage ``V_dt`` (V per phase).
         dead_time_eps_a: The current over which its sign is smoothed, A.
+        flux_orders: Orders of magnet flux harmonics to fit (per electrical revolution; not 1, not triplen).
 
     Raises:
         ParameterError: For a log with fewer than 10 whole blocks.
     """
 
     def __init__(self, log, block: int, reference_c: float = 20.0, dead_time: bool = False,
-                 dead_time_eps_a: float = 0.05):  # fmt: skip
+                 dead_time_eps_a: float = 0.05, flux_orders=()):  # fmt: skip
         t = log.time
         dt = np.diff(t)
         self.k = log.n_sensors
@@ -125,6 +130,8 @@ class StatorFrameProblem:
         self.names = ["R", "L_d", "L_q", "psi_f"]
         self.names += ["r_temp_coeff_per_k", "psi_f_temp_coeff_per_k"] if self.thermal else []
         self.names += ["V_dt"] if dead_time else []
+        self.flux_orders = tuple(int(k) for k in flux_orders)
+        self.names += [f"flux_{k}_{part}" for k in self.flux_orders for part in ("re", "im")]
         #: Unknowns before the sensors' (the machine's, the coefficients, V_dt).
         self.n_machine = len(self.names)
         self.names += [f"o_{p}" for p in "abc"[: self.k]] + [f"g_{p}" for p in "bc"[: self.k - 1]] + ["delta"]
@@ -136,14 +143,16 @@ class StatorFrameProblem:
         return c[self.edges[:, 1]] - c[self.edges[:, 0]]
 
     def unpack(self, p) -> dict:
-        """``{R, L_d, L_q, psi_f, alpha, beta, V_dt, offset (k,), gain (k,), delta}`` from ``p`` (the
-        coefficients and V_dt zero when not fitted; ``gain[0] = 1``)."""
+        """``{R, L_d, L_q, psi_f, alpha, beta, V_dt, flux_h, offset (k,), gain (k,), delta}`` from ``p``
+        (the coefficients and V_dt zero when not fitted; ``gain[0] = 1``; ``flux_h`` the complex harmonic
+        amplitudes, Wb)."""
         k, n = self.k, self.n_machine
         v = dict(zip(self.names[:n], p[:n], strict=True))
+        h = np.array([v[f"flux_{o}_re"] + 1j * v[f"flux_{o}_im"] for o in self.flux_orders], complex)
         return {
             "R": v["R"], "L_d": v["L_d"], "L_q": v["L_q"], "psi_f": v["psi_f"],
             "alpha": v.get("r_temp_coeff_per_k", 0.0), "beta": v.get("psi_f_temp_coeff_per_k", 0.0),
-            "V_dt": v.get("V_dt", 0.0), "offset": p[n : n + k],
+            "V_dt": v.get("V_dt", 0.0), "flux_h": h, "offset": p[n : n + k],
             "gain": np.concatenate([[1.0], p[n + k : n + 2 * k - 1]]), "delta": p[-1],
         }  # fmt: skip
 
@@ -171,6 +180,10 @@ class StatorFrameProblem:
         int_i = self._sum(trap) - bend * psi_b / L_d
         a, b = self.edges[:, 0], self.edges[:, 1]
         d_psi = flux[b] - flux[a] + psi_b * (e[b] - e[a])
+        if self.flux_orders:
+            th = self.theta_m[self.edges] - delta
+            psi_h = fh.flux_ab(th, self.flux_orders, v["flux_h"])
+            d_psi = d_psi + psi_h[:, 1] - psi_h[:, 0]
         r = self.U - R * (1.0 + alpha * self.dT) * int_i - d_psi
         if self.dead_time:
             r = r - v["V_dt"] * self._dead_time_volt_seconds(i)
@@ -203,6 +216,8 @@ class StatorFrameProblem:
             cols += [ri(trap * self.dT), ri(d(z1) * self.dT), ri(1j * d(z1) * self.dT)]
         if self.dead_time:
             cols.append(ri(self._dead_time_volt_seconds(self.m)))
+        n_h = 2 * len(self.flux_orders)
+        cols += [ri(c) for c in fh.start_columns(self.theta_m, self.flux_orders, d)]
         A = np.stack(cols, axis=1)
         scale = np.linalg.norm(A, axis=0)
         scale[scale == 0] = 1.0
@@ -216,5 +231,7 @@ class StatorFrameProblem:
         if self.thermal:
             start += [x[6] / start[0], float(((x[7] + 1j * x[8]) / c).real)]
         if self.dead_time:
-            start.append(x[-1])
+            start.append(x[len(x) - n_h - 1])
+        if n_h:
+            start += list(fh.rotate_start(x[len(x) - n_h :], self.flux_orders, delta))
         return np.array(start + [0.0] * self.k + [1.0] * (self.k - 1) + [delta])

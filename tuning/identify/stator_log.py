@@ -16,6 +16,8 @@ import os
 import jax
 import numpy as np
 
+from pmsmjax.io.csv_dialect import CsvDialect
+from pmsmjax.io.log_units import merge_units
 from pmsmjax.io.logs import check_columns, column_names
 from pmsmjax.spec.validation import ParameterError
 from tuning.identify.log_columns import (
@@ -72,6 +74,7 @@ def load_stator_log(
     resample: bool = False,
     truth: tuple[str, ...] = (),
     pole_pairs: int | None = None,
+    dialect: CsvDialect | None = None,
 ) -> StatorLog:
     """Read a ``.csv``/``.npz``/``.mat`` log for an observer and return a checked
     [`StatorLog`][tuning.identify.stator_log.StatorLog].
@@ -80,7 +83,8 @@ def load_stator_log(
     V); currents ``i_alpha, i_beta`` | ``i_a, i_b, i_c``; other columns are ignored unless named in
     `truth` (a subset of ``theta_e``, ``omega_m``). `columns`, `units`, `resample`: as
     [`load_drive_log`][tuning.identify.log.load_drive_log]; `pole_pairs` (when both truth columns are given)
-    checks the speed against the angle.
+    checks the speed against the angle (and converts a speed in erpm); `dialect`: a CSV file's stated
+    delimiter, decimal mark and header row. Units in the column names (``Time [ms]``) add to `units`.
     """
     bad = [c for c in truth if c not in TRUTH]
     if bad:
@@ -90,8 +94,10 @@ def load_stator_log(
             f"theta_e (electrical rad) and/or omega_m (mechanical rad/s); map the file's names with a column "
             "map (e.g. theta_e=angle)."
         )
-    present = read_canonical(path, columns)
-    unmapped = sorted(set(column_names(path)) - set(present) - set((columns or {}).values()))
+    named: dict = {}
+    present = read_canonical(path, columns, dialect=dialect, named_units=named)
+    units = merge_units(named, dict(units or {}), f"log {path}")
+    unmapped = sorted(set(column_names(path, dialect)) - set(present) - set((columns or {}).values()))
     return stator_log_from_columns(
         present, units=units, u_dc=u_dc, resample=resample, truth=truth, pole_pairs=pole_pairs,
         source=f"log {path}", other_columns=unmapped,
@@ -143,13 +149,13 @@ def stator_log_from_columns(
         need.append("U_dc")
     optional = ["U_dc"] if vset == "duty" and "U_dc" not in need else []
     c = check_columns(cols, need, optional, source=source)
-    apply_units(c, units or {}, source)
+    apply_units(c, units or {}, source, pole_pairs)
     notes = []
     c, dt, resampled = check_grid(c, np.diff(c["time"]), resample, source)
     if resampled:
         notes.append(resampled)
     Ts = float(np.median(dt))
-    if Ts > MAX_STEP_S:
+    if Ts > MAX_STEP_S * (1.0 + 1e-9):  # a 1 ms step of a ms count, to rounding
         raise ParameterError(
             f"{source}: sampling step {Ts:.3g} s is longer than {MAX_STEP_S:g} s; an observer needs the "
             "control-period samples (1 kHz or faster). If time is not in seconds, set its unit "
