@@ -35,6 +35,7 @@ from pmsmjax.controllers.base import AbstractController
 from pmsmjax.estimators.base import AbstractEstimator
 from pmsmjax.estimators.current_sensors import AbstractCurrentSensor, IdealCurrentSensor
 from pmsmjax.estimators.position_sensors import ExactSensor
+from pmsmjax.frames.three_phase import inverse_park
 from pmsmjax.inverters.base import AbstractBridge, AbstractModulator
 from pmsmjax.machines.base import AbstractMachine, MachineState
 from pmsmjax.machines.thermal import WindingThermal
@@ -50,12 +51,18 @@ class PeriodInputs(eqx.Module):
         load_torque: Load torque, N m.
         id_ref: d-axis current reference, A.
         iq_ref: q-axis current reference, A.
+        measured_iq_perturbation: A, added to the q current the controller measures (the current loop's
+            break point), or None.
+        iq_ref_perturbation: A, added to the q-current reference after the speed controller (the speed
+            loop's break point), or None.
     """
 
     speed_ref: Array
     load_torque: Array
     id_ref: Array
     iq_ref: Array
+    measured_iq_perturbation: Array | None = None
+    iq_ref_perturbation: Array | None = None
 
 
 class DriveState(eqx.Module):
@@ -240,12 +247,17 @@ class Drive(eqx.Module):
             ms = MachineState(ms.currents, jnp.asarray(x.speed_ref, ms.omega_m.dtype), ms.theta_e, ms.shaft)
         sample = self.sample(ms, state.last_duties)
         estimator_state, estimate = self.estimator.step(state.estimator, sample, self.Ts)
-        refs = References(x.speed_ref, x.id_ref, x.iq_ref)
+        refs = References(x.speed_ref, x.id_ref, x.iq_ref, x.iq_ref_perturbation)
         seen = sample
         if estimate.i_ab_fundamental is not None:
             # HF injection: the current loop gets the carrier-free current (stationary frame; the phase
             # currents stay raw, so only controllers that read i_ab are shielded from the carrier)
             seen = dataclasses.replace(sample, i_ab=estimate.i_ab_fundamental)
+        if x.measured_iq_perturbation is not None:
+            # the current loop's break point: the q axis of the controller's own (estimated) frame
+            zero = jnp.zeros_like(x.measured_iq_perturbation)
+            extra = inverse_park(jnp.stack([zero, x.measured_iq_perturbation]), estimate.theta_e)
+            seen = dataclasses.replace(seen, i_ab=seen.i_ab + extra)
         ctrl_state, out = self.controller.step(
             state.controller, seen, estimate, refs, self.Ts, self.voltage_limit(), self.computation_delay
         )

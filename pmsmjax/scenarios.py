@@ -182,6 +182,12 @@ class Scenario(eqx.Module):
         load_torque: Load torque, N m (opposes positive speed when positive).
         id_ref: d-axis current reference, A (0 for i_d = 0 control).
         iq_ref: q-axis current reference, A (used by controllers in current mode).
+        measured_iq_perturbation: A, added to the q current the controller measures (the current loop's
+            break point, for a loop-response measurement,
+            [`pmsmjax.analysis.loop_sweep`][pmsmjax.analysis.loop_sweep]); None (default): none, and the
+            simulation is the same program as without the field.
+        iq_ref_perturbation: A, added to the q-current reference after the speed controller (the speed
+            loop's break point); None (default): none.
     """
 
     duration_s: float = eqx.field(static=True)
@@ -189,6 +195,8 @@ class Scenario(eqx.Module):
     load_torque: Profile = eqx.field(default_factory=_zero)
     id_ref: Profile = eqx.field(default_factory=_zero)
     iq_ref: Profile = eqx.field(default_factory=_zero)
+    measured_iq_perturbation: Profile | None = None
+    iq_ref_perturbation: Profile | None = None
 
     def __check_init__(self):
         check_positive("Scenario.duration_s", self.duration_s, "s")
@@ -225,10 +233,16 @@ def stack_scenarios(scenarios: Sequence[Scenario]) -> Scenario:
             f"scenarios in one batch must share duration_s (it fixes the scan length), got {durations}."
         )
     padded = []
-    for field in ("speed_ref", "load_torque", "id_ref", "iq_ref"):
-        K = max(getattr(s, field).times.shape[-1] for s in scenarios)
-        padded.append([getattr(s, field).padded(K) for s in scenarios])
+    fields = ["speed_ref", "load_torque", "id_ref", "iq_ref"]
+    for field in ("measured_iq_perturbation", "iq_ref_perturbation"):  # optional: kept where any has it
+        if any(getattr(s, field) is not None for s in scenarios):
+            fields.append(field)
+    for field in fields:
+        profiles = [getattr(s, field) or _zero() for s in scenarios]
+        K = max(p.times.shape[-1] for p in profiles)
+        padded.append([p.padded(K) for p in profiles])
     rows = [
-        Scenario(scenarios[0].duration_s, *(padded[f][i] for f in range(4))) for i in range(len(scenarios))
+        Scenario(scenarios[0].duration_s, **{f: padded[j][i] for j, f in enumerate(fields)})
+        for i in range(len(scenarios))
     ]
     return jax.tree.map(lambda *xs: jnp.stack(xs), *rows)

@@ -87,11 +87,14 @@ class References(eqx.Module):
         speed_ref: Speed reference, mechanical rad/s.
         id_ref: d-axis current reference, A.
         iq_ref: q-axis current reference, A.
+        iq_ref_perturbation: A, added to the q-current reference after the speed controller (the speed
+            loop's break point, for a loop-response measurement), or None.
     """
 
     speed_ref: Array
     id_ref: Array
     iq_ref: Array
+    iq_ref_perturbation: Array | None = None
 
 
 class ControlOutput(eqx.Module):

@@ -46,11 +46,14 @@ def period_inputs(scenario: Scenario, Ts: float) -> PeriodInputs:
         A [`PeriodInputs`][pmsmjax.drive.PeriodInputs] of ``(N,)`` arrays, ``N`` the scenario's period count.
     """
     n = scenario.n_periods(Ts)
+    optional = lambda p: None if p is None else p.sample_periods(n, Ts)
     return PeriodInputs(
         scenario.speed_ref.sample_periods(n, Ts),
         scenario.load_torque.sample_periods(n, Ts),
         scenario.id_ref.sample_periods(n, Ts),
         scenario.iq_ref.sample_periods(n, Ts),
+        optional(scenario.measured_iq_perturbation),
+        optional(scenario.iq_ref_perturbation),
     )
 
 

@@ -314,6 +314,12 @@ def add_parser(sub):
         help="record every N-th period (default 1); a run whose estimated memory exceeds the budget is "
         "refused with the decimation that fits",
     )
+    p.add_argument(
+        "--margins",
+        action="store_true",
+        help="also report the current and speed loops' bandwidth, phase and gain margins and sensitivity "
+        "peak, linearised at the final speed and load (three-phase FOC on the exact sensor; about 15 s more)",
+    )
     memory.add_memory_flag(p)
     p.add_argument("--format", choices=["csv", "npz"], default="csv", help="trace file format (default csv)")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
@@ -386,6 +392,7 @@ def demo_spec(args, spec) -> demo_job.DemoSpec:
         bridge=args.bridge,
         gains=args.gains,
         decimate=args.decimate,
+        margins=args.margins,
     )
 
 

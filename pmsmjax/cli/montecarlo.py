@@ -122,6 +122,12 @@ def add_parser(sub):
         "the compile; default: that cache, see --no-compile-cache)",
     )
     p.add_argument(
+        "--linear-stability",
+        action="store_true",
+        help="also linearise every draw at its final speed and load and count a spectral radius >= 1 as the "
+        "failure unstable_linearisation (three-phase FOC on the exact sensor)",
+    )
+    p.add_argument(
         "--unroll-substeps",
         action="store_true",
         help="write the RK4 sub-steps out instead of looping (faster kernel on a GPU; same results)",
@@ -285,6 +291,7 @@ def run(args) -> int:
         ("control", args.control),
         ("pwm", args.pwm),
         ("estimator", args.estimator),
+        ("linear_stability", True if args.linear_stability else None),
     ):
         if value is not None:
             kwargs[key] = value

@@ -125,6 +125,17 @@ def add_parser(sub):
         "--time-budget-s", type=checks.positive("s"), help="stop after this wall time, s (default: none)"
     )
     p.add_argument(
+        "--min-phase-margin-deg",
+        type=checks.positive("deg", maximum=89.0),
+        help="constrain both loops' phase margin (linearised at the [tuning] ranges' middle speed and load, "
+        "on every training plant) to at least this, deg (a penalty in the cost; default: none)",
+    )
+    p.add_argument(
+        "--max-sensitivity-peak",
+        type=checks.positive(),
+        help="constrain both loops' sensitivity peak max|S| to at most this (> 1, e.g. 1.7; default: none)",
+    )
+    p.add_argument(
         "--anticogging",
         action="store_true",
         help="learn the FOC's anticogging table (q current over one electrical revolution) instead of the "
@@ -235,6 +246,8 @@ def run(args) -> int:
         ("machine", args.machine),
         ("estimator", args.estimator),
         ("robust", args.robust or None),
+        ("min_phase_margin_deg", args.min_phase_margin_deg),
+        ("max_sensitivity_peak", args.max_sensitivity_peak),
     ):
         if value is not None:
             kwargs[key] = value

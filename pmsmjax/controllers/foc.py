@@ -202,7 +202,10 @@ def cascade_references(controller, state: FOCState, estimate: Estimate, refs: Re
     else:
         speed_state, counter = state.speed, state.counter
         iq_ref = jnp.clip(refs.iq_ref, -iq_max, iq_max)
-    i_dq_ref = jnp.stack([id_ref, iq_ref])
+    # the speed loop's break point (a loop-response measurement): after the speed controller and its
+    # held state, before the current loop
+    perturbed = iq_ref if refs.iq_ref_perturbation is None else iq_ref + refs.iq_ref_perturbation
+    i_dq_ref = jnp.stack([id_ref, perturbed])
     if estimate.startup_weight is not None:
         # sensorless start (I/f): the start-up block holds the current, then hands over smoothly
         w = estimate.startup_weight

@@ -76,6 +76,8 @@ class DemoSpec:
     - `frame`, `pwm`, `bridge`: the model frame and the multi-phase modulator and bridge asked for (None:
       the defaults), as summary.json reports them; `gains`: the gains file, or None.
     - `decimate`: record every n-th control period.
+    - `margins`: also linearise the drive at the scenario's final speed and load and report both loops'
+      margins ([`pmsmjax.analysis.margins.drive_margins`][pmsmjax.analysis.margins.drive_margins]).
     """
 
     drive: object
@@ -99,6 +101,7 @@ class DemoSpec:
     bridge: str | None = None
     gains: str | None = None
     decimate: int = 1
+    margins: bool = False
 
     @property
     def multiphase(self) -> bool:
@@ -240,6 +243,11 @@ def run(spec: DemoSpec, drive, scenario) -> DemoResult:
     from pmsmjax.simulate import simulate
     from pmsmjax.trace import COLUMN_UNITS
 
+    speed_m = spec.speed_rpm * np.pi / 30.0
+    if spec.margins:  # refused before the simulation compiles
+        from pmsmjax.analysis.loop_linearisation import check_linearisable
+
+        check_linearisable(drive, speed_m, spec.load_nm, where="--speed-rpm, --load-nm")
     t0 = time.perf_counter()
     trace = jax.block_until_ready(simulate(drive, scenario, decimate=spec.decimate))
     first_call_s = time.perf_counter() - t0
@@ -311,6 +319,12 @@ def run(spec: DemoSpec, drive, scenario) -> DemoResult:
         from pmsmjax.trace import SHAFT_COLUMN_UNITS
 
         summary["trace_columns"] = {**summary["trace_columns"], **SHAFT_COLUMN_UNITS}
+    if spec.margins:
+        from pmsmjax.analysis.margins import drive_margins
+
+        t0 = time.perf_counter()
+        summary["loop_margins"] = drive_margins(drive, speed_m, spec.load_nm, "--speed-rpm, --load-nm")
+        summary["timing"]["margins_s"] = time.perf_counter() - t0
     if trace.cogging_torque is not None:
         from pmsmjax.trace import COGGING_COLUMN_UNITS
 
@@ -353,6 +367,10 @@ def _console(spec: DemoSpec, summary: dict, Ts: float) -> tuple[str, ...]:
             f"(ambient {plain(t['ambient_c'])} degC): R {t['r_change_pct']:+.1f} %, psi_f "
             f"{t['psi_f_change_pct']:+.1f} % at the end, against the data at {plain(t['reference_c'])} degC"
         )
+    if "loop_margins" in summary:
+        from pmsmjax.analysis.margins import margins_line
+
+        lines.append(margins_line(summary["loop_margins"]))
     timing = summary["timing"]
     lines.append(f"compile {timing['compile_s']:.2f} s, run {timing['run_s'] * 1e3:.1f} ms")
     return tuple(lines)

@@ -100,7 +100,13 @@ def noise_scale(spec: DriveSpec) -> tuple[float, float]:
 
 
 #: The objective weights priced against the ITAE: the constraint penalties and the angle error.
-PENALTY_WEIGHTS = ("overshoot", "current_penalty", "voltage_saturation_penalty", "angle_error")
+PENALTY_WEIGHTS = (
+    "overshoot",
+    "current_penalty",
+    "voltage_saturation_penalty",
+    "angle_error",
+    "margin_penalty",
+)
 
 
 def itae_scale(spec: DriveSpec) -> float:

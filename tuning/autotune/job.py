@@ -66,7 +66,14 @@ from pmsmjax.units import rad_s_to_rpm
 from tuning.autotune import drive_scaling
 from tuning.autotune.controls import control_tuning
 from tuning.autotune.drive_batches import drive_batches
-from tuning.autotune.objectives import ObjectiveWeights, aggregate, batch_metrics, scenario_cost
+from tuning.autotune.margin_constraints import margin_weights, margins_report
+from tuning.autotune.objectives import (
+    ObjectiveWeights,
+    aggregate,
+    batch_metrics,
+    scaled_plant,
+    scenario_cost,
+)
 from tuning.autotune.observers import OBSERVER_CONFIG, observer_drive, observer_tuning
 from tuning.autotune.scenario_batches import ScenarioBatch
 from tuning.autotune.tuner import TuneConfig, tune
@@ -95,6 +102,8 @@ JOB_KEYS = (
     "machine",
     "estimator",
     "robust",
+    "min_phase_margin_deg",
+    "max_sensitivity_peak",
 )
 #: How the machine names the drive file's phase count.
 MACHINE_PHASES = {"three-phase": 3, "six-phase": 6, "five-phase": 5}
@@ -180,6 +189,8 @@ def run_tune_job(
     estimator: str | None = None,
     drive: DriveSpec | str = "book",
     robust: bool = False,
+    min_phase_margin_deg: float | None = None,
+    max_sensitivity_peak: float | None = None,
     weights: ObjectiveWeights | None = None,
     config: TuneConfig = DEFAULT_CONFIG,
     progress: bool = True,
@@ -193,7 +204,12 @@ def run_tune_job(
     control ``pi``). `duration_s` defaults to the drive file's ``[tuning] duration_s`` for a control and
     half of it for an observer (book: 0.3-0.5 s, 0.15-0.25 s). `robust`: train over plant draws from the
     drive file's ``[tolerances]`` (refused without them); `plant_spread` (``{parameter: half-width}``)
-    sets such draws explicitly for the train and held-out batches."""
+    sets such draws explicitly for the train and held-out batches. `min_phase_margin_deg`,
+    `max_sensitivity_peak`: margin constraints of both loops on every training plant
+    ([`tuning.autotune.margin_constraints`][tuning.autotune.margin_constraints]) at the ``[tuning]`` ranges'
+    middle speed and load (control ``pi``, three-phase); result.json ``margins`` reports the margins
+    before and
+    after on the nominal plant and the worst over the held-out plant draws."""
     if machine not in MACHINE_PHASES:
         raise ParameterError(f"machine must be 'three-phase', 'six-phase' or 'five-phase', got {machine!r}.")
     spec = drive if isinstance(drive, DriveSpec) else drive_spec(drive, n_phases=MACHINE_PHASES[machine])
@@ -244,6 +260,9 @@ def run_tune_job(
         batches = drive_batches(spec)
     if weights is None:  # the control's or observer's defaults, their penalties priced for the drive
         weights = drive_scaling.scaled_weights(ObjectiveWeights(**tuning.weights), spec)
+    weights = margin_weights(
+        weights, spec, control, machine, estimator, min_phase_margin_deg, max_sensitivity_peak
+    )
     if config.names is None:
         config = dataclasses.replace(config, names=tuning.names + speed_filter_names(spec, estimator))
     batch_maker = batches.make
@@ -334,6 +353,8 @@ def run_tune_job(
     }
     if estimator is not None:
         data["stability"] = _stability(tuned_exact)
+    if estimator is None and control == "pi" and machine == "three-phase":
+        data["margins"] = margins_report(exact, tuned_exact, drawn, weights, spec, scaled_plant)
     what = f"--estimator {estimator}" if estimator is not None else f"--control {control}"
     write_gains_toml(
         out / "gains.toml",

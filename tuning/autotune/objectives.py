@@ -76,6 +76,15 @@ class ObjectiveWeights:
     # RMS chord 2 sin(e/2) of the errors e
     # ([`scenario_metrics`][tuning.autotune.objectives.scenario_metrics]): the wrapped RMS for small errors.
     angle_error: float = 0.0
+    # Stability-margin constraints (tuning.autotune.margin_constraints):
+    # a phase-margin floor (deg) and a sensitivity-peak ceiling (1) of both loops, 0 = none, judged at the
+    # operating point (mechanical rad/s, N m) on every plant of the batch; the penalty per degree short and
+    # per 0.01 of peak over.
+    min_phase_margin_deg: float = 0.0
+    max_sensitivity_peak: float = 0.0
+    margin_penalty: float = 0.1
+    margin_speed_rad_s: float = 0.0
+    margin_load_nm: float = 0.0
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
@@ -193,20 +202,7 @@ def batch_metrics(drive: Drive, batch: ScenarioBatch) -> dict:
     limit = drive.controller.current_limit
 
     def one(scenario, duration, t_load, scale, speed0, theta0, observe_from):
-        plant = drive
-        names = [
-            f"machine.motor.{n}" for n in scale if n not in ("u_dc_v",) + THERMAL_SCALED + SENSOR_SPREADS
-        ]
-        names += [f"thermal.{n}" for n in scale if n in THERMAL_SCALED]  # a warm motor's temperatures, K
-        if names:
-            plant = set_leaves(plant, names, [get_leaf(drive, n) * scale[n.rsplit(".", 1)[1]] for n in names])
-        if "u_dc_v" in scale:  # the DC link the bridge applies and the controller measures
-            plant = set_leaves(plant, ["bridge.u_dc"], [drive.bridge.u_dc * scale["u_dc_v"]])
-        if "current_offset_a" in scale or "current_gain" in scale:  # the sensors the controller reads
-            k = drive.current_sensor.offset_a.shape[0]
-            offset = drive.current_sensor.offset_a + scale.get("current_offset_a", jnp.zeros(3))[:k]
-            gain = drive.current_sensor.gain * scale.get("current_gain", jnp.ones(3))[:k]
-            plant = set_leaves(plant, ["current_sensor.offset_a", "current_sensor.gain"], [offset, gain])
+        plant = scaled_plant(drive, scale)
         start = None if speed0 is None else start_at_speed(plant, speed0, theta0)
         trace = pmsmjax.simulate(plant, scenario, initial_state=start)
         observe_from = 0.0 if observe_from is None else observe_from
@@ -231,6 +227,34 @@ def batch_metrics(drive: Drive, batch: ScenarioBatch) -> dict:
     )
 
 
+def scaled_plant(drive: Drive, scale: dict) -> Drive:
+    """``drive`` with a batch row's plant factors ``scale`` (``{name: factor}``, see
+    [`ScenarioBatch`][tuning.autotune.scenario_batches.ScenarioBatch]): the motor's parameters, a warm motor's
+    temperatures, the DC link and the current sensors' errors."""
+    plant = drive
+    names = [f"machine.motor.{n}" for n in scale if n not in ("u_dc_v",) + THERMAL_SCALED + SENSOR_SPREADS]
+    names += [f"thermal.{n}" for n in scale if n in THERMAL_SCALED]  # a warm motor's temperatures, K
+    if names:
+        plant = set_leaves(plant, names, [get_leaf(drive, n) * scale[n.rsplit(".", 1)[1]] for n in names])
+    if "u_dc_v" in scale:  # the DC link the bridge applies and the controller measures
+        plant = set_leaves(plant, ["bridge.u_dc"], [drive.bridge.u_dc * scale["u_dc_v"]])
+    if "current_offset_a" in scale or "current_gain" in scale:  # the sensors the controller reads
+        k = drive.current_sensor.offset_a.shape[0]
+        offset = drive.current_sensor.offset_a + scale.get("current_offset_a", jnp.zeros(3))[:k]
+        gain = drive.current_sensor.gain * scale.get("current_gain", jnp.ones(3))[:k]
+        plant = set_leaves(plant, ["current_sensor.offset_a", "current_sensor.gain"], [offset, gain])
+    return plant
+
+
+def _with_margins(cost, drive: Drive, batch: ScenarioBatch, weights: ObjectiveWeights):
+    """``cost`` plus the margin constraints' penalty when ``weights`` set any."""
+    from tuning.autotune import margin_constraints
+
+    if not margin_constraints.constrained(weights):
+        return cost
+    return cost + margin_constraints.margin_penalty(drive, batch, weights, scaled_plant)
+
+
 def start_at_speed(drive: Drive, speed_m, theta_e):
     """The drive's state at mechanical speed ``speed_m`` (rad/s) and electrical angle ``theta_e`` (rad),
     zero currents, with the speed loop in its no-load steady state
@@ -247,7 +271,7 @@ def batch_cost(drive: Drive, batch: ScenarioBatch, weights: ObjectiveWeights):
     """``(cost, per_scenario_costs (B,), metrics)`` of ``drive`` on ``batch`` (exact penalties)."""
     m = batch_metrics(drive, batch)
     costs = jax.vmap(lambda mm: scenario_cost(mm, weights))(m)
-    return aggregate(costs, weights), costs, m
+    return _with_margins(aggregate(costs, weights), drive, batch, weights), costs, m
 
 
 def smoothed_batch_cost(drive: Drive, batch: ScenarioBatch, weights: ObjectiveWeights):
@@ -256,4 +280,5 @@ def smoothed_batch_cost(drive: Drive, batch: ScenarioBatch, weights: ObjectiveWe
     m = batch_metrics(drive, batch)
     exact = aggregate(jax.vmap(lambda mm: scenario_cost(mm, weights))(m), weights)
     smooth = aggregate(jax.vmap(lambda mm: scenario_cost(mm, weights, smoothed=True))(m), weights)
-    return smooth, exact
+    penalty = _with_margins(0.0, drive, batch, weights)
+    return smooth + penalty, exact + penalty

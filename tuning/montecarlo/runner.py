@@ -71,6 +71,7 @@ VOLATILE_KEYS = (
     "compile_time_s",
     "runs_per_s",
     "sensitivity_time_s",
+    "linear_stability_time_s",
     "devices",
     "chunks",
     "chunk_rule",
@@ -403,6 +404,13 @@ def run_study(
             sensitivities = sensitivity_summary(data["jacobian"], data["finite"], runner.names, scales)
             sensitivity_time = float(data["time_s"])
 
+    linear_time = None
+    if study.linear_stability and writer:
+        from tuning.montecarlo.linear_stability import spectral_radii
+
+        results["spectral_radius"], linear_time = spectral_radii(
+            runner.drive, study, runner.names, values, mc_study.apply_sample
+        )
     if not writer:
         return None
     summary = {
@@ -436,6 +444,9 @@ def run_study(
         ),
         "sensitivities": sensitivities,
     }
+    if linear_time is not None:
+        summary["linear_stability_time_s"] = linear_time
+        summary["max_spectral_radius"] = float(np.max(results["spectral_radius"]))
     summary = _finite_or_none(summary)
     if figures:
         from tuning.montecarlo.figures import save_study_figures

@@ -151,6 +151,9 @@ class Study:
       (`pmsmjax.presets.five_phase.five_phase_drive`);
       `control` and `pwm`: the scheme and modulator (None: ``vsd`` and ``four-vector`` / ``near-four-vector``;
       three phases take only the PI drive).
+    - `linear_stability`: also linearise every draw at its final speed and load and flag a spectral radius
+      >= 1 as the failure ``unstable_linearisation``
+      ([`tuning.montecarlo.linear_stability`][tuning.montecarlo.linear_stability]).
     """
 
     n: int = 1000
@@ -179,6 +182,7 @@ class Study:
     machine: str = "three-phase"
     control: str | None = None
     pwm: str | None = None
+    linear_stability: bool = False
 
     def __post_init__(self):
         if self.estimator is not None:

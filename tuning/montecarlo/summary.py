@@ -55,6 +55,8 @@ def failures(metrics: dict, current_threshold_a: float, tracking_threshold_rpm: 
     kinds = {"current_limit": current, "speed_tracking": tracking, "unstable": unstable}
     if "lock_lost" in metrics:
         kinds["lock_lost"] = unstable | ~(metrics["lock_lost"] < 0.5)
+    if "spectral_radius" in metrics:  # the linearised loop at the operating point (linear_stability)
+        kinds["unstable_linearisation"] = ~(metrics["spectral_radius"] < 1.0)
     out = {k: {"count": int(np.sum(v)), "rate": float(np.mean(v))} for k, v in kinds.items()}
     any_failure = np.logical_or.reduce(list(kinds.values()))
     out["any"] = {"count": int(np.sum(any_failure)), "rate": float(np.mean(any_failure))}
