@@ -7,27 +7,28 @@ Names, units and formulas, from the SDK's source: the C2000 MotorControl SDK v3.
 anyway-blows/ti-c2000-motor-control-sdk, commit b0b88fb) and TI's own TexasInstruments/motor-control-sdk
 (the same lab for AM26x):
 
-- ``solutions/universal_motorcontrol_lab/common/include/user_mtr1.h`` (mirror) and
-  ``examples/tidm_02018_universal_motorcontrol/universal_motorcontrol/src_board/user_mtr1.h`` (TI, commit
+- ``examples/tidm_02018_universal_motorcontrol/universal_motorcontrol/src_board/user_mtr1.h`` (TI, commit
   dfc3eed): ``USER_MOTOR1_NUM_POLE_PAIRS``, ``USER_MOTOR1_Rs_Ohm`` (ohm), ``USER_MOTOR1_Ls_d_H`` and
   ``USER_MOTOR1_Ls_q_H`` (H), ``USER_MOTOR1_RATED_FLUX_VpHz`` ("the rated flux value of the motor, in
   V/Hz"), ``USER_MOTOR1_MAX_CURRENT_A`` (A); ``USER_M1_PWM_FREQ_kHz``, ``USER_M1_NUM_PWM_TICKS_PER_ISR_TICK``,
   ``USER_M1_NUM_ISR_TICKS_PER_CURRENT_TICK``, ``USER_M1_NUM_ISR_TICKS_PER_SPEED_TICK`` (the control and
   speed-loop periods).
-- ``.../src_board/user_mtr1.c`` (TI, commit 4498890; the mirror's ``common/source/user_mtr1.c`` alike):
+- ``.../src_board/user_mtr1.c`` (TI, commit 4498890):
   ``motor_ratedFlux_Wb = USER_MOTOR1_RATED_FLUX_VpHz / MATH_TWO_PI`` and ``Kctrl_Wb_p_kgm2 = 3 p
   motor_ratedFlux_Wb / (2 J)``: the lab's torque is ``1.5 p psi i_q``, so its flux is the peak,
   amplitude-invariant ``psi_f`` of the simulator and ``USER_MOTOR1_RATED_FLUX_VpHz = 2 pi psi_f`` (volts of
   peak phase back-EMF per electrical hertz); ``maxCurrent_A = USER_MOTOR1_MAX_CURRENT_A``.
-- ``common/source/motor_common.c`` (mirror; TI's ``src_control/motor_common.c``, commit bae4f5c),
+- ``solutions/universal_motorcontrol_lab/common/source/motor_common.c`` (mirror; TI's
+  ``src_control/motor_common.c``, commit bae4f5c, alike),
   ``setupControllers``: ``PI_setGains(piHandle_Id, Kp_Id, Ki_Id)`` with ``Kp_Id = Ls_d_H * BWc_rps`` (V/A)
   and ``Ki_Id = 0.25 * Rs/Ls_d * currentCtrlPeriod_sec`` (per period, no unit), likewise ``Iq``; the speed
   PI's output limited to ``+-maxCurrent_A``; its period ``numCtrlTicksPerSpeedTick / ctrlFreq_Hz``.
 - ``libraries/control/pi/include/pi.h`` (mirror), ``PI_run_series``: ``Up = Kp * Error``, ``Ui =
   sat(Ui + Ki * Up)``, output ``sat(Up + Ui + ffwd)``: the series form, the integral updated before the
-  output (TI's AM26x ``source/control/pi/include/pi.h``, commit 46f1d4a, calls ``DCL_runPISeries``, the same
-  update with the integral frozen while the output saturates).
-- ``src_control/motor1_drive.c`` (TI, commit 4498890): the speed PI runs ``PI_run_series(piHandle_spd,
+  output (TI's AM26x ``source/control/pi/include/pi.h``, commit 46f1d4a, calls ``DCL_runPISeries``: the
+  same update, the integral held while the output saturates, in a copy of TI's DCL whose repository the
+  search did not name).
+- ``.../src_control/motor1_drive.c`` (TI, commit 4498890): the speed PI runs ``PI_run_series(piHandle_spd,
   speed_int_Hz, speed_reg_Hz, ...)`` every ``numCtrlTicksPerSpeedTick`` periods, in electrical hertz
   (``rpm2Hz_sf = motor_numPolePairs / 60``), into ``IsRef_A`` (the q-axis current reference, A); the Id PI
   is ``PI_run_series`` with a zero feed-forward (no decoupling), the Iq PI ``PI_run`` limited to
