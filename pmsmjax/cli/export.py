@@ -18,6 +18,8 @@ TARGETS = {
     "odrive": "odrive_config.txt (odrivetool lines) and odrive_config.json: ODrive 0.5.x parameters",
     "simplefoc": "simplefoc_gains.h (C++ for the sketch) and simplefoc_gains.json: SimpleFOC parameters",
     "vesc": "vesc_mcconf.txt (name = value) and vesc_mcconf.json: VESC mcconf parameters",
+    "ti": "ti_user_mtr1.h (user_mtr1.h defines, PI gains) and ti_user_mtr1.json: TI MotorControl SDK "
+    "universal-lab parameters",
 }
 #: The control methods export writes.
 EXPORTED_CONTROLS = ("pi",)
@@ -51,7 +53,9 @@ def add_parser(sub):
         help="what to write: c (pmsm_controller.h and .c, float32 C99; default), odrive (the gains as "
         "ODrive 0.5.x parameters: odrive_config.txt for odrivetool, odrive_config.json), simplefoc (the "
         "gains as SimpleFOC PIDController fields: simplefoc_gains.h, simplefoc_gains.json), vesc (the "
-        "gains as VESC mcconf parameters: vesc_mcconf.txt, vesc_mcconf.json)",
+        "gains as VESC mcconf parameters: vesc_mcconf.txt, vesc_mcconf.json), ti (the motor model and "
+        "gains as TI MotorControl SDK universal-lab user_mtr1.h defines and series-PI gains: ti_user_mtr1.h, "
+        "ti_user_mtr1.json)",
     )
     p.add_argument(
         "--fixed-point",
@@ -165,6 +169,10 @@ def target_files(
         from pmsmjax.export.vesc import vesc_files
 
         return vesc_files(description, where)
+    if target == "ti":
+        from pmsmjax.export.ti import ti_files
+
+        return ti_files(description, where)
     if fixed_point is not None:
         from pmsmjax.export.c_fixed_source import c_fixed_files
         from pmsmjax.export.fixed_point import fixed_scaling

@@ -15,8 +15,10 @@ Three steps, one module each:
 
 The vendor targets write the same description's gains in a firmware's own parameter names and units:
 [`pmsmjax.export.odrive`][pmsmjax.export.odrive] (ODrive 0.5.x, ``--target odrive``) and
-[`pmsmjax.export.simplefoc`][pmsmjax.export.simplefoc] (SimpleFOC, ``--target simplefoc``) and
-[`pmsmjax.export.vesc`][pmsmjax.export.vesc] (VESC mcconf, ``--target vesc``), with what they share in
+[`pmsmjax.export.simplefoc`][pmsmjax.export.simplefoc] (SimpleFOC, ``--target simplefoc``),
+[`pmsmjax.export.vesc`][pmsmjax.export.vesc] (VESC mcconf, ``--target vesc``) and
+[`pmsmjax.export.ti`][pmsmjax.export.ti] (TI MotorControl SDK universal lab, ``--target ti``), with what
+they share in
 [`pmsmjax.export.vendor_gains`][pmsmjax.export.vendor_gains].
 
 ``--target c --fixed-point q15 | q31`` writes the i_d = 0 cascade in integer arithmetic, per unit:
