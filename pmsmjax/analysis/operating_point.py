@@ -11,6 +11,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from pmsmjax.machines import dq_equations as dq
+from pmsmjax.spec.map_steady_state import map_reachable, map_steady_state, map_top_speed_rpm
 from pmsmjax.spec.steady_state import (
     RPM,
     field_weakening_top_speed_rpm,
@@ -80,7 +81,11 @@ def run_flags(
     i_lim = float(np.asarray(drive.controller.current_limit))
     u_dc = float(np.asarray(drive.bridge.u_dc))
     i_d, i_q = i_dq[:, 0], i_dq[:, 1]
-    psi_d, psi_q = dq.linear_flux(motor["psi_f"], motor["L_d"], motor["L_q"], i_d, i_q)
+    on_map = map_steady_state(drive)  # a flux-map machine is judged on its map, not the linear model
+    if on_map is None:
+        psi_d, psi_q = dq.linear_flux(motor["psi_f"], motor["L_d"], motor["L_q"], i_d, i_q)
+    else:
+        psi_d, psi_q = on_map.flux(i_d, i_q)
     u_need = dq.voltage_magnitude(motor["R"], motor["pole_pairs"] * w, i_d, i_q, psi_d, psi_q, np)
     at_voltage = u_need >= VOLTAGE_SATURATED[1] * u_lim
     if drive.controller.command_kind == "voltage":
@@ -116,6 +121,10 @@ def run_flags(
             "reference_rpm": mean_ref / RPM,
             "speed_rpm": mean_w / RPM,
             "reached": bool(abs(err_rpm) <= tol),
+            # settled: the last tenth of the segment within the tolerance of the tenth before it
+            "settled": bool(
+                abs(_window_mean(w, t, start + 0.8 * (stop - start), tail[0]) - mean_w) / RPM <= tol
+            ),
             "voltage_limited_share": float(np.mean(at_voltage[sel])) if sel.any() else 0.0,
             "current_limited_share": float(np.mean(at_current[sel])) if sel.any() else 0.0,
         }
@@ -132,7 +141,10 @@ def run_flags(
         seg_load = load_nm if seg["segment"] == "at the end" else float(np.asarray(trace.load_torque)[0])
         # Field weakening holds a margin below the voltage limit (VoltageFeedbackFieldWeakening: 95 %).
         u_ok = FIELD_WEAKENING_MARGIN * u_lim if field_weakening else u_lim
-        r = reachable(motor, ref_rpm, seg_load, u_ok, i_lim, field_weakening)
+        if on_map is None:
+            r = reachable(motor, ref_rpm, seg_load, u_ok, i_lim, field_weakening)
+        else:
+            r = map_reachable(on_map, ref_rpm, seg_load, u_ok, field_weakening)
         where = f"the speed stayed at {got:.0f} r/min {seg['segment']}, not {ref_rpm:.0f} r/min"
         shares = (
             f"(voltage at its limit {100 * seg['voltage_limited_share']:.0f} %, current reference at its "
@@ -140,17 +152,19 @@ def run_flags(
         )
         flag = {"flag": "speed_not_reached", "segment": seg["segment"]}
         if not r["ok"] and (r["limit"] == "voltage" or field_weakening):
-            top = (
-                field_weakening_top_speed_rpm(motor, u_ok, i_lim, seg_load, ref_rpm)
-                if field_weakening
-                else (top_speed_rpm(motor, u_lim, seg_load, ref_rpm))
-            )
+            if on_map is not None:
+                top = map_top_speed_rpm(on_map, u_ok, seg_load, field_weakening, ref_rpm)
+            elif field_weakening:
+                top = field_weakening_top_speed_rpm(motor, u_ok, i_lim, seg_load, ref_rpm)
+            else:
+                top = top_speed_rpm(motor, u_lim, seg_load, ref_rpm)
             flag["limit"] = "voltage"
-            how = (
-                "with field weakening (any split of the current limit between i_d and i_q)"
-                if field_weakening
-                else ("with i_d = 0")
-            )
+            if field_weakening:
+                how = "with field weakening (any split of the current limit between i_d and i_q)"
+            else:
+                how = "on the MTPA locus" if on_map is not None else "with i_d = 0"
+            if on_map is not None:
+                how += ", on the flux map"
             flag["cause"] = (
                 f"{where} {shares}: holding {ref_rpm:.0f} r/min at {seg_load:g} N m needs "
                 f"{r['voltage']:.0f} V {how}, more than the {u_ok:.0f} V (peak) the drive uses from U_dc = "
@@ -175,6 +189,23 @@ def run_flags(
                 + (f" ({speed})" if speed else "")
             ]
             remedies.append("raise the current limit" + (f" ({limit_flag})" if limit_flag else ""))
+        elif seg["voltage_limited_share"] >= 0.5 and seg["settled"]:
+            flag["limit"] = "voltage"
+            flag["cause"] = (
+                f"{where} {shares}: the speed settled there at the voltage limit although the steady point "
+                f"fits the drive's limits ({r['voltage']:.0f} V of {u_ok:.0f} V, {r['current']:.1f} A of "
+                f"{i_lim:g} A{' on the flux map' if on_map is not None else ''}): the control does not reach "
+                "it"
+                + (
+                    " (the voltage-feedback field weakening moves i_d only; a machine whose voltage is "
+                    "mostly its q flux needs i_q lowered as well)"
+                    if field_weakening
+                    else ""
+                )
+            )
+            remedies = ["ask for at most " + f"{got:.0f} r/min" + (f" ({speed})" if speed else "")]
+            u_dc_knob = names.get("u_dc")
+            remedies.append("raise the DC-link voltage" + (f" ({u_dc_knob})" if u_dc_knob else ""))
         elif seg["current_limited_share"] >= 0.5 or seg["voltage_limited_share"] >= 0.5:
             flag["limit"] = "current" if seg["current_limited_share"] >= 0.5 else "voltage"
             flag["cause"] = (
