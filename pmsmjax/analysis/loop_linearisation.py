@@ -226,20 +226,19 @@ def fundamental_wave(drive: Drive) -> Drive:
     """``drive`` without its angle-dependent parts (module docstring): the machine's magnet flux harmonics
     and cogging, the controller's anticogging table and dead-time compensation, the averaged bridge's dead
     time and device drop."""
+    from pmsmjax.assemble import with_parts
     from pmsmjax.inverters.averaged import AveragedBridge
 
+    parts = {}
     if getattr(drive.machine, "harmonics", None) is not None:
-        drive = eqx.tree_at(lambda d: d.machine.harmonics, drive, None, is_leaf=lambda x: x is None)
+        parts["machine.harmonics"] = None
     c = drive.controller
     if isinstance(c, FOC) and (c.anticogging is not None or c.dead_time_compensation is not None):
-        drive = eqx.tree_at(
-            lambda d: d.controller,
-            drive,
-            dataclasses.replace(c, anticogging=None, dead_time_compensation=None),
-        )
+        parts["controller"] = dataclasses.replace(c, anticogging=None, dead_time_compensation=None)
     b = drive.bridge
     if isinstance(b, AveragedBridge) and b.voltage_error is not None:
-        drive = eqx.tree_at(lambda d: d.bridge, drive, AveragedBridge(b.u_dc, b.unroll_substeps))
+        parts["bridge"] = AveragedBridge(b.u_dc, b.unroll_substeps)
+    drive = with_parts(drive, parts)
     return drive
 
 
@@ -291,8 +290,7 @@ def steady_state(drive: Drive, speed_m, load_nm, settle_periods: int = 2000) -> 
     of [`linearise`][pmsmjax.analysis.loop_linearisation.linearise] (no gradient flows through it)."""
     state = drive.init(speed_m=speed_m)
     speed_state = drive.controller.speed.steady_state(state.controller.speed, speed_m)
-    controller = eqx.tree_at(lambda c: c.speed, state.controller, speed_state)
-    state = eqx.tree_at(lambda s: s.controller, state, controller)
+    state = dataclasses.replace(state, controller=dataclasses.replace(state.controller, speed=speed_state))
     x = _inputs(drive, speed_m, load_nm)
 
     def body(s, _):
@@ -394,4 +392,6 @@ def operating_state(drive: Drive, lin: LinearDrive, settle_periods: int = 500) -
 
 def current_mode(drive: Drive) -> Drive:
     """``drive`` with its FOC in current mode: the speed loop opened, ``i_q*`` from the scenario."""
-    return eqx.tree_at(lambda d: d.controller, drive, dataclasses.replace(drive.controller, mode="current"))
+    from pmsmjax.assemble import with_parts
+
+    return with_parts(drive, {"controller": dataclasses.replace(drive.controller, mode="current")})
