@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from pmsmjax.machines import dq_equations as dq
+from pmsmjax.spec.steady_state import top_speed_where
 
 __all__ = ["MapSteadyState", "map_steady_state", "map_reachable", "map_top_speed_rpm"]
 
@@ -159,13 +160,6 @@ def map_top_speed_rpm(
     """Largest speed (r/min, sign of ``direction``) at which ``load_nm`` is
     [`map_reachable`][pmsmjax.spec.map_steady_state.map_reachable]; 0 when not even at standstill."""
     sign = 1.0 if direction >= 0 else -1.0
-    ok = lambda n: map_reachable(steady, sign * n, load_nm, u_limit_v, field_weakening)["ok"]  # noqa: E731
-    if not ok(0.0):
-        return 0.0
-    lo, hi = 0.0, 1000.0
-    while ok(hi) and hi < 1e6:
-        lo, hi = hi, 2.0 * hi
-    for _ in range(30):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
-    return sign * lo
+    return top_speed_where(
+        lambda n: map_reachable(steady, sign * n, load_nm, u_limit_v, field_weakening)["ok"], direction, 30
+    )

@@ -30,6 +30,7 @@ __all__ = [
     "steady_point",
     "top_speed_rpm",
     "field_weakening_top_speed_rpm",
+    "top_speed_where",
     "no_load_field_weakening_top_speed_rpm",
     "reachable",
     "motor_dict",
@@ -131,13 +132,22 @@ def field_weakening_top_speed_rpm(
     """Largest speed (r/min, sign of ``direction``) [`reachable`][pmsmjax.spec.steady_state.reachable] with
     field weakening at ``load_nm``."""
     sign = 1.0 if direction >= 0 else -1.0
-    ok = lambda n: reachable(motor, sign * n, load_nm, u_limit_v, current_limit_a, True)["ok"]
+    return top_speed_where(
+        lambda n: reachable(motor, sign * n, load_nm, u_limit_v, current_limit_a, True)["ok"], direction
+    )
+
+
+def top_speed_where(ok, direction: float = 1.0, steps: int = 40) -> float:
+    """Largest speed ``n`` (r/min, returned in the sign of ``direction``) with ``ok(|n|)`` True, by doubling
+    from 1000 r/min and bisecting ``steps`` times; ``ok`` is assumed True below the top speed and False
+    above it. 0 when ``ok(0)`` is False."""
+    sign = 1.0 if direction >= 0 else -1.0
     if not ok(0.0):
         return 0.0
     lo, hi = 0.0, 1000.0
     while ok(hi) and hi < 1e6:
         lo, hi = hi, 2.0 * hi
-    for _ in range(40):
+    for _ in range(steps):
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if ok(mid) else (lo, mid)
     return sign * lo
