@@ -300,7 +300,7 @@ class MagnetHarmonics(eqx.Module):
         ``a_M cos(M th) + b_M sin(M th)``: the coefficients depend on the amplitudes and phases only (the
         loop's invariants, which XLA computes once before it), and orders at the same multiple (the 5th
         and the 7th at the 6th) share one ``(cos M th, sin M th)``. Those come from one ``(cos th, sin
-        th)`` by [`_powers`][pmsmjax.machines.harmonics._powers] (four complex products for the
+        th)`` by repeated squaring of ``exp(j th)`` (four complex products for the
         multiples 6 and 12): a short chain of scalar products, which matters because XLA:CPU copies a
         value's whole chain into every fused kernel that reads it (docs/performance.md, "Ripple").
 
