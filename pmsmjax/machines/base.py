@@ -54,11 +54,22 @@ class MachineInput(eqx.Module):
             ``frame``), then the other VSD planes (z1-z2, ...), which are always stationary.
         load_torque: Load torque opposing motion, N m.
         frame: Which frame the voltage is held in (static): ``"stator"`` or ``"rotor"``.
+        stator_axis: ``(2,)`` the stator's alpha axis seen from the rotor frame, ``[cos theta_e, -sin
+            theta_e]``, where the integrator carries it through the RK4 stages as it carries the held
+            voltage ([`pmsmjax.machines.integrate.advance`][pmsmjax.machines.integrate.advance]; for the
+            machines whose [`stator_axis`][pmsmjax.machines.base.AbstractMachine.stator_axis] is not
+            ``None``); ``None``: the machine evaluates what it needs from the angle.
     """
 
     u: Array
     load_torque: Array
     frame: HoldFrame = eqx.field(static=True, default="stator")
+    stator_axis: Array | None = None
+
+    def angle_cos_sin(self) -> tuple[Array, Array] | None:
+        """``(cos theta_e, sin theta_e)`` from the carried
+        [`stator_axis`][pmsmjax.machines.base.MachineInput], or ``None`` when none is carried."""
+        return None if self.stator_axis is None else (self.stator_axis[0], -self.stator_axis[1])
 
     def alpha_beta(self, theta_e: Array) -> Array:
         """The held voltage seen in the stator frame.
@@ -114,6 +125,29 @@ class AbstractMachine(eqx.Module):
         place of its RK4 (the flux-map model's packed state, the balanced multi-phase model's separately
         integrated planes); ``None`` (here): the generic RK4."""
         return None
+
+    def stator_axis(self, theta_e: Array) -> Array | None:
+        """``(2,)`` ``[cos theta_e, -sin theta_e]`` for the integrator to carry through the RK4 stages
+        ([`MachineInput.stator_axis`][pmsmjax.machines.base.MachineInput]), for a machine whose equations
+        read trigonometry of the angle besides the held voltage (the dq models with magnet harmonics);
+        ``None`` (here): nothing to carry.
+
+        Args:
+            theta_e: Electrical rotor angle, rad.
+        """
+        return None
+
+    def stage_torque(self, currents: Array, theta_e: Array, inputs: MachineInput) -> Array:
+        """The torque at an RK4 stage, N m: [`torque`][pmsmjax.machines.base.AbstractMachine.torque]
+        here; a machine that reads what the integrator carries in ``inputs`` (its
+        [`stator_axis`][pmsmjax.machines.base.MachineInput]) overrides it.
+
+        Args:
+            currents: Currents in the model's frame, A.
+            theta_e: Electrical rotor angle, rad.
+            inputs: The stage's input.
+        """
+        return self.torque(currents, theta_e)
 
     # --- frame-specific part -------------------------------------------------------------------
     @abc.abstractmethod
@@ -182,7 +216,7 @@ class AbstractMachine(eqx.Module):
         di = self.current_derivative(state.currents, state.theta_e, omega_e, inputs)
         dshaft = None
         if self.mechanics == "dynamic":
-            torque = self.torque(state.currents, state.theta_e)
+            torque = self.stage_torque(state.currents, state.theta_e, inputs)
             if state.shaft is None:
                 domega = (torque - inputs.load_torque - m.B * state.omega_m) / m.J
             else:

@@ -72,6 +72,7 @@ __all__ = [
     "sequence",
     "phasors",
     "cos_sin",
+    "stator_axis",
     "PHASE_SHIFTS",
 ]
 
@@ -131,19 +132,21 @@ def cos_sin(x) -> tuple[Array, Array]:
     return c, s
 
 
-def phasors(theta, multiples: tuple[int, ...], phase) -> list[tuple[Array, Array]]:
-    """``[(cos(n th + phi_n), sin(n th + phi_n)), ...]``, one pair per static whole multiple ``n >= 1`` of
-    ``theta`` (rad), with the phases ``phase`` (``(len(multiples),)`` rad).
+def stator_axis(theta_e) -> Array:
+    """``(2,)`` ``[cos theta_e, -sin theta_e]``: the stator's alpha axis seen from the rotor frame at the
+    electrical angle ``theta_e`` (rad), by [`cos_sin`][pmsmjax.machines.harmonics.cos_sin]. The rotor-frame
+    integrators carry it through a period's RK4 stages, rotated back by each stage's angle increment as
+    the held voltage is ([`pmsmjax.machines.integrate.advance`][pmsmjax.machines.integrate.advance]), so the
+    harmonics read ``(cos th, sin th)`` from it without evaluating it at every stage."""
+    c, s = cos_sin(theta_e)
+    return jnp.stack([c, -s])
 
-    One [`cos_sin`][pmsmjax.machines.harmonics.cos_sin] of ``theta``, then the powers of ``exp(j th)``
-    by repeated squaring (shared between equal or halved multiples): in an RK4 stage transcendental
-    functions cost more than the rest of a rotor-frame model's arithmetic (docs/performance.md,
-    "Engine"). Scalars throughout (no stacking or summing over an axis), so that a batched run fuses
-    them into the stage's loop; the phases' cosines and sines do not change within a period and are
-    computed once. Rounding grows with ``log2 n`` products: below 1e-6 relative in float32 for
-    ``n <= 64``.
-    """
-    c1, s1 = cos_sin(theta)
+
+def _powers(unit, multiples) -> dict[int, tuple[Array, Array]]:
+    """``{n: (cos n th, sin n th)}`` for each static whole ``n >= 1`` in ``multiples``, from ``unit = (cos th,
+    sin th)``: the powers of ``exp(j th)`` by repeated squaring, shared between equal or halved multiples
+    (6 and 12 cost four complex products together)."""
+    c1, s1 = unit
     cache = {1: (c1, s1)}
 
     def power(n):
@@ -155,9 +158,24 @@ def phasors(theta, multiples: tuple[int, ...], phase) -> list[tuple[Array, Array
             cache[n] = (c, s)
         return cache[n]
 
+    return {int(n): power(int(n)) for n in multiples}
+
+
+def phasors(theta, multiples: tuple[int, ...], phase) -> list[tuple[Array, Array]]:
+    """``[(cos(n th + phi_n), sin(n th + phi_n)), ...]``, one pair per static whole multiple ``n >= 1`` of
+    ``theta`` (rad), with the phases ``phase`` (``(len(multiples),)`` rad).
+
+    One [`cos_sin`][pmsmjax.machines.harmonics.cos_sin] of ``theta``, then the powers of ``exp(j th)``
+    by repeated squaring (shared between equal or halved multiples): in an RK4 stage transcendental
+    functions cost more than the rest of a rotor-frame model's arithmetic (docs/performance.md,
+    "Engine"). Scalars throughout (no stacking or summing over an axis), so that a batched run fuses
+    them into the stage's loop. Rounding grows with ``log2 n`` products: below 1e-6 relative in float32
+    for ``n <= 64``.
+    """
+    powers = _powers(cos_sin(theta), multiples)
     out = []
     for j, n in enumerate(multiples):
-        cn, sn = power(int(n))
+        cn, sn = powers[int(n)]
         cp, sp = jnp.cos(phase[..., j]), jnp.sin(phase[..., j])
         out.append((cn * cp - sn * sp, sn * cp + cn * sp))
     return out
@@ -259,22 +277,62 @@ class MagnetHarmonics(eqx.Module):
             dpsi_a, dpsi_b = dpsi_a - k * s, dpsi_b + k * sigma * c
         return jnp.stack([psi_a, psi_b]), jnp.stack([dpsi_a, dpsi_b])
 
-    def emf_dq(self, theta_e) -> Array:
+    def emf_dq(self, theta_e, unit=None) -> Array:
         """``eps_dq (2,)``, Wb/rad: the rotor-frame harmonic EMF per electrical rad/s,
         ``d psi_h,dq / d th + J psi_h,dq = sum_k A_k k [-sin m_k, sigma_k cos m_k]`` (module docstring);
-        the voltage equations add ``w_e eps_dq`` and the torque ``1.5 p i_dq . eps_dq``."""
-        return jnp.stack(self._emf_dq(theta_e))
+        the voltage equations add ``w_e eps_dq`` and the torque ``1.5 p i_dq . eps_dq``.
 
-    def _emf_dq(self, theta_e) -> tuple[Array, Array]:
-        sigmas = sequence(self.flux_orders)
-        multiples = tuple(int(k - sigma) for k, sigma in zip(self.flux_orders, sigmas, strict=True))
-        e_d = e_q = 0.0
-        for j, (k, sigma, (cos, sin)) in enumerate(
-            zip(self.flux_orders, sigmas, phasors(theta_e, multiples, self.flux_phase), strict=True)
-        ):
+        Args:
+            theta_e: Electrical angle, rad.
+            unit: ``(cos theta_e, sin theta_e)`` where the caller carries them
+                ([`rotor_terms`][pmsmjax.machines.harmonics.MagnetHarmonics.rotor_terms]); ``None``: from
+                ``theta_e``.
+        """
+        e_d, e_q, _ = self.rotor_terms(theta_e, unit)
+        return jnp.stack([e_d, e_q])
+
+    def rotor_terms(self, theta_e, unit=None) -> tuple[Array, Array, Array]:
+        """``(e_d, e_q, T_cog)`` at ``theta_e`` (rad): the rotor-frame harmonic EMF per electrical rad/s
+        ``eps_dq`` (Wb/rad; 0 without flux harmonics) and the cogging torque (N m; 0 without cogging).
+
+        Every term is a whole multiple ``M`` of ``theta_e`` (``k - sigma_k`` for a flux order, ``n_j`` for
+        cogging), so ``sin(M th + phi) = sin(M th) cos phi + cos(M th) sin phi`` puts each in the form
+        ``a_M cos(M th) + b_M sin(M th)``: the coefficients depend on the amplitudes and phases only (the
+        loop's invariants, which XLA computes once before it), and orders at the same multiple (the 5th
+        and the 7th at the 6th) share one ``(cos M th, sin M th)``. Those come from one ``(cos th, sin
+        th)`` by repeated squaring of ``exp(j th)`` (four complex products for the
+        multiples 6 and 12): a short chain of scalar products, which matters because XLA:CPU copies a
+        value's whole chain into every fused kernel that reads it (docs/performance.md, "Ripple").
+
+        Args:
+            theta_e: Electrical angle, rad.
+            unit: ``(cos theta_e, sin theta_e)`` where the caller carries them (the rotor-frame
+                integrators rotate them by each RK4 stage's angle increment, as the held voltage:
+                [`pmsmjax.machines.integrate.advance`][pmsmjax.machines.integrate.advance]); ``None``:
+                [`cos_sin`][pmsmjax.machines.harmonics.cos_sin] of ``theta_e``.
+        """
+        rows = {}  # (term: 0 e_d, 1 e_q, 2 T_cog; multiple M) -> [a_M, b_M]
+
+        def add(term, multiple, a, b):
+            key = (term, int(multiple))
+            rows[key] = [a, b] if key not in rows else [rows[key][0] + a, rows[key][1] + b]
+
+        for j, (k, sigma) in enumerate(zip(self.flux_orders, sequence(self.flux_orders), strict=True)):
             ka = k * self.flux_amplitude[..., j]
-            e_d, e_q = e_d - ka * sin, e_q + sigma * ka * cos
-        return e_d, e_q
+            cp, sp = jnp.cos(self.flux_phase[..., j]), jnp.sin(self.flux_phase[..., j])
+            add(0, k - sigma, -ka * sp, -ka * cp)  # -k A sin(M th + phi), M = k - sigma
+            add(1, k - sigma, sigma * ka * cp, -sigma * ka * sp)  # sigma k A cos(M th + phi)
+        for j, n in enumerate(self.cogging_orders):
+            amplitude, phase = self.cogging_amplitude[..., j], self.cogging_phase[..., j]
+            add(2, n, amplitude * jnp.sin(phase), amplitude * jnp.cos(phase))  # C sin(n th + phi)
+        multiples = tuple(sorted({multiple for _, multiple in rows}))
+        powers = _powers(cos_sin(theta_e) if unit is None else unit, multiples)
+        terms = [None, None, None]
+        for (term, multiple), (a, b) in rows.items():
+            c, s = powers[multiple]
+            terms[term] = a * c + b * s if terms[term] is None else terms[term] + a * c + b * s
+        zero = jnp.zeros_like(theta_e)
+        return tuple(zero if t is None else t for t in terms)
 
     def flux_dq(self, theta_e) -> Array:
         """``psi_h,dq (2,)``, Wb, at ``theta_e`` (rad): the harmonics seen from the rotor."""
@@ -285,14 +343,12 @@ class MagnetHarmonics(eqx.Module):
         return jnp.stack([jnp.sum(a * jnp.cos(m)), jnp.sum(sigma * a * jnp.sin(m))])
 
     # --- cogging -------------------------------------------------------------------------------------
-    def cogging_torque(self, theta_e) -> Array:
-        """Cogging torque at the electrical angle ``theta_e`` (rad), N m (0 without cogging)."""
+    def cogging_torque(self, theta_e, unit=None) -> Array:
+        """Cogging torque at the electrical angle ``theta_e`` (rad), N m (0 without cogging); ``unit`` as in
+        [`rotor_terms`][pmsmjax.machines.harmonics.MagnetHarmonics.rotor_terms]."""
         if not self.has_cogging:
             return jnp.zeros_like(theta_e)
-        torque = 0.0
-        for j, (_, sin) in enumerate(phasors(theta_e, self.cogging_orders, self.cogging_phase)):
-            torque = torque + self.cogging_amplitude[..., j] * sin
-        return torque
+        return self.rotor_terms(theta_e, unit)[2]
 
     def cogging_energy(self, theta_e, pole_pairs: int) -> Array:
         """Cogging co-energy ``W_cog`` at ``theta_e`` (rad), J: ``T_cog = -dW_cog/dtheta_m``."""
@@ -301,7 +357,7 @@ class MagnetHarmonics(eqx.Module):
         n = np.asarray(self.cogging_orders, float)
         return jnp.sum(self.cogging_amplitude / n * jnp.cos(n * theta_e + self.cogging_phase)) / pole_pairs
 
-    def dq_torque(self, i_dq, theta_e, pole_pairs: int) -> Array:
+    def dq_torque(self, i_dq, theta_e, pole_pairs: int, unit=None) -> Array:
         """What the harmonics add to a rotor-frame model's torque, N m: ``1.5 p i_dq . eps_dq`` plus the
         cogging torque.
 
@@ -309,9 +365,10 @@ class MagnetHarmonics(eqx.Module):
             i_dq: ``(2,)`` dq currents, A.
             theta_e: Electrical angle, rad.
             pole_pairs: Pole pairs.
+            unit: ``(cos theta_e, sin theta_e)`` or ``None``, as in
+                [`rotor_terms`][pmsmjax.machines.harmonics.MagnetHarmonics.rotor_terms].
         """
-        torque = self.cogging_torque(theta_e)
+        e_d, e_q, torque = self.rotor_terms(theta_e, unit)
         if self.has_flux:
-            e_d, e_q = self._emf_dq(theta_e)
             torque = torque + 1.5 * pole_pairs * (i_dq[0] * e_d + i_dq[1] * e_q)
         return torque

@@ -36,7 +36,7 @@ from pmsmjax._types import Array
 from pmsmjax.frames.three_phase import abc_to_alpha_beta, alpha_beta_to_abc, inverse_park, park
 from pmsmjax.machines import dq_equations as dq
 from pmsmjax.machines.base import AbstractMachine, MachineInput, Mechanics
-from pmsmjax.machines.harmonics import MagnetHarmonics
+from pmsmjax.machines.harmonics import MagnetHarmonics, stator_axis
 from pmsmjax.machines.motor import PMSMParameters, as_float
 
 # NumPy float64 at import; converted where used so the JAX precision mode of that moment applies.
@@ -113,18 +113,33 @@ class PMSMdq(AbstractPMSMdq):
         h = self.harmonics
         if h is None or not h.has_flux:
             return self.linear_current_derivative(currents, theta_e, omega_e, u)
-        # the harmonics' rotor-frame EMF w_e eps_dq, taken off the voltage
-        m, u_dq = self.motor, u.dq(theta_e) - omega_e * h.emf_dq(theta_e)
+        # the harmonics' rotor-frame EMF w_e eps_dq, taken off the voltage; on scalars, not on stacked
+        # vectors, so that XLA fuses each stage's arithmetic once (docs/performance.md, "Ripple")
+        m, u_dq = self.motor, u.dq(theta_e)
+        e_d, e_q, _ = h.rotor_terms(theta_e, u.angle_cos_sin())
+        u_d, u_q = u_dq[0] - omega_e * e_d, u_dq[1] - omega_e * e_q
         derivative = dq.linear_current_derivative(
-            m.R, m.L_d, m.L_q, m.psi_f, omega_e, currents[0], currents[1], u_dq[0], u_dq[1]
+            m.R, m.L_d, m.L_q, m.psi_f, omega_e, currents[0], currents[1], u_d, u_q
         )
         return jnp.stack(derivative)
 
     def torque(self, currents, theta_e):
+        return self._torque(currents, theta_e, None)
+
+    def stator_axis(self, theta_e):
+        """``[cos theta_e, -sin theta_e]`` with harmonics (their terms are read from it,
+        [`MagnetHarmonics.rotor_terms`][pmsmjax.machines.harmonics.MagnetHarmonics.rotor_terms]), ``None``
+        without."""
+        return None if self.harmonics is None else stator_axis(theta_e)
+
+    def stage_torque(self, currents, theta_e, inputs: MachineInput):
+        return self._torque(currents, theta_e, inputs.angle_cos_sin())
+
+    def _torque(self, currents, theta_e, unit):
         if self.harmonics is None:
             return self.linear_torque(currents)
         return self.linear_torque(currents) + self.harmonics.dq_torque(
-            currents, theta_e, self.motor.pole_pairs
+            currents, theta_e, self.motor.pole_pairs, unit
         )
 
 

@@ -47,7 +47,7 @@ from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.machines import dq_equations as dq
 from pmsmjax.machines.base import AbstractMachine, MachineInput, MachineState, Mechanics
 from pmsmjax.machines.flux_map import FluxMapGrid, excursion, flux_and_inductance
-from pmsmjax.machines.harmonics import MagnetHarmonics
+from pmsmjax.machines.harmonics import MagnetHarmonics, stator_axis
 from pmsmjax.machines.integrate import rotate_back
 from pmsmjax.machines.motor import PMSMParameters, as_float
 from pmsmjax.machines.pmsm3 import _solve2
@@ -173,7 +173,12 @@ class PMSMFluxMapdq(AbstractMachine):
     def currents_from_dq(self, i_dq, theta_e):
         return i_dq
 
-    def packed_derivative(self, x, u_dq, load_torque) -> Array:
+    def stator_axis(self, theta_e):
+        """``[cos theta_e, -sin theta_e]`` with harmonics, ``None`` without
+        ([`PMSMdq.stator_axis`][pmsmjax.machines.pmsm3.PMSMdq.stator_axis])."""
+        return None if self.harmonics is None else stator_axis(theta_e)
+
+    def packed_derivative(self, x, u_dq, load_torque, unit=None) -> Array:
         """Time derivative of the packed state, from one evaluation of the map (the current derivative and
         the torque share its flux).
 
@@ -182,6 +187,9 @@ class PMSMFluxMapdq(AbstractMachine):
                 twist (rad) and load speed (rad/s) after them.
             u_dq: ``(2,)`` rotor-frame voltage, V.
             load_torque: Load torque, N m.
+            unit: ``(cos theta_e, sin theta_e)`` where the integrator carries them (with harmonics:
+                [`MagnetHarmonics.rotor_terms`][pmsmjax.machines.harmonics.MagnetHarmonics.rotor_terms]),
+                or ``None``.
 
         Returns:
             The derivative of ``x``, its shape.
@@ -192,10 +200,13 @@ class PMSMFluxMapdq(AbstractMachine):
         omega_e = m.pole_pairs * x[2]
         # the 2x2 solve written out on scalars: one fused expression
         h = self.harmonics
-        if h is not None and h.has_flux:  # the harmonics' rotor-frame EMF
-            u_dq = u_dq - omega_e * h.emf_dq(x[3])
-        b_d = u_dq[0] - m.R * i[0] + omega_e * psi[1]
-        b_q = u_dq[1] - m.R * i[1] - omega_e * psi[0]
+        u_d, u_q = u_dq[0], u_dq[1]
+        if h is not None:  # the harmonics' rotor-frame EMF, on scalars (docs/performance.md, "Ripple")
+            e_d, e_q, cogging = h.rotor_terms(x[3], unit)
+            if h.has_flux:
+                u_d, u_q = u_d - omega_e * e_d, u_q - omega_e * e_q
+        b_d = u_d - m.R * i[0] + omega_e * psi[1]
+        b_q = u_q - m.R * i[1] - omega_e * psi[0]
         inverse_det = 1.0 / (L[0, 0] * L[1, 1] - L[0, 1] * L[1, 0])  # one division on the critical path
         di_d = (L[1, 1] * b_d - L[0, 1] * b_q) * inverse_det
         di_q = (L[0, 0] * b_q - L[1, 0] * b_d) * inverse_det
@@ -203,7 +214,9 @@ class PMSMFluxMapdq(AbstractMachine):
         if self.mechanics == "dynamic":
             torque = dq.torque(dq.torque_factor(m.pole_pairs), i[0], i[1], psi[0], psi[1])
             if h is not None:
-                torque = torque + h.dq_torque(i, x[3], m.pole_pairs)
+                torque = torque + cogging
+                if h.has_flux:
+                    torque = torque + 1.5 * m.pole_pairs * (i[0] * e_d + i[1] * e_q)
             if x.shape[0] == 4:
                 domega = (torque - load_torque - m.B * x[2]) / m.J
             else:
@@ -263,21 +276,32 @@ def advance_packed(
     h = duration / n_substeps
     rotating = inputs.frame == "stator"
     turn = (lambda u, delta: rotate_back(u, delta)) if rotating else (lambda u, delta: u)
-    f = lambda x, u: machine.packed_derivative(x, u, inputs.load_torque)
+    # with harmonics and a stator-frame hold, [cos th, -sin th] is carried after the voltage and rotated
+    # back with it ([`pmsmjax.machines.integrate.advance`][pmsmjax.machines.integrate.advance])
+    axis = machine.stator_axis(state.theta_e) if rotating else None
+    unit = lambda u: None if axis is None else (u[2], -u[3])
+    f = lambda x, u: machine.packed_derivative(x, u, inputs.load_torque, unit(u))
 
     n = 4 if state.shaft is None else 6  # [i_d, i_q, omega_m, theta_e (, twist, load speed)]
+
+    def turns(held, delta):  # the voltage and the carried axis rotated back by the same increment
+        if axis is None:
+            return turn(held, delta)
+        return jnp.concatenate([turn(held[:2], delta), turn(held[2:], delta)])
 
     def substep(_, c):
         x, u = c[:n], c[n:]
         k1 = f(x, u)
-        k2 = f(x + (0.5 * h) * k1, turn(u, (0.5 * h) * k1[3]))
-        k3 = f(x + (0.5 * h) * k2, turn(u, (0.5 * h) * k2[3]))
-        k4 = f(x + h * k3, turn(u, h * k3[3]))
+        k2 = f(x + (0.5 * h) * k1, turns(u, (0.5 * h) * k1[3]))
+        k3 = f(x + (0.5 * h) * k2, turns(u, (0.5 * h) * k2[3]))
+        k4 = f(x + h * k3, turns(u, h * k3[3]))
         increment = (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-        return jnp.concatenate([x + increment, turn(u, increment[3])])
+        return jnp.concatenate([x + increment, turns(u, increment[3])])
 
     x0 = _packed(state)
-    c = jax.lax.fori_loop(0, n_substeps, substep, jnp.concatenate([x0, inputs.dq(state.theta_e)[:2]]))
+    held = inputs.dq(state.theta_e)[:2]
+    held = held if axis is None else jnp.concatenate([held, axis])
+    c = jax.lax.fori_loop(0, n_substeps, substep, jnp.concatenate([x0, held]))
     return MachineState(c[:2], c[2], wrap_angle(c[3]), None if state.shaft is None else c[4:6])
 
 
