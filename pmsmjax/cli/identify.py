@@ -440,7 +440,6 @@ def _run_flux_map(args, prior, pole_pairs: int, fixed: dict, columns: dict, unit
         identify_flux_map_file,
         write_flux_map_motor,
     )
-    from tuning.identify.flux_map_fit import SMOOTHNESS
 
     fit = identify_flux_map_file(
         args.log,
@@ -464,10 +463,11 @@ def _run_flux_map(args, prior, pole_pairs: int, fixed: dict, columns: dict, unit
         f"(step {fit.grid.step[0]:g} A); window residual {fit.residual_rms_wb:.3g} Wb rms; "
         f"wrote {args.out}/flux_map.csv, flux_map.json"
     )
-    if fit.smoothness > SMOOTHNESS:
+    if fit.constraints:
         print(
-            f"smoothed {fit.smoothness / SMOOTHNESS:g}x more than a grid walk needs: the log does not "
-            "determine the map away from the currents it visited (the points marked measured = 0)"
+            f"{fit.constraints} energy-storing constraints active (incremental inductance positive definite, "
+            "flux rising with its current): the log alone does not determine the map everywhere (the points "
+            "marked measured = 0 follow the constraints and a smoothness prior)"
         )
     missing = flux_map_motor_missing(fixed, prior)
     if missing:

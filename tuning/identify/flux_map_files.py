@@ -61,7 +61,7 @@ def identify_flux_map_file(
         "measured_points": int(fit.measured.sum()),
         "grid_points": int(fit.measured.size),
         "residual_rms_wb": fit.residual_rms_wb,
-        "smoothness": fit.smoothness,
+        "energy_constraints": fit.constraints,
         "windows": fit.n_windows,
         "notes": list(log.notes),
     }

@@ -17,6 +17,13 @@ path) and through ``w_e J psi(i)`` (the flux itself wherever the current passed)
 windows do not span a reversal of the speed (an interval whose speed changes by more than
 [`SPEED_JUMP`][tuning.identify.flux_map_fit.SPEED_JUMP] of the log's top speed).
 
+**Each window's ends are averaged** over [`ENDPOINT_SAMPLES`][tuning.identify.flux_map_fit.ENDPOINT_SAMPLES]
+samples (the equation is the mean of that many windows, each a sample later). The map is evaluated at the
+measured, noisy currents: at a dwell, windows whose ends differ only by the current noise ``di`` say
+``L di ~ 0``, and so many of them pull the incremental inductance towards zero (regression towards the
+mean with noisy regressors). Averaged ends divide that noise's variance by the samples averaged while
+keeping a transient's change; measured on the reluctance machine's staircase it halves the map's error.
+
 **The unknowns.** ``psi`` is the bicubic Hermite interpolant of node fluxes on a uniform grid over the
 visited currents
 ([`pmsmjax.machines.flux_map.hermite_coefficients`][pmsmjax.machines.flux_map.hermite_coefficients], the
@@ -32,20 +39,27 @@ the flux from the difference. A log at one direction of rotation only does not s
 (R is then required, ``--fix R=...``). ``V_e`` separates from R because it is not proportional to the
 current (it is ``~ 4/pi V_e`` in the current's direction whatever the current's size).
 
-**Nodes the log does not reach** are determined by nothing but a weak smoothness prior (second
-differences along each axis, weight [`SMOOTHNESS`][tuning.identify.flux_map_fit.SMOOTHNESS]); a node
+**The grid** ([`grid_step`][tuning.identify.flux_map_fit.grid_step] unless ``step_a`` is given): the
+finest 1-2-2.5-5 step at which most visited places have a densely sampled node nearby, snapped to multiples
+of the step over the visited currents, ending at the last rows and columns the log reaches.
+
+**Nodes the log does not reach** are determined by a weak smoothness prior (second differences along each
+axis, weight [`SMOOTHNESS`][tuning.identify.flux_map_fit.SMOOTHNESS]) and the constraints below; a node
 is *measured* when at least [`MIN_NODE_SAMPLES`][tuning.identify.flux_map_fit.MIN_NODE_SAMPLES] samples lie
 within half a grid step of it along both axes, and the written map marks the others
 ([`pmsmjax.io.flux_map_files.read_flux_map_measured`][pmsmjax.io.flux_map_files.read_flux_map_measured]).
 
-**Logs of ordinary operation.** A speed-controlled drive with a fixed d-current rule moves its currents
-along one path through the current plane. The data then fix the flux along the path, and the nodes on
-either side of it only in combination: the interpolant's representation error along the path can tilt
-them into a map that stores no energy or whose flux falls with its current. The prior's weight is
-therefore the least of ``SMOOTHNESS * 2**k``, ``k <= SMOOTHNESS_STEPS``, whose map passes the flux-map
-checks (a walk over a grid passes at ``k = 0``); a log that fails at every weight is refused in one
-line (measured on a SciPy log of speed steps and load steps:
-``tests/tuning/test_identify_flux_map.py``).
+**A map that stores energy, as a constraint.** A log of ordinary operation moves its currents along one
+path, fixing the flux along it and the nodes either side only in combination; a walk's nodes between its
+dwells rest on a few noisy transient samples. Fitted freely, such nodes can form a map whose incremental
+inductance is not positive definite or whose flux falls with its current. The fit is therefore the least
+squares under linear inequalities that exclude this at every node
+([`tuning.identify.flux_map_constraints`][tuning.identify.flux_map_constraints]), the prior unchanged. A
+log whose free fit stores no energy at more than
+[`CONTRADICTED_SHARE`][tuning.identify.flux_map_fit.CONTRADICTED_SHARE] of the measured nodes, or whose
+residual the constraints raise by more than
+[`RESIDUAL_GROWTH`][tuning.identify.flux_map_fit.RESIDUAL_GROWTH], contradicts any flux map (swapped or
+sign-flipped columns) and is refused in one line.
 """
 
 import dataclasses
@@ -60,29 +74,50 @@ from pmsmjax.machines.flux_map import FluxMapGrid, flux_and_inductance, hermite_
 from pmsmjax.spec.design_rules import round_up_nice
 from pmsmjax.spec.validation import ParameterError, plain
 from tuning.identify.electrical import _dead_time_voltage
+from tuning.identify.flux_map_constraints import (
+    factor,
+    free_solution,
+    slope_operators,
+    solve_constrained,
+    symmetric_inductances,
+)
 
-__all__ = ["FluxMapFit", "fit_flux_map", "flux_map_axes", "SPEED_JUMP", "MIN_NODE_SAMPLES", "SMOOTHNESS"]
+__all__ = [
+    "FluxMapFit",
+    "fit_flux_map",
+    "flux_map_axes",
+    "grid_step",
+    "SPEED_JUMP",
+    "MIN_NODE_SAMPLES",
+    "SMOOTHNESS",
+]
 
 #: An interval whose electrical speed changes by more than this share of the top speed is a reversal.
 SPEED_JUMP = 0.05
 #: Samples within half a step of a node (both axes) for it to count as measured.
 MIN_NODE_SAMPLES = 5
-#: Weight of the smoothness prior's second differences against the window equations (Wb per Wb): the
-#: first one tried (`SMOOTHNESS_STEPS`).
+#: Weight of the smoothness prior's second differences against the window equations (Wb per Wb).
 SMOOTHNESS = 0.02
-#: Times [`SMOOTHNESS`][tuning.identify.flux_map_fit.SMOOTHNESS] is doubled at most while the fitted map fails
-#: the flux-map checks.
-SMOOTHNESS_STEPS = 5
+#: The least incremental inductance (every direction, every node) of the energy-storing map, as a share of the
+#: median own-axis node inductance of the unconstrained fit at the measured nodes.
+INDUCTANCE_FLOOR_SHARE = 0.02
+#: Growth of the window residual (RMS) under the energy-storing constraints beyond which the data are taken
+#: to contradict any such map (swapped or sign-flipped columns).
+RESIDUAL_GROWTH = 1.5
+#: Share of the measured nodes at which the unconstrained fit stores no energy beyond which the data are taken
+#: to contradict any flux map (a noisy log's free fit breaks at a few nodes, a swapped column's at most).
+CONTRADICTED_SHARE = 0.25
+#: Samples each window's ends are averaged over (the mean of that many windows, each one sample later).
+ENDPOINT_SAMPLES = 4
 #: Smallest share of the log's top speed accepted as "turning": below it the back-EMF hides the flux.
 MIN_SPEED_SHARE = 0.05
-#: Weight of the prior's second differences among nodes the log does not reach, against
-#: [`SMOOTHNESS`][tuning.identify.flux_map_fit.SMOOTHNESS] elsewhere: there the map continues its neighbours
-#: almost linearly, it is not fitted.
-UNMEASURED_SMOOTHNESS = 50.0
 #: Range of the inverter error's fitted sign width as shares of the largest logged current.
 SMOOTHING_BOUNDS = (1e-3, 0.3)
-#: Fewest grid intervals per axis the default step gives over the visited range.
-DEFAULT_INTERVALS = 8
+#: Most and fewest grid intervals over the wider visited current range the default step may give.
+FINEST_INTERVALS, COARSEST_INTERVALS = 40, 3
+#: Samples near a node (within half a step, both axes) for the default step to count it dense
+#: ([`grid_step`][tuning.identify.flux_map_fit.grid_step]).
+DENSE_NODE_SAMPLES = 25
 
 
 @dataclasses.dataclass(frozen=True)
@@ -97,7 +132,8 @@ class FluxMapFit:
       fitted unless given; None when ``V_e`` is not fitted);
     - `residual_rms_wb`: RMS of the window equations at the solution, Wb;
     - `n_windows`: windows used; `node_samples`: ``(n_d, n_q)`` samples near each node;
-    - `smoothness`: the weight of the smoothness prior the map was fitted with (module docstring).
+    - `constraints`: the energy-storing inequalities the fit imposed (0: the free fit stored energy
+      everywhere; module docstring).
     """
 
     grid: FluxMapGrid
@@ -109,21 +145,47 @@ class FluxMapFit:
     n_windows: int
     node_samples: np.ndarray
     error_smoothing_a: float | None = None
-    smoothness: float = SMOOTHNESS
+    constraints: int = 0
 
 
-def flux_map_axes(i_dq: np.ndarray, step_a: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """``(i_d (n_d,), i_q (n_q,))`` grid axes, A, covering the currents ``i_dq (N, 2)`` with ``step_a`` A
-    (default: a 1-2-2.5-5 step giving about `DEFAULT_INTERVALS` intervals over the wider range)."""
+def _axes(i_dq: np.ndarray, step_a: float) -> tuple[np.ndarray, np.ndarray]:
+    """Grid axes of step ``step_a`` A over the currents ``i_dq (N, 2)``, snapped to multiples of the step."""
     lo, hi = i_dq.min(axis=0), i_dq.max(axis=0)
-    if step_a is None:
-        step_a = round_up_nice(float(np.max(hi - lo)) / DEFAULT_INTERVALS)
     axes = []
     for a in range(2):
         first, last = math.floor(lo[a] / step_a), math.ceil(hi[a] / step_a)
         last = max(last, first + 2)  # the interpolant needs three points per axis
         axes.append(step_a * np.arange(first, last + 1))
     return axes[0], axes[1]
+
+
+def grid_step(i_dq: np.ndarray) -> float:
+    """The default grid step, A, for the currents ``i_dq (N, 2)``: the finest 1-2-2.5-5 step (between a
+    `FINEST_INTERVALS`-th and a `COARSEST_INTERVALS`-th of the wider visited range) at which
+    three quarters of the visited places lie nearest to a node with at least `DENSE_NODE_SAMPLES` samples
+    within half a step (a place: a cell of a hundredth of the wider range that holds a sample, each counted
+    once, so a dwell weighs as much as the path of a transient of its size). Finer, the nodes between the
+    dwells of a staircase or along a path rest on too few noisy samples; coarser, the interpolant's error
+    between nodes grows as the step cubed."""
+    span = float(np.max(np.ptp(i_dq, axis=0)))
+    cell = span / 100.0
+    places = np.unique(np.round(i_dq / cell), axis=0) * cell
+    step = round_up_nice(span / FINEST_INTERVALS)
+    while step < span / COARSEST_INTERVALS:
+        i_d, i_q = _axes(i_dq, step)
+        counts = _node_samples(i_dq, i_d, i_q)
+        j = np.clip(np.round((places[:, 0] - i_d[0]) / step).astype(int), 0, i_d.size - 1)
+        k = np.clip(np.round((places[:, 1] - i_q[0]) / step).astype(int), 0, i_q.size - 1)
+        if np.quantile(counts[j, k], 0.25) >= DENSE_NODE_SAMPLES:
+            return step
+        step = round_up_nice(step * 1.01)
+    return step
+
+
+def flux_map_axes(i_dq: np.ndarray, step_a: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(i_d (n_d,), i_q (n_q,))`` grid axes, A, covering the currents ``i_dq (N, 2)`` with ``step_a`` A
+    (default: [`grid_step`][tuning.identify.flux_map_fit.grid_step])."""
+    return _axes(i_dq, grid_step(i_dq) if step_a is None else step_a)
 
 
 def _node_samples(i_dq, i_d, i_q):
@@ -135,6 +197,14 @@ def _node_samples(i_dq, i_d, i_q):
     counts = np.zeros((i_d.size, i_q.size), dtype=int)
     np.add.at(counts, (j[inside], k[inside]), 1)
     return counts
+
+
+def _ramp_mean(x, K: int):
+    """``(N - K + 1, ...)``: the mean of ``x (N, ...)`` over each run of ``K`` samples from each sample on."""
+    if K == 1:
+        return x
+    c = np.concatenate([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)])
+    return (c[K:] - c[:-K]) / K
 
 
 def _voltage_integrals(u, w_e, dt, hold):
@@ -166,9 +236,8 @@ def _basis(i_dq, i_d, i_q):
 
 
 def _second_differences(n_d, n_q):
-    """``((M, n_d n_q) rows, (M,) centre node)``: second differences along i_d and along i_q of a node
-    array and the node each is centred on."""
-    rows, centres = [], []
+    """``(M, n_d n_q)``: the second differences along i_d and along i_q of a raveled node array."""
+    rows = []
     index = np.arange(n_d * n_q).reshape(n_d, n_q)
     for j in range(n_d):
         for k in range(n_q):
@@ -180,8 +249,7 @@ def _second_differences(n_d, n_q):
                         row[index[j, k]] -= 2.0
                         row[index[j + dj, k + dk]] += 1.0
                         rows.append(row)
-                        centres.append(index[j, k])
-    return np.array(rows), np.array(centres)
+    return np.array(rows)
 
 
 @jax.jit
@@ -283,9 +351,10 @@ def fit_flux_map(
         )
     window = max(2, round(window_s / float(np.median(dt))))
     jump = np.abs(np.diff(w_e)) > SPEED_JUMP * top  # (N-1,) intervals not to integrate across
-    starts = np.arange(0, log.n - window, stride)
+    K = ENDPOINT_SAMPLES
+    starts = np.arange(0, log.n - window - K + 1, stride)
     jumped = np.concatenate([[0], np.cumsum(jump)])
-    starts = starts[jumped[starts + window] == jumped[starts]]
+    starts = starts[jumped[starts + window + K - 1] == jumped[starts]]
     if starts.size == 0:
         raise ParameterError(f"{where}: no window of {window_s} s without a speed reversal: record longer.")
 
@@ -294,7 +363,7 @@ def fit_flux_map(
     U = _voltage_integrals(np.asarray(log.u_dq, dtype=float), w_e, dt, log.hold)
     half = 0.5 * dt[:, None]
     # per interval: the trapezoid weights of each sample (N-1 intervals -> cumulative sums over windows)
-    cum = lambda x: np.concatenate([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)])  # noqa: E731
+    cum = lambda x: _ramp_mean(np.concatenate([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)]), K)  # noqa: E731
     I_int = cum(half * (i_dq[:-1] + i_dq[1:]))  # (N, 2) running integral of i
     U_int = cum(U)
     Bw = w_e[:, None] * B  # w_e psi weights per sample
@@ -303,6 +372,7 @@ def fit_flux_map(
     n_nodes = n_d * n_q
     # rows d: psi_d(b) - psi_d(a) - int w_e psi_q + R int i_d + V_e int e_d = int u_d
     # rows q: psi_q(b) - psi_q(a) + int w_e psi_d + R int i_q + V_e int e_q = int u_q
+    B = _ramp_mean(B, K)
     dB = B[b] - B[a]
     dW = W_int[b] - W_int[a]
     rows_d = np.hstack([dB, -dW])
@@ -314,60 +384,67 @@ def fit_flux_map(
         A = np.hstack([A, over_window(I_int)[:, None]])
     else:
         rhs = rhs - R * over_window(I_int)
-    D, centres = _second_differences(n_d, n_q)
-    # strong at an unmeasured node, unless one of its two neighbours along the row is measured and the other
-    # not: there the map bends as its measured side says (a row of them between two measured rows is
-    # interpolated across, not flattened along)
-    outer = ((np.abs(D) == 1.0) & measured.ravel()[None, :]).sum(1)
-    strong = ~measured.ravel()[centres] & (outer != 1)
-    D = D * np.where(strong, UNMEASURED_SMOOTHNESS, 1.0)[:, None]
+    D = _second_differences(n_d, n_q)
     n_columns = A.shape[1] + inverter_error
     prior = np.zeros((2 * D.shape[0], n_columns))
     prior[: D.shape[0], :n_nodes] = D
     prior[D.shape[0] :, n_nodes : 2 * n_nodes] = D
     scale = np.sqrt(A.shape[0] / max(prior.shape[0], 1))  # the prior weighs like as many rows as the data
     prior_rhs = np.zeros(len(prior))
+    S_d, S_q = slope_operators(n_d, n_q, h)
 
-    def solve(eps, weight):
-        """``(x, A, cost)``: the least-squares solution with the error's sign smoothed over ``eps`` A and
-        the prior weighted ``weight``, the window equations' matrix and the sum of squares (prior
-        included) at the solution."""
+    def solve(eps, constrained=False):
+        """``(x, A, cost, cuts)``: the least-squares solution with the error's sign smoothed over ``eps`` A
+        (energy-storing when ``constrained``, `tuning.identify.flux_map_constraints`), the window
+        equations' matrix, the sum of squares (prior included) and the number of constraints it took."""
         A_eps = A
         if inverter_error:
             e = _inverter_error_per_volt(i_dq, log.theta_e, eps)
             E_int = cum(half * (e[:-1] + e[1:]))
             A_eps = np.hstack([A, over_window(E_int)[:, None]])
-        M = np.vstack([A_eps, weight * scale * prior])
+        M = np.vstack([A_eps, SMOOTHNESS * scale * prior])
         target = np.concatenate([rhs, prior_rhs])
-        x, *_ = np.linalg.lstsq(M, target, rcond=None)
-        return x, A_eps, float(np.sum((M @ x - target) ** 2))
+        cuts = 0
+        factored = factor(M, target)
+        if constrained:
+            x, cuts = solve_constrained(factored, n_d, n_q, h, floor_h, where)
+        else:
+            x = free_solution(factored)
+        return x, A_eps, float(np.sum((M @ x - target) ** 2)), cuts
 
-    # The least smoothing whose map passes the flux-map checks: a log that walks a grid of operating
-    # points determines every node at the first weight; one of ordinary operation follows one path through
-    # the current plane, and the interpolant's representation error along it would otherwise tilt the
-    # nodes off the path into a map that stores no energy.
-    for attempt in range(SMOOTHNESS_STEPS + 1):
-        weight = SMOOTHNESS * 2.0**attempt
-        eps = error_smoothing_a
-        if inverter_error and eps is None:
-            eps = _profiled_smoothing(lambda e, w=weight: solve(e, w)[2], i_dq)
-        x, A_fit, _ = solve(eps, weight)
+    eps = error_smoothing_a
+    if inverter_error and eps is None:
+        eps = _profiled_smoothing(lambda e: solve(e)[2], i_dq)
+    x_free, A_fit, _, _ = solve(eps)
+    L_free = symmetric_inductances(x_free, S_d, S_q)[measured.ravel()]
+    own = np.concatenate([L_free[:, 0, 0], L_free[:, 1, 1]])
+    floor_h = INDUCTANCE_FLOOR_SHARE * max(float(np.median(np.abs(own))), 1e-12)
+    contradicted = int(np.sum(np.linalg.eigvalsh(L_free)[:, 0] <= 0.0))
+    try:
+        if contradicted > CONTRADICTED_SHARE * len(L_free):
+            raise ParameterError(
+                f"{where}: fitted freely, the map stores no energy at {contradicted} of the {len(L_free)} "
+                "grid points the log reaches."
+            )
+        x, A_fit, _, cuts = solve(eps, constrained=True)
+        growth = np.sqrt(np.sum((A_fit @ x - rhs) ** 2) / max(np.sum((A_fit @ x_free - rhs) ** 2), 1e-300))
         psi_d, psi_q = x[:n_nodes].reshape(n_d, n_q), x[n_nodes : 2 * n_nodes].reshape(n_d, n_q)
-        try:
-            grid = FluxMapGrid(i_d, i_q, psi_d, psi_q, source="identified flux map")
-            break
-        except ParameterError as err:
-            failure = str(err).split(": ", 1)[1]
-    else:
+        if growth > RESIDUAL_GROWTH:
+            raise ParameterError(
+                f"{where}: the energy-storing map leaves {growth:.3g} times the window residual of an "
+                "unconstrained one."
+            )
+        grid = FluxMapGrid(i_d, i_q, psi_d, psi_q, source="identified flux map")
+    except ParameterError as err:
+        failure = str(err).split(": ", 1)[1]
         lo, hi = i_dq.min(axis=0), i_dq.max(axis=0)
         visited = f"i_d {plain(lo[0])} to {plain(hi[0])} A, i_q {plain(lo[1])} to {plain(hi[1])} A"
         reached = f"{int(measured.sum())} of {measured.size} grid points of {plain(h[0])} A"
         raise ParameterError(
-            f"{where}: the identified map is not a usable flux map, even smoothed "
-            f"{2**SMOOTHNESS_STEPS} times more ({failure} The log's currents reach {reached}, {visited}.) "
-            "If its columns are right, the log does not determine the map: walk a grid of (i_d, i_q) "
-            "operating points at a held speed, or try another --flux-map-step."
-        )
+            f"{where}: the identified map is not a usable flux map ({failure} The log's currents reach "
+            f"{reached}, {visited}.) The data contradict a map that stores energy: check the column "
+            "order and signs of the voltages and currents."
+        ) from None
     residual = A_fit @ x - rhs
     k = 2 * n_nodes
     R_fit = float(x[k]) if R is None else float(R)
@@ -382,5 +459,5 @@ def fit_flux_map(
         n_windows=int(starts.size),
         node_samples=node_samples,
         error_smoothing_a=float(eps) if inverter_error else None,
-        smoothness=weight,
+        constraints=cuts,
     )
