@@ -469,6 +469,12 @@ def _run_flux_map(args, prior, pole_pairs: int, fixed: dict, columns: dict, unit
             "flux rising with its current): the log alone does not determine the map everywhere (the points "
             "marked measured = 0 follow the constraints and a smoothness prior)"
         )
+    if fit.unreached_smoothness > 1.0:
+        print(
+            "the points marked measured = 0 follow their neighbours' inductance "
+            f"({fit.unreached_smoothness:g} x the smoothness prior): fitted freely from the few samples near "
+            "them, the map's MTPA locus did not rise with the current up to the grid's corner current"
+        )
     missing = flux_map_motor_missing(fixed, prior)
     if missing:
         print(

@@ -62,6 +62,7 @@ def identify_flux_map_file(
         "grid_points": int(fit.measured.size),
         "residual_rms_wb": fit.residual_rms_wb,
         "energy_constraints": fit.constraints,
+        "unreached_smoothness": fit.unreached_smoothness,
         "windows": fit.n_windows,
         "notes": list(log.notes),
     }
