@@ -13,6 +13,11 @@ planes; each cut is a condition the answer must meet anyway, so the cuts never e
 non-negative least squares, Lawson and Hanson, "Solving Least Squares Problems", Prentice-Hall 1974, ch. 23
 (SciPy's ``nnls``): with ``M = Q R`` (columns scaled to unit norm), ``x = R^-1 (z + Q^T b)`` and
 ``min |z|`` subject to ``G R^-1 z >= h - G R^-1 Q^T b``. Exact, no step size, no tolerance to tune.
+
+**Fewer unknowns than nodes.** When the map is parametrised by fewer unknowns ``y`` (the d-axis symmetric
+map: the half grid ``i_q >= 0``, [`tuning.identify.flux_map_fit`][tuning.identify.flux_map_fit]), the full
+node vector is ``x = E y``: the constraints are formed on ``x`` and act on ``y`` through ``E``, and only the
+nodes that are not mirror images of others are checked (a mirrored node's condition is the same row).
 """
 
 import numpy as np
@@ -65,21 +70,21 @@ def node_inductance_rows(S_d, S_q, node: int, v, n_columns: int) -> np.ndarray:
     return row
 
 
-def _violations(x, S_d, S_q, n_d, n_q, floor_h, rise_wb, n_columns):
+def _violations(x, S_d, S_q, n_d, n_q, floor_h, rise_wb, n_columns, checked):
     """Rows ``(k, n_columns)`` and bounds ``(k,)`` of the constraints ``x`` breaks: the smallest-eigenvalue
-    direction at each node whose symmetric inductance is below ``floor_h``, each neighbour pair whose own-axis
-    flux rises by less than ``rise_wb``."""
+    direction at each ``checked`` node (``(n_d n_q,)`` bool) whose symmetric inductance is below ``floor_h``,
+    each pair of checked neighbours whose own-axis flux rises by less than ``rise_wb``."""
     n = n_d * n_q
     w, V = np.linalg.eigh(symmetric_inductances(x, S_d, S_q))
     rows, bounds = [], []
-    for node in np.flatnonzero(w[:, 0] < floor_h * (1.0 - 1e-9)):
+    for node in np.flatnonzero((w[:, 0] < floor_h * (1.0 - 1e-9)) & checked):
         rows.append(node_inductance_rows(S_d, S_q, node, V[node, :, 0], n_columns))
         bounds.append(floor_h)
     index = np.arange(n).reshape(n_d, n_q)
     for offset, first, second in ((0, index[:-1, :], index[1:, :]), (n, index[:, :-1], index[:, 1:])):
         flux = x[offset : offset + n]
         for a, b in zip(first.ravel(), second.ravel(), strict=True):
-            if flux[b] - flux[a] < rise_wb * (1.0 - 1e-9):
+            if checked[a] and checked[b] and flux[b] - flux[a] < rise_wb * (1.0 - 1e-9):
                 row = np.zeros(n_columns)
                 row[offset + b], row[offset + a] = 1.0, -1.0
                 rows.append(row)
@@ -104,16 +109,21 @@ def free_solution(factored) -> np.ndarray:
 
 
 def solve_constrained(
-    factored, n_d: int, n_q: int, step, floor_h: float, where: str
+    factored, n_d: int, n_q: int, step, floor_h: float, where: str, expand=None, checked=None
 ) -> tuple[np.ndarray, int]:
     """``(x, cuts)``: the least-squares solution of ``M x ~ target`` (as
     [`factor`][tuning.identify.flux_map_constraints.factor] gives it; unknowns ``[psi_d nodes, psi_q nodes,
-    others]``) whose map stores energy (module docstring) with inductances of at least ``floor_h`` H, and
-    the number of constraints it took. Raises
+    others]``, or ``y`` with those ``expand @ y``, `expand` ``(2 n_d n_q + others, columns)``) whose map
+    stores energy (module docstring) with inductances of at least ``floor_h`` H, and the number of
+    constraints it took; `checked`: ``(n_d n_q,)`` bool, the nodes whose conditions are imposed (default
+    all). Raises
     [`ParameterError`][pmsmjax.spec.validation.ParameterError] (one line, naming ``where``) if the
     constraints cannot be met."""
     R, f, norms = factored
     n_columns = R.shape[1]
+    full = (lambda y: y) if expand is None else (lambda y: expand @ y)  # noqa: E731
+    n_full = n_columns if expand is None else expand.shape[0]
+    checked = np.ones(n_d * n_q, dtype=bool) if checked is None else np.asarray(checked, dtype=bool)
 
     def unscale(y):
         return y / norms
@@ -123,9 +133,10 @@ def solve_constrained(
     rise_wb = 0.5 * floor_h * float(min(step))
     G, h = np.zeros((0, n_columns)), np.zeros(0)
     for _ in range(CUT_ROUNDS):
-        rows, bounds = _violations(x, S_d, S_q, n_d, n_q, floor_h, rise_wb, n_columns)
+        rows, bounds = _violations(full(x), S_d, S_q, n_d, n_q, floor_h, rise_wb, n_full, checked)
         if not rows:
             return x, len(h)
+        rows = np.array(rows) if expand is None else np.array(rows) @ expand
         G, h = np.vstack([G, rows]), np.concatenate([h, bounds])
         # in scaled unknowns y = norms x = R^-1 (z + f): G x = (G / norms) R^-1 (z + f) >= h
         GR = solve_triangular(R, (G / norms).T, trans="T").T  # (G / norms) R^-1

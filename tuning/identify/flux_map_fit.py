@@ -43,6 +43,25 @@ current (it is ``~ 4/pi V_e`` in the current's direction whatever the current's 
 finest 1-2-2.5-5 step at which most visited places have a densely sampled node nearby, snapped to multiples
 of the step over the visited currents, ending at the last rows and columns the log reaches.
 
+**The d-axis symmetry (default).** A rotor symmetric about its d axis (the magnet's axis: every standard
+surface-magnet, interior-magnet and (PM-assisted) reluctance rotor) links ``psi_d(i_d, -i_q) =
+psi_d(i_d, i_q)`` and ``psi_q(i_d, -i_q) = -psi_q(i_d, i_q)``: reversing the q current mirrors the field
+about the d axis. The unknowns are therefore the nodes of the half grid ``i_q >= 0`` (``psi_q = 0`` on
+``i_q = 0``), and the full grid, symmetric about ``i_q = 0``, is their mirror image (`_mirror_expansion`):
+a sample at ``i_q < 0`` counts as its mirror image at ``-i_q`` with psi_q's sign flipped (for the
+equations, the measured marks and the grid's extent), the interpolant's slope ``dpsi_d/di_q`` at
+``i_q = 0`` is zero (central differences of mirrored nodes), and the written map is symmetric exactly. The
+torque ``1.5 p (psi_d i_q - psi_q i_d)`` is then odd in i_q, so the MTPA locus's generating half is the
+motoring half's mirror image: a log that motors only determines both, one that visits both signs averages
+them. motulator's SyR-e import mirrors measured maps the same way (``import_syre_data``,
+``add_negative_q_axis``, Aalto-Electric-Drives/motulator), and the power-law magnetic model of Hinkkanen,
+Pescetto, Mölsä, Saarakkala, Pellegrino and Bojoi, IEEE Trans. Ind. Appl., 2017,
+doi:10.1109/TIA.2016.2644624, depends on ``|psi_q|`` only. It fails for a rotor that is not symmetric
+about d (barriers or magnets shifted or shaped asymmetrically to cut torque ripple, a skew whose end
+effects differ between the two ends): ``q_symmetric=False`` (``--no-q-symmetry``) fits every node from
+the log, which must then visit both torque signs. The default grid step is the recorded currents'
+([`grid_step`][tuning.identify.flux_map_fit.grid_step]: its thresholds are calibrated on recorded logs).
+
 **Nodes the log does not reach** are determined by a weak smoothness prior (second differences along each
 axis, weight [`SMOOTHNESS`][tuning.identify.flux_map_fit.SMOOTHNESS]) and the constraints below; a node
 is *measured* when at least [`MIN_NODE_SAMPLES`][tuning.identify.flux_map_fit.MIN_NODE_SAMPLES] samples lie
@@ -168,6 +187,7 @@ class FluxMapFit:
     error_smoothing_a: float | None = None
     constraints: int = 0
     unreached_smoothness: float = 1.0
+    q_symmetric: bool = True
 
 
 def _axes(i_dq: np.ndarray, step_a: float) -> tuple[np.ndarray, np.ndarray]:
@@ -318,14 +338,16 @@ def fit_flux_map(
     R: float | None = None,
     inverter_error: bool = False,
     error_smoothing_a: float | None = None,
+    q_symmetric: bool = True,
 ) -> FluxMapFit:
     """Identify the flux map of ``log`` (a [`tuning.identify.log.DriveLog`][tuning.identify.log.DriveLog])
     with ``pole_pairs``; module docstring. `step_a`: grid step, A (default
     [`flux_map_axes`][tuning.identify.flux_map_fit.flux_map_axes]); `window_s`: window length, s; `stride`:
     samples between window starts; `R`: ohm, held fixed when given; `inverter_error`: fit the inverter voltage
     error ``V_e`` (V per phase, its sign smoothed over `error_smoothing_a` A; default: that width fitted too,
-    `_profiled_smoothing`). Raises [`ParameterError`][pmsmjax.spec.validation.ParameterError] (one line) for
-    a log it cannot use."""
+    `_profiled_smoothing`); `q_symmetric`: the rotor is symmetric about its d axis, the map fitted on
+    ``i_q >= 0`` and mirrored (module docstring; False for a rotor that is not). Raises
+    [`ParameterError`][pmsmjax.spec.validation.ParameterError] (one line) for a log it cannot use."""
     where = log.source
     dt = np.diff(log.time)
     w_e = pole_pairs * np.asarray(log.omega_m, dtype=float)
@@ -349,8 +371,15 @@ def fit_flux_map(
     if step_a is not None and not (math.isfinite(step_a) and step_a > 0):
         raise ParameterError(f"--flux-map-step {step_a!r}: give a positive grid step in A, e.g. 2.")
     i_dq = np.asarray(log.i_dq, dtype=float)
-    i_d, i_q = flux_map_axes(i_dq, step_a)
-    node_samples = _node_samples(i_dq, i_d, i_q)
+    # with the d-axis symmetry every sample at i_q < 0 is one at -i_q (psi_q's sign flipped): the grid and
+    # the measured marks are those of the folded currents, on the half grid from i_q = 0; the default step
+    # is the recorded currents' (folding merges the places either side of i_q = 0, and the rule's
+    # thresholds are calibrated on the recorded logs)
+    i_fold = np.column_stack([i_dq[:, 0], np.abs(i_dq[:, 1])]) if q_symmetric else i_dq
+    i_d, i_q = flux_map_axes(i_fold, grid_step(i_dq) if step_a is None else step_a)
+    if q_symmetric:
+        i_q = (i_q[1] - i_q[0]) * np.arange(0, round(i_q[-1] / (i_q[1] - i_q[0])) + 1)
+    node_samples = _node_samples(i_fold, i_d, i_q)
     # the grid ends at the last rows and columns the log reaches (outside: the linear extension)
     rows, cols = (
         np.flatnonzero(node_samples.max(1) >= MIN_NODE_SAMPLES),
@@ -359,8 +388,14 @@ def fit_flux_map(
     if rows.size and cols.size:
         j0, j1 = min(rows[0], max(rows[-1] - 2, 0)), max(rows[-1], rows[0] + 2)
         k0, k1 = min(cols[0], max(cols[-1] - 2, 0)), max(cols[-1], cols[0] + 2)
+        if q_symmetric:  # the half grid starts at i_q = 0, where the mirror image joins it
+            k0, k1 = 0, max(cols[-1], 2)
         i_d, i_q = i_d[j0 : j1 + 1], i_q[k0 : k1 + 1]
         node_samples = node_samples[j0 : j1 + 1, k0 : k1 + 1]
+    n_half = i_q.size
+    if q_symmetric:  # the full grid: the half and its mirror image, symmetric about i_q = 0
+        i_q = np.concatenate([-i_q[:0:-1], i_q])
+        node_samples = np.concatenate([node_samples[:, :0:-1], node_samples], axis=1)
     h = np.array([i_d[1] - i_d[0], i_q[1] - i_q[0]])
     n_d, n_q = i_d.size, i_q.size
     measured = node_samples >= MIN_NODE_SAMPLES
@@ -402,6 +437,11 @@ def fit_flux_map(
     rows_d = np.hstack([dB, -dW])
     rows_q = np.hstack([dW, dB])
     A = np.vstack([rows_d, rows_q])
+    # the unknowns: every node's fluxes, or (d-axis symmetry) the half grid's, x = E y (`_mirror_expansion`)
+    E = _mirror_expansion(n_d, n_half) if q_symmetric else None
+    if E is not None:
+        A = A @ E
+    n_unknown_nodes = A.shape[1]
     over_window = lambda x: np.concatenate([x[b, 0] - x[a, 0], x[b, 1] - x[a, 1]])  # noqa: E731
     rhs = over_window(U_int)
     if R is None:
@@ -409,11 +449,20 @@ def fit_flux_map(
     else:
         rhs = rhs - R * over_window(I_int)
     D, centres = _second_differences(n_d, n_q)
-    unreached = np.tile(~measured.ravel()[centres], 2)  # prior rows centred on a node the log misses
     n_columns = A.shape[1] + inverter_error
-    prior = np.zeros((2 * D.shape[0], n_columns))
-    prior[: D.shape[0], :n_nodes] = D
-    prior[D.shape[0] :, n_nodes : 2 * n_nodes] = D
+    prior_nodes = np.zeros((2 * D.shape[0], 2 * n_nodes))
+    prior_nodes[: D.shape[0], :n_nodes] = D
+    prior_nodes[D.shape[0] :, n_nodes:] = D
+    centres = np.tile(centres, 2)
+    if E is not None:
+        # a row centred at i_q < 0 repeats its mirror image's; those at i_q = 0 along i_q say
+        # psi_q(1) - psi_q(-1) = 0 of psi_q (no row) and 2 (psi_d(1) - psi_d(0)) of psi_d
+        prior_nodes = prior_nodes @ E
+        keep = (i_q[centres % n_q] >= 0) & np.any(prior_nodes != 0, axis=1)
+        prior_nodes, centres = prior_nodes[keep], centres[keep]
+    unreached = ~measured.ravel()[centres]  # prior rows centred on a node the log misses
+    prior = np.zeros((len(prior_nodes), n_columns))
+    prior[:, :n_unknown_nodes] = prior_nodes
     scale = np.sqrt(A.shape[0] / max(prior.shape[0], 1))  # the prior weighs like as many rows as the data
     prior_rhs = np.zeros(len(prior))
     S_d, S_q = slope_operators(n_d, n_q, h)
@@ -434,7 +483,7 @@ def fit_flux_map(
         cuts = 0
         factored = factor(M, target)
         if constrained:
-            x, cuts = solve_constrained(factored, n_d, n_q, h, floor_h, where)
+            x, cuts = solve_constrained(factored, n_d, n_q, h, floor_h, where, expand_all, checked)
         else:
             x = free_solution(factored)
         return x, A_eps, float(np.sum((M @ x - target) ** 2)), cuts
@@ -442,8 +491,12 @@ def fit_flux_map(
     eps = error_smoothing_a
     if inverter_error and eps is None:
         eps = _profiled_smoothing(lambda e: solve(e)[2], i_dq)
+    # the full unknown vector [psi_d nodes, psi_q nodes, R, V_e] of the fitted one
+    expand_all = None if E is None else _with_identity(E, n_columns - n_unknown_nodes)
+    full = (lambda y: y) if E is None else (lambda y: expand_all @ y)  # noqa: E731
+    checked = i_q[np.arange(n_nodes) % n_q] >= 0 if E is not None else None  # the rest mirror these
     x_free, A_fit, _, _ = solve(eps)
-    L_free = symmetric_inductances(x_free, S_d, S_q)[measured.ravel()]
+    L_free = symmetric_inductances(full(x_free), S_d, S_q)[measured.ravel()]
     own = np.concatenate([L_free[:, 0, 0], L_free[:, 1, 1]])
     floor_h = INDUCTANCE_FLOOR_SHARE * max(float(np.median(np.abs(own))), 1e-12)
     contradicted = int(np.sum(np.linalg.eigvalsh(L_free)[:, 0] <= 0.0))
@@ -458,7 +511,8 @@ def fit_flux_map(
             free = x_free if weight == 1.0 else solve(eps, unreached_weight=weight)[0]
             x, A_fit, _, cuts = solve(eps, constrained=True, unreached_weight=weight)
             growth = np.sqrt(np.sum((A_fit @ x - rhs) ** 2) / max(np.sum((A_fit @ free - rhs) ** 2), 1e-300))
-            psi_d, psi_q = x[:n_nodes].reshape(n_d, n_q), x[n_nodes : 2 * n_nodes].reshape(n_d, n_q)
+            nodes = full(x)
+            psi_d, psi_q = nodes[:n_nodes].reshape(n_d, n_q), nodes[n_nodes : 2 * n_nodes].reshape(n_d, n_q)
             if growth > RESIDUAL_GROWTH:
                 raise ParameterError(
                     f"{where}: the energy-storing map leaves {growth:.3g} times the window residual of an "
@@ -484,7 +538,7 @@ def fit_flux_map(
             "order and signs of the voltages and currents."
         ) from None
     residual = A_fit @ x - rhs
-    k = 2 * n_nodes
+    k = n_unknown_nodes
     R_fit = float(x[k]) if R is None else float(R)
     V_e = float(x[k + (R is None)]) if inverter_error else None
     return FluxMapFit(
@@ -499,7 +553,38 @@ def fit_flux_map(
         error_smoothing_a=float(eps) if inverter_error else None,
         constraints=cuts,
         unreached_smoothness=float(unreached_weight),
+        q_symmetric=q_symmetric,
     )
+
+
+def _mirror_expansion(n_d: int, n_half: int) -> np.ndarray:
+    """``(2 n_d n_q, n_d (2 n_half - 1))`` with ``n_q = 2 n_half - 1``: the raveled full-grid node fluxes
+    ``[psi_d, psi_q]`` (i_q from ``-(n_half - 1)`` to ``n_half - 1`` steps) of the half grid's unknowns
+    ``[psi_d (n_d, n_half), psi_q (n_d, n_half - 1)]`` (i_q from 0, resp. one step, up): ``psi_d`` even in
+    i_q, ``psi_q`` odd, so ``psi_q = 0`` at ``i_q = 0``, and the interpolant's central-difference slope
+    ``dpsi_d/di_q`` there is zero (module docstring, "d-axis symmetry")."""
+    n_q = 2 * n_half - 1
+    offset = np.arange(n_q) - (n_half - 1)  # full column's signed distance from i_q = 0, steps
+    k, sign = np.abs(offset), np.sign(offset)
+    E_d = np.zeros((n_d, n_q, n_d, n_half))
+    E_q = np.zeros((n_d, n_q, n_d, n_half - 1))
+    for j in range(n_d):
+        E_d[j, np.arange(n_q), j, k] = 1.0
+        odd = k > 0
+        E_q[j, np.flatnonzero(odd), j, k[odd] - 1] = sign[odd]
+    n = n_d * n_q
+    E = np.zeros((2 * n, E_d[0, 0].size + E_q[0, 0].size))
+    E[:n, : E_d[0, 0].size] = E_d.reshape(n, -1)
+    E[n:, E_d[0, 0].size :] = E_q.reshape(n, -1)
+    return E
+
+
+def _with_identity(E: np.ndarray, extra: int) -> np.ndarray:
+    """``E`` extended by ``extra`` unknowns (R, V_e) that map to themselves."""
+    out = np.zeros((E.shape[0] + extra, E.shape[1] + extra))
+    out[: E.shape[0], : E.shape[1]] = E
+    out[E.shape[0] :, E.shape[1] :] = np.eye(extra)
+    return out
 
 
 def _motor_locus(grid: FluxMapGrid, pole_pairs: int) -> bool:
