@@ -71,16 +71,12 @@ Such a node rests on a few transient samples or on none, and the grid's edge row
 map is extended with beyond the grid
 ([`pmsmjax.machines.flux_map.flux_and_inductance`][pmsmjax.machines.flux_map.flux_and_inductance]), where a
 drive file's MTPA check looks up to the grid's corner current
-([`pmsmjax.spec.design_rules`][pmsmjax.spec.design_rules]). So when the map's MTPA locus does not rise with
-the current up to that corner, the prior's rows centred on unmeasured nodes are weighted in turn
-[`UNREACHED_SMOOTHNESS`][tuning.identify.flux_map_fit.UNREACHED_SMOOTHNESS] times the others (the
-unmeasured nodes then continue their neighbours' inductance, the measured ones keep the data's weight) and
-the first map with a motor's locus is kept; if none has one, the first is kept and the drive file's check
-refuses it with its own message. The check itself is the one every map gets. Measured: on the flux-map
-notebook's 3 x 5 staircase of the saturated IPM (seed 1) the weak prior's locus fails at the corner and 3x
-passes, the error at the measured nodes 0.21 % of the flux range (5 other seeds pass at 1x, 0.24-0.49 %); a
-motoring-only log leaves the generating half-plane to the linear extension, and no weight makes it a
-motor's there (the reluctance machine's staircase: its map is kept, and ``motor.toml`` is not written).
+([`pmsmjax.spec.design_rules`][pmsmjax.spec.design_rules]); a map that fails it is written, and the check
+refuses ``motor.toml`` with its own message. Measured with the d-axis symmetry: the flux-map notebook's 3 x 5
+staircase of the saturated IPM (six seeds), its walk, its log of ordinary operation and the reluctance
+machine's motoring-only staircase all pass at the one weak prior weight. Fitted without the symmetry, the
+notebook's staircase at seed 1 and the ordinary-operation log at a 2 A grid fail the check at the grid's
+unvisited corner, and the reluctance staircase in the generating half-plane it never visits.
 
 **A map that stores energy, as a constraint.** A log of ordinary operation moves its currents along one
 path, fixing the flux along it and the nodes either side only in combination; a walk's nodes between its
@@ -103,7 +99,6 @@ import jax.numpy as jnp
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from pmsmjax.controllers.flux_map_loci import mtpa_table
 from pmsmjax.machines.flux_map import FluxMapGrid, flux_and_inductance, hermite_coefficients
 from pmsmjax.spec.design_rules import round_up_nice
 from pmsmjax.spec.validation import ParameterError, plain
@@ -132,10 +127,6 @@ SPEED_JUMP = 0.05
 MIN_NODE_SAMPLES = 5
 #: Weight of the smoothness prior's second differences against the window equations (Wb per Wb).
 SMOOTHNESS = 0.02
-#: Weights of the prior's second differences centred on unmeasured nodes, as multiples of
-#: [`SMOOTHNESS`][tuning.identify.flux_map_fit.SMOOTHNESS], tried in turn until the map's MTPA locus is a
-#: motor's up to the grid's corner current (module docstring, "Nodes the log does not reach").
-UNREACHED_SMOOTHNESS = (1.0, 3.0, 10.0, 30.0)
 #: The least incremental inductance (every direction, every node) of the energy-storing map, as a share of the
 #: median own-axis node inductance of the unconstrained fit at the measured nodes.
 INDUCTANCE_FLOOR_SHARE = 0.02
@@ -172,8 +163,8 @@ class FluxMapFit:
     - `n_windows`: windows used; `node_samples`: ``(n_d, n_q)`` samples near each node;
     - `constraints`: the energy-storing inequalities the fit imposed (0: the free fit stored energy
       everywhere; module docstring);
-    - `unreached_smoothness`: the weight of the prior at unmeasured nodes, as a multiple of
-      [`SMOOTHNESS`][tuning.identify.flux_map_fit.SMOOTHNESS], the map was fitted with (module docstring).
+    - `q_symmetric`: fitted on the half grid ``i_q >= 0`` and mirrored (module docstring, "The d-axis
+      symmetry"); the grid is then symmetric about ``i_q = 0``.
     """
 
     grid: FluxMapGrid
@@ -186,7 +177,6 @@ class FluxMapFit:
     node_samples: np.ndarray
     error_smoothing_a: float | None = None
     constraints: int = 0
-    unreached_smoothness: float = 1.0
     q_symmetric: bool = True
 
 
@@ -460,25 +450,22 @@ def fit_flux_map(
         prior_nodes = prior_nodes @ E
         keep = (i_q[centres % n_q] >= 0) & np.any(prior_nodes != 0, axis=1)
         prior_nodes, centres = prior_nodes[keep], centres[keep]
-    unreached = ~measured.ravel()[centres]  # prior rows centred on a node the log misses
     prior = np.zeros((len(prior_nodes), n_columns))
     prior[:, :n_unknown_nodes] = prior_nodes
     scale = np.sqrt(A.shape[0] / max(prior.shape[0], 1))  # the prior weighs like as many rows as the data
     prior_rhs = np.zeros(len(prior))
     S_d, S_q = slope_operators(n_d, n_q, h)
 
-    def solve(eps, constrained=False, unreached_weight=1.0):
+    def solve(eps, constrained=False):
         """``(x, A, cost, cuts)``: the least-squares solution with the error's sign smoothed over ``eps`` A
-        (energy-storing when ``constrained``, `tuning.identify.flux_map_constraints`) and the prior's rows
-        centred on unmeasured nodes weighted ``unreached_weight`` times the others, the window
+        (energy-storing when ``constrained``, `tuning.identify.flux_map_constraints`), the window
         equations' matrix, the sum of squares (prior included) and the number of constraints it took."""
         A_eps = A
         if inverter_error:
             e = _inverter_error_per_volt(i_dq, log.theta_e, eps)
             E_int = cum(half * (e[:-1] + e[1:]))
             A_eps = np.hstack([A, over_window(E_int)[:, None]])
-        weights = SMOOTHNESS * scale * np.where(unreached, unreached_weight, 1.0)
-        M = np.vstack([A_eps, weights[:, None] * prior])
+        M = np.vstack([A_eps, SMOOTHNESS * scale * prior])
         target = np.concatenate([rhs, prior_rhs])
         cuts = 0
         factored = factor(M, target)
@@ -506,27 +493,13 @@ def fit_flux_map(
                 f"{where}: fitted freely, the map stores no energy at {contradicted} of the {len(L_free)} "
                 "grid points the log reaches."
             )
-        fits = []
-        for weight in UNREACHED_SMOOTHNESS:
-            free = x_free if weight == 1.0 else solve(eps, unreached_weight=weight)[0]
-            x, A_fit, _, cuts = solve(eps, constrained=True, unreached_weight=weight)
-            growth = np.sqrt(np.sum((A_fit @ x - rhs) ** 2) / max(np.sum((A_fit @ free - rhs) ** 2), 1e-300))
-            nodes = full(x)
-            psi_d, psi_q = nodes[:n_nodes].reshape(n_d, n_q), nodes[n_nodes : 2 * n_nodes].reshape(n_d, n_q)
-            if growth > RESIDUAL_GROWTH:
-                raise ParameterError(
-                    f"{where}: the energy-storing map leaves {growth:.3g} times the window residual of an "
-                    "unconstrained one."
-                )
-            grid = FluxMapGrid(i_d, i_q, psi_d, psi_q, source="identified flux map")
-            fits.append((x, A_fit, cuts, grid, weight))
-            if _motor_locus(grid, pole_pairs) or not (~measured).any():
-                break
-        else:
-            # no weight gives a motor's locus up to the corner current: the first, most faithful map is
-            # kept, and the drive file's check says where its locus fails
-            fits = fits[:1]
-        x, A_fit, cuts, grid, unreached_weight = fits[-1]
+        x, A_fit, _, cuts = solve(eps, constrained=True)
+        growth = np.sqrt(np.sum((A_fit @ x - rhs) ** 2) / max(np.sum((A_fit @ x_free - rhs) ** 2), 1e-300))
+        if growth > RESIDUAL_GROWTH:
+            raise ParameterError(
+                f"{where}: the energy-storing map leaves {growth:.3g} times the window residual of an "
+                "unconstrained one."
+            )
     except ParameterError as err:
         failure = str(err).split(": ", 1)[1]
         lo, hi = i_dq.min(axis=0), i_dq.max(axis=0)
@@ -537,6 +510,9 @@ def fit_flux_map(
             f"{reached}, {visited}.) The data contradict a map that stores energy: check the column "
             "order and signs of the voltages and currents."
         ) from None
+    nodes = full(x)
+    psi_d, psi_q = nodes[:n_nodes].reshape(n_d, n_q), nodes[n_nodes : 2 * n_nodes].reshape(n_d, n_q)
+    grid = FluxMapGrid(i_d, i_q, psi_d, psi_q, source="identified flux map")
     residual = A_fit @ x - rhs
     k = n_unknown_nodes
     R_fit = float(x[k]) if R is None else float(R)
@@ -552,7 +528,6 @@ def fit_flux_map(
         node_samples=node_samples,
         error_smoothing_a=float(eps) if inverter_error else None,
         constraints=cuts,
-        unreached_smoothness=float(unreached_weight),
         q_symmetric=q_symmetric,
     )
 
@@ -585,15 +560,3 @@ def _with_identity(E: np.ndarray, extra: int) -> np.ndarray:
     out[: E.shape[0], : E.shape[1]] = E
     out[E.shape[0] :, E.shape[1] :] = np.eye(extra)
     return out
-
-
-def _motor_locus(grid: FluxMapGrid, pole_pairs: int) -> bool:
-    """Whether ``grid``'s MTPA locus rises with the current up to the grid's corner current, the check a
-    drive file with the map makes ([`pmsmjax.spec.design_rules`][pmsmjax.spec.design_rules],
-    [`pmsmjax.controllers.flux_map_loci.mtpa_table`][pmsmjax.controllers.flux_map_loci.mtpa_table])."""
-    corner = max(math.hypot(d, q) for d in (grid.i_d[0], grid.i_d[-1]) for q in (grid.i_q[0], grid.i_q[-1]))
-    try:
-        mtpa_table(grid, pole_pairs, corner)
-    except ParameterError:
-        return False
-    return True
