@@ -10,7 +10,9 @@ fit's tanh model; the fit finds the sign's width itself). Figures:
 - RMS flux error of the identified map (2 A grid) over the visited currents (each 0.25 A raster cell the
   log reached counted once), as a share of the flux range there, against the same figure for the true map
   sampled at the 35 steady operating points and interpolated by the same Hermite interpolant;
-- R's relative error; the inverter error voltage's relative error; wall times (log making, fit).
+- R's relative error; the inverter error voltage's relative error; wall times (log making, fit);
+- whether ``motor.toml`` would be written: the map passes the drive file's check (its MTPA locus rising
+  with the current up to the grid's corner current on both torque signs), for every log here.
 
 The reluctance machine (tuning/identify/reluctance_reference_log.py:
 a PM-assisted SyRM, the power-law current map of Hinkkanen et al. 2017 with strong cross-saturation, the
@@ -25,12 +27,18 @@ q-axis incremental inductance falling 57 to 6 mH), fitted at the default setting
 """
 
 import argparse
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
 from benchmarks.bench_core import machine_info, publish
+from pmsmjax.io.drive_files import drive_spec
+from pmsmjax.io.flux_map_files import write_flux_map_csv
 from pmsmjax.machines.flux_map import FluxMapGrid
+from pmsmjax.spec.validation import ParameterError
+from tuning.identify.flux_map_files import write_flux_map_motor
 from tuning.identify.flux_map_fit import fit_flux_map
 from tuning.identify.log import drive_log_from_columns
 from tuning.identify.reluctance_reference_log import (
@@ -50,6 +58,19 @@ OPS_D, OPS_Q = np.array([-12.0, -8.0, -4.0, 0.0, 4.0]), np.arange(-12.0, 12.5, 4
 def _rms(grid, points):
     err = np.array([grid.at(*p)[0] for p in points]) - saturated_flux(SATURATED_IPM, *points.T)[0]
     return float(np.sqrt(np.mean(err**2)))
+
+
+def _drive_file_accepts(fit, pole_pairs: int) -> bool:
+    """Whether ``motor.toml`` of ``fit`` passes the drive file's checks (as ``identify --flux-map`` writes it
+    only then)."""
+    with tempfile.TemporaryDirectory() as folder:
+        write_flux_map_csv(Path(folder) / "flux_map.csv", fit.grid, measured=fit.measured)
+        path = write_flux_map_motor(Path(folder) / "motor.toml", fit, pole_pairs, {"J": 0.01, "B": 0.001})
+        try:
+            drive_spec(str(path))
+        except ParameterError:
+            return False
+    return True
 
 
 def run(dead_time_s: float = 1e-6, device_drop_v: float = 0.8) -> dict:
@@ -88,6 +109,7 @@ def run(dead_time_s: float = 1e-6, device_drop_v: float = 0.8) -> dict:
             "error_smoothing_a": fit.error_smoothing_a,
             "measured_points": int(fit.measured.sum()),
             "grid_points": int(fit.measured.size),
+            "motor_toml": _drive_file_accepts(fit, p),
             "log_s": t1 - t0,
             "fit_s": t2 - t1,
         }
@@ -120,6 +142,7 @@ def run_reluctance() -> dict:
             "flux_rms_share": _syrm_errors(fit.grid, log.i_dq),
             "steady_state_rms_share": _syrm_errors(steady_state_map(log, SYRM["R"], p), log.i_dq),
             "energy_constraints": fit.constraints,
+            "motor_toml": _drive_file_accepts(fit, p),
             "log_s": t1 - t0,
             "fit_s": t2 - t1,
         }
@@ -138,25 +161,26 @@ def run_reluctance() -> dict:
         "energy_constraints": fit.constraints,
         "measured_points": int(fit.measured.sum()),
         "grid_points": int(fit.measured.size),
+        "motor_toml": _drive_file_accepts(fit, p),
         "fit_s": time.perf_counter() - t3,
     }
     return out
 
 
 def format_table(r: dict) -> str:
-    lines = ["log             flux rms / range   steady-point map   R error   V_e error   fit s"]
+    lines = ["log             flux rms / range   steady-point map   R error   V_e error   fit s   motor.toml"]
     for name in ("plain", "inverter_error"):
         x = r[name]
         ve = "-" if x["inverter_error_rel"] is None else f"{100 * x['inverter_error_rel']:+.2f} %"
         lines.append(
             f"{name:15s} {100 * x['flux_rms_share']:8.3f} %         "
             f"{100 * x['steady_point_map_rms_share']:8.3f} %       {100 * x['R_error']:+.2f} %   "
-            f"{ve:9s}   {x['fit_s']:.2f}"
+            f"{ve:9s}   {x['fit_s']:.2f}   {'written' if x['motor_toml'] else 'refused'}"
         )
     s, o = r["reluctance"]["staircase"], r["reluctance"]["ordinary"]
     lines.append(
         f"reluctance machine staircase, default grid ({s['grid_step_a']:g} A), fit {s['fit_s']:.1f} s, "
-        "RMS flux error / range:"
+        f"motor.toml {'written' if s['motor_toml'] else 'refused'}, RMS flux error / range:"
     )
     lines.append("                 all visited   at dwells   on transient paths")
     for name, key in (("identified", "flux_rms_share"), ("steady-state", "steady_state_rms_share")):
@@ -164,7 +188,8 @@ def format_table(r: dict) -> str:
         lines.append(f"  {name:14s} {a:8.3f} %   {b:7.3f} %   {c:10.3f} %")
     lines.append(
         f"  ordinary operation ({o['grid_step_a']:g} A grid, {o['measured_points']} of {o['grid_points']} "
-        f"points measured): {100 * o['flux_rms_share']:.3f} %, fit {o['fit_s']:.1f} s"
+        f"points measured): {100 * o['flux_rms_share']:.3f} %, fit {o['fit_s']:.1f} s, "
+        f"motor.toml {'written' if o['motor_toml'] else 'refused'}"
     )
     return "\n".join(lines)
 
