@@ -153,6 +153,13 @@ def add_parser(sub):
         action="store_true",
         help="with --flux-map: fit the inverter voltage error (dead time and device drop, V per phase)",
     )
+    p.add_argument(
+        "--no-q-symmetry",
+        action="store_true",
+        help="with --flux-map: do not assume the rotor symmetric about its d axis (default: psi_d even and "
+        "psi_q odd in i_q, the map fitted for i_q >= 0 and mirrored; give this for a rotor whose barriers "
+        "or magnets are asymmetric, and record both torque signs)",
+    )
     memory.add_memory_flag(p)
     p.set_defaults(func=run)
 
@@ -228,8 +235,14 @@ def run(args) -> int:
             if given:
                 raise ParameterError(f"{flag} belongs to the linear fit: drop it or --flux-map.")
         return _run_flux_map(args, prior, pole_pairs, fixed, columns, units)
-    if args.inverter_error or args.flux_map_step is not None:
-        flag = "--inverter-error" if args.inverter_error else "--flux-map-step"
+    if args.inverter_error or args.flux_map_step is not None or args.no_q_symmetry:
+        flag = (
+            "--inverter-error"
+            if args.inverter_error
+            else "--flux-map-step"
+            if args.flux_map_step is not None
+            else "--no-q-symmetry"
+        )
         raise ParameterError(
             f"{flag} belongs to --flux-map: add --flux-map (or use --dead-time for the linear fit)."
         )
@@ -440,7 +453,6 @@ def _run_flux_map(args, prior, pole_pairs: int, fixed: dict, columns: dict, unit
         identify_flux_map_file,
         write_flux_map_motor,
     )
-    from tuning.identify.flux_map_fit import SMOOTHNESS
 
     fit = identify_flux_map_file(
         args.log,
@@ -449,6 +461,7 @@ def _run_flux_map(args, prior, pole_pairs: int, fixed: dict, columns: dict, unit
         fixed=fixed,
         inverter_error=args.inverter_error,
         step_a=args.flux_map_step,
+        q_symmetric=not args.no_q_symmetry,
         columns=columns,
         units=units,
         hold=args.hold or "stator",
@@ -459,15 +472,18 @@ def _run_flux_map(args, prior, pole_pairs: int, fixed: dict, columns: dict, unit
     print(f"R {fit.R:.6g} ohm ({R_note})")
     if fit.V_e is not None:
         print(f"inverter voltage error {fit.V_e:.4g} V per phase")
+    symmetry = "symmetric about the d axis" if fit.q_symmetric else "not mirrored"
     print(
         f"flux map {fit.grid.i_d.size} x {fit.grid.i_q.size} points, {int(fit.measured.sum())} measured "
-        f"(step {fit.grid.step[0]:g} A); window residual {fit.residual_rms_wb:.3g} Wb rms; "
+        f"(step {fit.grid.step[0]:g} A; {symmetry}); "
+        f"window residual {fit.residual_rms_wb:.3g} Wb rms; "
         f"wrote {args.out}/flux_map.csv, flux_map.json"
     )
-    if fit.smoothness > SMOOTHNESS:
+    if fit.constraints:
         print(
-            f"smoothed {fit.smoothness / SMOOTHNESS:g}x more than a grid walk needs: the log does not "
-            "determine the map away from the currents it visited (the points marked measured = 0)"
+            f"{fit.constraints} energy-storing constraints active (incremental inductance positive definite, "
+            "flux rising with its current): the log alone does not determine the map everywhere (the points "
+            "marked measured = 0 follow the constraints and a smoothness prior)"
         )
     missing = flux_map_motor_missing(fixed, prior)
     if missing:

@@ -34,15 +34,31 @@ MECHANICAL = ("J", "B")
 
 
 def identify_flux_map_file(
-    log_path, out_dir, pole_pairs: int, *, fixed: dict, inverter_error: bool, step_a=None, **log_options
+    log_path,
+    out_dir,
+    pole_pairs: int,
+    *,
+    fixed: dict,
+    inverter_error: bool,
+    step_a=None,
+    q_symmetric: bool = True,
+    **log_options,
 ) -> FluxMapFit:
     """Read ``log_path`` (``log_options``: columns, units, hold, u_dc, resample as
     [`tuning.identify.log.load_drive_log`][tuning.identify.log.load_drive_log]), fit, write ``flux_map.csv``
-    and ``flux_map.json`` to ``out_dir``. `fixed`: ``{"R": ohm}`` or empty. Returns the fit."""
+    and ``flux_map.json`` to ``out_dir``. `fixed`: ``{"R": ohm}`` or empty; `q_symmetric`: the map symmetric
+    about the d axis ([`fit_flux_map`][tuning.identify.flux_map_fit.fit_flux_map]). Returns the fit."""
     log = load_drive_log(log_path, pole_pairs, **log_options)
     out = check_output_folder(out_dir)
     check_units(log, pole_pairs, fixed)
-    fit = fit_flux_map(log, pole_pairs, step_a=step_a, R=fixed.get("R"), inverter_error=inverter_error)
+    fit = fit_flux_map(
+        log,
+        pole_pairs,
+        step_a=step_a,
+        R=fixed.get("R"),
+        inverter_error=inverter_error,
+        q_symmetric=q_symmetric,
+    )
     out.mkdir(parents=True, exist_ok=True)
     header = (
         f"Identified by pmsmjax identify --flux-map from {log.source}: A, Wb "
@@ -61,7 +77,8 @@ def identify_flux_map_file(
         "measured_points": int(fit.measured.sum()),
         "grid_points": int(fit.measured.size),
         "residual_rms_wb": fit.residual_rms_wb,
-        "smoothness": fit.smoothness,
+        "energy_constraints": fit.constraints,
+        "q_symmetric": fit.q_symmetric,
         "windows": fit.n_windows,
         "notes": list(log.notes),
     }
