@@ -47,7 +47,18 @@ def add_parser(sub):
         "downwards, also with the plant's R 30 %% above the observer's); or the chapter 6 estimators "
         "(hfi-rotating, hfi-pulsating: angle scored modulo pi; hybrid) on the salient book motor with "
         "d-axis saturation, the rotor --initial-angle-deg off their initial estimate (see --scenario); "
-        "writes compare.json, compare_estimators.md and figures (default: the control methods are compared)",
+        "writes compare.json, compare_estimators.md and figures (default: the control methods are "
+        "compared). On a drive file with a flux map (saturated-ipm, pm-syrm) the chapter 5 observers and "
+        "flux-observer run the file's own drive on its map, its I/f start and scenario, each observer "
+        "reading the map (see --observer-model), the low-speed sweep scaled to the file's rated speed and "
+        "scenario; the chapter 6 estimators are refused there",
+    )
+    p.add_argument(
+        "--observer-model",
+        choices=("map", "constant"),
+        default=None,
+        help="with --estimator on a drive file with a flux map: the observers read the map at the operating "
+        "current (map, the default there) or keep the file's constant L_d, L_q, psi_f (constant)",
     )
     p.add_argument(
         "--scenario",
@@ -170,12 +181,18 @@ def precheck(args):
             "design-rule version of another by running pmsmjax demo, or pass a single --control."
         )
     motor = spec.motor
-    if args.estimator is not None and "flux_map" in motor:
+    on_map = args.estimator is not None and "flux_map" in motor
+    if args.observer_model is not None and not on_map:
         raise ParameterError(
-            f"--motor {args.motor} --estimator: the observer comparison runs the book drive on the file's "
-            "constant L_d, L_q, psi_f, which would stand in for this file's flux map; run each observer "
-            "on the map with pmsmjax demo --motor FILE --estimator NAME (the observer corrected by the map; "
-            "--observer-model constant for the uncorrected one)."
+            "--observer-model applies to --estimator on a drive file with a flux map ([motor] flux_map), "
+            "where the observers may read the map or its constants: drop it."
+        )
+    if on_map and chapter6:
+        ch6 = ", ".join(n for n in names if n in CHAPTER6_NAMES)
+        raise ParameterError(
+            f"--motor {args.motor} --estimator {ch6}: the chapter 6 comparison runs its own salient motor "
+            "with a d-axis saturation model, which would stand in for this file's flux map; compare the "
+            "chapter 5 observers and flux-observer on the map, or these on --motor book_salient."
         )
     if chapter6 and not motor["L_q"] > motor["L_d"]:
         raise ParameterError(
@@ -262,6 +279,7 @@ def run(args) -> int:
         estimators=args.estimator is not None,
         scenario=args.scenario,
         initial_angle_deg=args.initial_angle_deg,
+        observer_model=args.observer_model,
     )
     out = checks.output_folder(args.out)
     if request.estimators:
@@ -318,11 +336,15 @@ def observer_figures(request: compare_job.CompareSpec, result: compare_job.Compa
     angle0 = result.comparison["settings"]["initial_angle_deg"]
     start = f"rotor {angle0:g} el. deg off" if chapter6 else "I/f"
     angles = result.angle_errors
+    where = f"{request.scenario} scenario"
+    if request.drive.flux_map is not None:  # the file's own drive and scenario, on its map
+        model = request.observer_model or "map"
+        where = f"{drive_flags.drive_name(request.drive)} on its flux map, observers on the {model}"
     angle = angle_error_figure(
         angles["t"],
         angles["errors"],
         speed_rpm=angles["speed_rpm"],
-        title=f"Angle error, sensorless from standstill ({start}), {request.scenario} scenario",
+        title=f"Angle error, sensorless from standstill ({start}), {where}",
         ylim=20.0 if chapter6 else 5.0,
     )
     speed = (

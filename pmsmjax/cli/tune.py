@@ -73,7 +73,9 @@ def add_parser(sub):
         "(book: 2000 r/min; twice the rated speed within the inverter's reach), load steps; chapter 6 "
         "hfi-rotating, hfi-pulsating, hybrid: filter and PLL gains (and the hybrid's crossover) on a "
         "salient motor (book: book_salient) at standstill and within +-10 %% of the rated speed (hybrid "
-        "+-30 %%), angle modulo pi; default: none)",
+        "+-30 %%), angle modulo pi; on a drive file with a flux map the map-aware observer demo runs, a "
+        "back-EMF observer's gains under the map's angle correction: estimator.observer.observer.NAME; "
+        "default: none)",
     )
     p.add_argument(
         "--config", default=None, help="TOML with [weights], [tune] and [job] tables (default: none)"

@@ -44,6 +44,8 @@ class CompareSpec:
       frequency; None: not); `gains`: the tuned gains file, as compare.json reports it.
     - `scenario`: the observers' scenario (``book``, ``standstill``, ``slow-reversal``, ``reversal``);
       `initial_angle_deg`: the chapter 6 estimators' initial rotor angle (None: their default).
+    - `observer_model`: on a drive file with a flux map, the observers read the map (``map``, None) or keep
+      the file's constant ``L_d``, ``L_q``, ``psi_f`` (``constant``).
     """
 
     drive: object
@@ -59,6 +61,7 @@ class CompareSpec:
     estimators: bool = False
     scenario: str | None = None
     initial_angle_deg: float | None = None
+    observer_model: str | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -192,8 +195,11 @@ def compare_controls(
 def compare_observers(spec: CompareSpec, progress: Callable[[str], None] | None = None) -> CompareResult:
     """Run the book FOC drive sensorless with each observer of ``spec`` through its scenario
     ([`pmsmjax.jobs.estimator_comparison.compare_estimators`][pmsmjax.jobs.estimator_comparison.compare_estimators]),
-    the drive file's motor in the observers' design rules. ``progress``: takes the table's header, then a row
-    per observer."""
+    the drive file's motor in the observers' design rules. On a drive file with a flux map the file's own
+    drive runs instead, each observer reading the map (``spec.observer_model``), through the file's
+    scenario, and the low-speed sweep is the book's scaled to the drive
+    ([`pmsmjax.jobs.estimator_comparison.LowSpeedSweep.for_drive`][pmsmjax.jobs.estimator_comparison.LowSpeedSweep.for_drive]).
+    ``progress``: takes the table's header, then a row per observer."""
     import numpy as np
 
     from pmsmjax.analysis.observer_errors import angle_error, angle_error_modulo_pi
@@ -208,6 +214,11 @@ def compare_observers(spec: CompareSpec, progress: Callable[[str], None] | None 
 
     settings = _settings(spec)
     motor = spec_motor(spec.drive)
+    on_map = spec.drive.flux_map is not None
+    # the map's plant needs the file's own drive; a file without a map keeps the book drive on its motor
+    own = dict(spec=spec.drive, observer_model=spec.observer_model or "map") if on_map else {}
+    book_sweep = LowSpeedSweep(load_nm=spec.load_nm)
+    sweep = LowSpeedSweep.for_drive(spec.drive, spec.load_nm) if on_map else book_sweep
     t0 = time.perf_counter()
     if progress:
         progress("  ".join(h for h, _, _ in ESTIMATOR_COLUMNS))
@@ -215,10 +226,11 @@ def compare_observers(spec: CompareSpec, progress: Callable[[str], None] | None 
         list(spec.names),
         motor,
         settings,
-        LowSpeedSweep(load_nm=spec.load_nm),
+        sweep,
         progress=progress,
         scenario=spec.scenario,
         initial_angle_deg=spec.initial_angle_deg,
+        **own,
     )
     report = {"settings": result["settings"], "estimators": result["controllers"]}
     report["drive_file"] = spec.drive.summary()

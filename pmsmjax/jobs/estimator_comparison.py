@@ -1,6 +1,10 @@
 """Observers side by side (``pmsmjax compare --estimator``): the chapter 5 observers on the book FOC drive,
 sensorless from standstill with the I/f start, and the chapter 6 estimators (HF injection, the hybrid) on
-the salient book motor with d-axis saturation, each in a scenario it is made for.
+the salient book motor with d-axis saturation, each in a scenario it is made for. On a drive file with a
+flux map the chapter 5 observers run the file's own drive instead (its map's plant, current loop and field
+weakening, its I/f start), each observer reading the map
+([`map_observer_drive`][pmsmjax.jobs.estimator_comparison.map_observer_drive]), and the low-speed sweep is
+scaled to the drive ([`LowSpeedSweep.for_drive`][pmsmjax.jobs.estimator_comparison.LowSpeedSweep.for_drive]).
 
 Each estimator's run gives the figures of the controller comparison
 ([`pmsmjax.jobs.control_comparison.run_control`][pmsmjax.jobs.control_comparison.run_control]) on the book
@@ -33,6 +37,12 @@ from pmsmjax.units import rad_s_to_rpm
 
 #: Speeds (r/min) of the low-speed sweep under load, highest first.
 LOW_SPEED_SWEEP_RPM = (500.0, 300.0, 200.0, 150.0, 100.0, 70.0, 50.0, 30.0, 20.0, 10.0, 5.0, 2.0)
+#: The book drive's rated speed (r/min) and scenario duration (s) that
+#: [`LowSpeedSweep`][pmsmjax.jobs.estimator_comparison.LowSpeedSweep]'s defaults are written for; a drive
+#: file's sweep is scaled by its own over these
+#: ([`LowSpeedSweep.for_drive`][pmsmjax.jobs.estimator_comparison.LowSpeedSweep.for_drive]).
+BOOK_SWEEP_RATED_SPEED_RPM = 1000.0
+BOOK_SWEEP_SCENARIO_S = 0.4
 
 
 @dataclasses.dataclass(frozen=True)
@@ -73,6 +83,29 @@ class LowSpeedSweep:
             load_torque=Profile.step(self.load_time_s, 0.0, self.load_nm),
         )
 
+    @classmethod
+    def for_drive(cls, spec, load_nm: float) -> "LowSpeedSweep":
+        """The book sweep on the drive file ``spec``: every speed (the swept ones and the start) times the
+        file's rated speed over the book's 1000 r/min, every time times the file's ``[scenario]`` duration
+        over the book's 0.4 s, under ``load_nm`` (N m; the compared scenario's load, the file's by
+        default). Why scaled: a back-EMF observer's difficulty is the back-EMF against the voltage errors,
+        which goes with the speed as a share of the rated one, and a drive with more inertia per torque
+        needs the book's times stretched as its scenario is (saturated-ipm: 3000 r/min rated, 0.4 s: the
+        speeds 1500 down to 6 r/min, the book's times)."""
+        speed = spec.ratings["rated_speed_rpm"] / BOOK_SWEEP_RATED_SPEED_RPM
+        time = spec.scenario["duration_s"] / BOOK_SWEEP_SCENARIO_S
+        book = cls()
+        return cls(
+            speeds_rpm=tuple(speed * s for s in book.speeds_rpm),
+            start_rpm=speed * book.start_rpm,
+            load_nm=load_nm,
+            load_time_s=time * book.load_time_s,
+            ramp_start_s=time * book.ramp_start_s,
+            ramp_end_s=time * book.ramp_end_s,
+            judge_from_s=time * book.judge_from_s,
+            duration_s=time * book.duration_s,
+        )
+
 
 def observer_drive(
     name: str, motor: PMSMParameters | None = None, bridge: str = "averaged", startup: bool = True
@@ -86,10 +119,49 @@ def observer_drive(
     return drive
 
 
-def low_speed_sweep(drive: Drive, sweep: LowSpeedSweep = LowSpeedSweep(), r_factor: float = 1.0) -> dict:
+def map_observer_drive(spec, name: str, bridge: str = "averaged", observer_model: str = "map") -> Drive:
+    """The FOC drive of the drive file ``spec`` ([`pmsmjax.assemble.assemble`][pmsmjax.assemble.assemble]: on
+    a flux map, the map's plant, current loop and field weakening) sensorless on observer ``name`` with the
+    file's I/f start; the observer reads the map (``observer_model="map"``,
+    [`pmsmjax.assemble.map_aware`][pmsmjax.assemble.map_aware]) or keeps the file's constant ``L_d``,
+    ``L_q``, ``psi_f`` (``"constant"``); on ``bridge`` (the switching one as in the control comparison,
+    [`pmsmjax.jobs.control_comparison.compared_drive`][pmsmjax.jobs.control_comparison.compared_drive])."""
+    from pmsmjax.assemble import assemble
+
+    drive = assemble(spec, "pi", estimator=name, observer_model=observer_model)
+    if bridge == "switching":
+        drive = with_parts(drive, {"bridge": SwitchingBridge(drive.bridge.u_dc)})
+    return drive
+
+
+def handover_settled_s(drive: Drive) -> float:
+    """When the angle error of ``drive``'s I/f start is judged from, s: the end of its hand-over (the I/f
+    ramp at ``handover_speed + blend_speed``) plus the margin the book drive has between its own hand-over
+    end and
+    [`pmsmjax.analysis.observer_errors.CONVERGED_AFTER_S`][pmsmjax.analysis.observer_errors.CONVERGED_AFTER_S]
+    (50 ms - 26.2 ms). Why: a drive file's start-up may last longer than the book's (saturated-ipm: 68 ms of
+    ramp and blend, so 91.8 ms), and the figures after convergence would count the blend itself."""
+    from pmsmjax.analysis.observer_errors import CONVERGED_AFTER_S
+    from pmsmjax.assemble import STARTUP_DEFAULTS
+
+    end = lambda accel, handover, blend: (handover + blend) / accel
+    book = STARTUP_DEFAULTS
+    margin = CONVERGED_AFTER_S - end(book["accel"], book["handover_speed"], book["blend_speed"])
+    e = drive.estimator
+    return float(end(e.accel, e.handover_speed, e.blend_speed)) + margin
+
+
+def low_speed_sweep(
+    drive: Drive,
+    sweep: LowSpeedSweep = LowSpeedSweep(),
+    r_factor: float = 1.0,
+    converged_after_s: float | None = None,
+) -> dict:
     """Run ``drive`` (its plant's R times ``r_factor``) through every speed of ``sweep`` (one batched
     simulation); returns ``{"runs": [{speed_rpm, held, ...}], "lowest_held_rpm"}``: the lowest swept
-    speed such that it and every higher swept speed were held (None if the highest was not)."""
+    speed such that it and every higher swept speed were held (None if the highest was not).
+    ``converged_after_s``: lock is judged from this time, s (None: the book's
+    [`pmsmjax.analysis.observer_errors.CONVERGED_AFTER_S`][pmsmjax.analysis.observer_errors.CONVERGED_AFTER_S])."""
     from pmsmjax.scenarios import stack_scenarios
 
     if r_factor != 1.0:
@@ -102,7 +174,8 @@ def low_speed_sweep(drive: Drive, sweep: LowSpeedSweep = LowSpeedSweep(), r_fact
     runs, lowest = [], None
     for i, speed in enumerate(sweep.speeds_rpm):
         trace = jax.tree.map(lambda x, i=i: np.asarray(x[i]), traces)
-        run = {"speed_rpm": float(speed), **speed_held(trace, drive.Ts, sweep.judge_from_s)}
+        settled = {} if converged_after_s is None else {"converged_after_s": converged_after_s}
+        run = {"speed_rpm": float(speed), **speed_held(trace, drive.Ts, sweep.judge_from_s, **settled)}
         runs.append(run)
     for run in runs:  # highest first: stop at the first speed not held
         if not run["held"]:
@@ -249,6 +322,8 @@ def compare_estimators(
     progress=None,
     scenario: str = "book",
     initial_angle_deg: float | None = None,
+    spec=None,
+    observer_model: str = "map",
 ) -> dict:
     """Run the book FOC drive sensorless with each named estimator through ``scenario``
     ([`ESTIMATOR_SCENARIOS`][pmsmjax.jobs.estimator_comparison.ESTIMATOR_SCENARIOS]; refused where it makes no
@@ -274,6 +349,14 @@ def compare_estimators(
     [`compare_controllers`][pmsmjax.jobs.control_comparison.compare_controllers] (``windows`` None off the
     book scenario). ``settings`` None: the default
     [`ControllerCompareSettings`][pmsmjax.jobs.control_comparison.ControllerCompareSettings].
+
+    ``spec``: a drive file ([`pmsmjax.spec.drive_spec.DriveSpec`][pmsmjax.spec.drive_spec.DriveSpec]) whose
+    own drive runs each chapter 5 observer instead of the book drive
+    ([`map_observer_drive`][pmsmjax.jobs.estimator_comparison.map_observer_drive] with ``observer_model``;
+    ``motor`` is then unused); the chapter 6 estimators are refused there (their comparison runs its own
+    salient motor). The result's settings then name the drive, the observer model and the time the figures
+    after convergence start from
+    ([`handover_settled_s`][pmsmjax.jobs.estimator_comparison.handover_settled_s] of the file's I/f start).
     """
     settings = ControllerCompareSettings() if settings is None else settings
     settings.check()
@@ -282,8 +365,17 @@ def compare_estimators(
     chapter6 = any(f != "ch5" for f in families.values())
     if initial_angle_deg is None:
         initial_angle_deg = CHAPTER6_INITIAL_ANGLE_DEG if chapter6 else 0.0
-    build = chapter6_drive if chapter6 else observer_drive
-    drives = {name: build(name, motor, settings.bridge) for name in names}
+    if spec is not None:
+        if chapter6:
+            raise ParameterError(
+                f"{', '.join(n for n in names if families[n] != 'ch5')}: the chapter 6 comparison runs "
+                "the salient book motor with its d-axis saturation, not a drive file's drive: compare the "
+                "chapter 5 observers on the file, or these without it."
+            )
+        drives = {name: map_observer_drive(spec, name, settings.bridge, observer_model) for name in names}
+    else:
+        build = chapter6_drive if chapter6 else observer_drive
+        drives = {name: build(name, motor, settings.bridge) for name in names}
     if scenario == "book":
         for drive in drives.values():
             window_periods(drive, settings)
@@ -294,6 +386,13 @@ def compare_estimators(
     result["settings"]["sweep"] = None if sweep is None or fixed is not None else dataclasses.asdict(sweep)
     result["settings"]["scenario"] = scenario
     result["settings"]["initial_angle_deg"] = initial_angle_deg
+    # the book comparison's settings stay as they were; a drive file's I/f start has its own duration
+    settled = {}
+    if spec is not None:
+        result["settings"]["drive"] = spec.source
+        result["settings"]["observer_model"] = observer_model if spec.flux_map is not None else None
+        settled = {"converged_after_s": handover_settled_s(next(iter(drives.values())))}
+        result["settings"].update(settled)
     for name, drive in drives.items():
         start = drive.init(theta_e=math.radians(initial_angle_deg))
         if fixed is None:
@@ -302,15 +401,17 @@ def compare_estimators(
             run = run_estimator_scenario(drive, fixed, start)
         modulo_pi = families[name] == "injection"
         # off the book scenario the speed reference is (near) zero: lock is judged on the angle alone
-        errors = observer_errors(run["trace"], drive.Ts, modulo_pi=modulo_pi, speed_lock=fixed is None)
+        errors = observer_errors(
+            run["trace"], drive.Ts, modulo_pi=modulo_pi, speed_lock=fixed is None, **settled
+        )
         run["entry"].update(errors)
         run["entry"]["observer"] = name
         if sweep is not None and fixed is None:
-            swept = low_speed_sweep(drive, sweep)
+            swept = low_speed_sweep(drive, sweep, **settled)
             run["entry"]["lowest_held_rpm"] = swept["lowest_held_rpm"]
             run["entry"]["low_speed_runs"] = swept["runs"]
             if sweep.hot_r_factor is not None:
-                hot = low_speed_sweep(drive, sweep, sweep.hot_r_factor)
+                hot = low_speed_sweep(drive, sweep, sweep.hot_r_factor, **settled)
                 run["entry"]["lowest_held_rpm_hot_r"] = hot["lowest_held_rpm"]
                 run["entry"]["low_speed_runs_hot_r"] = hot["runs"]
         result["controllers"][name] = run["entry"]

@@ -74,7 +74,7 @@ from tuning.autotune.objectives import (
     scaled_plant,
     scenario_cost,
 )
-from tuning.autotune.observers import OBSERVER_CONFIG, observer_drive, observer_tuning
+from tuning.autotune.observers import OBSERVER_CONFIG, observer_drive, observer_tuning, tuned_names
 from tuning.autotune.scenario_batches import ScenarioBatch
 from tuning.autotune.tuner import TuneConfig, tune
 from tuning.parameters import apply_gains, get_leaf, write_gains_toml
@@ -263,8 +263,6 @@ def run_tune_job(
     weights = margin_weights(
         weights, spec, control, machine, estimator, min_phase_margin_deg, max_sensitivity_peak
     )
-    if config.names is None:
-        config = dataclasses.replace(config, names=tuning.names + speed_filter_names(spec, estimator))
     batch_maker = batches.make
     duration_s = batches.duration_s if duration_s is None else duration_s
     batch_options = dict(duration_s=duration_s, kinds=kinds)
@@ -284,6 +282,9 @@ def run_tune_job(
     out.mkdir(parents=True, exist_ok=True)
     surrogate = build(tune_substeps, tuning.surrogate)
     exact = build(eval_substeps, {})
+    if config.names is None:  # an observer's paths in its drive (a map-aware wrapper puts it lower)
+        own = tuning.names if estimator is None else tuned_names(estimator, surrogate)
+        config = dataclasses.replace(config, names=own + speed_filter_names(spec, estimator))
     if start_gains is not None:
         surrogate, exact = apply_gains(surrogate, start_gains), apply_gains(exact, start_gains)
 

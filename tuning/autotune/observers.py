@@ -18,6 +18,15 @@ ekf            ``q[0..3]`` (A^2, A^2, (rad/s)^2, rad^2), ``r[0..1]`` (A^2): the 
 
 (``P0`` is not tuned: the filter converges during the sensored warm-up, so it hardly enters the cost.)
 
+On a drive file with a flux map the tuned observer is the map-aware one the I/f-start drives run
+([`pmsmjax.assemble.map_aware`][pmsmjax.assemble.map_aware]): ``flux-observer`` reads the map itself and
+keeps its paths; a back-EMF observer or the EKF sits inside the map's angle correction
+([`MapAngleCorrected`][pmsmjax.estimators.map_angle_corrected.MapAngleCorrected]), one level down, so its
+gains are ``estimator.observer.observer.<gain>``
+([`tuned_names`][tuning.autotune.observers.tuned_names]), the same paths as in ``demo --motor FILE
+--estimator NAME`` (the correction under the I/f start). The gradient then runs through the map's bicubic
+interpolant (the correction angle at the operating current; the flux observer's current-flux relation).
+
 Smooth surrogate: the SMOs' switching function is the sigmoid, which is their default as well (the
 ``sign`` function chatters at 10 kHz and has no useful derivative), so the tuned
 and the evaluated observer are the same and ``surrogate`` is empty (a ``{"switching": ...}`` there would
@@ -55,7 +64,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from pmsmjax import Profile, Scenario, presets, stack_scenarios
-from pmsmjax.assemble import spec_drive, spec_motor
+from pmsmjax.assemble import spec_drive, spec_motor, with_map_aware_estimator
 from pmsmjax.estimators.registry import check_observer_name
 from pmsmjax.estimators.sensored_warmup import SensoredWarmup
 from pmsmjax.io.drive_files import drive_spec
@@ -160,6 +169,21 @@ def observer_tuning(name: str) -> ObserverTuning:
     return TUNABLE_OBSERVERS[name]
 
 
+def tuned_names(name: str, drive) -> tuple[str, ...]:
+    """The default tuned parameters of observer ``name`` (``observer_tuning(name).names``) as paths of
+    ``drive`` (an [`observer_drive`][tuning.autotune.observers.observer_drive]): one level further down,
+    ``estimator.observer.observer.<gain>``, when the observer sits inside a map-aware wrapper
+    ([`AbstractMapAwareObserver`][pmsmjax.estimators.map_scheduled.AbstractMapAwareObserver], the flux
+    map's angle correction)."""
+    from pmsmjax.estimators.map_scheduled import AbstractMapAwareObserver
+
+    names = observer_tuning(name).names
+    if not isinstance(drive.estimator.observer, AbstractMapAwareObserver):
+        return names
+    head = "estimator.observer."
+    return tuple(head + "observer." + n[len(head) :] for n in names)
+
+
 def observer_drive(
     name: str,
     *,
@@ -168,6 +192,7 @@ def observer_drive(
     warmup_s: float = WARMUP_S,
     noise: bool = True,
     observer_options=None,
+    observer_model: str = "map",
     **kw,
 ):
     """The FOC drive of the drive file ``spec`` (default the book drive;
@@ -176,20 +201,27 @@ def observer_drive(
     the measurement noise ``NOISE_CURRENT_A``, ``NOISE_VOLTAGE_V`` (scaled to the drive's current limit
     and DC link, [`tuning.autotune.drive_scaling.noise_scale`][tuning.autotune.drive_scaling.noise_scale]) on
     the observer's samples unless ``noise=False``; ``kw`` are preset options of the FOC drive (``n_substeps``,
-    ...)."""
+    ...). On a file with a flux map a chapter 5 observer reads the map (``observer_model="map"``,
+    [`pmsmjax.assemble.with_map_aware_estimator`][pmsmjax.assemble.with_map_aware_estimator]; its gains'
+    paths: [`tuned_names`][tuning.autotune.observers.tuned_names]) or keeps the file's constant ``L_d``,
+    ``L_q``, ``psi_f`` (``"constant"``)."""
     spec = drive_spec("book") if spec is None else spec
+    if observer_model not in ("map", "constant"):
+        raise ParameterError(f"observer_model must be 'map' or 'constant', got {observer_model!r}.")
     if observer_tuning(name).chapter6:
         drive = injection_sensorless_drive(name, observer_options, spec, n_substeps=n_substeps, **kw)
     else:
         foc = spec_drive(spec, "pi", n_substeps=n_substeps, **kw)
         drive = presets.with_observer(foc, name, spec_motor(spec), observer_options, startup=False)
+        if spec.flux_map is not None and observer_model == "map":
+            drive = with_map_aware_estimator(spec, drive)
     i_scale, u_scale = noise_scale(spec)
     levels = (NOISE_CURRENT_A * i_scale, NOISE_VOLTAGE_V * u_scale) if noise else (0.0, 0.0)
     drive = set_leaves(drive, ["estimator"], [SensoredWarmup(drive.estimator, warmup_s, *levels)])
     # A gain stored as a Python float (the SMO's speed_bandwidth) is not an array leaf: make the tunable
     # ones arrays so they can be named, differentiated and vmapped.
     dtype = drive.machine.motor.R.dtype
-    names = [n for n in observer_tuning(name).names if not isinstance(get_leaf(drive, n), jnp.ndarray)]
+    names = [n for n in tuned_names(name, drive) if not isinstance(get_leaf(drive, n), jnp.ndarray)]
     return set_leaves(drive, names, [jnp.asarray(get_leaf(drive, n), dtype) for n in names])
 
 

@@ -152,6 +152,18 @@ def _nan_report(drive, batch, weights) -> str:
     )
 
 
+def finite_square(grad):
+    """``grad`` scaled down, direction kept, where its largest entry's square would overflow (beyond
+    ``sqrt(max float) / 1e3``, 1.8e16 in float32); unchanged otherwise (bit for bit). Why: Adam keeps the
+    running mean of ``grad**2``, and one infinite entry stays infinite through its decay, so that
+    coordinate's step is zero from then on and tuning stops without a word. Such gradients come from a
+    batch with scenarios that lose the angle (an observer on a saturated machine: 1e27 measured), whose
+    loss is chaotic in the gains; the scaled one gives Adam a sign to follow."""
+    big = jnp.max(jnp.abs(grad))
+    limit = jnp.sqrt(jnp.finfo(grad.dtype).max) * 1e-3
+    return jnp.where(big > limit, grad * (limit / jnp.where(big > limit, big, 1.0)), grad)
+
+
 def _evaluate(theta, drive, batch, follow: ObjectiveWeights, param: LogParameterisation):
     """``(exact cost, followed cost, gradient of the followed cost)`` of the batch at ``theta``."""
     f = lambda th: smoothed_batch_cost(param.apply(drive, th), batch, follow)
@@ -217,7 +229,7 @@ def tune(
     # BFGS iteration against 0.35 s on the 64-scenario problem).
     @eqx.filter_jit
     def update(theta, grad, opt_state):
-        updates, opt_state = optimiser.update(grad, opt_state, theta)
+        updates, opt_state = optimiser.update(finite_square(grad), opt_state, theta)
         return param.project(optax.apply_updates(theta, updates)), opt_state
 
     def next_point(theta, followed, grad, opt_state):
