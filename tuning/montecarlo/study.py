@@ -373,7 +373,7 @@ def build_drive(study: Study) -> Drive:
     """The nominal drive of ``study``: the drive file's drive
     ([`pmsmjax.assemble.spec_drive`][pmsmjax.assemble.spec_drive]) with the study's bandwidths and sub-steps,
     tuned gains if given, and the observer with the file's I/f start for a sensorless study."""
-    from pmsmjax.assemble import spec_drive, startup_options
+    from pmsmjax.assemble import spec_drive, startup_options, with_map_aware_estimator
 
     spec = study.spec
     options = dict(
@@ -399,6 +399,8 @@ def build_drive(study: Study) -> Drive:
         drive = presets.with_observer(
             drive, study.estimator, drive.machine.motor, startup=True, startup_options=startup_options(spec)
         )
+        if spec.flux_map is not None:  # the observer reads the file's map, as demo and compare run it
+            drive = with_map_aware_estimator(spec, drive)
     return drive
 
 
