@@ -81,6 +81,12 @@ def add_parser(sub):
         action="store_true",
         help="hfi-rotating: report the angle in [-pi, pi) and score it modulo 2 pi (default: modulo pi)",
     )
+    p.add_argument(
+        "--observer-model",
+        choices=("map", "constant"),
+        help="on a drive file with a flux map: the observer reads the map at the operating current (map, the "
+        "default there) or the file's constant L_d, L_q, psi_f (constant)",
+    )
     p.add_argument("--no-figures", action="store_true", help="do not write observe.png")
     memory.add_memory_flag(p)
     p.set_defaults(func=run)
@@ -122,6 +128,11 @@ def run(args) -> int:
     if args.polarity_known:
         given.append("--polarity-known")
     check_observer(args.observer, given)
+    if args.observer_model is not None and drive.flux_map is None:
+        raise ParameterError(
+            f"--observer-model applies to a drive file with a flux map ([motor] flux_map); {args.motor} has "
+            "none: drop it."
+        )
     out = check_output_folder(args.out)
     if args.settle_s < 0:
         raise ParameterError(f"--settle-s must be >= 0 s, got {args.settle_s}.")
@@ -149,6 +160,7 @@ def run(args) -> int:
         hf_voltage=args.hf_voltage,
         hf_frequency=args.hf_frequency,
         polarity_known=args.polarity_known,
+        observer_model=args.observer_model,
     )
     result = run_observer(spec, log)
     written = _write(result, out, figure_title=None if args.no_figures else f"{args.observer} on {args.log}")

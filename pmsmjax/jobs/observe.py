@@ -15,7 +15,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from pmsmjax.analysis.observer_errors import error_statistics
-from pmsmjax.assemble import spec_motor
+from pmsmjax.assemble import map_aware, spec_motor
 from pmsmjax.estimators.registry import INJECTION_OBSERVERS, check_observer_name, make_observer
 from pmsmjax.frames.three_phase import wrap_angle
 from pmsmjax.io.drive_files import DriveSpec
@@ -52,7 +52,10 @@ class ObserveSpec:
     as given, `log`: the log's path, both for the summary), its design-rule `options` overridden as given,
     the errors scored against `truth` (``theta_e``, ``omega_m``) after `settle_s` s. Injection only: the
     log's carrier `hf_voltage` (V) and `hf_frequency` (Hz), None for the design rule's; `polarity_known`
-    scores the angle modulo 2 pi instead of pi."""
+    scores the angle modulo 2 pi instead of pi. `observer_model`: on a drive file with a flux map,
+    ``"map"`` (None: the default there) has the observer read the map
+    ([`map_aware`][pmsmjax.assemble.map_aware]), as `demo` runs it; ``"constant"`` keeps the file's
+    constant ``L_d``, ``L_q``, ``psi_f``."""
 
     observer: str
     drive: DriveSpec
@@ -64,6 +67,7 @@ class ObserveSpec:
     hf_voltage: float | None = None
     hf_frequency: float | None = None
     polarity_known: bool = False
+    observer_model: str | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -97,6 +101,9 @@ def run_observer(spec: ObserveSpec, log) -> ObserveResult:
         if spec.hf_frequency is not None:
             options["hf_frequency"] = spec.hf_frequency
     observer = make_observer(spec.observer, motor, log.Ts, **options)
+    on_map = spec.drive.flux_map is not None and (spec.observer_model or "map") == "map"
+    if on_map:
+        observer = map_aware(observer, spec.drive)
 
     t0 = time.perf_counter()
     est = observe(observer, log.u_ab, log.i_ab, log.Ts)
@@ -125,6 +132,7 @@ def run_observer(spec: ObserveSpec, log) -> ObserveResult:
         "notes": list(log.notes),
         "wall_time_s": wall,
         "angle_modulo_pi": bool(modulo_pi),
+        "observer_model": "map" if on_map else "constant",
     }
     report = ()
     if spec.truth:

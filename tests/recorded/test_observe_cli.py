@@ -167,3 +167,33 @@ def test_bad_logs_are_refused_and_nothing_is_written(case, tmp_path, capsys):
     assert __import__("re").search(message, err), err
     assert (out / "estimate.csv").read_text() == "previous run\n"
     assert sorted(p.name for p in out.iterdir()) == ["estimate.csv"]
+
+
+def test_a_flux_map_drive_file_runs_the_map_aware_observer(tmp_path):
+    """A log of the sensored saturated-ipm map drive (its own plant, 0.5 % noise): ``observe --motor
+    saturated-ipm`` runs the observer on the file's map, as demo does, and holds the angle; with
+    ``--observer-model constant`` the file's constant model leaves the map's steady angle error."""
+    from pmsmjax.assemble import spec_drive
+    from pmsmjax.io.drive_files import drive_spec
+
+    drive = spec_drive(drive_spec("saturated-ipm"), "pi")
+    columns = drive_log(
+        drive, speed_scenario(2000.0, duration_s=0.3, load_nm=5.0, load_time_s=0.15), noise=0.005
+    )
+    path = write_log(tmp_path / "map_log.csv", columns)
+    errors = {}
+    for model in ("map", "constant"):
+        argv = ["observe", path, "--motor", "saturated-ipm", "--observer", "flux-observer",
+                "--observer-model", model, "--truth-columns", "theta_e,omega_m", "--settle-s", "0.1",
+                "--no-figures", "--out", str(tmp_path / model)]  # fmt: skip
+        assert main(argv) == 0
+        summary = json.loads((tmp_path / model / "observe.json").read_text())
+        assert summary["observer_model"] == model
+        errors[model] = summary["errors"]["angle_rms_deg"]
+    assert errors["map"] < 1.0 < 5.0 < errors["constant"], errors
+
+
+def test_observer_model_needs_a_flux_map(tmp_path, capsys):
+    path = write_log(tmp_path / "log.csv", log_columns())
+    assert observe(tmp_path, path, "--observer-model", "map") == 2
+    assert "--observer-model applies to a drive file with a flux map" in capsys.readouterr().err
