@@ -9,6 +9,7 @@
   them to flux_map.json and a motor.toml that passes the drive file's checks;
 - on the saturated IPM's walk (a map not of the model's form) the fit runs and its error is several times
   the grid fit's;
+- a pure reluctance machine's log (no magnet) gives the model without one;
 - the flags are refused in one line where they do not belong.
 """
 
@@ -79,6 +80,23 @@ def test_staircase_recovers_the_coefficients_within_their_intervals(tmp_path, ca
     truth = lambda d, q: syrm_flux(SYRM, d, q)[0]  # noqa: E731
     error = _visited_error(read_flux_map(out / "flux_map.csv"), log.i_dq, truth)
     assert error < 0.0004  # measured 0.020 %, the grid fit's 0.078 %
+
+
+@pytest.mark.slow  # 40 s: the staircase, the grid fit, four model fits
+def test_a_pure_reluctance_machine_is_fitted_without_a_magnet():
+    from tuning.identify.flux_model_fit import fit_power_law_flux_map
+
+    machine = dict(SYRM, psi_pm=0.0)
+    log = drive_log_from_columns(syrm_staircase_log(machine, seed=1), SYRM["pole_pairs"], hold="stator")
+    fit = fit_power_law_flux_map(log, SYRM["pole_pairs"], R=SYRM["R"])
+    assert fit.magnet == "none"  # the better magnet form's interval covered zero
+    assert fit.model.psi_f == 0.0 and fit.model.i_f == 0.0
+    for name, value in TRUTH.items():
+        if name != "psi_f":
+            lo, hi = fit.parameters[name]["ci95"]
+            assert lo <= value <= hi, name
+    truth = lambda d, q: syrm_flux(machine, d, q)[0]  # noqa: E731
+    assert _visited_error(fit.map.grid, log.i_dq, truth) < 0.0004  # measured 0.020 % (grid fit 0.078 %)
 
 
 @pytest.mark.slow  # 30 s: the grid fit and two model fits
