@@ -135,8 +135,9 @@ class FluxModelFit:
       model sampled over the gridded fit's grid, `SAMPLING_REFINEMENT` times finer (a node measured where
       its nearest grid node is), the model fit's R, inverter error and window residual;
     - `model`: the [`PowerLawSaturation`][pmsmjax.machines.syrm_saturation.PowerLawSaturation];
-    - `parameters`: ``{name: {"value", "stderr", "ci95", "unit", "fitted_as"}}`` of every fitted
-      parameter (``stderr`` of the logarithm for ``fitted_as = "log"``, relative; else in the unit);
+    - `parameters`: ``{name: {"value", "stderr", "ci95", "unit", "fitted_as", "bias_removed"}}`` of every
+      fitted parameter (``stderr`` of the logarithm for ``fitted_as = "log"``, relative; else in the unit) and
+      ``"bias_removed"``, what the noisy-current extrapolation changed (relative for a logarithm);
     - `magnet`: ``"flux"`` (``psi_f``), ``"mmf"`` (``i_f``) or ``"none"``; `exponents`: ``"paper"`` or
       ``"fitted"``;
     - `grid_fit`: the gridded fit of the same log (the start; its residual is the comparison);
