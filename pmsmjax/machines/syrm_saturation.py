@@ -13,8 +13,11 @@ model is reciprocal). The paper writes it in the reluctance machine's convention
 project's convention puts the magnet on the d axis and the high-permeance path on q, so here ``x = q`` and
 ``y = d``; the magnets sit in the flux barriers, an MMF in series with the d-axis current (a constant
 current source ``i_f`` on d: ``i_d = i_y(psi) - i_f``, the PM-assisted machine: ``psi_d(0, 0) > 0``, a
-small magnet flux against the large q inductance). The flux map is the inverse, ``psi(i)``, found by
-Newton's method at every grid point (the current map is the gradient of a strictly convex co-energy, so the
+small magnet flux against the large q inductance). A magnet modelled instead as a flux ``psi_f`` in
+series with the iron (``y = psi_d - psi_f``, the flux at zero current exactly ``psi_f``) is the other
+common PM-assisted form (``tuning/identify/reluctance_reference_log.py`` makes its logs with it); both
+default to zero, the pure reluctance machine. The flux map is the inverse, ``psi(i)``, found by Newton's
+method at every grid point (the current map is the gradient of a strictly convex co-energy, so the
 inverse is unique).
 """
 
@@ -30,7 +33,8 @@ __all__ = ["PowerLawSaturation", "sample_flux_map"]
 @dataclasses.dataclass(frozen=True)
 class PowerLawSaturation:
     """Coefficients of the power-law model (module docstring); ``x``: high-permeance axis (this project's
-    q), ``y``: flux-barrier axis (d). Inverse inductances in 1/H, exponents dimensionless, ``i_f`` in A.
+    q), ``y``: flux-barrier axis (d). Inverse inductances in 1/H, exponents dimensionless, ``i_f`` in A (the
+    magnets' MMF), ``psi_f`` in Wb (the magnets as a flux in series; module docstring).
 
     Defaults: the 6.7 kW reluctance machine's fit published with the model (Hinkkanen et al. 2017:
     ``a_d0 = 17.4``, ``a_dd = 373``, ``S = 5``, ``a_q0 = 52.1``, ``a_qq = 658``, ``T = 1``, ``a_dq = 1120``,
@@ -47,18 +51,20 @@ class PowerLawSaturation:
     U: float = 1.0
     V: float = 0.0
     i_f: float = 0.0
+    psi_f: float = 0.0
 
     def current(self, psi_d, psi_q) -> tuple[np.ndarray, np.ndarray]:
         """``(i_d, i_q)`` A at the flux ``(psi_d, psi_q)`` Wb (arrays broadcast)."""
-        x, y = np.abs(psi_q), np.abs(psi_d)
+        y_signed = np.asarray(psi_d) - self.psi_f
+        x, y = np.abs(psi_q), np.abs(y_signed)
         g_x = self.a_x0 + self.a_xx * x**self.S + self.a_xy / (self.V + 2) * x**self.U * y ** (self.V + 2)
         g_y = self.a_y0 + self.a_yy * y**self.T + self.a_xy / (self.U + 2) * x ** (self.U + 2) * y**self.V
-        return g_y * psi_d - self.i_f, g_x * psi_q
+        return g_y * y_signed - self.i_f, g_x * psi_q
 
     def flux(self, i_d: float, i_q: float, iterations: int = 60) -> np.ndarray:
         """``(2,)`` Wb: the flux whose current is ``(i_d, i_q)`` A (Newton, central-difference Jacobian)."""
         target = np.array([i_d, i_q], dtype=float)
-        psi = target / np.array([self.a_y0, self.a_x0]) + np.array([self.i_f / self.a_y0, 0.0])
+        psi = target / np.array([self.a_y0, self.a_x0]) + np.array([self.i_f / self.a_y0 + self.psi_f, 0.0])
         h = 1e-7
         for _ in range(iterations):
             r = np.array(self.current(*psi)) - target

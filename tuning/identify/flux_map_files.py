@@ -1,7 +1,8 @@
 """The files of ``pmsmjax identify --flux-map``: read the log, fit
 ([`tuning.identify.flux_map_fit`][tuning.identify.flux_map_fit]), write ``DIR/flux_map.csv`` (the map with its
 ``measured`` marks, [`pmsmjax.io.flux_map_files`][pmsmjax.io.flux_map_files]), ``DIR/flux_map.json`` (R, the
-inverter voltage error and its sign width, the residual, the marks' count) and ``DIR/motor.toml``, a drive
+inverter voltage error and its sign width, the residual, the marks' count; with ``--flux-model power-law``
+the fitted model's parameters and intervals) and ``DIR/motor.toml``, a drive
 file whose ``[motor] flux_map`` is the identified map ([`pmsmjax.io.drive_files`][pmsmjax.io.drive_files]).
 
 A constant-speed walk does not determine J and B: ``motor.toml`` takes them from ``--fix J=... B=...`` or
@@ -10,6 +11,7 @@ is not written and [`flux_map_motor_missing`][tuning.identify.flux_map_files.flu
 what is missing.
 """
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -21,6 +23,7 @@ from pmsmjax.io.logs import atomic_write, check_output_folder
 from pmsmjax.spec.plausibility import MAX_RESISTANCE_OHM
 from pmsmjax.spec.validation import ParameterError, plain
 from tuning.identify.flux_map_fit import FluxMapFit, fit_flux_map
+from tuning.identify.flux_model_fit import FluxModelFit, fit_power_law_flux_map
 from tuning.identify.log import load_drive_log
 from tuning.identify.motor_file import prior_stated_tables
 
@@ -42,26 +45,45 @@ def identify_flux_map_file(
     inverter_error: bool,
     step_a=None,
     q_symmetric: bool = True,
+    flux_model: str = "grid",
+    exponents: str = "paper",
     **log_options,
 ) -> FluxMapFit:
     """Read ``log_path`` (``log_options``: columns, units, hold, u_dc, resample as
     [`tuning.identify.log.load_drive_log`][tuning.identify.log.load_drive_log]), fit, write ``flux_map.csv``
     and ``flux_map.json`` to ``out_dir``. `fixed`: ``{"R": ohm}`` or empty; `q_symmetric`: the map symmetric
-    about the d axis ([`fit_flux_map`][tuning.identify.flux_map_fit.fit_flux_map]). Returns the fit."""
+    about the d axis ([`fit_flux_map`][tuning.identify.flux_map_fit.fit_flux_map]); `flux_model`:
+    ``"grid"`` or ``"power-law"`` (the map sampled from the fitted power-law model,
+    [`fit_power_law_flux_map`][tuning.identify.flux_model_fit.fit_power_law_flux_map], with `exponents`
+    ``"paper"`` or ``"fitted"``; ``flux_map.json`` then holds its parameters under ``"flux_model"``).
+    Returns the written map's fit."""
     log = load_drive_log(log_path, pole_pairs, **log_options)
     out = check_output_folder(out_dir)
     check_units(log, pole_pairs, fixed)
-    fit = fit_flux_map(
-        log,
-        pole_pairs,
-        step_a=step_a,
-        R=fixed.get("R"),
-        inverter_error=inverter_error,
-        q_symmetric=q_symmetric,
-    )
+    model = None
+    if flux_model == "power-law":
+        model = fit_power_law_flux_map(
+            log,
+            pole_pairs,
+            step_a=step_a,
+            R=fixed.get("R"),
+            inverter_error=inverter_error,
+            exponents=exponents,
+        )
+        fit = model.map
+    else:
+        fit = fit_flux_map(
+            log,
+            pole_pairs,
+            step_a=step_a,
+            R=fixed.get("R"),
+            inverter_error=inverter_error,
+            q_symmetric=q_symmetric,
+        )
     out.mkdir(parents=True, exist_ok=True)
+    how = "" if model is None else " --flux-model power-law (the fitted model sampled on the grid)"
     header = (
-        f"Identified by pmsmjax identify --flux-map from {log.source}: A, Wb "
+        f"Identified by pmsmjax identify --flux-map{how} from {log.source}: A, Wb "
         "(peak, amplitude-invariant dq).\n"
         "measured = 0: the log did not reach the point; its value continues its neighbours, do not trust it."
     )
@@ -82,8 +104,30 @@ def identify_flux_map_file(
         "windows": fit.n_windows,
         "notes": list(log.notes),
     }
+    if model is not None:
+        summary["flux_model"] = flux_model_summary(model)
     atomic_write(out / "flux_map.json", lambda f: f.write(json.dumps(summary, indent=2).encode()))
     return fit
+
+
+def flux_model_summary(model: FluxModelFit) -> dict:
+    """``flux_map.json``'s ``"flux_model"``: the power-law model's parameters with their 95 % intervals, its
+    form and the gridded fit's residual beside its own."""
+    return {
+        "model": "power-law saturation model, Hinkkanen et al., IEEE Trans. Ind. Appl. 53(3), 2017, "
+        "doi:10.1109/TIA.2016.2644624",
+        "axes": "x = psi_q (high-permeance axis), y = psi_d - psi_f (flux-barrier axis); "
+        "i_q = (a_x0 + a_xx |x|^S + a_xy/(V+2) |x|^U |y|^(V+2)) x, "
+        "i_d = (a_y0 + a_yy |y|^T + a_xy/(U+2) |x|^(U+2) |y|^V) y - i_f",
+        "magnet": model.magnet,
+        "exponents": model.exponents,
+        "parameters": model.parameters,
+        "values": dataclasses.asdict(model.model),
+        "residual_rms_wb": model.residual_rms_wb,
+        "grid_fit_residual_rms_wb": model.grid_fit.residual_rms_wb,
+        "newton_residual_a": model.newton_residual_a,
+        "steps": model.steps,
+    }
 
 
 def check_units(log, pole_pairs: int, fixed: dict) -> None:

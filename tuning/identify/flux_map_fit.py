@@ -318,6 +318,80 @@ def _profiled_smoothing(cost, i_dq) -> float:
     return float(math.exp(best.x))
 
 
+def _checked_speed(log, pole_pairs: int, R) -> tuple[np.ndarray, np.ndarray]:
+    """``(w_e (N,) rad/s, dt (N-1,) s)`` of ``log``, refusing in one line a log that hardly turns, and one
+    that turns one way only when ``R`` (ohm) is not given (module docstring, "Separability")."""
+    where = log.source
+    dt = np.diff(log.time)
+    w_e = pole_pairs * np.asarray(log.omega_m, dtype=float)
+    top = float(np.max(np.abs(w_e)))
+    turning = np.abs(w_e) > MIN_SPEED_SHARE * max(top, 1e-300)
+    if top * float(np.median(dt)) < 1e-6 or turning.mean() < 0.5:
+        raise ParameterError(
+            f"{where}: the rotor hardly turns (top speed {plain(top / pole_pairs)} rad/s mechanical, "
+            f"turning in "
+            f"{100 * turning.mean():.0f} % of the log): a flux map is seen through the back-EMF w_e psi, "
+            "record the map at speed (a dynamometer holding e.g. a third of the rated speed)."
+        )
+    both_ways = min((w_e > MIN_SPEED_SHARE * top).mean(), (w_e < -MIN_SPEED_SHARE * top).mean()) > 0.1
+    if R is None and not both_ways:
+        raise ParameterError(
+            f"{where}: the rotor turns one way only, so R is not separated from the flux (u = R i + "
+            "w_e J psi "
+            "at steady state): give --fix R=VALUE (ohm, e.g. a DC measurement) or record the walk in both "
+            "directions of rotation."
+        )
+    return w_e, dt
+
+
+@dataclasses.dataclass(frozen=True)
+class WindowEquations:
+    """What the window equations of a log need besides the flux (module docstring): `starts` ``(W,)``,
+    `a`, `b` ``(W,)`` the (averaged) ends of each window, sample indices; `K` samples each end is averaged
+    over; `half` ``(N-1, 1)`` half the interval lengths, s; `U_int`, `I_int` ``(N-K+1, 2)`` running integrals
+    of the held voltage (V s) and of the current (A s), each end-averaged; `cum` maps per-interval values
+    ``(N-1, ...)`` to such end-averaged running sums."""
+
+    starts: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    K: int
+    half: np.ndarray
+    U_int: np.ndarray
+    I_int: np.ndarray
+    cum: object
+
+
+def window_equations(log, w_e, dt, window_s: float, stride: int) -> WindowEquations:
+    """The windows of ``log`` (``window_s`` s long, one every ``stride`` samples, none across a speed
+    reversal) and the integrals their equations need; ``w_e``, ``dt`` as `_checked_speed` gives them."""
+    window = max(2, round(window_s / float(np.median(dt))))
+    jump = np.abs(np.diff(w_e)) > SPEED_JUMP * float(np.max(np.abs(w_e)))  # intervals not to integrate across
+    K = ENDPOINT_SAMPLES
+    starts = np.arange(0, log.n - window - K + 1, stride)
+    jumped = np.concatenate([[0], np.cumsum(jump)])
+    starts = starts[jumped[starts + window + K - 1] == jumped[starts]]
+    if starts.size == 0:
+        raise ParameterError(
+            f"{log.source}: no window of {window_s} s without a speed reversal: record longer."
+        )
+    i_dq = np.asarray(log.i_dq, dtype=float)
+    U = _voltage_integrals(np.asarray(log.u_dq, dtype=float), w_e, dt, log.hold)
+    half = 0.5 * dt[:, None]
+    # per interval: the trapezoid weights of each sample (N-1 intervals -> cumulative sums over windows)
+    cum = lambda x: _ramp_mean(np.concatenate([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)]), K)  # noqa: E731
+    return WindowEquations(
+        starts=starts,
+        a=starts,
+        b=starts + window,
+        K=K,
+        half=half,
+        U_int=cum(U),
+        I_int=cum(half * (i_dq[:-1] + i_dq[1:])),
+        cum=cum,
+    )
+
+
 def fit_flux_map(
     log,
     pole_pairs: int,
@@ -339,25 +413,7 @@ def fit_flux_map(
     ``i_q >= 0`` and mirrored (module docstring; False for a rotor that is not). Raises
     [`ParameterError`][pmsmjax.spec.validation.ParameterError] (one line) for a log it cannot use."""
     where = log.source
-    dt = np.diff(log.time)
-    w_e = pole_pairs * np.asarray(log.omega_m, dtype=float)
-    top = float(np.max(np.abs(w_e)))
-    turning = np.abs(w_e) > MIN_SPEED_SHARE * max(top, 1e-300)
-    if top * float(np.median(dt)) < 1e-6 or turning.mean() < 0.5:
-        raise ParameterError(
-            f"{where}: the rotor hardly turns (top speed {plain(top / pole_pairs)} rad/s mechanical, "
-            f"turning in "
-            f"{100 * turning.mean():.0f} % of the log): a flux map is seen through the back-EMF w_e psi, "
-            "record the map at speed (a dynamometer holding e.g. a third of the rated speed)."
-        )
-    both_ways = min((w_e > MIN_SPEED_SHARE * top).mean(), (w_e < -MIN_SPEED_SHARE * top).mean()) > 0.1
-    if R is None and not both_ways:
-        raise ParameterError(
-            f"{where}: the rotor turns one way only, so R is not separated from the flux (u = R i + "
-            "w_e J psi "
-            "at steady state): give --fix R=VALUE (ohm, e.g. a DC measurement) or record the walk in both "
-            "directions of rotation."
-        )
+    w_e, dt = _checked_speed(log, pole_pairs, R)
     if step_a is not None and not (math.isfinite(step_a) and step_a > 0):
         raise ParameterError(f"--flux-map-step {step_a!r}: give a positive grid step in A, e.g. 2.")
     i_dq = np.asarray(log.i_dq, dtype=float)
@@ -398,26 +454,13 @@ def fit_flux_map(
             "walk "
             "a grid of current operating points, or give a finer --flux-map-step."
         )
-    window = max(2, round(window_s / float(np.median(dt))))
-    jump = np.abs(np.diff(w_e)) > SPEED_JUMP * top  # (N-1,) intervals not to integrate across
-    K = ENDPOINT_SAMPLES
-    starts = np.arange(0, log.n - window - K + 1, stride)
-    jumped = np.concatenate([[0], np.cumsum(jump)])
-    starts = starts[jumped[starts + window + K - 1] == jumped[starts]]
-    if starts.size == 0:
-        raise ParameterError(f"{where}: no window of {window_s} s without a speed reversal: record longer.")
-
+    windows = window_equations(log, w_e, dt, window_s, stride)
+    starts, a, b, K, cum = windows.starts, windows.a, windows.b, windows.K, windows.cum
     with jax.enable_x64(True):
         B = _basis(i_dq, i_d, i_q).reshape(log.n, -1)  # (N, nodes)
-    U = _voltage_integrals(np.asarray(log.u_dq, dtype=float), w_e, dt, log.hold)
-    half = 0.5 * dt[:, None]
-    # per interval: the trapezoid weights of each sample (N-1 intervals -> cumulative sums over windows)
-    cum = lambda x: _ramp_mean(np.concatenate([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)]), K)  # noqa: E731
-    I_int = cum(half * (i_dq[:-1] + i_dq[1:]))  # (N, 2) running integral of i
-    U_int = cum(U)
+    half = windows.half
     Bw = w_e[:, None] * B  # w_e psi weights per sample
     W_int = cum(half * (Bw[:-1] + Bw[1:]))  # (N, nodes) running integral of w_e psi
-    a, b = starts, starts + window
     n_nodes = n_d * n_q
     # rows d: psi_d(b) - psi_d(a) - int w_e psi_q + R int i_d + V_e int e_d = int u_d
     # rows q: psi_q(b) - psi_q(a) + int w_e psi_d + R int i_q + V_e int e_q = int u_q
@@ -433,11 +476,11 @@ def fit_flux_map(
         A = A @ E
     n_unknown_nodes = A.shape[1]
     over_window = lambda x: np.concatenate([x[b, 0] - x[a, 0], x[b, 1] - x[a, 1]])  # noqa: E731
-    rhs = over_window(U_int)
+    rhs = over_window(windows.U_int)
     if R is None:
-        A = np.hstack([A, over_window(I_int)[:, None]])
+        A = np.hstack([A, over_window(windows.I_int)[:, None]])
     else:
-        rhs = rhs - R * over_window(I_int)
+        rhs = rhs - R * over_window(windows.I_int)
     D, centres = _second_differences(n_d, n_q)
     n_columns = A.shape[1] + inverter_error
     prior_nodes = np.zeros((2 * D.shape[0], 2 * n_nodes))
