@@ -430,15 +430,14 @@ def map_aware(estimator, spec):
     angle ([`pmsmjax.estimators.hfi_cross_saturation`][pmsmjax.estimators.hfi_cross_saturation]), a back-EMF
     observer or the EKF keeping its constant model with its angle corrected by the map at the operating
     current ([`pmsmjax.estimators.map_angle_corrected`][pmsmjax.estimators.map_angle_corrected]); the
-    hybrid each of its two so, and handing over to its observer by current at the end of the map's
-    injection region ([`with_current_handover`][pmsmjax.estimators.hybrid.with_current_handover],
-    [`spec_injection_region`][pmsmjax.estimators.injection_region.spec_injection_region]); an I/f start or
-    a polarity detector keeps wrapping it."""
+    hybrid each of its two so (its hand-over by current at the map's injection region is not set here:
+    [`with_current_handover`][pmsmjax.estimators.hybrid.with_current_handover] with
+    [`spec_injection_region`][pmsmjax.estimators.injection_region.spec_injection_region]'s
+    ``max_current_a``); an I/f start or a polarity detector keeps wrapping it."""
     from pmsmjax.estimators.hfi_cross_saturation import cross_saturation_compensated
     from pmsmjax.estimators.hfi_pulsating import HFIPulsating
     from pmsmjax.estimators.hfi_rotating import HFIRotating
-    from pmsmjax.estimators.hybrid import HybridEstimator, with_current_handover
-    from pmsmjax.estimators.injection_region import spec_injection_region
+    from pmsmjax.estimators.hybrid import HybridEstimator
     from pmsmjax.estimators.map_angle_corrected import map_angle_corrected
     from pmsmjax.estimators.polarity import PolarityDetector
     from pmsmjax.estimators.startup import StartupEstimator
@@ -455,8 +454,9 @@ def map_aware(estimator, spec):
         if isinstance(found, (StartupEstimator, PolarityDetector)):
             return with_parts(found, {"observer": aware(found.observer)})
         if isinstance(found, HybridEstimator):
-            both = with_parts(found, {"injection": aware(found.injection), "observer": aware(found.observer)})
-            return with_current_handover(both, spec_injection_region(spec).max_current_a)
+            # no hand-over by current here: measured on saturated-ipm it hands a blind observer the angle
+            # at standstill (docs, chapter 6); with_current_handover sets it where it is wanted
+            return with_parts(found, {"injection": aware(found.injection), "observer": aware(found.observer)})
         if isinstance(found, (HFIRotating, HFIPulsating)):
             return cross_saturation_compensated(found, flux_map)
         if hasattr(found, "with_flux_map"):  # an observer written on the current-flux relation reads the map

@@ -188,13 +188,8 @@ def precheck(args):
             "where the observers may read the map or its constants: drop it."
         )
     if on_map and chapter6:
-        ch6 = ", ".join(n for n in names if n in CHAPTER6_NAMES)
-        raise ParameterError(
-            f"--motor {args.motor} --estimator {ch6}: the chapter 6 comparison runs its own salient motor "
-            "with a d-axis saturation model, which would stand in for this file's flux map; compare the "
-            "chapter 5 observers and flux-observer on the map, or these on --motor book_salient."
-        )
-    if chapter6 and not motor["L_q"] > motor["L_d"]:
+        _check_injection_region(args, spec, names)
+    if chapter6 and not on_map and not motor["L_q"] > motor["L_d"]:
         raise ParameterError(
             f"--motor {args.motor}: L_q = {plain(motor['L_q'])} H is not above L_d = "
             f"{plain(motor['L_d'])} H; HF injection needs a salient machine: give --motor book_salient or "
@@ -203,6 +198,21 @@ def precheck(args):
     if not fixed:
         compare_job.check_operating_point(spec, args.speed_rpm, args.load_nm, drive_flags.U_DC_KNOB)
     return names, spec
+
+
+def _check_injection_region(args, spec, names) -> None:
+    """On a drive file with a flux map: refuse a map without an injection region, and a load beyond it for
+    HF injection alone (the hybrid hands over to its observer there), in one line naming where the load
+    came from (``--load-nm`` or the file's ``[scenario] load_nm``)
+    ([`pmsmjax.estimators.injection_region`][pmsmjax.estimators.injection_region]; NumPy, though the module
+    brings JAX in)."""
+    from pmsmjax.estimators.injection_region import check_injection_load, spec_injection_region
+
+    region = spec_injection_region(spec)
+    flag = drive_flags.scenario_name(args, "load_nm")
+    for name in names:
+        if name.startswith("hfi-"):
+            check_injection_load(region, args.load_nm, flag, name)
 
 
 #: The chapter 6 estimators ``compare --estimator`` takes (the keys of

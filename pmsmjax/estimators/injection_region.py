@@ -231,6 +231,7 @@ def spec_injection_region(spec, **options) -> InjectionRegion:
         )
     except ParameterError as error:
         raise ParameterError(f"{spec.source}: {error}") from None
+    region = dataclasses.replace(region, source=spec.source)  # messages name the drive file
     if region.max_i_q_a <= 0.0:
         raise ParameterError(
             f"{spec.source}: HF injection has no region on this flux map ({_WHY[region.limited_by]} from the "

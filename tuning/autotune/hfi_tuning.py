@@ -105,8 +105,7 @@ def injection_sensorless_drive(
     On a drive file with a flux map the plant is the map's (as every command runs the file), the injection
     is designed on the map's incremental inductances at no load
     ([`map_injection_design`][pmsmjax.assemble.map_injection_design]) and runs map-aware
-    ([`pmsmjax.assemble.map_aware`][pmsmjax.assemble.map_aware]: the cross-saturation angle taken out; the
-    hybrid's hand-over by current at the map's injection region)."""
+    ([`pmsmjax.assemble.map_aware`][pmsmjax.assemble.map_aware]: the cross-saturation angle taken out)."""
     spec = injection_spec(spec)
     motor = spec_motor(spec)
     options = dict(observer_options or {})
