@@ -201,18 +201,12 @@ def precheck(args):
 
 
 def _check_injection_region(args, spec, names) -> None:
-    """On a drive file with a flux map: refuse a map without an injection region, and a load beyond it for
-    HF injection alone (the hybrid hands over to its observer there), in one line naming where the load
-    came from (``--load-nm`` or the file's ``[scenario] load_nm``)
-    ([`pmsmjax.estimators.injection_region`][pmsmjax.estimators.injection_region]; NumPy, though the module
-    brings JAX in)."""
-    from pmsmjax.estimators.injection_region import check_injection_load, spec_injection_region
+    """On a drive file with a flux map: the injection region's refusals
+    ([`pmsmjax.jobs.estimator_comparison.check_injection_region`][pmsmjax.jobs.estimator_comparison.check_injection_region]),
+    the load named by where it came from (``--load-nm`` or the file's ``[scenario] load_nm``)."""
+    from pmsmjax.jobs.estimator_comparison import check_injection_region
 
-    region = spec_injection_region(spec)
-    flag = drive_flags.scenario_name(args, "load_nm")
-    for name in names:
-        if name.startswith("hfi-"):
-            check_injection_load(region, args.load_nm, flag, name)
+    check_injection_region(spec, names, args.load_nm, drive_flags.scenario_name(args, "load_nm"))
 
 
 #: The chapter 6 estimators ``compare --estimator`` takes (the keys of

@@ -88,7 +88,8 @@ class HybridState(eqx.Module):
     observer: object  # the observer's state
     speed: Array  # rad/s mechanical, filtered |speed| that schedules the hand-over
     correction: Array  # rad, 0 or pi added to the injection's angle (polarity from the observer)
-    current: Array  # A, filtered fundamental current magnitude that schedules the hand-over by current
+    # A, filtered fundamental current magnitude that schedules the hand-over by current
+    current: Array = eqx.field(default_factory=lambda: jnp.zeros(()))
 
 
 def smoothstep(x):

@@ -245,6 +245,6 @@ def check_injection_load(region: InjectionRegion, load_nm: float, flag: str, est
     if not region.serves(load_nm):
         raise ParameterError(
             f"{flag} {plain(load_nm)} N m: on {region.source} {estimator} {region.describe()}; give a load "
-            f"of at most {region.max_torque_nm:.3g} N m, or the hybrid (which hands over to its back-EMF "
-            "observer beyond it) or a back-EMF observer."
+            f"of at most {region.max_torque_nm:.3g} N m; beyond it only a back-EMF observer (or the "
+            "hybrid above its speed band) holds the angle, at speed."
         )

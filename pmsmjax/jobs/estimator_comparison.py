@@ -134,6 +134,19 @@ def map_observer_drive(spec, name: str, bridge: str = "averaged", observer_model
     return drive
 
 
+def check_injection_region(spec, names, load_nm: float, flag: str = "--load-nm") -> None:
+    """Refuse, in one line, chapter 6 estimators on the drive file ``spec`` with a flux map whose map has no
+    injection region, and a load ``load_nm`` (N m; ``flag`` says where it came from) beyond the region for
+    HF injection alone (the hybrid is left to run: its observer takes over above its speed band)
+    ([`pmsmjax.estimators.injection_region`][pmsmjax.estimators.injection_region]; NumPy)."""
+    from pmsmjax.estimators.injection_region import check_injection_load, spec_injection_region
+
+    region = spec_injection_region(spec)
+    for name in names:
+        if name.startswith("hfi-"):
+            check_injection_load(region, load_nm, flag, name)
+
+
 def map_chapter6_drive(spec, name: str, bridge: str = "averaged") -> Drive:
     """The FOC drive of the drive file ``spec`` with a flux map (its plant, current loop and field
     weakening, [`pmsmjax.assemble.assemble`][pmsmjax.assemble.assemble]) sensorless on the injection or
