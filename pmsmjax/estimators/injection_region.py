@@ -17,9 +17,7 @@ designed at ``w`` (``kp = 2 w``, ``ki = w^2``) then has ``w_n = w sqrt(signal)``
 ``L_dd`` (the saliency inverts) and rises again past it, now turned towards q: there the injection finds
 the q axis, not the d axis. P. Guglielmi, M. Pastorelli, A. Vagati, "Cross-saturation effects in IPM
 motors and related impact on sensorless control", IEEE TIA 42(6), 2006, doi:10.1109/TIA.2006.882646
-(the saliency's direction and magnitude across the load range); S.-K. Sul, "Control of Electric Machine
-Drive Systems", Wiley-IEEE Press, 2011, doi:10.1002/9780470876541 (ch. 7: the carrier current's
-amplitude is set by the difference of the inverse incremental inductances).
+(the saliency's direction and magnitude across the load range).
 
 **The lock.** Two figures per point on the locus:
 
