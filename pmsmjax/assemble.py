@@ -62,6 +62,7 @@ __all__ = [
     "current_sensor_parts",
     "observer",
     "map_aware",
+    "map_injection_design",
     "thermal_part",
     "shaft_parts",
     "speed_filter_parts",
@@ -211,7 +212,10 @@ def assemble(
                 f"current); control {control!r} is not one: choose "
                 f"{' or '.join(registry.names('control', group='foc'))}."
             )
-        found = observer(drive, estimator, motor, observer_options, True, startup_options(spec))
+        model, found_options = motor, observer_options
+        if spec.flux_map is not None and observer_model != "constant":
+            model, found_options = map_injection_design(spec, estimator, motor, observer_options)
+        found = observer(drive, estimator, model, found_options, True, startup_options(spec))
         if spec.flux_map is not None and observer_model != "constant":
             found = map_aware(found, spec)
         parts["estimator"] = found
@@ -398,16 +402,44 @@ def observer(
     return found
 
 
+def map_injection_design(spec, name: str, motor: PMSMParameters, options=None):
+    """``(model, options)`` that design the estimator ``name`` on the drive file ``spec``'s flux map: HF
+    injection (``hfi-rotating``, ``hfi-pulsating``) on the map's incremental inductances at no load
+    ([`injection_model`][pmsmjax.estimators.hfi_cross_saturation.injection_model]: the file's linear model
+    is taken at the rated current, where the q path may have saturated below ``L_d``), the hybrid's
+    injection likewise (its observer keeps ``motor``); other estimators unchanged. Refused in one line
+    where the map has no injection region
+    ([`spec_injection_region`][pmsmjax.estimators.injection_region.spec_injection_region])."""
+    from pmsmjax.estimators.hfi_cross_saturation import injection_model
+    from pmsmjax.estimators.injection_region import spec_injection_region
+    from pmsmjax.estimators.registry import HYBRID_OBSERVERS, INJECTION_OBSERVERS
+
+    options = dict(options or {})
+    if name not in INJECTION_OBSERVERS and name not in HYBRID_OBSERVERS:
+        return motor, options
+    spec_injection_region(spec)
+    no_load = injection_model(spec.flux_map, motor, (0.0, 0.0))
+    if name in INJECTION_OBSERVERS:
+        return no_load, options
+    options.setdefault("injection_motor", no_load)
+    return motor, options
+
+
 def map_aware(estimator, spec):
     """``estimator`` reading the file's flux map: HF injection corrected by the map's cross-saturation
     angle ([`pmsmjax.estimators.hfi_cross_saturation`][pmsmjax.estimators.hfi_cross_saturation]), a back-EMF
     observer or the EKF keeping its constant model with its angle corrected by the map at the operating
-    current ([`pmsmjax.estimators.map_angle_corrected`][pmsmjax.estimators.map_angle_corrected]); an I/f start
-    keeps wrapping it."""
+    current ([`pmsmjax.estimators.map_angle_corrected`][pmsmjax.estimators.map_angle_corrected]); the
+    hybrid each of its two so (its hand-over by current at the map's injection region is not set here:
+    [`with_current_handover`][pmsmjax.estimators.hybrid.with_current_handover] with
+    [`spec_injection_region`][pmsmjax.estimators.injection_region.spec_injection_region]'s
+    ``max_current_a``); an I/f start or a polarity detector keeps wrapping it."""
     from pmsmjax.estimators.hfi_cross_saturation import cross_saturation_compensated
     from pmsmjax.estimators.hfi_pulsating import HFIPulsating
     from pmsmjax.estimators.hfi_rotating import HFIRotating
+    from pmsmjax.estimators.hybrid import HybridEstimator
     from pmsmjax.estimators.map_angle_corrected import map_angle_corrected
+    from pmsmjax.estimators.polarity import PolarityDetector
     from pmsmjax.estimators.startup import StartupEstimator
     from pmsmjax.machines.pmsm_flux_map import FluxMap
 
@@ -419,8 +451,12 @@ def map_aware(estimator, spec):
     flux_map = FluxMap.from_grid(spec.flux_map)
 
     def aware(found):
-        if isinstance(found, StartupEstimator):
+        if isinstance(found, (StartupEstimator, PolarityDetector)):
             return with_parts(found, {"observer": aware(found.observer)})
+        if isinstance(found, HybridEstimator):
+            # no hand-over by current here: measured on saturated-ipm it hands a blind observer the angle
+            # at standstill (docs, chapter 6); with_current_handover sets it where it is wanted
+            return with_parts(found, {"injection": aware(found.injection), "observer": aware(found.observer)})
         if isinstance(found, (HFIRotating, HFIPulsating)):
             return cross_saturation_compensated(found, flux_map)
         if hasattr(found, "with_flux_map"):  # an observer written on the current-flux relation reads the map

@@ -188,13 +188,8 @@ def precheck(args):
             "where the observers may read the map or its constants: drop it."
         )
     if on_map and chapter6:
-        ch6 = ", ".join(n for n in names if n in CHAPTER6_NAMES)
-        raise ParameterError(
-            f"--motor {args.motor} --estimator {ch6}: the chapter 6 comparison runs its own salient motor "
-            "with a d-axis saturation model, which would stand in for this file's flux map; compare the "
-            "chapter 5 observers and flux-observer on the map, or these on --motor book_salient."
-        )
-    if chapter6 and not motor["L_q"] > motor["L_d"]:
+        _check_injection_region(args, spec, names)
+    if chapter6 and not on_map and not motor["L_q"] > motor["L_d"]:
         raise ParameterError(
             f"--motor {args.motor}: L_q = {plain(motor['L_q'])} H is not above L_d = "
             f"{plain(motor['L_d'])} H; HF injection needs a salient machine: give --motor book_salient or "
@@ -203,6 +198,15 @@ def precheck(args):
     if not fixed:
         compare_job.check_operating_point(spec, args.speed_rpm, args.load_nm, drive_flags.U_DC_KNOB)
     return names, spec
+
+
+def _check_injection_region(args, spec, names) -> None:
+    """On a drive file with a flux map: the injection region's refusals
+    ([`pmsmjax.jobs.estimator_comparison.check_injection_region`][pmsmjax.jobs.estimator_comparison.check_injection_region]),
+    the load named by where it came from (``--load-nm`` or the file's ``[scenario] load_nm``)."""
+    from pmsmjax.jobs.estimator_comparison import check_injection_region
+
+    check_injection_region(spec, names, args.load_nm, drive_flags.scenario_name(args, "load_nm"))
 
 
 #: The chapter 6 estimators ``compare --estimator`` takes (the keys of

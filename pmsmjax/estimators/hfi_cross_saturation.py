@@ -163,6 +163,12 @@ class CrossSaturationCompensated(AbstractEstimator):
         dtype = sample.i_ab.dtype
         return CrossSaturationState(self.injection.init(sample), jnp.zeros(2, dtype), jnp.zeros((), dtype))
 
+    def pull(self, state: CrossSaturationState, estimate: Estimate, theta_e, omega_m, strength):
+        """The injection's PLL pulled by the corrected estimate's distance to the target (the correction is
+        a shift of the same estimate, so the distance is the same inside; the hybrid's pull)."""
+        injection = self.injection.pull(state.injection, estimate, theta_e, omega_m, strength)
+        return dataclasses.replace(state, injection=injection)
+
     def step(
         self, state: CrossSaturationState, sample: Sample, Ts: float
     ) -> tuple[CrossSaturationState, Estimate]:

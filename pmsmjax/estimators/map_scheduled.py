@@ -45,6 +45,7 @@ machine carries that reference turned by the error: a fixed point, as for HF inj
 ([`hfi_cross_saturation`][pmsmjax.estimators.hfi_cross_saturation]).
 """
 
+import dataclasses
 import math
 
 import equinox as eqx
@@ -146,6 +147,12 @@ class AbstractMapAwareObserver(AbstractEstimator):
     def init(self, sample: Sample) -> MapAwareState:
         zero = jnp.zeros((), sample.i_ab.dtype)
         return MapAwareState(self.observer.init(sample), jnp.zeros(2, sample.i_ab.dtype), zero)
+
+    def pull(self, state: MapAwareState, estimate: Estimate, theta_e, omega_m, strength) -> MapAwareState:
+        """The wrapped observer pulled by the estimate's distance to the target (the wrapper's angle
+        correction moves with it, so the distance is the same inside)."""
+        inner = self.observer.pull(state.observer, estimate, theta_e, omega_m, strength)
+        return dataclasses.replace(state, observer=inner)
 
     def operating_current(self, state: MapAwareState, sample: Sample, Ts: float) -> Array:
         """``(2,)`` A: the low-passed current in the frame of the last estimate."""

@@ -134,6 +134,36 @@ def map_observer_drive(spec, name: str, bridge: str = "averaged", observer_model
     return drive
 
 
+def check_injection_region(spec, names, load_nm: float, flag: str = "--load-nm") -> None:
+    """Refuse, in one line, chapter 6 estimators on the drive file ``spec`` with a flux map whose map has no
+    injection region, and a load ``load_nm`` (N m; ``flag`` says where it came from) beyond the region for
+    HF injection alone (the hybrid is left to run: its observer takes over above its speed band)
+    ([`pmsmjax.estimators.injection_region`][pmsmjax.estimators.injection_region]; NumPy)."""
+    from pmsmjax.estimators.injection_region import check_injection_load, spec_injection_region
+
+    region = spec_injection_region(spec)
+    for name in names:
+        if name.startswith("hfi-"):
+            check_injection_load(region, load_nm, flag, name)
+
+
+def map_chapter6_drive(spec, name: str, bridge: str = "averaged") -> Drive:
+    """The FOC drive of the drive file ``spec`` with a flux map (its plant, current loop and field
+    weakening, [`pmsmjax.assemble.assemble`][pmsmjax.assemble.assemble]) sensorless on the injection or
+    hybrid estimator ``name``, designed on the map's incremental inductances at no load
+    ([`map_injection_design`][pmsmjax.assemble.map_injection_design]) and map-aware
+    ([`map_aware`][pmsmjax.assemble.map_aware]: the cross-saturation angle taken out); no I/f start
+    (injection sees the rotor at standstill); on ``bridge``."""
+    from pmsmjax.assemble import assemble, map_injection_design, spec_motor, with_map_aware_estimator
+
+    model, options = map_injection_design(spec, name, spec_motor(spec))
+    drive = presets.with_observer(assemble(spec, "pi"), name, model, options, startup=False)
+    drive = with_map_aware_estimator(spec, drive)
+    if bridge == "switching":
+        drive = with_parts(drive, {"bridge": SwitchingBridge(drive.bridge.u_dc)})
+    return drive
+
+
 def handover_settled_s(drive: Drive) -> float:
     """When the angle error of ``drive``'s I/f start is judged from, s: the end of its hand-over (the I/f
     ramp at ``handover_speed + blend_speed``) plus the margin the book drive has between its own hand-over
@@ -353,9 +383,10 @@ def compare_estimators(
     ``spec``: a drive file ([`pmsmjax.spec.drive_spec.DriveSpec`][pmsmjax.spec.drive_spec.DriveSpec]) whose
     own drive runs each chapter 5 observer instead of the book drive
     ([`map_observer_drive`][pmsmjax.jobs.estimator_comparison.map_observer_drive] with ``observer_model``;
-    ``motor`` is then unused); the chapter 6 estimators are refused there (their comparison runs its own
-    salient motor). The result's settings then name the drive, the observer model and the time the figures
-    after convergence start from
+    ``motor`` is then unused); the chapter 6 estimators run the file's own drive on its flux map
+    ([`map_chapter6_drive`][pmsmjax.jobs.estimator_comparison.map_chapter6_drive]) and are refused on a file
+    without one (their comparison runs its own salient motor). The result's settings then name the drive,
+    the observer model and the time the figures after convergence start from
     ([`handover_settled_s`][pmsmjax.jobs.estimator_comparison.handover_settled_s] of the file's I/f start).
     """
     settings = ControllerCompareSettings() if settings is None else settings
@@ -365,13 +396,15 @@ def compare_estimators(
     chapter6 = any(f != "ch5" for f in families.values())
     if initial_angle_deg is None:
         initial_angle_deg = CHAPTER6_INITIAL_ANGLE_DEG if chapter6 else 0.0
-    if spec is not None:
-        if chapter6:
+    if spec is not None and chapter6:
+        if spec.flux_map is None:
             raise ParameterError(
                 f"{', '.join(n for n in names if families[n] != 'ch5')}: the chapter 6 comparison runs "
-                "the salient book motor with its d-axis saturation, not a drive file's drive: compare the "
-                "chapter 5 observers on the file, or these without it."
+                "the salient book motor with its d-axis saturation, or a drive file's own drive on its "
+                f"flux map; {spec.source} has none: compare these without it."
             )
+        drives = {name: map_chapter6_drive(spec, name, settings.bridge) for name in names}
+    elif spec is not None:
         drives = {name: map_observer_drive(spec, name, settings.bridge, observer_model) for name in names}
     else:
         build = chapter6_drive if chapter6 else observer_drive
@@ -388,7 +421,10 @@ def compare_estimators(
     result["settings"]["initial_angle_deg"] = initial_angle_deg
     # the book comparison's settings stay as they were; a drive file's I/f start has its own duration
     settled = {}
-    if spec is not None:
+    if spec is not None and chapter6:
+        result["settings"]["drive"] = spec.source
+        result["settings"]["observer_model"] = "map"
+    elif spec is not None:
         result["settings"]["drive"] = spec.source
         result["settings"]["observer_model"] = observer_model if spec.flux_map is not None else None
         settled = {"converged_after_s": handover_settled_s(next(iter(drives.values())))}

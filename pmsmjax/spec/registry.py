@@ -297,6 +297,7 @@ REGISTRY: tuple[Method, ...] = (
             "injection_options",
             "observer_options",
             "polarity_options",
+            "injection_motor",
         ),
         "hybrid",
     ),  # fmt: skip

@@ -38,11 +38,11 @@ def test_compare_on_the_flux_map_drive(tmp_path):
 
 
 def test_the_observer_comparison_refuses_what_does_not_run_on_the_map(tmp_path, capsys):
-    # the chapter 6 comparison runs its own salient motor with a d-axis saturation model: on a map file
-    # that would stand in for the map; --observer-model means nothing without a map
+    # HF injection runs on the map within its injection region: the file's 4.94 N m scenario load is beyond
+    # saturated-ipm's 3.23 N m; --observer-model means nothing without a map
     out = tmp_path / "cmp"
     for argv, words in (
-        (["--motor", "saturated-ipm", "--estimator", "hfi-pulsating"], "chapter 6 comparison runs its own"),
+        (["--motor", "saturated-ipm", "--estimator", "hfi-pulsating"], "[scenario] load_nm = 4.94"),
         (["--motor", "saturated-ipm", "--estimator", "smo,hybrid"], "mixes chapter 5 observers"),
         (["--estimator", "smo", "--observer-model", "constant"], "--observer-model applies to --estimator"),
         (["--motor", "saturated-ipm", "--observer-model", "map"], "--observer-model applies to --estimator"),

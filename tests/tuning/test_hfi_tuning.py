@@ -139,3 +139,27 @@ def test_command_writes_its_outputs_with_angles_modulo_pi(tmp_path):
     assert set(read_gains_toml(out / "gains.toml")) == set(observer_tuning("hfi-pulsating").names)
     for name in ("cost.png", "responses.png", "checkpoint.npz"):
         assert (out / name).stat().st_size > 0
+
+
+def test_injection_on_a_flux_map_file_is_tuned_within_its_region():
+    """saturated-ipm: its linear model at the rated current (L_q below L_d) no longer refuses it; the
+    injection is designed on the map at no load, runs map-compensated, its gains are named through the
+    wrapper, and its loads stop at the injection region's torque (the hybrid's at the rated one)."""
+    from pmsmjax.estimators.hfi_cross_saturation import CrossSaturationCompensated
+    from pmsmjax.estimators.injection_region import spec_injection_region
+    from pmsmjax.io.drive_files import drive_spec as _drive_spec
+    from tuning.autotune.drive_batches import drive_batches as _drive_batches
+    from tuning.autotune.observers import tuned_names as _tuned_names
+    from tuning.parameters import get_leaf
+
+    spec = _drive_spec("saturated-ipm")
+    assert spec.motor["L_q"] < spec.motor["L_d"]
+    drive = observer_drive("hfi-pulsating", spec=spec)
+    assert isinstance(drive.estimator.observer, CrossSaturationCompensated)
+    names = _tuned_names("hfi-pulsating", drive)
+    assert names[0] == "estimator.observer.injection.bandpass_bandwidth"
+    assert all(float(get_leaf(drive, n)) > 0 for n in names)
+    assert drive.estimator.observer.injection.L_q > drive.estimator.observer.injection.L_d
+    region = spec_injection_region(spec)
+    assert _drive_batches(spec, "hfi-pulsating").ranges["load_nm"] == (0.0, region.max_torque_nm)
+    assert _drive_batches(spec, "hybrid").ranges["load_nm"] == (0.0, spec.ratings["rated_torque_nm"])

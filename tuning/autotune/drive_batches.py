@@ -9,7 +9,9 @@ or an observer ([`tuning.autotune.drive_scaling`][tuning.autotune.drive_scaling]
   hold scaled with the tuning durations, durations half the drive's tuning durations;
 - chapter 6 estimators:
   [`tuning.autotune.hfi_tuning.make_injection_batch`][tuning.autotune.hfi_tuning.make_injection_batch] on
-  [`injection_spec`][tuning.autotune.hfi_tuning.injection_spec] likewise.
+  [`injection_spec`][tuning.autotune.hfi_tuning.injection_spec] likewise, loads up to
+  [`injection_load_nm`][tuning.autotune.hfi_tuning.injection_load_nm] (on a flux map the injection region's
+  torque where it is below the rated one).
 
 On the book drive every batch is the book's to the bit (tests/tuning/test_drive_scaling.py).
 """
@@ -49,10 +51,10 @@ def drive_batches(spec: DriveSpec, estimator: str | None = None) -> DriveBatches
     options = dict(warmup_s=warmup, hold_s=HOLD_S * stretch, Ts=spec.Ts)
     duration = tuple(0.5 * d for d in spec.tuning["duration_s"])
     if observer_tuning(estimator).chapter6:
-        from tuning.autotune.hfi_tuning import injection_batch_maker, injection_spec
+        from tuning.autotune.hfi_tuning import injection_batch_maker, injection_load_nm
 
         maker = injection_batch_maker(estimator, spec)
-        options.update(load_nm=(0.0, injection_spec(spec).ratings["rated_torque_nm"]))
+        options.update(load_nm=injection_load_nm(estimator, spec))
     else:
         maker = make_observer_batch
         top = drive_scaling.observer_top_speed_rpm(spec, RATED_SPEED_RPM)

@@ -72,9 +72,17 @@ MIN_SALIENCY = 0.05
 def injection_spec(spec: DriveSpec | None) -> DriveSpec:
     """The drive file the chapter 6 estimators run on: the salient book motor for the book drive (or
     none), else ``spec`` itself, which must be salient (L_q > L_d: the injection finds the d axis from
-    the saliency)."""
+    the saliency). On a flux map the saliency is the map's at light load, not the linear model's at the
+    rated current (whose q path may be saturated below L_d): the file is refused only where the map has no
+    injection region at all
+    ([`spec_injection_region`][pmsmjax.estimators.injection_region.spec_injection_region])."""
     if spec is None or spec.source == "book":
         return drive_spec("book_salient")
+    if spec.flux_map is not None:
+        from pmsmjax.estimators.injection_region import spec_injection_region
+
+        spec_injection_region(spec)
+        return spec
     L_d, L_q = spec.motor["L_d"], spec.motor["L_q"]
     if not L_q > L_d * (1.0 + MIN_SALIENCY):
         raise ParameterError(
@@ -92,13 +100,24 @@ def injection_sensorless_drive(
     by default) with the chapter 6 estimator ``name`` (design rule, overridden by ``observer_options``; the
     hybrid without its polarity detector), on the saturated plant (its current scale the book's 8 A times the
     drive's current limit over the book's 15 A); ``kw`` are preset options of the FOC drive (``n_substeps``,
-    ...)."""
+    ...).
+
+    On a drive file with a flux map the plant is the map's (as every command runs the file), the injection
+    is designed on the map's incremental inductances at no load
+    ([`map_injection_design`][pmsmjax.assemble.map_injection_design]) and runs map-aware
+    ([`pmsmjax.assemble.map_aware`][pmsmjax.assemble.map_aware]: the cross-saturation angle taken out)."""
     spec = injection_spec(spec)
     motor = spec_motor(spec)
     options = dict(observer_options or {})
     if name == "hybrid":
         options = {"polarity": False, **options}
     foc = spec_drive(spec, "pi", **kw)
+    if spec.flux_map is not None:
+        from pmsmjax.assemble import map_injection_design, with_map_aware_estimator
+
+        model, options = map_injection_design(spec, name, motor, options)
+        drive = presets.with_observer(foc, name, model, options, startup=False)
+        return with_map_aware_estimator(spec, drive)
     drive = presets.with_observer(foc, name, motor, options, startup=False)
     current_scale = SATURATION_CURRENT_A * noise_scale(spec)[0]
     return set_leaves(drive, ["machine"], [saturated_machine(motor, current_scale=current_scale)])
@@ -181,16 +200,34 @@ def make_injection_batch(
     )
 
 
+def injection_load_nm(name: str, spec: DriveSpec | None = None) -> tuple[float, float]:
+    """The load range of ``name``'s tuning batches, N m: up to the drive's rated torque
+    ([`injection_spec`][tuning.autotune.hfi_tuning.injection_spec]); on a flux map the injection estimators'
+    loads stop at the map's injection region
+    ([`spec_injection_region`][pmsmjax.estimators.injection_region.spec_injection_region]), beyond which
+    they lose the d axis whatever their gains (the hybrid's keep the rated torque: it hands over to its
+    back-EMF observer there)."""
+    spec = injection_spec(spec)
+    top = spec.ratings["rated_torque_nm"]
+    if spec.flux_map is not None and name != "hybrid":
+        from pmsmjax.estimators.injection_region import spec_injection_region
+
+        top = min(top, spec_injection_region(spec).max_torque_nm)
+    return 0.0, top
+
+
 def injection_batch_maker(name: str, spec: DriveSpec | None = None):
     """The batch maker of chapter 6 estimator ``name`` for the tune job:
     [`make_injection_batch`][tuning.autotune.hfi_tuning.make_injection_batch] at its
     [`MAX_RPM`][tuning.autotune.hfi_tuning.MAX_RPM] and
     [`STANDSTILL_LOAD_NM`][tuning.autotune.hfi_tuning.STANDSTILL_LOAD_NM] scaled to the drive
-    ([`injection_spec`][tuning.autotune.hfi_tuning.injection_spec]'s rated speed and torque over the book's);
+    ([`injection_spec`][tuning.autotune.hfi_tuning.injection_spec]'s rated speed and torque over the book's;
+    the standstill load at most [`injection_load_nm`][tuning.autotune.hfi_tuning.injection_load_nm]'s top);
     the job's default kinds (the chapter 5 ``("step",)``) mean
     [`INJECTION_KINDS`][tuning.autotune.hfi_tuning.INJECTION_KINDS]."""
     spec = injection_spec(spec)
     max_rpm, standstill = MAX_RPM[name] * speed_scale(spec), STANDSTILL_LOAD_NM * torque_scale(spec)
+    standstill = min(standstill, injection_load_nm(name, spec)[1])  # inside a map's injection region
 
     def make(n, seed, *, kinds=INJECTION_KINDS, **options):
         kinds = INJECTION_KINDS if tuple(kinds) == ("step",) else tuple(kinds)

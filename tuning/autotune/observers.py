@@ -171,17 +171,29 @@ def observer_tuning(name: str) -> ObserverTuning:
 
 def tuned_names(name: str, drive) -> tuple[str, ...]:
     """The default tuned parameters of observer ``name`` (``observer_tuning(name).names``) as paths of
-    ``drive`` (an [`observer_drive`][tuning.autotune.observers.observer_drive]): one level further down,
-    ``estimator.observer.observer.<gain>``, when the observer sits inside a map-aware wrapper
-    ([`AbstractMapAwareObserver`][pmsmjax.estimators.map_scheduled.AbstractMapAwareObserver], the flux
-    map's angle correction)."""
+    ``drive`` (an [`observer_drive`][tuning.autotune.observers.observer_drive]): one level further down
+    wherever the path passes a map-aware wrapper, ``estimator.observer.observer.<gain>`` for an observer
+    inside [`AbstractMapAwareObserver`][pmsmjax.estimators.map_scheduled.AbstractMapAwareObserver] (the flux
+    map's angle correction), ``estimator.observer.injection.<gain>`` for HF injection inside
+    [`CrossSaturationCompensated`][pmsmjax.estimators.hfi_cross_saturation.CrossSaturationCompensated]
+    (and ``estimator.observer.injection.injection.<gain>`` for the hybrid's)."""
+    return tuple(_through_wrappers(drive, n) for n in observer_tuning(name).names)
+
+
+def _through_wrappers(drive, path: str) -> str:
+    from pmsmjax.estimators.hfi_cross_saturation import CrossSaturationCompensated
     from pmsmjax.estimators.map_scheduled import AbstractMapAwareObserver
 
-    names = observer_tuning(name).names
-    if not isinstance(drive.estimator.observer, AbstractMapAwareObserver):
-        return names
-    head = "estimator.observer."
-    return tuple(head + "observer." + n[len(head) :] for n in names)
+    inner = {AbstractMapAwareObserver: "observer", CrossSaturationCompensated: "injection"}
+    out, node = [], drive
+    for part in path.split("."):
+        wrapped = next((field for kind, field in inner.items() if isinstance(node, kind)), None)
+        if wrapped is not None and part != wrapped:  # a gain of the wrapped estimator, not of the wrapper
+            out.append(wrapped)
+            node = getattr(node, wrapped)
+        out.append(part)
+        node = getattr(node, part.split("[")[0], None)
+    return ".".join(out)
 
 
 def observer_drive(
