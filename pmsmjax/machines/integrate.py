@@ -107,11 +107,25 @@ def rk4_step_rotating_hold(
         axis = rotate_back(stator_axis, delta) if carried else None
         return MachineInput(rotate_back(u_dq, delta), load_torque, "rotor", axis)
 
-    # The stages' arithmetic on the state packed into one vector (ravel order: currents, omega_m, theta_e,
-    # shaft): XLA:CPU then computes a stage's derivative in one fused kernel, where on the separate leaves
-    # it copied the derivative's whole chain (the harmonics' terms) into every kernel that read one of them
-    # (docs/performance.md, "Ripple"). The same operations per component; XLA compiles them into other
-    # kernels, so results agree with the leaf-by-leaf form to float rounding (1e-14 relative in float64).
+    if not carried:
+        # Without position-dependent terms the stages stay on the state's leaves: the compiled program is
+        # then the same for every batch width, so Monte Carlo results are bitwise equal across chunk sizes
+        # and device counts (docs/scaling.md); on the packed vector below they differ in the last bit.
+        f = lambda x, delta: machine.vector_field(None, x, inputs(delta))
+        add = lambda x, k, a: jax.tree.map(lambda xi, ki: xi + a * ki, x, k)
+        k1 = f(state, None)
+        k2 = f(add(state, k1, 0.5 * h), 0.5 * h * k1.theta_e)
+        k3 = f(add(state, k2, 0.5 * h), 0.5 * h * k2.theta_e)
+        k4 = f(add(state, k3, h), h * k3.theta_e)
+        increment = jax.tree.map(lambda a, b, c, d: (h / 6.0) * (a + 2.0 * b + 2.0 * c + d), k1, k2, k3, k4)
+        new_state = jax.tree.map(lambda x, dx: x + dx, state, increment)
+        return new_state, rotate_back(u_dq, increment.theta_e)
+    # With harmonics, the stages' arithmetic on the state packed into one vector (ravel order: currents,
+    # omega_m, theta_e, shaft): XLA:CPU then computes a stage's derivative in one fused kernel, where on the
+    # separate leaves it copied the derivative's whole chain (the harmonics' terms) into every kernel that
+    # read one of them (docs/performance.md, "Ripple"). The same operations per component; XLA compiles them
+    # into other kernels, so results agree with the leaf-by-leaf form to float rounding (1e-14 relative in
+    # float64).
     x0, unravel = ravel_pytree(state)
     angle = state.currents.size + state.omega_m.size
     f = lambda x, delta: ravel_pytree(machine.vector_field(None, unravel(x), inputs(delta)))[0]
@@ -121,10 +135,7 @@ def rk4_step_rotating_hold(
     k4 = f(x0 + h * k3, h * k3[angle])
     increment = (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
     new_state = unravel(x0 + increment)
-    end = rotate_back(u_dq, increment[angle])
-    if not carried:
-        return new_state, end
-    return new_state, end, rotate_back(stator_axis, increment[angle])
+    return new_state, rotate_back(u_dq, increment[angle]), rotate_back(stator_axis, increment[angle])
 
 
 def advance(

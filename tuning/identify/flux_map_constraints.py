@@ -32,6 +32,7 @@ __all__ = [
     "symmetric_inductances",
     "node_inductance_rows",
     "solve_constrained",
+    "factor",
     "CUT_ROUNDS",
 ]
 

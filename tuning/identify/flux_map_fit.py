@@ -119,6 +119,9 @@ __all__ = [
     "SPEED_JUMP",
     "MIN_NODE_SAMPLES",
     "SMOOTHNESS",
+    "RESIDUAL_GROWTH",
+    "CONTRADICTED_SHARE",
+    "ENDPOINT_SAMPLES",
 ]
 
 #: An interval whose electrical speed changes by more than this share of the top speed is a reversal.
