@@ -16,7 +16,17 @@ import numpy as np
 
 from pmsmjax.analysis.loop_linearisation import check_linearisable, linearise_traced
 
-__all__ = ["spectral_radii"]
+__all__ = ["check_nominal", "spectral_radii"]
+
+
+def check_nominal(drive, study, apply_sample) -> None:
+    """Refuse, in one line, a nominal drive or a final operating point outside the linearisation's scope
+    ([`check_linearisable`][pmsmjax.analysis.loop_linearisation.check_linearisable]): called before the
+    study runs, so that nothing is simulated or written for a check that cannot be made."""
+    d0, s0 = apply_sample(drive, study, (), ())
+    check_linearisable(
+        d0, float(s0.speed_ref.values[-1]), float(s0.load_torque.values[-1]), where="the study's scenario"
+    )
 
 
 def spectral_radii(drive, study, names, values: np.ndarray, apply_sample, chunk: int = 256) -> tuple:
@@ -33,10 +43,7 @@ def spectral_radii(drive, study, names, values: np.ndarray, apply_sample, chunk:
     Raises:
         ParameterError: When the nominal drive or its operating point is outside the linearisation's scope.
     """
-    d0, s0 = apply_sample(drive, study, (), ())
-    check_linearisable(
-        d0, float(s0.speed_ref.values[-1]), float(s0.load_torque.values[-1]), where="the study's scenario"
-    )
+    check_nominal(drive, study, apply_sample)
 
     @eqx.filter_jit
     def matrices(rows):

@@ -312,6 +312,10 @@ def run_study(
     out = Path(out_dir)
     runner = _runner(study, mesh)
     runner.check()
+    if study.linear_stability:  # its scope checked on the nominal drive before any run or file
+        from tuning.montecarlo.linear_stability import check_nominal
+
+        check_nominal(runner.drive, study, mc_study.apply_sample)
     dists = mc_study.distributions(study, runner.drive)
     samples = sample(dists, study.n, study.seed, study.sampling)
     nonphysical = physical_range.enforce_physical(
