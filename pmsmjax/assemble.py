@@ -454,8 +454,8 @@ def map_aware(estimator, spec):
         if isinstance(found, (StartupEstimator, PolarityDetector)):
             return with_parts(found, {"observer": aware(found.observer)})
         if isinstance(found, HybridEstimator):
-            # no hand-over by current here: measured on saturated-ipm it hands a blind observer the angle
-            # at standstill (docs, chapter 6); with_current_handover sets it where it is wanted
+            # no hand-over by current here: at standstill it would hand the angle to an observer that sees
+            # no back-EMF (docs, chapter 6); with_current_handover sets it where it is wanted
             return with_parts(found, {"injection": aware(found.injection), "observer": aware(found.observer)})
         if isinstance(found, (HFIRotating, HFIPulsating)):
             return cross_saturation_compensated(found, flux_map)

@@ -34,9 +34,9 @@ makes it go wrong) through a first-order filter of bandwidth ``current_filter``.
 as a magnitude because along the MTPA locus ``|i|`` and ``|i_q|`` rise together; at speed the speed weight
 is 1 anyway. [`with_current_handover`][pmsmjax.estimators.hybrid.with_current_handover] sets ``I_1`` (the
 current at the end of a map's injection region) and ``I_0`` = 80 % of it. Below the speed band the observer
-then runs on its own at low speed, where a back-EMF observer sees little: measured on saturated-ipm
-(docs, chapter 6) the EKF taking over at standstill under a load beyond the region lost the angle sooner
-than the fading injection did, so the drives built on a map file leave it off.
+then runs on its own at low speed, where a back-EMF observer sees little: at standstill under a load
+beyond the region the EKF holds the angle worse than the fading injection (docs, chapter 6, on
+saturated-ipm), so the drives built on a map file leave it off.
 
 The band ``(w_low, w_high, w_off)`` and the filter are parameters (tunable; differentiable: the weight
 and the fade are smooth in them). Defaults ([`hybrid_design`][pmsmjax.estimators.hybrid.hybrid_design]): 5 %
